@@ -38,3 +38,15 @@ def where(file: str | Path | None = None, key: str | None = None, line: int | No
     if key is not None:
         parts.append(f"key '{key}'")
     return ": ".join(parts) if parts else "input"
+
+
+class DPSetupError(HevsimError):
+    """A dynamic-programming problem or option is malformed (grid, target, memory limit)."""
+
+
+class DPModelError(HevsimError):
+    """A dynamic-programming model returned outputs of the wrong shape, NaN or -inf."""
+
+
+class DPInfeasibleError(HevsimError):
+    """No admissible input sequence leads from the initial state to the final-state target."""

@@ -308,8 +308,7 @@ def read_csv_columns(path: str | Path, columns: list[str]) -> dict[str, FloatArr
     missing = [c for c in columns if c not in frame.columns]
     if missing:
         raise InputError(
-            f"{p}: missing column(s) {missing}; found {list(frame.columns)}, expected "
-            f"{columns}."
+            f"{p}: missing column(s) {missing}; found {list(frame.columns)}, expected {columns}."
         )
     out: dict[str, FloatArray] = {}
     for c in columns:

@@ -1,0 +1,126 @@
+"""Vehicle body: longitudinal dynamics with grade and headwind, eqs (1)-(5) and (32) of the thesis.
+
+Sign conventions: speed ``v_mps`` >= 0 forward; ``grade`` is rise/run (tan of the incline
+angle); forces [N] resisting motion are positive.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from hevsim.units import STANDARD_GRAVITY
+
+AIR_DENSITY_KGPM3 = 1.18
+"""Air density used by the thesis, Table 2.2 [kg/m^3]."""
+
+
+@njit(cache=True)
+def aero_force(v_mps, headwind_mps, cd, area_m2, rho_kgpm3):
+    """Aerodynamic drag, eq (3): 0.5 Cd rho A (v - v_w)^2 sgn(v - v_w) [N]."""
+    rel = v_mps - headwind_mps
+    return 0.5 * cd * rho_kgpm3 * area_m2 * rel * np.abs(rel)
+
+
+@njit(cache=True)
+def grade_force(mass_kg, grade):
+    """Gravity along the road, m g sin(alpha) with alpha = atan(grade) [N]."""
+    return mass_kg * STANDARD_GRAVITY * np.sin(np.arctan(grade))
+
+
+@njit(cache=True)
+def rolling_force(mass_kg, grade, crr):
+    """Rolling resistance magnitude crr m g cos(alpha) for a moving vehicle [N]."""
+    return crr * mass_kg * STANDARD_GRAVITY * np.cos(np.arctan(grade))
+
+
+@njit(cache=True)
+def axle_normal_loads(mass_kg, accel_mps2, drag_n, grade, cg_height_m, a_m, b_m, wheels_per_axle):
+    """Normal load on each front and rear wheel, eqs (4)-(5) [N].
+
+    Returns ``(F_zf, F_zr)``; they satisfy ``n (F_zf + F_zr) = m g cos(alpha)``.
+    """
+    alpha = np.arctan(grade)
+    g = STANDARD_GRAVITY
+    pitch = cg_height_m * (drag_n + mass_kg * g * np.sin(alpha) + mass_kg * accel_mps2)
+    denom = wheels_per_axle * (a_m + b_m)
+    fzf = (-pitch + b_m * mass_kg * g * np.cos(alpha)) / denom
+    fzr = (pitch + a_m * mass_kg * g * np.cos(alpha)) / denom
+    return fzf, fzr
+
+
+@njit(cache=True)
+def road_load_force(
+    v_mps, accel_mps2, grade, mass_kg, mass_factor, cd, area_m2, rho_kgpm3, headwind_mps, crr
+):
+    """Tractive force needed at the wheels, the road-load form of eq (32) [N].
+
+    F = delta m a + F_drag + F_roll + m g sin(alpha), with the rolling term active only while
+    moving (``v_mps > 0``) and ``delta`` the rotating-mass factor.
+    """
+    moving = v_mps > 0.0
+    return (
+        mass_factor * mass_kg * accel_mps2
+        + aero_force(v_mps, headwind_mps, cd, area_m2, rho_kgpm3)
+        + rolling_force(mass_kg, grade, crr) * moving
+        + grade_force(mass_kg, grade)
+    )
+
+
+@dataclass(frozen=True)
+class VehicleBody:
+    """Two-axle vehicle body in longitudinal motion (Simscape Vehicle Body, thesis Table 2.2).
+
+    Attributes are SI: mass [kg], frontal area [m^2], lengths [m], air density [kg/m^3],
+    headwind [m/s]; ``mass_factor`` (rotating-mass factor, delta of eq 32) and the drag and
+    rolling coefficients are dimensionless.
+    """
+
+    mass_kg: float = 1200.0
+    drag_coefficient: float = 0.4
+    frontal_area_m2: float = 3.0
+    rolling_resistance: float = 0.0
+    mass_factor: float = 1.0
+    air_density_kgpm3: float = AIR_DENSITY_KGPM3
+    headwind_mps: float = 0.0
+    cg_height_m: float = 0.5
+    front_axle_to_cg_m: float = 1.4
+    rear_axle_to_cg_m: float = 1.6
+    wheels_per_axle: int = 2
+
+    def road_load_force(self, v_mps, accel_mps2, grade=0.0):
+        """Vectorised eq (32) [N] for arrays of speed [m/s], acceleration [m/s^2], grade [-]."""
+        return road_load_force(
+            np.asarray(v_mps, np.float64),
+            np.asarray(accel_mps2, np.float64),
+            np.asarray(grade, np.float64),
+            self.mass_kg,
+            self.mass_factor,
+            self.drag_coefficient,
+            self.frontal_area_m2,
+            self.air_density_kgpm3,
+            self.headwind_mps,
+            self.rolling_resistance,
+        )
+
+    def axle_normal_loads(self, accel_mps2, v_mps=0.0, grade=0.0):
+        """Per-wheel normal loads (front, rear) [N], eqs (4)-(5)."""
+        drag = aero_force(
+            np.asarray(v_mps, np.float64),
+            self.headwind_mps,
+            self.drag_coefficient,
+            self.frontal_area_m2,
+            self.air_density_kgpm3,
+        )
+        return axle_normal_loads(
+            self.mass_kg,
+            np.asarray(accel_mps2, np.float64),
+            drag,
+            np.asarray(grade, np.float64),
+            self.cg_height_m,
+            self.front_axle_to_cg_m,
+            self.rear_axle_to_cg_m,
+            self.wheels_per_axle,
+        )

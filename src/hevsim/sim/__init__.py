@@ -1,0 +1,1 @@
+"""Forward-looking simulation: kernels, results and metrics."""

@@ -1,0 +1,429 @@
+"""Compiled forward-simulation kernel of the series HEV (thesis chapter 2).
+
+The kernel integrates one drive cycle with a fixed step. It calls the same component kernels
+as the vectorised models (:mod:`hevsim.components`), reads every scalar parameter from one
+float vector ``p`` (indices below) so a batch of parameter variants is a matrix, and records
+per-step channels into ``out`` (columns :data:`CHANNELS`) when ``record`` is true.
+
+Integration scheme: the vehicle speed is advanced by explicit Euler with forces evaluated at
+the start of the step; every power is evaluated at the mid-step speed, which makes the energy
+audit close to round-off (``F v_mid dt = m (v1 - v0) v_mid = Δ(m v²/2)``). The genset shaft
+is advanced with the generator's proportional speed loop treated implicitly, which keeps the
+stiff loop stable at any step size.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from hevsim.components.battery import current_for_power, pack_ocv_r
+from hevsim.components.body import aero_force, grade_force, rolling_force
+from hevsim.components.driveline import gear_output_torque
+from hevsim.components.electric_machine import electrical_power, machine_efficiency, torque_limits
+from hevsim.components.engine import engine_fuel_rate, engine_torque
+
+# --- scalar parameter vector layout --------------------------------------------------------
+PARAMS = (
+    "mass_kg", "mass_factor", "cd", "area_m2", "rho_kgpm3", "headwind_mps", "crr",
+    "tire_radius_m", "gear_ratio", "gear_efficiency", "max_brake_force_n",
+    "driver_gain_per_mps", "driver_feedforward",
+    "motor_kind", "motor_eff", "motor_scale", "motor_inertia",
+    "gen_kind", "gen_eff", "gen_scale", "gen_inertia",
+    "engine_present", "engine_use_tmap", "engine_use_fuel_map", "engine_stall_radps",
+    "engine_redline_radps", "engine_scale", "engine_inertia", "engine_lhv_jpkg",
+    "bat_ns", "bat_np", "bat_r_extra", "bat_capacity_ah", "bat_coulombic_eff",
+    "bat_max_dis_a", "bat_max_chg_a", "bat_temp_k", "soc_initial", "soc_min", "soc_max",
+    "genset_kind", "soc_low", "soc_high", "soc_boost", "genset_speed_radps",
+    "genset_start_speed_radps", "throttle_run", "throttle_boost", "genset_gain_per_radps",
+    "genset_current_a", "regen_min_speed_mps", "aux_power_w", "pure_ice_band_w",
+)  # fmt: skip
+P = {name: i for i, name in enumerate(PARAMS)}
+(
+    MASS, MFACT, CD, AREA, RHO, WIND, CRR, RTIRE, RATIO, GEFF, FBRAKE, KDRV, KFF,
+    MKIND, MEFF, MSCALE, MINERT, GKIND, GEFFM, GSCALE, GINERT,
+    EPRES, ETMAP, EFMAP, ESTALL, ERED, ESCALE, EINERT, ELHV,
+    BNS, BNP, BREXT, BCAP, BCEFF, BIDIS, BICHG, BTEMP, SOC0, SOCMIN, SOCMAX,
+    GSKIND, SOCLO, SOCHI, SOCBOOST, GSW, GSWSTART, THRRUN, THRBOOST, GSKP,
+    GSCUR, REGENV, PAUX, PICEBAND,
+) = range(len(PARAMS))  # fmt: skip
+
+# Genset kinds and states, power modes (thesis Table 2.1) and reasons for changes.
+GENSET_NONE, GENSET_CURRENT_SOURCE, GENSET_ENGINE = 0, 1, 2
+GS_OFF, GS_STARTING, GS_RUNNING = 0, 1, 2
+GENSET_STATES = ("off", "starting", "running")
+MODE_PURE_EV, MODE_PURE_ICE, MODE_COMBINED, MODE_ICE_CHARGING, MODE_CHARGING = 0, 1, 2, 3, 4
+POWER_MODES = ("pure_ev", "pure_ice", "combined", "ice_charging", "charging")
+REASONS = (
+    "initial state",
+    "SOC fell below soc_low: genset start requested",
+    "engine reached start speed: genset running",
+    "SOC rose above soc_high: genset stopped",
+    "braking: regeneration to the battery",
+    "traction demand with genset off: battery only",
+    "genset output exceeds traction demand: surplus charges the battery",
+    "genset output matches traction demand within pure_ice_band_w",
+    "traction demand exceeds genset output: battery assists",
+)
+R_INIT, R_SOCLOW, R_STARTED, R_SOCHIGH, R_REGEN, R_EV, R_ICECHG, R_PUREICE, R_COMBINED = range(9)
+
+# Recorded channels (column order of ``out``); names carry units.
+CHANNELS = (
+    "time_s", "speed_desired_mps", "speed_mps", "accel_mps2", "driver_request",
+    "motor_speed_radps", "motor_torque_nm", "motor_power_mech_w", "motor_power_elec_w",
+    "motor_current_a", "generator_torque_nm", "generator_power_elec_w", "generator_current_a",
+    "engine_speed_radps", "engine_torque_nm", "engine_throttle", "engine_power_w",
+    "fuel_rate_kgps", "fuel_kg", "battery_current_a", "battery_voltage_v", "battery_ocv_v",
+    "battery_resistance_ohm", "battery_power_w", "soc", "friction_brake_force_n",
+    "wheel_force_n", "road_load_force_n", "genset_state", "power_mode", "mode_reason",
+    "battery_limited",
+)  # fmt: skip
+C = {name: i for i, name in enumerate(CHANNELS)}
+
+# Energy-audit accumulators [J] (index of the ``energy`` result vector).
+ENERGY_TERMS = (
+    "fuel", "genset_source", "battery_chemical", "aero", "rolling", "grade", "kinetic_vehicle",
+    "kinetic_genset", "friction_brakes", "engine_loss", "generator_loss", "motor_loss",
+    "gear_loss", "battery_loss", "aux",
+)  # fmt: skip
+(
+    E_FUEL, E_GSRC, E_BATT, E_AERO, E_ROLL, E_GRADE, E_KINV, E_KING, E_BRAKE,
+    E_ENG, E_GEN, E_MOT, E_GEAR, E_BLOSS, E_AUX,
+) = range(len(ENERGY_TERMS))  # fmt: skip
+
+# Scalar summaries returned per run.
+SUMMARY = (
+    "distance_m", "fuel_kg", "soc_final", "speed_error_rms_mps", "speed_error_max_mps",
+    "engine_on_time_s", "engine_starts", "battery_limited_s", "duration_s",
+)  # fmt: skip
+S_DIST, S_FUEL, S_SOCF, S_RMS, S_MAXERR, S_EON, S_STARTS, S_BLIM, S_DUR = range(len(SUMMARY))
+
+
+@njit(cache=True)
+def run_series(p, eng, mot, gen, bat, t_s, v_des, grade, record, out, energy, summary):  # type: ignore[no-untyped-def]
+    """Integrate the series HEV over the (uniformly sampled) cycle ``t_s, v_des, grade``.
+
+    ``eng``, ``mot``, ``gen``, ``bat``: table tuples from the components' ``kernel_tables``.
+    Fills ``energy`` (:data:`ENERGY_TERMS`, J) and ``summary`` (:data:`SUMMARY`); when
+    ``record`` is true, ``out[k]`` holds the channels of step k (k = 0..n-1 steps, plus the
+    final state at row n).
+    """
+    n = t_s.shape[0] - 1
+    dt = t_s[1] - t_s[0]
+    r = p[RTIRE]
+    ratio = p[RATIO]
+    m_eff = p[MASS] * p[MFACT] + p[MINERT] * (ratio / r) ** 2
+    j_shaft = p[EINERT] + p[GINERT]
+    cap_as = p[BCAP] * p[BNP] * 3600.0
+
+    v = v_des[0]
+    w_gs = 0.0
+    soc = p[SOC0]
+    gs_state = GS_OFF
+    mode = MODE_PURE_EV
+    reason = R_INIT
+    fuel_kg = 0.0
+    for i in range(energy.shape[0]):
+        energy[i] = 0.0
+    err_sq = 0.0
+    err_max = 0.0
+    dist = 0.0
+    eon = 0.0
+    starts = 0.0
+    blim_s = 0.0
+
+    for k in range(n):
+        # ---------------- driver: proportional speed controller ----------------------------
+        # u = K (v_target - v_end): the P loop is solved implicitly with the vehicle dynamics
+        # (linear in u before saturation), so it is stable at any step and converges to the
+        # continuous-time controller as dt -> 0.
+        v_target = v_des[k + 1]
+        w_m0 = v / r * ratio
+        m_max, m_min = torque_limits(w_m0, mot[0], mot[1], mot[2], p[MSCALE])
+        f_res0 = (
+            aero_force(v, p[WIND], p[CD], p[AREA], p[RHO])
+            + grade_force(p[MASS], grade[k])
+            + rolling_force(p[MASS], grade[k], p[CRR]) * (v > 0.0)
+        )
+        kd = p[KDRV]
+        e0 = v_target - v + dt * f_res0 / m_eff
+        f_drive_max = m_max * ratio * p[GEFF] / r
+        u = kd * e0 / (1.0 + kd * dt * f_drive_max / m_eff)
+        if u < 0.0:
+            u = kd * e0 / (1.0 + kd * dt * p[FBRAKE] / m_eff)
+        u += p[KFF] * (v_target - v_des[k]) / dt
+        u = min(max(u, -1.0), 1.0)
+
+        # ---------------- supervisory controller: genset thermostat ------------------------
+        new_reason = -1
+        if p[GSKIND] != GENSET_NONE:
+            if gs_state == GS_OFF and soc < p[SOCLO]:
+                gs_state = GS_STARTING if p[GSKIND] == GENSET_ENGINE else GS_RUNNING
+                new_reason = R_SOCLOW
+                starts += 1.0
+            elif gs_state == GS_STARTING and w_gs >= p[GSWSTART]:
+                gs_state = GS_RUNNING
+                new_reason = R_STARTED
+            elif gs_state != GS_OFF and soc > p[SOCHI]:
+                gs_state = GS_OFF
+                new_reason = R_SOCHIGH
+
+        # ---------------- genset shaft (engine + generator, 1:1) ---------------------------
+        t_eng = 0.0
+        t_gen = 0.0
+        thr = 0.0
+        fuel_rate = 0.0
+        w1 = w_gs
+        p_gen_el = 0.0
+        p_gs_src = 0.0
+        if p[GSKIND] == GENSET_ENGINE:
+            if gs_state == GS_RUNNING:
+                thr = p[THRBOOST] if soc < p[SOCBOOST] else p[THRRUN]
+            fired = thr > 0.0 and w_gs >= p[ESTALL] and w_gs <= p[ERED]
+            t_eng = engine_torque(
+                thr, w_gs, eng[0], eng[1], eng[2], eng[3], eng[4], eng[5], eng[6],
+                p[ETMAP] > 0, p[ESTALL], p[ERED], p[ESCALE],
+            )  # fmt: skip
+            g_mot, g_gen = torque_limits(w_gs, gen[0], gen[1], gen[2], p[GSCALE])
+            if gs_state == GS_OFF:
+                t_gen = 0.0
+                w1 = w_gs + dt / j_shaft * t_eng
+                if w1 < 0.0:  # coasting engine stops: friction does exactly the remaining work
+                    w1 = 0.0
+                    t_eng = -w_gs * j_shaft / dt
+            else:
+                kgain = p[GSKP]
+                # implicit proportional loop: J (w1 - w0)/dt = T_e + K (w* - w1) T_lim
+                t_lim = g_mot if p[GSW] >= w_gs else -g_gen
+                kk = kgain * t_lim
+                w1 = (w_gs + dt / j_shaft * (t_eng + kk * p[GSW])) / (1.0 + dt * kk / j_shaft)
+                ug = kgain * (p[GSW] - w1)
+                if ug > 1.0 or ug < -1.0:
+                    t_gen = g_mot if ug > 0 else g_gen
+                    w1 = w_gs + dt / j_shaft * (t_eng + t_gen)
+                else:
+                    t_gen = ug * t_lim
+                if w1 < 0.0:
+                    w1 = 0.0
+                    t_gen = -w_gs * j_shaft / dt - t_eng
+            w_mid_gs = 0.5 * (w_gs + w1)
+            fuel_rate = engine_fuel_rate(
+                t_eng, w_gs, fired, eng[7], eng[8], eng[9], p[EFMAP] > 0, p[ELHV], p[ESCALE]
+            )
+            eta_g = machine_efficiency(t_gen, w_mid_gs, p[GKIND], p[GEFFM], gen[3], gen[4], gen[5])
+            p_gen_el = electrical_power(t_gen, w_mid_gs, eta_g)
+            p_eng = t_eng * w_mid_gs
+            energy[E_FUEL] += fuel_rate * p[ELHV] * dt
+            energy[E_ENG] += (fuel_rate * p[ELHV] - p_eng) * dt
+            energy[E_GEN] += (p_gen_el - t_gen * w_mid_gs) * dt
+            energy[E_KING] += 0.5 * j_shaft * (w1 * w1 - w_gs * w_gs)
+            if fired:
+                eon += dt
+        elif p[GSKIND] == GENSET_CURRENT_SOURCE and gs_state == GS_RUNNING:
+            p_gs_src = 1.0  # marker; power set once the bus voltage is known
+
+        # ---------------- traction: motor, gear, brakes ------------------------------------
+        f_brake_req = 0.0
+        if u >= 0.0:
+            t_m = u * m_max
+        else:
+            f_brake_req = -u * p[FBRAKE]
+            t_regen_req = -f_brake_req * r / ratio * p[GEFF]  # motor torque for the full request
+            t_m = max(t_regen_req, m_min) if v > p[REGENV] else 0.0
+        # battery current limits: bound the motor's electrical power
+        ocv, r_b = pack_ocv_r(
+            soc, p[BTEMP], 1.0, bat[0], bat[1], bat[2], bat[3], bat[4], p[BNS], p[BNP], p[BREXT]
+        )
+        p_dis_max = (
+            (ocv - r_b * p[BIDIS]) * p[BIDIS]
+            if p[BIDIS] < ocv / (2.0 * r_b + 1e-300)
+            else ocv * ocv / (4.0 * r_b + 1e-300)
+        )
+        ocv_c, r_c = pack_ocv_r(
+            soc, p[BTEMP], -1.0, bat[0], bat[1], bat[2], bat[3], bat[4], p[BNS], p[BNP], p[BREXT]
+        )
+        p_chg_max = (ocv_c + r_c * p[BICHG]) * p[BICHG]
+        if soc <= p[SOCMIN]:
+            p_dis_max = 0.0
+        if soc >= p[SOCMAX]:
+            p_chg_max = 0.0
+        p_other = p_gen_el + p[PAUX]
+        if p_gs_src > 0.0:
+            p_other -= ocv * p[GSCUR]
+        limited = 0.0
+        for _it in range(4):
+            eta_m = machine_efficiency(t_m, w_m0, p[MKIND], p[MEFF], mot[3], mot[4], mot[5])
+            p_m_el = electrical_power(t_m, w_m0, eta_m)
+            hi = p_dis_max - p_other
+            lo = -p_chg_max - p_other
+            if p_m_el > hi and t_m > 0.0 and p_m_el > 0.0:
+                t_m *= max(hi, 0.0) / p_m_el
+                limited = 1.0
+            elif p_m_el < lo and t_m < 0.0 and p_m_el < 0.0:
+                t_m *= min(lo, 0.0) / p_m_el
+                limited = 1.0
+            else:
+                break
+        f_motor = gear_output_torque(t_m, ratio, p[GEFF]) / r
+        f_fric = max(f_brake_req + min(f_motor, 0.0), 0.0) if u < 0.0 else 0.0
+
+        # ---------------- vehicle longitudinal dynamics, eq (1) ----------------------------
+        f_aero = aero_force(v, p[WIND], p[CD], p[AREA], p[RHO])
+        f_grade = grade_force(p[MASS], grade[k])
+        f_roll_mag = rolling_force(p[MASS], grade[k], p[CRR])
+        f_roll = f_roll_mag
+        net = f_motor - f_aero - f_grade
+        if v <= 0.0 and abs(net) <= f_roll_mag + f_fric:
+            f_roll = net  # at rest: rolling resistance and brakes hold the car (no work done)
+            f_fric = 0.0
+            a = 0.0
+        elif v <= 0.0:
+            f_roll = f_roll_mag * np.sign(net)
+            a = (net - f_roll - f_fric * np.sign(net)) / m_eff
+        else:
+            a = (net - f_fric - f_roll) / m_eff
+        v1 = v + a * dt
+        if v1 < 0.0:  # the car stops within the step: brakes then rolling do the remaining work
+            a_new = -v / dt
+            excess = (a_new - a) * m_eff  # force to give back (> 0)
+            give = min(excess, f_fric)
+            f_fric -= give
+            excess -= give
+            f_roll -= excess
+            a = a_new
+            v1 = 0.0
+        v_mid = 0.5 * (v + v1)
+        w_m = v_mid / r * ratio
+        eta_m = machine_efficiency(t_m, w_m, p[MKIND], p[MEFF], mot[3], mot[4], mot[5])
+        p_m_mech = t_m * w_m
+        p_m_el = electrical_power(t_m, w_m, eta_m)
+
+        # ---------------- battery: eq (21)-(22), SOC eq (13) -------------------------------
+        p_src = ocv * p[GSCUR] if p_gs_src > 0.0 else 0.0
+        p_bat = p_m_el + p_gen_el + p[PAUX] - p_src
+        sgn = 1.0 if p_bat > 0.0 else -1.0
+        ocv_b, r_bat = pack_ocv_r(
+            soc, p[BTEMP], sgn, bat[0], bat[1], bat[2], bat[3], bat[4], p[BNS], p[BNP], p[BREXT]
+        )
+        i_bat = current_for_power(p_bat, ocv_b, r_bat)
+        if p_bat > 0.0 and ocv_b * ocv_b < 4.0 * r_bat * p_bat:
+            limited = 1.0  # beyond the deliverable power: the bus sags (reported)
+        v_bat = ocv_b - r_bat * i_bat
+        i_soc = i_bat if i_bat > 0.0 else i_bat * p[BCEFF]
+        soc1 = soc - i_soc * dt / cap_as
+
+        # ---------------- energy audit ------------------------------------------------------
+        e_chem = ocv_b * i_soc * dt
+        energy[E_BATT] += e_chem
+        energy[E_BLOSS] += e_chem - v_bat * i_bat * dt
+        energy[E_GSRC] += p_src * dt
+        energy[E_MOT] += (p_m_el - p_m_mech) * dt
+        energy[E_GEAR] += (p_m_mech - f_motor * v_mid) * dt
+        energy[E_AERO] += f_aero * v_mid * dt
+        energy[E_ROLL] += f_roll * v_mid * dt
+        energy[E_GRADE] += f_grade * v_mid * dt
+        energy[E_BRAKE] += f_fric * v_mid * dt
+        energy[E_KINV] += 0.5 * m_eff * (v1 * v1 - v * v)
+        energy[E_AUX] += p[PAUX] * dt
+        # the battery terminal energy not matched by bus loads is numerical slack (sagging bus)
+        energy[E_BLOSS] += (v_bat * i_bat - p_bat) * dt
+
+        # ---------------- power mode, Table 2.1 ----------------------------------------------
+        p_supply = -p_gen_el + p_src
+        new_mode = mode
+        mode_reason = -1
+        if p_m_el < 0.0 or (u < 0.0 and v > 0.0):
+            new_mode, mode_reason = MODE_CHARGING, R_REGEN
+        elif p_supply <= 0.0:
+            new_mode, mode_reason = MODE_PURE_EV, R_EV
+        elif abs(p_supply - p_m_el) <= p[PICEBAND]:
+            new_mode, mode_reason = MODE_PURE_ICE, R_PUREICE
+        elif p_supply > p_m_el:
+            new_mode, mode_reason = MODE_ICE_CHARGING, R_ICECHG
+        else:
+            new_mode, mode_reason = MODE_COMBINED, R_COMBINED
+        if new_reason >= 0:
+            reason = new_reason
+        elif new_mode != mode:
+            reason = mode_reason
+        mode = new_mode
+
+        # ---------------- bookkeeping ---------------------------------------------------------
+        fuel_kg += fuel_rate * dt
+        err = v_des[k] - v
+        err_sq += err * err
+        err_max = max(err_max, abs(err))
+        dist += v_mid * dt
+        blim_s += limited * dt
+        if record:
+            o = out[k]
+            o[0] = t_s[k]
+            o[1] = v_des[k]
+            o[2] = v
+            o[3] = a
+            o[4] = u
+            o[5] = w_m
+            o[6] = t_m
+            o[7] = p_m_mech
+            o[8] = p_m_el
+            o[9] = p_m_el / v_bat if v_bat > 0 else 0.0
+            o[10] = t_gen
+            o[11] = p_gen_el
+            o[12] = (p_gen_el - p_src) / v_bat if v_bat > 0 else 0.0
+            o[13] = w_gs
+            o[14] = t_eng
+            o[15] = thr
+            o[16] = t_eng * w_gs
+            o[17] = fuel_rate
+            o[18] = fuel_kg
+            o[19] = i_bat
+            o[20] = v_bat
+            o[21] = ocv_b
+            o[22] = r_bat
+            o[23] = p_bat
+            o[24] = soc
+            o[25] = f_fric
+            o[26] = f_motor
+            o[27] = f_aero + f_roll + f_grade
+            o[28] = gs_state
+            o[29] = mode
+            o[30] = reason
+            o[31] = limited
+        v = v1
+        w_gs = w1
+        soc = soc1
+    err = v_des[n] - v
+    err_sq += err * err
+    err_max = max(err_max, abs(err))
+    if record:
+        o = out[n]
+        for c in range(o.shape[0]):
+            o[c] = out[n - 1, c] if n > 0 else 0.0
+        o[0] = t_s[n]
+        o[1] = v_des[n]
+        o[2] = v
+        o[13] = w_gs
+        o[18] = fuel_kg
+        o[24] = soc
+    summary[S_DIST] = dist
+    summary[S_FUEL] = fuel_kg
+    summary[S_SOCF] = soc
+    summary[S_RMS] = np.sqrt(err_sq / (n + 1))
+    summary[S_MAXERR] = err_max
+    summary[S_EON] = eon
+    summary[S_STARTS] = starts
+    summary[S_BLIM] = blim_s
+    summary[S_DUR] = t_s[n] - t_s[0]
+
+
+@njit(cache=True, parallel=True)
+def run_series_batch(pmat, eng, mot, gen, bat, t_s, v_des, grade, energy, summary):  # type: ignore[no-untyped-def]
+    """Run every row of ``pmat`` (one parameter vector per variant) in parallel.
+
+    Fills ``energy[i]`` and ``summary[i]`` per variant; no time series are recorded.
+    """
+    dummy = np.zeros((1, len(CHANNELS)))
+    for i in prange(pmat.shape[0]):
+        run_series(
+            pmat[i], eng, mot, gen, bat, t_s, v_des, grade, False, dummy, energy[i], summary[i]
+        )

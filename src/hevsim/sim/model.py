@@ -1,0 +1,246 @@
+"""Assemble a series-HEV model from a validated configuration.
+
+The series architecture (thesis Fig. 2.3): engine coupled 1:1 to the generator, a DC bus
+with the battery, the traction motor through the final drive to the wheels. The model holds
+component objects (:mod:`hevsim.components`) and the driver and supervisory-controller
+settings; :meth:`SeriesHEV.param_vector` packs every scalar into the kernel's vector.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from hevsim.components.battery import BatteryPack
+from hevsim.components.body import VehicleBody
+from hevsim.components.driveline import Gear, Tire
+from hevsim.components.electric_machine import ElectricMachine
+from hevsim.components.engine import Engine
+from hevsim.config import MachineSection, VehicleConfig
+from hevsim.errors import ConfigError
+from hevsim.sim import kernel as K
+from hevsim.tables import FloatArray, Table1D
+from hevsim.units import MPS_PER_MPH, c_to_k, rpm_to_radps
+
+COMPONENT_KINDS = {"engine": "engines", "motor": "motors", "battery": "batteries"}
+
+
+def shipped_components(kind: str) -> list[str]:
+    """Names of the shipped component folders of ``kind`` ("engine", "motor", "battery")."""
+    root = resources.files("hevsim") / "data" / "components" / COMPONENT_KINDS[kind]
+    return sorted(p.name for p in root.iterdir() if p.is_dir())
+
+
+def resolve_component(name: str, kind: str, base_dir: Path, key: str) -> Path:
+    """Folder for component data ``name``: a path relative to the config, or a shipped name."""
+    candidate = (base_dir / name).expanduser()
+    if candidate.is_dir():
+        return candidate
+    shipped = resources.files("hevsim") / "data" / "components" / COMPONENT_KINDS[kind] / name
+    if shipped.is_dir():
+        return Path(str(shipped))
+    raise ConfigError(
+        f"key '{key}' = {name!r}: no folder {candidate} and no shipped {kind} of that name; "
+        f"shipped {kind}s are: {', '.join(shipped_components(kind))}."
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class SeriesHEV:
+    """A series hybrid vehicle ready to simulate (components + control settings)."""
+
+    config: VehicleConfig
+    body: VehicleBody
+    tire: Tire
+    gear: Gear
+    traction_motor: ElectricMachine
+    generator: ElectricMachine
+    engine: Engine | None
+    battery: BatteryPack
+
+    @property
+    def name(self) -> str:
+        """Configuration name."""
+        return self.config.name
+
+    def param_vector(self, soc_initial: float | None = None) -> FloatArray:
+        """Scalar parameters in the kernel's layout (:data:`hevsim.sim.kernel.PARAMS`)."""
+        c = self.config
+        ctl = c.controller
+        p = np.zeros(len(K.PARAMS))
+        b = self.body
+        eng = self.engine
+        values: dict[str, float] = {
+            "mass_kg": b.mass_kg,
+            "mass_factor": b.mass_factor,
+            "cd": b.drag_coefficient,
+            "area_m2": b.frontal_area_m2,
+            "rho_kgpm3": b.air_density_kgpm3,
+            "headwind_mps": b.headwind_mps,
+            "crr": b.rolling_resistance,
+            "tire_radius_m": self.tire.radius_m,
+            "gear_ratio": self.gear.ratio,
+            "gear_efficiency": self.gear.efficiency,
+            "max_brake_force_n": c.brakes.max_decel_mps2 * b.mass_kg,
+            "driver_gain_per_mps": c.driver.gain_per_mph / MPS_PER_MPH,
+            "driver_feedforward": c.driver.feedforward,
+            "motor_kind": self.traction_motor.kind_code,
+            "motor_eff": self.traction_motor.efficiency,
+            "motor_scale": self.traction_motor.torque_scale,
+            "motor_inertia": self.traction_motor.inertia_kgm2,
+            "gen_kind": self.generator.kind_code,
+            "gen_eff": self.generator.efficiency,
+            "gen_scale": self.generator.torque_scale,
+            "gen_inertia": self.generator.inertia_kgm2,
+            "engine_present": float(eng is not None),
+            "engine_use_tmap": float(eng is not None and eng.torque_map is not None),
+            "engine_use_fuel_map": float(eng is not None and eng.fuel_map is not None),
+            "engine_stall_radps": eng.stall_speed_radps if eng else 0.0,
+            "engine_redline_radps": eng.redline_radps if eng else 0.0,
+            "engine_scale": eng.torque_scale if eng else 1.0,
+            "engine_inertia": eng.inertia_kgm2 if eng else 0.0,
+            "engine_lhv_jpkg": eng.fuel_lhv_jpkg if eng else 42.937e6,
+            "bat_ns": self.battery.n_series,
+            "bat_np": self.battery.n_parallel,
+            "bat_r_extra": self.battery.r_extra_ohm,
+            "bat_capacity_ah": self.battery.capacity_cell_ah,
+            "bat_coulombic_eff": self.battery.coulombic_efficiency,
+            "bat_max_dis_a": self.battery.max_discharge_current_a,
+            "bat_max_chg_a": self.battery.max_charge_current_a,
+            "bat_temp_k": self.battery.temperature_k,
+            "soc_initial": c.simulation.soc_initial if soc_initial is None else soc_initial,
+            "soc_min": self.config.battery.soc_min,
+            "soc_max": self.config.battery.soc_max,
+            "genset_kind": {
+                "none": K.GENSET_NONE,
+                "current_source": K.GENSET_CURRENT_SOURCE,
+                "engine": K.GENSET_ENGINE,
+            }[c.genset.kind],  # fmt: skip
+            "soc_low": ctl.soc_low,
+            "soc_high": ctl.soc_high,
+            "soc_boost": ctl.soc_boost,
+            "genset_speed_radps": rpm_to_radps(ctl.engine_speed_rpm),
+            "genset_start_speed_radps": rpm_to_radps(ctl.start_speed_rpm),
+            "throttle_run": ctl.throttle,
+            "throttle_boost": ctl.throttle_boost,
+            "genset_gain_per_radps": ctl.speed_gain_per_rpm / rpm_to_radps(1.0),
+            "genset_current_a": c.genset.current_a,
+            "regen_min_speed_mps": c.brakes.regen_min_speed_mps,
+            "aux_power_w": ctl.aux_power_w,
+            "pure_ice_band_w": ctl.pure_ice_band_w,
+        }
+        for name, value in values.items():
+            p[K.P[name]] = value
+        return p
+
+    def kernel_tables(self) -> tuple[tuple[FloatArray, ...], ...]:
+        """(engine, motor, generator, battery) table tuples for the kernel."""
+        if self.engine is not None:
+            eng = self.engine.kernel_tables()
+        else:
+            z1 = np.zeros(1)
+            eng = (z1, z1, z1, z1, z1, z1, np.zeros((1, 1)), z1, z1, np.zeros((1, 1)))
+        return (
+            eng,
+            self.traction_motor.kernel_tables(),
+            self.generator.kernel_tables(),
+            self.battery.kernel_tables(),
+        )
+
+
+def _machine(sec: MachineSection, label: str, base: Path) -> ElectricMachine:
+    if sec.model == "map":
+        folder = resolve_component(sec.data, "motor", base, f"{label}.data")
+        return ElectricMachine.from_directory(
+            folder,
+            rating=sec.rating,
+            torque_scale=sec.torque_scale,
+            inertia_kgm2=sec.inertia_kgm2,
+            name=f"{label}: {folder.name}",
+        )
+    m = ElectricMachine.constant_torque(
+        f"{label}: constant {sec.max_torque_nm:g} N·m",
+        sec.max_torque_nm,
+        efficiency=sec.efficiency if sec.model == "constant_efficiency" else 1.0,
+        inertia_kgm2=sec.inertia_kgm2,
+    )
+    if sec.model == "constant_efficiency" and sec.efficiency == 1.0:
+        return ElectricMachine(
+            m.name, "constant_efficiency", m.max_motoring_torque, m.max_generating_torque, 1.0,
+            None, sec.inertia_kgm2, sec.torque_scale,
+        )  # fmt: skip
+    return m
+
+
+def build_series_hev(cfg: VehicleConfig) -> SeriesHEV:
+    """Build the component objects of a series HEV from its configuration."""
+    base = Path(cfg.base_dir)
+    b = cfg.body
+    body = VehicleBody(
+        mass_kg=b.mass_kg,
+        drag_coefficient=b.drag_coefficient,
+        frontal_area_m2=b.frontal_area_m2,
+        rolling_resistance=b.rolling_resistance,
+        mass_factor=b.mass_factor,
+        air_density_kgpm3=b.air_density_kgpm3,
+        headwind_mps=b.headwind_mps,
+        cg_height_m=b.cg_height_m,
+        front_axle_to_cg_m=b.front_axle_to_cg_m,
+        rear_axle_to_cg_m=b.rear_axle_to_cg_m,
+        wheels_per_axle=b.wheels_per_axle,
+    )
+    engine: Engine | None = None
+    e = cfg.engine
+    if cfg.genset.kind == "engine":
+        common = {
+            "inertia_kgm2": e.inertia_kgm2,
+            "stall_speed_radps": rpm_to_radps(e.stall_speed_rpm),
+            "redline_radps": rpm_to_radps(e.redline_rpm),
+            "torque_scale": e.torque_scale,
+        }
+        if e.model == "map":
+            folder = resolve_component(e.data, "engine", base, "engine.data")
+            engine = Engine.from_directory(folder, **common)
+        else:
+            x = np.array([0.0])
+            engine = Engine(
+                name=f"constant {e.max_torque_nm:g} N·m engine (ideal fuel)",
+                max_torque=Table1D(x, np.array([e.max_torque_nm])),
+                closed_throttle_torque=Table1D(x, np.array([0.0])),
+                fuel_map=None,
+                **common,  # type: ignore[arg-type]
+            )
+    bs = cfg.battery
+    limits = {
+        "max_discharge_current_a": bs.max_discharge_current_a,
+        "max_charge_current_a": bs.max_charge_current_a,
+        "temperature_k": c_to_k(bs.temperature_c),
+        "r_extra_ohm": bs.r_extra_ohm,
+        "n_series": bs.n_series,
+        "n_parallel": bs.n_parallel,
+    }
+    if bs.model == "table":
+        folder = resolve_component(bs.data, "battery", base, "battery.data")
+        battery = BatteryPack.from_directory(folder, **limits)
+    else:
+        battery = BatteryPack.constant(
+            f"{bs.model} {bs.ocv_v:g} V",
+            bs.model,
+            bs.ocv_v,
+            bs.capacity_ah,
+            bs.resistance_ohm if bs.model == "rint" else 0.0,
+            **limits,
+        )
+    return SeriesHEV(
+        config=cfg,
+        body=body,
+        tire=Tire(radius_m=cfg.tire.radius_m),
+        gear=Gear(ratio=cfg.gear.ratio, efficiency=cfg.gear.efficiency),
+        traction_motor=_machine(cfg.traction_motor, "traction_motor", base),
+        generator=_machine(cfg.generator, "generator", base),
+        engine=engine,
+        battery=battery,
+    )

@@ -1,0 +1,279 @@
+"""Forward simulation API: :func:`simulate` for one run, :func:`simulate_batch` for variants."""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import shutil
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+import hevsim
+from hevsim.components.engine import Engine
+from hevsim.config import VehicleConfig
+from hevsim.cycles import DriveCycle, load_cycle
+from hevsim.errors import ConfigError, SimulationError
+from hevsim.sim import kernel as K
+from hevsim.sim.metrics import compute_metrics, energy_audit
+from hevsim.sim.model import SeriesHEV, build_series_hev
+from hevsim.units import MPS_PER_MPH, radps_to_rpm
+
+
+@dataclass
+class SimulationResult:
+    """One forward simulation: time series, scalar metrics, energy audit, events, metadata."""
+
+    timeseries: pd.DataFrame
+    metrics: dict[str, dict[str, Any]]
+    energy_audit: dict[str, float]
+    events: pd.DataFrame
+    metadata: dict[str, Any]
+    model: SeriesHEV
+    cycle: DriveCycle
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def engine(self) -> Engine | None:
+        """The engine of the simulated vehicle (for operating-point plots)."""
+        return self.model.engine
+
+    def value(self, name: str) -> float:
+        """Value of metric ``name`` (in its unit)."""
+        return float(self.metrics[name]["value"])
+
+    def save(self, out_dir: str | Path, plots: bool = True) -> Path:
+        """Write the results folder atomically: time series (Parquet + CSV), metrics.json,
+        energy_audit.json, events.csv, config.json, PNG plots and report.md.
+
+        Files are written to a temporary sibling folder that is renamed into place, so an
+        interrupted run leaves no partial folder. An existing folder is replaced.
+        """
+        out = Path(out_dir)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+        try:
+            self.timeseries.to_parquet(tmp / "timeseries.parquet", index=False)
+            self.timeseries.to_csv(tmp / "timeseries.csv", index=False, float_format="%.6g")
+            self.events.to_csv(tmp / "events.csv", index=False)
+            _write_json(tmp / "metrics.json", self.metrics)
+            _write_json(
+                tmp / "energy_audit.json",
+                {k: {"value": v, "unit": "J"} for k, v in self.energy_audit.items()},
+            )
+            _write_json(tmp / "config.json", self.model.config.to_dict())
+            _write_json(tmp / "metadata.json", self.metadata)
+            if plots:
+                from hevsim.report.markdown import write_report
+                from hevsim.report.plots import plot_all
+
+                files = plot_all(self, tmp)
+                write_report(self, tmp, files)
+            if out.exists():
+                old = out.with_name(f".{out.name}.old")
+                shutil.rmtree(old, ignore_errors=True)
+                out.rename(old)
+                tmp.rename(out)
+                shutil.rmtree(old, ignore_errors=True)
+            else:
+                tmp.rename(out)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+        return out
+
+
+def _write_json(path: Path, data: Any) -> None:
+    def default(o: Any) -> Any:
+        if isinstance(o, np.generic):
+            return o.item()
+        return str(o)
+
+    path.write_text(json.dumps(data, indent=2, default=default, allow_nan=True) + "\n")
+
+
+def _prepare(
+    model: SeriesHEV | VehicleConfig, cycle: DriveCycle | str | None, dt_s: float | None
+) -> tuple[SeriesHEV, DriveCycle, DriveCycle, float]:
+    hev = model if isinstance(model, SeriesHEV) else build_series_hev(model)
+    cfg = hev.config
+    cyc = cycle if isinstance(cycle, DriveCycle) else load_cycle(cycle or cfg.simulation.cycle)
+    dt = float(dt_s if dt_s is not None else cfg.simulation.dt_s)
+    if not 1e-3 <= dt <= 10.0:
+        raise ConfigError(f"time step dt_s = {dt!r} is out of range; expected 0.001 to 10 s.")
+    grid = cyc.resampled(dt)
+    return hev, cyc, grid, dt
+
+
+def _energy_keys(hev: SeriesHEV) -> tuple[float, float, float, float]:
+    eng = hev.engine
+    if eng is None:
+        return 843.0, 133393.1102, 3.16, 42.937e6
+    return (
+        eng.fuel_density_kgpm3,
+        eng.heating_value_btu_per_gal,
+        eng.co2_kg_per_kg,
+        eng.fuel_lhv_jpkg,
+    )
+
+
+def simulate(
+    model: SeriesHEV | VehicleConfig,
+    cycle: DriveCycle | str | None = None,
+    dt_s: float | None = None,
+    soc_initial: float | None = None,
+) -> SimulationResult:
+    """Simulate ``model`` forward over ``cycle`` with a fixed step ``dt_s`` [s].
+
+    ``cycle`` is a :class:`DriveCycle`, a registered name or a CSV path (default: the
+    configuration's). Returns a :class:`SimulationResult`.
+    """
+    t_start = time.perf_counter()
+    hev, cyc, grid, dt = _prepare(model, cycle, dt_s)
+    p = hev.param_vector(soc_initial)
+    eng, mot, gen, bat = hev.kernel_tables()
+    n = grid.time_s.size
+    out = np.zeros((n, len(K.CHANNELS)))
+    energy = np.zeros(len(K.ENERGY_TERMS))
+    summary = np.zeros(len(K.SUMMARY))
+    t_kernel = time.perf_counter()
+    K.run_series(
+        p, eng, mot, gen, bat, grid.time_s, grid.speed_mps, grid.grade, True, out, energy, summary
+    )
+    t_done = time.perf_counter()
+    return _assemble(hev, cyc, dt, p, out, energy, summary, t_done - t_kernel, t_done - t_start)
+
+
+def _assemble(hev: SeriesHEV, cyc: DriveCycle, dt: float, p: np.ndarray, out: np.ndarray,
+              energy: np.ndarray, summary: np.ndarray, t_kernel: float, t_total: float) -> SimulationResult:  # fmt: skip
+    ts = pd.DataFrame(out, columns=list(K.CHANNELS))
+    for col in ("genset_state", "power_mode", "mode_reason", "battery_limited"):
+        ts[col] = ts[col].astype(np.int64)
+    ts.rename(columns={"fuel_rate_kgps": "fuel_rate_gps"}, inplace=True)
+    ts["fuel_rate_gps"] *= 1e3
+    ts.insert(3, "speed_mph", ts["speed_mps"] / MPS_PER_MPH)
+    ts.insert(2, "speed_desired_mph", ts["speed_desired_mps"] / MPS_PER_MPH)
+    ts.insert(
+        ts.columns.get_loc("engine_speed_radps") + 1,
+        "engine_speed_rpm",
+        radps_to_rpm(ts["engine_speed_radps"]),
+    )
+    ts["power_mode_name"] = np.array(K.POWER_MODES)[ts["power_mode"].to_numpy()]
+    ts["genset_state_name"] = np.array(K.GENSET_STATES)[ts["genset_state"].to_numpy()]
+    events = _events(ts)
+    audit = energy_audit(energy)
+    socf = summary[K.S_SOCF]
+    soc0 = p[K.SOC0]
+    ocv_mean = float(hev.battery.ocv(0.5 * (soc0 + socf)))
+    density, heating, co2, _lhv = _energy_keys(hev)
+    metrics = compute_metrics(summary, audit, soc0, hev.battery.capacity_ah, ocv_mean, density,
+                              heating, co2, hev.config.metrics.conversion_efficiency)  # fmt: skip
+    metadata = {
+        "config": hev.name,
+        "description": hev.config.description,
+        "cycle": cyc.name,
+        "cycle_source": cyc.source,
+        "dt_s": dt,
+        "hevsim_version": hevsim.__version__,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "created_unix_s": time.time(),
+        "kernel_time_s": t_kernel,
+        "total_time_s": t_total,
+    }
+    return SimulationResult(ts, metrics, audit, events, metadata, hev, cyc)
+
+
+def _events(ts: pd.DataFrame) -> pd.DataFrame:
+    rows: list[dict[str, Any]] = []
+    for col, kind, names in (
+        ("genset_state", "genset", K.GENSET_STATES),
+        ("power_mode", "power_mode", K.POWER_MODES),
+    ):
+        vals = ts[col].to_numpy()
+        changes = np.flatnonzero(np.diff(vals) != 0) + 1
+        for i in changes:
+            rows.append({
+                "time_s": float(ts["time_s"].iat[i]), "kind": kind,
+                "from_state": names[vals[i - 1]], "to_state": names[vals[i]],
+                "reason": K.REASONS[int(ts["mode_reason"].iat[i])],
+            })  # fmt: skip
+    ev = pd.DataFrame(rows, columns=["time_s", "kind", "from_state", "to_state", "reason"])
+    return ev.sort_values(["time_s", "kind"], kind="stable").reset_index(drop=True)
+
+
+@dataclass
+class BatchResult:
+    """Scalar results of a batch of variants: one row per variant."""
+
+    table: pd.DataFrame
+    elapsed_s: float
+
+    @property
+    def rate_per_s(self) -> float:
+        """Variant-cycles simulated per second of wall time."""
+        return len(self.table) / self.elapsed_s if self.elapsed_s > 0 else float("inf")
+
+
+def simulate_batch(
+    model: SeriesHEV | VehicleConfig,
+    variants: dict[str, Any],
+    cycle: DriveCycle | str | None = None,
+    dt_s: float | None = None,
+) -> BatchResult:
+    """Run many parameter variants of one vehicle in one parallel call.
+
+    ``variants`` maps kernel parameter names (:data:`hevsim.sim.kernel.PARAMS`, e.g.
+    ``"mass_kg"``, ``"driver_gain_per_mps"``, ``"soc_initial"``) to arrays of equal length
+    (scalars broadcast). Returns fuel economy and summaries per variant.
+    """
+    hev, _cyc, grid, _dt = _prepare(model, cycle, dt_s)
+    unknown = [k for k in variants if k not in K.P]
+    if unknown:
+        raise ConfigError(
+            f"batch variants: parameter(s) {unknown} are not known; valid names are: "
+            f"{', '.join(K.PARAMS)}."
+        )
+    arrays = {k: np.atleast_1d(np.asarray(v, dtype=np.float64)) for k, v in variants.items()}
+    try:
+        n = np.broadcast_shapes(*(a.shape for a in arrays.values()))[0] if arrays else 1
+    except ValueError as exc:
+        shapes = {k: a.shape for k, a in arrays.items()}
+        raise ConfigError(f"batch variants: arrays must have equal lengths, got {shapes}.") from exc
+    base = hev.param_vector()
+    pmat = np.repeat(base[None, :], n, axis=0)
+    for k, a in arrays.items():
+        pmat[:, K.P[k]] = np.broadcast_to(a, (n,))
+    eng, mot, gen, bat = hev.kernel_tables()
+    energy = np.zeros((n, len(K.ENERGY_TERMS)))
+    summary = np.zeros((n, len(K.SUMMARY)))
+    t0 = time.perf_counter()
+    K.run_series_batch(
+        pmat, eng, mot, gen, bat, grid.time_s, grid.speed_mps, grid.grade, energy, summary
+    )
+    elapsed = time.perf_counter() - t0
+    density, heating, co2, _ = _energy_keys(hev)
+    rows = []
+    for i in range(n):
+        audit = energy_audit(energy[i])
+        soc0 = pmat[i, K.SOC0]
+        ocv_mean = float(hev.battery.ocv(0.5 * (soc0 + summary[i, K.S_SOCF])))
+        m = compute_metrics(summary[i], audit, soc0, hev.battery.capacity_ah, ocv_mean, density,
+                            heating, co2, hev.config.metrics.conversion_efficiency)  # fmt: skip
+        row = {k: float(pmat[i, K.P[k]]) for k in arrays}
+        row.update({name: v["value"] for name, v in m.items()})
+        rows.append(row)
+    if not np.all(np.isfinite(summary)):
+        raise SimulationError("batch: a variant produced non-finite results; check its parameters.")
+    return BatchResult(pd.DataFrame(rows), elapsed)
+
+
+def default_workers() -> int:
+    """CPU cores available to this process."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
