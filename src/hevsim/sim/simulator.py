@@ -155,7 +155,7 @@ def _assemble(hev: SeriesHEV, cyc: DriveCycle, dt: float, p: np.ndarray, out: np
     ts = pd.DataFrame(out, columns=list(K.CHANNELS))
     for col in ("genset_state", "power_mode", "mode_reason", "battery_limited"):
         ts[col] = ts[col].astype(np.int64)
-    ts.rename(columns={"fuel_rate_kgps": "fuel_rate_gps"}, inplace=True)
+    ts = ts.rename(columns={"fuel_rate_kgps": "fuel_rate_gps"})
     ts["fuel_rate_gps"] *= 1e3
     ts.insert(3, "speed_mph", ts["speed_mps"] / MPS_PER_MPH)
     ts.insert(2, "speed_desired_mph", ts["speed_desired_mps"] / MPS_PER_MPH)

@@ -1,0 +1,139 @@
+"""Tier 1: analytic checks of the component physics and lookup tables."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hevsim.components.battery import BatteryPack
+from hevsim.components.body import VehicleBody
+from hevsim.components.driveline import Gear, Tire
+from hevsim.components.electric_machine import ElectricMachine
+from hevsim.components.engine import Engine
+from hevsim.errors import InputError
+from hevsim.sim.model import resolve_component
+from hevsim.tables import Table1D, Table2D
+
+
+def test_table1d_policies_and_shapes() -> None:
+    t = Table1D([0.0, 1.0, 2.0], [0.0, 10.0, 30.0], "clamp")
+    assert t([0.5, 1.5]).tolist() == [5.0, 20.0]
+    assert t(-1.0) == 0.0 and t(5.0) == 30.0
+    lin = Table1D([0.0, 1.0, 2.0], [0.0, 10.0, 30.0], "linear")
+    assert lin(-1.0) == pytest.approx(-10.0) and lin(3.0) == pytest.approx(50.0)
+    x = np.linspace(-1, 3, 24).reshape(2, 3, 4)
+    assert lin(x).shape == (2, 3, 4)
+
+
+def test_table2d_bilinear_exact_on_bilinear_function() -> None:
+    x = np.array([0.0, 1.0, 3.0])
+    y = np.array([-1.0, 2.0])
+    z = 2 * x[:, None] + 3 * y[None, :] + x[:, None] * y[None, :]
+    t = Table2D(x, y, z, "linear")
+    xq = np.array([[0.3], [2.5], [4.0]])
+    yq = np.array([-2.0, 0.0, 1.5])
+    expect = 2 * xq + 3 * yq + xq * yq
+    assert np.allclose(t(xq, yq), expect)
+
+
+@pytest.mark.parametrize(
+    ("x", "y", "fragment"),
+    [
+        ([0.0, 2.0, 1.0], [1.0, 2.0, 3.0], "not strictly increasing"),
+        ([0.0, np.nan, 1.0], [1.0, 2.0, 3.0], "non-finite"),
+        ([0.0, 1.0, 2.0], [1.0, np.nan, 3.0], "non-finite"),
+        ([0.0, 1.0, 2.0], [1.0, 2.0], "expected equal sizes"),
+    ],
+)
+def test_table_validation(x: list[float], y: list[float], fragment: str) -> None:
+    with pytest.raises(InputError, match=fragment):
+        Table1D(x, y, source="map.csv")
+
+
+def test_unsorted_map_csv_names_file_and_value(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    p = tmp_path / "max_torque.csv"
+    p.write_text("speed_rad_per_s,max_torque_N_m\n0,10\n20,12\n10,11\n")
+    with pytest.raises(InputError) as err:
+        Table1D.from_csv(p, "speed_rad_per_s", "max_torque_N_m")
+    assert "max_torque.csv" in str(err.value) and "10.0" in str(err.value)
+
+
+def test_nan_in_map_csv_names_line(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    p = tmp_path / "fuel.csv"
+    p.write_text("speed_rad_per_s,torque_N_m,fuel_rate_g_per_s\n1,0,0.1\n1,10,nan\n2,0,0.2\n2,10,0.3\n")
+    with pytest.raises(InputError, match=r"fuel.csv: line 3, column 'fuel_rate_g_per_s'"):
+        Table2D.from_long_csv(p, "speed_rad_per_s", "torque_N_m", "fuel_rate_g_per_s")
+
+
+def test_body_road_load_and_axle_loads() -> None:
+    body = VehicleBody(mass_kg=1000.0, drag_coefficient=0.3, frontal_area_m2=2.0,
+                       rolling_resistance=0.01, air_density_kgpm3=1.2)  # fmt: skip
+    f = body.road_load_force(20.0, 0.5, 0.0)
+    assert f == pytest.approx(1000 * 0.5 + 0.5 * 0.3 * 1.2 * 2.0 * 400 + 0.01 * 1000 * 9.81)
+    fzf, fzr = body.axle_normal_loads(accel_mps2=1.0, v_mps=10.0, grade=0.05)
+    alpha = np.arctan(0.05)
+    assert body.wheels_per_axle * (fzf + fzr) == pytest.approx(1000 * 9.81 * np.cos(alpha))
+    fzf0, fzr0 = body.axle_normal_loads(accel_mps2=0.0, v_mps=10.0, grade=0.05)
+    assert fzr > fzr0 and fzf < fzf0  # acceleration shifts load to the rear axle
+    # headwind raises the drag at the same ground speed
+    windy = VehicleBody(mass_kg=1000.0, headwind_mps=-5.0)
+    assert windy.road_load_force(10.0, 0.0) > VehicleBody(mass_kg=1000.0).road_load_force(10.0, 0.0)
+
+
+def test_gear_efficiency_direction() -> None:
+    g = Gear(ratio=3.0, efficiency=0.9)
+    assert g.output_torque(10.0) == pytest.approx(27.0)  # motoring: loses torque
+    assert g.output_torque(-10.0) == pytest.approx(-10.0 * 3.0 / 0.9)  # braking: wheels drive
+    assert g.input_torque(g.output_torque(7.0)) == pytest.approx(7.0)
+
+
+def test_magic_formula_is_odd_and_invertible() -> None:
+    tire = Tire()
+    k = np.array([-0.05, 0.05])
+    f = tire.longitudinal_force(k, 4000.0)
+    assert f[0] == pytest.approx(-f[1])
+    assert tire.slip_for_force(f[1], 4000.0) == pytest.approx(0.05, abs=1e-3)
+    assert tire.wheel_speed_radps(3.0) == pytest.approx(10.0)
+
+
+def test_engine_no_fuel_at_zero_throttle_stall_and_redline() -> None:
+    eng = Engine.from_directory(resolve_component("vw_1p9_tdi_ci67", "engine", Path("."), "e"))
+    w = np.array([50.0, 150.0, 500.0])
+    torque = eng.torque(0.5, w)
+    assert torque[1] == pytest.approx(0.5 * float(eng.max_torque(150.0)))
+    assert torque[0] <= 0 and torque[2] <= 0  # below stall / above redline: unfired drag
+    assert eng.torque(0.0, 150.0) <= 0.0
+    rate = eng.fuel_rate(100.0, 188.5)
+    bsfc_g_per_kwh = rate * 1e3 * 3.6e6 / (100.0 * 188.5)
+    assert 190 < bsfc_g_per_kwh < 300
+    assert np.isnan(eng.fuel_rate(100.0, 20.0))  # below stall: infeasible for DP
+
+
+def test_electric_machine_power_direction() -> None:
+    m = ElectricMachine.constant_torque("m", 100.0, efficiency=0.8)
+    assert m.electrical_power(10.0, 100.0) == pytest.approx(1000 / 0.8)
+    assert m.electrical_power(-10.0, 100.0) == pytest.approx(-1000 * 0.8)
+    pm = ElectricMachine.from_directory(resolve_component("honda_pm49", "motor", Path("."), "m"))
+    hi, lo = pm.limits(np.array([0.0, 600.0]))
+    assert hi[0] > hi[1] > 0 and lo[0] < 0
+    assert 0.6 < float(pm.efficiency_at(100.0, 300.0)) <= 1.0
+
+
+def test_battery_levels_and_current() -> None:
+    ideal = BatteryPack.constant("i", "ideal", 336.0, 8.5)
+    assert float(ideal.current(3360.0, 0.7)) == pytest.approx(10.0)
+    rint = BatteryPack.constant("r", "rint", 366.0, 8.5, 0.4)
+    i = float(rint.current(20e3, 0.7))
+    assert (366.0 - 0.4 * i) * i == pytest.approx(20e3)
+    assert float(rint.soc_rate(8.5)) == pytest.approx(-1 / 3600)  # 1 C drains 1/h, eq (13)
+    table = BatteryPack.from_directory(
+        resolve_component("nimh_spiral_6ah_insight_prius_nimh6", "battery", Path("."), "b"),
+        n_series=10, n_parallel=2,
+    )  # fmt: skip
+    assert table.capacity_ah == pytest.approx(12.0)
+    r_dis = float(table.resistance(0.5, 1.0))
+    r_chg = float(table.resistance(0.5, -1.0))
+    assert r_dis > 0 and r_chg > 0
+    assert float(table.ocv(0.9)) > float(table.ocv(0.1))
