@@ -113,8 +113,11 @@ def _edit(tmp_path: Path, old: str, new: str) -> Path:
     [
         ("mass_kg = 1200.0", "mass_kgs = 1200.0", ["'body.mass_kgs'", "not known", "mass_kg"]),
         ("mass_kg = 1200.0", 'mass_kg = "heavy"', ["'body.mass_kg'", "'heavy'", "a number"]),
-        ('data = "vw_1p9_tdi_ci67"', 'data = "no_such_engine"', ["engine.data", "no_such_engine",
-                                                                  "vw_1p9_tdi_ci67"]),  # fmt: skip
+        (
+            'data = "vw_1p9_tdi_ci67"',
+            'data = "no_such_engine"',
+            ["engine.data", "no_such_engine", "vw_1p9_tdi_ci67"],
+        ),
         ("soc_low = 0.6", "soc_low = 0.8", ["soc_low", "0.8", "soc_high"]),
         ('model = "table"', 'model = "tabel"', ["battery.model", "tabel", "rint"]),
     ],

@@ -227,9 +227,7 @@ BOUNDS: dict[str, tuple[float, float]] = {
 
 
 def _type_name(tp: Any) -> str:
-    return {float: "a number", int: "an integer", str: "a string", bool: "true/false"}.get(
-        tp, str(tp)
-    )
+    return {float: "a number", int: "an integer", str: "a string", bool: "true/false"}.get(tp, str(tp))
 
 
 def _check_value(value: Any, tp: Any, where: str) -> Any:
@@ -278,9 +276,7 @@ def _build_section(cls: type, data: Any, source: str, section: str) -> Any:
     return cls(**kwargs)
 
 
-def from_dict(
-    data: dict[str, Any], source: str = "<config>", base_dir: Path | None = None
-) -> VehicleConfig:
+def from_dict(data: dict[str, Any], source: str = "<config>", base_dir: Path | None = None) -> VehicleConfig:
     """Validate a parsed configuration mapping into a :class:`VehicleConfig`."""
     hints = typing.get_type_hints(VehicleConfig)
     kwargs: dict[str, Any] = {"base_dir": str(base_dir or Path("."))}

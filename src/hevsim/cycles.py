@@ -149,9 +149,7 @@ class DriveCycle:
         grade = _readonly(grade)
         for values, column in ((time_s, "time_s"), (speed, "speed_mps"), (grade, "grade")):
             if values.ndim != 1:
-                raise InputError(
-                    f"{where}: '{column}' has shape {values.shape}; expected a 1-D array."
-                )
+                raise InputError(f"{where}: '{column}' has shape {values.shape}; expected a 1-D array.")
         if time_s.size < 2:
             raise InputError(f"{where}: has {time_s.size} sample(s); expected at least 2 samples.")
         if speed.size != time_s.size or grade.size != time_s.size:
@@ -228,9 +226,7 @@ class DriveCycle:
     def _grade_table(self) -> Table1D:
         from hevsim.tables import Table1D
 
-        return Table1D(
-            np.array(self.time_s), np.array(self.grade), "clamp", "time_s", "grade", self.name
-        )
+        return Table1D(np.array(self.time_s), np.array(self.grade), "clamp", "time_s", "grade", self.name)
 
     def speed_at(self, t_s: npt.ArrayLike) -> FloatArray:
         """Speed at times ``t_s`` of any shape, linear between samples [m/s].
@@ -254,8 +250,7 @@ class DriveCycle:
         """
         if not (math.isfinite(dt_s) and dt_s > 0.0):
             raise InputError(
-                f"drive cycle '{self.name}': resampling step dt_s={dt_s!r}; expected a "
-                "finite step > 0 [s]."
+                f"drive cycle '{self.name}': resampling step dt_s={dt_s!r}; expected a finite step > 0 [s]."
             )
         t0 = float(self.time_s[0])
         t1 = float(self.time_s[-1])
@@ -282,9 +277,7 @@ class DriveCycle:
         (``time_s[1] - time_s[0]``) after the previous end, with a linear ramp between.
         """
         if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-            raise InputError(
-                f"drive cycle '{self.name}': repeat count {n!r}; expected an integer >= 1."
-            )
+            raise InputError(f"drive cycle '{self.name}': repeat count {n!r}; expected an integer >= 1.")
         n = int(n)
         joins = bool(self.speed_mps[-1] == self.speed_mps[0] and self.grade[-1] == self.grade[0])
         start = 1 if joins else 0
@@ -367,9 +360,7 @@ def _read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
     return header, rows
 
 
-def _parse_column(
-    path: Path, rows: list[tuple[int, list[str]]], index: int, column: str
-) -> FloatArray:
+def _parse_column(path: Path, rows: list[tuple[int, list[str]]], index: int, column: str) -> FloatArray:
     out = np.empty(len(rows), dtype=np.float64)
     for k, (line, fields) in enumerate(rows):
         text = fields[index]
@@ -404,8 +395,7 @@ def load_cycle_csv(path: str | Path, name: str | None = None) -> DriveCycle:
     lowered = [h.lower() for h in header]
     if TIME_COLUMN not in lowered:
         raise InputError(
-            f"{p}: missing time column; found columns {header}, expected a column "
-            f"'{TIME_COLUMN}' [s]."
+            f"{p}: missing time column; found columns {header}, expected a column '{TIME_COLUMN}' [s]."
         )
     speed_column = next((c for c in SPEED_COLUMNS if c in lowered), None)
     if speed_column is None:

@@ -67,9 +67,7 @@ def interp1(xp: FloatArray, fp: FloatArray, x: float, linear: bool) -> float:
 
 
 @njit(cache=True)
-def interp2(
-    xp: FloatArray, yp: FloatArray, fp: FloatArray, x: float, y: float, linear: bool
-) -> float:
+def interp2(xp: FloatArray, yp: FloatArray, fp: FloatArray, x: float, y: float, linear: bool) -> float:
     """Bilinear interpolation of ``fp[i, j] = f(xp[i], yp[j])`` at scalar ``(x, y)``."""
     nx = xp.shape[0]
     ny = yp.shape[0]
@@ -110,8 +108,7 @@ def _interp2_many(
 def _check_axis(axis: FloatArray, name: str, source: str) -> None:
     if axis.ndim != 1 or axis.size == 0:
         raise InputError(
-            f"{source}: axis '{name}' must be a non-empty 1-D list of numbers, "
-            f"got shape {axis.shape}."
+            f"{source}: axis '{name}' must be a non-empty 1-D list of numbers, got shape {axis.shape}."
         )
     bad = np.flatnonzero(~np.isfinite(axis))
     if bad.size:
@@ -288,9 +285,7 @@ class Table2D:
         i = np.searchsorted(xs, frame[x_col])
         j = np.searchsorted(ys, frame[y_col])
         z[i, j] = frame[z_col] * scale
-        return cls(
-            xs, ys, z, extrapolation, x_name=x_col, y_name=y_col, z_name=z_col, source=str(path)
-        )
+        return cls(xs, ys, z, extrapolation, x_name=x_col, y_name=y_col, z_name=z_col, source=str(path))
 
 
 def read_csv_columns(path: str | Path, columns: list[str]) -> dict[str, FloatArray]:

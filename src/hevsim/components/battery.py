@@ -24,7 +24,7 @@ from hevsim.units import c_to_k
 
 
 @njit(cache=True)
-def pack_ocv_r(soc, temp_k, current_sign, ocv_x, ocv_y, ocv_z, rd_z, rc_z, n_s, n_p, r_extra):  # type: ignore[no-untyped-def]
+def pack_ocv_r(soc, temp_k, current_sign, ocv_x, ocv_y, ocv_z, rd_z, rc_z, n_s, n_p, r_extra):
     """Pack open-circuit voltage [V] and series resistance [ohm] (scalar kernel).
 
     Tables share the axes (SOC [-], temperature [K]); ``current_sign`` > 0 selects discharge.
@@ -36,7 +36,7 @@ def pack_ocv_r(soc, temp_k, current_sign, ocv_x, ocv_y, ocv_z, rd_z, rc_z, n_s, 
 
 
 @njit(cache=True)
-def current_for_power(power_w, ocv_v, r_ohm):  # type: ignore[no-untyped-def]
+def current_for_power(power_w, ocv_v, r_ohm):
     """Discharge-positive current [A] delivering terminal power [W] (scalar or array).
 
     Solves ``P = (OCV - R I) I`` on the physical root. Beyond the maximum deliverable power
@@ -84,9 +84,7 @@ class BatteryPack:
                     "temperature axes."
                 )
         if self.capacity_cell_ah <= 0:
-            raise InputError(
-                f"battery '{self.name}': capacity {self.capacity_cell_ah!r} A·h must be > 0."
-            )
+            raise InputError(f"battery '{self.name}': capacity {self.capacity_cell_ah!r} A·h must be > 0.")
         if self.n_series < 1 or self.n_parallel < 1:
             raise InputError(f"battery '{self.name}': n_series and n_parallel must be >= 1.")
 
@@ -100,12 +98,12 @@ class BatteryPack:
         o = self.ocv_cell
         return (o.x, o.y, o.z, self.r_discharge_cell.z, self.r_charge_cell.z)
 
-    def ocv(self, soc, temp_k=None):  # type: ignore[no-untyped-def]
+    def ocv(self, soc, temp_k=None):
         """Pack OCV [V] at SOC [-] and temperature [K] (vectorised)."""
         t = self.temperature_k if temp_k is None else temp_k
         return self.n_series * self.ocv_cell(soc, t)
 
-    def resistance(self, soc, current_a, temp_k=None):  # type: ignore[no-untyped-def]
+    def resistance(self, soc, current_a, temp_k=None):
         """Pack resistance [ohm] at SOC [-], current [A] (discharge > 0), temperature [K]."""
         t = self.temperature_k if temp_k is None else temp_k
         r_cell = np.where(
@@ -113,14 +111,14 @@ class BatteryPack:
         )
         return self.n_series / self.n_parallel * r_cell + self.r_extra_ohm
 
-    def current(self, power_w, soc, temp_k=None):  # type: ignore[no-untyped-def]
+    def current(self, power_w, soc, temp_k=None):
         """Discharge-positive current [A] for terminal power [W] (> 0 discharging), vectorised."""
         p = np.asarray(power_w, float)
         ocv = self.ocv(soc, temp_k)
         r = self.resistance(soc, p, temp_k)
         return current_for_power(p, ocv, r)
 
-    def soc_rate(self, current_a):  # type: ignore[no-untyped-def]
+    def soc_rate(self, current_a):
         """dSOC/dt [1/s] for current [A], eq (13) with coulombic efficiency on charge."""
         i = np.asarray(current_a, float)
         eff = np.where(i < 0, self.coulombic_efficiency, 1.0)

@@ -23,7 +23,7 @@ MIN_EFFICIENCY = 0.05
 
 
 @njit(cache=True)
-def electrical_power(torque_nm, omega_radps, efficiency):  # type: ignore[no-untyped-def]
+def electrical_power(torque_nm, omega_radps, efficiency):
     """Electrical power [W] (> 0 drawn from the bus) for shaft torque [N·m] and speed [rad/s]."""
     p_mech = torque_nm * omega_radps
     return p_mech * efficiency ** (-np.sign(p_mech))
@@ -42,7 +42,7 @@ def machine_efficiency(
 
 
 @njit(cache=True)
-def torque_limits(omega_radps, lim_x, lim_mot, lim_gen, torque_scale):  # type: ignore[no-untyped-def]
+def torque_limits(omega_radps, lim_x, lim_mot, lim_gen, torque_scale):
     """(max motoring torque >= 0, max generating torque <= 0) [N·m] at speed [rad/s]."""
     w = abs(omega_radps)
     return (
@@ -118,7 +118,7 @@ class ElectricMachine:
         gen = self.max_generating_torque(self.max_motoring_torque.x)
         return (self.max_motoring_torque.x, self.max_motoring_torque.y, gen, e.x, e.y, e.z)
 
-    def limits(self, omega_radps):  # type: ignore[no-untyped-def]
+    def limits(self, omega_radps):
         """Vectorised (max motoring, max generating) torque [N·m] at speed [rad/s]."""
         w = np.abs(np.asarray(omega_radps, float))
         return (
@@ -126,7 +126,7 @@ class ElectricMachine:
             self.torque_scale * self.max_generating_torque(w),
         )
 
-    def efficiency_at(self, torque_nm, omega_radps):  # type: ignore[no-untyped-def]
+    def efficiency_at(self, torque_nm, omega_radps):
         """Vectorised efficiency [-] at torque [N·m] and speed [rad/s]."""
         t, w = np.broadcast_arrays(np.asarray(torque_nm, float), np.asarray(omega_radps, float))
         if self.kind == "ideal":
@@ -136,7 +136,7 @@ class ElectricMachine:
         assert self.efficiency_map is not None
         return np.maximum(self.efficiency_map(np.abs(w), t / self.torque_scale), MIN_EFFICIENCY)
 
-    def electrical_power(self, torque_nm, omega_radps):  # type: ignore[no-untyped-def]
+    def electrical_power(self, torque_nm, omega_radps):
         """Vectorised electrical power [W] (> 0 drawn) at torque [N·m] and speed [rad/s]."""
         t = np.asarray(torque_nm, float)
         w = np.asarray(omega_radps, float)
@@ -165,9 +165,7 @@ class ElectricMachine:
             gen = Table1D(gen.x[keep], gen.y[keep], source=gen.source)
         if np.all(gen.y == 0):  # generating limits missing: mirror the motoring curve
             gen = Table1D(mot.x, -mot.y, source=mot.source)
-        eff = Table2D.from_long_csv(
-            d / "efficiency_map.csv", "speed_rad_per_s", "torque_N_m", "efficiency"
-        )
+        eff = Table2D.from_long_csv(d / "efficiency_map.csv", "speed_rad_per_s", "torque_N_m", "efficiency")
         if eff.x[0] < 0:
             keep = eff.x >= 0
             eff = Table2D(eff.x[keep], eff.y, eff.z[keep], source=eff.source)

@@ -61,9 +61,7 @@ def engine_fuel_rate(
     if not fired or (torque_nm <= 0.0 and not use_fuel_map):
         return 0.0
     if use_fuel_map:
-        rate = torque_scale * interp2(
-            fuel_x, fuel_y, fuel_z, omega_radps, torque_nm / torque_scale, False
-        )
+        rate = torque_scale * interp2(fuel_x, fuel_y, fuel_z, omega_radps, torque_nm / torque_scale, False)
         return max(rate, 0.0)
     return torque_nm * omega_radps / lhv_jpkg
 
@@ -109,7 +107,7 @@ class Engine:
             tmap.x, tmap.y, tmap.z, fuel.x, fuel.y, fuel.z,
         )  # fmt: skip
 
-    def torque(self, throttle, omega_radps):  # type: ignore[no-untyped-def]
+    def torque(self, throttle, omega_radps):
         """Vectorised brake torque [N·m] at throttle [-] and speed [rad/s]."""
         t = self.kernel_tables()
         thr, w = np.broadcast_arrays(np.asarray(throttle, float), np.asarray(omega_radps, float))
@@ -121,15 +119,13 @@ class Engine:
         ])  # fmt: skip
         return out.reshape(thr.shape)
 
-    def fuel_rate(self, torque_nm, omega_radps):  # type: ignore[no-untyped-def]
+    def fuel_rate(self, torque_nm, omega_radps):
         """Vectorised fuel rate [kg/s] of a fired engine at torque [N·m] and speed [rad/s].
 
         Operating points outside stall..redline or with torque above the max-torque curve
         return NaN, so callers (DP) can mark them infeasible.
         """
-        torque, w = np.broadcast_arrays(
-            np.asarray(torque_nm, float), np.asarray(omega_radps, float)
-        )
+        torque, w = np.broadcast_arrays(np.asarray(torque_nm, float), np.asarray(omega_radps, float))
         if self.fuel_map is None:
             rate = np.maximum(torque * w, 0.0) / self.fuel_lhv_jpkg
         else:

@@ -160,9 +160,20 @@ def _runs(mask: npt.NDArray[np.bool_], t: FloatArray) -> list[tuple[float, float
     starts = np.flatnonzero(edges == 1)
     ends = np.flatnonzero(edges == -1)
     t_ext = np.append(t, t[-1] + step_durations(t)[-1])
-    return [
-        (float(t_ext[s]), float(t_ext[e] - t_ext[s])) for s, e in zip(starts, ends, strict=True)
-    ]
+    return [(float(t_ext[s]), float(t_ext[e] - t_ext[s])) for s, e in zip(starts, ends, strict=True)]
+
+
+def fuel_rate_kgps(ts: pd.DataFrame) -> FloatArray | None:
+    """Fuel rate [kg/s] from ``fuel_rate_kgps``, ``fuel_rate_gps`` [g/s] or the cumulative
+    ``fuel_kg`` [kg]; None if the time series has none of them."""
+    if "fuel_rate_kgps" in ts.columns:
+        return _col(ts, "fuel_rate_kgps")
+    if "fuel_rate_gps" in ts.columns:
+        return _col(ts, "fuel_rate_gps") / G_PER_KG
+    if "fuel_kg" in ts.columns and len(ts) > 1:
+        rate = np.diff(_col(ts, "fuel_kg")) / np.diff(_time(ts))
+        return np.append(rate, 0.0)
+    return None
 
 
 def _speed_mph(ts: pd.DataFrame, which: str) -> FloatArray | None:
@@ -210,9 +221,7 @@ def plot_speed_tracking(ts: pd.DataFrame, path: str | Path) -> Path:
     t = _time(ts)
     v = _speed_mph(ts, "speed")
     v_des = _speed_mph(ts, "speed_desired")
-    fig, (ax, ax_err) = _figure(
-        2, 1, sharex=True, figsize=(10.0, 6.0), gridspec_kw={"height_ratios": [3, 1]}
-    )
+    fig, (ax, ax_err) = _figure(2, 1, sharex=True, figsize=(10.0, 6.0), gridspec_kw={"height_ratios": [3, 1]})
     if v_des is not None:
         ax.plot(t, v_des, color="0.35", lw=2.2, ls="--", label="desired (cycle)")
     if v is not None:
@@ -308,9 +317,9 @@ def plot_engine(ts: pd.DataFrame, path: str | Path) -> Path:
     ax_w.set_ylabel("speed [rpm]")
     ax_w.set_title("Engine speed, torque and throttle")
     _grid(ax_w)
-    if "fuel_rate_kgps" in ts.columns:
-        fired = _col(ts, "fuel_rate_kgps") > 0.0
-        for i, (start, width) in enumerate(_runs(fired, t)):
+    fuel = fuel_rate_kgps(ts)
+    if fuel is not None:
+        for i, (start, width) in enumerate(_runs(fuel > 0.0, t)):
             for a in (ax_w, ax_t, ax_th):
                 a.axvspan(
                     start,
@@ -380,8 +389,9 @@ def _bsfc_levels(bsfc: FloatArray) -> FloatArray:
     hi = min(float(np.percentile(finite, 95)), 2.5 * lo)
     if hi <= lo:
         hi = lo * 1.1 + 1.0
-    levels = MaxNLocator(nbins=14, steps=[1, 2, 2.5, 5, 10]).tick_values(lo, hi)
-    return np.asarray(levels[levels >= lo * 0.999], dtype=np.float64)
+    locator = MaxNLocator(nbins=14, steps=[1, 2, 2.5, 5, 10])
+    levels = np.asarray(locator.tick_values(lo, hi), dtype=np.float64)
+    return levels[levels >= lo * 0.999]
 
 
 def plot_engine_operating_points(
@@ -400,8 +410,7 @@ def plot_engine_operating_points(
     has_map = bool(np.isfinite(bsfc).any())
     if has_map:
         levels = _bsfc_levels(bsfc)
-        clipped = np.minimum(bsfc, levels[-1])  # fill everything above the top level
-        cf = ax.contourf(rpm, trq, clipped, levels=levels, cmap="viridis_r", alpha=0.85)
+        cf = ax.contourf(rpm, trq, bsfc, levels=levels, cmap="viridis_r", alpha=0.85, extend="both")
         cs = ax.contour(rpm, trq, bsfc, levels=levels, colors="k", linewidths=0.5, alpha=0.6)
         ax.clabel(cs, levels=cs.levels[::2], fmt="%.0f", fontsize="x-small", inline=True)
         cbar = fig.colorbar(cf, ax=ax)
@@ -421,12 +430,13 @@ def plot_engine_operating_points(
     ax.plot(rpm, tmax_w, color="k", lw=2.2, label="max torque")
 
     summary = ""
+    fuel = fuel_rate_kgps(ts) if ts is not None else None
     if (
         ts is not None
-        and _has(ts, "fuel_rate_kgps", "engine_torque_nm")
+        and fuel is not None
+        and "engine_torque_nm" in ts.columns
         and (_has(ts, "engine_speed_radps") or _has(ts, "engine_speed_rpm"))
     ):
-        fuel = _col(ts, "fuel_rate_kgps")
         fired = fuel > 0.0
         if fired.any():
             pts_rpm = (
@@ -457,7 +467,7 @@ def plot_engine_operating_points(
         summary += " (no fuel map: ideal engine)"
     ax.set_xlim(float(rpm[0]), float(rpm[-1]))
     ax.set_ylim(min(0.0, ax.get_ylim()[0]), float(np.max(tmax_w)) * 1.08)
-    ax.set_title(f"Engine operating points on the BSFC map: {engine.name}{summary}")
+    ax.set_title(f"Engine operating points on the BSFC map\n{engine.name}{summary}")
     ax.set_xlabel("engine speed [rpm]")
     ax.set_ylabel("engine torque [N·m]")
     ax.legend(loc="lower right", fontsize="small", framealpha=0.9)
@@ -473,10 +483,7 @@ def plot_power_modes(ts: pd.DataFrame, path: str | Path) -> Path:
     all_codes = sorted(set(names) | {int(c) for c in np.unique(codes)})
     dt = step_durations(t)
     total = float(dt.sum()) or 1.0
-    fig, (ax, ax_bar) = _figure(
-        1, 2, sharey=True, figsize=(11.0, 4.5), gridspec_kw={"width_ratios": [3, 1]}
-    )
-    ax.step(t, codes, where="post", color="0.3", lw=0.8)
+    fig, (ax, ax_bar) = _figure(1, 2, sharey=True, figsize=(11.0, 4.5), gridspec_kw={"width_ratios": [3, 1]})
     for code in all_codes:
         color = _MODE_COLORS[code % len(_MODE_COLORS)]
         spans = _runs(codes == code, t)
@@ -516,8 +523,12 @@ def plot_energy_audit(energy_audit: Mapping[str, float], path: str | Path) -> Pa
     ax.set_yticks(y, [k.replace("_", " ") for k, _, _ in rows])
     ax.axvline(0.0, color="0.3", lw=0.8)
     lo, hi = (float(np.min(kwh)), float(np.max(kwh))) if kwh.size else (0.0, 1.0)
-    span = max(hi - min(lo, 0.0), 1e-9)
-    ax.set_xlim(min(lo, 0.0) - 0.05 * span * (lo < 0), max(hi, 0.0) + 0.18 * span)
+    span = max(max(hi, 0.0) - min(lo, 0.0), 1e-9)
+    left = min(lo, 0.0) - (0.16 * span if lo < 0.0 else 0.0)  # room for negative labels
+    ax.set_xlim(left, max(hi, 0.0) + 0.16 * span)
+    for boundary in (len(sources), len(sources) + len(sinks)):
+        if 0 < boundary < len(rows):
+            ax.axhline(len(rows) - boundary - 0.5, color="0.5", lw=0.8, ls=":")
     total = sum(v for _, v in sources)
     title = "Energy audit"
     if residual is not None and total:
@@ -557,9 +568,7 @@ def plot_all(result: Any, out_dir: str | Path) -> list[Path]:
         written.append(plot_currents(ts, out / PLOT_FILES["currents"]))
     if engine is not None:
         written.append(plot_engine(ts, out / PLOT_FILES["engine"]))
-        written.append(
-            plot_engine_operating_points(ts, engine, out / PLOT_FILES["engine_operating_points"])
-        )
+        written.append(plot_engine_operating_points(ts, engine, out / PLOT_FILES["engine_operating_points"]))
     if "power_mode" in ts.columns:
         written.append(plot_power_modes(ts, out / PLOT_FILES["power_modes"]))
     if audit:

@@ -100,7 +100,7 @@ S_DIST, S_FUEL, S_SOCF, S_RMS, S_MAXERR, S_EON, S_STARTS, S_BLIM, S_DUR = range(
 
 
 @njit(cache=True)
-def run_series(p, eng, mot, gen, bat, t_s, v_des, grade, record, out, energy, summary):  # type: ignore[no-untyped-def]
+def run_series(p, eng, mot, gen, bat, t_s, v_des, grade, record, out, energy, summary):
     """Integrate the series HEV over the (uniformly sampled) cycle ``t_s, v_des, grade``.
 
     ``eng``, ``mot``, ``gen``, ``bat``: table tuples from the components' ``kernel_tables``.
@@ -417,13 +417,11 @@ def run_series(p, eng, mot, gen, bat, t_s, v_des, grade, record, out, energy, su
 
 
 @njit(cache=True, parallel=True)
-def run_series_batch(pmat, eng, mot, gen, bat, t_s, v_des, grade, energy, summary):  # type: ignore[no-untyped-def]
+def run_series_batch(pmat, eng, mot, gen, bat, t_s, v_des, grade, energy, summary):
     """Run every row of ``pmat`` (one parameter vector per variant) in parallel.
 
     Fills ``energy[i]`` and ``summary[i]`` per variant; no time series are recorded.
     """
     dummy = np.zeros((1, len(CHANNELS)))
     for i in prange(pmat.shape[0]):
-        run_series(
-            pmat[i], eng, mot, gen, bat, t_s, v_des, grade, False, dummy, energy[i], summary[i]
-        )
+        run_series(pmat[i], eng, mot, gen, bat, t_s, v_des, grade, False, dummy, energy[i], summary[i])

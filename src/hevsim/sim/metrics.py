@@ -110,9 +110,7 @@ def compute_metrics(
     )  # fmt: skip
     km = dist / 1000.0
     liters = fuel / fuel_density_kgpm3 * 1000.0
-    eq_fuel_kg = (
-        fe["e_total_btu"] / heating_value_btu_per_gal * M3_PER_US_GALLON * fuel_density_kgpm3
-    )
+    eq_fuel_kg = fe["e_total_btu"] / heating_value_btu_per_gal * M3_PER_US_GALLON * fuel_density_kgpm3
     return {
         "distance_m": metric(dist, "m", "distance travelled"),
         "distance_mi": metric(fe["miles"], "mi", "distance travelled"),
@@ -125,40 +123,34 @@ def compute_metrics(
             liters / km * 100.0 if km > 0 else float("nan"),
             "L/100km",
             "fuel consumption, no SOC correction",
-        ),  # fmt: skip
+        ),
         "mpgge": metric(
             fe["mpgge"],
             "mpgge",
             "miles per gallon of gasoline equivalent with SOC correction, eqs 14-20",
-        ),  # fmt: skip
+        ),
         "fuel_equivalent_kg": metric(
             eq_fuel_kg, "kg", "fuel burnt plus the fuel equivalent of the SOC change"
-        ),  # fmt: skip
+        ),
         "co2_g_per_km": metric(
             fuel * co2_kg_per_kg * 1e3 / km if km > 0 else float("nan"),
             "g/km",
             "tailpipe CO2 from fuel burnt",
-        ),  # fmt: skip
+        ),
         "co2_soc_corrected_g_per_km": metric(
             eq_fuel_kg * co2_kg_per_kg * 1e3 / km if km > 0 else float("nan"),
             "g/km",
             "CO2 of the SOC-corrected fuel equivalent",
-        ),  # fmt: skip
+        ),
         "soc_initial": metric(soc_initial, "-", "initial state of charge"),
         "soc_final": metric(socf, "-", "final state of charge"),
-        "battery_energy_wh": metric(
-            fe["e_battery_wh"], "Wh", "eq (15): energy drawn from the battery"
-        ),
-        "speed_error_rms_mph": metric(
-            summary[K.S_RMS] / MPS_PER_MPH, "mph", "RMS speed-tracking error"
-        ),
-        "speed_error_max_mph": metric(
-            summary[K.S_MAXERR] / MPS_PER_MPH, "mph", "max speed-tracking error"
-        ),
+        "battery_energy_wh": metric(fe["e_battery_wh"], "Wh", "eq (15): energy drawn from the battery"),
+        "speed_error_rms_mph": metric(summary[K.S_RMS] / MPS_PER_MPH, "mph", "RMS speed-tracking error"),
+        "speed_error_max_mph": metric(summary[K.S_MAXERR] / MPS_PER_MPH, "mph", "max speed-tracking error"),
         "engine_on_time_s": metric(summary[K.S_EON], "s", "time with the engine fired"),
         "engine_starts": metric(summary[K.S_STARTS], "-", "genset start requests"),
         "battery_limited_s": metric(summary[K.S_BLIM], "s", "time with battery power limited"),
         "energy_audit_residual_pct": metric(
             100.0 * audit_residual_fraction(audit), "%", "energy audit residual / gross throughput"
-        ),  # fmt: skip
+        ),
     }

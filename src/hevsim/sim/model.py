@@ -118,7 +118,7 @@ class SeriesHEV:
                 "none": K.GENSET_NONE,
                 "current_source": K.GENSET_CURRENT_SOURCE,
                 "engine": K.GENSET_ENGINE,
-            }[c.genset.kind],  # fmt: skip
+            }[c.genset.kind],
             "soc_low": ctl.soc_low,
             "soc_high": ctl.soc_high,
             "soc_boost": ctl.soc_boost,

@@ -23,7 +23,7 @@ from hevsim.errors import ConfigError, SimulationError
 from hevsim.sim import kernel as K
 from hevsim.sim.metrics import compute_metrics, energy_audit
 from hevsim.sim.model import SeriesHEV, build_series_hev
-from hevsim.units import MPS_PER_MPH, radps_to_rpm
+from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
 
 
 @dataclass
@@ -143,15 +143,22 @@ def simulate(
     energy = np.zeros(len(K.ENERGY_TERMS))
     summary = np.zeros(len(K.SUMMARY))
     t_kernel = time.perf_counter()
-    K.run_series(
-        p, eng, mot, gen, bat, grid.time_s, grid.speed_mps, grid.grade, True, out, energy, summary
-    )
+    K.run_series(p, eng, mot, gen, bat, grid.time_s, grid.speed_mps, grid.grade, True, out, energy, summary)
     t_done = time.perf_counter()
     return _assemble(hev, cyc, dt, p, out, energy, summary, t_done - t_kernel, t_done - t_start)
 
 
-def _assemble(hev: SeriesHEV, cyc: DriveCycle, dt: float, p: np.ndarray, out: np.ndarray,
-              energy: np.ndarray, summary: np.ndarray, t_kernel: float, t_total: float) -> SimulationResult:  # fmt: skip
+def _assemble(
+    hev: SeriesHEV,
+    cyc: DriveCycle,
+    dt: float,
+    p: np.ndarray,
+    out: np.ndarray,
+    energy: np.ndarray,
+    summary: np.ndarray,
+    t_kernel: float,
+    t_total: float,
+) -> SimulationResult:
     ts = pd.DataFrame(out, columns=list(K.CHANNELS))
     for col in ("genset_state", "power_mode", "mode_reason", "battery_limited"):
         ts[col] = ts[col].astype(np.int64)
@@ -159,11 +166,8 @@ def _assemble(hev: SeriesHEV, cyc: DriveCycle, dt: float, p: np.ndarray, out: np
     ts["fuel_rate_gps"] *= 1e3
     ts.insert(3, "speed_mph", ts["speed_mps"] / MPS_PER_MPH)
     ts.insert(2, "speed_desired_mph", ts["speed_desired_mps"] / MPS_PER_MPH)
-    ts.insert(
-        ts.columns.get_loc("engine_speed_radps") + 1,
-        "engine_speed_rpm",
-        radps_to_rpm(ts["engine_speed_radps"]),
-    )
+    pos = list(ts.columns).index("engine_speed_radps") + 1
+    ts.insert(pos, "engine_speed_rpm", ts["engine_speed_radps"].to_numpy() / RADPS_PER_RPM)
     ts["power_mode_name"] = np.array(K.POWER_MODES)[ts["power_mode"].to_numpy()]
     ts["genset_state_name"] = np.array(K.GENSET_STATES)[ts["genset_state"].to_numpy()]
     events = _events(ts)
@@ -197,12 +201,14 @@ def _events(ts: pd.DataFrame) -> pd.DataFrame:
         ("power_mode", "power_mode", K.POWER_MODES),
     ):
         vals = ts[col].to_numpy()
+        times = ts["time_s"].to_numpy()
+        reasons = ts["mode_reason"].to_numpy()
         changes = np.flatnonzero(np.diff(vals) != 0) + 1
-        for i in changes:
+        for i in changes.tolist():
             rows.append({
-                "time_s": float(ts["time_s"].iat[i]), "kind": kind,
+                "time_s": float(times[i]), "kind": kind,
                 "from_state": names[vals[i - 1]], "to_state": names[vals[i]],
-                "reason": K.REASONS[int(ts["mode_reason"].iat[i])],
+                "reason": K.REASONS[int(reasons[i])],
             })  # fmt: skip
     ev = pd.DataFrame(rows, columns=["time_s", "kind", "from_state", "to_state", "reason"])
     return ev.sort_values(["time_s", "kind"], kind="stable").reset_index(drop=True)
@@ -237,8 +243,7 @@ def simulate_batch(
     unknown = [k for k in variants if k not in K.P]
     if unknown:
         raise ConfigError(
-            f"batch variants: parameter(s) {unknown} are not known; valid names are: "
-            f"{', '.join(K.PARAMS)}."
+            f"batch variants: parameter(s) {unknown} are not known; valid names are: {', '.join(K.PARAMS)}."
         )
     arrays = {k: np.atleast_1d(np.asarray(v, dtype=np.float64)) for k, v in variants.items()}
     try:
@@ -254,9 +259,7 @@ def simulate_batch(
     energy = np.zeros((n, len(K.ENERGY_TERMS)))
     summary = np.zeros((n, len(K.SUMMARY)))
     t0 = time.perf_counter()
-    K.run_series_batch(
-        pmat, eng, mot, gen, bat, grid.time_s, grid.speed_mps, grid.grade, energy, summary
-    )
+    K.run_series_batch(pmat, eng, mot, gen, bat, grid.time_s, grid.speed_mps, grid.grade, energy, summary)
     elapsed = time.perf_counter() - t0
     density, heating, co2, _ = _energy_keys(hev)
     rows = []

@@ -1,0 +1,401 @@
+"""Numba kernels of the DP solver: one Bellman step over a (states x inputs) block.
+
+A Bellman step receives the model outputs for every (grid node, input) pair, flattened to a
+``(S, M)`` block (``S`` state nodes, ``M`` input combinations), and for every node returns
+the minimum over the inputs of ``stage cost + cost-to-go(next state)``, the arg-min and a
+status code. The cost-to-go is interpolated (multi)linearly on a rectilinear grid, regular
+(index by arithmetic) or irregular (index by bisection).
+
+Infinite cost-to-go values mark infeasible nodes. The interpolation treats them exactly: a
+point whose interpolation gives a positive weight to an infinite node is infeasible; a
+corner with zero weight (a point on a grid line) is ignored. Weights within ``WSNAP`` of 0
+or 1 are snapped, so that rounding in ``(x - x0) / dx`` cannot make an on-node point touch
+its infeasible neighbour.
+
+Modes (how the final-state constraint is enforced, see ``dp.py``):
+
+* ``MODE_PLAIN`` (0): plain cost-to-go (hard wall or linear penalty); at the last step the
+  target box can be checked exactly (``use_box``).
+* ``MODE_LEVELSET`` (1): a pair is admissible only if the interpolated level-set function of
+  the next step is <= ``VTOL`` (the next state lies in the backward reachable set). Nodes
+  outside the reachable set keep a finite cost (that of the input that comes closest to the
+  set), so nothing infinite is interpolated near the boundary of the set.
+* ``MODE_BAND`` (2, one state): the next state must lie in the band between the lower and
+  upper boundary lines; in the cells cut by a boundary line the cost-to-go is interpolated
+  between the boundary point (with its exact boundary-line cost) and the first grid node
+  inside the band.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+MODE_PLAIN = 0
+MODE_LEVELSET = 1
+MODE_BAND = 2
+
+ST_FEASIBLE = 0  # at least one admissible input with a finite cost
+ST_MASKED = 1  # every input is rejected by the model's infeasibility mask (or infinite cost)
+ST_BOUNDS = 2  # every unmasked input drives the state outside the grid
+ST_UNREACHABLE = 3  # no in-bounds input leads to a state from which the target is reachable
+ST_BAD = 4  # the model returned NaN / infinite next state / -inf cost for an unmasked pair
+
+WSNAP = 1e-12  # interpolation weights closer than this to 0 or 1 are snapped
+BTOL = 1e-9  # relative tolerance (of the grid span) on the state bounds
+VTOL = 1e-9  # level-set tolerance (normalised distance) for "inside the set"
+V_CAP = 1.0e6  # level-set value of nodes whose every input is masked
+
+
+@njit(cache=True, inline="always")
+def _locate(grid, uniform, inv_dx, x):
+    """Cell index ``i`` and weight ``w`` of ``x`` (inside the grid) on ``grid``."""
+    n = grid.shape[0]
+    if uniform:
+        t = (x - grid[0]) * inv_dx
+        i = int(np.floor(t))
+        if i < 0:
+            i = 0
+        elif i > n - 2:
+            i = n - 2
+        w = t - i
+    else:
+        if x <= grid[0]:
+            return 0, 0.0
+        if x >= grid[n - 1]:
+            return n - 2, 1.0
+        lo = 0
+        hi = n - 1
+        while hi - lo > 1:
+            mid = (lo + hi) >> 1
+            if grid[mid] <= x:
+                lo = mid
+            else:
+                hi = mid
+        i = lo
+        w = (x - grid[lo]) / (grid[lo + 1] - grid[lo])
+    if w < WSNAP:
+        w = 0.0
+    elif w > 1.0 - WSNAP:
+        w = 1.0
+    return i, w
+
+
+@njit(cache=True, inline="always")
+def _lerp_inf(a, b, w):
+    """Linear interpolation that is infinite when it touches an infinite end point."""
+    if w < WSNAP:
+        return 1.0 * a
+    if w > 1.0 - WSNAP:
+        return 1.0 * b
+    if a == np.inf or b == np.inf:
+        return np.inf
+    return a + w * (b - a)
+
+
+@njit(cache=True, inline="always")
+def _band_value(grid, uniform, inv_dx, J, band, band_i, x):
+    """Cost-to-go at ``x`` inside the band ``[band[0], band[2]]`` (boundary-line method)."""
+    lo = band[0]
+    lo_j = band[1]
+    hi = band[2]
+    hi_j = band[3]
+    if x <= lo:
+        return 1.0 * lo_j
+    if x >= hi:
+        return 1.0 * hi_j
+    ilo = band_i[0]
+    ihi = band_i[1]
+    if ilo > ihi:
+        return _lerp_inf(lo_j, hi_j, (x - lo) / (hi - lo))
+    glo = grid[ilo]
+    if x < glo:
+        return _lerp_inf(lo_j, J[ilo], (x - lo) / (glo - lo))
+    ghi = grid[ihi]
+    if x > ghi:
+        return _lerp_inf(J[ihi], hi_j, (x - ghi) / (hi - ghi))
+    i, w = _locate(grid, uniform, inv_dx, x)
+    return _lerp_inf(J[i], J[i + 1], w)
+
+
+@njit(parallel=True, cache=True)
+def bellman_1d(
+    xn,
+    g,
+    mask,
+    has_mask,
+    grid,
+    uniform,
+    inv_dx,
+    J,
+    V,
+    mode,
+    band,
+    band_i,
+    use_box,
+    box,
+    out_J,
+    out_arg,
+    out_status,
+    out_V,
+    out_argV,
+    out_fmax,
+    out_fmin,
+):
+    """One Bellman step for one state variable; see the module docstring.
+
+    ``xn``, ``g``, ``mask``: (S, M) next state, stage cost, infeasibility mask.
+    ``J``, ``V``: cost-to-go and level-set function of the next step on ``grid``.
+    ``band``: ``[lo, J(lo), hi, J(hi)]`` of the boundary lines at the next step,
+    ``band_i``: first and last grid node inside the band. ``box``: ``[lo, hi]`` target.
+    Outputs (length S): cost, arg-min input, status, level value, input closest to the
+    admissible set, largest and smallest unmasked next state.
+    """
+    S = xn.shape[0]
+    M = xn.shape[1]
+    n = grid.shape[0]
+    g0 = grid[0]
+    gn = grid[n - 1]
+    span = gn - g0
+    btol = BTOL * span
+    track = mode != MODE_PLAIN or use_box
+    for s in prange(S):
+        best = np.inf
+        arg = -1
+        best_v = np.inf
+        arg_v = -1
+        cost_v = np.inf
+        fmax = -np.inf
+        fmin = np.inf
+        n_ok = 0
+        n_inb = 0
+        bad = False
+        for m in range(M):
+            if has_mask and mask[s, m]:
+                continue
+            x = xn[s, m]
+            c = g[s, m]
+            if np.isnan(x) or np.isnan(c) or np.isinf(x) or c == -np.inf:
+                bad = True
+                continue
+            if c == np.inf:
+                continue
+            n_ok += 1
+            if x > fmax:
+                fmax = x
+            if x < fmin:
+                fmin = x
+            inb = x >= g0 - btol and x <= gn + btol
+            xc = min(max(x, g0), gn)
+            i, w = _locate(grid, uniform, inv_dx, xc)
+            if mode == MODE_BAND:
+                v = max(band[0] - x, x - band[2]) / span
+            elif use_box:
+                v = max(box[0] - x, x - box[1]) / span
+            elif mode == MODE_LEVELSET:
+                v = V[i] + w * (V[i + 1] - V[i]) if w > 0.0 else 1.0 * V[i]
+                if not inb:
+                    dout = (g0 - x) / span if x < g0 else (x - gn) / span
+                    v = max(v, 0.0) + dout
+            else:
+                v = 0.0
+            if not inb:
+                if track and v < best_v:
+                    best_v = v
+                    arg_v = m
+                    cost_v = np.inf
+                continue
+            n_inb += 1
+            if mode == MODE_BAND:
+                jv = _band_value(grid, uniform, inv_dx, J, band, band_i, xc) if v <= VTOL else np.inf
+            else:
+                jv = _lerp_inf(J[i], J[i + 1], w)
+            tot = c + jv
+            if v <= VTOL and tot < best:
+                best = tot
+                arg = m
+            if track and v < best_v:
+                best_v = v
+                arg_v = m
+                cost_v = tot
+        if bad:
+            status = ST_BAD
+        elif n_ok == 0:
+            status = ST_MASKED
+        elif n_inb == 0:
+            status = ST_BOUNDS
+        elif best == np.inf:
+            status = ST_UNREACHABLE
+        else:
+            status = ST_FEASIBLE
+        out_status[s] = status
+        if status == ST_FEASIBLE:
+            out_J[s] = best
+            out_arg[s] = arg
+        else:
+            out_J[s] = cost_v if mode == MODE_LEVELSET else np.inf
+            out_arg[s] = arg_v
+        out_V[s] = best_v if n_ok > 0 else V_CAP
+        out_argV[s] = arg_v
+        out_fmax[s] = fmax
+        out_fmin[s] = fmin
+
+
+@njit(parallel=True, cache=True)
+def bellman_nd(
+    x1,
+    x2,
+    x3,
+    x4,
+    d,
+    g,
+    mask,
+    has_mask,
+    gflat,
+    goff,
+    guni,
+    ginv,
+    gstride,
+    J,
+    V,
+    mode,
+    use_box,
+    box_lo,
+    box_hi,
+    out_J,
+    out_arg,
+    out_status,
+    out_V,
+    out_argV,
+):
+    """One Bellman step for 2 to 4 state variables (modes plain and level set).
+
+    ``x1..x4``: (S, M) next-state components (unused ones are dummies); the grid of
+    dimension ``j`` is ``gflat[goff[j]:goff[j+1]]`` and its flat-index stride ``gstride[j]``.
+    """
+    S = g.shape[0]
+    M = g.shape[1]
+    ncorner = 1 << d
+    track = mode != MODE_PLAIN or use_box
+    for s in prange(S):
+        idx = np.empty(4, np.int64)
+        w = np.empty(4)
+        xv = np.empty(4)
+        best = np.inf
+        arg = -1
+        best_v = np.inf
+        arg_v = -1
+        cost_v = np.inf
+        n_ok = 0
+        n_inb = 0
+        bad = False
+        for m in range(M):
+            if has_mask and mask[s, m]:
+                continue
+            c = g[s, m]
+            xv[0] = x1[s, m]
+            if d > 1:
+                xv[1] = x2[s, m]
+            if d > 2:
+                xv[2] = x3[s, m]
+            if d > 3:
+                xv[3] = x4[s, m]
+            finite = True
+            for j in range(d):
+                if not np.isfinite(xv[j]):
+                    finite = False
+            if not finite or np.isnan(c) or c == -np.inf:
+                bad = True
+                continue
+            if c == np.inf:
+                continue
+            n_ok += 1
+            inb = True
+            dout = 0.0
+            vbox = -np.inf
+            for j in range(d):
+                a = goff[j]
+                b = goff[j + 1]
+                lo = gflat[a]
+                hi = gflat[b - 1]
+                sp = hi - lo
+                x = xv[j]
+                if use_box:
+                    vbox = max(vbox, (box_lo[j] - x) / sp, (x - box_hi[j]) / sp)
+                if x < lo - BTOL * sp:
+                    inb = False
+                    dout += (lo - x) / sp
+                    x = lo
+                elif x > hi + BTOL * sp:
+                    inb = False
+                    dout += (x - hi) / sp
+                    x = hi
+                else:
+                    x = min(max(x, lo), hi)
+                ij, wj = _locate(gflat[a:b], guni[j], ginv[j], x)
+                idx[j] = ij
+                w[j] = wj
+            if not inb and not track:
+                continue
+            jacc = 0.0
+            vacc = 0.0
+            jinf = False
+            for cidx in range(ncorner):
+                wt = 1.0
+                flat = 0
+                for j in range(d):
+                    if (cidx >> j) & 1:
+                        wt *= w[j]
+                        flat += (idx[j] + 1) * gstride[j]
+                    else:
+                        wt *= 1.0 - w[j]
+                        flat += idx[j] * gstride[j]
+                if wt == 0.0:
+                    continue
+                jc = J[flat]
+                if jc == np.inf:
+                    jinf = True
+                else:
+                    jacc += wt * jc
+                if mode == MODE_LEVELSET:
+                    vacc += wt * V[flat]
+            if use_box:
+                v = vbox
+            elif mode == MODE_LEVELSET:
+                v = vacc if inb else max(vacc, 0.0) + dout
+            else:
+                v = 0.0
+            if not inb:
+                if v < best_v:
+                    best_v = v
+                    arg_v = m
+                    cost_v = np.inf
+                continue
+            n_inb += 1
+            tot = np.inf if jinf else c + jacc
+            if v <= VTOL and tot < best:
+                best = tot
+                arg = m
+            if track and v < best_v:
+                best_v = v
+                arg_v = m
+                cost_v = tot
+        if bad:
+            status = ST_BAD
+        elif n_ok == 0:
+            status = ST_MASKED
+        elif n_inb == 0:
+            status = ST_BOUNDS
+        elif best == np.inf:
+            status = ST_UNREACHABLE
+        else:
+            status = ST_FEASIBLE
+        out_status[s] = status
+        if status == ST_FEASIBLE:
+            out_J[s] = best
+            out_arg[s] = arg
+        else:
+            out_J[s] = cost_v if mode == MODE_LEVELSET else np.inf
+            out_arg[s] = arg_v
+        out_V[s] = best_v if n_ok > 0 else V_CAP
+        out_argV[s] = arg_v

@@ -1,0 +1,452 @@
+"""Problem definition, validation and model evaluation of the generic DP solver."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from hevsim.errors import DPModelError, DPSetupError
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+MAX_STATES = 4
+UNIFORM_RTOL = 1e-9  # a grid is "regular" when its steps differ by less than this (relative)
+
+
+@dataclass(frozen=True)
+class FinalTarget:
+    """Box of admissible final states: ``lower[i] <= x_N[i] <= upper[i]``.
+
+    ``lower`` and ``upper`` hold one bound per state variable, in the unit of that state
+    (a scalar is accepted for a single state). ``None`` or an infinite bound means "no bound
+    beyond the state grid" for that side. The box must lie inside the state grid.
+    """
+
+    lower: float | Sequence[float | None] | None = None
+    upper: float | Sequence[float | None] | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class DPProblem:
+    """A discrete-time optimal control problem ``x[k+1] = f_k(x[k], u[k])``, k = 0..N-1.
+
+    Attributes:
+        model: vectorised model, called as ``model(states, inputs, k, data)`` (or
+            ``model(states, inputs, k, data, pre)`` when ``precompute`` is given) with
+            ``states`` a tuple of ``d`` arrays broadcastable as ``(n1, .., nd, 1, .., 1)`` and
+            ``inputs`` a tuple of ``q`` arrays broadcastable as ``(1, .., 1, m1, .., mq)``.
+            It returns ``(next_states, stage_cost, infeasible_mask)``: a sequence of ``d``
+            arrays (a bare array is accepted when ``d == 1``), an array and a boolean array
+            (or ``None``), each broadcastable to the block shape ``(n1..nd, m1..mq)``.
+            ``stage_cost = +inf`` also marks a pair infeasible. NaN is allowed only where the
+            mask is True.
+        state_grids: one strictly increasing grid (>= 2 points) per state, 1 to 4 states.
+        input_grids: one grid per input: strictly increasing for continuous inputs, or any
+            set of distinct values for the inputs listed in ``discrete_inputs`` (gears).
+        n_steps: horizon ``N`` (number of transitions).
+        data: exogenous data: a mapping of arrays whose first axis is the time step (the
+            model then receives ``{key: value[k]}``), a callable ``data(k)`` or None.
+        precompute: optional ``precompute(inputs, k, data) -> pre`` for the parts of the
+            model that do not depend on the state (e.g. engine maps along the cycle); it is
+            called once per step and ``pre`` is passed to the model as fifth argument.
+        terminal_cost: optional ``terminal_cost(states) -> cost`` at the final step, with
+            ``states`` broadcast as ``(n1, .., nd)``.
+        target: final-state target box, or None for "anywhere on the grid".
+        discrete_inputs: indices of the inputs that are discrete sets (used by the policy
+            interpolation: nearest node instead of weighted average).
+        state_names, input_names: names (with units) for messages and results.
+    """
+
+    model: Callable[..., Any]
+    state_grids: Sequence[npt.ArrayLike]
+    input_grids: Sequence[npt.ArrayLike]
+    n_steps: int
+    data: Mapping[str, npt.ArrayLike] | Callable[[int], Any] | None = None
+    precompute: Callable[..., Any] | None = None
+    terminal_cost: Callable[..., Any] | None = None
+    target: FinalTarget | None = None
+    discrete_inputs: Sequence[int] = ()
+    state_names: Sequence[str] | None = None
+    input_names: Sequence[str] | None = None
+    space: Space = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "space", Space.build(self))
+
+
+def _grid_label(kind: str, j: int, names: Sequence[str]) -> str:
+    return f"{kind}[{j}] ('{names[j]}')"
+
+
+def _check_grid(values: npt.ArrayLike, label: str, *, sorted_required: bool, min_size: int) -> FloatArray:
+    try:
+        arr = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise DPSetupError(f"{label} must be a 1-D array of numbers; got {values!r} ({exc}).") from exc
+    if arr.ndim != 1:
+        raise DPSetupError(f"{label} must be a 1-D array of numbers; got shape {arr.shape}.")
+    if arr.size < min_size:
+        what = "empty" if arr.size == 0 else f"has {arr.size} point"
+        raise DPSetupError(f"{label} is {what}; expected at least {min_size} point(s).")
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise DPSetupError(
+            f"{label} has a non-finite value {arr[bad[0]]!r} at position {bad[0]}; expected finite numbers."
+        )
+    if sorted_required:
+        steps = np.diff(arr)
+        bad = np.flatnonzero(steps <= 0)
+        if bad.size:
+            i = int(bad[0])
+            raise DPSetupError(
+                f"{label} is not strictly increasing: value {arr[i + 1]!r} at position {i + 1} "
+                f"follows {arr[i]!r}; expected sorted, distinct grid points."
+            )
+    elif np.unique(arr).size != arr.size:
+        raise DPSetupError(f"{label} has repeated values {arr.tolist()}; expected distinct values.")
+    return np.ascontiguousarray(arr)
+
+
+def _bound_vector(value: Any, d: int, name: str, default: FloatArray) -> FloatArray:
+    if value is None:
+        return default.copy()
+    raw = [value] if np.ndim(value) == 0 and not isinstance(value, (list, tuple)) else list(value)
+    if len(raw) != d:
+        raise DPSetupError(f"target.{name} has {len(raw)} entries; expected one per state ({d}).")
+    out = default.copy()
+    for j, v in enumerate(raw):
+        if v is None:
+            continue
+        fv = float(v)
+        if np.isnan(fv):
+            raise DPSetupError(f"target.{name}[{j}] is NaN; expected a number or None.")
+        if np.isfinite(fv):
+            out[j] = fv
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Space:
+    """Validated grids, target box and broadcast arrays of a :class:`DPProblem`."""
+
+    grids: tuple[FloatArray, ...]
+    inputs: tuple[FloatArray, ...]
+    state_names: tuple[str, ...]
+    input_names: tuple[str, ...]
+    discrete: tuple[bool, ...]
+    n_steps: int
+    lo: FloatArray
+    hi: FloatArray
+    span: FloatArray
+    uniform: BoolArray
+    inv_dx: FloatArray
+    gflat: FloatArray
+    goff: IntArray
+    gstride: IntArray
+    box_lo: FloatArray
+    box_hi: FloatArray
+    states_b: tuple[FloatArray, ...]
+    inputs_b: tuple[FloatArray, ...]
+    data_arrays: dict[str, np.ndarray] | None
+
+    @property
+    def d(self) -> int:
+        return len(self.grids)
+
+    @property
+    def q(self) -> int:
+        return len(self.inputs)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(g.size for g in self.grids)
+
+    @property
+    def input_shape(self) -> tuple[int, ...]:
+        return tuple(u.size for u in self.inputs)
+
+    @property
+    def S(self) -> int:
+        return int(np.prod(self.shape))
+
+    @property
+    def M(self) -> int:
+        return int(np.prod(self.input_shape))
+
+    @property
+    def has_target(self) -> bool:
+        return bool(np.any(self.box_lo > self.lo) or np.any(self.box_hi < self.hi))
+
+    @staticmethod
+    def build(p: DPProblem) -> Space:
+        if not callable(p.model):
+            raise DPSetupError(f"model must be callable; got {type(p.model).__name__}.")
+        if isinstance(p.state_grids, np.ndarray) and p.state_grids.ndim == 1:
+            raise DPSetupError("state_grids must be a sequence of 1-D grids, e.g. [soc_grid].")
+        if isinstance(p.input_grids, np.ndarray) and p.input_grids.ndim == 1:
+            raise DPSetupError("input_grids must be a sequence of 1-D grids, e.g. [power_grid].")
+        d = len(p.state_grids)
+        q = len(p.input_grids)
+        if not 1 <= d <= MAX_STATES:
+            raise DPSetupError(
+                f"state_grids has {d} grids; the solver handles 1 to {MAX_STATES} state variables."
+            )
+        if q < 1:
+            raise DPSetupError("input_grids is empty; expected at least one input grid.")
+        if isinstance(p.n_steps, bool) or not isinstance(p.n_steps, (int, np.integer)):
+            raise DPSetupError(f"n_steps must be an integer >= 1; got {p.n_steps!r}.")
+        if p.n_steps < 1:
+            raise DPSetupError(f"n_steps must be >= 1; got {p.n_steps}.")
+        n_steps = int(p.n_steps)
+        snames = tuple(p.state_names) if p.state_names is not None else tuple(f"x{j + 1}" for j in range(d))
+        inames = tuple(p.input_names) if p.input_names is not None else tuple(f"u{j + 1}" for j in range(q))
+        if len(snames) != d:
+            raise DPSetupError(f"state_names has {len(snames)} names; expected {d}.")
+        if len(inames) != q:
+            raise DPSetupError(f"input_names has {len(inames)} names; expected {q}.")
+        disc = [False] * q
+        for j in p.discrete_inputs:
+            if not isinstance(j, (int, np.integer)) or not 0 <= j < q:
+                raise DPSetupError(f"discrete_inputs entry {j!r} is not an input index; expected 0..{q - 1}.")
+            disc[int(j)] = True
+        grids = tuple(
+            _check_grid(g, _grid_label("state_grids", j, snames), sorted_required=True, min_size=2)
+            for j, g in enumerate(p.state_grids)
+        )
+        inputs = tuple(
+            _check_grid(u, _grid_label("input_grids", j, inames), sorted_required=not disc[j], min_size=1)
+            for j, u in enumerate(p.input_grids)
+        )
+        lo = np.array([g[0] for g in grids])
+        hi = np.array([g[-1] for g in grids])
+        span = hi - lo
+        uniform = np.zeros(d, dtype=np.bool_)
+        inv_dx = np.zeros(d)
+        for j, g in enumerate(grids):
+            steps = np.diff(g)
+            mean = span[j] / (g.size - 1)
+            uniform[j] = bool(np.max(np.abs(steps - mean)) <= UNIFORM_RTOL * mean)
+            inv_dx[j] = (g.size - 1) / span[j]
+        gflat = np.ascontiguousarray(np.concatenate(grids))
+        goff = np.concatenate([[0], np.cumsum([g.size for g in grids])]).astype(np.int64)
+        shape = tuple(g.size for g in grids)
+        gstride = np.array([int(np.prod(shape[j + 1 :])) for j in range(d)], dtype=np.int64)  # C order
+        # target box
+        if p.target is not None and not isinstance(p.target, FinalTarget):
+            raise DPSetupError(
+                f"target must be a FinalTarget(lower=..., upper=...) or None; got {p.target!r}."
+            )
+        tgt = p.target or FinalTarget()
+        box_lo = _bound_vector(tgt.lower, d, "lower", lo)
+        box_hi = _bound_vector(tgt.upper, d, "upper", hi)
+        for j in range(d):
+            tol = 1e-9 * span[j]
+            lab = f"state {j} ('{snames[j]}')"
+            if box_lo[j] > box_hi[j]:
+                raise DPSetupError(
+                    f"target for {lab}: lower bound {box_lo[j]!r} exceeds upper bound "
+                    f"{box_hi[j]!r}; expected lower <= upper."
+                )
+            if (
+                box_lo[j] < lo[j] - tol
+                or box_hi[j] > hi[j] + tol
+                or box_lo[j] > hi[j] + tol
+                or box_hi[j] < lo[j] - tol
+            ):
+                raise DPSetupError(
+                    f"target for {lab}: [{box_lo[j]!r}, {box_hi[j]!r}] lies (partly) outside the "
+                    f"state grid [{lo[j]!r}, {hi[j]!r}]; expected a target inside the grid "
+                    "(extend the grid or use None for an unbounded side)."
+                )
+            box_lo[j] = min(max(box_lo[j], lo[j]), hi[j])
+            box_hi[j] = min(max(box_hi[j], lo[j]), hi[j])
+        nd = d + q
+        states_b = tuple(
+            g.reshape(tuple(g.size if i == j else 1 for i in range(nd))) for j, g in enumerate(grids)
+        )
+        inputs_b = tuple(
+            u.reshape(tuple(u.size if i == d + j else 1 for i in range(nd))) for j, u in enumerate(inputs)
+        )
+        data_arrays: dict[str, np.ndarray] | None = None
+        if p.data is not None and not callable(p.data):
+            if not isinstance(p.data, Mapping):
+                raise DPSetupError(
+                    "data must be a mapping of arrays indexed by time step, a callable "
+                    f"data(k) or None; got {type(p.data).__name__}."
+                )
+            data_arrays = {}
+            for key, value in p.data.items():
+                arr = np.asarray(value)
+                if arr.ndim < 1 or arr.shape[0] < n_steps:
+                    raise DPSetupError(
+                        f"data['{key}'] has shape {arr.shape}; expected an array whose first "
+                        f"axis (time step) has at least n_steps = {n_steps} entries."
+                    )
+                data_arrays[str(key)] = arr
+        if p.precompute is not None and not callable(p.precompute):
+            raise DPSetupError("precompute must be callable or None.")
+        if p.terminal_cost is not None and not callable(p.terminal_cost):
+            raise DPSetupError("terminal_cost must be callable or None.")
+        return Space(
+            grids=grids,
+            inputs=inputs,
+            state_names=snames,
+            input_names=inames,
+            discrete=tuple(disc),
+            n_steps=n_steps,
+            lo=lo,
+            hi=hi,
+            span=span,
+            uniform=uniform,
+            inv_dx=inv_dx,
+            gflat=gflat,
+            goff=goff,
+            gstride=gstride,
+            box_lo=box_lo,
+            box_hi=box_hi,
+            states_b=states_b,
+            inputs_b=inputs_b,
+            data_arrays=data_arrays,
+        )
+
+
+@dataclass
+class Block:
+    """Model outputs for one step, flattened to ``(S, M)``."""
+
+    xn: list[FloatArray]
+    g: FloatArray
+    mask: BoolArray | None
+    shape: tuple[int, ...]
+    states: tuple[np.ndarray, ...]
+    inputs: tuple[np.ndarray, ...]
+
+
+class Evaluator:
+    """Calls the user model and checks what it returns."""
+
+    def __init__(self, problem: DPProblem) -> None:
+        self.problem = problem
+        self.space = problem.space
+
+    def data_at(self, k: int) -> Any:
+        p = self.problem
+        if self.space.data_arrays is not None:
+            return {key: arr[k] for key, arr in self.space.data_arrays.items()}
+        if p.data is not None and callable(p.data):
+            return p.data(k)
+        return {}
+
+    def pre_at(self, k: int, data_k: Any, inputs: tuple[np.ndarray, ...] | None = None) -> Any:
+        if self.problem.precompute is None:
+            return None
+        return self.problem.precompute(self.space.inputs_b if inputs is None else inputs, k, data_k)
+
+    def __call__(
+        self,
+        states: tuple[np.ndarray, ...],
+        k: int,
+        data_k: Any,
+        pre: Any,
+        inputs: tuple[np.ndarray, ...] | None = None,
+    ) -> Block:
+        sp = self.space
+        d = sp.d
+        ins = sp.inputs_b if inputs is None else inputs
+        shape = tuple(np.broadcast_shapes(*(a.shape for a in states), *(a.shape for a in ins)))
+        S = int(np.prod(shape[:d]))
+        M = int(np.prod(shape[d:]))
+        if self.problem.precompute is None:
+            out = self.problem.model(states, ins, k, data_k)
+        else:
+            out = self.problem.model(states, ins, k, data_k, pre)
+        if not isinstance(out, (tuple, list)) or len(out) != 3:
+            raise DPModelError(
+                f"model at step {k} returned {type(out).__name__}; expected a tuple "
+                "(next_states, stage_cost, infeasible_mask)."
+            )
+        nxt, cost, mask = out
+        if d == 1 and not isinstance(nxt, (tuple, list)):
+            nxt = (nxt,)
+        if not isinstance(nxt, (tuple, list)) or len(nxt) != d:
+            n_got = len(nxt) if isinstance(nxt, (tuple, list)) else type(nxt).__name__
+            raise DPModelError(
+                f"model output next_states at step {k} has {n_got} entries; expected a "
+                f"sequence of {d} arrays (one per state variable)."
+            )
+
+        def flat(a: Any, name: str, dtype: type) -> np.ndarray:
+            arr = np.asarray(a, dtype=dtype)
+            try:
+                ok = np.broadcast_shapes(arr.shape, shape) == shape
+            except ValueError:
+                ok = False
+            if not ok:
+                raise DPModelError(
+                    f"model output {name} at step {k} has shape {arr.shape}, which does not "
+                    f"broadcast to the block shape {shape} (states {shape[:d]} x inputs "
+                    f"{shape[d:]}); expected an array broadcastable to {shape}."
+                )
+            return np.broadcast_to(arr, shape).reshape(S, M)
+
+        xn = [flat(a, f"next_states[{j}]", np.float64) for j, a in enumerate(nxt)]
+        g = flat(cost, "stage_cost", np.float64)
+        m = None if mask is None else flat(mask, "infeasible_mask", np.bool_)
+        return Block(xn=xn, g=g, mask=m, shape=shape, states=states, inputs=ins)
+
+    def bad_output_error(self, k: int, blk: Block, s: int) -> DPModelError:
+        """Describe the first NaN / infinite output of an unmasked pair in row ``s``."""
+        sp = self.space
+        d = sp.d
+        unmasked = np.ones(blk.g.shape[1], dtype=bool) if blk.mask is None else ~blk.mask[s]
+        problems: list[tuple[str, int, str]] = []
+        g = blk.g[s]
+        for m in np.flatnonzero(unmasked & (np.isnan(g) | (g == -np.inf)))[:1]:
+            problems.append(("stage_cost", int(m), "NaN" if np.isnan(g[m]) else "-inf"))
+        for j, x in enumerate(blk.xn):
+            row = x[s]
+            for m in np.flatnonzero(unmasked & ~np.isfinite(row))[:1]:
+                problems.append((f"next_states[{j}]", int(m), repr(float(row[m]))))
+        if not problems:  # pragma: no cover - kernel and this check agree
+            return DPModelError(f"model output at step {k} contains NaN or infinite values.")
+        name, m, what = problems[0]
+        idx = np.unravel_index(s * blk.g.shape[1] + m, blk.shape)
+        svals = ", ".join(
+            f"{sp.state_names[j]}={float(np.broadcast_to(blk.states[j], blk.shape)[idx]):.6g}"
+            for j in range(d)
+        )
+        uvals = ", ".join(
+            f"{sp.input_names[j]}={float(np.broadcast_to(blk.inputs[j], blk.shape)[idx]):.6g}"
+            for j in range(sp.q)
+        )
+        return DPModelError(
+            f"model output {name} at step {k} is {what} at block index {tuple(int(i) for i in idx)} "
+            f"of shape {blk.shape} ({svals}; {uvals}) where infeasible_mask is False; expected "
+            "a finite value there, or infeasible_mask=True for that state/input pair."
+        )
+
+    def terminal(self, states: tuple[np.ndarray, ...], shape: tuple[int, ...]) -> FloatArray:
+        """Terminal cost on ``states`` broadcast to ``shape`` (zeros when not given)."""
+        tc = self.problem.terminal_cost
+        if tc is None:
+            return np.zeros(shape)
+        arr = np.asarray(tc(states), dtype=np.float64)
+        try:
+            ok = np.broadcast_shapes(arr.shape, shape) == shape
+        except ValueError:
+            ok = False
+        if not ok:
+            raise DPModelError(
+                f"terminal_cost returned shape {arr.shape}; expected an array broadcastable "
+                f"to the state grid shape {shape}."
+            )
+        out = np.array(np.broadcast_to(arr, shape))
+        if np.isnan(out).any() or (out == -np.inf).any():
+            raise DPModelError("terminal_cost returned NaN or -inf; expected finite values or +inf.")
+        return out
