@@ -46,6 +46,13 @@ BSFC_MIN_LOAD_FRACTION = 0.04
 """Map points below this fraction of the peak torque or peak power are left out of the BSFC
 contours: there BSFC tends to infinity and would swamp the colour scale [-]."""
 
+OP_BIN_RPM = 25.0
+"""Engine-speed bin for grouping operating points [rpm]."""
+OP_BIN_NM = 2.0
+"""Engine-torque bin for grouping operating points [N·m]."""
+OP_LABEL_SHARE = 0.05
+"""Operating-point bins holding at least this share of the fuelled time are labelled [-]."""
+
 POWER_MODE_NAMES: tuple[str, ...] = ("pure_ev", "pure_ice", "combined", "ice_charging", "charging")
 """Default names of the supervisory power modes, indexed by ``power_mode`` code."""
 GENSET_STATE_NAMES: tuple[str, ...] = ("off", "starting", "running")
@@ -394,6 +401,42 @@ def _bsfc_levels(bsfc: FloatArray) -> FloatArray:
     return levels[levels >= lo * 0.999]
 
 
+def _time_weighted_scatter(ax: Axes, pts_rpm: FloatArray, pts_t: FloatArray, dt: FloatArray) -> None:
+    """Operating points binned on a fine grid, marker area proportional to time spent.
+
+    A controller that holds a few fixed operating points shows as a few large markers (the
+    busiest labelled with their share of fuelled time), a free trajectory as many small ones.
+    """
+    keys = np.stack([np.round(pts_rpm / OP_BIN_RPM), np.round(pts_t / OP_BIN_NM)], axis=1).astype(np.int64)
+    _, inverse = np.unique(keys, axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    time_s = np.bincount(inverse, weights=dt)
+    x = np.bincount(inverse, weights=dt * pts_rpm) / time_s
+    y = np.bincount(inverse, weights=dt * pts_t) / time_s
+    share = time_s / float(time_s.sum())
+    ax.scatter(
+        x,
+        y,
+        s=10.0 + 600.0 * share,
+        c="tab:red",
+        edgecolors="white",
+        linewidths=0.5,
+        alpha=0.7,
+        zorder=3,
+        label=f"operating points, area ∝ time ({float(dt.sum()):.0f} s fuelled)",
+    )
+    for i in np.flatnonzero(share >= OP_LABEL_SHARE):
+        ax.annotate(
+            f"{100.0 * share[i]:.0f} %",
+            (x[i], y[i]),
+            xytext=(8, 8),
+            textcoords="offset points",
+            fontsize="small",
+            color="darkred",
+            zorder=4,
+        )
+
+
 def plot_engine_operating_points(
     ts: pd.DataFrame | None, engine: EngineLike | None, path: str | Path
 ) -> Path | None:
@@ -446,18 +489,7 @@ def plot_engine_operating_points(
             )[fired]
             pts_t = _col(ts, "engine_torque_nm")[fired]
             dt = step_durations(_time(ts))[fired]
-            ax.scatter(
-                pts_rpm,
-                pts_t,
-                s=14,
-                c="tab:red",
-                edgecolors="white",
-                linewidths=0.3,
-                alpha=0.6,
-                zorder=3,
-                rasterized=True,
-                label=f"operating points ({fired.sum()} samples, {dt.sum():.0f} s fuelled)",
-            )
+            _time_weighted_scatter(ax, pts_rpm, pts_t, dt)
             energy_j = float(np.sum(np.maximum(pts_t * pts_rpm * RADPS_PER_RPM, 0.0) * dt))
             fuel_kg = float(np.sum(fuel[fired] * dt))
             if energy_j > 0.0:
