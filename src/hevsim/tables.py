@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -317,3 +317,16 @@ def read_csv_columns(path: str | Path, columns: list[str]) -> dict[str, FloatArr
             )
         out[c] = values
     return out
+
+
+def read_meta(folder: str | Path, what: str) -> dict[str, Any]:
+    """Parse ``folder/meta.toml`` of a component-data folder, with a clear error if absent."""
+    import tomllib
+
+    path = Path(folder) / "meta.toml"
+    if not path.is_file():
+        raise InputError(f"{path}: {what} metadata file not found; expected a meta.toml file.")
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML ({exc}).") from exc

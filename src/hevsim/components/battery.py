@@ -11,7 +11,6 @@ battery is the same kernel with R = 0 and constant OCV. Cells are assembled ``n_
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,7 +18,7 @@ import numpy as np
 from numba import njit
 
 from hevsim.errors import InputError
-from hevsim.tables import FloatArray, Table1D, Table2D, interp2
+from hevsim.tables import FloatArray, Table1D, Table2D, interp2, read_meta
 from hevsim.units import c_to_k
 
 
@@ -152,10 +151,7 @@ class BatteryPack:
     def from_directory(cls, path: str | Path, **kwargs: object) -> BatteryPack:
         """Table pack from a shipped-format cell folder (meta.toml, ocv.csv, r_*.csv, capacity)."""
         d = Path(path)
-        meta_path = d / "meta.toml"
-        if not meta_path.is_file():
-            raise InputError(f"{meta_path}: battery metadata file not found.")
-        meta = tomllib.loads(meta_path.read_text())
+        meta = read_meta(d, "battery")
         ocv = _cell_table(d / "ocv.csv", "ocv_cell_V")
         rd = _cell_table(d / "r_discharge.csv", "r_dis_cell_ohm")
         rc = _cell_table(d / "r_charge.csv", "r_chg_cell_ohm")

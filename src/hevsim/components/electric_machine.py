@@ -8,7 +8,6 @@ Electrical power is mechanical power / eta when motoring and x eta when generati
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,7 +15,7 @@ import numpy as np
 from numba import njit
 
 from hevsim.errors import InputError
-from hevsim.tables import FloatArray, Table1D, Table2D, interp1, interp2
+from hevsim.tables import FloatArray, Table1D, Table2D, interp1, interp2, read_meta
 
 MIN_EFFICIENCY = 0.05
 """Floor applied to efficiency-map values (source maps hold placeholders at zero speed) [-]."""
@@ -149,10 +148,7 @@ class ElectricMachine:
         Uses the continuous torque curve unless ``rating="peak"`` is passed in ``overrides``.
         """
         d = Path(path)
-        meta_path = d / "meta.toml"
-        if not meta_path.is_file():
-            raise InputError(f"{meta_path}: electric machine metadata file not found.")
-        meta = tomllib.loads(meta_path.read_text())
+        meta = read_meta(d, "electric machine")
         rating = str(overrides.pop("rating", "cont"))
         if rating not in ("cont", "peak"):
             raise InputError(f"{d}: rating {rating!r} is not known; expected 'cont' or 'peak'.")

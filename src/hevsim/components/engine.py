@@ -10,15 +10,13 @@ early refinement levels of the tutorial, where the engine is a constant-torque s
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numba import njit
 
-from hevsim.errors import InputError
-from hevsim.tables import FloatArray, Table1D, Table2D, interp1, interp2
+from hevsim.tables import FloatArray, Table1D, Table2D, interp1, interp2, read_meta
 from hevsim.units import rpm_to_radps
 
 DIESEL_HEATING_VALUE_BTU_PER_GAL = 133393.1102
@@ -138,10 +136,7 @@ class Engine:
     def from_directory(cls, path: str | Path, **overrides: float) -> Engine:
         """Load a shipped-format engine folder (meta.toml + CSV maps, see data/PROVENANCE.md)."""
         d = Path(path)
-        meta_path = d / "meta.toml"
-        if not meta_path.is_file():
-            raise InputError(f"{meta_path}: engine metadata file not found.")
-        meta = tomllib.loads(meta_path.read_text())
+        meta = read_meta(d, "engine")
         params = meta.get("parameters", {})
         max_torque = Table1D.from_csv(d / "max_torque.csv", "speed_rad_per_s", "max_torque_N_m")
         ct_path = d / "closed_throttle_torque.csv"
