@@ -303,7 +303,7 @@ def bench_batch(hev: Any, cyc: Any, variants: int, repeats: int) -> list[dict[st
 
 # --------------------------------------------------------------------------- report
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
     ap.add_argument("--repeats", type=int, default=50, help="single-run repetitions (median)")
     ap.add_argument("--variants", type=int, default=1000, help="variants per batch")
     ap.add_argument("--batch-repeats", type=int, default=5, help="timed batches per case")
