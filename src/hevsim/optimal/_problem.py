@@ -382,7 +382,7 @@ class Evaluator:
             )
 
         def flat(a: Any, name: str, dtype: type) -> np.ndarray:
-            arr = np.asarray(a, dtype=dtype)
+            arr: np.ndarray = np.asarray(a, dtype=dtype)
             try:
                 ok = np.broadcast_shapes(arr.shape, shape) == shape
             except ValueError:
