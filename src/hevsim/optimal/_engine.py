@@ -21,6 +21,7 @@ _MODE = {
     "boundary_line": kn.MODE_BAND,
 }
 REFINE_POINTS = 17  # states evaluated per boundary-line refinement
+PARALLEL_MIN_PAIRS = 20_000  # blocks smaller than this run the serial kernel
 _DUMMY_MASK = np.zeros((1, 1), dtype=np.bool_)
 _DUMMY_X = np.zeros((1, 1))
 
@@ -98,11 +99,14 @@ class Engine:
         has_mask = blk.mask is not None
         mask = blk.mask if blk.mask is not None else _DUMMY_MASK
         Vk = J if V is None else V
+        parallel = S >= 2 and S * M >= PARALLEL_MIN_PAIRS
         if sp.d == 1:
             fmax = np.empty(S)
             fmin = np.empty(S)
             box = np.array([sp.box_lo[0], sp.box_hi[0]])
-            kn.bellman_1d(
+            kernel_1d = kn.bellman_1d_par if parallel else kn.bellman_1d_ser
+            kernel_1d(
+                blk.base[0],
                 blk.xn[0],
                 blk.g,
                 mask,
@@ -128,7 +132,12 @@ class Engine:
         else:
             fmax = fmin = out_V
             xs = [*blk.xn, *([_DUMMY_X] * (4 - sp.d))]
-            kn.bellman_nd(
+            xb = np.zeros((4, S))
+            for j in range(sp.d):
+                xb[j] = blk.base[j]
+            kernel_nd = kn.bellman_nd_par if parallel else kn.bellman_nd_ser
+            kernel_nd(
+                xb,
                 xs[0],
                 xs[1],
                 xs[2],
@@ -161,7 +170,8 @@ class Engine:
         P = points.shape[0]
         g = np.zeros((P, 1)) if cost is None else cost.reshape(P, 1)
         xn = [np.ascontiguousarray(points[:, j].reshape(P, 1)) for j in range(self.space.d)]
-        return Block(xn=xn, g=g, mask=None, shape=(P, 1), states=(), inputs=())
+        base = [np.zeros(P) for _ in range(self.space.d)]
+        return Block(xn=xn, base=base, g=g, mask=None, shape=(P, 1), states=(), inputs=())
 
     # ------------------------------------------------------------------ terminal
     def box_distance(self, box_lo: FloatArray, box_hi: FloatArray) -> FloatArray:
@@ -180,8 +190,7 @@ class Engine:
         """Terminal cost-to-go and level-set function on the nodes (flat, float64)."""
         sp = self.space
         grid_states = tuple(
-            g.reshape(tuple(g.size if i == j else 1 for i in range(sp.d)))
-            for j, g in enumerate(sp.grids)
+            g.reshape(tuple(g.size if i == j else 1 for i in range(sp.d))) for j, g in enumerate(sp.grids)
         )
         J = self.ev.terminal(grid_states, sp.shape).ravel()
         V = self.box_distance(box_lo, box_hi)
@@ -365,7 +374,7 @@ class Engine:
         """State in [a, b] where the largest (smallest) next state crosses ``target``."""
         xs = np.linspace(a, b, REFINE_POINTS)
         blk = self._eval_states_1d(xs, k, data_k, pre)
-        xn = blk.xn[0]
+        xn = blk.next_state(0)
         valid = np.isfinite(xn) & np.isfinite(blk.g)
         if blk.mask is not None:
             valid &= ~blk.mask
@@ -407,7 +416,7 @@ class Engine:
     ) -> float:
         """Cost-to-go of the boundary point ``x``: extreme input, then the next boundary."""
         blk = self._eval_states_1d(np.array([x]), k, data_k, pre)
-        xn = blk.xn[0][0]
+        xn = blk.next_state(0)[0]
         g = blk.g[0]
         valid = np.isfinite(xn) & np.isfinite(g)
         if blk.mask is not None:
@@ -480,7 +489,7 @@ class Engine:
                     if out.status[0] == kn.ST_FEASIBLE:
                         us[k] = u
                         gs[k] = blk.g[0, 0]
-                        xs[k + 1] = [xn[0, 0] for xn in blk.xn]
+                        xs[k + 1] = [blk.next_state(j)[0, 0] for j in range(sp.d)]
                         done = True
                 if not done:
                     n_fallback += 1
@@ -507,7 +516,7 @@ class Engine:
                 idx = np.unravel_index(m, sp.input_shape)
                 us[k] = [sp.inputs[j][idx[j]] for j in range(sp.q)]
                 gs[k] = blk.g[0, m]
-                xs[k + 1] = [xn[0, m] for xn in blk.xn]
+                xs[k + 1] = [blk.next_state(j)[0, m] for j in range(sp.d)]
             if bar is not None:
                 bar.update(1)
         return xs, us, gs, n_fallback
@@ -646,8 +655,7 @@ class Engine:
             )
             if k == 0:
                 detail = (
-                    "at step 0 every input at the initial state is rejected by the model's "
-                    "infeasibility mask"
+                    "at step 0 every input at the initial state is rejected by the model's infeasibility mask"
                     if n_masked
                     else "at step 0 every admissible input drives the state outside the grid"
                 )
@@ -702,13 +710,13 @@ class Engine:
                 blk = self.ev(sp.states_b, k, data_k, pre)
                 rows = np.flatnonzero(reach)
             valid = np.isfinite(blk.g[rows]) & (blk.g[rows] < np.inf)
-            for xn in blk.xn:
-                valid &= np.isfinite(xn[rows])
+            xnr = [blk.next_state(j)[rows] for j in range(sp.d)]
+            for xr in xnr:
+                valid &= np.isfinite(xr)
             if blk.mask is not None:
                 valid &= ~blk.mask[rows]
             inb = valid.copy()
-            for j, xn in enumerate(blk.xn):
-                xr = xn[rows]
+            for j, xr in enumerate(xnr):
                 inb &= (xr >= sp.lo[j] - self.btol[j]) & (xr <= sp.hi[j] + self.btol[j])
             has_valid = valid.any(axis=1)
             has_inb = inb.any(axis=1)
@@ -719,8 +727,8 @@ class Engine:
             new = np.zeros(sp.shape, dtype=bool)
             r, m = np.nonzero(inb)
             nodes = []
-            for j, (grid, xn) in enumerate(zip(sp.grids, blk.xn, strict=True)):
-                xv = np.clip(xn[rows][r, m], sp.lo[j], sp.hi[j])
+            for j, (grid, xr) in enumerate(zip(sp.grids, xnr, strict=True)):
+                xv = np.clip(xr[r, m], sp.lo[j], sp.hi[j])
                 i = np.clip(np.searchsorted(grid, xv), 1, grid.size - 1)
                 near = np.where(np.abs(grid[i - 1] - xv) <= np.abs(grid[i] - xv), i - 1, i)
                 nodes.append(near)

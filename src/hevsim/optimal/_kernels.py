@@ -118,8 +118,218 @@ def _band_value(grid, uniform, inv_dx, J, band, band_i, x):
     return _lerp_inf(J[i], J[i + 1], w)
 
 
-@njit(parallel=True, cache=True)
-def bellman_1d(
+@njit(cache=True)
+def _interp_clamped(grid, uniform, inv_dx, J, x):
+    """Cost-to-go at ``x`` clamped to the grid (closest-approach cost of the level set)."""
+    xc = min(max(x, grid[0]), grid[grid.shape[0] - 1])
+    i, w = _locate(grid, uniform, inv_dx, xc)
+    return _lerp_inf(J[i], J[i + 1], w)
+
+
+@njit(cache=True)
+def _is_bad(x, c):
+    """NaN / -inf cost or non-finite next state (for a pair whose cost is not +inf)."""
+    return c != c or c == -np.inf or (c < np.inf and not abs(x) < np.inf)
+
+
+@njit(cache=True)
+def _loop_plain(s, xb, xn, g, mask, has_mask, grid, uniform, inv_dx, J):
+    """Plain cost-to-go (wall / penalty before the last step): the hot loop."""
+    M = xn.shape[1]
+    n = grid.shape[0]
+    g0 = grid[0]
+    gn = grid[n - 1]
+    span = gn - g0
+    lo_b = g0 - BTOL * span
+    hi_b = gn + BTOL * span
+    best = np.inf
+    arg = -1
+    n_ok = 0
+    n_inb = 0
+    bad = False
+    for m in range(M):
+        if has_mask and mask[s, m]:
+            continue
+        x = xb[s] + xn[s, m]
+        c = g[s, m]
+        if not (x >= lo_b and x <= hi_b and c < np.inf and c > -np.inf):
+            if _is_bad(x, c):
+                bad = True
+            elif c < np.inf:
+                n_ok += 1  # admissible but outside the state bounds
+            continue
+        n_inb += 1
+        xc = min(max(x, g0), gn)
+        if uniform:
+            t = (xc - g0) * inv_dx
+            i = int(t)
+            if i > n - 2:
+                i = n - 2
+            w = t - i
+        else:
+            i, w = _locate(grid, uniform, inv_dx, xc)
+        ja = J[i]
+        jb = J[i + 1]
+        jv = ja + w * (jb - ja)
+        if not jv < np.inf:  # an infinite node: exact rule (rarely taken)
+            jv = _lerp_inf(ja, jb, w)
+        tot = c + jv
+        if tot < best:
+            best = tot
+            arg = m
+    return best, arg, np.inf, -1, np.inf, -np.inf, np.inf, n_ok + n_inb, n_inb, bad
+
+
+@njit(cache=True)
+def _loop_interval(
+    s, xb, xn, g, mask, has_mask, grid, uniform, inv_dx, J, band, band_i, is_band, is_ls, v_lo, v_hi
+):
+    """Admissible next states form an interval: the boundary-line band or the target box."""
+    M = xn.shape[1]
+    n = grid.shape[0]
+    g0 = grid[0]
+    gn = grid[n - 1]
+    span = gn - g0
+    inv_span = 1.0 / span
+    lo_b = g0 - BTOL * span
+    hi_b = gn + BTOL * span
+    node_lo = np.inf  # grid nodes inside the band: plain interpolation between them
+    node_hi = -np.inf
+    if is_band and band_i[0] <= band_i[1]:
+        node_lo = grid[band_i[0]]
+        node_hi = grid[band_i[1]]
+    elif not is_band:
+        node_lo = g0
+        node_hi = gn
+    best = np.inf
+    arg = -1
+    best_v = np.inf
+    arg_v = -1
+    cost_v = np.inf
+    v_in = np.inf  # smallest level value among admissible pairs
+    fmax = -np.inf
+    fmin = np.inf
+    n_ok = 0
+    n_inb = 0
+    bad = False
+    for m in range(M):
+        if has_mask and mask[s, m]:
+            continue
+        x = xb[s] + xn[s, m]
+        c = g[s, m]
+        if not (c < np.inf and c > -np.inf and abs(x) < np.inf):
+            if _is_bad(x, c):
+                bad = True
+            continue
+        n_ok += 1
+        fmax = max(fmax, x)
+        fmin = min(fmin, x)
+        inb = x >= lo_b and x <= hi_b
+        if inb:
+            n_inb += 1
+        v = max(v_lo - x, x - v_hi) * inv_span
+        if v > VTOL:  # outside: only remember the closest approach
+            if v < best_v:
+                best_v = v
+                arg_v = m
+                cost_v = c + _interp_clamped(grid, uniform, inv_dx, J, x) if is_ls else np.inf
+            continue
+        v_in = min(v_in, v)
+        if not inb:
+            continue
+        xc = min(max(x, g0), gn)
+        if uniform:
+            t = (xc - g0) * inv_dx
+            i = int(t)
+            if i > n - 2:
+                i = n - 2
+            w = t - i
+        else:
+            i, w = _locate(grid, uniform, inv_dx, xc)
+        if xc >= node_lo and xc <= node_hi:
+            ja = J[i]
+            jb = J[i + 1]
+            jv = ja + w * (jb - ja)
+            if not jv < np.inf:  # an infinite node: exact rule (rarely taken)
+                jv = _lerp_inf(ja, jb, w)
+        else:
+            jv = _band_value(grid, uniform, inv_dx, J, band, band_i, xc)
+        tot = c + jv
+        if tot < best:
+            best = tot
+            arg = m
+    return best, arg, min(best_v, v_in), arg_v, cost_v, fmax, fmin, n_ok, n_inb, bad
+
+
+@njit(cache=True)
+def _loop_levelset(s, xb, xn, g, mask, has_mask, grid, uniform, inv_dx, J, V):
+    """Level-set restriction: admissible if the interpolated ``V`` is <= VTOL."""
+    M = xn.shape[1]
+    n = grid.shape[0]
+    g0 = grid[0]
+    gn = grid[n - 1]
+    span = gn - g0
+    inv_span = 1.0 / span
+    lo_b = g0 - BTOL * span
+    hi_b = gn + BTOL * span
+    best = np.inf
+    arg = -1
+    best_v = np.inf
+    arg_v = -1
+    cost_v = np.inf
+    v_in = np.inf  # smallest level value among admissible pairs
+    n_ok = 0
+    n_inb = 0
+    bad = False
+    for m in range(M):
+        if has_mask and mask[s, m]:
+            continue
+        x = xb[s] + xn[s, m]
+        c = g[s, m]
+        if not (c < np.inf and c > -np.inf and abs(x) < np.inf):
+            if _is_bad(x, c):
+                bad = True
+            continue
+        n_ok += 1
+        inb = x >= lo_b and x <= hi_b
+        xc = min(max(x, g0), gn)
+        if uniform:
+            t = (xc - g0) * inv_dx
+            i = int(t)
+            if i > n - 2:
+                i = n - 2
+            w = t - i
+        else:
+            i, w = _locate(grid, uniform, inv_dx, xc)
+        va = V[i]
+        v = va + w * (V[i + 1] - va)
+        if inb:
+            n_inb += 1
+        else:
+            v = max(v, 0.0) + ((g0 - x) if x < g0 else (x - gn)) * inv_span
+        ja = J[i]
+        jb = J[i + 1]
+        if v > VTOL:  # outside the reachable set: only remember the closest approach
+            if v < best_v:
+                best_v = v
+                arg_v = m
+                cost_v = c + _lerp_inf(ja, jb, w)
+            continue
+        v_in = min(v_in, v)
+        jv = ja + w * (jb - ja)
+        if not jv < np.inf:  # an infinite node: exact rule (rarely taken)
+            jv = _lerp_inf(ja, jb, w)
+        tot = c + jv
+        if inb and tot < best:
+            best = tot
+            arg = m
+    return best, arg, min(best_v, v_in), arg_v, cost_v, -np.inf, np.inf, n_ok, n_inb, bad
+
+
+@njit(cache=True)
+def _row_1d(
+    s,
+    xb,
     xn,
     g,
     mask,
@@ -142,7 +352,100 @@ def bellman_1d(
     out_fmax,
     out_fmin,
 ):
-    """One Bellman step for one state variable; see the module docstring.
+    """Bellman step of row ``s`` (one state node) for one state variable."""
+    is_ls = mode == MODE_LEVELSET
+    if mode == MODE_PLAIN and not use_box:
+        res = _loop_plain(s, xb, xn, g, mask, has_mask, grid, uniform, inv_dx, J)
+    elif mode == MODE_BAND:
+        res = _loop_interval(
+            s,
+            xb,
+            xn,
+            g,
+            mask,
+            has_mask,
+            grid,
+            uniform,
+            inv_dx,
+            J,
+            band,
+            band_i,
+            True,
+            False,
+            band[0],
+            band[2],
+        )
+    elif use_box:
+        res = _loop_interval(
+            s,
+            xb,
+            xn,
+            g,
+            mask,
+            has_mask,
+            grid,
+            uniform,
+            inv_dx,
+            J,
+            band,
+            band_i,
+            False,
+            is_ls,
+            box[0],
+            box[1],
+        )
+    else:
+        res = _loop_levelset(s, xb, xn, g, mask, has_mask, grid, uniform, inv_dx, J, V)
+    best, arg, best_v, arg_v, cost_v, fmax, fmin, n_ok, n_inb, bad = res
+    if bad:
+        status = ST_BAD
+    elif n_ok == 0:
+        status = ST_MASKED
+    elif n_inb == 0:
+        status = ST_BOUNDS
+    elif best == np.inf:
+        status = ST_UNREACHABLE
+    else:
+        status = ST_FEASIBLE
+    out_status[s] = status
+    if status == ST_FEASIBLE:
+        out_J[s] = best
+        out_arg[s] = arg
+    else:
+        out_J[s] = cost_v if is_ls else np.inf
+        out_arg[s] = arg_v
+    out_V[s] = best_v if n_ok > 0 else V_CAP
+    out_argV[s] = arg_v
+    out_fmax[s] = fmax
+    out_fmin[s] = fmin
+
+
+@njit(parallel=True, cache=True)
+def bellman_1d_par(
+    xb,
+    xn,
+    g,
+    mask,
+    has_mask,
+    grid,
+    uniform,
+    inv_dx,
+    J,
+    V,
+    mode,
+    band,
+    band_i,
+    use_box,
+    box,
+    out_J,
+    out_arg,
+    out_status,
+    out_V,
+    out_argV,
+    out_fmax,
+    out_fmin,
+):
+    """One Bellman step for one state variable, parallel over the rows (state nodes).
 
     ``xn``, ``g``, ``mask``: (S, M) next state, stage cost, infeasibility mask.
     ``J``, ``V``: cost-to-go and level-set function of the next step on ``grid``.
@@ -151,98 +454,247 @@ def bellman_1d(
     Outputs (length S): cost, arg-min input, status, level value, input closest to the
     admissible set, largest and smallest unmasked next state.
     """
-    S = xn.shape[0]
-    M = xn.shape[1]
-    n = grid.shape[0]
-    g0 = grid[0]
-    gn = grid[n - 1]
-    span = gn - g0
-    btol = BTOL * span
+    for s in prange(xn.shape[0]):
+        _row_1d(
+            s,
+            xb,
+            xn,
+            g,
+            mask,
+            has_mask,
+            grid,
+            uniform,
+            inv_dx,
+            J,
+            V,
+            mode,
+            band,
+            band_i,
+            use_box,
+            box,
+            out_J,
+            out_arg,
+            out_status,
+            out_V,
+            out_argV,
+            out_fmax,
+            out_fmin,
+        )
+
+
+@njit(cache=True)
+def bellman_1d_ser(
+    xb,
+    xn,
+    g,
+    mask,
+    has_mask,
+    grid,
+    uniform,
+    inv_dx,
+    J,
+    V,
+    mode,
+    band,
+    band_i,
+    use_box,
+    box,
+    out_J,
+    out_arg,
+    out_status,
+    out_V,
+    out_argV,
+    out_fmax,
+    out_fmin,
+):
+    """Serial twin of :func:`bellman_1d_par` for small blocks (no thread start-up)."""
+    for s in range(xn.shape[0]):
+        _row_1d(
+            s,
+            xb,
+            xn,
+            g,
+            mask,
+            has_mask,
+            grid,
+            uniform,
+            inv_dx,
+            J,
+            V,
+            mode,
+            band,
+            band_i,
+            use_box,
+            box,
+            out_J,
+            out_arg,
+            out_status,
+            out_V,
+            out_argV,
+            out_fmax,
+            out_fmin,
+        )
+
+
+@njit(cache=True)
+def _row_nd(
+    s,
+    xb,
+    x1,
+    x2,
+    x3,
+    x4,
+    d,
+    g,
+    mask,
+    has_mask,
+    gflat,
+    goff,
+    guni,
+    ginv,
+    gstride,
+    J,
+    V,
+    mode,
+    use_box,
+    box_lo,
+    box_hi,
+    out_J,
+    out_arg,
+    out_status,
+    out_V,
+    out_argV,
+):
+    """Bellman step of row ``s`` (one state node) for 2 to 4 state variables."""
+    M = g.shape[1]
+    ncorner = 1 << d
     track = mode != MODE_PLAIN or use_box
-    for s in prange(S):
-        best = np.inf
-        arg = -1
-        best_v = np.inf
-        arg_v = -1
-        cost_v = np.inf
-        fmax = -np.inf
-        fmin = np.inf
-        n_ok = 0
-        n_inb = 0
-        bad = False
-        for m in range(M):
-            if has_mask and mask[s, m]:
-                continue
-            x = xn[s, m]
-            c = g[s, m]
-            if np.isnan(x) or np.isnan(c) or np.isinf(x) or c == -np.inf:
-                bad = True
-                continue
-            if c == np.inf:
-                continue
-            n_ok += 1
-            if x > fmax:
-                fmax = x
-            if x < fmin:
-                fmin = x
-            inb = x >= g0 - btol and x <= gn + btol
-            xc = min(max(x, g0), gn)
-            i, w = _locate(grid, uniform, inv_dx, xc)
-            if mode == MODE_BAND:
-                v = max(band[0] - x, x - band[2]) / span
-            elif use_box:
-                v = max(box[0] - x, x - box[1]) / span
-            elif mode == MODE_LEVELSET:
-                v = V[i] + w * (V[i + 1] - V[i]) if w > 0.0 else 1.0 * V[i]
-                if not inb:
-                    dout = (g0 - x) / span if x < g0 else (x - gn) / span
-                    v = max(v, 0.0) + dout
+    idx = np.empty(4, np.int64)
+    w = np.empty(4)
+    xv = np.empty(4)
+    best = np.inf
+    arg = -1
+    best_v = np.inf
+    arg_v = -1
+    cost_v = np.inf
+    n_ok = 0
+    n_inb = 0
+    bad = False
+    for m in range(M):
+        if has_mask and mask[s, m]:
+            continue
+        c = g[s, m]
+        xv[0] = xb[0, s] + x1[s, m]
+        if d > 1:
+            xv[1] = xb[1, s] + x2[s, m]
+        if d > 2:
+            xv[2] = xb[2, s] + x3[s, m]
+        if d > 3:
+            xv[3] = xb[3, s] + x4[s, m]
+        finite = True
+        for j in range(d):
+            if not np.isfinite(xv[j]):
+                finite = False
+        if not finite or np.isnan(c) or c == -np.inf:
+            bad = True
+            continue
+        if c == np.inf:
+            continue
+        n_ok += 1
+        inb = True
+        dout = 0.0
+        vbox = -np.inf
+        for j in range(d):
+            a = goff[j]
+            b = goff[j + 1]
+            lo = gflat[a]
+            hi = gflat[b - 1]
+            sp = hi - lo
+            x = xv[j]
+            if use_box:
+                vbox = max(vbox, (box_lo[j] - x) / sp, (x - box_hi[j]) / sp)
+            if x < lo - BTOL * sp:
+                inb = False
+                dout += (lo - x) / sp
+                x = lo
+            elif x > hi + BTOL * sp:
+                inb = False
+                dout += (x - hi) / sp
+                x = hi
             else:
-                v = 0.0
-            if not inb:
-                if track and v < best_v:
-                    best_v = v
-                    arg_v = m
-                    cost_v = np.inf
+                x = min(max(x, lo), hi)
+            ij, wj = _locate(gflat[a:b], guni[j], ginv[j], x)
+            idx[j] = ij
+            w[j] = wj
+        if not inb and not track:
+            continue
+        jacc = 0.0
+        vacc = 0.0
+        jinf = False
+        for cidx in range(ncorner):
+            wt = 1.0
+            flat = 0
+            for j in range(d):
+                if (cidx >> j) & 1:
+                    wt *= w[j]
+                    flat += (idx[j] + 1) * gstride[j]
+                else:
+                    wt *= 1.0 - w[j]
+                    flat += idx[j] * gstride[j]
+            if wt == 0.0:
                 continue
-            n_inb += 1
-            if mode == MODE_BAND:
-                jv = _band_value(grid, uniform, inv_dx, J, band, band_i, xc) if v <= VTOL else np.inf
+            jc = J[flat]
+            if jc == np.inf:
+                jinf = True
             else:
-                jv = _lerp_inf(J[i], J[i + 1], w)
-            tot = c + jv
-            if v <= VTOL and tot < best:
-                best = tot
-                arg = m
-            if track and v < best_v:
+                jacc += wt * jc
+            if mode == MODE_LEVELSET:
+                vacc += wt * V[flat]
+        if use_box:
+            v = vbox
+        elif mode == MODE_LEVELSET:
+            v = vacc if inb else max(vacc, 0.0) + dout
+        else:
+            v = 0.0
+        if not inb:
+            if v < best_v:
                 best_v = v
                 arg_v = m
-                cost_v = tot
-        if bad:
-            status = ST_BAD
-        elif n_ok == 0:
-            status = ST_MASKED
-        elif n_inb == 0:
-            status = ST_BOUNDS
-        elif best == np.inf:
-            status = ST_UNREACHABLE
-        else:
-            status = ST_FEASIBLE
-        out_status[s] = status
-        if status == ST_FEASIBLE:
-            out_J[s] = best
-            out_arg[s] = arg
-        else:
-            out_J[s] = cost_v if mode == MODE_LEVELSET else np.inf
-            out_arg[s] = arg_v
-        out_V[s] = best_v if n_ok > 0 else V_CAP
-        out_argV[s] = arg_v
-        out_fmax[s] = fmax
-        out_fmin[s] = fmin
+                cost_v = np.inf if jinf else c + jacc  # closest approach, clamped
+            continue
+        n_inb += 1
+        tot = np.inf if jinf else c + jacc
+        if v <= VTOL and tot < best:
+            best = tot
+            arg = m
+        if track and v < best_v:
+            best_v = v
+            arg_v = m
+            cost_v = tot
+    if bad:
+        status = ST_BAD
+    elif n_ok == 0:
+        status = ST_MASKED
+    elif n_inb == 0:
+        status = ST_BOUNDS
+    elif best == np.inf:
+        status = ST_UNREACHABLE
+    else:
+        status = ST_FEASIBLE
+    out_status[s] = status
+    if status == ST_FEASIBLE:
+        out_J[s] = best
+        out_arg[s] = arg
+    else:
+        out_J[s] = cost_v if mode == MODE_LEVELSET else np.inf
+        out_arg[s] = arg_v
+    out_V[s] = best_v if n_ok > 0 else V_CAP
+    out_argV[s] = arg_v
 
 
 @njit(parallel=True, cache=True)
-def bellman_nd(
+def bellman_nd_par(
+    xb,
     x1,
     x2,
     x3,
@@ -272,130 +724,94 @@ def bellman_nd(
 
     ``x1..x4``: (S, M) next-state components (unused ones are dummies); the grid of
     dimension ``j`` is ``gflat[goff[j]:goff[j+1]]`` and its flat-index stride ``gstride[j]``.
+    Other arguments as in :func:`bellman_1d_par`.
     """
-    S = g.shape[0]
-    M = g.shape[1]
-    ncorner = 1 << d
-    track = mode != MODE_PLAIN or use_box
-    for s in prange(S):
-        idx = np.empty(4, np.int64)
-        w = np.empty(4)
-        xv = np.empty(4)
-        best = np.inf
-        arg = -1
-        best_v = np.inf
-        arg_v = -1
-        cost_v = np.inf
-        n_ok = 0
-        n_inb = 0
-        bad = False
-        for m in range(M):
-            if has_mask and mask[s, m]:
-                continue
-            c = g[s, m]
-            xv[0] = x1[s, m]
-            if d > 1:
-                xv[1] = x2[s, m]
-            if d > 2:
-                xv[2] = x3[s, m]
-            if d > 3:
-                xv[3] = x4[s, m]
-            finite = True
-            for j in range(d):
-                if not np.isfinite(xv[j]):
-                    finite = False
-            if not finite or np.isnan(c) or c == -np.inf:
-                bad = True
-                continue
-            if c == np.inf:
-                continue
-            n_ok += 1
-            inb = True
-            dout = 0.0
-            vbox = -np.inf
-            for j in range(d):
-                a = goff[j]
-                b = goff[j + 1]
-                lo = gflat[a]
-                hi = gflat[b - 1]
-                sp = hi - lo
-                x = xv[j]
-                if use_box:
-                    vbox = max(vbox, (box_lo[j] - x) / sp, (x - box_hi[j]) / sp)
-                if x < lo - BTOL * sp:
-                    inb = False
-                    dout += (lo - x) / sp
-                    x = lo
-                elif x > hi + BTOL * sp:
-                    inb = False
-                    dout += (x - hi) / sp
-                    x = hi
-                else:
-                    x = min(max(x, lo), hi)
-                ij, wj = _locate(gflat[a:b], guni[j], ginv[j], x)
-                idx[j] = ij
-                w[j] = wj
-            if not inb and not track:
-                continue
-            jacc = 0.0
-            vacc = 0.0
-            jinf = False
-            for cidx in range(ncorner):
-                wt = 1.0
-                flat = 0
-                for j in range(d):
-                    if (cidx >> j) & 1:
-                        wt *= w[j]
-                        flat += (idx[j] + 1) * gstride[j]
-                    else:
-                        wt *= 1.0 - w[j]
-                        flat += idx[j] * gstride[j]
-                if wt == 0.0:
-                    continue
-                jc = J[flat]
-                if jc == np.inf:
-                    jinf = True
-                else:
-                    jacc += wt * jc
-                if mode == MODE_LEVELSET:
-                    vacc += wt * V[flat]
-            if use_box:
-                v = vbox
-            elif mode == MODE_LEVELSET:
-                v = vacc if inb else max(vacc, 0.0) + dout
-            else:
-                v = 0.0
-            if not inb:
-                if v < best_v:
-                    best_v = v
-                    arg_v = m
-                    cost_v = np.inf
-                continue
-            n_inb += 1
-            tot = np.inf if jinf else c + jacc
-            if v <= VTOL and tot < best:
-                best = tot
-                arg = m
-            if track and v < best_v:
-                best_v = v
-                arg_v = m
-                cost_v = tot
-        if bad:
-            status = ST_BAD
-        elif n_ok == 0:
-            status = ST_MASKED
-        elif n_inb == 0:
-            status = ST_BOUNDS
-        elif best == np.inf:
-            status = ST_UNREACHABLE
-        else:
-            status = ST_FEASIBLE
-        out_status[s] = status
-        if status == ST_FEASIBLE:
-            out_J[s] = best
-            out_arg[s] = arg
-        else:
-            out_J[s] = cost_v if mode == MODE_LEVELSET else np.inf
-            out_arg[s] = arg_v
-        out_V[s] = best_v if n_ok > 0 else V_CAP
-        out_argV[s] = arg_v
+    for s in prange(g.shape[0]):
+        _row_nd(
+            s,
+            xb,
+            x1,
+            x2,
+            x3,
+            x4,
+            d,
+            g,
+            mask,
+            has_mask,
+            gflat,
+            goff,
+            guni,
+            ginv,
+            gstride,
+            J,
+            V,
+            mode,
+            use_box,
+            box_lo,
+            box_hi,
+            out_J,
+            out_arg,
+            out_status,
+            out_V,
+            out_argV,
+        )
+
+
+@njit(cache=True)
+def bellman_nd_ser(
+    xb,
+    x1,
+    x2,
+    x3,
+    x4,
+    d,
+    g,
+    mask,
+    has_mask,
+    gflat,
+    goff,
+    guni,
+    ginv,
+    gstride,
+    J,
+    V,
+    mode,
+    use_box,
+    box_lo,
+    box_hi,
+    out_J,
+    out_arg,
+    out_status,
+    out_V,
+    out_argV,
+):
+    """Serial twin of :func:`bellman_nd_par` for small blocks."""
+    for s in range(g.shape[0]):
+        _row_nd(
+            s,
+            xb,
+            x1,
+            x2,
+            x3,
+            x4,
+            d,
+            g,
+            mask,
+            has_mask,
+            gflat,
+            goff,
+            guni,
+            ginv,
+            gstride,
+            J,
+            V,
+            mode,
+            use_box,
+            box_lo,
+            box_hi,
+            out_J,
+            out_arg,
+            out_status,
+            out_V,
+            out_argV,
+        )

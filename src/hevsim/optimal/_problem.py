@@ -316,16 +316,38 @@ class Space:
         )
 
 
+@dataclass(frozen=True)
+class Increment:
+    """A next state given as an increment: ``x[k+1] = x[k] + delta``.
+
+    Return ``Increment(delta)`` instead of ``x + delta`` in ``next_states`` when the
+    increment is cheaper to form than the full block (for instance ``delta`` of shape
+    ``(1, m)`` when it does not depend on the state): the solver then adds it inside its
+    kernel and never materialises the ``(states x inputs)`` next-state array.
+    """
+
+    delta: Any
+
+
 @dataclass
 class Block:
-    """Model outputs for one step, flattened to ``(S, M)``."""
+    """Model outputs for one step, flattened to ``(S, M)``.
+
+    The next state of component ``j`` is ``base[j][:, None] + xn[j]`` (``base`` is zero
+    unless the model returned an :class:`Increment`).
+    """
 
     xn: list[FloatArray]
+    base: list[FloatArray]
     g: FloatArray
     mask: BoolArray | None
     shape: tuple[int, ...]
     states: tuple[np.ndarray, ...]
     inputs: tuple[np.ndarray, ...]
+
+    def next_state(self, j: int) -> FloatArray:
+        """Materialised next state of component ``j``, shape (S, M)."""
+        return self.base[j][:, None] + self.xn[j]
 
 
 class Evaluator:
@@ -395,10 +417,19 @@ class Evaluator:
                 )
             return np.broadcast_to(arr, shape).reshape(S, M)
 
-        xn = [flat(a, f"next_states[{j}]", np.float64) for j, a in enumerate(nxt)]
+        xn = []
+        base = []
+        for j, a in enumerate(nxt):
+            if isinstance(a, Increment):
+                xn.append(flat(a.delta, f"next_states[{j}] (Increment)", np.float64))
+                sj = np.broadcast_to(np.asarray(states[j], dtype=np.float64), shape[:d] + (1,) * sp.q)
+                base.append(np.ascontiguousarray(sj.reshape(S)))
+            else:
+                xn.append(flat(a, f"next_states[{j}]", np.float64))
+                base.append(np.zeros(S))
         g = flat(cost, "stage_cost", np.float64)
         m = None if mask is None else flat(mask, "infeasible_mask", np.bool_)
-        return Block(xn=xn, g=g, mask=m, shape=shape, states=states, inputs=ins)
+        return Block(xn=xn, base=base, g=g, mask=m, shape=shape, states=states, inputs=ins)
 
     def bad_output_error(self, k: int, blk: Block, s: int) -> DPModelError:
         """Describe the first NaN / infinite output of an unmasked pair in row ``s``."""
@@ -409,8 +440,8 @@ class Evaluator:
         g = blk.g[s]
         for m in np.flatnonzero(unmasked & (np.isnan(g) | (g == -np.inf)))[:1]:
             problems.append(("stage_cost", int(m), "NaN" if np.isnan(g[m]) else "-inf"))
-        for j, x in enumerate(blk.xn):
-            row = x[s]
+        for j in range(d):
+            row = blk.base[j][s] + blk.xn[j][s]
             for m in np.flatnonzero(unmasked & ~np.isfinite(row))[:1]:
                 problems.append((f"next_states[{j}]", int(m), repr(float(row[m]))))
         if not problems:  # pragma: no cover - kernel and this check agree
