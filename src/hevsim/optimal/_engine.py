@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from hevsim.errors import DPInfeasibleError
-from hevsim.optimal import _kernels as kn
-from hevsim.optimal._problem import Block, BoolArray, DPProblem, Evaluator, FloatArray, IntArray
+from hevsim.optimal import _consts as kn
+from hevsim.optimal._problem import Block, DPProblem, Evaluator, FloatArray, IntArray
 
 METHODS = ("boundary_line", "levelset", "wall", "penalty")
 _MODE = {
@@ -24,6 +24,13 @@ REFINE_POINTS = 17  # states evaluated per boundary-line refinement
 PARALLEL_MIN_PAIRS = 20_000  # blocks smaller than this run the serial kernel
 _DUMMY_MASK = np.zeros((1, 1), dtype=np.bool_)
 _DUMMY_X = np.zeros((1, 1))
+
+
+def _kernels() -> Any:
+    """The numba kernels, imported (and loaded from numba's cache) on first use only."""
+    import hevsim.optimal._kernels as kernels
+
+    return kernels
 
 
 @dataclass
@@ -48,7 +55,6 @@ class Backward:
     band: FloatArray | None  # (N+1, 4) [lo, J(lo), hi, J(hi)] (boundary line)
     band_i: IntArray | None  # (N+1, 2)
     n_feasible: IntArray  # (N+1,)
-    status_counts: IntArray  # (N, 4)
     empty_step: int | None  # largest k at which the admissible set is empty
     J0: FloatArray  # cost-to-go, level set and status at the earliest step computed
     V0: FloatArray
@@ -75,6 +81,7 @@ class Engine:
         self.N = self.space.n_steps
         sp = self.space
         self.btol = kn.BTOL * sp.span
+        self.box = (sp.box_lo, sp.box_hi)  # target box of the recursion being run
 
     # ------------------------------------------------------------------ kernels
     def step(
@@ -98,13 +105,14 @@ class Engine:
         out_argv = np.empty(S, dtype=np.int64)
         has_mask = blk.mask is not None
         mask = blk.mask if blk.mask is not None else _DUMMY_MASK
-        Vk = J if V is None else V
+        J = np.asarray(J, dtype=np.float64)  # stored float32 rows are widened
+        Vk = J if V is None else np.asarray(V, dtype=np.float64)
         parallel = S >= 2 and S * M >= PARALLEL_MIN_PAIRS
         if sp.d == 1:
             fmax = np.empty(S)
             fmin = np.empty(S)
-            box = np.array([sp.box_lo[0], sp.box_hi[0]])
-            kernel_1d = kn.bellman_1d_par if parallel else kn.bellman_1d_ser
+            box = np.array([self.box[0][0], self.box[1][0]])
+            kernel_1d = _kernels().bellman_1d_par if parallel else _kernels().bellman_1d_ser
             kernel_1d(
                 blk.base[0],
                 blk.xn[0],
@@ -135,7 +143,7 @@ class Engine:
             xb = np.zeros((4, S))
             for j in range(sp.d):
                 xb[j] = blk.base[j]
-            kernel_nd = kn.bellman_nd_par if parallel else kn.bellman_nd_ser
+            kernel_nd = _kernels().bellman_nd_par if parallel else _kernels().bellman_nd_ser
             kernel_nd(
                 xb,
                 xs[0],
@@ -155,8 +163,8 @@ class Engine:
                 Vk,
                 mode,
                 use_box,
-                sp.box_lo,
-                sp.box_hi,
+                self.box[0],
+                self.box[1],
                 out_J,
                 out_arg,
                 out_status,
@@ -164,6 +172,45 @@ class Engine:
                 out_argv,
             )
         return StepOut(out_J, out_arg, out_status, out_V, out_argv, fmax, fmin)
+
+    def bellman(
+        self,
+        blk: Block,
+        k: int,
+        Jn: np.ndarray,
+        Vn: np.ndarray | None,
+        band: FloatArray,
+        band_i: IntArray,
+    ) -> StepOut:
+        """Bellman step ``k``; at the last step the terminal cost, the linear penalty and
+        the target box are evaluated exactly at the next states instead of interpolated."""
+        if k != self.N - 1:
+            return self.step(blk, Jn, Vn, band, band_i, False)
+        blk = self._fold_terminal(blk, k)
+        Jz = np.where(np.isinf(Jn), np.inf, 0.0)
+        bz = band.copy()
+        bz[1] = bz[3] = 0.0
+        return self.step(blk, Jz, Vn, bz, band_i, self.method in ("wall", "levelset"))
+
+    def _fold_terminal(self, blk: Block, k: int) -> Block:
+        """``blk`` with ``terminal_cost(x') (+ penalty(x'))`` added to the stage cost."""
+        sp = self.space
+        if self.problem.terminal_cost is None and self.method != "penalty":
+            return blk
+        xn = [blk.next_state(j) for j in range(sp.d)]
+        outside = np.zeros(blk.g.shape, dtype=bool)
+        for j, x in enumerate(xn):
+            outside |= ~((x >= sp.lo[j] - self.btol[j]) & (x <= sp.hi[j] + self.btol[j]))
+        ignore = outside if blk.mask is None else outside | blk.mask
+        add = np.zeros(blk.g.shape)
+        if self.problem.terminal_cost is not None:
+            states = tuple(x.reshape(blk.shape) for x in xn)
+            add += self.ev.terminal(states, blk.shape, ignore=ignore.reshape(blk.shape)).reshape(blk.g.shape)
+        if self.method == "penalty" and self.penalty_weight is not None:
+            lo, hi = self.box
+            for j, x in enumerate(xn):
+                add += self.penalty_weight[j] * np.maximum(np.maximum(lo[j] - x, x - hi[j]), 0.0)
+        return replace(blk, g=blk.g + add)
 
     def point_blocks(self, points: FloatArray, cost: FloatArray | None = None) -> Block:
         """A block whose rows are the given next states (one input each)."""
@@ -175,16 +222,24 @@ class Engine:
 
     # ------------------------------------------------------------------ terminal
     def box_distance(self, box_lo: FloatArray, box_hi: FloatArray) -> FloatArray:
-        """Signed, span-normalised inf-norm distance of every node to the box (flat)."""
+        """Level-set function of the target box at every node (flat).
+
+        With ``d_j`` the signed, span-normalised distance of state ``j`` to its target
+        interval: ``max_j d_j`` inside the box (<= 0) and ``sum_j max(d_j, 0)`` outside. Both
+        pieces are exact under multilinear interpolation for a box with one active face, and
+        the sum keeps separable problems separable.
+        """
         sp = self.space
-        dist = np.full(sp.shape, -np.inf)
+        vmax = np.full(sp.shape, -np.inf)
+        vpos = np.zeros(sp.shape)
         for j, grid in enumerate(sp.grids):
             shp = [1] * sp.d
             shp[j] = grid.size
             gj = grid.reshape(shp)
             dj = np.maximum(box_lo[j] - gj, gj - box_hi[j]) / sp.span[j]
-            dist = np.maximum(dist, dj)
-        return dist.ravel()
+            vmax = np.maximum(vmax, dj)
+            vpos = vpos + np.maximum(dj, 0.0)
+        return np.where(vpos > 0.0, vpos, vmax).ravel()
 
     def terminal(self, box_lo: FloatArray, box_hi: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Terminal cost-to-go and level-set function on the nodes (flat, float64)."""
@@ -227,6 +282,23 @@ class Engine:
         bar: Any = None,
         stop_when_empty: bool = True,
     ) -> Backward:
+        """Backward recursion towards the target box ``[box_lo, box_hi]``."""
+        saved = self.box
+        self.box = (box_lo, box_hi)
+        try:
+            return self._backward(box_lo, box_hi, store, keep_policy, bar, stop_when_empty)
+        finally:
+            self.box = saved
+
+    def _backward(
+        self,
+        box_lo: FloatArray,
+        box_hi: FloatArray,
+        store: bool,
+        keep_policy: bool,
+        bar: Any,
+        stop_when_empty: bool,
+    ) -> Backward:
         sp = self.space
         N = self.N
         S = sp.S
@@ -254,7 +326,6 @@ class Engine:
             Vst[N] = V
         n_feasible = np.zeros(N + 1, dtype=np.int64)
         n_feasible[N] = int(np.count_nonzero(V <= kn.VTOL))
-        counts = np.zeros((N, 4), dtype=np.int64)
         empty_step: int | None = None
         k0 = N
         dummy_band = np.zeros(4)
@@ -263,10 +334,9 @@ class Engine:
             data_k = self.ev.data_at(k)
             pre = self.ev.pre_at(k, data_k)
             blk = self.ev(sp.states_b, k, data_k, pre)
-            use_box = k == N - 1 and self.method in ("wall", "levelset")
             bk = band[k + 1] if band is not None else dummy_band
             bik = band_i[k + 1] if band_i is not None else dummy_band_i
-            out = self.step(blk, J, V if use_levelset else None, bk, bik, use_box)
+            out = self.bellman(blk, k, J, V if use_levelset else None, bk, bik)
             bad = np.flatnonzero(out.status == kn.ST_BAD)
             if bad.size:
                 raise self.ev.bad_output_error(k, blk, int(bad[0]))
@@ -275,7 +345,6 @@ class Engine:
                 empty = not self._update_band(k, out, J, band, band_i, data_k, pre)
             feasible = out.status == kn.ST_FEASIBLE
             n_feasible[k] = int(np.count_nonzero(feasible))
-            counts[k] = np.bincount(out.status, minlength=5)[:4]
             if band is None and n_feasible[k] == 0:
                 empty = True
             J = out.J
@@ -302,7 +371,6 @@ class Engine:
             band=band,
             band_i=band_i,
             n_feasible=n_feasible,
-            status_counts=counts,
             empty_step=empty_step,
             J0=J,
             V0=V,
@@ -473,7 +541,6 @@ class Engine:
         for k in range(N):
             x = xs[k]
             data_k = self.ev.data_at(k)
-            use_box = k == N - 1 and self.method in ("wall", "levelset")
             band, band_i = self._band_at(bw, k + 1)
             Vn = bw.V[k + 1] if (use_levelset and bw.V is not None) else None
             done = False
@@ -483,7 +550,7 @@ class Engine:
                     ins = tuple(np.full((1,) * (sp.d + sp.q), u[j]) for j in range(sp.q))
                     pre = self.ev.pre_at(k, data_k, ins)
                     blk = self.ev(self._state_arrays(x), k, data_k, pre, inputs=ins)
-                    out = self.step(blk, bw.J[k + 1], Vn, band, band_i, use_box)
+                    out = self.bellman(blk, k, bw.J[k + 1], Vn, band, band_i)
                     if out.status[0] == kn.ST_BAD:
                         raise self.ev.bad_output_error(k, blk, 0)
                     if out.status[0] == kn.ST_FEASIBLE:
@@ -496,7 +563,7 @@ class Engine:
             if not done:
                 pre = self.ev.pre_at(k, data_k)
                 blk = self.ev(self._state_arrays(x), k, data_k, pre)
-                out = self.step(blk, bw.J[k + 1], Vn, band, band_i, use_box)
+                out = self.bellman(blk, k, bw.J[k + 1], Vn, band, band_i)
                 status = int(out.status[0])
                 if status == kn.ST_BAD:
                     raise self.ev.bad_output_error(k, blk, 0)
@@ -620,19 +687,29 @@ class Engine:
 
     # --------------------------------------------------------------- diagnosis
     def diagnose(self, x0: FloatArray, bw: Backward) -> DPInfeasibleError:
-        """Explain why ``x0`` cannot reach the target: which constraint, from which step."""
+        """Explain why ``x0`` cannot reach the target: which constraint, from which step.
+
+        1. If a target narrower than the grid is set, the recursion is rerun without it; if
+           ``x0`` is then feasible, the target is the violated constraint, and the step at
+           which its backward reachable set becomes empty (or its extent at step 0) is
+           reported.
+        2. Otherwise the states reachable from ``x0`` are propagated forward (continuous
+           states, the extreme ones of every grid cell kept) until every one of them has
+           all its inputs masked or leaving the state bounds: that step and constraint are
+           reported.
+        """
         sp = self.space
         N = self.N
-        head = f"the initial state {self._fmt_state(x0)} cannot reach the final target"
+        x0s = self._fmt_state(x0)
         if sp.has_target:
             relaxed = self.backward(sp.lo, sp.hi, store=False, keep_policy=False)
             if self.point_feasible(x0, relaxed):
                 tgt = self._fmt_box(sp.box_lo, sp.box_hi)
                 if bw.empty_step is not None:
                     where = (
-                        f"the set of states from which the target can still be reached "
-                        f"becomes empty at step {bw.empty_step} (of {N}; it is computed "
-                        f"backward from step {N})"
+                        "the set of states from which the target can still be reached "
+                        f"(computed backward from step {N}) becomes empty at step "
+                        f"{bw.empty_step}"
                     )
                 else:
                     where = (
@@ -640,34 +717,34 @@ class Engine:
                         f"{self._feasible_span(bw)}, which excludes the initial state"
                     )
                 return DPInfeasibleError(
-                    f"{head}: the violated constraint is the final-state target ({tgt}): "
-                    f"{where}. Without the target the problem is feasible. Widen the target, "
-                    "lengthen the horizon, move the initial state or give the inputs more "
-                    "authority."
+                    f"the initial state {x0s} cannot reach the final-state target ({tgt}) in "
+                    f"{N} steps: the violated constraint is the final-state target; {where} "
+                    "(without the target the problem is feasible). Widen the target, lengthen "
+                    "the horizon, move the initial state or give the inputs more authority."
                 )
         info = self._forward_reach(x0)
         if info is not None:
             k, n_rows, n_masked, n_bounds = info
-            cause = (
-                "input/model infeasibility mask"
-                if n_masked >= n_bounds
-                else f"state bounds ({self._fmt_box(sp.lo, sp.hi)})"
+            bounds = f"state bounds ({self._fmt_box(sp.lo, sp.hi)})"
+            cause = "input/model infeasibility mask" if n_masked >= n_bounds else bounds
+            who = (
+                "the initial state has"
+                if k == 0
+                else (f"each of the {n_rows} states still reachable from the initial state has")
             )
-            if k == 0:
-                detail = (
-                    "at step 0 every input at the initial state is rejected by the model's infeasibility mask"
-                    if n_masked
-                    else "at step 0 every admissible input drives the state outside the grid"
-                )
+            if n_masked == n_rows:
+                detail = "every input rejected by the model's infeasibility mask"
+            elif n_bounds == n_rows:
+                detail = "every admissible input driving the state outside the grid"
             else:
                 detail = (
-                    f"the set of states reachable from it shrinks to nothing at step {k}: "
-                    f"of the {n_rows} grid states reachable at step {k}, {n_masked} have every "
-                    f"input rejected by the infeasibility mask and {n_bounds} have every "
-                    "admissible input leaving the state bounds"
+                    f"either every input masked ({n_masked} states) or every admissible "
+                    f"input leaving the state bounds ({n_bounds} states)"
                 )
             return DPInfeasibleError(
-                f"{head}: the violated constraint is the {cause}, from step {k}: {detail}."
+                f"no input sequence leads from the initial state {x0s} to the final step {N}: "
+                f"the violated constraint is the {cause}, from step {k}: at step {k} {who} "
+                f"{detail}."
             )
         where = (
             f"the admissible set becomes empty at step {bw.empty_step}"
@@ -675,10 +752,11 @@ class Engine:
             else f"at step 0 the admissible states are {self._feasible_span(bw)}"
         )
         return DPInfeasibleError(
-            f"{head}: {where}. The state bounds and the infeasibility mask alone do not "
-            "explain it on this grid (the interpolated cost-to-go near the initial state "
-            "touches infeasible nodes); refine the state grid or use "
-            "final_constraint='levelset' or 'boundary_line'."
+            f"the initial state {x0s} is infeasible on this grid: {where}, although the state "
+            "bounds and the infeasibility mask alone do not forbid it (the interpolated "
+            "cost-to-go near the initial state touches infeasible nodes: final_constraint "
+            f"'{self.method}' is conservative by up to a grid cell per step); refine the "
+            "state grid or use final_constraint='levelset' or 'boundary_line'."
         )
 
     def _feasible_span(self, bw: Backward) -> str:
@@ -694,46 +772,57 @@ class Engine:
         idx = np.array(np.unravel_index(np.flatnonzero(feas), sp.shape))
         lo = np.array([sp.grids[j][idx[j].min()] for j in range(sp.d)])
         hi = np.array([sp.grids[j][idx[j].max()] for j in range(sp.d)])
-        return "states in the box " + self._fmt_box(lo, hi)
+        return "the box " + self._fmt_box(lo, hi)
 
     def _forward_reach(self, x0: FloatArray) -> tuple[int, int, int, int] | None:
-        """First step at which no grid state reachable from x0 has an admissible input."""
+        """First step at which no state reachable from x0 has an admissible input.
+
+        Returns ``(step, states tracked, of which all inputs masked, of which all admissible
+        inputs leave the bounds)`` or None. The reachable set is tracked as continuous
+        points; per grid cell only the points extreme in some state are kept.
+        """
         sp = self.space
-        reach: BoolArray | None = None
+        d, q = sp.d, sp.q
+        pts = x0.reshape(1, d)
         for k in range(self.N):
             data_k = self.ev.data_at(k)
             pre = self.ev.pre_at(k, data_k)
-            if reach is None:
-                blk = self.ev(self._state_arrays(x0), k, data_k, pre)
-                rows = np.array([0])
-            else:
-                blk = self.ev(sp.states_b, k, data_k, pre)
-                rows = np.flatnonzero(reach)
-            valid = np.isfinite(blk.g[rows]) & (blk.g[rows] < np.inf)
-            xnr = [blk.next_state(j)[rows] for j in range(sp.d)]
-            for xr in xnr:
+            P = pts.shape[0]
+            states = tuple(pts[:, j].reshape((P,) + (1,) * (d - 1 + q)) for j in range(d))
+            blk = self.ev(states, k, data_k, pre)
+            xn = [blk.next_state(j) for j in range(d)]
+            valid = np.isfinite(blk.g) & (blk.g < np.inf)
+            for xr in xn:
                 valid &= np.isfinite(xr)
             if blk.mask is not None:
-                valid &= ~blk.mask[rows]
+                valid &= ~blk.mask
             inb = valid.copy()
-            for j, xr in enumerate(xnr):
+            for j, xr in enumerate(xn):
                 inb &= (xr >= sp.lo[j] - self.btol[j]) & (xr <= sp.hi[j] + self.btol[j])
             has_valid = valid.any(axis=1)
             has_inb = inb.any(axis=1)
-            n_masked = int(np.count_nonzero(~has_valid))
-            n_bounds = int(np.count_nonzero(has_valid & ~has_inb))
             if not has_inb.any():
-                return k, rows.size, n_masked, n_bounds
-            new = np.zeros(sp.shape, dtype=bool)
+                n_masked = int(np.count_nonzero(~has_valid))
+                return k, P, n_masked, P - n_masked
             r, m = np.nonzero(inb)
-            nodes = []
-            for j, (grid, xr) in enumerate(zip(sp.grids, xnr, strict=True)):
-                xv = np.clip(xr[r, m], sp.lo[j], sp.hi[j])
-                i = np.clip(np.searchsorted(grid, xv), 1, grid.size - 1)
-                near = np.where(np.abs(grid[i - 1] - xv) <= np.abs(grid[i] - xv), i - 1, i)
-                nodes.append(near)
-            new[tuple(nodes)] = True
-            reach = new.ravel()
+            cand = np.stack([np.clip(xr[r, m], sp.lo[j], sp.hi[j]) for j, xr in enumerate(xn)], 1)
+            cells = np.stack(
+                [
+                    np.clip(np.searchsorted(g, cand[:, j], side="right") - 1, 0, g.size - 2)
+                    for j, g in enumerate(sp.grids)
+                ],
+                1,
+            )
+            key = np.ravel_multi_index(tuple(cells.T), tuple(g.size - 1 for g in sp.grids))
+            keep = []
+            for j in range(d):  # per cell, the points with the smallest and largest x_j
+                order = np.lexsort((cand[:, j], key))
+                ks = key[order]
+                first = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
+                last = np.r_[first[1:] - 1, ks.size - 1]
+                keep.append(order[first])
+                keep.append(order[last])
+            pts = cand[np.unique(np.concatenate(keep))]
         return None
 
 

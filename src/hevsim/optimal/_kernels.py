@@ -29,22 +29,46 @@ Modes (how the final-state constraint is enforced, see ``dp.py``):
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types
 
-MODE_PLAIN = 0
-MODE_LEVELSET = 1
-MODE_BAND = 2
+from hevsim.optimal._consts import (
+    BTOL,
+    MODE_BAND,
+    MODE_LEVELSET,
+    MODE_PLAIN,
+    ST_BAD,
+    ST_BOUNDS,
+    ST_FEASIBLE,
+    ST_MASKED,
+    ST_UNREACHABLE,
+    V_CAP,
+    VTIE,
+    VTOL,
+    WSNAP,
+)
 
-ST_FEASIBLE = 0  # at least one admissible input with a finite cost
-ST_MASKED = 1  # every input is rejected by the model's infeasibility mask (or infinite cost)
-ST_BOUNDS = 2  # every unmasked input drives the state outside the grid
-ST_UNREACHABLE = 3  # no in-bounds input leads to a state from which the target is reachable
-ST_BAD = 4  # the model returned NaN / infinite next state / -inf cost for an unmasked pair
-
-WSNAP = 1e-12  # interpolation weights closer than this to 0 or 1 are snapped
-BTOL = 1e-9  # relative tolerance (of the grid span) on the state bounds
-VTOL = 1e-9  # level-set tolerance (normalised distance) for "inside the set"
-V_CAP = 1.0e6  # level-set value of nodes whose every input is masked
+# One compiled version per kernel: every array is typed "any layout" (read-only inputs
+# accept writable, strided and broadcast arrays), so that C-contiguous, broadcast and
+# sliced model outputs share the same machine code and the cache stays small.
+_F1 = types.Array(types.float64, 1, "A", readonly=True)
+_F2 = types.Array(types.float64, 2, "A", readonly=True)
+_B2 = types.Array(types.boolean, 2, "A", readonly=True)
+_B1 = types.Array(types.boolean, 1, "A", readonly=True)
+_I1 = types.Array(types.int64, 1, "A", readonly=True)
+_OF = types.Array(types.float64, 1, "A")
+_OI = types.Array(types.int64, 1, "A")
+_OS = types.Array(types.int8, 1, "A")
+_BOOL = types.boolean
+_F = types.float64
+_I = types.int64
+SIG_1D = types.void(
+    _F1, _F2, _F2, _B2, _BOOL, _F1, _BOOL, _F, _F1, _F1, _I, _F1, _I1, _BOOL, _F1,
+    _OF, _OI, _OS, _OF, _OI, _OF, _OF,
+)  # fmt: skip
+SIG_ND = types.void(
+    _F2, _F2, _F2, _F2, _F2, _I, _F2, _B2, _BOOL, _F1, _I1, _B1, _F1, _I1, _F1, _F1, _I,
+    _BOOL, _F1, _F1, _OF, _OI, _OS, _OF, _OI,
+)  # fmt: skip
 
 
 @njit(cache=True, inline="always")
@@ -147,11 +171,15 @@ def _loop_plain(s, xb, xn, g, mask, has_mask, grid, uniform, inv_dx, J):
     n_ok = 0
     n_inb = 0
     bad = False
+    xs = xb[s]
+    xrow = xn[s]  # row views: one stride per access instead of two
+    grow = g[s]
+    mrow = mask[s] if has_mask else mask[0]
     for m in range(M):
-        if has_mask and mask[s, m]:
+        if has_mask and mrow[m]:
             continue
-        x = xb[s] + xn[s, m]
-        c = g[s, m]
+        x = xs + xrow[m]
+        c = grow[m]
         if not (x >= lo_b and x <= hi_b and c < np.inf and c > -np.inf):
             if _is_bad(x, c):
                 bad = True
@@ -193,14 +221,16 @@ def _loop_interval(
     inv_span = 1.0 / span
     lo_b = g0 - BTOL * span
     hi_b = gn + BTOL * span
-    node_lo = np.inf  # grid nodes inside the band: plain interpolation between them
-    node_hi = -np.inf
-    if is_band and band_i[0] <= band_i[1]:
-        node_lo = grid[band_i[0]]
-        node_hi = grid[band_i[1]]
-    elif not is_band:
-        node_lo = g0
-        node_hi = gn
+    lo_t = v_lo - VTOL * span  # the interval lies inside the grid, so inside => in bounds
+    hi_t = v_hi + VTOL * span
+    node_lo = g0  # between these nodes the plain interpolation applies
+    node_hi = gn
+    if is_band:
+        node_lo = np.inf
+        node_hi = -np.inf
+        if band_i[0] <= band_i[1]:
+            node_lo = grid[band_i[0]]
+            node_hi = grid[band_i[1]]
     best = np.inf
     arg = -1
     best_v = np.inf
@@ -212,11 +242,15 @@ def _loop_interval(
     n_ok = 0
     n_inb = 0
     bad = False
+    xs = xb[s]
+    xrow = xn[s]  # row views: one stride per access instead of two
+    grow = g[s]
+    mrow = mask[s] if has_mask else mask[0]
     for m in range(M):
-        if has_mask and mask[s, m]:
+        if has_mask and mrow[m]:
             continue
-        x = xb[s] + xn[s, m]
-        c = g[s, m]
+        x = xs + xrow[m]
+        c = grow[m]
         if not (c < np.inf and c > -np.inf and abs(x) < np.inf):
             if _is_bad(x, c):
                 bad = True
@@ -224,40 +258,41 @@ def _loop_interval(
         n_ok += 1
         fmax = max(fmax, x)
         fmin = min(fmin, x)
-        inb = x >= lo_b and x <= hi_b
-        if inb:
+        if x >= lo_t and x <= hi_t:  # admissible next state
+            n_inb += 1
+            xc = min(max(x, g0), gn)
+            if uniform:
+                t = (xc - g0) * inv_dx
+                i = int(t)
+                if i > n - 2:
+                    i = n - 2
+                w = t - i
+            else:
+                i, w = _locate(grid, uniform, inv_dx, xc)
+            if xc >= node_lo and xc <= node_hi:
+                ja = J[i]
+                jb = J[i + 1]
+                jv = ja + w * (jb - ja)
+                if not jv < np.inf:  # an infinite node: exact rule (rarely taken)
+                    jv = _lerp_inf(ja, jb, w)
+            else:
+                jv = _band_value(grid, uniform, inv_dx, J, band, band_i, xc)
+            tot = c + jv
+            if tot < best:
+                best = tot
+                arg = m
+            if is_ls:
+                v_in = min(v_in, max(v_lo - x, x - v_hi) * inv_span)
+            continue
+        if x >= lo_b and x <= hi_b:
             n_inb += 1
         v = max(v_lo - x, x - v_hi) * inv_span
-        if v > VTOL:  # outside: only remember the closest approach
-            if v < best_v:
-                best_v = v
+        if v <= best_v + VTIE:  # outside: remember the closest approach (ties: lower cost)
+            tot = c + _interp_clamped(grid, uniform, inv_dx, J, x) if is_ls else np.inf
+            if v < best_v - VTIE or tot < cost_v:
+                best_v = min(best_v, v)
                 arg_v = m
-                cost_v = c + _interp_clamped(grid, uniform, inv_dx, J, x) if is_ls else np.inf
-            continue
-        v_in = min(v_in, v)
-        if not inb:
-            continue
-        xc = min(max(x, g0), gn)
-        if uniform:
-            t = (xc - g0) * inv_dx
-            i = int(t)
-            if i > n - 2:
-                i = n - 2
-            w = t - i
-        else:
-            i, w = _locate(grid, uniform, inv_dx, xc)
-        if xc >= node_lo and xc <= node_hi:
-            ja = J[i]
-            jb = J[i + 1]
-            jv = ja + w * (jb - ja)
-            if not jv < np.inf:  # an infinite node: exact rule (rarely taken)
-                jv = _lerp_inf(ja, jb, w)
-        else:
-            jv = _band_value(grid, uniform, inv_dx, J, band, band_i, xc)
-        tot = c + jv
-        if tot < best:
-            best = tot
-            arg = m
+                cost_v = tot
     return best, arg, min(best_v, v_in), arg_v, cost_v, fmax, fmin, n_ok, n_inb, bad
 
 
@@ -281,11 +316,15 @@ def _loop_levelset(s, xb, xn, g, mask, has_mask, grid, uniform, inv_dx, J, V):
     n_ok = 0
     n_inb = 0
     bad = False
+    xs = xb[s]
+    xrow = xn[s]  # row views: one stride per access instead of two
+    grow = g[s]
+    mrow = mask[s] if has_mask else mask[0]
     for m in range(M):
-        if has_mask and mask[s, m]:
+        if has_mask and mrow[m]:
             continue
-        x = xb[s] + xn[s, m]
-        c = g[s, m]
+        x = xs + xrow[m]
+        c = grow[m]
         if not (c < np.inf and c > -np.inf and abs(x) < np.inf):
             if _is_bad(x, c):
                 bad = True
@@ -310,10 +349,12 @@ def _loop_levelset(s, xb, xn, g, mask, has_mask, grid, uniform, inv_dx, J, V):
         ja = J[i]
         jb = J[i + 1]
         if v > VTOL:  # outside the reachable set: only remember the closest approach
-            if v < best_v:
-                best_v = v
-                arg_v = m
-                cost_v = c + _lerp_inf(ja, jb, w)
+            if v <= best_v + VTIE:  # closest approach (ties: lower cost)
+                tot = c + _lerp_inf(ja, jb, w)
+                if v < best_v - VTIE or tot < cost_v:
+                    best_v = min(best_v, v)
+                    arg_v = m
+                    cost_v = tot
             continue
         v_in = min(v_in, v)
         jv = ja + w * (jb - ja)
@@ -420,7 +461,7 @@ def _row_1d(
     out_fmin[s] = fmin
 
 
-@njit(parallel=True, cache=True)
+@njit(SIG_1D, parallel=True, cache=True)
 def bellman_1d_par(
     xb,
     xn,
@@ -482,7 +523,7 @@ def bellman_1d_par(
         )
 
 
-@njit(cache=True)
+@njit(SIG_1D, cache=True)
 def bellman_1d_ser(
     xb,
     xn,
@@ -577,6 +618,7 @@ def _row_nd(
     best_v = np.inf
     arg_v = -1
     cost_v = np.inf
+    v_in = np.inf  # smallest level value among admissible pairs
     n_ok = 0
     n_inb = 0
     bad = False
@@ -603,7 +645,8 @@ def _row_nd(
         n_ok += 1
         inb = True
         dout = 0.0
-        vbox = -np.inf
+        vbox = -np.inf  # target level value: max_j d_j inside, sum_j max(d_j, 0) outside
+        vpos = 0.0
         for j in range(d):
             a = goff[j]
             b = goff[j + 1]
@@ -612,7 +655,9 @@ def _row_nd(
             sp = hi - lo
             x = xv[j]
             if use_box:
-                vbox = max(vbox, (box_lo[j] - x) / sp, (x - box_hi[j]) / sp)
+                dj = max((box_lo[j] - x) / sp, (x - box_hi[j]) / sp)
+                vbox = max(vbox, dj)
+                vpos += max(dj, 0.0)
             if x < lo - BTOL * sp:
                 inb = False
                 dout += (lo - x) / sp
@@ -651,26 +696,25 @@ def _row_nd(
             if mode == MODE_LEVELSET:
                 vacc += wt * V[flat]
         if use_box:
-            v = vbox
+            v = vpos if vpos > 0.0 else vbox
         elif mode == MODE_LEVELSET:
             v = vacc if inb else max(vacc, 0.0) + dout
         else:
             v = 0.0
-        if not inb:
-            if v < best_v:
-                best_v = v
-                arg_v = m
-                cost_v = np.inf if jinf else c + jacc  # closest approach, clamped
-            continue
-        n_inb += 1
+        if inb:
+            n_inb += 1
         tot = np.inf if jinf else c + jacc
-        if v <= VTOL and tot < best:
+        if v > VTOL or not inb:  # inadmissible: remember the closest approach (cost at the
+            # clamped state; equal level values, up to VTIE, are broken by the lower cost)
+            if v < best_v - VTIE or (v <= best_v + VTIE and tot < cost_v):
+                best_v = min(best_v, v)
+                arg_v = m
+                cost_v = tot
+            continue
+        v_in = min(v_in, v)
+        if tot < best:
             best = tot
             arg = m
-        if track and v < best_v:
-            best_v = v
-            arg_v = m
-            cost_v = tot
     if bad:
         status = ST_BAD
     elif n_ok == 0:
@@ -688,11 +732,11 @@ def _row_nd(
     else:
         out_J[s] = cost_v if mode == MODE_LEVELSET else np.inf
         out_arg[s] = arg_v
-    out_V[s] = best_v if n_ok > 0 else V_CAP
+    out_V[s] = min(best_v, v_in) if n_ok > 0 else V_CAP
     out_argV[s] = arg_v
 
 
-@njit(parallel=True, cache=True)
+@njit(SIG_ND, parallel=True, cache=True)
 def bellman_nd_par(
     xb,
     x1,
@@ -757,7 +801,7 @@ def bellman_nd_par(
         )
 
 
-@njit(cache=True)
+@njit(SIG_ND, cache=True)
 def bellman_nd_ser(
     xb,
     x1,

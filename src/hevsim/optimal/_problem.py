@@ -55,8 +55,11 @@ class DPProblem:
         precompute: optional ``precompute(inputs, k, data) -> pre`` for the parts of the
             model that do not depend on the state (e.g. engine maps along the cycle); it is
             called once per step and ``pre`` is passed to the model as fifth argument.
-        terminal_cost: optional ``terminal_cost(states) -> cost`` at the final step, with
-            ``states`` broadcast as ``(n1, .., nd)``.
+        terminal_cost: optional elementwise ``terminal_cost(states) -> cost`` of the final
+            state, with ``states`` a tuple of ``d`` arrays of a common (broadcast) shape: the
+            grid ``(n1, .., nd)``, and at the last step the next states of the whole block
+            (the terminal cost is evaluated exactly there, not interpolated). NaN is allowed
+            only for states outside the grid.
         target: final-state target box, or None for "anywhere on the grid".
         discrete_inputs: indices of the inputs that are discrete sets (used by the policy
             interpolation: nearest node instead of weighted average).
@@ -92,12 +95,13 @@ def _check_grid(values: npt.ArrayLike, label: str, *, sorted_required: bool, min
     if arr.ndim != 1:
         raise DPSetupError(f"{label} must be a 1-D array of numbers; got shape {arr.shape}.")
     if arr.size < min_size:
-        what = "empty" if arr.size == 0 else f"has {arr.size} point"
-        raise DPSetupError(f"{label} is {what}; expected at least {min_size} point(s).")
+        what = "is empty" if arr.size == 0 else f"has {arr.size} point"
+        raise DPSetupError(f"{label} {what}; expected at least {min_size} point(s).")
     bad = np.flatnonzero(~np.isfinite(arr))
     if bad.size:
         raise DPSetupError(
-            f"{label} has a non-finite value {arr[bad[0]]!r} at position {bad[0]}; expected finite numbers."
+            f"{label} has a non-finite value {float(arr[bad[0]])!r} at position {bad[0]}; "
+            "expected finite numbers."
         )
     if sorted_required:
         steps = np.diff(arr)
@@ -105,8 +109,8 @@ def _check_grid(values: npt.ArrayLike, label: str, *, sorted_required: bool, min
         if bad.size:
             i = int(bad[0])
             raise DPSetupError(
-                f"{label} is not strictly increasing: value {arr[i + 1]!r} at position {i + 1} "
-                f"follows {arr[i]!r}; expected sorted, distinct grid points."
+                f"{label} is not strictly increasing: value {float(arr[i + 1])!r} at position {i + 1} "
+                f"follows {float(arr[i])!r}; expected sorted, distinct grid points."
             )
     elif np.unique(arr).size != arr.size:
         raise DPSetupError(f"{label} has repeated values {arr.tolist()}; expected distinct values.")
@@ -248,11 +252,6 @@ class Space:
         for j in range(d):
             tol = 1e-9 * span[j]
             lab = f"state {j} ('{snames[j]}')"
-            if box_lo[j] > box_hi[j]:
-                raise DPSetupError(
-                    f"target for {lab}: lower bound {box_lo[j]!r} exceeds upper bound "
-                    f"{box_hi[j]!r}; expected lower <= upper."
-                )
             if (
                 box_lo[j] < lo[j] - tol
                 or box_hi[j] > hi[j] + tol
@@ -260,9 +259,15 @@ class Space:
                 or box_hi[j] < lo[j] - tol
             ):
                 raise DPSetupError(
-                    f"target for {lab}: [{box_lo[j]!r}, {box_hi[j]!r}] lies (partly) outside the "
-                    f"state grid [{lo[j]!r}, {hi[j]!r}]; expected a target inside the grid "
-                    "(extend the grid or use None for an unbounded side)."
+                    f"target for {lab}: [{float(box_lo[j])!r}, {float(box_hi[j])!r}] lies "
+                    f"(partly) outside the state grid [{float(lo[j])!r}, {float(hi[j])!r}]; "
+                    "expected a target inside the grid (extend the grid or use None for an "
+                    "unbounded side)."
+                )
+            if box_lo[j] > box_hi[j]:
+                raise DPSetupError(
+                    f"target for {lab}: lower bound {float(box_lo[j])!r} exceeds upper bound "
+                    f"{float(box_hi[j])!r}; expected lower <= upper."
                 )
             box_lo[j] = min(max(box_lo[j], lo[j]), hi[j])
             box_hi[j] = min(max(box_hi[j], lo[j]), hi[j])
@@ -397,10 +402,10 @@ class Evaluator:
         if d == 1 and not isinstance(nxt, (tuple, list)):
             nxt = (nxt,)
         if not isinstance(nxt, (tuple, list)) or len(nxt) != d:
-            n_got = len(nxt) if isinstance(nxt, (tuple, list)) else type(nxt).__name__
+            got = f"{len(nxt)} entries" if isinstance(nxt, (tuple, list)) else type(nxt).__name__
             raise DPModelError(
-                f"model output next_states at step {k} has {n_got} entries; expected a "
-                f"sequence of {d} arrays (one per state variable)."
+                f"model output next_states at step {k} is {got}; expected a tuple or list of "
+                f"{d} arrays (one per state variable)."
             )
 
         def flat(a: Any, name: str, dtype: type) -> np.ndarray:
@@ -462,8 +467,17 @@ class Evaluator:
             "a finite value there, or infeasible_mask=True for that state/input pair."
         )
 
-    def terminal(self, states: tuple[np.ndarray, ...], shape: tuple[int, ...]) -> FloatArray:
-        """Terminal cost on ``states`` broadcast to ``shape`` (zeros when not given)."""
+    def terminal(
+        self,
+        states: tuple[np.ndarray, ...],
+        shape: tuple[int, ...],
+        ignore: BoolArray | None = None,
+    ) -> FloatArray:
+        """Terminal cost on ``states`` broadcast to ``shape`` (zeros when not given).
+
+        Where ``ignore`` is True (next states outside the grid, masked pairs) NaN is
+        replaced by +inf instead of being reported.
+        """
         tc = self.problem.terminal_cost
         if tc is None:
             return np.zeros(shape)
@@ -475,9 +489,11 @@ class Evaluator:
         if not ok:
             raise DPModelError(
                 f"terminal_cost returned shape {arr.shape}; expected an array broadcastable "
-                f"to the state grid shape {shape}."
+                f"to the state shape {shape}."
             )
         out = np.array(np.broadcast_to(arr, shape))
+        if ignore is not None:
+            out[ignore & np.isnan(out)] = np.inf
         if np.isnan(out).any() or (out == -np.inf).any():
             raise DPModelError("terminal_cost returned NaN or -inf; expected finite values or +inf.")
         return out

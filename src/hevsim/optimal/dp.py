@@ -18,7 +18,8 @@ Final-state constraint methods (``final_constraint``):
   treated exactly and the cost-to-go in the cells cut by a boundary is interpolated towards
   the boundary-line cost.
 * ``"levelset"`` (any number of states; default for 2-4 states): a level-set function
-  (span-normalised signed distance to the target, propagated backward by
+  (span-normalised distance to the target box: the largest per-state distance inside, <= 0,
+  the sum of the per-state excesses outside; propagated backward by
   ``V_k(x) = min_u V_{k+1}(f(x, u))``) defines the backward reachable set at every step;
   both the recursion and the forward pass only admit inputs whose next state lies in it.
   Nodes outside the set keep the finite cost of the input that comes closest to it, so no
@@ -29,6 +30,9 @@ Final-state constraint methods (``final_constraint``):
 * ``"penalty"``: ``penalty_weight * distance`` to the target added to the terminal cost
   (exact penalty: with a weight above the largest marginal value of the state, the target
   is met up to grid resolution); infeasible-by-target nodes keep finite costs.
+
+At the last step, every method evaluates the terminal cost, the penalty and the target box
+exactly at the next states (no interpolation).
 """
 
 from __future__ import annotations
@@ -248,8 +252,8 @@ def solve_dp(
         tol = 1e-9 * sp.span[j]
         if not np.isfinite(x[j]) or x[j] < sp.lo[j] - tol or x[j] > sp.hi[j] + tol:
             raise DPSetupError(
-                f"x0[{j}] ('{sp.state_names[j]}') = {x[j]!r} is outside the state grid "
-                f"[{sp.lo[j]!r}, {sp.hi[j]!r}]; expected a value inside it."
+                f"x0[{j}] ('{sp.state_names[j]}') = {float(x[j])!r} is outside the state grid "
+                f"[{float(sp.lo[j])!r}, {float(sp.hi[j])!r}]; expected a value inside it."
             )
     x = np.clip(x, sp.lo, sp.hi)
     weight = None
@@ -283,7 +287,8 @@ def solve_dp(
     engine = Engine(problem, method, weight, dtype)
     N = sp.n_steps
     if progress is None:
-        show = bool(sys.stderr.isatty()) and N * sp.S * sp.M >= PROGRESS_MIN_WORK
+        isatty = getattr(sys.stderr, "isatty", None)
+        show = bool(isatty and isatty()) and N * sp.S * sp.M >= PROGRESS_MIN_WORK
     else:
         show = bool(progress)
     bar = progress_bar(2 * N, show)
