@@ -134,7 +134,7 @@ def bench_hevsim(repeats: int) -> dict[str, Any]:
     from hevsim.cycles import load_cycle
     from hevsim.sim import kernel as K
     from hevsim.sim.model import build_series_hev
-    from hevsim.sim.simulator import simulate
+    from hevsim.sim.simulator import kernel_inputs, simulate
 
     t_import = time.perf_counter() - t0
 
@@ -163,24 +163,17 @@ def bench_hevsim(repeats: int) -> dict[str, Any]:
         asm.append(dt - float(res.metadata["total_time_s"]))
 
     # (b) kernel alone, called as simulate() calls it (same arrays, so same cached signature).
-    dt_s = float(hev.config.simulation.dt_s)
-    grid = cyc.resampled(dt_s)
-    p = hev.param_vector(None)
-    eng, mot, gen, bat = hev.kernel_tables()
-    n = grid.time_s.size
-    out = np.zeros((n, len(K.CHANNELS)))
-    energy = np.zeros(len(K.ENERGY_TERMS))
-    summary = np.zeros(len(K.SUMMARY))
-    args = (grid.time_s, grid.speed_mps, grid.grade, True, out, energy, summary)
+    _hev, _cyc, _dt, args = kernel_inputs(hev, cyc)
+    out, energy, summary = args[-3], args[-2], args[-1]
     for _ in range(3):
-        K.run_series(p, eng, mot, gen, bat, *args)
+        K.run_series(*args)
     kernel_alone = []
     for _ in range(repeats):
         out.fill(0.0)
         energy.fill(0.0)
         summary.fill(0.0)
         t0 = time.perf_counter()
-        K.run_series(p, eng, mot, gen, bat, *args)
+        K.run_series(*args)
         kernel_alone.append(time.perf_counter() - t0)
 
     return {
@@ -188,8 +181,8 @@ def bench_hevsim(repeats: int) -> dict[str, Any]:
         "first_s": first,
         "first_kernel_s": first_kernel,
         "cache": cache,
-        "steps": n - 1,
-        "dt_s": dt_s,
+        "steps": len(args[6]) - 1,
+        "dt_s": _dt,
         "e2e": wall,
         "e2e_kernel": kern,
         "e2e_prepare": prep,

@@ -145,3 +145,39 @@ def test_channels_are_unit_suffixed(series_cfg: VehicleConfig) -> None:
     for col in r.timeseries.columns:
         assert col in unitless or col.rsplit("_", 1)[-1] in units, col
     assert len(K.CHANNELS) + 5 == len(r.timeseries.columns)
+
+
+def test_schedule_supervisor_replays_thermostat_run(series_cfg: VehicleConfig) -> None:
+    """A genset schedule recorded from a thermostat run reproduces its fuel and SOC."""
+    from hevsim.sim.simulator import GensetSchedule
+    from hevsim.units import rpm_to_radps
+
+    ref = simulate(series_cfg, "udds")
+    ts = ref.timeseries
+    on = ts["genset_state"].to_numpy() != K.GS_OFF
+    target = np.where(on, rpm_to_radps(series_cfg.controller.engine_speed_rpm), 0.0)
+    throttle = np.where(on, series_cfg.controller.throttle, 0.0)
+    sched = GensetSchedule(ts["time_s"].to_numpy(), target, throttle)
+    rep = simulate(series_cfg, "udds", schedule=sched)
+    assert rep.value("fuel_kg") == pytest.approx(ref.value("fuel_kg"), rel=0.03)
+    assert rep.value("soc_final") == pytest.approx(ref.value("soc_final"), abs=0.01)
+    assert rep.events["reason"].str.startswith("schedule").any()
+    assert rep.value("energy_audit_residual_pct") < 0.5
+
+
+def test_schedule_from_config_csv(tmp_path, series_cfg: VehicleConfig) -> None:  # type: ignore[no-untyped-def]
+    from pathlib import Path
+
+    from hevsim.config import load_config
+
+    root = Path(__file__).resolve().parents[1]
+
+    (tmp_path / "sched.csv").write_text(
+        "time_s,engine_speed_rpm,engine_throttle\n0,0,0\n100,1500,0.6\n300,0,0\n"
+    )
+    text = (root / "examples" / "series_hev.toml").read_text()
+    text = text.replace("[controller]\n", '[controller]\nkind = "schedule"\nschedule = "sched.csv"\n')
+    (tmp_path / "car.toml").write_text(text)
+    r = simulate(load_config(tmp_path / "car.toml"), "fu505")
+    fired = r.timeseries.loc[r.timeseries["fuel_rate_gps"] > 0, "time_s"]
+    assert fired.min() >= 100.0 and fired.max() < 300.0

@@ -127,14 +127,21 @@ class BatterySection:
 class DriverSection:
     """Proportional speed controller: request = gain x error (per mph, as in the tutorial)."""
 
+    kind: str = "proportional"
     gain_per_mph: float = 0.5
     feedforward: float = 0.0
 
 
 @dataclass(frozen=True)
 class ControllerSection:
-    """Supervisory controller: genset thermostat on SOC, engine operating point, speed loop."""
+    """Supervisory controller: genset thermostat on SOC, engine operating point, speed loop.
 
+    ``kind = "schedule"`` follows a genset schedule CSV (``schedule``: time_s,
+    engine_speed_rpm, engine_throttle) instead, e.g. a DP optimum.
+    """
+
+    kind: str = "thermostat"
+    schedule: str = ""
     soc_low: float = 0.6
     soc_high: float = 0.7
     soc_boost: float = 0.0
@@ -202,6 +209,8 @@ CHOICES: dict[str, tuple[str, ...]] = {
     "engine.model": ("constant_torque", "map"),
     "genset.kind": ("none", "current_source", "engine"),
     "battery.model": ("ideal", "rint", "table"),
+    "controller.kind": ("thermostat", "schedule"),
+    "driver.kind": ("proportional",),
 }
 # (low, high) inclusive bounds of numeric keys.
 BOUNDS: dict[str, tuple[float, float]] = {

@@ -37,6 +37,7 @@ PARAMS = (
     "genset_kind", "soc_low", "soc_high", "soc_boost", "genset_speed_radps",
     "genset_start_speed_radps", "throttle_run", "throttle_boost", "genset_gain_per_radps",
     "genset_current_a", "regen_min_speed_mps", "aux_power_w", "pure_ice_band_w",
+    "driver_kind", "supervisor_kind", "battery_kind",
 )  # fmt: skip
 P = {name: i for i, name in enumerate(PARAMS)}
 (
@@ -45,7 +46,7 @@ P = {name: i for i, name in enumerate(PARAMS)}
     EPRES, ETMAP, EFMAP, ESTALL, ERED, ESCALE, EINERT, ELHV,
     BNS, BNP, BREXT, BCAP, BCEFF, BIDIS, BICHG, BTEMP, SOC0, SOCMIN, SOCMAX,
     GSKIND, SOCLO, SOCHI, SOCBOOST, GSW, GSWSTART, THRRUN, THRBOOST, GSKP,
-    GSCUR, REGENV, PAUX, PICEBAND,
+    GSCUR, REGENV, PAUX, PICEBAND, DRVKIND, SUPKIND, BATKIND,
 ) = range(len(PARAMS))  # fmt: skip
 
 # Genset kinds and states, power modes (thesis Table 2.1) and reasons for changes.
@@ -64,8 +65,11 @@ REASONS = (
     "genset output exceeds traction demand: surplus charges the battery",
     "genset output matches traction demand within pure_ice_band_w",
     "traction demand exceeds genset output: battery assists",
+    "schedule: genset on",
+    "schedule: genset off",
 )
-R_INIT, R_SOCLOW, R_STARTED, R_SOCHIGH, R_REGEN, R_EV, R_ICECHG, R_PUREICE, R_COMBINED = range(9)
+(R_INIT, R_SOCLOW, R_STARTED, R_SOCHIGH, R_REGEN, R_EV, R_ICECHG, R_PUREICE, R_COMBINED,
+ R_SCHED_ON, R_SCHED_OFF) = range(11)  # fmt: skip
 
 # Recorded channels (column order of ``out``); names carry units.
 CHANNELS = (
@@ -99,11 +103,127 @@ SUMMARY = (
 S_DIST, S_FUEL, S_SOCF, S_RMS, S_MAXERR, S_EON, S_STARTS, S_BLIM, S_DUR = range(len(SUMMARY))
 
 
+# --- pluggable controllers and battery models ----------------------------------------------
+# Each role is a numba-jitted function with a fixed signature. The kernel loop calls a role
+# only through its dispatcher below (``drive``, ``supervise``, ``battery_state``), which picks
+# the implementation by an integer code held in the parameter vector. A new controller or
+# battery model is a new function plus one line in its dispatcher and its name in the
+# matching ``*_KINDS`` tuple; the loop is untouched. (Passing the functions as first-class
+# arguments would also work, but numba cannot cache such kernels on disk: every new process
+# would pay a 2 s compile.)
+#
+#   driver(p, v, v_target, v_target_prev, dt, f_res0, f_drive_max, m_eff) -> u in [-1, 1]
+#   supervisor(p, sched, k, soc, w_gs, gs_state) -> (gs_state, throttle, w_target, reason)
+#       (reason -1 when the genset state did not change)
+#   battery(p, bat, soc, current_sign) -> (ocv [V], series resistance [ohm])
+
+
 @njit(cache=True)
-def run_series(p, eng, mot, gen, bat, t_s, v_des, grade, record, out, energy, summary):
+def driver_proportional(p, v, v_target, v_target_prev, dt, f_res0, f_drive_max, m_eff):
+    """The tutorial's proportional speed controller, ``u = K (v_target - v_end)``.
+
+    The P loop is solved implicitly with the vehicle dynamics (linear in u before
+    saturation), so it is stable at any step and converges to the continuous-time controller
+    as dt -> 0. An optional feed-forward term adds ``K_ff * dv_target/dt``.
+    """
+    kd = p[KDRV]
+    e0 = v_target - v + dt * f_res0 / m_eff
+    u = kd * e0 / (1.0 + kd * dt * f_drive_max / m_eff)
+    if u < 0.0:
+        u = kd * e0 / (1.0 + kd * dt * p[FBRAKE] / m_eff)
+    u += p[KFF] * (v_target - v_target_prev) / dt
+    return min(max(u, -1.0), 1.0)
+
+
+@njit(cache=True)
+def supervisor_thermostat(p, sched, k, soc, w_gs, gs_state):
+    """Genset thermostat of the tutorial (lectures 5-9): on below soc_low, off above soc_high.
+
+    An engine genset is cranked by the generator until ``genset_start_speed_radps`` and then
+    fired at ``throttle_run`` (``throttle_boost`` below ``soc_boost``).
+    """
+    reason = -1
+    if p[GSKIND] != GENSET_NONE:
+        if gs_state == GS_OFF and soc < p[SOCLO]:
+            gs_state = GS_STARTING if p[GSKIND] == GENSET_ENGINE else GS_RUNNING
+            reason = R_SOCLOW
+        elif gs_state == GS_STARTING and w_gs >= p[GSWSTART]:
+            gs_state = GS_RUNNING
+            reason = R_STARTED
+        elif gs_state != GS_OFF and soc > p[SOCHI]:
+            gs_state = GS_OFF
+            reason = R_SOCHIGH
+    thr = 0.0
+    if gs_state == GS_RUNNING:
+        thr = p[THRBOOST] if soc < p[SOCBOOST] else p[THRRUN]
+    return gs_state, thr, p[GSW], reason
+
+
+@njit(cache=True)
+def supervisor_schedule(p, sched, k, soc, w_gs, gs_state):
+    """Follow a genset schedule: ``sched[k] = (engine speed target [rad/s], throttle [-])``.
+
+    Used to replay an optimal (DP) trajectory in the forward simulator. A target speed of 0
+    stops the genset; otherwise the generator cranks the engine until 90 % of the target and
+    the engine then runs at the scheduled throttle.
+    """
+    w_target = sched[k, 0]
+    reason = -1
+    if w_target <= 0.0:
+        if gs_state != GS_OFF:
+            gs_state = GS_OFF
+            reason = R_SCHED_OFF
+    elif gs_state == GS_OFF:
+        gs_state = GS_STARTING
+        reason = R_SCHED_ON
+    if gs_state == GS_STARTING and w_gs >= 0.9 * w_target:
+        gs_state = GS_RUNNING
+        reason = R_STARTED
+    thr = sched[k, 1] if gs_state == GS_RUNNING else 0.0
+    return gs_state, thr, w_target, reason
+
+
+@njit(cache=True)
+def battery_tables(p, bat, soc, current_sign):
+    """OCV(SOC, T) and R(SOC, T, sign) of the pack (ideal and Rint packs are 1-point tables)."""
+    return pack_ocv_r(
+        soc, p[BTEMP], current_sign, bat[0], bat[1], bat[2], bat[3], bat[4], p[BNS], p[BNP], p[BREXT]
+    )
+
+
+DRIVER_KINDS = ("proportional",)
+SUPERVISOR_KINDS = ("thermostat", "schedule")
+BATTERY_KINDS = ("tables",)
+
+
+@njit(cache=True)
+def drive(kind, p, v, v_target, v_target_prev, dt, f_res0, f_drive_max, m_eff):
+    """Driver dispatcher (codes: :data:`DRIVER_KINDS`)."""
+    return driver_proportional(p, v, v_target, v_target_prev, dt, f_res0, f_drive_max, m_eff)
+
+
+@njit(cache=True)
+def supervise(kind, p, sched, k, soc, w_gs, gs_state):
+    """Supervisory-controller dispatcher (codes: :data:`SUPERVISOR_KINDS`)."""
+    if kind == 1:
+        return supervisor_schedule(p, sched, k, soc, w_gs, gs_state)
+    return supervisor_thermostat(p, sched, k, soc, w_gs, gs_state)
+
+
+@njit(cache=True)
+def battery_state(kind, p, bat, soc, current_sign):
+    """Battery-model dispatcher (codes: :data:`BATTERY_KINDS`)."""
+    return battery_tables(p, bat, soc, current_sign)
+
+
+@njit(cache=True)
+def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, energy, summary):
     """Integrate the series HEV over the (uniformly sampled) cycle ``t_s, v_des, grade``.
 
-    ``eng``, ``mot``, ``gen``, ``bat``: table tuples from the components' ``kernel_tables``.
+    The driver, supervisor and battery model are chosen by ``p[DRVKIND]``, ``p[SUPKIND]``
+    and ``p[BATKIND]`` (see the dispatchers above).
+    ``eng``, ``mot``, ``gen``, ``bat``: table tuples from the components' ``kernel_tables``;
+    ``sched``: per-step data for the supervisor (a schedule), shape (n, m).
     Fills ``energy`` (:data:`ENERGY_TERMS`, J) and ``summary`` (:data:`SUMMARY`); when
     ``record`` is true, ``out[k]`` holds the channels of step k (k = 0..n-1 steps, plus the
     final state at row n).
@@ -115,6 +235,9 @@ def run_series(p, eng, mot, gen, bat, t_s, v_des, grade, record, out, energy, su
     m_eff = p[MASS] * p[MFACT] + p[MINERT] * (ratio / r) ** 2
     j_shaft = p[EINERT] + p[GINERT]
     cap_as = p[BCAP] * p[BNP] * 3600.0
+    drv_kind = int(p[DRVKIND])
+    sup_kind = int(p[SUPKIND])
+    bat_kind = int(p[BATKIND])
 
     v = v_des[0]
     w_gs = 0.0
@@ -133,10 +256,7 @@ def run_series(p, eng, mot, gen, bat, t_s, v_des, grade, record, out, energy, su
     blim_s = 0.0
 
     for k in range(n):
-        # ---------------- driver: proportional speed controller ----------------------------
-        # u = K (v_target - v_end): the P loop is solved implicitly with the vehicle dynamics
-        # (linear in u before saturation), so it is stable at any step and converges to the
-        # continuous-time controller as dt -> 0.
+        # ---------------- driver ---------------------------------------------------------------
         v_target = v_des[k + 1]
         w_m0 = v / r * ratio
         m_max, m_min = torque_limits(w_m0, mot[0], mot[1], mot[2], p[MSCALE])
@@ -145,28 +265,14 @@ def run_series(p, eng, mot, gen, bat, t_s, v_des, grade, record, out, energy, su
             + grade_force(p[MASS], grade[k])
             + rolling_force(p[MASS], grade[k], p[CRR]) * (v > 0.0)
         )
-        kd = p[KDRV]
-        e0 = v_target - v + dt * f_res0 / m_eff
         f_drive_max = m_max * ratio * p[GEFF] / r
-        u = kd * e0 / (1.0 + kd * dt * f_drive_max / m_eff)
-        if u < 0.0:
-            u = kd * e0 / (1.0 + kd * dt * p[FBRAKE] / m_eff)
-        u += p[KFF] * (v_target - v_des[k]) / dt
-        u = min(max(u, -1.0), 1.0)
+        u = drive(drv_kind, p, v, v_target, v_des[k], dt, f_res0, f_drive_max, m_eff)
 
-        # ---------------- supervisory controller: genset thermostat ------------------------
-        new_reason = -1
-        if p[GSKIND] != GENSET_NONE:
-            if gs_state == GS_OFF and soc < p[SOCLO]:
-                gs_state = GS_STARTING if p[GSKIND] == GENSET_ENGINE else GS_RUNNING
-                new_reason = R_SOCLOW
-                starts += 1.0
-            elif gs_state == GS_STARTING and w_gs >= p[GSWSTART]:
-                gs_state = GS_RUNNING
-                new_reason = R_STARTED
-            elif gs_state != GS_OFF and soc > p[SOCHI]:
-                gs_state = GS_OFF
-                new_reason = R_SOCHIGH
+        # ---------------- supervisory controller --------------------------------------------
+        prev_state = gs_state
+        gs_state, thr_cmd, w_target, new_reason = supervise(sup_kind, p, sched, k, soc, w_gs, gs_state)
+        if prev_state == GS_OFF and gs_state != GS_OFF:
+            starts += 1.0
 
         # ---------------- genset shaft (engine + generator, 1:1) ---------------------------
         t_eng = 0.0
@@ -177,8 +283,7 @@ def run_series(p, eng, mot, gen, bat, t_s, v_des, grade, record, out, energy, su
         p_gen_el = 0.0
         p_gs_src = 0.0
         if p[GSKIND] == GENSET_ENGINE:
-            if gs_state == GS_RUNNING:
-                thr = p[THRBOOST] if soc < p[SOCBOOST] else p[THRRUN]
+            thr = thr_cmd
             fired = thr > 0.0 and w_gs >= p[ESTALL] and w_gs <= p[ERED]
             t_eng = engine_torque(
                 thr, w_gs, eng[0], eng[1], eng[2], eng[3], eng[4], eng[5], eng[6],
@@ -194,10 +299,10 @@ def run_series(p, eng, mot, gen, bat, t_s, v_des, grade, record, out, energy, su
             else:
                 kgain = p[GSKP]
                 # implicit proportional loop: J (w1 - w0)/dt = T_e + K (w* - w1) T_lim
-                t_lim = g_mot if p[GSW] >= w_gs else -g_gen
+                t_lim = g_mot if w_target >= w_gs else -g_gen
                 kk = kgain * t_lim
-                w1 = (w_gs + dt / j_shaft * (t_eng + kk * p[GSW])) / (1.0 + dt * kk / j_shaft)
-                ug = kgain * (p[GSW] - w1)
+                w1 = (w_gs + dt / j_shaft * (t_eng + kk * w_target)) / (1.0 + dt * kk / j_shaft)
+                ug = kgain * (w_target - w1)
                 if ug > 1.0 or ug < -1.0:
                     t_gen = g_mot if ug > 0 else g_gen
                     w1 = w_gs + dt / j_shaft * (t_eng + t_gen)
@@ -231,17 +336,13 @@ def run_series(p, eng, mot, gen, bat, t_s, v_des, grade, record, out, energy, su
             t_regen_req = -f_brake_req * r / ratio * p[GEFF]  # motor torque for the full request
             t_m = max(t_regen_req, m_min) if v > p[REGENV] else 0.0
         # battery current limits: bound the motor's electrical power
-        ocv, r_b = pack_ocv_r(
-            soc, p[BTEMP], 1.0, bat[0], bat[1], bat[2], bat[3], bat[4], p[BNS], p[BNP], p[BREXT]
-        )
+        ocv, r_b = battery_state(bat_kind, p, bat, soc, 1.0)
         p_dis_max = (
             (ocv - r_b * p[BIDIS]) * p[BIDIS]
             if p[BIDIS] < ocv / (2.0 * r_b + 1e-300)
             else ocv * ocv / (4.0 * r_b + 1e-300)
         )
-        ocv_c, r_c = pack_ocv_r(
-            soc, p[BTEMP], -1.0, bat[0], bat[1], bat[2], bat[3], bat[4], p[BNS], p[BNP], p[BREXT]
-        )
+        ocv_c, r_c = battery_state(bat_kind, p, bat, soc, -1.0)
         p_chg_max = (ocv_c + r_c * p[BICHG]) * p[BICHG]
         if soc <= p[SOCMIN]:
             p_dis_max = 0.0
@@ -302,9 +403,7 @@ def run_series(p, eng, mot, gen, bat, t_s, v_des, grade, record, out, energy, su
         p_src = ocv * p[GSCUR] if p_gs_src > 0.0 else 0.0
         p_bat = p_m_el + p_gen_el + p[PAUX] - p_src
         sgn = 1.0 if p_bat > 0.0 else -1.0
-        ocv_b, r_bat = pack_ocv_r(
-            soc, p[BTEMP], sgn, bat[0], bat[1], bat[2], bat[3], bat[4], p[BNS], p[BNP], p[BREXT]
-        )
+        ocv_b, r_bat = battery_state(bat_kind, p, bat, soc, sgn)
         i_bat = current_for_power(p_bat, ocv_b, r_bat)
         if p_bat > 0.0 and ocv_b * ocv_b < 4.0 * r_bat * p_bat:
             limited = 1.0  # beyond the deliverable power: the bus sags (reported)
@@ -417,11 +516,25 @@ def run_series(p, eng, mot, gen, bat, t_s, v_des, grade, record, out, energy, su
 
 
 @njit(cache=True, parallel=True)
-def run_series_batch(pmat, eng, mot, gen, bat, t_s, v_des, grade, energy, summary):
+def run_series_batch(pmat, eng, mot, gen, bat, sched_arr, t_s, v_des, grade, energy, summary):
     """Run every row of ``pmat`` (one parameter vector per variant) in parallel.
 
     Fills ``energy[i]`` and ``summary[i]`` per variant; no time series are recorded.
     """
     dummy = np.zeros((1, len(CHANNELS)))
     for i in prange(pmat.shape[0]):
-        run_series(pmat[i], eng, mot, gen, bat, t_s, v_des, grade, False, dummy, energy[i], summary[i])
+        run_series(
+            pmat[i],
+            eng,
+            mot,
+            gen,
+            bat,
+            sched_arr,
+            t_s,
+            v_des,
+            grade,
+            False,
+            dummy,
+            energy[i],
+            summary[i],
+        )

@@ -98,6 +98,91 @@ def _write_json(path: Path, data: Any) -> None:
     path.write_text(json.dumps(data, indent=2, default=default, allow_nan=True) + "\n")
 
 
+# Forward kernels per architecture: (single run, batch run). The driver, supervisory
+# controller and battery model are chosen inside a kernel by the codes of
+# hevsim.sim.kernel.DRIVER_KINDS / SUPERVISOR_KINDS / BATTERY_KINDS.
+ARCHITECTURES: dict[str, tuple[Any, Any]] = {"series": (K.run_series, K.run_series_batch)}
+BATTERY_MODEL_KIND = {"ideal": "tables", "rint": "tables", "table": "tables"}
+
+
+@dataclass(frozen=True, eq=False)
+class GensetSchedule:
+    """Genset commands vs time for the ``schedule`` supervisor (e.g. a DP optimum).
+
+    ``engine_speed_radps`` [rad/s] is the speed target (0 = genset off) and
+    ``engine_throttle`` [-] the throttle once running; each value holds until the next time.
+    """
+
+    time_s: np.ndarray
+    engine_speed_radps: np.ndarray
+    engine_throttle: np.ndarray
+    source: str = "schedule"
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.time_s, float)
+        w = np.asarray(self.engine_speed_radps, float)
+        thr = np.asarray(self.engine_throttle, float)
+        if not (t.ndim == 1 and t.shape == w.shape == thr.shape and t.size >= 1):
+            raise ConfigError(
+                f"{self.source}: time, engine speed and throttle must be 1-D arrays of equal "
+                f"length, got shapes {t.shape}, {w.shape}, {thr.shape}."
+            )
+        for name, arr in (("time_s", t), ("engine_speed", w), ("engine_throttle", thr)):
+            bad = np.flatnonzero(~np.isfinite(arr))
+            if bad.size:
+                raise ConfigError(
+                    f"{self.source}: {name} row {bad[0]} is {arr[bad[0]]!r}; expected a finite number."
+                )
+        if np.any(np.diff(t) <= 0):
+            i = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
+            raise ConfigError(f"{self.source}: time_s row {i} = {t[i]!r} does not increase.")
+        if np.any((thr < 0) | (thr > 1)) or np.any(w < 0):
+            raise ConfigError(f"{self.source}: throttle must be within 0..1 and engine speed >= 0.")
+        object.__setattr__(self, "time_s", t)
+        object.__setattr__(self, "engine_speed_radps", w)
+        object.__setattr__(self, "engine_throttle", thr)
+
+    @classmethod
+    def from_csv(cls, path: str | Path) -> GensetSchedule:
+        """Read ``time_s``, ``engine_speed_rpm`` (or ``engine_speed_radps``), ``engine_throttle``."""
+        frame = pd.read_csv(path) if Path(path).is_file() else None
+        if frame is None:
+            raise ConfigError(f"{path}: schedule file not found; expected a CSV file.")
+        if "engine_speed_radps" in frame:
+            w = frame["engine_speed_radps"].to_numpy(float)
+        elif "engine_speed_rpm" in frame:
+            w = frame["engine_speed_rpm"].to_numpy(float) * RADPS_PER_RPM
+        else:
+            raise ConfigError(
+                f"{path}: needs a column engine_speed_rpm or engine_speed_radps; found {list(frame.columns)}."
+            )
+        for col in ("time_s", "engine_throttle"):
+            if col not in frame:
+                raise ConfigError(f"{path}: missing column '{col}'; found {list(frame.columns)}.")
+        return cls(frame["time_s"].to_numpy(float), w, frame["engine_throttle"].to_numpy(float), str(path))
+
+    def on_grid(self, t_s: np.ndarray) -> np.ndarray:
+        """(n, 2) array of (speed target, throttle) held from the latest schedule time."""
+        idx = np.clip(np.searchsorted(self.time_s, t_s + 1e-9, side="right") - 1, 0, None)
+        return np.ascontiguousarray(np.stack([self.engine_speed_radps[idx], self.engine_throttle[idx]], 1))
+
+
+def _plugins(hev: SeriesHEV, grid: DriveCycle, schedule: GensetSchedule | None, p: np.ndarray) -> np.ndarray:
+    """Set the role codes in ``p``; return the supervisor's per-step data (a schedule)."""
+    cfg = hev.config
+    kind = "schedule" if schedule is not None else cfg.controller.kind
+    if kind == "schedule" and schedule is None:
+        if not cfg.controller.schedule:
+            raise ConfigError(
+                f"{cfg.name}: controller.kind = 'schedule' needs controller.schedule (a CSV file)."
+            )
+        schedule = GensetSchedule.from_csv(Path(cfg.base_dir) / cfg.controller.schedule)
+    p[..., K.DRVKIND] = K.DRIVER_KINDS.index(cfg.driver.kind)
+    p[..., K.SUPKIND] = K.SUPERVISOR_KINDS.index(kind)
+    p[..., K.BATKIND] = K.BATTERY_KINDS.index(BATTERY_MODEL_KIND[cfg.battery.model])
+    return schedule.on_grid(grid.time_s) if schedule is not None else np.zeros((1, 2))
+
+
 def _prepare(
     model: SeriesHEV | VehicleConfig, cycle: DriveCycle | str | None, dt_s: float | None
 ) -> tuple[SeriesHEV, DriveCycle, DriveCycle, float]:
@@ -107,7 +192,8 @@ def _prepare(
     dt = float(dt_s if dt_s is not None else cfg.simulation.dt_s)
     if not 1e-3 <= dt <= 10.0:
         raise ConfigError(f"time step dt_s = {dt!r} is out of range; expected 0.001 to 10 s.")
-    grid = cyc.resampled(dt)
+    res = cyc.resampled(dt)
+    grid = DriveCycle(res.name, np.array(res.time_s), np.array(res.speed_mps), np.array(res.grade))
     return hev, cyc, grid, dt
 
 
@@ -128,24 +214,44 @@ def simulate(
     cycle: DriveCycle | str | None = None,
     dt_s: float | None = None,
     soc_initial: float | None = None,
+    schedule: GensetSchedule | None = None,
 ) -> SimulationResult:
     """Simulate ``model`` forward over ``cycle`` with a fixed step ``dt_s`` [s].
 
     ``cycle`` is a :class:`DriveCycle`, a registered name or a CSV path (default: the
-    configuration's). Returns a :class:`SimulationResult`.
+    configuration's). ``schedule`` replaces the configured supervisory controller by a genset
+    schedule (for example a DP optimum). Returns a :class:`SimulationResult`.
     """
     t_start = time.perf_counter()
+    hev, cyc, dt, args = kernel_inputs(model, cycle, dt_s, soc_initial, schedule)
+    t_kernel = time.perf_counter()
+    ARCHITECTURES["series"][0](*args)
+    t_done = time.perf_counter()
+    p, out, energy, summary = args[0], args[-3], args[-2], args[-1]
+    return _assemble(hev, cyc, dt, p, out, energy, summary, t_done - t_kernel, t_done - t_start)
+
+
+def kernel_inputs(
+    model: SeriesHEV | VehicleConfig,
+    cycle: DriveCycle | str | None = None,
+    dt_s: float | None = None,
+    soc_initial: float | None = None,
+    schedule: GensetSchedule | None = None,
+) -> tuple[SeriesHEV, DriveCycle, float, tuple[Any, ...]]:
+    """Everything one kernel call needs: ``(model, cycle, dt, args)``; ``kernel(*args)`` runs.
+
+    ``args`` ends with the output buffers ``(out, energy, summary)``. Used by
+    :func:`simulate` and by benchmarks that time the compiled kernel alone.
+    """
     hev, cyc, grid, dt = _prepare(model, cycle, dt_s)
     p = hev.param_vector(soc_initial)
     eng, mot, gen, bat = hev.kernel_tables()
-    n = grid.time_s.size
-    out = np.zeros((n, len(K.CHANNELS)))
+    sched = _plugins(hev, grid, schedule, p)
+    out = np.zeros((grid.time_s.size, len(K.CHANNELS)))
     energy = np.zeros(len(K.ENERGY_TERMS))
     summary = np.zeros(len(K.SUMMARY))
-    t_kernel = time.perf_counter()
-    K.run_series(p, eng, mot, gen, bat, grid.time_s, grid.speed_mps, grid.grade, True, out, energy, summary)
-    t_done = time.perf_counter()
-    return _assemble(hev, cyc, dt, p, out, energy, summary, t_done - t_kernel, t_done - t_start)
+    args = (p, eng, mot, gen, bat, sched, grid.time_s, grid.speed_mps, grid.grade, True, out, energy, summary)
+    return hev, cyc, dt, args
 
 
 def _assemble(
@@ -259,7 +365,10 @@ def simulate_batch(
     energy = np.zeros((n, len(K.ENERGY_TERMS)))
     summary = np.zeros((n, len(K.SUMMARY)))
     t0 = time.perf_counter()
-    K.run_series_batch(pmat, eng, mot, gen, bat, grid.time_s, grid.speed_mps, grid.grade, energy, summary)
+    sched = _plugins(hev, grid, None, pmat)
+    ARCHITECTURES["series"][1](
+        pmat, eng, mot, gen, bat, sched, grid.time_s, grid.speed_mps, grid.grade, energy, summary
+    )
     elapsed = time.perf_counter() - t0
     density, heating, co2, _ = _energy_keys(hev)
     rows = []
