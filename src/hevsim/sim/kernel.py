@@ -83,6 +83,16 @@ CHANNELS = (
     "battery_limited",
 )  # fmt: skip
 C = {name: i for i, name in enumerate(CHANNELS)}
+(
+    CH_TIME_S, CH_SPEED_DESIRED_MPS, CH_SPEED_MPS, CH_ACCEL_MPS2, CH_DRIVER_REQUEST,
+    CH_MOTOR_SPEED_RADPS, CH_MOTOR_TORQUE_NM, CH_MOTOR_POWER_MECH_W, CH_MOTOR_POWER_ELEC_W,
+    CH_MOTOR_CURRENT_A, CH_GENERATOR_TORQUE_NM, CH_GENERATOR_POWER_ELEC_W, CH_GENERATOR_CURRENT_A,
+    CH_ENGINE_SPEED_RADPS, CH_ENGINE_TORQUE_NM, CH_ENGINE_THROTTLE, CH_ENGINE_POWER_W,
+    CH_FUEL_RATE_KGPS, CH_FUEL_KG, CH_BATTERY_CURRENT_A, CH_BATTERY_VOLTAGE_V, CH_BATTERY_OCV_V,
+    CH_BATTERY_RESISTANCE_OHM, CH_BATTERY_POWER_W, CH_SOC, CH_FRICTION_BRAKE_FORCE_N,
+    CH_WHEEL_FORCE_N, CH_ROAD_LOAD_FORCE_N, CH_GENSET_STATE, CH_POWER_MODE, CH_MODE_REASON,
+    CH_BATTERY_LIMITED,
+) = range(len(CHANNELS))  # fmt: skip
 
 # Energy-audit accumulators [J] (index of the ``energy`` result vector).
 ENERGY_TERMS = (
@@ -456,38 +466,38 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
         blim_s += limited * dt
         if record:
             o = out[k]
-            o[0] = t_s[k]
-            o[1] = v_des[k]
-            o[2] = v
-            o[3] = a
-            o[4] = u
-            o[5] = w_m
-            o[6] = t_m
-            o[7] = p_m_mech
-            o[8] = p_m_el
-            o[9] = p_m_el / v_bat if v_bat > 0 else 0.0
-            o[10] = t_gen
-            o[11] = p_gen_el
-            o[12] = (p_gen_el - p_src) / v_bat if v_bat > 0 else 0.0
-            o[13] = w_gs
-            o[14] = t_eng
-            o[15] = thr
-            o[16] = t_eng * w_gs
-            o[17] = fuel_rate
-            o[18] = fuel_kg
-            o[19] = i_bat
-            o[20] = v_bat
-            o[21] = ocv_b
-            o[22] = r_bat
-            o[23] = p_bat
-            o[24] = soc
-            o[25] = f_fric
-            o[26] = f_motor
-            o[27] = f_aero + f_roll + f_grade
-            o[28] = gs_state
-            o[29] = mode
-            o[30] = reason
-            o[31] = limited
+            o[CH_TIME_S] = t_s[k]
+            o[CH_SPEED_DESIRED_MPS] = v_des[k]
+            o[CH_SPEED_MPS] = v
+            o[CH_ACCEL_MPS2] = a
+            o[CH_DRIVER_REQUEST] = u
+            o[CH_MOTOR_SPEED_RADPS] = w_m
+            o[CH_MOTOR_TORQUE_NM] = t_m
+            o[CH_MOTOR_POWER_MECH_W] = p_m_mech
+            o[CH_MOTOR_POWER_ELEC_W] = p_m_el
+            o[CH_MOTOR_CURRENT_A] = p_m_el / v_bat if v_bat > 0 else 0.0
+            o[CH_GENERATOR_TORQUE_NM] = t_gen
+            o[CH_GENERATOR_POWER_ELEC_W] = p_gen_el
+            o[CH_GENERATOR_CURRENT_A] = (p_gen_el - p_src) / v_bat if v_bat > 0 else 0.0
+            o[CH_ENGINE_SPEED_RADPS] = w_gs
+            o[CH_ENGINE_TORQUE_NM] = t_eng
+            o[CH_ENGINE_THROTTLE] = thr
+            o[CH_ENGINE_POWER_W] = t_eng * w_gs
+            o[CH_FUEL_RATE_KGPS] = fuel_rate
+            o[CH_FUEL_KG] = fuel_kg
+            o[CH_BATTERY_CURRENT_A] = i_bat
+            o[CH_BATTERY_VOLTAGE_V] = v_bat
+            o[CH_BATTERY_OCV_V] = ocv_b
+            o[CH_BATTERY_RESISTANCE_OHM] = r_bat
+            o[CH_BATTERY_POWER_W] = p_bat
+            o[CH_SOC] = soc
+            o[CH_FRICTION_BRAKE_FORCE_N] = f_fric
+            o[CH_WHEEL_FORCE_N] = f_motor
+            o[CH_ROAD_LOAD_FORCE_N] = f_aero + f_roll + f_grade
+            o[CH_GENSET_STATE] = gs_state
+            o[CH_POWER_MODE] = mode
+            o[CH_MODE_REASON] = reason
+            o[CH_BATTERY_LIMITED] = limited
         v = v1
         w_gs = w1
         soc = soc1
@@ -498,12 +508,12 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
         o = out[n]
         for c in range(o.shape[0]):
             o[c] = out[n - 1, c] if n > 0 else 0.0
-        o[0] = t_s[n]
-        o[1] = v_des[n]
-        o[2] = v
-        o[13] = w_gs
-        o[18] = fuel_kg
-        o[24] = soc
+        o[CH_TIME_S] = t_s[n]
+        o[CH_SPEED_DESIRED_MPS] = v_des[n]
+        o[CH_SPEED_MPS] = v
+        o[CH_ENGINE_SPEED_RADPS] = w_gs
+        o[CH_FUEL_KG] = fuel_kg
+        o[CH_SOC] = soc
     summary[S_DIST] = dist
     summary[S_FUEL] = fuel_kg
     summary[S_SOCF] = soc
