@@ -10,6 +10,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from hevsim.errors import HevsimError
 
@@ -61,6 +62,55 @@ def _cmd_refinement(args: argparse.Namespace) -> int:
     return 0
 
 
+def _dp_options(args: argparse.Namespace) -> dict[str, Any]:
+    opts: dict[str, Any] = {"final_constraint": args.final_constraint}
+    if args.soc_points:
+        opts["soc_grid_points"] = args.soc_points
+    if args.input_points:
+        opts["input_grid_points"] = args.input_points
+    return opts
+
+
+def _cmd_optimize(args: argparse.Namespace) -> int:
+    from hevsim.optimal.hev import optimize
+
+    res = optimize(
+        args.config, args.cycle, store_cost_to_go=not args.no_plots, progress=None, **_dp_options(args)
+    )
+    name = str(res.metadata.get("config", Path(args.config).stem))
+    out = Path(args.out) if args.out else Path("results") / f"{name}_{res.cycle.name}_optimal"
+    res.save(out, plots=not args.no_plots)
+    print(f"{name} ({res.architecture} HEV) on {res.cycle.name}: DP optimum")
+    for key in ("mpg", "mpgge", "l_per_100km", "co2_g_per_km", "soc_initial", "soc_final",
+                "engine_on_time_s", "compute_time_s"):  # fmt: skip
+        print(f"  {key:<28}{res.metrics[key]['value']:>12.4g} {res.metrics[key]['unit']}")
+    print(f"results written to {out}/ (timeseries, metrics.json, costate.csv, plots)")
+    return 0
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from hevsim.optimal.compare import compare, format_table, write_table
+
+    cycles = [c.strip() for c in args.cycles.split(",") if c.strip()]
+    out = Path(args.out) if args.out else Path("results") / "comparison"
+    table = compare(args.configs, cycles, out_dir=out if args.save_runs else None, **_dp_options(args))
+    write_table(table, out)
+    print(format_table(table))
+    print(f"table written to {out}/comparison.csv and comparison.md")
+    return 0
+
+
+def _add_dp_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--soc-points", type=int, help="SOC grid points (default per architecture)")
+    p.add_argument("--input-points", type=int, help="control grid points (default per architecture)")
+    p.add_argument(
+        "--final-constraint",
+        default="auto",
+        choices=("auto", "boundary_line", "levelset", "wall", "penalty"),
+        help="final-SOC constraint method (default: the accurate one)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``hevsim`` command."""
     parser = argparse.ArgumentParser(prog="hevsim", description=__doc__.splitlines()[0])
@@ -84,6 +134,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cycle", default="udds", help="cycle name or CSV (default udds)")
     p.add_argument("--out", help="also write the table (Markdown) to this file")
     p.set_defaults(func=_cmd_refinement)
+
+    p = sub.add_parser("optimize", help="globally optimal energy management (dynamic programming)")
+    p.add_argument("config", help="vehicle configuration (TOML): series or parallel HEV")
+    p.add_argument("--cycle", help="cycle name or CSV (default from the configuration)")
+    p.add_argument("--out", help="results folder (default results/<config>_<cycle>_optimal)")
+    p.add_argument("--no-plots", action="store_true", help="skip plots (and the cost-to-go store)")
+    _add_dp_options(p)
+    p.set_defaults(func=_cmd_optimize)
+
+    p = sub.add_parser("compare", help="DP benchmark of several configurations over several cycles")
+    p.add_argument("configs", nargs="+", help="vehicle configurations (TOML)")
+    p.add_argument("--cycles", default="udds,hwfet,us06", help="comma-separated cycle names")
+    p.add_argument("--out", help="folder for comparison.csv / .md (default results/comparison)")
+    p.add_argument("--save-runs", action="store_true", help="also save each run's results folder")
+    _add_dp_options(p)
+    p.set_defaults(func=_cmd_compare)
     return parser
 
 

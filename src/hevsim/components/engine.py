@@ -48,6 +48,21 @@ def engine_torque(
 
 
 @njit(cache=True)
+def _engine_torque_many(
+    throttle, omega_radps, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, use_tmap,
+    stall_radps, redline_radps, torque_scale,
+):  # fmt: skip
+    """:func:`engine_torque` over flat arrays of throttle [-] and speed [rad/s] -> [N·m]."""
+    out = np.empty(throttle.shape[0])
+    for i in range(throttle.shape[0]):
+        out[i] = engine_torque(
+            throttle[i], omega_radps[i], tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z,
+            use_tmap, stall_radps, redline_radps, torque_scale,
+        )  # fmt: skip
+    return out
+
+
+@njit(cache=True)
 def engine_fuel_rate(
     torque_nm, omega_radps, fired, fuel_x, fuel_y, fuel_z, use_fuel_map, lhv_jpkg, torque_scale
 ):  # fmt: skip
@@ -109,12 +124,11 @@ class Engine:
         """Vectorised brake torque [N·m] at throttle [-] and speed [rad/s]."""
         t = self.kernel_tables()
         thr, w = np.broadcast_arrays(np.asarray(throttle, float), np.asarray(omega_radps, float))
-        out = np.array([
-            engine_torque(a, b, t[0], t[1], t[2], t[3], t[4], t[5], t[6],
-                          self.torque_map is not None, self.stall_speed_radps,
-                          self.redline_radps, self.torque_scale)
-            for a, b in zip(thr.ravel(), w.ravel(), strict=True)
-        ])  # fmt: skip
+        out = _engine_torque_many(
+            np.ascontiguousarray(thr.ravel()), np.ascontiguousarray(w.ravel()),
+            t[0], t[1], t[2], t[3], t[4], t[5], t[6], self.torque_map is not None,
+            self.stall_speed_radps, self.redline_radps, self.torque_scale,
+        )  # fmt: skip
         return out.reshape(thr.shape)
 
     def fuel_rate(self, torque_nm, omega_radps):

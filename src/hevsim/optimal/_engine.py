@@ -26,6 +26,16 @@ _DUMMY_MASK = np.zeros((1, 1), dtype=np.bool_)
 _DUMMY_X = np.zeros((1, 1))
 
 
+USE_HULL = True  # exact convex-hull input pruning for state-independent 1-D blocks (_hull.py)
+
+
+def _hull() -> Any:
+    """The convex-hull kernels (imported, and loaded from numba's cache, on first use)."""
+    import hevsim.optimal._hull as hull
+
+    return hull
+
+
 def _kernels() -> Any:
     """The numba kernels, imported (and loaded from numba's cache) on first use only."""
     import hevsim.optimal._kernels as kernels
@@ -108,6 +118,10 @@ class Engine:
         J = np.asarray(J, dtype=np.float64)  # stored float32 rows are widened
         Vk = J if V is None else np.asarray(V, dtype=np.float64)
         parallel = S >= 2 and S * M >= PARALLEL_MIN_PAIRS
+        if sp.d == 1 and USE_HULL and parallel and not use_box:
+            hull = self._hull_step(blk, J, Vk, band, band_i, mode)
+            if hull is not None:
+                return hull
         if sp.d == 1:
             fmax = np.empty(S)
             fmin = np.empty(S)
@@ -171,6 +185,51 @@ class Engine:
                 out_V,
                 out_argv,
             )
+        return StepOut(out_J, out_arg, out_status, out_V, out_argv, fmax, fmin)
+
+    def _hull_step(
+        self, blk: Block, J: FloatArray, V: FloatArray, band: FloatArray, band_i: IntArray, mode: int
+    ) -> StepOut | None:
+        """Bellman step with exact convex-hull input pruning (see :mod:`hevsim.optimal._hull`),
+        or None when it does not apply: one state on a regular grid, plain or boundary-line
+        mode, and a block whose increments, costs and mask are the same for every node."""
+        sp = self.space
+        if mode not in (kn.MODE_PLAIN, kn.MODE_BAND) or not bool(sp.uniform[0]):
+            return None
+        xn, g, mask = blk.xn[0], blk.g, blk.mask
+        if xn.strides[0] != 0 or g.strides[0] != 0 or (mask is not None and mask.strides[0] != 0):
+            return None
+        grid = sp.grids[0]
+        if mode == kn.MODE_BAND:
+            if band_i[0] > band_i[1]:
+                return None
+            safe_lo, safe_hi = float(grid[band_i[0]]), float(grid[band_i[1]])
+        else:
+            safe_lo, safe_hi = float(grid[0]), float(grid[-1])
+        hull_mod = _hull()
+        has_mask = mask is not None
+        mrow = mask[0] if mask is not None else _DUMMY_MASK[0]
+        inv_dx = float(sp.inv_dx[0])
+        hidx, dmin, dmax, n_valid, bad = hull_mod.hull_inputs(xn[0], g[0], mrow, has_mask, inv_dx)
+        if bad or n_valid == 0:
+            return None
+        S = g.shape[0]
+        out_J = np.empty(S)
+        out_arg = np.empty(S, dtype=np.int64)
+        out_status = np.empty(S, dtype=np.int8)
+        out_V = np.empty(S)
+        out_argv = np.empty(S, dtype=np.int64)
+        fmax = np.empty(S)
+        fmin = np.empty(S)
+        ninf = np.concatenate([[0], np.cumsum(np.isinf(J))]).astype(np.int64)
+        box = np.array([self.box[0][0], self.box[1][0]])
+        hull_mod.bellman_1d_hull(
+            blk.base[0], xn, g, mask if mask is not None else _DUMMY_MASK, has_mask, grid, True, inv_dx,
+            J, V, mode, band, band_i, False, box,
+            np.ascontiguousarray(xn[0][hidx]), np.ascontiguousarray(g[0][hidx]), hidx,
+            float(dmin), float(dmax), safe_lo, safe_hi, ninf, mode == kn.MODE_BAND,
+            out_J, out_arg, out_status, out_V, out_argv, fmax, fmin,
+        )  # fmt: skip
         return StepOut(out_J, out_arg, out_status, out_V, out_argv, fmax, fmin)
 
     def bellman(

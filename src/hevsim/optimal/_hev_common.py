@@ -1,0 +1,603 @@
+"""Pieces shared by the HEV energy-management formulations of :mod:`hevsim.optimal.hev`.
+
+Everything here is quasi-static (backward-facing) and vectorised: the drive cycle fixes the
+speed and acceleration of every step, the road load of eq (32) gives the wheel torque, and
+each formulation maps its inputs to component operating points through the shared
+component methods (:mod:`hevsim.components`). Step ``k`` runs from ``time_s[k]`` to
+``time_s[k+1]``; speeds are evaluated at the mid-step speed and the acceleration is the
+finite difference, so ``F v_mid dt`` closes the kinetic-energy balance exactly.
+"""
+
+from __future__ import annotations
+
+import re
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+import numpy.typing as npt
+
+from hevsim.components.battery import BatteryPack, current_for_power
+from hevsim.components.body import VehicleBody
+from hevsim.components.driveline import Tire
+from hevsim.components.electric_machine import ElectricMachine
+from hevsim.components.engine import Engine
+from hevsim.cycles import DriveCycle
+from hevsim.errors import DPInfeasibleError
+from hevsim.optimal._problem import DPProblem, FinalTarget
+from hevsim.sim.metrics import fuel_economy, metric
+from hevsim.units import M3_PER_US_GALLON
+
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+
+REGEN_ITERATIONS = 4
+"""Fixed-point iterations that scale regenerative torque down to the battery charge limit
+(exact after one for ideal and constant-efficiency machines, as in the forward kernel)."""
+LIMIT_RTOL = 1e-6
+"""Relative tolerance on the battery current limits (absorbs the rounding of the regen
+scaling)."""
+LIMITS: tuple[str, ...] = (
+    "engine_speed",
+    "motor_torque",
+    "battery_power",
+    "battery_discharge_current",
+    "battery_charge_current",
+)
+"""Names of the component limits (eqs 29-31) checked for every (state, input) pair."""
+
+
+@dataclass(frozen=True, eq=False)
+class CycleSteps:
+    """The drive cycle as DP steps: speed, acceleration and road load of each step.
+
+    Attributes:
+        cycle: the drive cycle (samples are the step boundaries).
+        time_s, speed_mps: sample times [s] and speeds [m/s], shape (N+1,).
+        dt_s, v_mid_mps, accel_mps2, grade: step length [s], mid-step speed [m/s],
+            acceleration [m/s^2] and mean grade [-], shape (N,).
+        force_n: tractive force at the wheels, eq (32) [N]; zero at a standstill (the
+            brakes hold the car).
+        wheel_speed_radps [rad/s], wheel_torque_nm [N·m]: at the wheels, shape (N,).
+    """
+
+    cycle: DriveCycle
+    time_s: FloatArray
+    speed_mps: FloatArray
+    dt_s: FloatArray
+    v_mid_mps: FloatArray
+    accel_mps2: FloatArray
+    grade: FloatArray
+    force_n: FloatArray
+    wheel_speed_radps: FloatArray
+    wheel_torque_nm: FloatArray
+
+    @classmethod
+    def from_cycle(cls, cycle: DriveCycle, body: VehicleBody, tire: Tire) -> CycleSteps:
+        """Steps of ``cycle`` for a vehicle with ``body`` and ``tire``."""
+        t = np.asarray(cycle.time_s, dtype=np.float64)
+        v = np.asarray(cycle.speed_mps, dtype=np.float64)
+        gr = np.asarray(cycle.grade, dtype=np.float64)
+        dt = np.diff(t)
+        v_mid = 0.5 * (v[1:] + v[:-1])
+        accel = np.diff(v) / dt
+        grade = 0.5 * (gr[1:] + gr[:-1])
+        moving = v_mid > 0.0
+        force = np.where(moving, body.road_load_force(v_mid, accel, grade), 0.0)
+        return cls(
+            cycle=cycle,
+            time_s=t,
+            speed_mps=v,
+            dt_s=dt,
+            v_mid_mps=v_mid,
+            accel_mps2=accel,
+            grade=grade,
+            force_n=force,
+            wheel_speed_radps=np.asarray(tire.wheel_speed_radps(v_mid), dtype=np.float64),
+            wheel_torque_nm=force * tire.radius_m,
+        )
+
+    @property
+    def n_steps(self) -> int:
+        """Number of steps N [-]."""
+        return int(self.dt_s.size)
+
+    @property
+    def distance_m(self) -> float:
+        """Distance driven [m]."""
+        return float(np.sum(self.v_mid_mps * self.dt_s))
+
+    @property
+    def power_required_w(self) -> FloatArray:
+        """Tractive power at the wheels, ``F v_mid`` [W] (negative when braking)."""
+        return self.force_n * self.v_mid_mps
+
+    def describe(self, k: int) -> str:
+        """Human description of step ``k`` (times, speeds, acceleration, grade, load)."""
+        return (
+            f"step {k} (t = {self.time_s[k]:.6g} to {self.time_s[k + 1]:.6g} s, speed "
+            f"{self.speed_mps[k]:.3g} -> {self.speed_mps[k + 1]:.3g} m/s, acceleration "
+            f"{self.accel_mps2[k]:.3g} m/s^2, grade {self.grade[k]:.3g}; required wheel force "
+            f"{self.force_n[k]:.0f} N, wheel power {self.power_required_w[k] / 1e3:.1f} kW)"
+        )
+
+
+def soc_invariant(battery: BatteryPack, soc: FloatArray) -> bool:
+    """True when the pack's OCV and resistances do not vary over ``soc`` [-].
+
+    Then the battery's response to a bus power is the same at every SOC node and the whole
+    stage model can be evaluated once per step for all states (the solver's fast path).
+    """
+    soc = np.asarray(soc, dtype=np.float64)
+    ones = np.ones_like(soc)
+    arrays = (battery.ocv(soc), battery.resistance(soc, ones), battery.resistance(soc, -ones))
+    return all(bool(np.all(a == a.flat[0])) for a in arrays)
+
+
+@dataclass(frozen=True, eq=False)
+class BatteryState:
+    """Pack quantities at a SOC array (from the pack's own methods), reused across steps.
+
+    Attributes: soc [-]; ocv_v [V]; r_discharge_ohm, r_charge_ohm [ohm] (eq 22);
+    p_charge_max_w: largest charging power at the charge-current limit,
+    ``(OCV + R I_max) I_max`` [W] (inf without a limit).
+    """
+
+    soc: Any
+    ocv_v: FloatArray
+    r_discharge_ohm: FloatArray
+    r_charge_ohm: FloatArray
+    p_charge_max_w: FloatArray
+
+    @classmethod
+    def at(cls, battery: BatteryPack, soc: Any) -> BatteryState:
+        """Evaluate ``battery`` at ``soc`` (any shape)."""
+        ocv = np.asarray(battery.ocv(soc), dtype=np.float64)
+        ones = np.ones_like(ocv)
+        r_dis = np.asarray(battery.resistance(soc, ones), dtype=np.float64)
+        r_chg = np.asarray(battery.resistance(soc, -ones), dtype=np.float64)
+        i_max = battery.max_charge_current_a
+        p_chg = (ocv + r_chg * i_max) * i_max if np.isfinite(i_max) else np.full(ocv.shape, np.inf)
+        return cls(soc, ocv, r_dis, r_chg, np.asarray(p_chg, dtype=np.float64))
+
+
+class BatteryCache:
+    """Remembers the :class:`BatteryState` of the last SOC array (the solver passes the same
+    grid array at every backward step)."""
+
+    SLOTS = 4
+
+    def __init__(self, battery: BatteryPack) -> None:
+        self.battery = battery
+        self._states: list[BatteryState] = []
+
+    def __call__(self, soc: Any) -> BatteryState:
+        for st in self._states:
+            if st.soc is soc or (np.shape(st.soc) == np.shape(soc) and np.array_equal(st.soc, soc)):
+                return st
+        state = BatteryState.at(self.battery, soc)
+        self._states = [state, *self._states[: self.SLOTS - 1]]
+        return state
+
+
+@dataclass
+class ElectricFlow:
+    """Operating point of an electric machine and the battery for one block of pairs.
+
+    Attributes:
+        torque_nm: machine torque after the regeneration limits [N·m].
+        power_elec_w: machine electrical power (> 0 drawn from the bus) [W].
+        battery_power_w: battery terminal power (> 0 discharging) [W].
+        current_a: battery current (> 0 discharging) [A]. d_soc: SOC change over the step [-].
+        flags: one boolean array per violated limit name of :data:`LIMITS`.
+        infeasible: any limit violated.
+    """
+
+    torque_nm: FloatArray
+    power_elec_w: FloatArray
+    battery_power_w: FloatArray
+    current_a: FloatArray
+    d_soc: FloatArray
+    flags: dict[str, BoolArray]
+    infeasible: BoolArray
+
+
+def electric_flow(
+    machine: ElectricMachine,
+    battery: BatteryPack,
+    torque_req_nm: Any,
+    omega_radps: Any,
+    p_other_w: Any,
+    soc: Any,
+    dt_s: Any,
+    regen_ok: Any,
+    state: BatteryState | None = None,
+) -> ElectricFlow:
+    """Machine torque, bus and battery for a required machine torque (vectorised).
+
+    The machine must deliver ``torque_req_nm`` [N·m] at ``omega_radps`` [rad/s] when motoring
+    (above its motoring limit the pair is infeasible: ``motor_torque``). When braking it
+    regenerates up to its generating limit where ``regen_ok``, and the friction brakes take
+    the rest; regeneration is further reduced so that the battery's charge power stays
+    within its current limit. ``p_other_w`` [W] is the rest of the bus load (a generator
+    feeding the bus is negative). The battery (eqs 13, 21-22) then gives the current at
+    ``soc`` [-] and the SOC change over ``dt_s`` [s]; its power and current limits are
+    flagged (``battery_power``: beyond ``OCV^2 / 4R``; discharge and charge current).
+    ``state``: the pack evaluated at ``soc`` (:class:`BatteryState`), when already known.
+    """
+    t_req = np.asarray(torque_req_nm, dtype=np.float64)
+    w = np.asarray(omega_radps, dtype=np.float64)
+    p_other = np.asarray(p_other_w, dtype=np.float64)
+    t_max, t_min = machine.limits(w)
+    over_torque = t_req > t_max * (1.0 + 1e-12)
+    torque = np.where(t_req < 0.0, np.where(regen_ok, np.maximum(t_req, t_min), 0.0), t_req)
+    p_el = np.asarray(machine.electrical_power(torque, w), dtype=np.float64)
+    bs = state if state is not None else BatteryState.at(battery, soc)
+    p_chg = bs.p_charge_max_w
+    if np.isfinite(p_chg).any():
+        floor = -p_chg - p_other  # lowest machine power the battery can absorb
+        over = (torque < 0.0) & (p_el < floor)
+        if over.any():  # scale the regenerative torque down, on the affected pairs only
+            shape = over.shape
+            torque = np.array(np.broadcast_to(torque, shape))
+            p_el = np.array(np.broadcast_to(p_el, shape))
+            t_sub, p_sub = torque[over], p_el[over]
+            f_sub = np.broadcast_to(floor, shape)[over]
+            w_sub = np.broadcast_to(w, shape)[over]
+            for _ in range(REGEN_ITERATIONS):
+                still = p_sub < f_sub
+                if not still.any():
+                    break
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    t_sub = t_sub * np.where(still, np.clip(f_sub / p_sub, 0.0, 1.0), 1.0)
+                p_sub = np.asarray(machine.electrical_power(t_sub, w_sub), dtype=np.float64)
+            torque[over] = t_sub
+            p_el[over] = p_sub
+    p_bat = p_el + p_other
+    ocv = bs.ocv_v
+    r = np.where(p_bat > 0.0, bs.r_discharge_ohm, bs.r_charge_ohm)  # as BatteryPack.resistance
+    current = np.asarray(current_for_power(p_bat, ocv, r), dtype=np.float64)  # as BatteryPack.current
+    flags = {
+        "motor_torque": over_torque,
+        "battery_power": (p_bat > 0.0) & (ocv * ocv < 4.0 * r * p_bat),
+        "battery_discharge_current": current > battery.max_discharge_current_a * (1.0 + LIMIT_RTOL),
+        "battery_charge_current": current < -battery.max_charge_current_a * (1.0 + LIMIT_RTOL),
+    }
+    infeasible = flags["motor_torque"] | flags["battery_power"]
+    infeasible = infeasible | flags["battery_discharge_current"] | flags["battery_charge_current"]
+    d_soc = np.asarray(battery.soc_rate(current), dtype=np.float64) * dt_s
+    return ElectricFlow(torque, p_el, p_bat, current, d_soc, flags, infeasible)
+
+
+@dataclass
+class Stage:
+    """Stage model output for a block: SOC change, fuel cost, infeasibility (+ details).
+
+    ``details`` (on request) holds per-pair operating points keyed by time-series column
+    name (see :data:`DETAIL_COLUMNS`).
+    """
+
+    d_soc: FloatArray
+    cost_kg: FloatArray
+    infeasible: BoolArray
+    flags: dict[str, BoolArray]
+    details: dict[str, FloatArray] = field(default_factory=dict)
+
+
+DETAIL_COLUMNS: tuple[str, ...] = (
+    "engine_on",
+    "engine_speed_radps",
+    "engine_torque_nm",
+    "engine_throttle",
+    "engine_power_w",
+    "fuel_rate_gps",
+    "motor_speed_radps",
+    "motor_torque_nm",
+    "motor_power_elec_w",
+    "battery_current_a",
+    "battery_power_w",
+    "friction_brake_power_w",
+)
+"""Operating-point columns every formulation reports along the optimal trajectory."""
+
+
+class HEVFormulation(ABC):
+    """A vehicle architecture's energy-management problem on a drive cycle.
+
+    Subclasses define the inputs and the vectorised stage model; this base class builds the
+    :class:`~hevsim.optimal.DPProblem`, checks that the cycle can be followed at all, and
+    evaluates the operating points along a trajectory.
+    """
+
+    architecture: ClassVar[str]
+    input_names: tuple[str, ...]
+    input_units: tuple[str, ...]
+    discrete_inputs: tuple[int, ...] = ()
+    limit_text: dict[str, str]
+
+    def __init__(
+        self,
+        model: Any,
+        steps: CycleSteps,
+        soc_grid: FloatArray,
+        input_grids: tuple[FloatArray, ...],
+        soc_initial: float,
+        target: FinalTarget,
+        engine: Engine,
+        battery: BatteryPack,
+        conversion_efficiency: float,
+    ) -> None:
+        self.model = model
+        self.steps = steps
+        self.soc_grid = soc_grid
+        self.input_grids = input_grids
+        self.soc_initial = soc_initial
+        self.target = target
+        self.engine = engine
+        self.battery = battery
+        self.conversion_efficiency = conversion_efficiency
+        self.soc_invariant = soc_invariant(battery, soc_grid)
+        self.table: dict[str, np.ndarray] | None = None
+        self.battery_at = BatteryCache(battery)
+        self._grid_seen: Any = None
+
+    # ----------------------------------------------------------------- model
+    @abstractmethod
+    def mechanical(self, k: Any, inputs: tuple[Any, ...], *, grid_duplicates: bool = False) -> Any:
+        """The state-independent part of the stage model (engine maps along the cycle, the
+        machine torque the wheels need) for steps ``k`` (int array) and input values,
+        broadcast together. ``grid_duplicates`` masks input combinations that duplicate
+        another one on the DP grid (e.g. every gear with the engine declutched)."""
+
+    @abstractmethod
+    def electrical(self, mech: Any, soc: Any, *, detail: bool = False) -> Stage:
+        """The SOC-dependent part: machine limits, battery and SOC change at ``soc`` [-]
+        (broadcast against the mechanical part); ``detail`` adds the operating points."""
+
+    def stage(
+        self,
+        k: Any,
+        inputs: tuple[Any, ...],
+        soc: Any,
+        *,
+        detail: bool = False,
+        grid_duplicates: bool = False,
+    ) -> Stage:
+        """Stage model for steps ``k`` (int array), input values and SOC, broadcast together."""
+        return self.electrical(
+            self.mechanical(k, inputs, grid_duplicates=grid_duplicates), soc, detail=detail
+        )
+
+    @abstractmethod
+    def max_wheel_force_n(self, k: int) -> float:
+        """Largest tractive force the powertrain can give at step ``k`` [N] (diagnostics)."""
+
+    def input_description(self) -> str:
+        """Human list of the inputs for messages."""
+        return " x ".join(f"{n} ({g.size})" for n, g in zip(self.input_names, self.input_grids, strict=True))
+
+    # ------------------------------------------------------------------- DP
+    @property
+    def input_shape(self) -> tuple[int, ...]:
+        """Sizes of the input grids."""
+        return tuple(g.size for g in self.input_grids)
+
+    def grid_inputs(self, lead: int) -> tuple[FloatArray, ...]:
+        """Input grids shaped for broadcasting after ``lead`` leading axes."""
+        q = len(self.input_grids)
+        return tuple(
+            g.reshape((1,) * (lead + j) + (g.size,) + (1,) * (q - 1 - j))
+            for j, g in enumerate(self.input_grids)
+        )
+
+    def _is_grid(self, inputs: tuple[Any, ...]) -> bool:
+        if inputs is self._grid_seen:
+            return True
+        q = len(self.input_grids)
+        ok = len(inputs) == q and all(
+            np.shape(a) == (1,) * (1 + j) + (g.size,) + (1,) * (q - 1 - j) and np.array_equal(np.ravel(a), g)
+            for j, (a, g) in enumerate(zip(inputs, self.input_grids, strict=True))
+        )
+        if ok:
+            self._grid_seen = inputs
+        return ok
+
+    def build_table(self, chunk_pairs: int = 1 << 19) -> None:
+        """Evaluate the stage model for every step and input on the grid, once.
+
+        Only when the battery does not depend on SOC (:func:`soc_invariant`): then the SOC
+        change, the fuel cost and the infeasibility mask of a step do not depend on the
+        state, and the DP model returns one ``(1, m1, .., mq)`` row per step (the solver's
+        fastest path). Stored as float64 / bool arrays of shape (N, m1, .., mq).
+        """
+        N = self.steps.n_steps
+        shape = (N, *self.input_shape)
+        M = int(np.prod(self.input_shape))
+        d_soc = np.empty(shape)
+        cost = np.empty(shape)
+        mask = np.empty(shape, dtype=np.bool_)
+        step = max(1, chunk_pairs // M)
+        ins = self.grid_inputs(1)
+        soc = self.soc_grid[:1]
+        for k0 in range(0, N, step):
+            k = np.arange(k0, min(N, k0 + step)).reshape((-1,) + (1,) * len(ins))
+            st = self.stage(k, ins, soc, grid_duplicates=True)
+            bad = np.broadcast_to(st.infeasible, k.shape[:1] + self.input_shape)
+            sl = slice(k0, k0 + k.shape[0])
+            mask[sl] = bad
+            d_soc[sl] = np.where(bad, 0.0, st.d_soc)
+            cost[sl] = np.where(bad, 0.0, st.cost_kg)
+        self.table = {"d_soc": d_soc, "cost": cost, "mask": mask}
+
+    def check_followable(self) -> None:
+        """Raise a clear :class:`DPInfeasibleError` if some step has no feasible input."""
+        N = self.steps.n_steps
+        M = int(np.prod(self.input_shape))
+        if self.table is not None:
+            self.feasible_steps(self.table["mask"].reshape(N, M))
+            return
+        dead = np.ones((N, M), dtype=np.bool_)
+        step = max(1, (1 << 19) // M)
+        ins = self.grid_inputs(1)
+        for soc in self.probe_socs():
+            for k0 in range(0, N, step):
+                k = np.arange(k0, min(N, k0 + step)).reshape((-1,) + (1,) * len(ins))
+                st = self.stage(k, ins, soc, grid_duplicates=True)
+                bad = np.broadcast_to(st.infeasible, k.shape[:1] + self.input_shape).reshape(-1, M)
+                dead[k0 : k0 + k.shape[0]] &= bad
+        self.feasible_steps(dead)
+
+    def dp_problem(self) -> DPProblem:
+        """The :class:`DPProblem`: state SOC, the formulation's inputs, cost fuel mass [kg]."""
+        from hevsim.optimal._problem import Increment
+
+        def precompute(inputs: tuple[Any, ...], k: int, data: Any) -> Any:
+            # once per step: a row of the stage table, or the state-independent part
+            if self.table is not None and self._is_grid(inputs):
+                return None
+            return self.mechanical(np.asarray(k), tuple(inputs), grid_duplicates=True)
+
+        def model(states: tuple[Any, ...], inputs: tuple[Any, ...], k: int, data: Any, mech: Any) -> Any:
+            if mech is None and self.table is not None:
+                t = self.table
+                return (Increment(t["d_soc"][k][None]),), t["cost"][k][None], t["mask"][k][None]
+            st = self.electrical(mech, states[0])
+            bad = st.infeasible
+            return (Increment(np.where(bad, 0.0, st.d_soc)),), np.where(bad, 0.0, st.cost_kg), bad
+
+        return DPProblem(
+            model,
+            state_grids=[self.soc_grid],
+            input_grids=list(self.input_grids),
+            n_steps=self.steps.n_steps,
+            precompute=precompute,
+            target=self.target,
+            discrete_inputs=self.discrete_inputs,
+            state_names=["soc"],
+            input_names=list(self.input_names),
+        )
+
+    # ------------------------------------------------------------ followability
+    def probe_socs(self) -> FloatArray:
+        """SOC values at which the cycle is checked for feasibility before the DP: one when
+        the battery does not depend on SOC, else the two ends of the window (battery
+        capability is monotone in SOC: discharge best at the top, charge at the bottom)."""
+        if self.soc_invariant:
+            return self.soc_grid[:1]
+        return np.array([self.soc_grid[0], self.soc_grid[-1]])
+
+    def feasible_steps(self, infeasible_by_step: BoolArray) -> None:
+        """Raise :class:`DPInfeasibleError` at the first step where every input is infeasible.
+
+        ``infeasible_by_step``: (N, M) True where an input is infeasible at every probe SOC.
+        """
+        dead = np.flatnonzero(infeasible_by_step.all(axis=1))
+        if dead.size:
+            raise self.unfollowable_error(int(dead[0]), int(dead.size))
+
+    def unfollowable_error(self, k: int, n_dead: int) -> DPInfeasibleError:
+        """A clear error for a step that no input can drive (names the step, time and limits)."""
+        grids = np.meshgrid(*self.input_grids, indexing="ij")
+        inputs = tuple(g.ravel() for g in grids)
+        soc = self.probe_socs()[-1]
+        st = self.stage(np.array([k]), inputs, soc)
+        counts = {name: int(np.count_nonzero(st.flags[name])) for name in LIMITS if name in st.flags}
+        total = int(np.prod([g.size for g in self.input_grids]))
+        parts = [
+            f"{self.limit_text.get(name, name)} ({n} of {total} choices)" for name, n in counts.items() if n
+        ]
+        more = f"; {n_dead - 1} later step(s) fail too" if n_dead > 1 else ""
+        return DPInfeasibleError(
+            f"the {self.architecture} HEV '{self.name}' cannot follow drive cycle "
+            f"'{self.steps.cycle.name}' at {self.steps.describe(k)}: every choice of "
+            f"{self.input_description()} violates a component limit: {'; '.join(parts)}{more}. "
+            f"(By their torque limits alone, engine and motor could give up to "
+            f"{self.max_wheel_force_n(k):.0f} N at the wheels there.) "
+            "Use a cycle within the vehicle's capability (speed, acceleration, grade) or larger "
+            "components."
+        )
+
+    @property
+    def name(self) -> str:
+        """Vehicle configuration name."""
+        return str(getattr(self.model, "name", self.architecture))
+
+    # -------------------------------------------------------------- trajectory
+    def details(self, soc: FloatArray, inputs: FloatArray) -> Stage:
+        """Operating points along a trajectory: ``soc`` (N+1,) and ``inputs`` (N, q)."""
+        N = self.steps.n_steps
+        return self.stage(
+            np.arange(N), tuple(inputs[:, j] for j in range(inputs.shape[1])), soc[:N], detail=True
+        )
+
+    def energy_per_soc_j(self, soc: Any) -> FloatArray:
+        """Battery energy per unit SOC at the open-circuit voltage, ``Q OCV`` [J]."""
+        return np.asarray(self.battery.capacity_ah * 3600.0 * self.battery.ocv(soc), dtype=np.float64)
+
+    def contextualise(self, exc: DPInfeasibleError) -> DPInfeasibleError:
+        """Add the time of every step the solver's message names."""
+        text = str(exc)
+        steps = sorted({int(m) for m in re.findall(r"step (\d+)", text)})
+        t = self.steps.time_s
+        when = [f"step {k} starts at t = {t[k]:.6g} s" for k in steps if 0 <= k < t.size]
+        extra = f" ({'; '.join(when)} of cycle '{self.steps.cycle.name}')" if when else ""
+        return DPInfeasibleError(f"{self.architecture} HEV '{self.name}': {text}{extra}")
+
+
+def hev_metrics(
+    *,
+    fuel_kg: float,
+    distance_m: float,
+    duration_s: float,
+    soc_initial: float,
+    soc_final: float,
+    battery: BatteryPack,
+    engine: Engine,
+    conversion_efficiency: float,
+    engine_on_time_s: float,
+    compute_time_s: float,
+    dp_total_cost: float,
+) -> dict[str, dict[str, Any]]:
+    """Scalar metrics of an optimal run, with units (same definitions as the forward
+    simulator's :func:`hevsim.sim.metrics.compute_metrics`, eqs 14-20)."""
+    ocv_mean = float(np.asarray(battery.ocv(0.5 * (soc_initial + soc_final))))
+    density = engine.fuel_density_kgpm3
+    heating = engine.heating_value_btu_per_gal
+    fe = fuel_economy(distance_m, fuel_kg, soc_initial, soc_final, battery.capacity_ah, ocv_mean, density,
+                      heating, conversion_efficiency)  # fmt: skip
+    km = distance_m / 1000.0
+    liters = fuel_kg / density * 1000.0
+    eq_fuel_kg = fe["e_total_btu"] / heating * M3_PER_US_GALLON * density
+    co2 = engine.co2_kg_per_kg
+    nan = float("nan")
+    return {
+        "distance_m": metric(distance_m, "m", "distance driven"),
+        "distance_mi": metric(fe["miles"], "mi", "distance driven"),
+        "duration_s": metric(duration_s, "s", "cycle duration"),
+        "fuel_kg": metric(fuel_kg, "kg", "fuel burnt on the optimal trajectory"),
+        "fuel_l": metric(liters, "L", "fuel burnt"),
+        "fuel_gal": metric(fe["gallons"], "gal", "fuel burnt (US gallons)"),
+        "mpg": metric(fe["mpg"], "mpg", "miles per gallon of fuel, no SOC correction"),
+        "l_per_100km": metric(
+            liters / km * 100.0 if km > 0 else nan, "L/100km", "fuel consumption, no SOC correction"
+        ),
+        "mpgge": metric(
+            fe["mpgge"], "mpgge", "miles per gallon of gasoline equivalent with SOC correction, eqs 14-20"
+        ),
+        "fuel_equivalent_kg": metric(
+            eq_fuel_kg, "kg", "fuel burnt plus the fuel equivalent of the SOC change"
+        ),
+        "co2_g_per_km": metric(
+            fuel_kg * co2 * 1e3 / km if km > 0 else nan, "g/km", "tailpipe CO2 from fuel burnt"
+        ),
+        "co2_soc_corrected_g_per_km": metric(
+            eq_fuel_kg * co2 * 1e3 / km if km > 0 else nan, "g/km", "CO2 of the SOC-corrected fuel equivalent"
+        ),
+        "soc_initial": metric(soc_initial, "-", "initial state of charge"),
+        "soc_final": metric(soc_final, "-", "final state of charge"),
+        "battery_energy_wh": metric(fe["e_battery_wh"], "Wh", "eq (15): energy drawn from the battery"),
+        "engine_on_time_s": metric(engine_on_time_s, "s", "time with the engine fired"),
+        "compute_time_s": metric(compute_time_s, "s", "wall time of the optimisation (setup, DP, results)"),
+        "dp_total_cost": metric(dp_total_cost, "kg", "total cost returned by the DP solver (fuel mass)"),
+    }

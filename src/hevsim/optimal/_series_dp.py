@@ -1,0 +1,255 @@
+"""Energy management of the chapter-2 series HEV as a DP problem.
+
+State: SOC. Input: the genset's electrical power ``P_g`` on a grid from 0 (engine off) to
+the most the engine-generator pair can deliver. For every ``P_g > 0`` the engine runs at the
+fuel-optimal point that the generator can absorb (the *optimal operating line*, computed
+once by :func:`genset_operating_points`: minimum of ``Engine.fuel_rate`` over the engine
+speed in stall..redline, with the torque that makes the generator deliver ``P_g`` within
+its generating limit and the engine's max torque). The traction motor gives the wheels the
+road load of eq (32) through the final drive (its rotor inertia included), regenerates
+when braking above the configured cut-in speed (the friction brakes take the rest), and the
+battery closes the bus: ``P_batt = P_motor,el + P_aux - P_g``. Genset speed dynamics and
+start-up energy are not modelled (quasi-static). Cost: fuel mass [kg].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hevsim.components.electric_machine import ElectricMachine
+from hevsim.components.engine import Engine
+from hevsim.cycles import DriveCycle
+from hevsim.errors import ConfigError
+from hevsim.optimal._hev_common import CycleSteps, FloatArray, HEVFormulation, Stage, electric_flow
+from hevsim.optimal._problem import FinalTarget
+from hevsim.sim.model import SeriesHEV
+
+OPLINE_SPEED_POINTS = 361
+"""Engine speeds searched between stall and redline for the optimal operating line [-]."""
+OPLINE_TORQUE_POINTS = 401
+"""Torques per speed (0 .. the smaller of the engine and generator limits) [-]."""
+GENSET_NEWTON_STEPS = 4
+"""Newton steps refining the torque so the generator delivers the requested power [-]."""
+GENSET_NEWTON_DT_NM = 1e-3
+"""Torque step of the finite-difference slope in those Newton steps [N·m]."""
+
+
+@dataclass(frozen=True)
+class GensetPoints:
+    """Fuel-optimal genset operating points, one per electrical power.
+
+    Attributes: power_w: electrical power the generator delivers to the bus at the point
+    (the requested power up to the Newton tolerance) [W]; speed_radps [rad/s]; torque_nm
+    (engine brake torque) [N·m]; fuel_kgps [kg/s]; feasible (False above the genset's
+    capability).
+    """
+
+    power_w: FloatArray
+    speed_radps: FloatArray
+    torque_nm: FloatArray
+    fuel_kgps: FloatArray
+    feasible: np.ndarray
+
+
+def _speed_torque_grid(
+    engine: Engine, generator: ElectricMachine
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Engine speeds (S,), torques (S, T) and generator electrical output (S, T) [W]."""
+    w = np.linspace(engine.stall_speed_radps, engine.redline_radps, OPLINE_SPEED_POINTS)
+    t_eng_max = engine.torque_scale * engine.max_torque(w)
+    t_gen_min = np.asarray(generator.limits(w)[1], dtype=np.float64)  # most negative torque
+    t_cap = np.minimum(t_eng_max, -t_gen_min)
+    torque = t_cap[:, None] * np.linspace(0.0, 1.0, OPLINE_TORQUE_POINTS)[None, :]
+    p_out = -np.asarray(generator.electrical_power(-torque, w[:, None]), dtype=np.float64)
+    return w, torque, np.maximum.accumulate(p_out, axis=1)
+
+
+def genset_max_power_w(engine: Engine, generator: ElectricMachine) -> float:
+    """Largest electrical power the engine-generator pair can deliver [W]."""
+    _, _, p_out = _speed_torque_grid(engine, generator)
+    return float(p_out[:, -1].max())
+
+
+def genset_operating_points(engine: Engine, generator: ElectricMachine, power_w: Any) -> GensetPoints:
+    """Fuel-optimal engine operating points delivering ``power_w`` [W] to the bus.
+
+    For each engine speed on a grid (stall..redline) the torque that makes the generator
+    deliver the power is found on the monotone power-torque curve (within the engine's max
+    torque and the generator's generating limit); ``Engine.fuel_rate`` is evaluated there and
+    the speed with the least fuel is kept; a few Newton steps on the torque at that speed
+    then make the generator deliver the power to round-off. ``power_w = 0`` means engine off
+    (zero fuel).
+    """
+    p = np.atleast_1d(np.asarray(power_w, dtype=np.float64))
+    w, torque, p_out = _speed_torque_grid(engine, generator)
+    t_at = np.full((w.size, p.size), np.nan)
+    for i in range(w.size):
+        inside = p <= p_out[i, -1]
+        t_at[i, inside] = np.interp(p[inside], p_out[i], torque[i])
+    ww = np.broadcast_to(w[:, None], t_at.shape)
+    valid = np.isfinite(t_at)
+    fuel = np.full(t_at.shape, np.inf)
+    if valid.any():
+        fr = np.asarray(engine.fuel_rate(t_at[valid], ww[valid]), dtype=np.float64)
+        fuel[valid] = np.where(np.isfinite(fr), fr, np.inf)
+    best = np.argmin(fuel, axis=0)
+    cols = np.arange(p.size)
+    off = p <= 0.0
+    feasible = np.isfinite(fuel[best, cols]) & ~off
+    speed = np.where(feasible, w[best], 0.0)
+    torque = np.where(feasible, t_at[best, cols], 0.0)
+    if feasible.any():  # Newton on the torque at the chosen speed: the generator delivers p exactly
+        ws, ts, ps = speed[feasible], torque[feasible], p[feasible]
+        cap = np.minimum(engine.torque_scale * engine.max_torque(ws), -np.asarray(generator.limits(ws)[1]))
+        for _ in range(GENSET_NEWTON_STEPS):
+            p_act = -np.asarray(generator.electrical_power(-ts, ws), dtype=np.float64)
+            h = GENSET_NEWTON_DT_NM
+            slope = (-np.asarray(generator.electrical_power(-(ts + h), ws), dtype=np.float64) - p_act) / h
+            ts = np.clip(ts + (ps - p_act) / np.where(slope > 0, slope, np.inf), 0.0, cap)
+        torque[feasible] = ts
+    fuel_best = np.zeros(p.size)
+    if feasible.any():
+        fuel_best[feasible] = np.asarray(
+            engine.fuel_rate(torque[feasible], speed[feasible]), dtype=np.float64
+        )
+    delivered = np.where(
+        feasible, -np.asarray(generator.electrical_power(-torque, speed), dtype=np.float64), 0.0
+    )
+    feasible = (feasible & np.isfinite(fuel_best)) | off
+    return GensetPoints(
+        power_w=delivered,
+        speed_radps=speed,
+        torque_nm=torque,
+        fuel_kgps=np.where(np.isfinite(fuel_best), fuel_best, 0.0),
+        feasible=feasible,
+    )
+
+
+class SeriesFormulation(HEVFormulation):
+    """The series HEV: input the genset electrical power (0 = engine off)."""
+
+    architecture = "series"
+    input_names = ("genset_power_w",)
+    input_units = ("W",)
+
+    def __init__(
+        self,
+        hev: SeriesHEV,
+        cycle: DriveCycle,
+        *,
+        soc_grid: FloatArray,
+        power_points: int,
+        soc_initial: float,
+        target: FinalTarget,
+    ) -> None:
+        if hev.engine is None or hev.config.genset.kind != "engine":
+            raise ConfigError(
+                f"{hev.name}: key 'genset.kind' = {hev.config.genset.kind!r}: the DP series formulation "
+                "needs an engine genset; expected genset.kind = 'engine'."
+            )
+        steps = CycleSteps.from_cycle(cycle, hev.body, hev.tire)
+        p_max = genset_max_power_w(hev.engine, hev.generator)
+        grid = np.linspace(0.0, p_max * (1.0 - 1e-9), power_points)
+        super().__init__(hev, steps, soc_grid, (grid,), soc_initial, target, hev.engine, hev.battery,
+                         hev.config.metrics.conversion_efficiency)  # fmt: skip
+        self.hev = hev
+        self.points = genset_operating_points(hev.engine, hev.generator, grid)
+        moving = steps.v_mid_mps > 0.0
+        ratio = hev.gear.ratio
+        self.w_m = steps.wheel_speed_radps * ratio
+        alpha = np.where(moving, steps.accel_mps2 / hev.tire.radius_m * ratio, 0.0)
+        self.t_inertia = hev.traction_motor.inertia_kgm2 * alpha
+        self.t_m_req = (
+            np.asarray(hev.gear.input_torque(steps.wheel_torque_nm), dtype=np.float64) + self.t_inertia
+        )
+        self.regen_ok = steps.v_mid_mps > hev.config.brakes.regen_min_speed_mps
+        self.aux_w = hev.config.controller.aux_power_w
+        bat = hev.battery
+        self.limit_text = {
+            "motor_torque": "traction motor torque above its motoring limit at this speed",
+            "battery_power": "battery power beyond the maximum OCV^2/(4R)",
+            "battery_discharge_current": f"battery discharge current above {bat.max_discharge_current_a:g} A",
+            "battery_charge_current": f"battery charge current above {bat.max_charge_current_a:g} A",
+        }
+
+    def _genset(self, p: np.ndarray) -> GensetPoints:
+        """Operating points at powers ``p`` (grid values looked up, others computed)."""
+        grid = self.input_grids[0]
+        idx = np.clip(np.searchsorted(grid, p), 0, grid.size - 1)
+        on_grid = grid[idx] == p
+        if on_grid.all():
+            pts = self.points
+            return GensetPoints(
+                pts.power_w[idx],
+                pts.speed_radps[idx],
+                pts.torque_nm[idx],
+                pts.fuel_kgps[idx],
+                pts.feasible[idx],
+            )
+        flat = np.ravel(p)
+        uniq, inv = np.unique(flat, return_inverse=True)
+        assert self.hev.engine is not None  # checked in __init__
+        pts = genset_operating_points(self.hev.engine, self.hev.generator, uniq)
+        shape = np.shape(p)
+        return GensetPoints(
+            pts.power_w[inv].reshape(shape),
+            pts.speed_radps[inv].reshape(shape),
+            pts.torque_nm[inv].reshape(shape),
+            pts.fuel_kgps[inv].reshape(shape),
+            pts.feasible[inv].reshape(shape),
+        )
+
+    def mechanical(self, k: Any, inputs: tuple[Any, ...], *, grid_duplicates: bool = False) -> Any:
+        (p_in,) = inputs
+        kk, p = np.broadcast_arrays(np.asarray(k, dtype=np.int64), np.asarray(p_in, dtype=np.float64))
+        return {"k": kk, "p": p, "gs": self._genset(p), "dt": self.steps.dt_s[kk]}
+
+    def electrical(self, mech: Any, soc: Any, *, detail: bool = False) -> Stage:
+        hev = self.hev
+        kk, p, gs, dt = mech["k"], mech["p"], mech["gs"], mech["dt"]
+        w_m = self.w_m[kk]
+        flow = electric_flow(
+            hev.traction_motor,
+            hev.battery,
+            self.t_m_req[kk],
+            w_m,
+            self.aux_w - gs.power_w,
+            soc,
+            dt,
+            self.regen_ok[kk],
+            self.battery_at(soc),
+        )
+        infeasible = flow.infeasible | ~gs.feasible
+        fuel = np.where(gs.feasible, gs.fuel_kgps, 0.0)
+        st = Stage(d_soc=flow.d_soc, cost_kg=fuel * dt, infeasible=infeasible, flags=dict(flow.flags))
+        if detail:
+            on = (p > 0.0) & gs.feasible
+            eng = hev.engine
+            assert eng is not None
+            t_max = eng.torque_scale * eng.max_torque(np.where(on, gs.speed_radps, eng.stall_speed_radps))
+            wheel_motor = hev.gear.output_torque(flow.torque_nm - self.t_inertia[kk])
+            fric = np.minimum(self.steps.wheel_torque_nm[kk] - wheel_motor, 0.0)
+            st.details = {
+                "engine_on": on.astype(np.float64),
+                "engine_speed_radps": gs.speed_radps,
+                "engine_torque_nm": gs.torque_nm,
+                "engine_throttle": np.where(on, gs.torque_nm / t_max, 0.0),
+                "engine_power_w": gs.torque_nm * gs.speed_radps,
+                "fuel_rate_gps": fuel * 1e3,
+                "genset_power_w": np.where(on, gs.power_w, 0.0),
+                "motor_speed_radps": np.broadcast_to(w_m, kk.shape),
+                "motor_torque_nm": flow.torque_nm,
+                "motor_power_elec_w": flow.power_elec_w,
+                "battery_current_a": flow.current_a,
+                "battery_power_w": flow.battery_power_w,
+                "friction_brake_power_w": -fric * self.steps.wheel_speed_radps[kk],
+            }
+        return st
+
+    def max_wheel_force_n(self, k: int) -> float:
+        hev = self.hev
+        t_max = float(np.asarray(hev.traction_motor.limits(self.w_m[k])[0]))
+        return float(hev.gear.output_torque(t_max - self.t_inertia[k])) / hev.tire.radius_m

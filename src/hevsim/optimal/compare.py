@@ -1,0 +1,90 @@
+"""Benchmark architectures on equal terms: DP over several configurations and cycles.
+
+As the thesis did for its industrial partner (chapter 3): each vehicle is driven optimally
+(dynamic programming, charge-sustaining) over each cycle, so differences come from the
+architecture and components, not from a controller's tuning.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+COLUMNS: tuple[tuple[str, str, str], ...] = (
+    # (metric name, column header, format)
+    ("mpg", "MPG", "{:.1f}"),
+    ("mpgge", "MPGGE", "{:.1f}"),
+    ("l_per_100km", "L/100 km", "{:.2f}"),
+    ("co2_g_per_km", "CO2 g/km", "{:.0f}"),
+    ("soc_initial", "initial SOC", "{:.3f}"),
+    ("soc_final", "final SOC", "{:.3f}"),
+    ("engine_on_time_s", "engine on [s]", "{:.0f}"),
+    ("compute_time_s", "compute [s]", "{:.2f}"),
+)
+
+
+def compare(
+    configs: Sequence[str | Path | Any],
+    cycles: Sequence[str],
+    progress: bool | None = None,
+    out_dir: str | Path | None = None,
+    **options: Any,
+) -> pd.DataFrame:
+    """Run :func:`hevsim.optimal.hev.optimize` for every configuration x cycle.
+
+    ``options`` go to ``optimize`` (grid sizes, final constraint...). With ``out_dir`` each
+    run's results folder is written to ``out_dir/<config>_<cycle>``. Returns one row per run
+    with the metrics of :data:`COLUMNS`.
+    """
+    from tqdm import tqdm
+
+    from hevsim.optimal.hev import optimize
+
+    show = sys.stderr.isatty() if progress is None else progress
+    rows: list[dict[str, Any]] = []
+    jobs = [(c, cyc) for c in configs for cyc in cycles]
+    for config, cycle in tqdm(jobs, desc="DP runs", disable=not show):
+        res = optimize(config, cycle, progress=False, **options)
+        name = str(res.metadata.get("config", Path(str(config)).stem))
+        row: dict[str, Any] = {"configuration": name, "architecture": res.architecture, "cycle": cycle}
+        row.update({m: res.value(m) for m, _, _ in COLUMNS})
+        rows.append(row)
+        if out_dir is not None:
+            save_with_plots(res, Path(out_dir) / f"{name}_{cycle}")
+    return pd.DataFrame(rows)
+
+
+def save_with_plots(result: Any, out: Path, plots: bool = True) -> Path:
+    """Save an optimization result and, in the same atomic folder, its plots."""
+    return Path(result.save(out, plots=plots))
+
+
+def format_table(table: pd.DataFrame) -> str:
+    """Markdown table of a :func:`compare` result."""
+    heads = ["configuration", "architecture", "cycle", *(h for _, h, _ in COLUMNS)]
+    lines = ["| " + " | ".join(heads) + " |", "|" + "---|" * 3 + "---:|" * len(COLUMNS)]
+    for row in table.to_dict("records"):
+        cells = [str(row["configuration"]), str(row["architecture"]), str(row["cycle"])]
+        cells += [fmt.format(row[m]) for m, _, fmt in COLUMNS]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def write_table(table: pd.DataFrame, out_dir: str | Path) -> list[Path]:
+    """Write comparison.csv and comparison.md into ``out_dir`` (each atomically)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = []
+    for name, text in (
+        ("comparison.csv", table.to_csv(index=False, float_format="%.6g")),
+        ("comparison.md", format_table(table) + "\n"),
+    ):
+        tmp = out / f".{name}.tmp"
+        tmp.write_text(text)
+        tmp.replace(out / name)
+        files.append(out / name)
+    return files
