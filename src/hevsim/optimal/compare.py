@@ -42,15 +42,25 @@ def compare(
     """
     from tqdm import tqdm
 
-    from hevsim.optimal.hev import optimize
+    from hevsim.errors import DPInfeasibleError
+    from hevsim.optimal.hev import optimize, resolve_model
 
     show = sys.stderr.isatty() if progress is None else progress
     rows: list[dict[str, Any]] = []
     jobs = [(c, cyc) for c in configs for cyc in cycles]
     for config, cycle in tqdm(jobs, desc="DP runs", disable=not show):
-        res = optimize(config, cycle, progress=False, **options)
+        try:
+            res = optimize(config, cycle, progress=False, **options)
+        except DPInfeasibleError as exc:
+            # a vehicle that cannot drive a cycle is a result of the benchmark, not a crash
+            arch, model = resolve_model(config)
+            row = {"configuration": getattr(model, "name", Path(str(config)).stem),
+                   "architecture": arch.name, "cycle": cycle, "note": str(exc)}  # fmt: skip
+            row.update({m: float("nan") for m, _, _ in COLUMNS})
+            rows.append(row)
+            continue
         name = str(res.metadata.get("config", Path(str(config)).stem))
-        row: dict[str, Any] = {"configuration": name, "architecture": res.architecture, "cycle": cycle}
+        row = {"configuration": name, "architecture": res.architecture, "cycle": cycle, "note": ""}
         row.update({m: res.value(m) for m, _, _ in COLUMNS})
         rows.append(row)
         if out_dir is not None:
@@ -67,10 +77,17 @@ def format_table(table: pd.DataFrame) -> str:
     """Markdown table of a :func:`compare` result."""
     heads = ["configuration", "architecture", "cycle", *(h for _, h, _ in COLUMNS)]
     lines = ["| " + " | ".join(heads) + " |", "|" + "---|" * 3 + "---:|" * len(COLUMNS)]
+    notes: list[str] = []
     for row in table.to_dict("records"):
         cells = [str(row["configuration"]), str(row["architecture"]), str(row["cycle"])]
-        cells += [fmt.format(row[m]) for m, _, fmt in COLUMNS]
+        if row.get("note"):
+            notes.append(f"{len(notes) + 1}. {row['configuration']} on {row['cycle']}: {row['note']}")
+            cells += [f"cannot follow the cycle ({len(notes)})"] + [""] * (len(COLUMNS) - 1)
+        else:
+            cells += [fmt.format(row[m]) for m, _, fmt in COLUMNS]
         lines.append("| " + " | ".join(cells) + " |")
+    if notes:
+        lines += ["", *notes]
     return "\n".join(lines)
 
 
