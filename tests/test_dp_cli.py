@@ -22,7 +22,7 @@ def test_optimize_writes_results_and_plots(tmp_path: Path, capsys: pytest.Captur
     assert main([*args, "--input-points", "101"]) == 0
     for name in ("timeseries.parquet", "metrics.json", "costate.csv", "cost_to_go.npz",
                  "soc_trajectory.png", "power_split.png", "gear.png", "cost_to_go.png",
-                 "engine_operating_points.png"):  # fmt: skip
+                 "engine_operating_points.png", "operating_points_by_gear.png"):  # fmt: skip
         assert (out / name).is_file(), name
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["mpg"]["value"] > 0 and metrics["co2_g_per_km"]["unit"] == "g/km"
@@ -60,3 +60,19 @@ def test_optimize_bad_config_exit_2(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert main(["optimize", str(bad), "--out", str(tmp_path / "o")]) == 2
     assert "nonsense" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_simulate_replays_dp_schedule(tmp_path: Path) -> None:
+    """The DP optimum of the series HEV, replayed by the forward simulator, beats the rules."""
+    opt = tmp_path / "opt"
+    assert main(["optimize", str(SERIES), "--cycle", "fu505", "--out", str(opt), "--no-plots"]) == 0
+    rep, rule = tmp_path / "rep", tmp_path / "rule"
+    sched = ["--schedule", str(opt / "timeseries.csv")]
+    assert main(["simulate", str(SERIES), "--cycle", "fu505", "--out", str(rep), "--no-plots", *sched]) == 0
+    assert main(["simulate", str(SERIES), "--cycle", "fu505", "--out", str(rule), "--no-plots"]) == 0
+
+    def fuel_eq(folder: Path) -> float:
+        return float(json.loads((folder / "metrics.json").read_text())["fuel_equivalent_kg"]["value"])
+
+    dp = fuel_eq(opt)
+    assert dp <= fuel_eq(rep) <= fuel_eq(rule)

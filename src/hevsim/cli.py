@@ -35,7 +35,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     cfg = load_config(args.config)
     cycle = load_cycle(args.cycle or cfg.simulation.cycle)
-    result = simulate(cfg, cycle, dt_s=args.dt, soc_initial=args.soc_initial)
+    schedule = None
+    if args.schedule:
+        from hevsim.sim.simulator import GensetSchedule
+
+        schedule = GensetSchedule.from_csv(args.schedule)
+    result = simulate(cfg, cycle, dt_s=args.dt, soc_initial=args.soc_initial, schedule=schedule)
     out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_{cycle.name}"
     result.save(out, plots=not args.no_plots)
     m = result.metrics
@@ -126,6 +131,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dt", type=float, help="time step [s] (default from the configuration)")
     p.add_argument("--soc-initial", type=float, help="initial SOC [-]")
     p.add_argument("--no-plots", action="store_true", help="skip plots and report")
+    p.add_argument(
+        "--schedule",
+        help="replay a genset schedule CSV (time_s, engine_speed_rpm|engine_speed_radps, "
+        "engine_throttle), e.g. the timeseries.csv of `hevsim optimize` on a series HEV",
+    )
     p.set_defaults(func=_cmd_simulate)
 
     p = sub.add_parser(

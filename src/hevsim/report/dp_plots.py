@@ -15,13 +15,17 @@ import pandas as pd
 
 from hevsim.report.plots import (
     W_PER_KW,
+    _bsfc_levels,
     _col,
     _figure,
     _grid,
     _save,
     _time,
+    bsfc_grid,
+    fuel_rate_kgps,
     plot_engine_operating_points,
 )
+from hevsim.units import RADPS_PER_RPM
 
 
 def plot_soc_trajectory(
@@ -121,6 +125,33 @@ def plot_gear(ts: pd.DataFrame, path: str | Path) -> Path:
     return _save(fig, path)
 
 
+def plot_operating_points_by_gear(ts: pd.DataFrame, engine: Any, path: str | Path) -> Path:
+    """Engine operating points on the BSFC map [g/kWh], coloured by the optimal gear."""
+    fig, ax = _figure(figsize=(9.5, 6.5))
+    w, trq, bsfc = bsfc_grid(engine)
+    rpm = w / RADPS_PER_RPM
+    if np.isfinite(bsfc).any():
+        levels = _bsfc_levels(bsfc)
+        cs = ax.contour(rpm, trq, bsfc, levels=levels, colors="0.45", linewidths=0.6)
+        ax.clabel(cs, levels=cs.levels[::2], fmt="%.0f", fontsize="x-small", inline=True)
+    ax.plot(rpm, float(engine.torque_scale) * engine.max_torque(w), color="k", lw=2.0, label="max torque")
+    fuel = fuel_rate_kgps(ts)
+    fired = (fuel > 0) if fuel is not None else np.zeros(len(ts), bool)
+    gear = _col(ts, "gear")
+    pts_rpm = _col(ts, "engine_speed_radps") / RADPS_PER_RPM
+    pts_t = _col(ts, "engine_torque_nm")
+    for g in np.unique(gear[fired]).astype(int):
+        sel = fired & (gear == g)
+        ax.scatter(pts_rpm[sel], pts_t[sel], s=14, alpha=0.8, label=f"gear {g} ({int(sel.sum())} steps)")
+    ax.set_xlim(float(rpm[0]), float(rpm[-1]))
+    ax.set_xlabel("engine speed [rpm]")
+    ax.set_ylabel("engine torque [N·m]")
+    ax.set_title(f"Optimal engine operating points by gear on the BSFC map (g/kWh)\n{engine.name}")
+    ax.legend(loc="lower right", fontsize="small")
+    _grid(ax)
+    return _save(fig, path)
+
+
 def plot_cost_to_go(
     cost_to_go: np.ndarray,
     soc_grid: np.ndarray,
@@ -176,6 +207,10 @@ def plot_optimum(result: Any, out_dir: str | Path) -> list[Path]:
         files.append(plot_power_split(ts, out / "power_split.png"))
     if "gear" in ts.columns:
         files.append(plot_gear(ts, out / "gear.png"))
+        if getattr(result, "engine", None) is not None:
+            files.append(
+                plot_operating_points_by_gear(ts, result.engine, out / "operating_points_by_gear.png")
+            )
     op = plot_engine_operating_points(
         ts, getattr(result, "engine", None), out / "engine_operating_points.png"
     )
