@@ -59,11 +59,9 @@ def _cmd_refinement(args: argparse.Namespace) -> int:
     text = format_table(rows, args.cycle)
     print(text)
     if args.out:
-        out = Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_name(f".{out.name}.tmp")
-        tmp.write_text(text + "\n")
-        tmp.replace(out)
+        from hevsim.io import write_text_atomic
+
+        write_text_atomic(args.out, text + "\n")
     return 0
 
 

@@ -10,14 +10,12 @@ path relative to the configuration file.
 
 from __future__ import annotations
 
-import dataclasses
 import math
-import tomllib
-import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from hevsim import schema
 from hevsim.errors import ConfigError
 
 
@@ -184,19 +182,11 @@ class VehicleConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict of every value (the resolved configuration, for results)."""
-        d = dataclasses.asdict(self)
-        d.pop("base_dir")
-        return d
+        return schema.to_dict(self)
 
     def replace(self, **changes: Any) -> VehicleConfig:
         """Copy with dotted-key overrides, e.g. ``replace(**{"body.mass_kg": 1500.0})``."""
-        data = self.to_dict()
-        for key, value in changes.items():
-            section, _, name = key.partition(".")
-            if name:
-                data.setdefault(section, {})[name] = value
-            else:
-                data[section] = value
+        data = schema.with_changes(self.to_dict(), changes)
         return from_dict(data, source=f"{self.name} (modified)", base_dir=Path(self.base_dir))
 
 
@@ -235,72 +225,9 @@ BOUNDS: dict[str, tuple[float, float]] = {
 }
 
 
-def _type_name(tp: Any) -> str:
-    return {float: "a number", int: "an integer", str: "a string", bool: "true/false"}.get(tp, str(tp))
-
-
-def _check_value(value: Any, tp: Any, where: str) -> Any:
-    if tp is float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ConfigError(f"{where}: value {value!r} has the wrong type; expected a number.")
-        return float(value)
-    if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{where}: value {value!r} has the wrong type; expected an integer.")
-        return value
-    if tp is str:
-        if not isinstance(value, str):
-            raise ConfigError(f"{where}: value {value!r} has the wrong type; expected a string.")
-        return value
-    raise ConfigError(f"{where}: unsupported type {tp}.")  # pragma: no cover
-
-
-def _build_section(cls: type, data: Any, source: str, section: str) -> Any:
-    where = f"{source}: [{section}]"
-    if not isinstance(data, dict):
-        raise ConfigError(f"{where}: expected a table of keys, got {data!r}.")
-    hints = typing.get_type_hints(cls)
-    names = [f.name for f in dataclasses.fields(cls)]
-    kwargs: dict[str, Any] = {}
-    for key, value in data.items():
-        if key not in names:
-            raise ConfigError(
-                f"{source}: key '{section}.{key}' is not known; valid keys in [{section}] are: "
-                f"{', '.join(names)}."
-            )
-        full = f"{section}.{key}"
-        kwargs[key] = _check_value(value, hints[key], f"{source}: key '{full}'")
-        if full in CHOICES and kwargs[key] not in CHOICES[full]:
-            raise ConfigError(
-                f"{source}: key '{full}' = {value!r} is not a valid choice; expected one of "
-                f"{', '.join(CHOICES[full])}."
-            )
-        if full in BOUNDS:
-            lo, hi = BOUNDS[full]
-            if not lo <= kwargs[key] <= hi:
-                raise ConfigError(
-                    f"{source}: key '{full}' = {value!r} is out of range; expected a value "
-                    f"between {lo} and {hi}."
-                )
-    return cls(**kwargs)
-
-
 def from_dict(data: dict[str, Any], source: str = "<config>", base_dir: Path | None = None) -> VehicleConfig:
     """Validate a parsed configuration mapping into a :class:`VehicleConfig`."""
-    hints = typing.get_type_hints(VehicleConfig)
-    kwargs: dict[str, Any] = {"base_dir": str(base_dir or Path("."))}
-    valid = [f.name for f in dataclasses.fields(VehicleConfig) if f.name != "base_dir"]
-    for key, value in data.items():
-        if key not in valid:
-            raise ConfigError(
-                f"{source}: key '{key}' is not known; valid top-level keys are: {', '.join(valid)}."
-            )
-        tp = hints[key]
-        if isinstance(tp, type) and dataclasses.is_dataclass(tp):
-            kwargs[key] = _build_section(tp, value, source, key)
-        else:
-            kwargs[key] = _check_value(value, tp, f"{source}: key '{key}'")
-    cfg = VehicleConfig(**kwargs)
+    cfg = schema.build_config(VehicleConfig, data, source, base_dir, CHOICES, BOUNDS)
     c = cfg.controller
     if c.soc_low >= c.soc_high:
         raise ConfigError(
@@ -313,11 +240,4 @@ def from_dict(data: dict[str, Any], source: str = "<config>", base_dir: Path | N
 def load_config(path: str | Path) -> VehicleConfig:
     """Read and validate a TOML configuration file."""
     p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"{p}: configuration file not found; expected a TOML file.")
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{p}: not valid TOML ({exc}).") from exc
-    data.setdefault("name", p.stem)
-    return from_dict(data, source=str(p), base_dir=p.resolve().parent)
+    return from_dict(schema.read_toml(p), source=str(p), base_dir=p.resolve().parent)

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from hevsim import schema
 from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
@@ -160,20 +160,11 @@ class ParallelHEVConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict of every value (the resolved configuration, for results)."""
-        d = dataclasses.asdict(self)
-        d.pop("base_dir")
-        d["gearbox"]["ratios"] = list(d["gearbox"]["ratios"])
-        return d
+        return schema.to_dict(self)
 
     def replace(self, **changes: Any) -> ParallelHEVConfig:
         """Copy with dotted-key overrides, e.g. ``replace(**{"body.mass_kg": 1500.0})``."""
-        data = self.to_dict()
-        for key, value in changes.items():
-            section, _, name = key.partition(".")
-            if name:
-                data.setdefault(section, {})[name] = value
-            else:
-                data[section] = value
+        data = schema.with_changes(self.to_dict(), changes)
         return parallel_from_dict(data, source=f"{self.name} (modified)", base_dir=Path(self.base_dir))
 
 
@@ -229,85 +220,11 @@ BOUNDS: dict[str, tuple[float, float]] = {
 """Inclusive (low, high) bounds of the numeric keys (each element of a list)."""
 
 
-def _check_scalar(value: Any, tp: Any, where: str) -> Any:
-    if tp is float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ConfigError(f"{where}: value {value!r} has the wrong type; expected a number.")
-        if math.isnan(value):
-            raise ConfigError(f"{where}: value nan is not a number; expected a number.")
-        return float(value)
-    if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{where}: value {value!r} has the wrong type; expected an integer.")
-        return value
-    if tp is str:
-        if not isinstance(value, str):
-            raise ConfigError(f"{where}: value {value!r} has the wrong type; expected a string.")
-        return value
-    raise ConfigError(f"{where}: unsupported type {tp}.")  # pragma: no cover
-
-
-def _check_value(value: Any, tp: Any, source: str, full: str) -> Any:
-    where = f"{source}: key '{full}'"
-    if typing.get_origin(tp) is tuple:
-        (item_tp, _) = typing.get_args(tp)
-        if not isinstance(value, list) or not value:
-            raise ConfigError(
-                f"{where}: value {value!r} has the wrong type; expected a non-empty list of numbers."
-            )
-        out = tuple(_check_scalar(v, item_tp, f"{where}[{i}]") for i, v in enumerate(value))
-        items = out
-    else:
-        out = _check_scalar(value, tp, where)
-        items = (out,)
-    if full in CHOICES and out not in CHOICES[full]:
-        raise ConfigError(
-            f"{where} = {value!r} is not a valid choice; expected one of {', '.join(CHOICES[full])}."
-        )
-    if full in BOUNDS:
-        lo, hi = BOUNDS[full]
-        for v in items:
-            if not lo <= v <= hi:
-                raise ConfigError(
-                    f"{where} = {value!r} is out of range; expected a value between {lo} and {hi}."
-                )
-    return out
-
-
-def _build_section(cls: type, data: Any, source: str, section: str) -> Any:
-    if not isinstance(data, dict):
-        raise ConfigError(f"{source}: [{section}]: expected a table of keys, got {data!r}.")
-    hints = typing.get_type_hints(cls)
-    names = [f.name for f in dataclasses.fields(cls)]
-    kwargs: dict[str, Any] = {}
-    for key, value in data.items():
-        if key not in names:
-            raise ConfigError(
-                f"{source}: key '{section}.{key}' is not known; valid keys in [{section}] are: "
-                f"{', '.join(names)}."
-            )
-        kwargs[key] = _check_value(value, hints[key], source, f"{section}.{key}")
-    return cls(**kwargs)
-
-
 def parallel_from_dict(
     data: dict[str, Any], source: str = "<config>", base_dir: Path | None = None
 ) -> ParallelHEVConfig:
     """Validate a parsed configuration mapping into a :class:`ParallelHEVConfig`."""
-    hints = typing.get_type_hints(ParallelHEVConfig)
-    valid = [f.name for f in dataclasses.fields(ParallelHEVConfig) if f.name != "base_dir"]
-    kwargs: dict[str, Any] = {"base_dir": str(base_dir or Path("."))}
-    for key, value in data.items():
-        if key not in valid:
-            raise ConfigError(
-                f"{source}: key '{key}' is not known; valid top-level keys are: {', '.join(valid)}."
-            )
-        tp = hints[key]
-        if isinstance(tp, type) and dataclasses.is_dataclass(tp):
-            kwargs[key] = _build_section(tp, value, source, key)
-        else:
-            kwargs[key] = _check_value(value, tp, source, key)
-    cfg = ParallelHEVConfig(**kwargs)
+    cfg = schema.build_config(ParallelHEVConfig, data, source, base_dir, CHOICES, BOUNDS)
     b, e, o = cfg.battery, cfg.engine, cfg.optimization
     pairs = (
         ("battery.soc_min", b.soc_min, "battery.soc_max", b.soc_max),
@@ -334,13 +251,7 @@ def parallel_from_dict(
 def load_parallel_config(path: str | Path) -> ParallelHEVConfig:
     """Read and validate a parallel-HEV TOML configuration file."""
     p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"{p}: configuration file not found; expected a TOML file.")
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{p}: not valid TOML ({exc}).") from exc
-    data.setdefault("name", p.stem)
+    data = schema.read_toml(p)
     if "architecture" not in data:
         raise ConfigError(f"{p}: key 'architecture' is missing; expected architecture = \"{ARCHITECTURE}\".")
     return parallel_from_dict(data, source=str(p), base_dir=p.resolve().parent)
@@ -413,16 +324,7 @@ def _battery(sec: BatterySection, base: Path) -> BatteryPack:
 def build_parallel_hev(cfg: ParallelHEVConfig) -> ParallelHEV:
     """Build the component objects of a parallel HEV from its configuration."""
     base = Path(cfg.base_dir)
-    b = cfg.body
-    body = VehicleBody(
-        mass_kg=b.mass_kg,
-        drag_coefficient=b.drag_coefficient,
-        frontal_area_m2=b.frontal_area_m2,
-        rolling_resistance=b.rolling_resistance,
-        mass_factor=b.mass_factor,
-        air_density_kgpm3=b.air_density_kgpm3,
-        headwind_mps=b.headwind_mps,
-    )
+    body = VehicleBody.from_section(cfg.body)
     e = cfg.engine
     folder = resolve_component(e.data, "engine", base, "engine.data")
     engine = Engine.from_directory(

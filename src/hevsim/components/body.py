@@ -6,6 +6,7 @@ angle); forces [N] resisting motion are positive.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -89,6 +90,12 @@ class VehicleBody:
     front_axle_to_cg_m: float = 1.4
     rear_axle_to_cg_m: float = 1.6
     wheels_per_axle: int = 2
+
+    @classmethod
+    def from_section(cls, section: object) -> VehicleBody:
+        """Body from any configuration section with some of these fields (others default)."""
+        names = [f.name for f in dataclasses.fields(cls)]
+        return cls(**{n: getattr(section, n) for n in names if hasattr(section, n)})
 
     def road_load_force(self, v_mps, accel_mps2, grade=0.0):
         """Vectorised eq (32) [N] for arrays of speed [m/s], acceleration [m/s^2], grade [-]."""

@@ -93,15 +93,10 @@ def format_table(table: pd.DataFrame) -> str:
 
 def write_table(table: pd.DataFrame, out_dir: str | Path) -> list[Path]:
     """Write comparison.csv and comparison.md into ``out_dir`` (each atomically)."""
+    from hevsim.io import write_text_atomic
+
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    files = []
-    for name, text in (
-        ("comparison.csv", table.to_csv(index=False, float_format="%.6g")),
-        ("comparison.md", format_table(table) + "\n"),
-    ):
-        tmp = out / f".{name}.tmp"
-        tmp.write_text(text)
-        tmp.replace(out / name)
-        files.append(out / name)
-    return files
+    return [
+        write_text_atomic(out / "comparison.csv", table.to_csv(index=False, float_format="%.6g")),
+        write_text_atomic(out / "comparison.md", format_table(table) + "\n"),
+    ]

@@ -19,10 +19,7 @@ and metadata. See ``docs/dp.md``.
 
 from __future__ import annotations
 
-import json
 import platform
-import shutil
-import tempfile
 import time
 import tomllib
 from collections.abc import Callable
@@ -38,6 +35,7 @@ from hevsim.components.engine import Engine
 from hevsim.config import VehicleConfig, load_config
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DPInfeasibleError, DPSetupError
+from hevsim.io import atomic_directory, write_json
 from hevsim.optimal._hev_common import DETAIL_COLUMNS, HEVFormulation, hev_metrics
 from hevsim.optimal._problem import FinalTarget
 from hevsim.optimal.dp import FINAL_CONSTRAINTS, DPResult, solve_dp
@@ -295,16 +293,13 @@ class OptimizationResult:
         Files are written to a temporary sibling folder that is renamed into place, so an
         interrupted run leaves no partial folder. An existing folder is replaced.
         """
-        out = Path(out_dir)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-        try:
+        with atomic_directory(out_dir) as tmp:
             self.timeseries.to_parquet(tmp / "timeseries.parquet", index=False)
             self.timeseries.to_csv(tmp / "timeseries.csv", index=False, float_format="%.9g")
             self.costate.to_csv(tmp / "costate.csv", index=False, float_format="%.9g")
-            _write_json(tmp / "metrics.json", self.metrics)
-            _write_json(tmp / "metadata.json", self.metadata)
-            _write_json(tmp / "config.json", self.model.config.to_dict())
+            write_json(tmp / "metrics.json", self.metrics)
+            write_json(tmp / "metadata.json", self.metadata)
+            write_json(tmp / "config.json", self.model.config.to_dict())
             if self.cost_to_go is not None:
                 np.savez_compressed(
                     tmp / "cost_to_go.npz",
@@ -316,29 +311,7 @@ class OptimizationResult:
                 from hevsim.report.dp_plots import plot_optimum
 
                 plot_optimum(self, tmp)
-            if out.exists():
-                old = out.with_name(f".{out.name}.old")
-                shutil.rmtree(old, ignore_errors=True)
-                out.rename(old)
-                tmp.rename(out)
-                shutil.rmtree(old, ignore_errors=True)
-            else:
-                tmp.rename(out)
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise
-        return out
-
-
-def _write_json(path: Path, data: Any) -> None:
-    def default(o: Any) -> Any:
-        if isinstance(o, np.generic):
-            return o.item()
-        if isinstance(o, np.ndarray):
-            return o.tolist()
-        return str(o)
-
-    path.write_text(json.dumps(data, indent=2, default=default, allow_nan=True) + "\n")
+        return Path(out_dir)
 
 
 def optimize(

@@ -178,20 +178,7 @@ def _machine(sec: MachineSection, label: str, base: Path) -> ElectricMachine:
 def build_series_hev(cfg: VehicleConfig) -> SeriesHEV:
     """Build the component objects of a series HEV from its configuration."""
     base = Path(cfg.base_dir)
-    b = cfg.body
-    body = VehicleBody(
-        mass_kg=b.mass_kg,
-        drag_coefficient=b.drag_coefficient,
-        frontal_area_m2=b.frontal_area_m2,
-        rolling_resistance=b.rolling_resistance,
-        mass_factor=b.mass_factor,
-        air_density_kgpm3=b.air_density_kgpm3,
-        headwind_mps=b.headwind_mps,
-        cg_height_m=b.cg_height_m,
-        front_axle_to_cg_m=b.front_axle_to_cg_m,
-        rear_axle_to_cg_m=b.rear_axle_to_cg_m,
-        wheels_per_axle=b.wheels_per_axle,
-    )
+    body = VehicleBody.from_section(cfg.body)
     engine: Engine | None = None
     e = cfg.engine
     if cfg.genset.kind == "engine":

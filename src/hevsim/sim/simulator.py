@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-import json
 import os
 import platform
-import shutil
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,6 +17,7 @@ from hevsim.components.engine import Engine
 from hevsim.config import VehicleConfig
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, SimulationError
+from hevsim.io import atomic_directory, write_json
 from hevsim.sim import kernel as K
 from hevsim.sim.metrics import compute_metrics, energy_audit
 from hevsim.sim.model import SeriesHEV, build_series_hev
@@ -55,47 +53,24 @@ class SimulationResult:
         Files are written to a temporary sibling folder that is renamed into place, so an
         interrupted run leaves no partial folder. An existing folder is replaced.
         """
-        out = Path(out_dir)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-        try:
+        with atomic_directory(out_dir) as tmp:
             self.timeseries.to_parquet(tmp / "timeseries.parquet", index=False)
             self.timeseries.to_csv(tmp / "timeseries.csv", index=False, float_format="%.6g")
             self.events.to_csv(tmp / "events.csv", index=False)
-            _write_json(tmp / "metrics.json", self.metrics)
-            _write_json(
+            write_json(tmp / "metrics.json", self.metrics)
+            write_json(
                 tmp / "energy_audit.json",
                 {k: {"value": v, "unit": "J"} for k, v in self.energy_audit.items()},
             )
-            _write_json(tmp / "config.json", self.model.config.to_dict())
-            _write_json(tmp / "metadata.json", self.metadata)
+            write_json(tmp / "config.json", self.model.config.to_dict())
+            write_json(tmp / "metadata.json", self.metadata)
             if plots:
                 from hevsim.report.markdown import write_report
                 from hevsim.report.plots import plot_all
 
                 files = plot_all(self, tmp)
                 write_report(self, tmp, files)
-            if out.exists():
-                old = out.with_name(f".{out.name}.old")
-                shutil.rmtree(old, ignore_errors=True)
-                out.rename(old)
-                tmp.rename(out)
-                shutil.rmtree(old, ignore_errors=True)
-            else:
-                tmp.rename(out)
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise
-        return out
-
-
-def _write_json(path: Path, data: Any) -> None:
-    def default(o: Any) -> Any:
-        if isinstance(o, np.generic):
-            return o.item()
-        return str(o)
-
-    path.write_text(json.dumps(data, indent=2, default=default, allow_nan=True) + "\n")
+        return Path(out_dir)
 
 
 # Forward kernels per architecture: (single run, batch run). The driver, supervisory

@@ -1,0 +1,146 @@
+"""Validation of TOML configurations into frozen dataclasses (shared by every architecture).
+
+A configuration class is a dataclass whose fields are scalars (float, int, str), tuples of
+scalars, or section dataclasses of such fields. Every key is checked: an unknown key, a
+wrong type, a value outside ``bounds`` or not in ``choices`` raises :class:`ConfigError`
+naming the file, the key, the value and what was expected.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+import typing
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, TypeVar
+
+from hevsim.errors import ConfigError
+
+T = TypeVar("T")
+Choices = Mapping[str, tuple[str, ...]]
+Bounds = Mapping[str, tuple[float, float]]
+
+
+def _check_scalar(value: Any, tp: Any, where: str) -> Any:
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ConfigError(f"{where}: value {value!r} has the wrong type; expected a number.")
+        if math.isnan(value):
+            raise ConfigError(f"{where}: value nan is not a number; expected a number.")
+        return float(value)
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{where}: value {value!r} has the wrong type; expected an integer.")
+        return value
+    if tp is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{where}: value {value!r} has the wrong type; expected a string.")
+        return value
+    raise ConfigError(f"{where}: unsupported type {tp}.")  # pragma: no cover
+
+
+def check_value(value: Any, tp: Any, source: str, full: str, choices: Choices, bounds: Bounds) -> Any:
+    """Check one value of type ``tp`` at dotted key ``full``; returns it converted."""
+    where = f"{source}: key '{full}'"
+    if typing.get_origin(tp) is tuple:
+        (item_tp, _) = typing.get_args(tp)
+        if not isinstance(value, list) or not value:
+            raise ConfigError(
+                f"{where}: value {value!r} has the wrong type; expected a non-empty list of numbers."
+            )
+        out = tuple(_check_scalar(v, item_tp, f"{where}[{i}]") for i, v in enumerate(value))
+        items: tuple[Any, ...] = out
+    else:
+        out = _check_scalar(value, tp, where)
+        items = (out,)
+    if full in choices and out not in choices[full]:
+        raise ConfigError(
+            f"{where} = {value!r} is not a valid choice; expected one of {', '.join(choices[full])}."
+        )
+    if full in bounds:
+        lo, hi = bounds[full]
+        for v in items:
+            if not lo <= v <= hi:
+                raise ConfigError(
+                    f"{where} = {value!r} is out of range; expected a value between {lo} and {hi}."
+                )
+    return out
+
+
+def build_section(cls: type[T], data: Any, source: str, section: str, choices: Choices, bounds: Bounds) -> T:
+    """Validate the table ``[section]`` into the dataclass ``cls``."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: [{section}]: expected a table of keys, got {data!r}.")
+    hints = typing.get_type_hints(cls)
+    names = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
+    kwargs: dict[str, Any] = {}
+    for key, value in data.items():
+        if key not in names:
+            raise ConfigError(
+                f"{source}: key '{section}.{key}' is not known; valid keys in [{section}] are: "
+                f"{', '.join(names)}."
+            )
+        kwargs[key] = check_value(value, hints[key], source, f"{section}.{key}", choices, bounds)
+    return cls(**kwargs)
+
+
+def build_config(
+    cls: type[T], data: Mapping[str, Any], source: str, base_dir: Path | None, choices: Choices,
+    bounds: Bounds,
+) -> T:  # fmt: skip
+    """Validate a parsed configuration mapping into ``cls`` (which has a ``base_dir`` field)."""
+    hints = typing.get_type_hints(cls)
+    valid = [f.name for f in dataclasses.fields(cls) if f.name != "base_dir"]  # type: ignore[arg-type]
+    kwargs: dict[str, Any] = {"base_dir": str(base_dir or Path("."))}
+    for key, value in data.items():
+        if key not in valid:
+            raise ConfigError(
+                f"{source}: key '{key}' is not known; valid top-level keys are: {', '.join(valid)}."
+            )
+        tp = hints[key]
+        if isinstance(tp, type) and dataclasses.is_dataclass(tp):
+            kwargs[key] = build_section(tp, value, source, key, choices, bounds)
+        else:
+            kwargs[key] = check_value(value, tp, source, key, choices, bounds)
+    return cls(**kwargs)
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """Parse a TOML configuration file; ``name`` defaults to the file's stem."""
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError(f"{p}: configuration file not found; expected a TOML file.")
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{p}: not valid TOML ({exc}).") from exc
+    data.setdefault("name", p.stem)
+    return data
+
+
+def to_dict(cfg: Any) -> dict[str, Any]:
+    """Plain dict of every value of a configuration (tuples as lists), without ``base_dir``."""
+
+    def plain(v: Any) -> Any:
+        if isinstance(v, dict):
+            return {k: plain(x) for k, x in v.items()}
+        if isinstance(v, tuple):
+            return [plain(x) for x in v]
+        return v
+
+    d = plain(dataclasses.asdict(cfg))
+    d.pop("base_dir", None)
+    return d
+
+
+def with_changes(data: dict[str, Any], changes: Mapping[str, Any]) -> dict[str, Any]:
+    """Apply dotted-key overrides (``{"body.mass_kg": 1500.0}``) to a configuration dict."""
+    for key, value in changes.items():
+        section, _, name = key.partition(".")
+        if name:
+            data.setdefault(section, {})[name] = value
+        else:
+            data[section] = value
+    return data
