@@ -25,18 +25,8 @@ import numpy as np
 from numba import njit, prange, types
 
 from hevsim.optimal._consts import ST_FEASIBLE, ST_UNREACHABLE
-from hevsim.optimal._kernels import _row_1d
+from hevsim.optimal._kernels import _B2, _BOOL, _F, _F1, _F2, _I, _I1, _OF, _OI, _OS, _row_1d
 
-_F1 = types.Array(types.float64, 1, "A", readonly=True)
-_F2 = types.Array(types.float64, 2, "A", readonly=True)
-_B2 = types.Array(types.boolean, 2, "A", readonly=True)
-_I1 = types.Array(types.int64, 1, "A", readonly=True)
-_OF = types.Array(types.float64, 1, "A")
-_OI = types.Array(types.int64, 1, "A")
-_OS = types.Array(types.int8, 1, "A")
-_BOOL = types.boolean
-_F = types.float64
-_I = types.int64
 SIG_HULL = types.void(
     _F1, _F2, _F2, _B2, _BOOL, _F1, _BOOL, _F, _F1, _F1, _I, _F1, _I1, _BOOL, _F1,
     _F1, _F1, _I1, _F, _F, _F, _F, _I1, _BOOL,

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import platform
 import time
-import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 import hevsim
+from hevsim import schema
 from hevsim.components.engine import Engine
 from hevsim.config import VehicleConfig, load_config
 from hevsim.cycles import DriveCycle, load_cycle
@@ -163,12 +163,7 @@ def _by_type() -> dict[type, tuple[Architecture, bool]]:
 
 
 def _load_file(path: Path) -> Any:
-    if not path.is_file():
-        raise ConfigError(f"{path}: configuration file not found; expected a TOML file.")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML ({exc}).") from exc
+    data = schema.read_toml(path)
     name = data.get("architecture", DEFAULT_FILE_ARCHITECTURE)
     arch = ARCHITECTURES.get(name) if isinstance(name, str) else None
     if arch is None:
