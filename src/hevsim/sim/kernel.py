@@ -413,7 +413,8 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
         p_src = ocv * p[GSCUR] if p_gs_src > 0.0 else 0.0
         p_bat = p_m_el + p_gen_el + p[PAUX] - p_src
         sgn = 1.0 if p_bat > 0.0 else -1.0
-        ocv_b, r_bat = battery_state(bat_kind, p, bat, soc, sgn)
+        # the discharge and charge states were evaluated above for the limits
+        ocv_b, r_bat = (ocv, r_b) if sgn > 0.0 else (ocv_c, r_c)
         i_bat = current_for_power(p_bat, ocv_b, r_bat)
         if p_bat > 0.0 and ocv_b * ocv_b < 4.0 * r_bat * p_bat:
             limited = 1.0  # beyond the deliverable power: the bus sags (reported)
