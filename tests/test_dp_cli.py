@@ -42,11 +42,14 @@ def test_compare_table_reports_infeasible_runs(tmp_path: Path, capsys: pytest.Ca
     pd.DataFrame({"time_s": fast.time_s, "speed_mps": fast.speed_mps * 3.0}).to_csv(csv, index=False)
     out = tmp_path / "cmp"
     args = ["compare", str(PARALLEL), str(SERIES), "--cycles", f"fu505,{csv}", "--out", str(out)]
-    assert main([*args, "--soc-points", "81", "--input-points", "61"]) == 0
+    assert main([*args, "--soc-points", "81", "--input-points", "61", "--soc-initial", "0.7"]) == 0
     table = pd.read_csv(out / "comparison.csv")
     assert len(table) == 4
     ok = table[table["cycle"] == "fu505"]
     assert np.isfinite(ok["mpg"]).all() and (ok["compute_time_s"] > 0).all()
+    # equal terms: both vehicles start at 0.7 and sustain their charge
+    assert np.allclose(ok["soc_initial"], 0.7)
+    assert (abs(ok["soc_final"] - 0.7) <= 0.005 + 1e-9).all()
     bad = table[table["cycle"] != "fu505"]
     assert bad["mpg"].isna().all() and bad["note"].str.contains("cannot follow").all()
     text = (out / "comparison.md").read_text()

@@ -71,6 +71,10 @@ def _dp_options(args: argparse.Namespace) -> dict[str, Any]:
         opts["soc_grid_points"] = args.soc_points
     if args.input_points:
         opts["input_grid_points"] = args.input_points
+    if args.soc_initial is not None:
+        opts["soc_initial"] = args.soc_initial
+    if args.final_soc != "config":
+        opts["final_soc"] = args.final_soc
     return opts
 
 
@@ -103,7 +107,15 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_dp_options(p: argparse.ArgumentParser) -> None:
+def _add_dp_options(p: argparse.ArgumentParser, final_soc: str) -> None:
+    p.add_argument("--soc-initial", type=float, help="initial SOC [-] (default from the configuration)")
+    p.add_argument(
+        "--final-soc",
+        default=final_soc,
+        choices=("config", "sustain", "window"),
+        help="final SOC: as configured, charge sustaining (initial within the configured "
+        f"tolerance) or the configured window (default {final_soc})",
+    )
     p.add_argument("--soc-points", type=int, help="SOC grid points (default per architecture)")
     p.add_argument("--input-points", type=int, help="control grid points (default per architecture)")
     p.add_argument(
@@ -148,7 +160,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cycle", help="cycle name or CSV (default from the configuration)")
     p.add_argument("--out", help="results folder (default results/<config>_<cycle>_optimal)")
     p.add_argument("--no-plots", action="store_true", help="skip plots (and the cost-to-go store)")
-    _add_dp_options(p)
+    _add_dp_options(p, "config")
     p.set_defaults(func=_cmd_optimize)
 
     p = sub.add_parser("compare", help="DP benchmark of several configurations over several cycles")
@@ -156,7 +168,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cycles", default="udds,hwfet,us06", help="comma-separated cycle names")
     p.add_argument("--out", help="folder for comparison.csv / .md (default results/comparison)")
     p.add_argument("--save-runs", action="store_true", help="also save each run's results folder")
-    _add_dp_options(p)
+    _add_dp_options(p, "sustain")
     p.set_defaults(func=_cmd_compare)
     return parser
 
