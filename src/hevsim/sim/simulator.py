@@ -240,17 +240,7 @@ def _assemble(
     t_kernel: float,
     t_total: float,
 ) -> SimulationResult:
-    ts = pd.DataFrame(out, columns=list(K.CHANNELS))
-    for col in ("genset_state", "power_mode", "mode_reason", "battery_limited"):
-        ts[col] = ts[col].astype(np.int64)
-    ts = ts.rename(columns={"fuel_rate_kgps": "fuel_rate_gps"})
-    ts["fuel_rate_gps"] *= 1e3
-    ts.insert(3, "speed_mph", ts["speed_mps"] / MPS_PER_MPH)
-    ts.insert(2, "speed_desired_mph", ts["speed_desired_mps"] / MPS_PER_MPH)
-    pos = list(ts.columns).index("engine_speed_radps") + 1
-    ts.insert(pos, "engine_speed_rpm", ts["engine_speed_radps"].to_numpy() / RADPS_PER_RPM)
-    ts["power_mode_name"] = np.array(K.POWER_MODES)[ts["power_mode"].to_numpy()]
-    ts["genset_state_name"] = np.array(K.GENSET_STATES)[ts["genset_state"].to_numpy()]
+    ts = _timeseries(out)
     events = _events(ts)
     audit = energy_audit(energy)
     socf = summary[K.S_SOCF]
@@ -273,6 +263,33 @@ def _assemble(
         "total_time_s": t_total,
     }
     return SimulationResult(ts, metrics, audit, events, metadata, hev, cyc)
+
+
+INT_CHANNELS = ("genset_state", "power_mode", "mode_reason", "battery_limited")
+
+
+def _timeseries(out: np.ndarray) -> pd.DataFrame:
+    """The kernel's channel array as a DataFrame, with display units and state names added.
+
+    Built from one dict of columns (one copy), in the order of :data:`K.CHANNELS` with
+    ``speed_*_mph`` after the speeds and ``engine_speed_rpm`` after the engine speed.
+    """
+    cols: dict[str, Any] = {}
+    for i, name in enumerate(K.CHANNELS):
+        col = out[:, i]
+        if name in INT_CHANNELS:
+            cols[name] = col.astype(np.int64)
+        elif name == "fuel_rate_kgps":
+            cols["fuel_rate_gps"] = col * 1e3
+        else:
+            cols[name] = col
+        if name in ("speed_desired_mps", "speed_mps"):
+            cols[name.replace("_mps", "_mph")] = col / MPS_PER_MPH
+        elif name == "engine_speed_radps":
+            cols["engine_speed_rpm"] = col / RADPS_PER_RPM
+    cols["power_mode_name"] = pd.Categorical.from_codes(cols["power_mode"], pd.Index(K.POWER_MODES))
+    cols["genset_state_name"] = pd.Categorical.from_codes(cols["genset_state"], pd.Index(K.GENSET_STATES))
+    return pd.DataFrame(cols)
 
 
 def _events(ts: pd.DataFrame) -> pd.DataFrame:
