@@ -107,6 +107,57 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_cell(args: argparse.Namespace) -> int:
+    from hevsim.battery.config import run_config
+
+    result = run_config(args.config)
+    out = Path(args.out) if args.out else Path("results") / Path(args.config).stem
+    result.save(out)
+    for key, m in result.metrics.items():
+        value = m["value"] if isinstance(m, dict) else m
+        print(f"  {key:<34}{value:>12.5g}")
+    print(f"results written to {out}/")
+    return 0
+
+
+def _parse_fit(items: list[str]) -> dict[str, tuple[float, float, float]]:
+    from hevsim.errors import ConfigError
+
+    fit: dict[str, tuple[float, float, float]] = {}
+    for item in items:
+        name, _, rest = item.partition("=")
+        try:
+            init, lo, hi = (float(v) for v in rest.split(","))
+        except ValueError as exc:
+            raise ConfigError(
+                f"--fit {item!r}: expected NAME=INITIAL,LOWER,UPPER, e.g. c_heat=90,10,1000."
+            ) from exc
+        fit[name.strip()] = (init, lo, hi)
+    return fit
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from hevsim.battery.calibrate import CellTestRecord, calibrate
+    from hevsim.units import c_to_k
+
+    record = CellTestRecord.from_csv(args.test)
+    result = calibrate(
+        args.params,
+        record,
+        _parse_fit(args.fit),
+        soc_initial=args.soc_initial,
+        port_temp_k=c_to_k(args.ambient_c) if args.ambient_c is not None else None,
+    )
+    out = Path(args.out) if args.out else Path("results") / f"calibration_{Path(args.test).stem}"
+    result.save(out)
+    for name, value in result.values.items():
+        print(f"  {name:<28}{value:>12.5g} +/- {result.std_errors[name]:.2g}")
+    for sig, err in result.rmse.items():
+        print(f"  RMSE {sig:<23}{err:>12.4g}")
+    print(f"results written to {out}/ (fit.json, timeseries.csv, overlay.png)")
+    return 0
+
+
 def _add_dp_options(p: argparse.ArgumentParser, final_soc: str) -> None:
     p.add_argument("--soc-initial", type=float, help="initial SOC [-] (default from the configuration)")
     p.add_argument(
@@ -170,6 +221,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--save-runs", action="store_true", help="also save each run's results folder")
     _add_dp_options(p, "sustain")
     p.set_defaults(func=_cmd_compare)
+
+    p = sub.add_parser("cell", help="electro-thermal cell or module run (examples/cell.toml)")
+    p.add_argument("config", help="cell/module configuration (TOML)")
+    p.add_argument("--out", help="results folder (default results/<config>)")
+    p.set_defaults(func=_cmd_cell)
+
+    p = sub.add_parser("calibrate", help="fit cell parameters to a test file")
+    p.add_argument("params", help="cell parameter set: shipped name or TOML file")
+    p.add_argument("test", help="test CSV: time_s, current_a (discharge > 0), voltage_v, temp_k")
+    p.add_argument(
+        "--fit",
+        nargs="+",
+        required=True,
+        metavar="NAME=INIT,LO,HI",
+        help="parameters to fit with initial value and bounds (see hevsim.battery.calibrate.FITTABLE)",
+    )
+    p.add_argument("--soc-initial", type=float, default=1.0, help="SOC at the start of the test")
+    p.add_argument("--ambient-c", type=float, help="heat-port temperature [degC] (default: first sample)")
+    p.add_argument("--out", help="results folder")
+    p.set_defaults(func=_cmd_calibrate)
     return parser
 
 

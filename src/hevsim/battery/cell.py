@@ -1,0 +1,163 @@
+"""Cell object and its simulation result (thin layer over :mod:`hevsim.battery.kernel`)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import pandas as pd
+
+from hevsim.battery import kernel as K
+from hevsim.battery.params import CellParameters, load_cell_parameters
+from hevsim.errors import InputError
+from hevsim.io import atomic_directory, write_json
+from hevsim.tables import FloatArray
+
+
+def as_profile(values: npt.ArrayLike, n: int, what: str, unit: str) -> FloatArray:
+    """A per-step array of length ``n`` from a scalar or an array (checked finite)."""
+    a = np.asarray(values, dtype=float)
+    if a.ndim == 0:
+        a = np.full(n, float(a))
+    if a.shape != (n,):
+        raise InputError(f"{what}: expected a scalar or {n} values [{unit}], got shape {a.shape}.")
+    if not np.all(np.isfinite(a)):
+        k = int(np.flatnonzero(~np.isfinite(a))[0])
+        raise InputError(f"{what}: value {a[k]!r} at step {k} is not finite; expected numbers [{unit}].")
+    return np.ascontiguousarray(a)
+
+
+def check_dt(dt: float) -> float:
+    """A positive finite step [s]."""
+    if not (np.isfinite(dt) and dt > 0):
+        raise InputError(f"time step dt = {dt!r} s: expected a positive number of seconds.")
+    return float(dt)
+
+
+@dataclass
+class CellResult:
+    """Time series (``timeseries``, columns with units), scalar ``metrics`` and ``metadata``.
+
+    Row k holds step k: ``time_s`` is the end of the step; the current is the step's;
+    voltages, SOC and temperature are at the end of the step; heat flows are step averages.
+    """
+
+    timeseries: pd.DataFrame
+    metrics: dict[str, float]
+    metadata: dict[str, Any] = field(default_factory=dict)
+    final_state: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+    def save(self, out_dir: str | Path) -> Path:
+        """Write ``timeseries.csv``, ``metrics.json`` and ``metadata.json`` atomically."""
+        with atomic_directory(out_dir) as tmp:
+            self.timeseries.to_csv(tmp / "timeseries.csv", index=False)
+            write_json(tmp / "metrics.json", self.metrics)
+            write_json(tmp / "metadata.json", self.metadata)
+        return Path(out_dir)
+
+
+class Cell:
+    """An electro-thermal cell (thesis eqs 33-41) with its current state.
+
+    Args:
+        params: a :class:`CellParameters` or the name/path of a parameter file.
+        soc_initial: SOC_ini [-] of eq (37).
+        temp_k: initial core temperature [K].
+        q_ini_c: initial transferred charge Q_ini [C] (eqs 34, 39).
+    """
+
+    def __init__(
+        self,
+        params: CellParameters | str | Path,
+        soc_initial: float = 1.0,
+        temp_k: float = 298.15,
+        q_ini_c: float = 0.0,
+    ) -> None:
+        self.params = params if isinstance(params, CellParameters) else load_cell_parameters(params)
+        if not 0.0 <= soc_initial <= 1.0:
+            raise InputError(f"cell {self.params.name}: soc_initial {soc_initial!r} must be between 0 and 1.")
+        if not temp_k > 0:
+            raise InputError(f"cell {self.params.name}: temp_k {temp_k!r} K must be > 0.")
+        if q_ini_c < 0:
+            raise InputError(f"cell {self.params.name}: q_ini_c {q_ini_c!r} C must be >= 0.")
+        self.soc_initial = float(soc_initial)
+        self.state = self.params.initial_state(temp_k, q_ini_c)
+        self.p = self.params.vector(self.soc_initial)
+
+    @property
+    def soc(self) -> float:
+        """Current SOC [-] (eq 37)."""
+        t = self.params.temperature_k
+        cap = K.cell_capacity(
+            self.p, t, self.params.capacity_factor, self.state[K.SQABS], self.state[K.STEMP]
+        )
+        return float(self.soc_initial - self.state[K.SQ] / cap)
+
+    def stored_energy_j(self) -> float:
+        """Energy in the RC capacitors [J]."""
+        tabs = self.params.tables()
+        return float(K.rc_energy(self.p, tabs[7], tabs[8], self.state))
+
+    def simulate(
+        self,
+        current_profile: npt.ArrayLike,
+        dt: float,
+        port_temperature: npt.ArrayLike = 298.15,
+        advance: bool = True,
+    ) -> CellResult:
+        """Simulate the cell over ``current_profile`` [A] (discharge > 0), one value per step.
+
+        ``dt`` [s] is the step; ``port_temperature`` [K] is a scalar or one value per step.
+        The cell's state advances (unless ``advance`` is false). Returns a :class:`CellResult`.
+        """
+        t0 = time.perf_counter()
+        dt = check_dt(dt)
+        i = np.asarray(current_profile, dtype=float)
+        if i.ndim != 1 or i.size == 0:
+            raise InputError(f"current_profile: expected a non-empty 1-D array [A], got shape {i.shape}.")
+        i = as_profile(i, i.size, "current_profile", "A")
+        tp = as_profile(port_temperature, i.size, "port_temperature", "K")
+        x = self.state.copy()
+        e_rc0 = self.stored_energy_j()
+        out = np.empty((i.size, len(K.RECORD)))
+        tabs = self.params.tables()
+        K.run_cell(self.p, *tabs, x, i, dt, tp, out)  # type: ignore[call-arg]
+        e_rc1 = float(K.rc_energy(self.p, tabs[7], tabs[8], x))
+        if advance:
+            self.state = x
+        elapsed = time.perf_counter() - t0
+        ts = pd.DataFrame({"time_s": dt * np.arange(1, i.size + 1), "current_a": i, "port_temp_k": tp})
+        for j, name in enumerate(K.RECORD):
+            if not name.startswith("e_"):
+                ts[name] = out[:, j]
+        ts["q_c"] = np.cumsum(i) * dt + (x[K.SQ] - i.sum() * dt)
+        ts["qabs_c"] = np.cumsum(np.abs(i)) * dt + (x[K.SQABS] - np.abs(i).sum() * dt)
+        e = out[:, [K.REEL, K.RECH, K.REHEAT, K.REPORT]].sum(axis=0)
+        metrics = {
+            "duration_s": float(i.size * dt),
+            "charge_out_c": float(i.sum() * dt),
+            "electrical_energy_out_j": float(e[0]),
+            "chemical_energy_change_j": float(e[1]),
+            "heat_j": float(e[2]),
+            "heat_to_port_j": float(e[3]),
+            "rc_energy_change_j": e_rc1 - e_rc0,
+            "energy_balance_residual_j": float(e[0] + e[1] + e[2] + (e_rc1 - e_rc0)),
+            "min_voltage_v": float(out[:, K.RV].min()),
+            "max_voltage_v": float(out[:, K.RV].max()),
+            "max_temp_k": float(out[:, K.RTEMP].max()),
+            "final_soc": float(out[-1, K.RSOC]),
+            "final_cycles": float(x[K.SCYC]),
+            "final_qabs_c": float(x[K.SQABS]),
+        }
+        meta = {
+            "cell": self.params.name,
+            "parameters_source": self.params.source,
+            "dt_s": dt,
+            "soc_initial": self.soc_initial,
+            "elapsed_s": elapsed,
+        }
+        return CellResult(ts, metrics, meta, x)

@@ -1,0 +1,75 @@
+"""Integration point: the cell pack through the vehicle kernel's battery interface (item 8)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numba import njit
+
+from hevsim.battery import Module, load_cell_parameters
+from hevsim.battery.vehicle import (
+    battery_ecm,
+    battery_ecm_advance,
+    ecm_kernel_tables,
+    pad_tables_kind,
+    quasi_static_pack,
+    vehicle_parameter_values,
+)
+from hevsim.components.battery import current_for_power, pack_ocv_r
+
+
+@njit(cache=False)
+def _dispatch(kind, p, bat, soc, sign):
+    """What the kernel's battery_state dispatcher becomes with the ECM kind (code 1)."""
+    if kind == 1:
+        return battery_ecm(p, bat, soc, sign)
+    return pack_ocv_r(soc, 298.15, sign, bat[0], bat[1], bat[2], bat[3], bat[4], 2.0, 6.0, 0.0)
+
+
+@njit(cache=False)
+def _loop(kind, p, bat, power_w, dt, v_out, i_out):
+    """The kernel's battery part: limits, current for power, then the state advance."""
+    soc = 0.9
+    for k in range(power_w.shape[0]):
+        sgn = 1.0 if power_w[k] > 0.0 else -1.0
+        ocv, r = _dispatch(kind, p, bat, soc, sgn)
+        i = current_for_power(power_w[k], ocv, r)
+        v_out[k] = ocv - r * i
+        i_out[k] = i
+        if kind == 1:
+            battery_ecm_advance(p, bat, i, dt)
+
+
+def test_ecm_kind_reproduces_the_module_model() -> None:
+    rng = np.random.default_rng(2)
+    power = np.repeat(rng.normal(100.0, 300.0, 60), 5)
+    dt = 1.0
+    bat = ecm_kernel_tables("thesis_table_4_1", 2, 6, 0.9, 298.15, dt)
+    v = np.empty(power.size)
+    i = np.empty(power.size)
+    _loop(1, np.zeros(3), bat, power, dt, v, i)
+    np.testing.assert_allclose(v * i, power, rtol=1e-10)  # the power is delivered exactly
+    m = Module("thesis_table_4_1", 2, 6, soc_initial=0.9, temp_k=298.15)
+    r = m.simulate(i, dt, 298.15)
+    np.testing.assert_allclose(r.timeseries["voltage_avg_v"], v, rtol=1e-9)
+    assert bat[11][6] == pytest.approx(r.cells[-1, 0, 2], rel=1e-12)  # cell temperature
+
+
+def test_tables_kind_padded_to_the_same_types_compiles_in_one_dispatcher() -> None:
+    pack = quasi_static_pack("saft_li_ion_6ah", 2, 6)
+    bat = pad_tables_kind(pack.kernel_tables())
+    v = np.empty(10)
+    i = np.empty(10)
+    _loop(0, np.zeros(3), bat, np.full(10, 200.0), 1.0, v, i)
+    ocv = 2 * pack.ocv_cell(0.9, 298.15)
+    assert v[0] == pytest.approx(float(ocv) - float(pack.resistance(0.9, 1.0, 298.15)) * i[0], rel=1e-12)
+
+
+def test_quasi_static_pack_values() -> None:
+    p = load_cell_parameters("thesis_table_4_1")
+    pack = quasi_static_pack(p, 2, 6, temp_k=313.0)
+    r_dis = 0.014 * (1 + 0.013 * 0.0) + 0.005  # table temperature is T_ref (293 K): clamped
+    assert float(pack.r_discharge_cell(0.5, 313.0)) == pytest.approx(r_dis)
+    assert pack.capacity_cell_ah == pytest.approx(2880.0 * (1 - 1.6e-3 * 20) / 3600.0)
+    vals = vehicle_parameter_values(p, 2, 6, 313.0)
+    assert vals["bat_ns"] == 2.0 and vals["bat_capacity_ah"] == pytest.approx(pack.capacity_cell_ah)
