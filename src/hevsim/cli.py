@@ -158,6 +158,14 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_thermal(args: argparse.Namespace) -> int:
+    from hevsim.thermal.run import format_summary, run_thermal
+
+    out = Path(args.out) if args.out else Path("results") / Path(args.config).stem
+    print(format_summary(run_thermal(args.config, out)))
+    return 0
+
+
 def _add_dp_options(p: argparse.ArgumentParser, final_soc: str) -> None:
     p.add_argument("--soc-initial", type=float, help="initial SOC [-] (default from the configuration)")
     p.add_argument(
@@ -241,6 +249,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ambient-c", type=float, help="heat-port temperature [degC] (default: first sample)")
     p.add_argument("--out", help="results folder")
     p.set_defaults(func=_cmd_calibrate)
+
+    p = sub.add_parser("thermal", help="3D FEM heat model of a battery module with cooling plate and coolant")
+    p.add_argument("config", help="module thermal configuration (TOML), e.g. examples/module_thermal.toml")
+    p.add_argument("--out", help="results folder (default results/<config>)")
+    p.set_defaults(func=_cmd_thermal)
     return parser
 
 

@@ -1,0 +1,545 @@
+"""One call for a module case: configuration -> mesh -> coupled transient -> results folder.
+
+``run_thermal(config_path, out_dir)`` is what ``hevsim thermal CONFIG --out DIR`` runs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hevsim.errors import ConfigError
+from hevsim.schema import build_config, check_value, read_toml, to_dict
+from hevsim.thermal.geometry import PART_ORDER, ModuleGeometry
+from hevsim.thermal.materials import (
+    DEFAULT_PART_MATERIALS,
+    FILM_COEFFICIENT_W_M2K,
+    GAP_CONDUCTANCE_W_M2K,
+    TABLE_4_3,
+    Material,
+)
+
+KELVIN = 273.15
+LITRE_PER_MIN_M3_S = 1.0 / 60000.0
+
+
+@dataclass(frozen=True)
+class SimulationSection:
+    """Transient run: duration and step [s], theta, temperatures [°C], films [W/(m^2 K)], heat [W]."""
+
+    duration_s: float = 300.0
+    dt_s: float = 1.0
+    theta: float = 1.0
+    initial_temp_c: float = 30.0
+    ambient_temp_c: float = 30.0
+    film_w_m2k: float = FILM_COEFFICIENT_W_M2K
+    gap_conductance_w_m2k: float = GAP_CONDUCTANCE_W_M2K
+    cell_heat_w: tuple[float, ...] = (1.0,)
+    coupling_iterations: int = 1
+
+
+@dataclass(frozen=True)
+class CoolantSection:
+    """Coolant: inlet [°C], flow [L/min], channel segments, properties (Table 4.4 defaults)."""
+
+    inlet_temp_c: float = 15.0
+    flow_l_min: float = 10.0
+    segments: int = 30
+    conductivity_w_mk: float = 0.43
+    density_kg_m3: float = 1056.0
+    viscosity_pa_s: float = 0.0085
+    specific_heat_j_kgk: float = 3300.0
+
+
+@dataclass(frozen=True)
+class OutputSection:
+    """What to write: field snapshots every ``field_every_s`` [s], hot spots, pictures (0/1)."""
+
+    field_every_s: float = 60.0
+    hot_spots: int = 10
+    pictures: int = 1
+
+
+@dataclass(frozen=True)
+class ThermalConfig:
+    """A validated module thermal case (see ``examples/module_thermal.toml``)."""
+
+    name: str = "module_thermal"
+    base_dir: str = "."
+    geometry: ModuleGeometry = field(default_factory=ModuleGeometry)
+    simulation: SimulationSection = field(default_factory=SimulationSection)
+    coolant: CoolantSection = field(default_factory=CoolantSection)
+    output: OutputSection = field(default_factory=OutputSection)
+    materials: dict[str, Material] = field(default_factory=dict)
+    contact: dict[str, float] = field(default_factory=dict)
+
+
+_BOUNDS: dict[str, tuple[float, float]] = {
+    "simulation.duration_s": (0.0, 1e7),
+    "simulation.dt_s": (1e-6, 1e5),
+    "simulation.theta": (0.5, 1.0),
+    "simulation.initial_temp_c": (-60.0, 300.0),
+    "simulation.ambient_temp_c": (-60.0, 300.0),
+    "simulation.film_w_m2k": (0.0, 1e6),
+    "simulation.gap_conductance_w_m2k": (1e-9, 1e9),
+    "simulation.cell_heat_w": (-1e4, 1e4),
+    "simulation.coupling_iterations": (1, 20),
+    "coolant.inlet_temp_c": (-40.0, 150.0),
+    "coolant.flow_l_min": (1e-6, 1e4),
+    "coolant.segments": (1, 10000),
+    "coolant.conductivity_w_mk": (1e-6, 1e3),
+    "coolant.density_kg_m3": (1e-3, 1e5),
+    "coolant.viscosity_pa_s": (1e-9, 1e3),
+    "coolant.specific_heat_j_kgk": (1.0, 1e6),
+    "output.field_every_s": (0.0, 1e9),
+    "output.hot_spots": (0, 1000),
+    "output.pictures": (0, 1),
+    "geometry.rows": (1, 20),
+    "geometry.columns": (1, 40),
+    "geometry.channel_passes": (1, 40),
+    "geometry.mesh_size_m": (2e-4, 0.1),
+    **{
+        f"geometry.{f.name}": (1e-5, 2.0)
+        for f in dataclasses.fields(ModuleGeometry)
+        if f.name.endswith("_m") and f.name != "mesh_size_m"
+    },
+}
+_MATERIAL_KEYS = ("material", "conductivity_w_mk", "density_kg_m3", "specific_heat_j_kgk")
+
+
+def thermal_config_from_dict(
+    data: dict[str, Any], source: str = "<dict>", base_dir: Path | None = None
+) -> ThermalConfig:
+    """Validate a parsed TOML mapping into a :class:`ThermalConfig`."""
+    data = dict(data)
+    raw_mat = data.pop("materials", {})
+    raw_contact = data.pop("contact", {})
+    cfg = build_config(ThermalConfig, data, source, base_dir, {}, _BOUNDS)
+    if not isinstance(raw_mat, dict):
+        raise ConfigError(f"{source}: [materials]: expected tables [materials.<part>], got {raw_mat!r}.")
+    materials = {p: TABLE_4_3[DEFAULT_PART_MATERIALS[p]] for p in PART_ORDER}
+    for part, spec in raw_mat.items():
+        if part not in PART_ORDER:
+            raise ConfigError(
+                f"{source}: key 'materials.{part}' is not a part; valid parts are: {', '.join(PART_ORDER)}."
+            )
+        if not isinstance(spec, dict):
+            raise ConfigError(f"{source}: key 'materials.{part}': expected a table, got {spec!r}.")
+        base = materials[part]
+        for key, value in spec.items():
+            full = f"materials.{part}.{key}"
+            if key not in _MATERIAL_KEYS:
+                raise ConfigError(
+                    f"{source}: key '{full}' is not known; valid keys are: {', '.join(_MATERIAL_KEYS)}."
+                )
+            if key == "material":
+                check_value(value, str, source, full, {full: tuple(TABLE_4_3)}, {})
+                base = dataclasses.replace(TABLE_4_3[value])
+        props = {
+            k: check_value(v, float, source, f"materials.{part}.{k}", {}, {})
+            for k, v in spec.items()
+            if k != "material"
+        }
+        materials[part] = dataclasses.replace(base, **props).check(f"{source}: key 'materials.{part}'")
+    if not isinstance(raw_contact, dict):
+        raise ConfigError(f"{source}: [contact]: expected 'partA|partB' = conductance [W/(m^2 K)].")
+    contact = {
+        str(k): check_value(v, float, source, f"contact.{k}", {}, {f"contact.{k}": (1e-9, 1e9)})
+        for k, v in raw_contact.items()
+    }
+    cfg.geometry.check(f"{source}: [geometry]")
+    return dataclasses.replace(cfg, materials=materials, contact=contact)
+
+
+def load_thermal_config(path: str | Path) -> ThermalConfig:
+    """Read and validate a thermal TOML file."""
+    p = Path(path)
+    return thermal_config_from_dict(read_toml(p), str(p), p.parent)
+
+
+@dataclass
+class ThermalResult:
+    """Time series (SI and °C columns), per-part / per-cell statistics, hot spots and metadata."""
+
+    timeseries: dict[str, np.ndarray]
+    part_stats: dict[str, dict[str, float]]
+    cell_stats: list[dict[str, float]]
+    hot_spots: list[dict[str, Any]]
+    metrics: dict[str, dict[str, Any]]
+    metadata: dict[str, Any]
+    out_dir: Path | None = None
+
+
+def hot_spots(
+    points_m: np.ndarray, temp_c: np.ndarray, part_names: list[str], count: int, min_separation_m: float
+) -> list[dict[str, Any]]:
+    """The ``count`` hottest nodes at least ``min_separation_m`` apart (greedy, hottest first)."""
+    order = np.argsort(-temp_c, kind="stable")
+    chosen: list[int] = []
+    for i in order[: max(20000, count)]:
+        if len(chosen) >= count:
+            break
+        if chosen and np.min(np.linalg.norm(points_m[chosen] - points_m[i], axis=1)) < min_separation_m:
+            continue
+        chosen.append(int(i))
+    return [
+        {
+            "rank": r + 1,
+            "x_m": float(points_m[i, 0]),
+            "y_m": float(points_m[i, 1]),
+            "z_m": float(points_m[i, 2]),
+            "part": part_names[i],
+            "temp_c": float(temp_c[i]),
+        }
+        for r, i in enumerate(chosen)
+    ]
+
+
+def run_thermal(config_path: str | Path | ThermalConfig, out_dir: str | Path | None) -> ThermalResult:
+    """Run a module case end to end; writes the results folder atomically when ``out_dir`` is given."""
+    from hevsim.thermal.coolant import ChannelModel, Coolant, segments_along_path
+    from hevsim.thermal.geometry import build_module_mesh
+    from hevsim.thermal.mesh import CHANNEL_WALL, mesh_faces, triangle_areas_m2
+    from hevsim.thermal.solver import HeatModel, discretise
+
+    cfg = config_path if isinstance(config_path, ThermalConfig) else load_thermal_config(config_path)
+    sim, cool = cfg.simulation, cfg.coolant
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    mesh = build_module_mesh(cfg.geometry, source=f"{cfg.name}: geometry")
+    timings["mesh_s"] = time.perf_counter() - t0
+    ncell = mesh.n_cells
+    heat = np.asarray(sim.cell_heat_w, dtype=float)
+    if heat.size not in (1, ncell):
+        raise ConfigError(
+            f"{cfg.name}: key 'simulation.cell_heat_w' has {heat.size} values; expected 1 or {ncell}."
+        )
+
+    t0 = time.perf_counter()
+    wall = mesh.facet_groups[CHANNEL_WALL]
+    assert mesh.channel_path_m is not None
+    seg = segments_along_path(mesh.points_m[wall].mean(axis=1), mesh.channel_path_m, cool.segments)
+    used = np.unique(seg)
+    seg = np.searchsorted(used, seg)  # drop empty segments (coarse meshes)
+    disc = discretise(
+        mesh,
+        cfg.materials,
+        gap_conductance_w_m2k=sim.gap_conductance_w_m2k,
+        interface_conductance_w_m2k=cfg.contact,
+        film_w_m2k=sim.film_w_m2k,
+        ambient_k=sim.ambient_temp_c + KELVIN,
+        wall_segment_of_facet=seg,
+    )
+    coolant = Coolant(
+        cool.conductivity_w_mk, cool.density_kg_m3, cool.viscosity_pa_s, cool.specific_heat_j_kgk
+    )
+    channel = ChannelModel(
+        used.size,
+        inlet_temp_k=cool.inlet_temp_c + KELVIN,
+        flow_m3_s=cool.flow_l_min * LITRE_PER_MIN_M3_S,
+        width_m=cfg.geometry.channel_width_m,
+        height_m=cfg.geometry.channel_height_m,
+        coolant=coolant,
+    )
+    model = HeatModel(
+        disc,
+        dt_s=sim.dt_s,
+        theta=sim.theta,
+        initial_temp_k=sim.initial_temp_c + KELVIN,
+        coolant=channel,
+        coupling_iterations=sim.coupling_iterations,
+    )
+    model.set_cell_heat_w(heat)
+    timings["assemble_factorise_s"] = time.perf_counter() - t0
+
+    # observation operators
+    n = disc.points_m.shape[0]
+    node_vol = np.bincount(disc.tets.ravel(), weights=np.repeat(disc.tet_volume_m3 / 4, 4), minlength=n)
+    cell_of_node = np.full(n, -1)
+    cell_of_node[disc.tets[mesh.cell_of_tet >= 0].ravel()] = np.repeat(
+        mesh.cell_of_tet[mesh.cell_of_tet >= 0], 4
+    )
+    faces = mesh_faces(disc.tets)
+    surf = (faces.other < 0) & (mesh.cell_of_tet[faces.owner] >= 0)
+    tri = faces.nodes[surf]
+    a3 = np.repeat(triangle_areas_m2(disc.points_m, tri) / 3, 3)
+    cid = np.repeat(mesh.cell_of_tet[faces.owner[surf]], 3)
+    surf_w = np.zeros((ncell, n))
+    np.add.at(surf_w, (cid, tri.ravel()), a3)
+    surf_w /= surf_w.sum(axis=1, keepdims=True)
+    cell_nodes = [np.flatnonzero(cell_of_node == c) for c in range(ncell)]
+
+    steps = round(sim.duration_s / sim.dt_s)
+    every = max(1, round(cfg.output.field_every_s / sim.dt_s)) if cfg.output.field_every_s > 0 else 0
+    rows: dict[str, list[float]] = {
+        k: []
+        for k in (
+            "time_s",
+            "heat_in_w",
+            "cooling_power_w",
+            "wall_heat_w",
+            "film_heat_w",
+            "outlet_temp_c",
+            "cell_max_temp_c",
+            "cell_mean_temp_c",
+            "module_max_temp_c",
+        )
+    }
+    cell_surface: list[np.ndarray] = []
+    snapshots: list[tuple[float, np.ndarray]] = []
+
+    def record() -> None:
+        tc = model.temp_k - KELVIN
+        rep = model.report()
+        rows["time_s"].append(model.time_s)
+        rows["heat_in_w"].append(rep.heat_in_w)
+        rows["cooling_power_w"].append(channel.heat_w)
+        rows["wall_heat_w"].append(rep.wall_w)
+        rows["film_heat_w"].append(rep.film_w)
+        rows["outlet_temp_c"].append(channel.outlet_temp_k - KELVIN)
+        rows["cell_max_temp_c"].append(max(float(tc[c].max()) for c in cell_nodes))
+        cell_mean = np.array([np.average(tc[c], weights=node_vol[c]) for c in cell_nodes])
+        rows["cell_mean_temp_c"].append(float(cell_mean.mean()))
+        rows["module_max_temp_c"].append(float(tc.max()))
+        cell_surface.append(surf_w @ tc)
+
+    channel.fluid_temperature_k(model.wall_temp_k(), disc.wall_area_m2)
+    record()
+    if every:
+        snapshots.append((0.0, model.temp_k - KELVIN))
+    t0 = time.perf_counter()
+    for k in range(1, steps + 1):
+        model.step()
+        record()
+        if every and (k % every == 0 or k == steps):
+            snapshots.append((model.time_s, model.temp_k - KELVIN))
+    timings["solve_s"] = time.perf_counter() - t0
+
+    tc = model.temp_k - KELVIN
+    part_of_node = [mesh.part_names[i] for i in disc.node_part]
+    part_stats = {}
+    for pi, name in enumerate(mesh.part_names):
+        sel = disc.node_part == pi
+        if sel.any():
+            part_stats[name] = {
+                "min_temp_c": float(tc[sel].min()),
+                "mean_temp_c": float(np.average(tc[sel], weights=node_vol[sel])),
+                "max_temp_c": float(tc[sel].max()),
+            }
+    cell_stats = []
+    for c, nodes in enumerate(cell_nodes):
+        r, col = divmod(c, cfg.geometry.columns)
+        cell_stats.append(
+            {
+                "cell": c + 1,
+                "row": r + 1,
+                "column": col + 1,
+                "min_temp_c": float(tc[nodes].min()),
+                "mean_temp_c": float(np.average(tc[nodes], weights=node_vol[nodes])),
+                "max_temp_c": float(tc[nodes].max()),
+                "surface_temp_c": float(cell_surface[-1][c]),
+            }
+        )
+    spots = hot_spots(disc.points_m, tc, part_of_node, cfg.output.hot_spots, cfg.geometry.cell_pitch_m / 2)
+    ts = {k: np.asarray(v) for k, v in rows.items()}
+    surf_arr = np.asarray(cell_surface)
+    for c in range(ncell):
+        ts[f"cell{c + 1}_surface_temp_c"] = surf_arr[:, c]
+    rel_balance = (ts["heat_in_w"][-1] - ts["wall_heat_w"][-1] - ts["film_heat_w"][-1]) if steps else 0.0
+    metrics = {
+        "cell_max_temp_c": {"value": float(ts["cell_max_temp_c"][-1]), "unit": "degC"},
+        "module_max_temp_c": {"value": float(ts["module_max_temp_c"][-1]), "unit": "degC"},
+        "outlet_temp_c": {"value": float(ts["outlet_temp_c"][-1]), "unit": "degC"},
+        "cooling_power_w": {"value": float(ts["cooling_power_w"][-1]), "unit": "W"},
+        "heat_removed_j": {
+            "value": float(np.trapezoid(ts["cooling_power_w"], ts["time_s"])) if steps else 0.0,
+            "unit": "J",
+        },
+        "heat_rate_residual_w": {
+            "value": float(rel_balance),
+            "unit": "W",
+            "note": "heat in - wall - film at the end; the difference is being stored",
+        },
+        "reynolds": {"value": channel.reynolds, "unit": "-"},
+        "nusselt": {"value": channel.nusselt, "unit": "-"},
+        "wall_h_w_m2k": {"value": channel.h_w_m2k, "unit": "W/(m^2 K)"},
+        "nodes": {"value": int(mesh.points_m.shape[0]), "unit": "-"},
+        "nodes_split": {"value": int(n), "unit": "-"},
+        "tetrahedra": {"value": int(mesh.tets.shape[0]), "unit": "-"},
+    }
+    metadata = {
+        "config": to_dict(dataclasses.replace(cfg, materials={}, contact={})),
+        "materials": {k: dataclasses.asdict(v) for k, v in cfg.materials.items()},
+        "contact_w_m2k": cfg.contact,
+        "interfaces_m2": disc.interfaces,
+        "timings_s": timings,
+        "factorisations": model.factorisations,
+    }
+    result = ThermalResult(ts, part_stats, cell_stats, spots, metrics, metadata)
+    if out_dir is not None:
+        _write(result, Path(out_dir), disc, mesh, snapshots, cfg, tc)
+    return result
+
+
+def format_summary(result: ThermalResult) -> str:
+    """A few lines for the terminal: metrics and the hottest spots."""
+    m = result.metrics
+    lines = [f"{result.metadata['config'].get('name', 'module')}: {m['nodes']['value']} nodes, "
+             f"{m['tetrahedra']['value']} tetrahedra"]  # fmt: skip
+    for key in ("cell_max_temp_c", "module_max_temp_c", "outlet_temp_c", "cooling_power_w", "heat_removed_j"):
+        lines.append(f"  {key:<22}{m[key]['value']:>12.4f} {m[key]['unit']}")
+    lines.append("  hot spots (part, x y z [mm], °C):")
+    for h in result.hot_spots[:5]:
+        lines.append(
+            f"    {h['rank']:>2} {h['part']:<10}{1e3 * h['x_m']:7.1f}{1e3 * h['y_m']:7.1f}"
+            f"{1e3 * h['z_m']:7.1f}{h['temp_c']:9.3f}"
+        )
+    if result.out_dir is not None:
+        lines.append(
+            f"results written to {result.out_dir}/ (summary.json, timeseries.csv, temperature.pvd, PNGs)"
+        )
+    return "\n".join(lines)
+
+
+def _write(
+    result: ThermalResult,
+    out: Path,
+    disc: Any,
+    mesh: Any,
+    snapshots: list[tuple[float, np.ndarray]],
+    cfg: ThermalConfig,
+    final_c: np.ndarray,
+) -> None:
+    import csv
+
+    import meshio
+
+    from hevsim.io import atomic_directory, write_json
+
+    with atomic_directory(out) as tmp:
+        keys = list(result.timeseries)
+        with open(tmp / "timeseries.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(keys)
+            for row in zip(*(result.timeseries[k] for k in keys), strict=True):
+                w.writerow([f"{v:.10g}" for v in row])
+        write_json(
+            tmp / "summary.json",
+            {
+                "name": cfg.name,
+                "metrics": result.metrics,
+                "parts": result.part_stats,
+                "cells": result.cell_stats,
+                "hot_spots": result.hot_spots,
+                "metadata": result.metadata,
+            },
+        )
+        fields = tmp / "fields"
+        fields.mkdir()
+        cells = [("tetra", disc.tets)]
+        cell_data = {"part": [mesh.part_of_tet.astype(np.int32)], "cell": [mesh.cell_of_tet.astype(np.int32)]}
+        entries = []
+        for i, (t, temp) in enumerate(snapshots):
+            name = f"temperature_{i:04d}.vtu"
+            meshio.write(
+                fields / name,
+                meshio.Mesh(disc.points_m, cells, point_data={"temperature_c": temp}, cell_data=cell_data),
+                binary=True,
+            )
+            entries.append(f'    <DataSet timestep="{t:g}" part="0" file="fields/{name}"/>')
+        (tmp / "temperature.pvd").write_text(
+            '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
+            + "\n".join(entries)
+            + "\n  </Collection>\n</VTKFile>\n"
+        )
+        if cfg.output.pictures:
+            _pictures(tmp, result, disc, mesh, cfg, final_c)
+    result.out_dir = out
+
+
+def _pictures(
+    tmp: Path, result: ThermalResult, disc: Any, mesh: Any, cfg: ThermalConfig, tc: np.ndarray
+) -> None:
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Circle
+    from matplotlib.tri import Triangulation
+
+    g = cfg.geometry
+    ts = result.timeseries
+    # 1. cells: top view, each cell coloured by its mean temperature, labelled mean / max
+    fig = Figure(figsize=(9, 4), dpi=110)
+    ax = fig.add_subplot()
+    means = np.array([c["mean_temp_c"] for c in result.cell_stats])
+    lo, hi = float(means.min()), float(max(means.max(), means.min() + 1e-6))
+    from matplotlib import colormaps
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
+    norm, cmap = Normalize(lo, hi), colormaps["inferno"]
+    for c in result.cell_stats:
+        x, y = g.cell_centre_xy_m(int(c["row"]) - 1, int(c["column"]) - 1)
+        ax.add_patch(Circle((x * 1e3, y * 1e3), g.cell_diameter_m * 500, color=cmap(norm(c["mean_temp_c"]))))
+        ax.text(
+            x * 1e3,
+            y * 1e3,
+            f"{c['mean_temp_c']:.2f}\nmax {c['max_temp_c']:.2f}",
+            ha="center",
+            va="center",
+            fontsize=7,
+            color="white" if norm(c["mean_temp_c"]) < 0.6 else "black",
+        )
+    ax.set_xlim(0, g.length_x_m * 1e3)
+    ax.set_ylim(0, g.length_y_m * 1e3)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_title(f"Cell mean temperature [°C] at t = {ts['time_s'][-1]:g} s (top view)")
+    fig.colorbar(ScalarMappable(norm, cmap), ax=ax, label="°C")
+    fig.savefig(tmp / "cells_temperature.png")
+    # 2. cooling plate: temperature on its top face, channel path overlaid
+    plate = mesh.part_names.index("plate")
+    top = (disc.node_part == plate) & (np.abs(disc.points_m[:, 2] - g.plate_thickness_m) < 1e-9)
+    fig = Figure(figsize=(9, 4), dpi=110)
+    ax = fig.add_subplot()
+    xy = disc.points_m[top, :2] * 1e3
+    if top.sum() >= 3:
+        tri = Triangulation(xy[:, 0], xy[:, 1])
+        pc = ax.tripcolor(tri, tc[top], shading="gouraud", cmap="coolwarm")
+        fig.colorbar(pc, ax=ax, label="°C")
+    path = mesh.channel_path_m * 1e3
+    ax.plot(path[:, 0], path[:, 1], "k--", lw=1, label="channel (inlet at x = 0)")
+    ax.legend(loc="upper right", fontsize=7)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_title(f"Cooling plate top-face temperature [°C] at t = {ts['time_s'][-1]:g} s")
+    fig.savefig(tmp / "plate_temperature.png")
+    # 3. time series
+    fig = Figure(figsize=(8, 6), dpi=100)
+    a1, a2 = fig.subplots(2, 1, sharex=True)
+    a1.plot(ts["time_s"], ts["cell_max_temp_c"], label="cell max")
+    a1.plot(ts["time_s"], ts["cell_mean_temp_c"], label="cell mean")
+    a1.plot(ts["time_s"], ts["outlet_temp_c"], label="coolant outlet")
+    a1.set_ylabel("°C")
+    a1.legend()
+    a2.plot(ts["time_s"], ts["cooling_power_w"], label="coolant (m c ΔT)")
+    a2.plot(ts["time_s"], ts["heat_in_w"], label="cell heat input")
+    a2.set_ylabel("W")
+    a2.set_xlabel("time [s]")
+    a2.legend()
+    fig.savefig(tmp / "timeseries.png")
+
+
+__all__ = [
+    "ThermalConfig",
+    "ThermalResult",
+    "format_summary",
+    "load_thermal_config",
+    "run_thermal",
+    "thermal_config_from_dict",
+]

@@ -1,0 +1,428 @@
+"""Transient heat conduction on linear tetrahedra (scikit-fem) with contact, films and coolant.
+
+Equation, per part ``p`` with conductivity k_p and heat capacity rho_p c_p:
+
+    rho c dT/dt = div(k grad T) + q_cell          in every part
+    -k dT/dn = h_film (T - T_amb)                 on the external surfaces
+    -k dT/dn = h_wall (T - T_fluid)               on the channel wall (INTERFACE)
+    q_contact = h_gap (T_a - T_b)                 across every interface between two parts
+
+Contact really resists: every node on a face shared by two parts is duplicated (one copy per
+part) and the two copies are tied by the interface conductance h_gap integrated with the
+consistent P1 surface mass matrix. The theta-method matrix ``C/dt + theta K`` is factorised
+once with ``scipy.sparse.linalg.splu`` and reused while the step, materials, conductances and
+coolant heat-transfer coefficients stay fixed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from hevsim.errors import ConfigError, InputError, SimulationError
+from hevsim.thermal.materials import FILM_COEFFICIENT_W_M2K, GAP_CONDUCTANCE_W_M2K, Material
+from hevsim.thermal.mesh import CHANNEL_WALL, ThermalMesh, mesh_faces, tet_volumes_m3, triangle_areas_m2
+
+_TRI_MASS = np.array([[2.0, 1.0, 1.0], [1.0, 2.0, 1.0], [1.0, 1.0, 2.0]]) / 12.0
+
+
+class WallCoolant(Protocol):
+    """What the solver needs from a coolant model coupled at the channel wall.
+
+    The wall is cut into ``n_segments`` pieces (a 1-D channel model uses segments along the
+    path; a 3D fluid model could use one segment per wall facet). Each step the solver passes
+    the mean wall temperature and wall area of every segment and receives the fluid
+    temperature [K] that drives the film ``h (T_wall - T_fluid)`` on that segment.
+    """
+
+    n_segments: int
+
+    def heat_transfer_coefficient_w_m2k(self) -> np.ndarray:
+        """Film coefficient [W/(m^2 K)] per segment, shape (n_segments,)."""
+        ...
+
+    def fluid_temperature_k(self, wall_temp_k: np.ndarray, wall_area_m2: np.ndarray) -> np.ndarray:
+        """Fluid temperature [K] per segment for the given wall temperatures [K] and areas [m^2]."""
+        ...
+
+
+def _tri_mass(points_m: np.ndarray, tris: np.ndarray, weight: np.ndarray, n: int) -> sp.csr_matrix:
+    """Consistent P1 surface mass matrix sum_k weight_k int phi_i phi_j over triangles ``tris``."""
+    if tris.shape[0] == 0:
+        return sp.csr_matrix((n, n))
+    a = triangle_areas_m2(points_m, tris) * weight
+    vals = a[:, None, None] * _TRI_MASS[None]
+    rows = np.repeat(tris[:, :, None], 3, axis=2)
+    cols = np.repeat(tris[:, None, :], 3, axis=1)
+    return sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())), shape=(n, n))
+
+
+def interface_name(a: str, b: str) -> str:
+    """Canonical name of the contact interface between parts ``a`` and ``b``: ``"a|b"`` sorted."""
+    return "|".join(sorted((a, b)))
+
+
+@dataclass(frozen=True)
+class Discretisation:
+    """The split (per-part duplicated) mesh and the assembled operators (SI units)."""
+
+    points_m: np.ndarray  # (N, 3) split nodes
+    tets: np.ndarray  # (M, 4)
+    node_part: np.ndarray  # (N,)
+    original_node: np.ndarray  # (N,) node of the input mesh
+    stiffness: sp.csr_matrix  # conduction + contact + film [W/K]
+    capacity: sp.csr_matrix  # consistent heat capacity [J/K]
+    film_load_w: np.ndarray  # h_film T_amb int phi over the external surfaces [W]
+    film_area: np.ndarray  # int phi over external surfaces [m^2]
+    film_w_m2k: float
+    ambient_k: float
+    cell_load: sp.csr_matrix  # (N, n_cells): nodal share of 1 W in each cell [-]
+    wall_tris: np.ndarray  # (K, 3) channel-wall triangles on split nodes
+    wall_segment: np.ndarray  # (K,) segment of each wall triangle
+    wall_weights: sp.csr_matrix  # (N, n_seg): int phi over each wall segment [m^2]
+    wall_area_m2: np.ndarray  # (n_seg,)
+    interfaces: dict[str, float]  # contact interface name -> area [m^2]
+    cell_volume_m3: np.ndarray  # (n_cells,)
+    tet_volume_m3: np.ndarray  # (M,)
+
+
+def discretise(
+    mesh: ThermalMesh,
+    materials: Mapping[str, Material],
+    *,
+    gap_conductance_w_m2k: float = GAP_CONDUCTANCE_W_M2K,
+    interface_conductance_w_m2k: Mapping[str, float] | None = None,
+    film_w_m2k: float = FILM_COEFFICIENT_W_M2K,
+    ambient_k: float = 303.15,
+    surface_films: Mapping[str, tuple[float, float]] | None = None,
+    wall_segment_of_facet: np.ndarray | None = None,
+    wall_h_w_m2k: np.ndarray | None = None,
+) -> Discretisation:
+    """Split the mesh at part interfaces and assemble conduction, capacity, contact and films.
+
+    ``materials`` maps every part name to its :class:`Material`; ``interface_conductance_w_m2k``
+    overrides ``gap_conductance_w_m2k`` for named interfaces (``"partA|partB"``);
+    ``surface_films`` maps a facet group name to ``(h [W/(m^2 K)], T_inf [K])`` (these faces
+    then get no ambient film); ``wall_segment_of_facet`` assigns each ``INTERFACE`` facet
+    to a coolant segment and ``wall_h_w_m2k`` gives the coolant film per segment.
+    """
+    from skfem import Basis, BilinearForm, ElementTetP1, MeshTet, asm
+    from skfem.helpers import dot, grad
+
+    mesh.validate()
+    src = mesh.source
+    nparts = len(mesh.part_names)
+    for name in mesh.part_names:
+        if name not in materials:
+            raise ConfigError(
+                f"{src}: part '{name}' has no material properties; expected one of the materials "
+                f"given for parts {sorted(materials)}."
+            )
+        materials[name].check(f"{src}: part '{name}'")
+    for label, v in (
+        ("gap_conductance_w_m2k", gap_conductance_w_m2k),
+        ("film_w_m2k", film_w_m2k),
+        ("ambient_k", ambient_k),
+    ):
+        if not (np.isfinite(v) and v >= 0.0) or (label == "ambient_k" and v <= 0.0):
+            raise ConfigError(f"{src}: '{label}' = {v!r} is not physical; expected a finite value >= 0.")
+
+    # ---- split nodes: one copy per (node, part) -------------------------------------------
+    part = mesh.part_of_tet.astype(np.int64)
+    keys = mesh.tets.astype(np.int64) * nparts + part[:, None]
+    uniq, inv = np.unique(keys.ravel(), return_inverse=True)
+    tets = inv.reshape(-1, 4).astype(np.int64)
+    original_node = uniq // nparts
+    node_part = uniq % nparts
+    points = mesh.points_m[original_node]
+    n = points.shape[0]
+
+    def side(nodes: np.ndarray, parts: np.ndarray) -> np.ndarray:
+        return np.searchsorted(uniq, nodes.astype(np.int64) * nparts + parts[:, None])
+
+    # ---- faces of the input mesh: boundary and part interfaces --------------------------
+    faces = mesh_faces(mesh.tets)
+    inner = faces.other >= 0
+    pa, pb = part[faces.owner], np.where(inner, part[np.maximum(faces.other, 0)], -1)
+    iface = np.flatnonzero(inner & (pa != pb))
+    bnd = np.flatnonzero(~inner)
+
+    # Named facet groups (matched by their sorted node triples) on the boundary.
+    bnd_keys = {tuple(r): i for i, r in enumerate(faces.nodes[bnd].tolist())}
+    group_of_bnd = np.full(bnd.size, -1)
+    group_names = list(mesh.facet_groups)
+    group_rows: dict[str, np.ndarray] = {}
+    for gi, gname in enumerate(group_names):
+        rows = []
+        for tri in np.sort(mesh.facet_groups[gname], axis=1).tolist():
+            j = bnd_keys.get(tuple(tri))
+            if j is not None:
+                rows.append(j)
+                group_of_bnd[j] = gi
+        group_rows[gname] = np.asarray(rows, dtype=np.int64)
+        if mesh.facet_groups[gname].shape[0] and not rows and gname == CHANNEL_WALL:
+            raise InputError(f"{src}: surface '{gname}' has no facet on the mesh boundary.")
+    surface_films = dict(surface_films or {})
+    for gname in surface_films:
+        if gname not in mesh.facet_groups:
+            raise ConfigError(
+                f"{src}: film surface '{gname}' is not a named surface of the mesh; "
+                f"expected one of {sorted(mesh.facet_groups)}."
+            )
+
+    # ---- conduction and capacity with scikit-fem ----------------------------------------
+    kmat = np.array([materials[nm].conductivity_w_mk for nm in mesh.part_names])
+    cmat = np.array([materials[nm].volumetric_heat_capacity_j_m3k for nm in mesh.part_names])
+    skm = MeshTet(points.T.copy(), tets.T.copy())
+    basis = Basis(skm, ElementTetP1())
+    nqp = basis.X.shape[1]
+
+    @BilinearForm
+    def conduction(u: Any, v: Any, w: Any) -> Any:
+        return w.k * dot(grad(u), grad(v))
+
+    @BilinearForm
+    def capacity_form(u: Any, v: Any, w: Any) -> Any:
+        return w.c * u * v
+
+    ones = np.ones((1, nqp))
+    stiffness = asm(conduction, basis, k=kmat[part][:, None] * ones).tocsr()
+    capacity = asm(capacity_form, basis, c=cmat[part][:, None] * ones).tocsr()
+
+    # ---- contact interfaces ----------------------------------------------------------------
+    overrides = dict(interface_conductance_w_m2k or {})
+    iface_names = np.array(
+        [
+            interface_name(mesh.part_names[a], mesh.part_names[b])
+            for a, b in zip(pa[iface], pb[iface], strict=True)
+        ],
+        dtype=object,
+    )
+    present = sorted(set(iface_names.tolist()))
+    for name, h in overrides.items():
+        if name not in present:
+            raise ConfigError(
+                f"{src}: contact interface '{name}' does not exist in the mesh; expected one of "
+                f"{present or '(none: the mesh has a single part)'}."
+            )
+        if not (np.isfinite(h) and h > 0.0):
+            raise ConfigError(f"{src}: contact '{name}' conductance {h!r} is not physical; expected > 0.")
+    h_if = np.array([overrides.get(nm, gap_conductance_w_m2k) for nm in iface_names.tolist()])
+    tri = faces.nodes[iface]
+    side_a, side_b = side(tri, pa[iface]), side(tri, pb[iface])
+    area_if = triangle_areas_m2(mesh.points_m, tri)
+    interfaces = {nm: float(area_if[iface_names == nm].sum()) for nm in present}
+    if iface.size:
+        ab = np.hstack([side_a, side_b])
+        local = np.kron(np.array([[1.0, -1.0], [-1.0, 1.0]]), _TRI_MASS)
+        vals = (area_if * h_if)[:, None, None] * local[None]
+        irow = np.repeat(ab[:, :, None], 6, axis=2)
+        icol = np.repeat(ab[:, None, :], 6, axis=1)
+        stiffness = stiffness + sp.csr_matrix((vals.ravel(), (irow.ravel(), icol.ravel())), shape=(n, n))
+
+    # ---- boundary films ---------------------------------------------------------------------
+    bnd_side = side(faces.nodes[bnd], pa[bnd])
+    film_w = np.zeros(bnd.size)
+    film_t = np.zeros(bnd.size)
+    is_ambient = np.ones(bnd.size, dtype=bool)
+    if CHANNEL_WALL in group_rows:
+        is_ambient[group_rows[CHANNEL_WALL]] = False
+    for gname, (h, t_inf) in surface_films.items():
+        film_w[group_rows[gname]] = h
+        film_t[group_rows[gname]] = t_inf
+        is_ambient[group_rows[gname]] = False
+    film_w[is_ambient] = film_w_m2k
+    film_t[is_ambient] = ambient_k
+    m_film = _tri_mass(points, bnd_side, film_w, n)
+    stiffness = stiffness + m_film
+    film_load = _tri_mass(points, bnd_side, film_w * film_t, n) @ np.ones(n)
+    film_area = _tri_mass(points, bnd_side[is_ambient], np.ones(int(is_ambient.sum())), n) @ np.ones(n)
+
+    # ---- channel wall (coolant film per segment) ------------------------------------------
+    wall_rows = group_rows.get(CHANNEL_WALL, np.zeros(0, dtype=np.int64))
+    wall_tris = bnd_side[wall_rows]
+    if wall_segment_of_facet is None:
+        wall_segment = np.zeros(wall_rows.size, dtype=np.int64)
+    else:
+        wall_segment = np.asarray(wall_segment_of_facet, dtype=np.int64)
+        if wall_segment.shape != (wall_rows.size,):
+            raise InputError(
+                f"{src}: wall segment map has {wall_segment.size} entries; expected {wall_rows.size}."
+            )
+    n_seg = int(wall_segment.max(initial=-1)) + 1
+    wall_area = np.bincount(wall_segment, weights=triangle_areas_m2(points, wall_tris), minlength=n_seg)
+    wa = triangle_areas_m2(points, wall_tris) / 3.0
+    wall_weights = sp.csr_matrix(
+        (np.repeat(wa, 3), (wall_tris.ravel(), np.repeat(wall_segment, 3))), shape=(n, max(n_seg, 1))
+    )
+    if wall_h_w_m2k is not None and wall_rows.size:
+        hw = np.asarray(wall_h_w_m2k, dtype=float)
+        stiffness = stiffness + _tri_mass(points, wall_tris, hw[wall_segment], n)
+
+    # ---- per-cell heat load (body heat flux, uniform in each cell) ------------------------
+    vol = np.abs(tet_volumes_m3(points, tets))
+    ncell = mesh.n_cells
+    cell_vol = np.bincount(
+        mesh.cell_of_tet[mesh.cell_of_tet >= 0], weights=vol[mesh.cell_of_tet >= 0], minlength=ncell
+    )
+    in_cell = np.flatnonzero(mesh.cell_of_tet >= 0)
+    cid = mesh.cell_of_tet[in_cell]
+    share = np.repeat(vol[in_cell] / 4.0 / cell_vol[cid], 4)
+    cell_load = sp.csr_matrix((share, (tets[in_cell].ravel(), np.repeat(cid, 4))), shape=(n, max(ncell, 1)))
+
+    return Discretisation(
+        points,
+        tets,
+        node_part,
+        original_node,
+        stiffness.tocsr(),
+        capacity,
+        film_load,
+        film_area,
+        film_w_m2k,
+        ambient_k,
+        cell_load,
+        wall_tris,
+        wall_segment,
+        wall_weights.tocsr(),
+        wall_area,
+        interfaces,
+        cell_vol,
+        vol,
+    )
+
+
+@dataclass(frozen=True)
+class StepReport:
+    """Heat flows at the end of one step [W] (positive = into the module for heat_in)."""
+
+    time_s: float
+    heat_in_w: float
+    film_w: float  # to the ambient through the external films
+    wall_w: float  # to the coolant through the channel wall
+    stored_energy_j: float
+
+
+class HeatModel:
+    """Theta-method time stepper: implicit Euler (theta = 1, default) or Crank-Nicolson (0.5).
+
+    ``(C/dt + theta K) T1 = (C/dt - (1 - theta) K) T0 + theta f1 + (1 - theta) f0``. The left
+    matrix is factorised once and reused while ``dt_s`` and the operators stay fixed.
+    Temperatures are in kelvin; heat inputs per cell in watts (``set_cell_heat_w``).
+    """
+
+    def __init__(
+        self,
+        disc: Discretisation,
+        *,
+        dt_s: float,
+        theta: float = 1.0,
+        initial_temp_k: float | np.ndarray = 303.15,
+        coolant: WallCoolant | None = None,
+        coupling_iterations: int = 1,
+    ) -> None:
+        if not (np.isfinite(dt_s) and dt_s > 0.0):
+            raise ConfigError(f"heat model: dt_s = {dt_s!r} is not valid; expected a positive step [s].")
+        if not 0.5 <= theta <= 1.0:
+            raise ConfigError(
+                f"heat model: theta = {theta!r}; expected 0.5 (Crank-Nicolson) to 1 (implicit Euler)."
+            )
+        self.disc = disc
+        self.dt_s = float(dt_s)
+        self.theta = float(theta)
+        self.coolant = coolant
+        self.coupling_iterations = max(1, int(coupling_iterations))
+        n = disc.points_m.shape[0]
+        t0 = np.broadcast_to(np.asarray(initial_temp_k, dtype=float), (n,)).copy()
+        if not np.all(np.isfinite(t0)) or t0.min() <= 0.0:
+            raise ConfigError("heat model: initial temperature must be finite and > 0 K.")
+        self.temp_k = t0
+        self.time_s = 0.0
+        self.cell_heat_w = np.zeros(disc.cell_load.shape[1])
+        self.factorisations = 0
+        k = disc.stiffness
+        n_seg = disc.wall_area_m2.size
+        self.wall_h = np.zeros(n_seg)
+        self.fluid_k = np.zeros(n_seg)
+        if coolant is not None:
+            if n_seg == 0:
+                raise InputError("heat model: a coolant is coupled but the mesh has no 'INTERFACE' wall.")
+            if coolant.n_segments != n_seg:
+                raise ConfigError(
+                    f"heat model: coolant has {coolant.n_segments} segments; the wall has {n_seg}."
+                )
+            self.wall_h = np.asarray(coolant.heat_transfer_coefficient_w_m2k(), dtype=float)
+            k = k + _tri_mass(disc.points_m, disc.wall_tris, self.wall_h[disc.wall_segment], n)
+            self.fluid_k = coolant.fluid_temperature_k(self.wall_temp_k(), disc.wall_area_m2)
+        self.k = k.tocsr()
+        self._rhs_matrix = (disc.capacity / self.dt_s - (1.0 - self.theta) * self.k).tocsr()
+        # symmetric positive-definite matrix: minimum degree on A^T + A, diagonal pivots
+        self._lu = splu(
+            (disc.capacity / self.dt_s + self.theta * self.k).tocsc(),
+            permc_spec="MMD_AT_PLUS_A",
+            options={"SymmetricMode": True},
+        )
+        self.factorisations += 1
+        self._f_old = self._load()
+
+    # -- inputs -------------------------------------------------------------------------------
+    def set_cell_heat_w(self, heat_w: float | Sequence[float] | np.ndarray) -> None:
+        """Heat generated in every cell [W] (body heat flux, uniform over each cell's volume)."""
+        q = np.broadcast_to(np.asarray(heat_w, dtype=float), self.cell_heat_w.shape)
+        if not np.all(np.isfinite(q)):
+            raise SimulationError(f"heat model: cell heat {q.tolist()} is not finite.")
+        self.cell_heat_w = q.copy()
+
+    # -- observations --------------------------------------------------------------------------
+    def wall_temp_k(self, temp_k: np.ndarray | None = None) -> np.ndarray:
+        """Mean channel-wall temperature per coolant segment [K]."""
+        t = self.temp_k if temp_k is None else temp_k
+        area = np.where(self.disc.wall_area_m2 > 0, self.disc.wall_area_m2, 1.0)
+        return np.asarray(self.disc.wall_weights.T @ t)[: area.size] / area
+
+    def report(self) -> StepReport:
+        """Heat flows at the current state."""
+        d, t = self.disc, self.temp_k
+        film_total = float(t @ (d.stiffness @ np.ones_like(t))) - float(d.film_load_w.sum())
+        wall = float(np.sum(self.wall_h * d.wall_area_m2 * (self.wall_temp_k() - self.fluid_k)))
+        return StepReport(
+            self.time_s, float(self.cell_heat_w.sum()), film_total, wall, float(np.sum(d.capacity @ t))
+        )
+
+    # -- stepping --------------------------------------------------------------------------------
+    def _load(self) -> np.ndarray:
+        d = self.disc
+        f = d.film_load_w + d.cell_load @ self.cell_heat_w
+        if self.coolant is not None:
+            f = f + d.wall_weights[:, : self.fluid_k.size] @ (self.wall_h * self.fluid_k)
+        return np.asarray(f)
+
+    def step(self) -> np.ndarray:
+        """Advance one step of ``dt_s``; returns the new nodal temperatures [K]."""
+        base = self._rhs_matrix @ self.temp_k + (1.0 - self.theta) * self._f_old
+        new = self.temp_k
+        for _ in range(self.coupling_iterations):
+            if self.coolant is not None:
+                self.fluid_k = self.coolant.fluid_temperature_k(self.wall_temp_k(new), self.disc.wall_area_m2)
+            f_new = self._load()
+            new = self._lu.solve(base + self.theta * f_new)
+        if not np.all(np.isfinite(new)):
+            raise SimulationError(
+                f"heat model: temperature became non-finite at t = {self.time_s + self.dt_s} s."
+            )
+        self.temp_k = new
+        self._f_old = f_new
+        self.time_s += self.dt_s
+        return new
+
+    def steady(self) -> np.ndarray:
+        """Steady state for the current inputs (without coolant iteration) [K]."""
+        from scipy.sparse.linalg import spsolve
+
+        self.temp_k = np.asarray(spsolve(self.k.tocsc(), self._load()))
+        return self.temp_k
