@@ -158,6 +158,26 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_export_fmu(args: argparse.Namespace) -> int:
+    from hevsim.battery.config import load_config as load_cell_config
+    from hevsim.battery.fmu import export_fmu
+
+    cfg = load_cell_config(args.config)
+    if cfg.module.n_series * cfg.module.n_parallel != 1:
+        from hevsim.errors import ConfigError
+
+        raise ConfigError(
+            f"{args.config}: export-fmu builds a single-cell FMU; [module] has "
+            f"{cfg.module.n_series}s{cfg.module.n_parallel}p (expected 1s1p)."
+        )
+    params = cfg.cell.parameters
+    if (Path(cfg.base_dir) / params).is_file():
+        params = str(Path(cfg.base_dir) / params)
+    out = export_fmu(params, args.output, soc_initial=cfg.cell.soc_initial, temp_initial_k=cfg.cell.temp_k)
+    print(f"FMU written to {out} (FMI 2.0 co-simulation; inputs current_a, port_temp_k)")
+    return 0
+
+
 def _cmd_thermal(args: argparse.Namespace) -> int:
     from hevsim.thermal.run import format_summary, run_thermal
 
@@ -249,6 +269,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ambient-c", type=float, help="heat-port temperature [degC] (default: first sample)")
     p.add_argument("--out", help="results folder")
     p.set_defaults(func=_cmd_calibrate)
+
+    p = sub.add_parser("export-fmu", help="FMI 2.0 co-simulation FMU of a cell configuration")
+    p.add_argument("config", help="cell configuration (TOML), e.g. examples/cell.toml")
+    p.add_argument("-o", "--output", required=True, help="FMU file to write")
+    p.set_defaults(func=_cmd_export_fmu)
 
     p = sub.add_parser("thermal", help="3D FEM heat model of a battery module with cooling plate and coolant")
     p.add_argument("config", help="module thermal configuration (TOML), e.g. examples/module_thermal.toml")

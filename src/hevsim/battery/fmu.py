@@ -1,0 +1,225 @@
+"""FMI 2.0 co-simulation FMU of an electro-thermal cell (thesis section 4.2), via pythonfmu.
+
+The FMU wraps the same compiled step (:func:`hevsim.battery.kernel.cell_step`) as
+:class:`hevsim.battery.Cell`, so an FMI master reproduces the in-process model exactly.
+
+Interface: inputs ``current_a`` [A, discharge > 0] and ``port_temp_k`` [K]; outputs
+``voltage_v`` [V], ``soc`` [-], ``port_heat_w`` [W, heat flow into the port], ``temp_k``
+[K, core] and ``soh`` [-] (SOH_C of eq 43; the impedance factor of eq 44 is 1 because the
+cell's impedance does not age within a run); parameters ``soc_initial``, ``temp_initial_k``
+and the scalars of :data:`FMU_PARAMETERS`.
+
+Run-time needs: a host process with CPython loaded (FMPy and other Python-based masters; a C
+master must preload libpython) in which ``hevsim`` is importable. The FMU carries Linux and
+Windows binaries (pythonfmu's). Its model module is named after the FMU, so two FMUs of
+different names can share a process.
+"""
+
+from __future__ import annotations
+
+import re
+import tempfile
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from hevsim.battery import kernel as K
+from hevsim.battery.ageing import soh_capacity
+from hevsim.battery.params import CellParameters, load_cell_parameters, parameters_from_dict
+from hevsim.errors import ConfigError
+
+FMU_PARAMETERS = {
+    "c0_c": K.C0,
+    "alpha_c_per_k": K.ALPHAC,
+    "alpha_rs_per_k": K.ALPHARS,
+    "c_heat_j_per_k": K.CHEAT,
+    "r_skin_k_per_w": K.RSKIN,
+    "r_scale": K.RSCALE,
+}
+"""FMU parameter name -> index in the cell parameter vector."""
+
+OUTPUTS = ("voltage_v", "soc", "port_heat_w", "temp_k", "soh")
+INPUTS = ("current_a", "port_temp_k")
+
+
+class CellStepper:
+    """The cell state advanced one communication step at a time (what the FMU runs)."""
+
+    def __init__(self, params: CellParameters, soc_initial: float, temp_k: float, **overrides: float):
+        self.params = params
+        self.p = params.vector(soc_initial)
+        for name, value in overrides.items():
+            self.p[FMU_PARAMETERS[name]] = value
+        self.x = params.initial_state(temp_k)
+        self.tabs = params.tables()
+        self.rec = np.zeros(len(K.RECORD))
+        soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf = self.tabs[:7]
+        ocv, _ = K.cell_ocv_rs(self.p, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, soc_initial, temp_k, 1.0)
+        self.outputs = {"voltage_v": ocv, "soc": soc_initial, "port_heat_w": 0.0, "temp_k": temp_k}
+        self.outputs["soh"] = self._soh(K.cell_capacity(self.p, t_ax, capf, self.x[K.SQABS], temp_k))
+
+    def _soh(self, capacity_c: float) -> float:
+        return float(soh_capacity(capacity_c, self.p[K.C0], self.params.ageing.x_c))
+
+    def step(self, current_a: float, port_temp_k: float, dt_s: float) -> dict[str, float]:
+        """Advance by ``dt_s`` [s] at constant current [A] and port temperature [K]."""
+        r = self.rec
+        K.cell_step(self.p, *self.tabs, self.x, current_a, dt_s, port_temp_k, r)  # type: ignore[call-arg]
+        self.outputs = {
+            "voltage_v": float(r[K.RV]),
+            "soc": float(r[K.RSOC]),
+            "port_heat_w": float(r[K.RPORT]),
+            "temp_k": float(r[K.RTEMP]),
+            "soh": self._soh(float(r[K.RCAP])),
+        }
+        return self.outputs
+
+
+class CellSlaveMixin:
+    """FMU behaviour, mixed into the generated ``pythonfmu.Fmi2Slave`` subclass.
+
+    The generated class sets :attr:`PARAMETERS_TOML` (the embedded cell parameter file) and
+    :attr:`DEFAULTS` (``soc_initial``, ``temp_initial_k``).
+    """
+
+    PARAMETERS_TOML = ""
+    DEFAULTS: ClassVar[dict[str, float]] = {}
+
+    def __init__(self, **kwargs: Any) -> None:
+        import tomllib
+
+        from pythonfmu import Fmi2Causality, Fmi2Variability, Real
+        from pythonfmu.enums import Fmi2Initial
+
+        super().__init__(**kwargs)
+        self._params = parameters_from_dict(tomllib.loads(self.PARAMETERS_TOML), "<FMU parameters>")
+        self.description = f"hevsim electro-thermal cell '{self._params.name}' (thesis eqs 33-44)"
+        self.author = "hevsim"
+        self.current_a = 0.0
+        self.soc_initial = float(self.DEFAULTS["soc_initial"])
+        self.temp_initial_k = float(self.DEFAULTS["temp_initial_k"])
+        self.port_temp_k = self.temp_initial_k
+        vec = self._params.vector(self.soc_initial)
+        for name, idx in FMU_PARAMETERS.items():
+            setattr(self, name, float(vec[idx]))
+        self._stepper = self._new_stepper()
+        self._set_outputs(self._stepper.outputs)
+        register = self.register_variable  # type: ignore[attr-defined]
+        for name in INPUTS:
+            register(Real(name, causality=Fmi2Causality.input))
+        for name in ("soc_initial", "temp_initial_k", *FMU_PARAMETERS):
+            register(Real(name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable))
+        for name in OUTPUTS:
+            register(Real(name, causality=Fmi2Causality.output, initial=Fmi2Initial.exact))
+
+    def _new_stepper(self) -> CellStepper:
+        overrides = {n: float(getattr(self, n)) for n in FMU_PARAMETERS}
+        return CellStepper(self._params, self.soc_initial, self.temp_initial_k, **overrides)
+
+    def _set_outputs(self, out: dict[str, float]) -> None:
+        for name, value in out.items():
+            setattr(self, name, value)
+
+    def exit_initialization_mode(self) -> None:
+        """Start from the (possibly changed) initial SOC, temperature and parameters."""
+        self._stepper = self._new_stepper()
+        self._set_outputs(self._stepper.outputs)
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        """One communication step at the current inputs."""
+        self._set_outputs(self._stepper.step(self.current_a, self.port_temp_k, step_size))
+        return True
+
+
+_SCRIPT = '''"""FMU model module generated by hevsim.battery.fmu.export_fmu."""
+
+from typing import Any, ClassVar
+
+from pythonfmu import Fmi2Slave
+
+from hevsim.battery.fmu import CellSlaveMixin
+
+
+class {name}(CellSlaveMixin, Fmi2Slave):
+    PARAMETERS_TOML = {toml!r}
+    DEFAULTS = {defaults!r}
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+'''
+
+
+def export_fmu(
+    params: str | Path,
+    out_fmu: str | Path,
+    soc_initial: float = 1.0,
+    temp_initial_k: float = 298.15,
+    model_name: str | None = None,
+) -> Path:
+    """Build ``out_fmu``: an FMI 2.0 co-simulation FMU of the cell parameter set ``params``
+    (a shipped name or a TOML path). Returns the FMU path.
+    """
+    from pythonfmu import FmuBuilder
+
+    p = load_cell_parameters(params)
+    name = model_name or "HevsimCell_" + re.sub(r"\W", "_", p.name)
+    if not name.isidentifier():
+        raise ConfigError(f"FMU model name {name!r} must be a Python identifier.")
+    src = Path(p.source)
+    if not src.is_file():
+        raise ConfigError(f"cell parameters {params!r}: no TOML file to embed in the FMU ({src}).")
+    out = Path(out_fmu)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    defaults = {"soc_initial": float(soc_initial), "temp_initial_k": float(temp_initial_k)}
+    with tempfile.TemporaryDirectory() as tmp:
+        script = Path(tmp) / f"{name}.py"
+        script.write_text(_SCRIPT.format(toml=src.read_text(), name=name, defaults=defaults))
+        built = FmuBuilder.build_FMU(script, dest=tmp)
+        tmp_fmu = out.with_name(f".{out.name}.tmp")
+        Path(built).replace(tmp_fmu)
+        tmp_fmu.replace(out)
+    return out
+
+
+def simulate_fmu(
+    fmu: str | Path,
+    current_a: Any,
+    port_temp_k: Any,
+    dt_s: float,
+    parameters: dict[str, float] | None = None,
+    timeout_s: float = 600.0,
+) -> dict[str, np.ndarray]:
+    """Drive a cell FMU with FMPy, in a worker process, one step per input sample.
+
+    ``current_a`` [A] and ``port_temp_k`` [K] are arrays (or a scalar temperature);
+    ``parameters`` are set during initialisation. Returns the outputs per step.
+    """
+    import json
+    import subprocess
+    import sys
+
+    from hevsim.errors import SimulationError
+
+    cur = np.asarray(current_a, float)
+    port = np.broadcast_to(np.asarray(port_temp_k, float), cur.shape)
+    req = {
+        "fmu": str(fmu),
+        "dt_s": float(dt_s),
+        "inputs": {"current_a": cur.tolist(), "port_temp_k": port.tolist()},
+        "parameters": parameters or {},
+        "outputs": list(OUTPUTS),
+    }
+    proc = subprocess.run(
+        [sys.executable, "-m", "hevsim.battery._fmu_worker"],
+        input=json.dumps(req),
+        capture_output=True,
+        text=True,
+        timeout=timeout_s,
+        check=False,
+    )
+    if proc.returncode != 0 or not proc.stdout.strip():
+        raise SimulationError(
+            f"{fmu}: the FMU run failed (exit {proc.returncode}): {proc.stderr.strip()[-800:]}"
+        )
+    return {k: np.asarray(v) for k, v in json.loads(proc.stdout).items()}
