@@ -104,7 +104,12 @@ class GensetSection:
 
 @dataclass(frozen=True)
 class BatterySection:
-    """Battery: model "ideal" | "rint" | "table" (cell tables in ``data``)."""
+    """Battery: model "ideal" | "rint" | "table" (cell tables in ``data``) | "cell".
+
+    ``"cell"``: an ``n_series`` x ``n_parallel`` pack of the electro-thermal cell model of
+    :mod:`hevsim.battery` (``data`` names a shipped cell parameter set or a TOML path), with
+    its RC and thermal dynamics; ``temperature_c`` is its initial and heat-port temperature.
+    """
 
     model: str = "ideal"
     ocv_v: float = 336.0
@@ -198,7 +203,7 @@ CHOICES: dict[str, tuple[str, ...]] = {
     "generator.rating": ("cont", "peak"),
     "engine.model": ("constant_torque", "map"),
     "genset.kind": ("none", "current_source", "engine"),
-    "battery.model": ("ideal", "rint", "table"),
+    "battery.model": ("ideal", "rint", "table", "cell"),
     "controller.kind": ("thermostat", "schedule"),
     "driver.kind": ("proportional",),
 }

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from hevsim.battery.vehicle import battery_ecm, battery_ecm_advance
 from hevsim.components.battery import current_for_power, pack_ocv_r
 from hevsim.components.body import aero_force, grade_force, rolling_force
 from hevsim.components.driveline import gear_output_torque
@@ -203,7 +204,7 @@ def battery_tables(p, bat, soc, current_sign):
 
 DRIVER_KINDS = ("proportional",)
 SUPERVISOR_KINDS = ("thermostat", "schedule")
-BATTERY_KINDS = ("tables",)
+BATTERY_KINDS = ("tables", "ecm")
 
 
 @njit(cache=True)
@@ -222,7 +223,13 @@ def supervise(kind, p, sched, k, soc, w_gs, gs_state):
 
 @njit(cache=True)
 def battery_state(kind, p, bat, soc, current_sign):
-    """Battery-model dispatcher (codes: :data:`BATTERY_KINDS`)."""
+    """Battery-model dispatcher (codes: :data:`BATTERY_KINDS`).
+
+    ``bat`` has the 12-entry layout of :data:`hevsim.battery.vehicle.ECM_TUPLE` for every kind
+    (the ``tables`` kind padded), so one compiled dispatcher serves both.
+    """
+    if kind == 1:
+        return battery_ecm(p, bat, soc, current_sign)
     return battery_tables(p, bat, soc, current_sign)
 
 
@@ -419,6 +426,8 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
         if p_bat > 0.0 and ocv_b * ocv_b < 4.0 * r_bat * p_bat:
             limited = 1.0  # beyond the deliverable power: the bus sags (reported)
         v_bat = ocv_b - r_bat * i_bat
+        if bat_kind == 1:  # dynamic cells: advance their RC, charge and thermal states
+            battery_ecm_advance(p, bat, i_bat, dt)
         i_soc = i_bat if i_bat > 0.0 else i_bat * p[BCEFF]
         soc1 = soc - i_soc * dt / cap_as
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -60,6 +61,8 @@ class SeriesHEV:
     generator: ElectricMachine
     engine: Engine | None
     battery: BatteryPack
+    cell: Any = None
+    """Cell parameters (:class:`hevsim.battery.CellParameters`) of a ``"cell"`` battery."""
 
     @property
     def name(self) -> str:
@@ -132,12 +135,36 @@ class SeriesHEV:
             "aux_power_w": ctl.aux_power_w,
             "pure_ice_band_w": ctl.pure_ice_band_w,
         }
+        if self.cell is not None:
+            from hevsim.battery.vehicle import vehicle_parameter_values
+
+            values.update(
+                vehicle_parameter_values(
+                    self.cell, self.battery.n_series, self.battery.n_parallel, self.battery.temperature_k
+                )
+            )
         for name, value in values.items():
             p[K.P[name]] = value
         return p
 
-    def kernel_tables(self) -> tuple[tuple[FloatArray, ...], ...]:
-        """(engine, motor, generator, battery) table tuples for the kernel."""
+    def kernel_tables(
+        self, dt_s: float = 1.0, soc_initial: float | None = None
+    ) -> tuple[tuple[FloatArray, ...], ...]:
+        """(engine, motor, generator, battery) table tuples for the kernel.
+
+        A ``"cell"`` battery's tuple holds the cells' state: build it fresh for every run
+        (``dt_s`` [s] and ``soc_initial`` [-] set that state).
+        """
+        from hevsim.battery.vehicle import ecm_kernel_tables, pad_tables_kind
+
+        if self.cell is not None:
+            soc0 = self.config.simulation.soc_initial if soc_initial is None else soc_initial
+            b = self.battery
+            bat = ecm_kernel_tables(
+                self.cell, b.n_series, b.n_parallel, soc0, b.temperature_k, dt_s, r_extra_ohm=b.r_extra_ohm
+            )
+        else:
+            bat = pad_tables_kind(self.battery.kernel_tables())
         if self.engine is not None:
             eng = self.engine.kernel_tables()
         else:
@@ -147,7 +174,7 @@ class SeriesHEV:
             eng,
             self.traction_motor.kernel_tables(),
             self.generator.kernel_tables(),
-            self.battery.kernel_tables(),
+            bat,
         )
 
 
@@ -209,9 +236,25 @@ def build_series_hev(cfg: VehicleConfig) -> SeriesHEV:
         "n_series": bs.n_series,
         "n_parallel": bs.n_parallel,
     }
+    cell = None
     if bs.model == "table":
         folder = resolve_component(bs.data, "battery", base, "battery.data")
         battery = BatteryPack.from_directory(folder, **limits)
+    elif bs.model == "cell":
+        from hevsim.battery import load_cell_parameters
+        from hevsim.battery.vehicle import quasi_static_pack
+
+        path = base / bs.data
+        cell = load_cell_parameters(path if path.suffix == ".toml" and path.is_file() else bs.data)
+        battery = quasi_static_pack(
+            cell,
+            bs.n_series,
+            bs.n_parallel,
+            c_to_k(bs.temperature_c),
+            max_discharge_current_a=bs.max_discharge_current_a,
+            max_charge_current_a=bs.max_charge_current_a,
+            r_extra_ohm=bs.r_extra_ohm,
+        )
     else:
         battery = BatteryPack.constant(
             f"{bs.model} {bs.ocv_v:g} V",
@@ -230,4 +273,5 @@ def build_series_hev(cfg: VehicleConfig) -> SeriesHEV:
         generator=_machine(cfg.generator, "generator", base),
         engine=engine,
         battery=battery,
+        cell=cell,
     )

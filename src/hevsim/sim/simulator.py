@@ -75,9 +75,9 @@ class SimulationResult:
 
 # Forward kernels per architecture: (single run, batch run). The driver, supervisory
 # controller and battery model are chosen inside a kernel by the codes of
-# hevsim.sim.kernel.DRIVER_KINDS / SUPERVISOR_KINDS / BATTERY_KINDS.
+# hevsim.sim.kernel.DRIVER_KINDS / SUPERVISOR_KINDS / BATTERY_KINDS (the battery kind follows
+# the model: "ecm" for a pack of dynamic cells, "tables" otherwise).
 ARCHITECTURES: dict[str, tuple[Any, Any]] = {"series": (K.run_series, K.run_series_batch)}
-BATTERY_MODEL_KIND = {"ideal": "tables", "rint": "tables", "table": "tables"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -154,7 +154,7 @@ def _plugins(hev: SeriesHEV, grid: DriveCycle, schedule: GensetSchedule | None, 
         schedule = GensetSchedule.from_csv(Path(cfg.base_dir) / cfg.controller.schedule)
     p[..., K.DRVKIND] = K.DRIVER_KINDS.index(cfg.driver.kind)
     p[..., K.SUPKIND] = K.SUPERVISOR_KINDS.index(kind)
-    p[..., K.BATKIND] = K.BATTERY_KINDS.index(BATTERY_MODEL_KIND[cfg.battery.model])
+    p[..., K.BATKIND] = K.BATTERY_KINDS.index("ecm" if hev.cell is not None else "tables")
     return schedule.on_grid(grid.time_s) if schedule is not None else np.zeros((1, 2))
 
 
@@ -220,7 +220,7 @@ def kernel_inputs(
     """
     hev, cyc, grid, dt = _prepare(model, cycle, dt_s)
     p = hev.param_vector(soc_initial)
-    eng, mot, gen, bat = hev.kernel_tables()
+    eng, mot, gen, bat = hev.kernel_tables(dt, soc_initial)
     sched = _plugins(hev, grid, schedule, p)
     out = np.zeros((grid.time_s.size, len(K.CHANNELS)))
     energy = np.zeros(len(K.ENERGY_TERMS))
@@ -353,6 +353,11 @@ def simulate_batch(
     pmat = np.repeat(base[None, :], n, axis=0)
     for k, a in arrays.items():
         pmat[:, K.P[k]] = np.broadcast_to(a, (n,))
+    if hev.cell is not None:
+        raise ConfigError(
+            f"{hev.name}: batch runs with battery.model = 'cell' are not supported (the cells' "
+            "dynamic state would be shared by the variants); use simulate() per variant."
+        )
     eng, mot, gen, bat = hev.kernel_tables()
     energy = np.zeros((n, len(K.ENERGY_TERMS)))
     summary = np.zeros((n, len(K.SUMMARY)))
