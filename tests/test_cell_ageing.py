@@ -92,3 +92,20 @@ def test_ageing_bad_input() -> None:
         age_cell("saft_li_ion_6ah", [1.0], 1.0, 0)
     with pytest.raises(ConfigError, match="not known"):
         load_ageing_model("nope")
+
+
+def test_age_command(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    from pathlib import Path
+
+    import pandas as pd
+
+    from hevsim.cli import main
+
+    root = Path(__file__).resolve().parents[1]
+    out = tmp_path / "age"
+    assert main(["age", str(root / "examples" / "cell.toml"), "--repetitions", "200", "--out", str(out)]) == 0
+    table = pd.read_csv(out / "ageing.csv")
+    assert table["capacity_fraction"].is_monotonic_decreasing
+    assert table["resistance_fraction"].iloc[-1] > 1.0
+    assert (out / "ageing.png").read_bytes()[:4] == b"\x89PNG"
+    assert "SOH" in capsys.readouterr().out

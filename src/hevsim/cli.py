@@ -178,6 +178,51 @@ def _cmd_export_fmu(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_age(args: argparse.Namespace) -> int:
+    from hevsim.battery.ageing import age_cell
+    from hevsim.battery.config import load_config as load_cell_config
+    from hevsim.battery.config import profile_current
+    from hevsim.io import atomic_directory
+    from hevsim.report.plots import _figure, _grid, _save
+
+    cfg = load_cell_config(args.config)
+    params = cfg.cell.parameters
+    if (Path(cfg.base_dir) / params).is_file():
+        params = str(Path(cfg.base_dir) / params)
+    table = age_cell(
+        params,
+        profile_current(cfg),
+        cfg.profile.dt_s,
+        args.repetitions,
+        port_temperature=cfg.thermal.port_temp_k,
+        soc_initial=cfg.cell.soc_initial,
+        rest_s=args.rest_h * 3600.0,
+    )
+    out = Path(args.out) if args.out else Path("results") / f"{Path(args.config).stem}_ageing"
+    with atomic_directory(out) as tmp:
+        table.to_csv(tmp / "ageing.csv", index=False, float_format="%.6g")
+        fig, (ax1, ax2) = _figure(2, 1, figsize=(9.0, 6.0), sharex=True)
+        ax1.plot(table["time_days"], 100 * table["capacity_fraction"], label="capacity")
+        ax1.plot(table["time_days"], 100 * table["resistance_fraction"], label="resistance")
+        ax1.set_ylabel("% of new")
+        ax1.legend()
+        ax2.plot(table["time_days"], table["soh"], color="k", label="SOH (eq 42)")
+        ax2.set_ylabel("SOH [-]")
+        ax2.set_xlabel("time [days]")
+        for ax in (ax1, ax2):
+            _grid(ax)
+        ax1.set_title(f"Ageing of {cfg.cell.parameters}: {args.repetitions} repetitions of the profile")
+        _save(fig, tmp / "ageing.png")
+    last = table.iloc[-1]
+    print(
+        f"after {last['time_days']:.0f} days, {last['throughput_ah']:.0f} A·h: capacity "
+        f"{100 * last['capacity_fraction']:.1f} %, resistance {100 * last['resistance_fraction']:.1f} %, "
+        f"SOH {last['soh']:.3f}"
+    )
+    print(f"results written to {out}/ (ageing.csv, ageing.png)")
+    return 0
+
+
 def _cmd_thermal(args: argparse.Namespace) -> int:
     from hevsim.thermal.run import format_summary, run_thermal
 
@@ -269,6 +314,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ambient-c", type=float, help="heat-port temperature [degC] (default: first sample)")
     p.add_argument("--out", help="results folder")
     p.set_defaults(func=_cmd_calibrate)
+
+    p = sub.add_parser("age", help="age a cell over repetitions of its configured load profile")
+    p.add_argument("config", help="cell configuration (TOML), e.g. examples/cell.toml")
+    p.add_argument("--repetitions", type=int, default=1000, help="profile repetitions (default 1000)")
+    p.add_argument("--rest-h", type=float, default=0.0, help="calendar rest after each repetition [h]")
+    p.add_argument("--out", help="results folder")
+    p.set_defaults(func=_cmd_age)
 
     p = sub.add_parser("export-fmu", help="FMI 2.0 co-simulation FMU of a cell configuration")
     p.add_argument("config", help="cell configuration (TOML), e.g. examples/cell.toml")
