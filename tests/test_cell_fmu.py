@@ -46,7 +46,20 @@ def test_fmu_parameters_are_applied(fmu: Path) -> None:
     assert heavy["soc"][0] < base["soc"][0]
 
 
-def test_export_rejects_modules(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["export-fmu", str(ROOT / "examples" / "module.toml"), "-o", str(tmp_path / "m.fmu")]) == 2
-    assert "single-cell" in capsys.readouterr().err
-    assert not (tmp_path / "m.fmu").exists()
+def test_module_fmu_reproduces_module(tmp_path: Path) -> None:
+    from hevsim.battery import Module
+
+    out = tmp_path / "module.fmu"
+    assert main(["export-fmu", str(ROOT / "examples" / "module.toml"), "-o", str(out)]) == 0
+    from fmpy.validation import validate_fmu
+
+    assert validate_fmu(str(out)) == []
+    n, dt = 150, 1.0
+    current = np.where(np.arange(n) < 100, 30.0, -12.0)  # module current [A]
+    got = simulate_fmu(out, current, 298.15, dt)
+    mod = Module("saft_li_ion_6ah", 2, 6, 0.8, 298.15, 0.03, 0.05, seed=42)
+    ref = mod.simulate(current, dt, 298.15)
+    np.testing.assert_allclose(got["voltage_v"], ref.timeseries["voltage_v"], rtol=1e-9)
+    np.testing.assert_allclose(got["port_heat_w"], ref.timeseries["port_heat_w"], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(got["temp_k"], ref.cells[:, :, 2].max(axis=1), rtol=1e-9)
+    np.testing.assert_allclose(got["soc"], ref.cells[:, :, 1].mean(axis=1), rtol=1e-9)

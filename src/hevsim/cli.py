@@ -163,18 +163,23 @@ def _cmd_export_fmu(args: argparse.Namespace) -> int:
     from hevsim.battery.fmu import export_fmu
 
     cfg = load_cell_config(args.config)
-    if cfg.module.n_series * cfg.module.n_parallel != 1:
-        from hevsim.errors import ConfigError
-
-        raise ConfigError(
-            f"{args.config}: export-fmu builds a single-cell FMU; [module] has "
-            f"{cfg.module.n_series}s{cfg.module.n_parallel}p (expected 1s1p)."
-        )
+    m = cfg.module
     params = cfg.cell.parameters
     if (Path(cfg.base_dir) / params).is_file():
         params = str(Path(cfg.base_dir) / params)
-    out = export_fmu(params, args.output, soc_initial=cfg.cell.soc_initial, temp_initial_k=cfg.cell.temp_k)
-    print(f"FMU written to {out} (FMI 2.0 co-simulation; inputs current_a, port_temp_k)")
+    out = export_fmu(
+        params,
+        args.output,
+        soc_initial=cfg.cell.soc_initial,
+        temp_initial_k=cfg.cell.temp_k,
+        n_series=m.n_series,
+        n_parallel=m.n_parallel,
+        capacity_spread=m.capacity_spread,
+        resistance_spread=m.resistance_spread,
+        seed=m.seed,
+    )
+    what = "cell" if m.n_series * m.n_parallel == 1 else f"{m.n_series}s{m.n_parallel}p module"
+    print(f"FMU of the {what} written to {out} (FMI 2.0 co-simulation; inputs current_a, port_temp_k)")
     return 0
 
 
@@ -322,7 +327,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="results folder")
     p.set_defaults(func=_cmd_age)
 
-    p = sub.add_parser("export-fmu", help="FMI 2.0 co-simulation FMU of a cell configuration")
+    p = sub.add_parser("export-fmu", help="FMI 2.0 co-simulation FMU of a cell or module configuration")
     p.add_argument("config", help="cell configuration (TOML), e.g. examples/cell.toml")
     p.add_argument("-o", "--output", required=True, help="FMU file to write")
     p.set_defaults(func=_cmd_export_fmu)

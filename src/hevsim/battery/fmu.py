@@ -76,6 +76,72 @@ class CellStepper:
         return self.outputs
 
 
+class ModuleStepper:
+    """An n_s x n_p module (:class:`hevsim.battery.Module`) advanced one step at a time.
+
+    Outputs: module terminal voltage, mean cell SOC, heat into the ports, the hottest cell's
+    core temperature and the lowest cell SOH.
+    """
+
+    def __init__(
+        self,
+        params: CellParameters,
+        soc_initial: float,
+        temp_k: float,
+        n_series: int,
+        n_parallel: int,
+        capacity_spread: float = 0.0,
+        resistance_spread: float = 0.0,
+        seed: int = 0,
+        **overrides: float,
+    ):
+        from hevsim.battery.module import Module
+
+        self.params = params
+        self.m = Module(
+            params, n_series, n_parallel, soc_initial, temp_k, capacity_spread, resistance_spread, seed
+        )
+        for name, value in overrides.items():
+            scale = {"c0_c": self.m.c0_scale, "r_scale": self.m.r_scale}.get(name, 1.0)
+            self.m.p[:, FMU_PARAMETERS[name]] = value * scale
+        self.tabs = params.tables()
+        n = self.m.n_cells
+        self.out_m = np.zeros((1, 4))
+        self.out_c = np.zeros((1, n, 4))
+        soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, _ = self.tabs[:7]
+        ocv, _ = K.cell_ocv_rs(self.m.p[0], soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, soc_initial, temp_k, 1.0)
+        self.outputs = {
+            "voltage_v": n_series * ocv,
+            "soc": soc_initial,
+            "port_heat_w": 0.0,
+            "temp_k": temp_k,
+            "soh": self._soh(),
+        }
+
+    def _soh(self) -> float:
+        t_ax, capf = self.tabs[1], self.tabs[6]
+        x, p = self.m.state, self.m.p
+        caps = [K.cell_capacity(p[c], t_ax, capf, x[c, K.SQABS], x[c, K.STEMP]) for c in range(len(x))]
+        return float(min(soh_capacity(cap, p[c, K.C0], self.params.ageing.x_c) for c, cap in enumerate(caps)))
+
+    def step(self, current_a: float, port_temp_k: float, dt_s: float) -> dict[str, float]:
+        """Advance by ``dt_s`` [s] at constant module current [A] and port temperature [K]."""
+        m = self.m
+        tp = np.full((1, m.n_cells), port_temp_k)
+        K.run_module(  # type: ignore[call-arg]
+            m.p, *self.tabs, m.state, m.n_series, m.n_parallel, np.array([current_a]), dt_s, tp,
+            self.out_m, self.out_c,
+        )  # fmt: skip
+        self.outputs = {
+            "voltage_v": float(self.out_m[0, 0]),
+            "soc": float(self.out_c[0, :, 1].mean()),
+            "port_heat_w": float(self.out_m[0, 3]),
+            "temp_k": float(self.out_c[0, :, 2].max()),
+            "soh": self._soh(),
+        }
+        return self.outputs
+
+
 class CellSlaveMixin:
     """FMU behaviour, mixed into the generated ``pythonfmu.Fmi2Slave`` subclass.
 
@@ -84,7 +150,7 @@ class CellSlaveMixin:
     """
 
     PARAMETERS_TOML = ""
-    DEFAULTS: ClassVar[dict[str, float]] = {}
+    DEFAULTS: ClassVar[dict[str, Any]] = {}
 
     def __init__(self, **kwargs: Any) -> None:
         import tomllib
@@ -113,9 +179,12 @@ class CellSlaveMixin:
         for name in OUTPUTS:
             register(Real(name, causality=Fmi2Causality.output, initial=Fmi2Initial.exact))
 
-    def _new_stepper(self) -> CellStepper:
+    def _new_stepper(self) -> CellStepper | ModuleStepper:
         overrides = {n: float(getattr(self, n)) for n in FMU_PARAMETERS}
-        return CellStepper(self._params, self.soc_initial, self.temp_initial_k, **overrides)
+        layout = {k: v for k, v in self.DEFAULTS.items() if k not in ("soc_initial", "temp_initial_k")}
+        if layout.get("n_series", 1) * layout.get("n_parallel", 1) == 1:
+            return CellStepper(self._params, self.soc_initial, self.temp_initial_k, **overrides)
+        return ModuleStepper(self._params, self.soc_initial, self.temp_initial_k, **layout, **overrides)  # type: ignore[arg-type]
 
     def _set_outputs(self, out: dict[str, float]) -> None:
         for name, value in out.items():
@@ -156,9 +225,15 @@ def export_fmu(
     soc_initial: float = 1.0,
     temp_initial_k: float = 298.15,
     model_name: str | None = None,
+    n_series: int = 1,
+    n_parallel: int = 1,
+    capacity_spread: float = 0.0,
+    resistance_spread: float = 0.0,
+    seed: int = 0,
 ) -> Path:
     """Build ``out_fmu``: an FMI 2.0 co-simulation FMU of the cell parameter set ``params``
-    (a shipped name or a TOML path). Returns the FMU path.
+    (a shipped name or a TOML path), or of an ``n_series`` x ``n_parallel`` module of it.
+    Returns the FMU path.
     """
     from pythonfmu import FmuBuilder
 
@@ -171,7 +246,13 @@ def export_fmu(
         raise ConfigError(f"cell parameters {params!r}: no TOML file to embed in the FMU ({src}).")
     out = Path(out_fmu)
     out.parent.mkdir(parents=True, exist_ok=True)
-    defaults = {"soc_initial": float(soc_initial), "temp_initial_k": float(temp_initial_k)}
+    defaults: dict[str, Any] = {"soc_initial": float(soc_initial), "temp_initial_k": float(temp_initial_k)}
+    if n_series * n_parallel > 1:
+        defaults.update(
+            n_series=int(n_series), n_parallel=int(n_parallel), capacity_spread=float(capacity_spread),
+            resistance_spread=float(resistance_spread), seed=int(seed),
+        )  # fmt: skip
+        name = model_name or f"{name}_{n_series}s{n_parallel}p"
     with tempfile.TemporaryDirectory() as tmp:
         script = Path(tmp) / f"{name}.py"
         script.write_text(_SCRIPT.format(toml=src.read_text(), name=name, defaults=defaults))
