@@ -63,3 +63,12 @@ def test_module_fmu_reproduces_module(tmp_path: Path) -> None:
     np.testing.assert_allclose(got["port_heat_w"], ref.timeseries["port_heat_w"], rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(got["temp_k"], ref.cells[:, :, 2].max(axis=1), rtol=1e-9)
     np.testing.assert_allclose(got["soc"], ref.cells[:, :, 1].mean(axis=1), rtol=1e-9)
+
+
+def test_fmu_driven_by_power(fmu: Path) -> None:
+    """Power input: the FMU solves the current whose step-average power is the request."""
+    power = np.where(np.arange(120) < 80, 12.0, -6.0)  # W, discharge then charge
+    got = simulate_fmu(fmu, None, 296.15, 1.0, power_w=power)
+    ref = Cell("thesis_table_4_1", soc_initial=1.0, temp_k=296.15).simulate(got["current_a"], 1.0, 296.15)
+    np.testing.assert_allclose(ref.timeseries["voltage_avg_v"] * got["current_a"], power, rtol=1e-9)
+    np.testing.assert_allclose(got["voltage_v"], ref.timeseries["voltage_v"], rtol=1e-9)

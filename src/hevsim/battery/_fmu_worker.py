@@ -31,6 +31,8 @@ def main() -> None:
     slave.enterInitializationMode()
     if req["parameters"]:
         slave.setReal([vr[k] for k in req["parameters"]], list(req["parameters"].values()))
+    if req.get("booleans"):
+        slave.setBoolean([vr[k] for k in req["booleans"]], list(req["booleans"].values()))
     slave.exitInitializationMode()
     names = req["outputs"]
     outputs: dict[str, list[float]] = {k: [] for k in names}

@@ -3,7 +3,7 @@
 The FMU wraps the same compiled step (:func:`hevsim.battery.kernel.cell_step`) as
 :class:`hevsim.battery.Cell`, so an FMI master reproduces the in-process model exactly.
 
-Interface: inputs ``current_a`` [A, discharge > 0] and ``port_temp_k`` [K]; outputs
+Interface: inputs ``current_a`` [A, discharge > 0] (or ``power_w`` [W] with ``power_input``) and ``port_temp_k`` [K]; outputs
 ``voltage_v`` [V], ``soc`` [-], ``port_heat_w`` [W, heat flow into the port], ``temp_k``
 [K, core] and ``soh`` [-] (SOH_C of eq 43; the impedance factor of eq 44 is 1 because the
 cell's impedance does not age within a run); parameters ``soc_initial``, ``temp_initial_k``
@@ -40,7 +40,30 @@ FMU_PARAMETERS = {
 """FMU parameter name -> index in the cell parameter vector."""
 
 OUTPUTS = ("voltage_v", "soc", "port_heat_w", "temp_k", "soh")
-INPUTS = ("current_a", "port_temp_k")
+INPUTS = ("current_a", "power_w", "port_temp_k")
+"""``power_w`` [W, discharge > 0] is used instead of ``current_a`` when the Boolean
+parameter ``power_input`` is true."""
+
+
+def current_for_power(stepper: Any, power_w: float, port_temp_k: float, dt_s: float) -> float:
+    """Current [A] whose step-average terminal power equals ``power_w`` [W] (secant method on
+    trial steps that leave the stepper's state untouched; the relation is affine in the
+    current for a fixed direction, so it converges in a few iterations)."""
+    if power_w == 0.0:
+        return 0.0
+
+    def residual(i: float) -> float:
+        return stepper.trial_voltage(i, port_temp_k, dt_s) * i - power_w
+
+    i0 = power_w / max(stepper.outputs["voltage_v"], 1e-6)
+    i1 = i0 * 1.01
+    f0, f1 = residual(i0), residual(i1)
+    for _ in range(30):
+        if f1 == f0 or abs(f1) <= 1e-12 * abs(power_w):
+            break
+        i0, i1 = i1, i1 - f1 * (i1 - i0) / (f1 - f0)
+        f0, f1 = f1, residual(i1)
+    return i1
 
 
 class CellStepper:
@@ -61,6 +84,12 @@ class CellStepper:
 
     def _soh(self, capacity_c: float) -> float:
         return float(soh_capacity(capacity_c, self.p[K.C0], self.params.ageing.x_c))
+
+    def trial_voltage(self, current_a: float, port_temp_k: float, dt_s: float) -> float:
+        """Step-average terminal voltage [V] of a step at ``current_a``, state unchanged."""
+        rec = np.zeros(len(K.RECORD))
+        K.cell_step(self.p, *self.tabs, self.x.copy(), current_a, dt_s, port_temp_k, rec)  # type: ignore[call-arg]
+        return float(rec[K.RVAVG])
 
     def step(self, current_a: float, port_temp_k: float, dt_s: float) -> dict[str, float]:
         """Advance by ``dt_s`` [s] at constant current [A] and port temperature [K]."""
@@ -124,6 +153,16 @@ class ModuleStepper:
         caps = [K.cell_capacity(p[c], t_ax, capf, x[c, K.SQABS], x[c, K.STEMP]) for c in range(len(x))]
         return float(min(soh_capacity(cap, p[c, K.C0], self.params.ageing.x_c) for c, cap in enumerate(caps)))
 
+    def trial_voltage(self, current_a: float, port_temp_k: float, dt_s: float) -> float:
+        """Step-average module voltage [V] of a step at ``current_a``, state unchanged."""
+        m = self.m
+        out_m, out_c = np.zeros((1, 4)), np.zeros((1, m.n_cells, 4))
+        K.run_module(  # type: ignore[call-arg]
+            m.p, *self.tabs, m.state.copy(), m.n_series, m.n_parallel, np.array([current_a]), dt_s,
+            np.full((1, m.n_cells), port_temp_k), out_m, out_c,
+        )  # fmt: skip
+        return float(out_m[0, 1])
+
     def step(self, current_a: float, port_temp_k: float, dt_s: float) -> dict[str, float]:
         """Advance by ``dt_s`` [s] at constant module current [A] and port temperature [K]."""
         m = self.m
@@ -155,7 +194,7 @@ class CellSlaveMixin:
     def __init__(self, **kwargs: Any) -> None:
         import tomllib
 
-        from pythonfmu import Fmi2Causality, Fmi2Variability, Real
+        from pythonfmu import Boolean, Fmi2Causality, Fmi2Variability, Real
         from pythonfmu.enums import Fmi2Initial
 
         super().__init__(**kwargs)
@@ -163,6 +202,8 @@ class CellSlaveMixin:
         self.description = f"hevsim electro-thermal cell '{self._params.name}' (thesis eqs 33-44)"
         self.author = "hevsim"
         self.current_a = 0.0
+        self.power_w = 0.0
+        self.power_input = False
         self.soc_initial = float(self.DEFAULTS["soc_initial"])
         self.temp_initial_k = float(self.DEFAULTS["temp_initial_k"])
         self.port_temp_k = self.temp_initial_k
@@ -174,6 +215,9 @@ class CellSlaveMixin:
         register = self.register_variable  # type: ignore[attr-defined]
         for name in INPUTS:
             register(Real(name, causality=Fmi2Causality.input))
+        register(
+            Boolean("power_input", causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable)
+        )
         for name in ("soc_initial", "temp_initial_k", *FMU_PARAMETERS):
             register(Real(name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable))
         for name in OUTPUTS:
@@ -196,7 +240,9 @@ class CellSlaveMixin:
         self._set_outputs(self._stepper.outputs)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        """One communication step at the current inputs."""
+        """One communication step at the current inputs (current, or power when power_input)."""
+        if self.power_input:
+            self.current_a = current_for_power(self._stepper, self.power_w, self.port_temp_k, step_size)
         self._set_outputs(self._stepper.step(self.current_a, self.port_temp_k, step_size))
         return True
 
@@ -270,11 +316,14 @@ def simulate_fmu(
     dt_s: float,
     parameters: dict[str, float] | None = None,
     timeout_s: float = 600.0,
+    power_w: Any = None,
 ) -> dict[str, np.ndarray]:
     """Drive a cell FMU with FMPy, in a worker process, one step per input sample.
 
     ``current_a`` [A] and ``port_temp_k`` [K] are arrays (or a scalar temperature);
-    ``parameters`` are set during initialisation. Returns the outputs per step.
+    ``parameters`` are set during initialisation. With ``power_w`` [W] (array) the FMU is
+    driven by power instead (``current_a`` is then ignored and may be None); the solved
+    current is returned as output ``current_a``. Returns the outputs per step.
     """
     import json
     import subprocess
@@ -282,14 +331,16 @@ def simulate_fmu(
 
     from hevsim.errors import SimulationError
 
-    cur = np.asarray(current_a, float)
-    port = np.broadcast_to(np.asarray(port_temp_k, float), cur.shape)
+    drive = np.asarray(power_w if power_w is not None else current_a, float)
+    port = np.broadcast_to(np.asarray(port_temp_k, float), drive.shape)
+    key = "power_w" if power_w is not None else "current_a"
     req = {
         "fmu": str(fmu),
         "dt_s": float(dt_s),
-        "inputs": {"current_a": cur.tolist(), "port_temp_k": port.tolist()},
+        "inputs": {key: drive.tolist(), "port_temp_k": port.tolist()},
         "parameters": parameters or {},
-        "outputs": list(OUTPUTS),
+        "booleans": {"power_input": power_w is not None},
+        "outputs": [*OUTPUTS, "current_a"],
     }
     proc = subprocess.run(
         [sys.executable, "-m", "hevsim.battery._fmu_worker"],
