@@ -3,7 +3,8 @@
 The FMU wraps the same compiled step (:func:`hevsim.battery.kernel.cell_step`) as
 :class:`hevsim.battery.Cell`, so an FMI master reproduces the in-process model exactly.
 
-Interface: inputs ``current_a`` [A, discharge > 0] (or ``power_w`` [W] with ``power_input``) and ``port_temp_k`` [K]; outputs
+Interface: inputs ``current_a`` [A, discharge > 0] (or ``power_w`` [W] with ``power_input``)
+and ``port_temp_k`` [K]; outputs
 ``voltage_v`` [V], ``soc`` [-], ``port_heat_w`` [W, heat flow into the port], ``temp_k``
 [K, core] and ``soh`` [-] (SOH_C of eq 43; the impedance factor of eq 44 is 1 because the
 cell's impedance does not age within a run); parameters ``soc_initial``, ``temp_initial_k``
