@@ -31,7 +31,7 @@ TARGET_PEAK_GB = 2.0
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--mesh-size", type=float, default=0.0026, help="gmsh mesh size [m]")
+    ap.add_argument("--mesh-size", type=float, default=0.0028, help="gmsh mesh size [m]")
     ap.add_argument("--steps", type=int, default=300, help="1 s steps")
     args = ap.parse_args()
 

@@ -133,3 +133,56 @@ def test_unsupported_element_type(tmp_path: Path) -> None:
     deck.write_text("*Node\n1,0,0,0\n*Element, type=DC3D8\n1,1,1,1,1,1,1,1,1\n")
     with pytest.raises(InputError, match="line 3: element type 'DC3D8' is not supported"):
         read_abaqus_inp(deck)
+
+
+def _instance_deck(path: Path, instance_lines: list[str], second_instance: bool = False) -> None:
+    """One unit tetrahedron in a part, placed by an *Instance with the given data lines."""
+    text = [
+        "*Part, name=P",
+        "*Node",
+        "1, 0., 0., 0.",
+        "2, 1., 0., 0.",
+        "3, 0., 1., 0.",
+        "4, 0., 0., 1.",
+        "*Element, type=DC3D4, elset=E",
+        "1, 1, 2, 3, 4",
+        "*Solid Section, elset=E, material=M",
+        ",",
+        "*End Part",
+        "*Assembly, name=A",
+        "*Instance, name=P-1, part=P",
+        *instance_lines,
+        "*End Instance",
+    ]
+    if second_instance:
+        text += ["*Instance, name=P-2, part=P", "5., 0., 0.", "*End Instance"]
+    text += ["*End Assembly", "*Material, name=M", "*Conductivity", "1.,", "*Density", "1.,"]
+    text += ["*Specific Heat", "1."]
+    path.write_text("\n".join(text) + "\n")
+
+
+def test_instance_translation_and_rotation_are_applied(tmp_path: Path) -> None:
+    unit = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    deck = tmp_path / "inst.inp"
+    _instance_deck(deck, [])
+    plain = read_abaqus_inp(deck)
+    assert np.allclose(plain.mesh.points_m, unit) and not plain.unsupported
+    _instance_deck(deck, ["10., 20., 30."])
+    moved = read_abaqus_inp(deck, length_scale_m=1e-3)
+    assert np.allclose(moved.mesh.points_m, (unit + np.array([10.0, 20.0, 30.0])) * 1e-3)
+    assert not any("Instance" in u for u in moved.unsupported)
+    # translate by (1, 0, 0), then rotate 90 degrees about the z axis through the origin
+    _instance_deck(deck, ["1., 0., 0.", "0., 0., 0., 0., 0., 1., 90."])
+    rot = read_abaqus_inp(deck).mesh.points_m
+    expected = np.array([[0, 1, 0], [0, 2, 0], [-1, 1, 0], [0, 1, 1]], dtype=float)
+    assert np.allclose(rot, expected, atol=1e-12)
+    _instance_deck(deck, ["1., 0., 0."], second_instance=True)
+    twice = read_abaqus_inp(deck)
+    assert np.allclose(twice.mesh.points_m, unit + np.array([1.0, 0.0, 0.0]))
+    assert any("placed a second time" in u for u in twice.unsupported)
+    _instance_deck(deck, ["1., 0."])
+    with pytest.raises(InputError, match="expected 3 numbers"):
+        read_abaqus_inp(deck)
+    _instance_deck(deck, ["0., 0., 0.", "1., 1., 1., 1., 1., 1., 90."])
+    with pytest.raises(InputError, match="rotation axis points a and b coincide"):
+        read_abaqus_inp(deck)

@@ -29,9 +29,9 @@ def coarse_mesh() -> ThermalMesh:
 
 def test_geometry_parts_groups_and_reproducible(coarse_mesh: ThermalMesh) -> None:
     m = coarse_mesh
-    assert m.part_names == ("plate", "holder", "cells", "connector", "cover", "bms")
+    assert m.part_names == ("plate", "holder", "cells", "connector", "cover", "bms", "housing")
     assert m.n_cells == 12
-    assert set(np.unique(m.part_of_tet)) == set(range(6))
+    assert set(np.unique(m.part_of_tet)) == set(range(7))
     vol = np.bincount(
         m.cell_of_tet[m.cell_of_tet >= 0],
         weights=np.abs(
@@ -58,6 +58,39 @@ def test_geometry_parts_groups_and_reproducible(coarse_mesh: ThermalMesh) -> Non
     assert ext > 2 * 0.128 * 0.048  # at least top and bottom of the module
     again = build_module_mesh(COARSE)
     assert np.array_equal(again.points_m, m.points_m) and np.array_equal(again.tets, m.tets)
+
+
+def test_housing_is_its_own_plastic_part_with_external_walls(coarse_mesh: ThermalMesh) -> None:
+    from hevsim.thermal.mesh import EXTERNAL, tet_volumes_m3, triangle_areas_m2
+
+    m, g = coarse_mesh, COARSE
+    hi = m.part_names.index("housing")
+    assert DEFAULT_PART_MATERIALS["housing"] == "plastic" and TABLE_4_3["plastic"].conductivity_w_mk == 0.2
+    vol = tet_volumes_m3(m.points_m, m.tets)[m.part_of_tet == hi].sum()
+    th, lx, ly = g.housing_thickness_m, g.length_x_m, g.length_y_m
+    z0 = g.plate_thickness_m + g.holder_height_m
+    z1 = g.plate_thickness_m + g.cell_height_m + g.connector_thickness_m
+    exact = (lx * ly - (lx - 2 * th) * (ly - 2 * th)) * (z1 - z0)
+    assert vol == pytest.approx(exact, rel=1e-9)  # straight walls: the mesh is exact
+    # the four outer faces of the walls are in the convection (EXTERNAL) group
+    ext = m.facet_groups[EXTERNAL]
+    c = m.points_m[ext].mean(axis=1)
+    band = (c[:, 2] > z0) & (c[:, 2] < z1)
+    area = triangle_areas_m2(m.points_m, ext)
+    for sel, side in (
+        (np.abs(c[:, 0]) < 1e-12, ly),
+        (np.abs(c[:, 0] - lx) < 1e-12, ly),
+        (np.abs(c[:, 1]) < 1e-12, lx),
+        (np.abs(c[:, 1] - ly) < 1e-12, lx),
+    ):
+        assert area[sel & band].sum() == pytest.approx(side * (z1 - z0), rel=1e-9)
+    # the housing touches the holder and the cover (contact interfaces), not the cells
+    mats = {p: TABLE_4_3[DEFAULT_PART_MATERIALS[p]] for p in m.part_names}
+    disc = discretise(m, mats)
+    assert disc.interfaces["holder|housing"] > 0 and disc.interfaces["cover|housing"] > 0
+    assert "cells|housing" not in disc.interfaces
+    with pytest.raises(Exception, match="housing_thickness_m"):
+        ModuleGeometry(housing_thickness_m=0.005).check()
 
 
 def _coupled(
@@ -130,7 +163,9 @@ def test_run_thermal_end_to_end(tmp_path: Path) -> None:
         "connector",
         "cover",
         "bms",
+        "housing",
     }
+    assert res.metadata["materials"]["housing"]["name"] == "plastic"
     for name in (
         "timeseries.csv",
         "summary.json",
@@ -150,3 +185,33 @@ def test_run_thermal_end_to_end(tmp_path: Path) -> None:
     assert not list(tmp_path.glob(".res*"))
     text = format_summary(res)
     assert "cell_max_temp_c" in text and "hot spots" in text and str(out) in text
+
+
+def test_run_with_temperature_dependent_coolant(tmp_path: Path) -> None:
+    res = {}
+    for props in ("table_4_4", "meg50_table"):
+        cfg = thermal_config_from_dict(
+            {
+                "name": props,
+                "geometry": {"mesh_size_m": 0.01},
+                "simulation": {"duration_s": 10.0, "dt_s": 2.0, "cell_heat_w": [2.0]},
+                "coolant": {"properties": props},
+                "output": {"field_every_s": 0.0, "hot_spots": 1, "pictures": 0},
+            }
+        )
+        res[props] = run_thermal(cfg, None)
+    tab, meg = res["table_4_4"], res["meg50_table"]
+    assert meg.metrics["coolant_viscosity_pa_s"]["value"] == pytest.approx(2.326e-3)
+    assert tab.metrics["coolant_viscosity_pa_s"]["value"] == 0.0085
+    assert meg.metrics["reynolds"]["value"] > 3 * tab.metrics["reynolds"]["value"]
+    assert meg.metrics["nusselt"]["value"] > 2 * tab.metrics["nusselt"]["value"]
+    # better film: the 30 °C plate gives more heat at first (warmer outlet), more heat in total,
+    # so the plate is cooler afterwards
+    assert meg.timeseries["cooling_power_w"][1] > 1.5 * tab.timeseries["cooling_power_w"][1]
+    assert meg.timeseries["outlet_temp_c"][1] > tab.timeseries["outlet_temp_c"][1]
+    assert meg.metrics["heat_removed_j"]["value"] > tab.metrics["heat_removed_j"]["value"]
+    assert meg.part_stats["plate"]["mean_temp_c"] < tab.part_stats["plate"]["mean_temp_c"]
+    with pytest.raises(Exception, match="outside the MEG 50 table"):
+        thermal_config_from_dict({"coolant": {"properties": "meg50_table", "inlet_temp_c": 60.0}})
+    with pytest.raises(Exception, match="not a valid choice"):
+        thermal_config_from_dict({"coolant": {"properties": "water"}})

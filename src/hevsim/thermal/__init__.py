@@ -12,6 +12,7 @@ Public API (import from the submodules):
 - :mod:`hevsim.thermal.mesh`: :class:`ThermalMesh` (nodes, tets, parts, cells, facet groups)
 - :mod:`hevsim.thermal.solver`: :class:`HeatModel` (theta-method transient solver)
 - :mod:`hevsim.thermal.coolant`: :class:`Coolant`, :class:`ChannelModel`, ``nusselt``
+- :mod:`hevsim.thermal.meshio_import`: :func:`read_mesh` (gmsh .msh, VTU, ... via meshio)
 - :mod:`hevsim.thermal.geometry`: :class:`ModuleGeometry`, :func:`build_module_mesh`
 - :mod:`hevsim.thermal.run`: :func:`load_thermal_config`, :func:`run_thermal`
 """

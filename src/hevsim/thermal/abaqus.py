@@ -5,9 +5,14 @@ Supported keywords: *Node, *Element (C3D4 / DC3D4 linear tetrahedra), *Elset and
 *Conductivity, *Density, *Specific Heat, *Initial Conditions (type=TEMPERATURE), *Surface
 (type=ELEMENT, faces S1-S4), *Gap Conductance (the zero-clearance value), *Dflux (BF body
 flux per element set: each set becomes one heat source "cell"). The wrappers *Part, *End
-Part, *Assembly, *Instance (without translation), *End Instance, *End Assembly and purely
-descriptive keywords are accepted. Every other keyword is reported in
-:attr:`AbaqusModel.unsupported` (keyword and line), never silently dropped.
+Part, *Assembly, *Instance, *End Instance, *End Assembly and purely descriptive keywords are
+accepted. An *Instance's data lines are applied to the nodes of its part (Abaqus Keywords
+Reference, *INSTANCE): the first line is a translation (dx, dy, dz), the optional second line a
+rotation about the axis through points a and b by an angle in degrees (right-hand rule about
+a -> b); when both are given the translation is applied first. A part placed by more than one
+instance is reported (only the first placement is applied: the reader keeps one copy).
+Every other keyword is reported in :attr:`AbaqusModel.unsupported` (keyword and line), never
+silently dropped.
 """
 
 from __future__ import annotations
@@ -53,6 +58,19 @@ def _options(line: str) -> tuple[str, dict[str, str]]:
     return parts[0].lower(), opts
 
 
+def _rotate(points: np.ndarray, a: np.ndarray, b: np.ndarray, angle_deg: float) -> np.ndarray:
+    """Rotate ``points`` about the axis a -> b by ``angle_deg`` (right-hand rule, Rodrigues)."""
+    axis = b - a
+    norm = float(np.linalg.norm(axis))
+    if norm == 0.0:
+        raise ValueError("rotation axis points a and b coincide")
+    k = axis / norm
+    th = np.radians(angle_deg)
+    v = points - a
+    rot = v * np.cos(th) + np.cross(k, v) * np.sin(th) + np.outer(v @ k, k) * (1.0 - np.cos(th))
+    return rot + a
+
+
 def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusModel:
     """Read an ``.inp`` deck; coordinates are multiplied by ``length_scale_m`` (1e-3 for mm decks)."""
     p = Path(path)
@@ -70,6 +88,10 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
     dflux: dict[str, float] = {}
     gap: float | None = None
     unsupported: list[str] = []
+    part_nodes: dict[str, list[int]] = {}
+    current_part = ""
+    placements: dict[str, list[list[float]]] = {}  # part -> instance data lines
+    instance_part = ""
     kw, material = "", ""
     opts: dict[str, str] = {}
     lines = p.read_text(encoding="utf-8", errors="replace").splitlines()
@@ -93,8 +115,20 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
                 if opts.get("type", "ELEMENT").upper() != "ELEMENT":
                     unsupported.append(f"line {no}: *Surface type={opts.get('type')}")
                 surfaces[opts.get("name", "")] = []
-            elif kw == "instance" and any(c.strip() for c in lines[no : no + 1] if not c.startswith("*")):
-                unsupported.append(f"line {no}: *Instance with a translation/rotation (ignored)")
+            elif kw == "part":
+                current_part = opts.get("name", "")
+            elif kw == "end part":
+                current_part = ""
+            elif kw == "instance":
+                instance_part = opts.get("part", "")
+                if instance_part in placements:
+                    unsupported.append(
+                        f"line {no}: *Instance of part '{instance_part}' placed a second time "
+                        "(only the first placement is applied)"
+                    )
+                    instance_part = ""
+                elif instance_part:
+                    placements[instance_part] = []
             elif kw == "initial conditions" and opts.get("type", "").upper() != "TEMPERATURE":
                 unsupported.append(f"line {no}: *Initial Conditions type={opts.get('type')}")
             elif kw not in _ACCEPTED and kw not in {
@@ -107,6 +141,16 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
         try:
             if kw == "node":
                 nodes[int(vals[0])] = (float(vals[1]), float(vals[2]), float(vals[3]))
+                if current_part:
+                    part_nodes.setdefault(current_part, []).append(int(vals[0]))
+            elif kw == "instance":
+                if instance_part:
+                    if len(placements[instance_part]) >= 2:
+                        raise ValueError("more than two data lines")
+                    expected = 3 if not placements[instance_part] else 7
+                    if len(vals) != expected:
+                        raise ValueError(f"expected {expected} numbers, got {len(vals)}")
+                    placements[instance_part].append([float(v) for v in vals])
             elif kw == "element":
                 e = [int(v) for v in vals]
                 elements[e[0]] = (e[1], e[2], e[3], e[4])
@@ -138,6 +182,19 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
 
     if not elements:
         raise InputError(f"{src}: no *Element block of linear tetrahedra found.")
+    for pname, data in placements.items():
+        ids = part_nodes.get(pname, [])
+        if not data or not ids:
+            continue
+        xyz = np.array([nodes[i] for i in ids], dtype=float) + np.array(data[0])
+        if len(data) == 2:
+            r = data[1]
+            try:
+                xyz = _rotate(xyz, np.array(r[0:3]), np.array(r[3:6]), r[6])
+            except ValueError as exc:
+                raise InputError(f"{src}: *Instance of part '{pname}': {exc}.") from exc
+        for i, row in zip(ids, xyz.tolist(), strict=True):
+            nodes[i] = (row[0], row[1], row[2])
     nid = np.array(sorted(nodes))
     lookup = {n: i for i, n in enumerate(nid.tolist())}
     pts = np.array([nodes[n] for n in nid.tolist()]) * length_scale_m

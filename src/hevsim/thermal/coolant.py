@@ -53,6 +53,44 @@ class Coolant:
         return self.viscosity_pa_s * self.specific_heat_j_kgk / self.conductivity_w_mk
 
 
+#: 50/50 ethylene glycol-water ("MEG 50") vs temperature [°C]: density [kg/m^3], specific heat
+#: [J/(kg K)], conductivity [W/(m K)], dynamic viscosity [Pa s]. Source: L. Laloui and
+#: A. F. Rotta Loria, *Analysis and Design of Energy Geostructures*, Academic Press (2020),
+#: Table 3.8 "Some thermophysical properties of MEG 50". Thesis Table 4.4 gives only constants.
+MEG50_TABLE: dict[str, tuple[float, ...]] = {
+    "temp_c": (-10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0, 30.0, 40.0),
+    "density_kg_m3": (1094.0, 1092.0, 1090.0, 1087.0, 1084.0, 1082.0, 1079.0, 1073.0, 1067.0),
+    "specific_heat_j_kgk": (3201.0, 3221.0, 3240.0, 3260.0, 3280.0, 3301.0, 3321.0, 3361.0, 3402.0),
+    "conductivity_w_mk": (0.413, 0.412, 0.411, 0.410, 0.408, 0.407, 0.406, 0.403, 0.400),
+    "viscosity_pa_s": (
+        5.316e-3, 4.428e-3, 3.723e-3, 3.157e-3, 2.700e-3, 2.326e-3, 2.019e-3, 1.552e-3, 1.223e-3
+    ),
+}  # fmt: skip
+
+#: Names of the coolant property sets accepted by :func:`coolant_properties`.
+COOLANT_PROPERTY_SETS = ("table_4_4", "meg50_table")
+
+
+def meg50_coolant(temp_c: float) -> Coolant:
+    """50/50 water-ethylene glycol at ``temp_c`` from :data:`MEG50_TABLE`.
+
+    Linear interpolation in temperature for density, specific heat and conductivity, linear in
+    log(viscosity) for the viscosity (Andrade-like); no extrapolation outside -10..40 °C.
+    """
+    t = MEG50_TABLE["temp_c"]
+    if not (math.isfinite(temp_c) and t[0] <= temp_c <= t[-1]):
+        raise ConfigError(
+            f"coolant: temperature {temp_c!r} °C is outside the MEG 50 table ({t[0]:g} to {t[-1]:g} °C); "
+            "use the constant Table 4.4 properties or a temperature inside the table."
+        )
+
+    def lin(key: str) -> float:
+        return float(np.interp(temp_c, t, MEG50_TABLE[key]))
+
+    mu = float(np.exp(np.interp(temp_c, t, np.log(MEG50_TABLE["viscosity_pa_s"]))))
+    return Coolant(lin("conductivity_w_mk"), lin("density_kg_m3"), mu, lin("specific_heat_j_kgk"))
+
+
 def nusselt(reynolds: float, prandtl: float) -> float:
     """Nusselt number by flow regime: laminar 3.66, Gnielinski above Re 3000, linear blend between."""
 

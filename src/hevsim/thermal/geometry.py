@@ -19,7 +19,7 @@ import numpy as np
 from hevsim.errors import ConfigError, InputError
 from hevsim.thermal.mesh import CELL_SURFACE, CHANNEL_WALL, EXTERNAL, ThermalMesh, tet_volumes_m3
 
-PART_ORDER = ("plate", "holder", "cells", "connector", "cover", "bms")
+PART_ORDER = ("plate", "holder", "cells", "connector", "cover", "bms", "housing")
 
 
 @dataclass(frozen=True)
@@ -41,6 +41,7 @@ class ModuleGeometry:
     connector_width_m: float = 0.010
     cover_thickness_m: float = 0.003
     bms_thickness_m: float = 0.002
+    housing_thickness_m: float = 0.002
     mesh_size_m: float = 0.005
 
     def check(self, where: str = "geometry") -> ModuleGeometry:
@@ -58,6 +59,11 @@ class ModuleGeometry:
             raise ConfigError(
                 f"{where}: channel_height_m {self.channel_height_m} leaves no plate wall; "
                 "expected < 0.8 * plate_thickness_m."
+            )
+        if self.housing_thickness_m >= self.margin_m:
+            raise ConfigError(
+                f"{where}: housing_thickness_m {self.housing_thickness_m} must be below margin_m "
+                f"{self.margin_m} (the housing walls stand in the margin around the cells)."
             )
         ly = self.rows * self.cell_pitch_m + 2 * self.margin_m
         if self.channel_passes * self.channel_width_m * 1.5 > ly:
@@ -169,7 +175,12 @@ def _build(gmsh: object, g: ModuleGeometry, source: str) -> ThermalMesh:
     cover = [(3, occ.addBox(0, 0, ztop, lx, ly, g.cover_thickness_m))]
     zbms = ztop + g.cover_thickness_m
     bms = [(3, occ.addBox(lx / 4, ly / 4, zbms, lx / 2, ly / 2, g.bms_thickness_m))]
-    groups = [plate_cut, holder, *[[c] for c in cells], connectors, cover, bms]
+    # housing: side walls on the holder rim, up to the cover (a frame of thickness th)
+    th, zh = g.housing_thickness_m, tp + g.holder_height_m
+    outer_box = occ.addBox(0, 0, zh, lx, ly, ztop - zh)
+    inner_box = occ.addBox(th, th, zh, lx - 2 * th, ly - 2 * th, ztop - zh)
+    housing, _ = occ.cut([(3, outer_box)], [(3, inner_box)])
+    groups = [plate_cut, holder, *[[c] for c in cells], connectors, cover, bms, housing]
     flat = [dt for grp in groups for dt in grp]
     _, out_map = occ.fragment(flat, [])
     occ.synchronize()
@@ -186,7 +197,7 @@ def _build(gmsh: object, g: ModuleGeometry, source: str) -> ThermalMesh:
             if gi == 1
             else "cells"
             if gi < 2 + len(cells)
-            else ("connector", "cover", "bms")[gi - 2 - len(cells)]
+            else ("connector", "cover", "bms", "housing")[gi - 2 - len(cells)]
         )
         for _ in grp:
             part_vols[name].extend(children[k])

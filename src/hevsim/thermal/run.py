@@ -45,8 +45,13 @@ class SimulationSection:
 
 @dataclass(frozen=True)
 class CoolantSection:
-    """Coolant: inlet [°C], flow [L/min], channel segments, properties (Table 4.4 defaults)."""
+    """Coolant: inlet [°C], flow [L/min], channel segments, properties (Table 4.4 defaults).
 
+    ``properties = "meg50_table"`` replaces the four constants by the temperature-dependent
+    MEG 50 table (:data:`hevsim.thermal.coolant.MEG50_TABLE`) evaluated at the inlet temperature.
+    """
+
+    properties: str = "table_4_4"
     inlet_temp_c: float = 15.0
     flow_l_min: float = 10.0
     segments: int = 30
@@ -119,7 +124,8 @@ def thermal_config_from_dict(
     data = dict(data)
     raw_mat = data.pop("materials", {})
     raw_contact = data.pop("contact", {})
-    cfg = build_config(ThermalConfig, data, source, base_dir, {}, _BOUNDS)
+    choices = {"coolant.properties": ("table_4_4", "meg50_table")}
+    cfg = build_config(ThermalConfig, data, source, base_dir, choices, _BOUNDS)
     if not isinstance(raw_mat, dict):
         raise ConfigError(f"{source}: [materials]: expected tables [materials.<part>], got {raw_mat!r}.")
     materials = {p: TABLE_4_3[DEFAULT_PART_MATERIALS[p]] for p in PART_ORDER}
@@ -153,7 +159,29 @@ def thermal_config_from_dict(
         for k, v in raw_contact.items()
     }
     cfg.geometry.check(f"{source}: [geometry]")
+    if cfg.coolant.properties == "meg50_table":
+        from hevsim.thermal.coolant import meg50_coolant
+
+        try:
+            meg50_coolant(cfg.coolant.inlet_temp_c)
+        except ConfigError as exc:
+            raise ConfigError(f"{source}: key 'coolant.inlet_temp_c': {exc}") from exc
     return dataclasses.replace(cfg, materials=materials, contact=contact)
+
+
+def coolant_from_section(cool: CoolantSection) -> Any:
+    """The :class:`~hevsim.thermal.coolant.Coolant` of a ``[coolant]`` section.
+
+    ``table_4_4``: the section's constants (thesis Table 4.4 by default). ``meg50_table``: the
+    MEG 50 table at the inlet temperature; the film coefficient then stays fixed during the run
+    (the coolant warms by well under 1 K across the plate at 10 L/min), so the matrix is still
+    factorised once.
+    """
+    from hevsim.thermal.coolant import Coolant, meg50_coolant
+
+    if cool.properties == "meg50_table":
+        return meg50_coolant(cool.inlet_temp_c)
+    return Coolant(cool.conductivity_w_mk, cool.density_kg_m3, cool.viscosity_pa_s, cool.specific_heat_j_kgk)
 
 
 def load_thermal_config(path: str | Path) -> ThermalConfig:
@@ -202,7 +230,7 @@ def hot_spots(
 
 def run_thermal(config_path: str | Path | ThermalConfig, out_dir: str | Path | None) -> ThermalResult:
     """Run a module case end to end; writes the results folder atomically when ``out_dir`` is given."""
-    from hevsim.thermal.coolant import ChannelModel, Coolant, segments_along_path
+    from hevsim.thermal.coolant import ChannelModel, segments_along_path
     from hevsim.thermal.geometry import build_module_mesh
     from hevsim.thermal.mesh import CHANNEL_WALL, mesh_faces, triangle_areas_m2
     from hevsim.thermal.solver import HeatModel, discretise
@@ -235,9 +263,7 @@ def run_thermal(config_path: str | Path | ThermalConfig, out_dir: str | Path | N
         ambient_k=sim.ambient_temp_c + KELVIN,
         wall_segment_of_facet=seg,
     )
-    coolant = Coolant(
-        cool.conductivity_w_mk, cool.density_kg_m3, cool.viscosity_pa_s, cool.specific_heat_j_kgk
-    )
+    coolant = coolant_from_section(cool)
     channel = ChannelModel(
         used.size,
         inlet_temp_k=cool.inlet_temp_c + KELVIN,
@@ -368,6 +394,7 @@ def run_thermal(config_path: str | Path | ThermalConfig, out_dir: str | Path | N
         "reynolds": {"value": channel.reynolds, "unit": "-"},
         "nusselt": {"value": channel.nusselt, "unit": "-"},
         "wall_h_w_m2k": {"value": channel.h_w_m2k, "unit": "W/(m^2 K)"},
+        "coolant_viscosity_pa_s": {"value": channel.coolant.viscosity_pa_s, "unit": "Pa s"},
         "nodes": {"value": int(mesh.points_m.shape[0]), "unit": "-"},
         "nodes_split": {"value": int(n), "unit": "-"},
         "tetrahedra": {"value": int(mesh.tets.shape[0]), "unit": "-"},
