@@ -228,6 +228,30 @@ def _cmd_age(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_cosim(args: argparse.Namespace) -> int:
+    from hevsim.cosim.config import datacheck, run_cosim
+
+    if args.check:
+        datacheck(args.config)
+        print(f"{args.config}: ok (well-formed, structure, references, connection pairing, units)")
+        return 0
+    from tqdm import tqdm
+
+    out = Path(args.out) if args.out else Path("results") / Path(args.config).stem
+    bar = tqdm(total=1.0, unit="run", disable=not sys.stderr.isatty(), bar_format="{l_bar}{bar}| {elapsed}")
+
+    def progress(t_s: float, stop_s: float) -> None:
+        bar.n = min(t_s / stop_s, 1.0) if stop_s > 0 else 1.0
+        bar.refresh()
+
+    try:
+        run_cosim(args.config, out, progress=progress, resume=args.resume)
+    finally:
+        bar.close()
+    print(f"results written to {out}/ (results.csv, summary.json, system.ssd)")
+    return 0
+
+
 def _cmd_thermal(args: argparse.Namespace) -> int:
     from hevsim.thermal.run import format_summary, run_thermal
 
@@ -331,6 +355,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("config", help="cell configuration (TOML), e.g. examples/cell.toml")
     p.add_argument("-o", "--output", required=True, help="FMU file to write")
     p.set_defaults(func=_cmd_export_fmu)
+
+    p = sub.add_parser("cosim", help="co-simulation of FMUs and hevsim models (SSP, SIMULIA CSE XML)")
+    p.add_argument("config", help="system description: .ssp, .ssd or a CSE .xml (with --check)")
+    p.add_argument("--out", help="results folder (default results/<config>)")
+    p.add_argument("--resume", action="store_true", help="resume from the last checkpoint of --out")
+    p.add_argument("--check", action="store_true", help="only run the datacheck of section 4.1.4")
+    p.set_defaults(func=_cmd_cosim)
 
     p = sub.add_parser("thermal", help="3D FEM heat model of a battery module with cooling plate and coolant")
     p.add_argument("config", help="module thermal configuration (TOML), e.g. examples/module_thermal.toml")

@@ -1,0 +1,66 @@
+"""Worker process of :class:`hevsim.cosim.worker.WorkerFMUParticipant`.
+
+Speaks JSON lines on stdin/stdout: one request ``{"cmd": ..., ...}`` per line, one reply
+``{"ok": true, "result": ...}`` or ``{"ok": false, "error": ...}`` per line. Leaves with
+``os._exit`` so a crash in an FMU's teardown cannot hang or fail the master.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+import sys
+from typing import Any
+
+
+def main() -> None:
+    """Serve requests until ``quit`` or end of input."""
+    from hevsim.cosim.participant import FMUParticipant
+
+    out = sys.stdout
+    sys.stdout = sys.stderr  # FMU chatter must not corrupt the protocol
+    p: FMUParticipant | None = None
+    for line in sys.stdin:
+        req = json.loads(line)
+        cmd = req["cmd"]
+        try:
+            res: Any = None
+            if cmd == "open":
+                p = FMUParticipant(req["name"], req["fmu"], req.get("parameters"))
+                res = {"inputs": p.inputs, "outputs": p.outputs}
+            elif cmd == "quit":
+                break
+            else:
+                assert p is not None
+                if cmd == "setup":
+                    p.setup(req["t0"])
+                elif cmd == "set":
+                    p.set_inputs(req["values"])
+                elif cmd == "step":  # set inputs, step, get outputs in one round trip
+                    if req.get("values"):
+                        p.set_inputs(req["values"])
+                    ok, pref = p.do_step(req["t"], req["h"])
+                    res = [ok, pref, p.terminate_requested, p.get_outputs() if ok else None]
+                elif cmd == "get":
+                    res = p.get_outputs()
+                elif cmd == "get_state":
+                    res = base64.b64encode(p.get_state()).decode()
+                elif cmd == "set_state":
+                    p.set_state(base64.b64decode(req["state"]))
+                elif cmd == "terminate":
+                    p.terminate()
+                elif cmd == "crash":  # for tests of fault containment
+                    os._exit(17)
+                else:
+                    raise ValueError(f"unknown command {cmd!r}")
+            out.write(json.dumps({"ok": True, "result": res}) + "\n")
+        except Exception as exc:
+            out.write(json.dumps({"ok": False, "error": f"{type(exc).__name__}: {exc}"}) + "\n")
+        out.flush()
+    out.flush()
+    os._exit(0)
+
+
+if __name__ == "__main__":
+    main()

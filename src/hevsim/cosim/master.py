@@ -1,0 +1,399 @@
+"""The co-simulation master: Jacobi / Gauss-Seidel coupling, fixed-point iteration, step
+negotiation, unit conversion on connections, checkpoints and fault reporting.
+
+Algorithm per communication step from ``t`` by ``h`` (inputs held constant over the step):
+
+* **Jacobi**: every participant receives the others' outputs at ``t`` and steps.
+* **Gauss-Seidel**: participants step in ``order`` (the lead first); each receives the
+  outputs of those already stepped to ``t + h`` and of the others at ``t``.
+* **Iteration** (``max_iterations > 1``): the step is redone from saved states with the new
+  end-of-step outputs (under-relaxed by ``relaxation``) until every connected output changes
+  by less than ``tolerance`` (relative to 1 + |value|). With ``hold="midpoint"`` (default)
+  the value held over the step is the mean of the start and end values (trapezoidal
+  coupling: second order once converged); ``hold="end"`` holds the end value (first order).
+* **Step size**: fixed ``step_s``, or negotiated: the MIN or MAX of the participants'
+  preferred steps (bounded by ``min_step_s`` and ``max_step_s``); a rejected step is
+  redone with the participant's preferred (smaller) step.
+"""
+
+from __future__ import annotations
+
+import pickle
+import time as _time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hevsim.cosim import units as U
+from hevsim.cosim.participant import Participant
+from hevsim.errors import ConfigError, HevsimError, SimulationError
+
+ALGORITHMS = ("jacobi", "gauss-seidel")
+NEGOTIATION = ("fixed", "min", "max")
+
+
+@dataclass(frozen=True)
+class Connection:
+    """Output ``src_var`` of ``src`` feeds input ``dst_var`` of ``dst``; units converted
+    from ``src_unit`` to ``dst_unit`` (None: the participants' declared units)."""
+
+    src: str
+    src_var: str
+    dst: str
+    dst_var: str
+    src_unit: str | None = None
+    dst_unit: str | None = None
+
+
+@dataclass
+class Options:
+    """Master settings (see the module docstring)."""
+
+    stop_time_s: float
+    step_s: float
+    start_time_s: float = 0.0
+    algorithm: str = "gauss-seidel"
+    order: Sequence[str] | None = None
+    negotiation: str = "fixed"
+    min_step_s: float | None = None
+    max_step_s: float | None = None
+    max_iterations: int = 1
+    tolerance: float = 1e-8
+    relaxation: float = 1.0
+    hold: str = "midpoint"
+    send_before_receive: dict[str, bool] = field(default_factory=dict)
+    checkpoint_path: str | Path | None = None
+    checkpoint_every: int = 1
+    record_every: int = 1
+
+    def check(self) -> None:
+        """Raise :class:`ConfigError` on an invalid option, listing valid values."""
+        if self.algorithm not in ALGORITHMS:
+            raise ConfigError(f"co-simulation algorithm {self.algorithm!r}; valid: {', '.join(ALGORITHMS)}.")
+        if self.negotiation not in NEGOTIATION:
+            raise ConfigError(f"negotiation method {self.negotiation!r}; valid: {', '.join(NEGOTIATION)}.")
+        if not self.step_s > 0 or not self.stop_time_s > self.start_time_s:
+            raise ConfigError(
+                f"co-simulation needs step_s > 0 and stop_time_s > start_time_s "
+                f"(got {self.step_s}, {self.start_time_s}..{self.stop_time_s})."
+            )
+        if not 0 < self.relaxation <= 1:
+            raise ConfigError(f"relaxation {self.relaxation} must be in (0, 1].")
+        if self.hold not in ("midpoint", "end"):
+            raise ConfigError(f"iteration hold {self.hold!r}; valid: midpoint, end.")
+        if self.max_iterations < 1:
+            raise ConfigError(f"max_iterations {self.max_iterations} must be >= 1.")
+
+
+@dataclass
+class CosimResult:
+    """Time series of every participant output (``columns`` "participant.variable", the
+    time in ``time_s``), plus step statistics and why the run stopped."""
+
+    time_s: np.ndarray
+    columns: list[str]
+    data: np.ndarray
+    stats: dict[str, Any]
+    stopped_by: str | None = None
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        try:
+            return self.data[:, self.columns.index(key)]
+        except ValueError:
+            raise KeyError(f"no result column {key!r}; columns: {self.columns}") from None
+
+    def write_csv(self, path: str | Path) -> None:
+        """Write the time series as CSV (atomically)."""
+        from hevsim.io import write_text_atomic
+
+        lines = [",".join(["time_s", *self.columns])]
+        lines += [
+            ",".join(repr(float(v)) for v in (t, *row)) for t, row in zip(self.time_s, self.data, strict=True)
+        ]
+        write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+class CosimFault(SimulationError):
+    """A participant failed: names the participant, the call and the time; ``partial`` holds
+    the results up to the last completed communication point."""
+
+    def __init__(self, message: str, partial: CosimResult | None = None):
+        super().__init__(message)
+        self.partial = partial
+
+
+class Master:
+    """Couples ``participants`` through ``connections`` under ``options``."""
+
+    def __init__(
+        self,
+        participants: Sequence[Participant],
+        connections: Sequence[Connection],
+        options: Options,
+        extra_units: dict[str, U.Unit] | None = None,
+    ):
+        options.check()
+        self.p = {p.name: p for p in participants}
+        if len(self.p) != len(participants):
+            raise ConfigError("co-simulation participants must have distinct names.")
+        self.opt = options
+        order = list(options.order) if options.order else [p.name for p in participants]
+        for n in order:
+            if n not in self.p:
+                raise ConfigError(f"order names unknown participant {n!r}; participants: {sorted(self.p)}.")
+        self.order = order + [n for n in self.p if n not in order]
+        # connections, grouped by destination: (dst_var, src, src_var, factor, offset)
+        self.feeds: dict[str, list[tuple[str, str, str, float, float]]] = {n: [] for n in self.p}
+        seen: set[tuple[str, str]] = set()
+        for c in connections:
+            what = f"connection {c.src}.{c.src_var} -> {c.dst}.{c.dst_var}"
+            for part, var, kind in ((c.src, c.src_var, "outputs"), (c.dst, c.dst_var, "inputs")):
+                if part not in self.p:
+                    raise ConfigError(f"{what}: no participant {part!r}; participants: {sorted(self.p)}.")
+                declared = getattr(self.p[part], kind)
+                if var not in declared:
+                    raise ConfigError(
+                        f"{what}: participant {part!r} has no {kind[:-1]} {var!r}; "
+                        f"{kind}: {sorted(declared)}."
+                    )
+            if (c.dst, c.dst_var) in seen:
+                raise ConfigError(f"{what}: input {c.dst}.{c.dst_var} is already connected.")
+            seen.add((c.dst, c.dst_var))
+            su = c.src_unit if c.src_unit is not None else self.p[c.src].outputs[c.src_var]
+            du = c.dst_unit if c.dst_unit is not None else self.p[c.dst].inputs[c.dst_var]
+            f, o = U.conversion(su, du, extra_units, what)
+            self.feeds[c.dst].append((c.dst_var, c.src, c.src_var, f, o))
+
+    # -- helpers ---------------------------------------------------------------------------
+    def _call(self, name: str, call: str, t: float, fn: Callable[[], Any]) -> Any:
+        try:
+            return fn()
+        except HevsimError as exc:
+            if isinstance(exc, CosimFault):
+                raise
+            raise CosimFault(f"participant {name!r} failed in {call} at t = {t:g} s: {exc}") from exc
+        except Exception as exc:
+            raise CosimFault(
+                f"participant {name!r} failed in {call} at t = {t:g} s: {type(exc).__name__}: {exc}"
+            ) from exc
+
+    def _inputs_for(self, name: str, y: dict[str, dict[str, float]]) -> dict[str, float]:
+        return {dv: f * y[s][sv] + o for dv, s, sv, f, o in self.feeds[name]}
+
+    def _send(self, name: str, y: dict[str, dict[str, float]], t: float) -> None:
+        vals = self._inputs_for(name, y)
+        if vals:
+            self._call(name, "set_inputs", t, lambda: self.p[name].set_inputs(vals))
+
+    def _get(self, name: str, t: float) -> dict[str, float]:
+        return dict(self._call(name, "get_outputs", t, self.p[name].get_outputs))
+
+    def _save(self, t: float) -> dict[str, Any]:
+        return {n: self._call(n, "get_state", t, self.p[n].get_state) for n in self.order}
+
+    def _restore(self, states: dict[str, Any], t: float) -> None:
+        for n, s in states.items():
+            self._call(n, "set_state", t, lambda n=n, s=s: self.p[n].set_state(s))  # type: ignore[misc]
+
+    def _step_once(
+        self, t: float, h: float, y0: dict[str, dict[str, float]], guess: dict[str, dict[str, float]]
+    ) -> tuple[dict[str, dict[str, float]], float | None, list[float]]:
+        """One pass over the participants; returns (end outputs, reject-preferred h, preferred hs)."""
+        jacobi = self.opt.algorithm == "jacobi"
+        mid = self.opt.max_iterations > 1 and self.opt.hold == "midpoint"
+        cur = {n: dict(v) for n, v in guess.items()}
+        new: dict[str, dict[str, float]] = {}
+        prefs: list[float] = []
+        for n in self.order:
+            if mid:
+                sent = {s: {v: 0.5 * (y0[s][v] + cur[s][v]) for v in y0[s]} for s in y0}
+                self._send(n, sent, t)
+            else:
+                self._send(n, cur, t)
+            ok, pref = self._call(n, "do_step", t, lambda n=n: self.p[n].do_step(t, h))  # type: ignore[misc]
+            if not ok:
+                return new, (pref if pref and pref < h else h / 2), prefs
+            if pref:
+                prefs.append(float(pref))
+            new[n] = self._get(n, t + h)
+            if not jacobi:
+                cur[n] = new[n]
+        return new, None, prefs
+
+    def _record(self, t: float, y: dict[str, dict[str, float]]) -> None:
+        self._times.append(t)
+        self._rows.append([y[n][v] for n, v in self._cols])
+
+    def _result(self, stopped_by: str | None) -> CosimResult:
+        cols = [f"{n}.{v}" for n, v in self._cols]
+        data = np.array(self._rows, float).reshape(len(self._rows), len(cols))
+        return CosimResult(np.array(self._times), cols, data, dict(self.stats), stopped_by)
+
+    def _checkpoint(self, t: float, h: float, y: dict[str, dict[str, float]], nsteps: int) -> None:
+        path = Path(self.opt.checkpoint_path)  # type: ignore[arg-type]
+        blob = {
+            "t": t,
+            "h": h,
+            "y": y,
+            "nsteps": nsteps,
+            "states": self._save(t),
+            "times": self._times,
+            "rows": self._rows,
+            "stats": self.stats,
+        }
+        tmp = path.with_name(f".{path.name}.tmp")
+        tmp.write_bytes(pickle.dumps(blob))
+        tmp.replace(path)
+
+    # -- run -------------------------------------------------------------------------------
+    def run(
+        self, progress: Callable[[float, float], None] | None = None, resume: bool = False
+    ) -> CosimResult:
+        """Run from start to stop time; ``progress(t, stop)`` is called per communication step.
+        With ``resume`` and an existing checkpoint file, continue from the checkpoint."""
+        o = self.opt
+        t, h = o.start_time_s, o.step_s
+        self.stats: dict[str, Any] = {"steps": 0, "iterations": 0, "rejected": 0, "max_residual": 0.0}
+        self._times: list[float] = []
+        self._rows: list[list[float]] = []
+        for n in self.order:
+            self._call(n, "setup", t, lambda n=n: self.p[n].setup(t))  # type: ignore[misc]
+        y = self._initial_exchange(t)
+        self._cols = [(n, v) for n in self.order for v in y[n]]
+        nsteps = 0
+        ck = Path(o.checkpoint_path) if o.checkpoint_path else None
+        if resume and ck is not None and ck.is_file():
+            blob = pickle.loads(ck.read_bytes())
+            t, h, y, nsteps = blob["t"], blob["h"], blob["y"], blob["nsteps"]
+            self._times, self._rows, self.stats = blob["times"], blob["rows"], blob["stats"]
+            self._restore(blob["states"], t)
+        else:
+            self._record(t, y)
+        stopped_by = None
+        eps = 1e-9 * max(1.0, abs(o.stop_time_s))
+        need_state = o.max_iterations > 1 or o.negotiation != "fixed"
+        try:
+            while t < o.stop_time_s - eps:
+                h = min(h, o.stop_time_s - t)
+                saved = self._save(t) if need_state else None
+                guess = y
+                it = 0
+                while True:
+                    new, reject_h, prefs = self._step_once(t, h, y, guess)
+                    if reject_h is not None:
+                        self.stats["rejected"] += 1
+                        if saved is None:
+                            saved = self._save_for_reject(t)
+                        self._restore(saved, t)
+                        lo = o.min_step_s or 0.0
+                        if reject_h <= lo or reject_h < 1e-12:
+                            raise CosimFault(
+                                f"step rejected at t = {t:g} s with h = {h:g} s below the minimum step."
+                            )
+                        h = reject_h
+                        guess = y
+                        it = 0
+                        continue
+                    it += 1
+                    self.stats["iterations"] += 1
+                    if it >= o.max_iterations:
+                        break
+                    res = max(
+                        (abs(new[n][v] - guess[n][v]) / (1 + abs(new[n][v])) for n, v in self._cols),
+                        default=0.0,
+                    )
+                    if res <= o.tolerance:
+                        break
+                    self._restore(saved, t)  # type: ignore[arg-type]
+                    w = o.relaxation
+                    guess = {n: {v: w * new[n][v] + (1 - w) * guess[n][v] for v in new[n]} for n in new}
+                if o.max_iterations > 1:
+                    res = max(
+                        (abs(new[n][v] - guess[n][v]) / (1 + abs(new[n][v])) for n, v in self._cols),
+                        default=0.0,
+                    )
+                    self.stats["max_residual"] = max(self.stats["max_residual"], res)
+                y = new
+                t = t + h
+                nsteps += 1
+                self.stats["steps"] = nsteps
+                if nsteps % o.record_every == 0 or t >= o.stop_time_s - eps:
+                    self._record(t, y)
+                h = self._next_h(h, prefs)
+                term = [n for n in self.order if self.p[n].terminate_requested]
+                if term:
+                    stopped_by = f"participant {term[0]!r} requested termination at t = {t:g} s"
+                    break
+                if ck is not None and nsteps % o.checkpoint_every == 0:
+                    self._checkpoint(t, h, y, nsteps)
+                if progress is not None:
+                    progress(t, o.stop_time_s)
+        except CosimFault as exc:
+            exc.partial = self._result(f"fault: {exc}")
+            self._terminate_all(t)
+            raise
+        self._terminate_all(t)
+        return self._result(stopped_by)
+
+    def _save_for_reject(self, t: float) -> dict[str, Any]:
+        raise CosimFault(
+            f"a participant rejected the step at t = {t:g} s; redoing it needs saved states: "
+            "set max_iterations >= 2 or use participants that support get_state."
+        )
+
+    def _next_h(self, h: float, prefs: list[float]) -> float:
+        o = self.opt
+        if o.negotiation == "fixed":
+            nh = o.step_s
+        elif prefs:
+            nh = min(prefs) if o.negotiation == "min" else max(prefs)
+        else:
+            nh = o.step_s
+        if o.min_step_s:
+            nh = max(nh, o.min_step_s)
+        if o.max_step_s:
+            nh = min(nh, o.max_step_s)
+        return nh
+
+    def _initial_exchange(self, t: float) -> dict[str, dict[str, float]]:
+        """Participants with sendBeforeReceive publish first; the others receive, then
+        publish; finally the first group receives."""
+        first = [n for n in self.order if self.opt.send_before_receive.get(n, True)]
+        later = [n for n in self.order if n not in first]
+        y = {n: self._get(n, t) for n in self.order}
+        for n in later:
+            self._send(n, y, t)
+            y[n] = self._get(n, t)
+        for n in first:
+            self._send(n, y, t)
+            y[n] = self._get(n, t)
+        return y
+
+    def _terminate_all(self, t: float) -> None:
+        for n in self.order:
+            try:
+                self.p[n].terminate()
+            except Exception:
+                pass
+
+
+def simulate(
+    participants: Sequence[Participant],
+    connections: Sequence[Connection],
+    progress: Callable[[float, float], None] | None = None,
+    resume: bool = False,
+    extra_units: dict[str, U.Unit] | None = None,
+    **options: Any,
+) -> CosimResult:
+    """One call: build a :class:`Master` with :class:`Options` ``options`` and run it."""
+    t0 = _time.perf_counter()
+    m = Master(participants, connections, Options(**options), extra_units)
+    res = m.run(progress=progress, resume=resume)
+    res.stats["wall_s"] = _time.perf_counter() - t0
+    return res
+
+
+__all__ = ["Connection", "CosimFault", "CosimResult", "Master", "Options", "simulate"]

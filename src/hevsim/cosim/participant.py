@@ -1,0 +1,395 @@
+"""Co-simulation participants behind one small interface.
+
+Every participant has a ``name``, declared ``inputs`` and ``outputs`` (name -> unit string)
+and the calls ``setup(t0)``, ``set_inputs(values)``, ``do_step(t, h) -> (accepted,
+preferred_h)``, ``get_outputs()``, ``get_state()`` / ``set_state(state)`` and
+``terminate()``. ``terminate_requested`` becomes true when the participant asks to stop early
+(an FMU's ``fmi2Terminated`` / ``earlyReturn``).
+
+Implementations: :class:`FunctionParticipant` (any Python step function; tests),
+:func:`ode_participant` (an ODE integrated with RK4 sub-steps), :class:`StepperParticipant`
+(hevsim's cell / module electro-thermal steppers), :class:`FMUParticipant` (an FMI 2.0 or 3.0
+co-simulation FMU through FMPy, in this process) and
+:class:`hevsim.cosim.worker.WorkerFMUParticipant` (the same in a worker process).
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hevsim.errors import ConfigError, SimulationError
+
+
+class Participant:
+    """Base class: declares the interface and sensible defaults."""
+
+    name: str = "participant"
+    inputs: dict[str, str]
+    outputs: dict[str, str]
+    terminate_requested: bool = False
+
+    def setup(self, t0: float) -> None:
+        """Prepare to run from ``t0`` [s] (instantiate, initialise)."""
+
+    def set_inputs(self, values: Mapping[str, float]) -> None:
+        """Set input values (units as declared in :attr:`inputs`)."""
+        raise NotImplementedError
+
+    def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
+        """Advance from ``t`` by ``h`` [s]; return (accepted, preferred next step [s] or None)."""
+        raise NotImplementedError
+
+    def get_outputs(self) -> dict[str, float]:
+        """Current output values (units as declared in :attr:`outputs`)."""
+        raise NotImplementedError
+
+    def get_state(self) -> Any:
+        """A picklable snapshot of the complete state (for iteration and checkpoints)."""
+        raise SimulationError(f"participant {self.name!r} cannot save its state.")
+
+    def set_state(self, state: Any) -> None:
+        """Restore a snapshot made by :meth:`get_state`."""
+        raise SimulationError(f"participant {self.name!r} cannot restore a state.")
+
+    def terminate(self) -> None:
+        """Release resources; the participant is not stepped again."""
+
+
+StepFunction = Callable[[float, float, Any, dict[str, float]], tuple[Any, dict[str, float]]]
+"""``step(t, h, state, inputs) -> (new_state, outputs)``; must not mutate ``state``."""
+
+
+class FunctionParticipant(Participant):
+    """A participant defined by a pure Python step function (tests, small models).
+
+    ``preferred_h`` [s] (optional) is reported after every step; ``reject_above_h`` [s]
+    makes steps longer than it rejected (to exercise step negotiation).
+    """
+
+    def __init__(
+        self,
+        name: str,
+        step: StepFunction,
+        state0: Any,
+        outputs0: Mapping[str, float],
+        inputs: Mapping[str, str],
+        outputs: Mapping[str, str] | None = None,
+        preferred_h: float | None = None,
+        reject_above_h: float | None = None,
+    ):
+        self.name = name
+        self._step = step
+        self._state0 = copy.deepcopy(state0)
+        self._out0 = dict(outputs0)
+        self.inputs = dict(inputs)
+        self.outputs = dict(outputs) if outputs is not None else {k: "" for k in outputs0}
+        self.preferred_h = preferred_h
+        self.reject_above_h = reject_above_h
+        self.state: Any = copy.deepcopy(state0)
+        self.out = dict(outputs0)
+        self.u = {k: 0.0 for k in self.inputs}
+        self.terminate_requested = False
+
+    def setup(self, t0: float) -> None:
+        self.state, self.out = copy.deepcopy(self._state0), dict(self._out0)
+
+    def set_inputs(self, values: Mapping[str, float]) -> None:
+        for k, v in values.items():
+            if k not in self.inputs:
+                raise ConfigError(
+                    f"participant {self.name!r} has no input {k!r}; inputs: {sorted(self.inputs)}."
+                )
+            self.u[k] = float(v)
+
+    def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
+        if self.reject_above_h is not None and h > self.reject_above_h * (1 + 1e-12):
+            return False, self.reject_above_h
+        self.state, out = self._step(t, h, self.state, dict(self.u))
+        self.out = {k: float(v) for k, v in out.items()}
+        if self.out.pop("terminate", 0.0):
+            self.terminate_requested = True
+        return True, self.preferred_h
+
+    def get_outputs(self) -> dict[str, float]:
+        return dict(self.out)
+
+    def get_state(self) -> Any:
+        return copy.deepcopy((self.state, self.out, self.u, self.terminate_requested))
+
+    def set_state(self, state: Any) -> None:
+        s, o, u, term = copy.deepcopy(state)
+        self.state, self.out, self.u, self.terminate_requested = s, o, u, term
+
+
+def ode_participant(
+    name: str,
+    rhs: Callable[[float, np.ndarray, dict[str, float]], np.ndarray],
+    x0: Any,
+    output: Callable[[np.ndarray, dict[str, float]], dict[str, float]],
+    inputs: Mapping[str, str],
+    substeps: int = 20,
+    **kwargs: Any,
+) -> FunctionParticipant:
+    """An ODE ``dx/dt = rhs(t, x, u)`` with inputs held constant over a communication step
+    (zero-order hold), integrated by ``substeps`` classical RK4 steps; outputs
+    ``output(x, u)`` at the end of the step."""
+    x0a = np.atleast_1d(np.asarray(x0, float))
+
+    def step(t: float, h: float, x: np.ndarray, u: dict[str, float]) -> tuple[np.ndarray, dict[str, float]]:
+        dt = h / substeps
+        x = x.copy()
+        for i in range(substeps):
+            tt = t + i * dt
+            k1 = rhs(tt, x, u)
+            k2 = rhs(tt + dt / 2, x + dt / 2 * k1, u)
+            k3 = rhs(tt + dt / 2, x + dt / 2 * k2, u)
+            k4 = rhs(tt + dt, x + dt * k3, u)
+            x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return x, output(x, u)
+
+    u0 = {k: 0.0 for k in inputs}
+    return FunctionParticipant(name, step, x0a, output(x0a, u0), inputs, **kwargs)
+
+
+class StepperParticipant(Participant):
+    """hevsim's electro-thermal cell or module (:class:`hevsim.battery.fmu.CellStepper` /
+    ``ModuleStepper``) in process: the same interface and variables as its exported FMU.
+
+    Inputs ``current_a`` [A] (or ``power_w`` [W] when ``power_input``) and ``port_temp_k``
+    [K]; outputs ``voltage_v``, ``soc``, ``port_heat_w``, ``temp_k``, ``soh``.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        params: str | Path = "thesis_table_4_1",
+        soc_initial: float = 1.0,
+        temp_initial_k: float = 298.15,
+        n_series: int = 1,
+        n_parallel: int = 1,
+        power_input: bool = False,
+        **overrides: float,
+    ):
+        self.name = name
+        self._args = (params, soc_initial, temp_initial_k, n_series, n_parallel, overrides)
+        self.power_input = power_input
+        self.inputs = {
+            "power_w" if power_input else "current_a": "W" if power_input else "A",
+            "port_temp_k": "K",
+        }
+        self.outputs = {"voltage_v": "V", "soc": "1", "port_heat_w": "W", "temp_k": "K", "soh": "1"}
+        self.u = {"current_a": 0.0, "power_w": 0.0, "port_temp_k": float(temp_initial_k)}
+        self.stepper: Any = None
+        self.terminate_requested = False
+
+    def setup(self, t0: float) -> None:
+        from hevsim.battery.fmu import CellStepper, ModuleStepper
+        from hevsim.battery.params import load_cell_parameters
+
+        params, soc, temp, ns, np_, over = self._args
+        p = load_cell_parameters(params)
+        if ns * np_ > 1:
+            self.stepper = ModuleStepper(p, soc, temp, int(ns), int(np_), **over)  # type: ignore[arg-type]
+        else:
+            self.stepper = CellStepper(p, soc, temp, **over)
+        self.current_a = 0.0
+
+    def set_inputs(self, values: Mapping[str, float]) -> None:
+        for k, v in values.items():
+            if k not in self.inputs:
+                raise ConfigError(
+                    f"participant {self.name!r} has no input {k!r}; inputs: {sorted(self.inputs)}."
+                )
+            self.u[k] = float(v)
+
+    def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
+        from hevsim.battery.fmu import current_for_power
+
+        s = self.stepper
+        if self.power_input:
+            self.current_a = current_for_power(s, self.u["power_w"], self.u["port_temp_k"], h)
+        else:
+            self.current_a = self.u["current_a"]
+        s.step(self.current_a, self.u["port_temp_k"], h)
+        return True, None
+
+    def get_outputs(self) -> dict[str, float]:
+        return dict(self.stepper.outputs, current_a=self.current_a)
+
+    def get_state(self) -> Any:
+        s = self.stepper
+        core = s.x.copy() if hasattr(s, "x") else s.m.state.copy()
+        return {"x": core, "outputs": dict(s.outputs), "u": dict(self.u), "current_a": self.current_a}
+
+    def set_state(self, state: Any) -> None:
+        s = self.stepper
+        if hasattr(s, "x"):
+            s.x[:] = state["x"]
+        else:
+            s.m.state[:] = state["x"]
+        s.outputs = dict(state["outputs"])
+        self.u = dict(state["u"])
+        self.current_a = state["current_a"]
+
+
+class FMUParticipant(Participant):
+    """An FMI 2.0 or 3.0 co-simulation FMU driven through FMPy in this process.
+
+    ``parameters`` (name -> value) are set during initialisation. Inputs and outputs are the
+    FMU's Real (FMI 3: Float64) variables of causality input / output, with their declared
+    units. State save/restore uses FMI get/set FMU state where the FMU supports it.
+    """
+
+    def __init__(self, name: str, fmu: str | Path, parameters: Mapping[str, float] | None = None):
+        from fmpy import read_model_description
+
+        self.name = name
+        self.fmu = Path(fmu)
+        if not self.fmu.is_file():
+            raise ConfigError(f"participant {name!r}: FMU file {str(self.fmu)!r} does not exist.")
+        try:
+            md = read_model_description(str(self.fmu))
+        except Exception as exc:
+            raise ConfigError(f"participant {name!r}: {self.fmu} is not a valid FMU ({exc}).") from exc
+        if md.coSimulation is None:
+            raise ConfigError(f"participant {name!r}: {self.fmu} has no co-simulation interface.")
+        self.md = md
+        self.fmi3 = md.fmiVersion.startswith("3")
+        self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        real = ("Float64", "Real") if not self.fmi3 else ("Float64",)
+        self.inputs = {
+            v.name: _unit(v) for v in md.modelVariables if v.causality == "input" and v.type in real
+        }
+        self.outputs = {
+            v.name: _unit(v) for v in md.modelVariables if v.causality == "output" and v.type in real
+        }
+        self.parameters = dict(parameters or {})
+        for k in self.parameters:
+            if k not in self.vr:
+                raise ConfigError(
+                    f"participant {name!r}: FMU {self.fmu.name} has no variable {k!r} (parameter)."
+                )
+        self.can_state = bool(getattr(md.coSimulation, "canGetAndSetFMUstate", False))
+        self.slave: Any = None
+        self._in_refs: dict[str, int] = {k: self.vr[k] for k in self.inputs}
+        self._out_names = list(self.outputs)
+        self._out_refs = [self.vr[k] for k in self._out_names]
+        self.terminate_requested = False
+
+    def setup(self, t0: float) -> None:
+        from fmpy import extract
+
+        self._dir = extract(str(self.fmu))
+        ident = self.md.coSimulation.modelIdentifier
+        if self.fmi3:
+            from fmpy.fmi3 import FMU3Slave
+
+            self.slave = FMU3Slave(
+                guid=self.md.guid, unzipDirectory=self._dir, modelIdentifier=ident, instanceName=self.name
+            )
+            self.slave.instantiate()
+            self.slave.enterInitializationMode(startTime=t0)
+            self._set_params()
+            self.slave.exitInitializationMode()
+        else:
+            from fmpy.fmi2 import FMU2Slave
+
+            self.slave = FMU2Slave(
+                guid=self.md.guid, unzipDirectory=self._dir, modelIdentifier=ident, instanceName=self.name
+            )
+            self.slave.instantiate()
+            self.slave.setupExperiment(startTime=t0)
+            self.slave.enterInitializationMode()
+            self._set_params()
+            self.slave.exitInitializationMode()
+
+    def _set_params(self) -> None:
+        for k, v in self.parameters.items():
+            var = next(x for x in self.md.modelVariables if x.name == k)
+            if var.type == "Boolean":
+                self.slave.setBoolean([self.vr[k]], [bool(v)])
+            elif var.type in ("Integer", "Int32", "Int64"):
+                getattr(self.slave, "setInteger" if not self.fmi3 else "setInt32")([self.vr[k]], [int(v)])
+            else:
+                self._set_real([self.vr[k]], [float(v)])
+
+    def _set_real(self, refs: list[int], vals: list[float]) -> None:
+        (self.slave.setFloat64 if self.fmi3 else self.slave.setReal)(refs, vals)
+
+    def set_inputs(self, values: Mapping[str, float]) -> None:
+        try:
+            refs = [self._in_refs[k] for k in values]
+        except KeyError as exc:
+            raise ConfigError(
+                f"participant {self.name!r}: FMU {self.fmu.name} has no input {exc.args[0]!r}."
+            ) from None
+        self._set_real(refs, [float(v) for v in values.values()])
+
+    def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
+        try:
+            if self.fmi3:
+                r = self.slave.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+                if r[1]:  # terminateSimulation
+                    self.terminate_requested = True
+            else:
+                self.slave.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+        except Exception:
+            self._failed = True
+            raise
+        return True, None
+
+    def get_outputs(self) -> dict[str, float]:
+        vals = (self.slave.getFloat64 if self.fmi3 else self.slave.getReal)(self._out_refs)
+        return dict(zip(self._out_names, (float(v) for v in vals), strict=True))
+
+    def get_state(self) -> Any:
+        if not self.can_state:
+            raise SimulationError(f"participant {self.name!r}: FMU {self.fmu.name} cannot get/set its state.")
+        sl = self.slave
+        if self.fmi3:
+            st = sl.getFMUState()
+            data = bytes(sl.serializeFMUState(st))
+            sl.freeFMUState(st)
+        else:
+            st = sl.getFMUstate()
+            data = bytes(sl.serializeFMUstate(st))
+            sl.freeFMUstate(st)
+        return data
+
+    def set_state(self, state: Any) -> None:
+        if not self.can_state:
+            raise SimulationError(f"participant {self.name!r}: FMU {self.fmu.name} cannot get/set its state.")
+        sl = self.slave
+        if self.fmi3:
+            st = sl.deserializeFMUState(state)
+            sl.setFMUState(st)
+            sl.freeFMUState(st)
+        else:
+            st = sl.deSerializeFMUstate(state)
+            sl.setFMUstate(st)
+            sl.freeFMUstate(st)
+
+    def terminate(self) -> None:
+        if self.slave is None:
+            return
+        if getattr(self, "_failed", False):
+            # An FMU in the error state may crash when freed or unloaded: keep it alive and
+            # untouched (run failing FMUs in a worker process to reclaim the memory).
+            _FAILED_INSTANCES.append(self.slave)
+        else:
+            self.slave.terminate()
+            self.slave.freeInstance()
+        self.slave = None
+
+
+_FAILED_INSTANCES: list[Any] = []
+
+
+def _unit(v: Any) -> str:
+    u = getattr(v, "unit", None) or (v.declaredType.unit if getattr(v, "declaredType", None) else None)
+    return str(u or "")
