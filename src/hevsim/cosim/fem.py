@@ -60,45 +60,12 @@ class FemModuleParticipant(Participant):
         self.terminate_requested = False
 
     def setup(self, t0: float) -> None:
-        from hevsim.thermal.coolant import ChannelModel, segments_along_path
         from hevsim.thermal.geometry import build_module_mesh
-        from hevsim.thermal.mesh import CHANNEL_WALL
-        from hevsim.thermal.run import LITRE_PER_MIN_M3_S, coolant_from_section
-        from hevsim.thermal.solver import HeatModel, discretise
+        from hevsim.thermal.run import module_model
 
         cfg = self.cfg
-        sim, cool = cfg.simulation, cfg.coolant
         mesh = build_module_mesh(cfg.geometry, source=f"{cfg.name}: geometry")
-        wall = mesh.facet_groups[CHANNEL_WALL]
-        assert mesh.channel_path_m is not None
-        seg = segments_along_path(mesh.points_m[wall].mean(axis=1), mesh.channel_path_m, cool.segments)
-        used = np.unique(seg)
-        seg = np.searchsorted(used, seg)
-        disc = discretise(
-            mesh,
-            cfg.materials,
-            gap_conductance_w_m2k=sim.gap_conductance_w_m2k,
-            interface_conductance_w_m2k=cfg.contact,
-            film_w_m2k=sim.film_w_m2k,
-            ambient_k=sim.ambient_temp_c + KELVIN,
-            wall_segment_of_facet=seg,
-        )
-        self.channel = ChannelModel(
-            used.size,
-            inlet_temp_k=cool.inlet_temp_c + KELVIN,
-            flow_m3_s=cool.flow_l_min * LITRE_PER_MIN_M3_S,
-            width_m=cfg.geometry.channel_width_m,
-            height_m=cfg.geometry.channel_height_m,
-            coolant=coolant_from_section(cool),
-        )
-        self.model = HeatModel(
-            disc,
-            dt_s=sim.dt_s,
-            theta=sim.theta,
-            initial_temp_k=sim.initial_temp_c + KELVIN,
-            coolant=self.channel,
-            coupling_iterations=sim.coupling_iterations,
-        )
+        disc, self.channel, self.model = module_model(cfg, mesh)
         self.mesh, self.disc = mesh, disc
         n = disc.points_m.shape[0]
         vol = np.bincount(disc.tets.ravel(), weights=np.repeat(disc.tet_volume_m3 / 4, 4), minlength=n)

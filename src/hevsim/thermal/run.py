@@ -230,13 +230,11 @@ def hot_spots(
 
 def run_thermal(config_path: str | Path | ThermalConfig, out_dir: str | Path | None) -> ThermalResult:
     """Run a module case end to end; writes the results folder atomically when ``out_dir`` is given."""
-    from hevsim.thermal.coolant import ChannelModel, segments_along_path
     from hevsim.thermal.geometry import build_module_mesh
-    from hevsim.thermal.mesh import CHANNEL_WALL, mesh_faces, triangle_areas_m2
-    from hevsim.thermal.solver import HeatModel, discretise
+    from hevsim.thermal.mesh import mesh_faces, triangle_areas_m2
 
     cfg = config_path if isinstance(config_path, ThermalConfig) else load_thermal_config(config_path)
-    sim, cool = cfg.simulation, cfg.coolant
+    sim = cfg.simulation
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     mesh = build_module_mesh(cfg.geometry, source=f"{cfg.name}: geometry")
@@ -249,37 +247,7 @@ def run_thermal(config_path: str | Path | ThermalConfig, out_dir: str | Path | N
         )
 
     t0 = time.perf_counter()
-    wall = mesh.facet_groups[CHANNEL_WALL]
-    assert mesh.channel_path_m is not None
-    seg = segments_along_path(mesh.points_m[wall].mean(axis=1), mesh.channel_path_m, cool.segments)
-    used = np.unique(seg)
-    seg = np.searchsorted(used, seg)  # drop empty segments (coarse meshes)
-    disc = discretise(
-        mesh,
-        cfg.materials,
-        gap_conductance_w_m2k=sim.gap_conductance_w_m2k,
-        interface_conductance_w_m2k=cfg.contact,
-        film_w_m2k=sim.film_w_m2k,
-        ambient_k=sim.ambient_temp_c + KELVIN,
-        wall_segment_of_facet=seg,
-    )
-    coolant = coolant_from_section(cool)
-    channel = ChannelModel(
-        used.size,
-        inlet_temp_k=cool.inlet_temp_c + KELVIN,
-        flow_m3_s=cool.flow_l_min * LITRE_PER_MIN_M3_S,
-        width_m=cfg.geometry.channel_width_m,
-        height_m=cfg.geometry.channel_height_m,
-        coolant=coolant,
-    )
-    model = HeatModel(
-        disc,
-        dt_s=sim.dt_s,
-        theta=sim.theta,
-        initial_temp_k=sim.initial_temp_c + KELVIN,
-        coolant=channel,
-        coupling_iterations=sim.coupling_iterations,
-    )
+    disc, channel, model = module_model(cfg, mesh)
     model.set_cell_heat_w(heat)
     timings["assemble_factorise_s"] = time.perf_counter() - t0
 
@@ -570,3 +538,44 @@ __all__ = [
     "run_thermal",
     "thermal_config_from_dict",
 ]
+
+
+def module_model(cfg: ThermalConfig, mesh: Any) -> tuple[Any, Any, Any]:
+    """Discretisation, coolant channel and heat model of a module case (shared by
+    :func:`run_thermal` and the co-simulation's FEM participant): ``(disc, channel, model)``."""
+    from hevsim.thermal.coolant import ChannelModel, segments_along_path
+    from hevsim.thermal.mesh import CHANNEL_WALL
+    from hevsim.thermal.solver import HeatModel, discretise
+
+    sim, cool = cfg.simulation, cfg.coolant
+    wall = mesh.facet_groups[CHANNEL_WALL]
+    assert mesh.channel_path_m is not None
+    seg = segments_along_path(mesh.points_m[wall].mean(axis=1), mesh.channel_path_m, cool.segments)
+    used = np.unique(seg)
+    seg = np.searchsorted(used, seg)  # drop empty segments (coarse meshes)
+    disc = discretise(
+        mesh,
+        cfg.materials,
+        gap_conductance_w_m2k=sim.gap_conductance_w_m2k,
+        interface_conductance_w_m2k=cfg.contact,
+        film_w_m2k=sim.film_w_m2k,
+        ambient_k=sim.ambient_temp_c + KELVIN,
+        wall_segment_of_facet=seg,
+    )
+    channel = ChannelModel(
+        used.size,
+        inlet_temp_k=cool.inlet_temp_c + KELVIN,
+        flow_m3_s=cool.flow_l_min * LITRE_PER_MIN_M3_S,
+        width_m=cfg.geometry.channel_width_m,
+        height_m=cfg.geometry.channel_height_m,
+        coolant=coolant_from_section(cool),
+    )
+    model = HeatModel(
+        disc,
+        dt_s=sim.dt_s,
+        theta=sim.theta,
+        initial_temp_k=sim.initial_temp_c + KELVIN,
+        coolant=channel,
+        coupling_iterations=sim.coupling_iterations,
+    )
+    return disc, channel, model
