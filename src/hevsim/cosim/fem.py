@@ -24,8 +24,9 @@ import numpy as np
 
 from hevsim.cosim.participant import Participant
 from hevsim.errors import ConfigError
+from hevsim.units import KELVIN_OFFSET
 
-KELVIN = 273.15
+KELVIN = KELVIN_OFFSET  # [K] at 0 degC
 
 
 class FemModuleParticipant(Participant):

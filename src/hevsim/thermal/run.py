@@ -23,8 +23,9 @@ from hevsim.thermal.materials import (
     TABLE_4_3,
     Material,
 )
+from hevsim.units import KELVIN_OFFSET
 
-KELVIN = 273.15
+KELVIN = KELVIN_OFFSET  # [K] at 0 degC
 LITRE_PER_MIN_M3_S = 1.0 / 60000.0
 
 
