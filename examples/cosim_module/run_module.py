@@ -3,8 +3,9 @@
 2s6p module of the thesis cell (hevsim's electro-thermal module, in process; the same model
 exported as an FMU runs in its place through ``export_fmu``) under a high-frequency
 high-load square power cycle, coupled Gauss-Seidel with the FEM module and its coolant
-channel: module heat into the FEM (shared by the 12 cells), mean cell temperature back to
-the module's thermal port. Module initially at 30 degC, coolant inlet at 15 degC, 300 s.
+channel cell by cell: each cell's port heat into its FEM cell, each FEM cell's mean
+temperature back to that cell's thermal port. Module initially at 30 degC, coolant inlet at
+15 degC, 300 s.
 
 Run:  .venv/bin/python examples/cosim_module/run_module.py [OUT_DIR] [--duration 300]
 (or, once wired, ``hevsim cosim examples/cosim_module/module.ssd --out OUT_DIR``)
@@ -21,6 +22,7 @@ from hevsim.cosim import Connection, CosimResult
 from hevsim.cosim.config import PY_TYPE, Component, SystemDescription, run_cosim, write_ssd
 
 HERE = Path(__file__).resolve().parent
+N_CELLS = 12  # 2s6p, the FEM module's 2 x 6 cells
 
 
 def module_system(
@@ -33,16 +35,17 @@ def module_system(
     comps = [
         Component("load", PY_TYPE, "hevsim.cosim.library:power_cycle",
                   parameters={"discharge_w": 250.0, "charge_w": 150.0, "period_s": 10.0}),
-        Component("battery", PY_TYPE, "hevsim.cosim.participant:StepperParticipant",
+        Component("battery", PY_TYPE, "hevsim.cosim.participant:ModuleCellsParticipant",
                   parameters={"params": "thesis_table_4_1", "soc_initial": 0.9, "temp_initial_k": 303.15,
                               "n_series": 2, "n_parallel": 6, "power_input": True}),
         Component("fem", PY_TYPE, "hevsim.cosim.fem:FemModuleParticipant", parameters=fem_params),
     ]  # fmt: skip
-    conns = [
-        Connection("load", "power_w", "battery", "power_w"),
-        Connection("battery", "port_heat_w", "fem", "module_heat_w"),
-        Connection("fem", "cell_mean_temp_k", "battery", "port_temp_k"),
-    ]
+    # cell c of the module (series group c // 6, branch c % 6) is FEM cell c (row c // 6,
+    # column c % 6): its port heat goes into that cell, that cell's mean temperature comes back
+    conns = [Connection("load", "power_w", "battery", "power_w")]
+    for c in range(N_CELLS):
+        conns.append(Connection("battery", f"cell{c}_port_heat_w", "fem", f"cell{c}_heat_w"))
+        conns.append(Connection("fem", f"cell{c}_temp_k", "battery", f"cell{c}_port_temp_k"))
     master = {"algorithm": "gauss-seidel", "step_s": step_s, "order": ["load", "battery", "fem"]}
     return SystemDescription("cosim_module", comps, conns, 0.0, duration_s, master, base_dir=HERE)
 
@@ -120,6 +123,13 @@ def main() -> None:
     plot_results(res, out / "pictures")
     for k in ("fem.cell_max_temp_k", "fem.outlet_temp_k", "fem.cooling_power_w", "battery.voltage_v"):
         print(f"{k:24s} final {res[k][-1]:10.3f}  max {res[k].max():10.3f}")
+    final = [res[f"fem.cell{c}_temp_k"][-1] for c in range(N_CELLS)]
+    peak = [res[f"fem.cell{c}_temp_k"].max() for c in range(N_CELLS)]
+    hot = max(range(N_CELLS), key=lambda c: final[c])
+    print(
+        f"hottest cell at the end: {hot} ({final[hot] - 273.15:.3f} degC); cell means "
+        f"{min(final) - 273.15:.3f} .. {max(final) - 273.15:.3f} degC, peak {max(peak) - 273.15:.3f} degC"
+    )
     print(f"wall time {res.stats['wall_s']:.1f} s, {res.stats['steps']} communication steps")
 
 

@@ -46,7 +46,7 @@ INPUTS = ("current_a", "power_w", "port_temp_k")
 parameter ``power_input`` is true."""
 
 
-def current_for_power(stepper: Any, power_w: float, port_temp_k: float, dt_s: float) -> float:
+def current_for_power(stepper: Any, power_w: float, port_temp_k: float | np.ndarray, dt_s: float) -> float:
     """Current [A] whose step-average terminal power equals ``power_w`` [W] (secant method on
     trial steps that leave the stepper's state untouched; the relation is affine in the
     current for a fixed direction, so it converges in a few iterations)."""
@@ -138,6 +138,7 @@ class ModuleStepper:
         n = self.m.n_cells
         self.out_m = np.zeros((1, 4))
         self.out_c = np.zeros((1, n, 4))
+        self.cell_port_heat_w = np.zeros(n)
         soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, _ = self.tabs[:7]
         ocv, _ = K.cell_ocv_rs(self.m.p[0], soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, soc_initial, temp_k, 1.0)
         self.outputs = {
@@ -154,8 +155,9 @@ class ModuleStepper:
         caps = [K.cell_capacity(p[c], t_ax, capf, x[c, K.SQABS], x[c, K.STEMP]) for c in range(len(x))]
         return float(min(soh_capacity(cap, p[c, K.C0], self.params.ageing.x_c) for c, cap in enumerate(caps)))
 
-    def trial_voltage(self, current_a: float, port_temp_k: float, dt_s: float) -> float:
-        """Step-average module voltage [V] of a step at ``current_a``, state unchanged."""
+    def trial_voltage(self, current_a: float, port_temp_k: float | np.ndarray, dt_s: float) -> float:
+        """Step-average module voltage [V] of a step at ``current_a``, state unchanged
+        (``port_temp_k``: one port temperature [K] or one per cell)."""
         m = self.m
         out_m, out_c = np.zeros((1, 4)), np.zeros((1, m.n_cells, 4))
         K.run_module(  # type: ignore[call-arg]
@@ -164,14 +166,21 @@ class ModuleStepper:
         )  # fmt: skip
         return float(out_m[0, 1])
 
-    def step(self, current_a: float, port_temp_k: float, dt_s: float) -> dict[str, float]:
-        """Advance by ``dt_s`` [s] at constant module current [A] and port temperature [K]."""
+    def step(self, current_a: float, port_temp_k: float | np.ndarray, dt_s: float) -> dict[str, float]:
+        """Advance by ``dt_s`` [s] at constant module current [A] and port temperature [K]
+        (one for all cells or one per cell, cell c = series group * n_parallel + branch).
+
+        Also sets :attr:`cell_port_heat_w`: each cell's step-mean heat into its port [W]
+        (generated heat minus the change of its stored heat; they sum to ``port_heat_w``)."""
         m = self.m
         tp = np.full((1, m.n_cells), port_temp_k)
+        temp0 = m.state[:, K.STEMP].copy()
         K.run_module(  # type: ignore[call-arg]
             m.p, *self.tabs, m.state, m.n_series, m.n_parallel, np.array([current_a]), dt_s, tp,
             self.out_m, self.out_c,
         )  # fmt: skip
+        stored = m.p[:, K.CHEAT] * (m.state[:, K.STEMP] - temp0)
+        self.cell_port_heat_w = self.out_c[0, :, 3] - stored / dt_s
         self.outputs = {
             "voltage_v": float(self.out_m[0, 0]),
             "soc": float(self.out_c[0, :, 1].mean()),

@@ -5,7 +5,13 @@ See ``docs/cosim.md``. Heavy imports (FMPy) happen only when an FMU participant 
 """
 
 from hevsim.cosim.master import Connection, CosimFault, CosimResult, Master, Options, simulate
-from hevsim.cosim.participant import FunctionParticipant, Participant, StepperParticipant, ode_participant
+from hevsim.cosim.participant import (
+    FunctionParticipant,
+    ModuleCellsParticipant,
+    Participant,
+    StepperParticipant,
+    ode_participant,
+)
 
 __all__ = [
     "Connection",
@@ -13,6 +19,7 @@ __all__ = [
     "CosimResult",
     "FunctionParticipant",
     "Master",
+    "ModuleCellsParticipant",
     "Options",
     "Participant",
     "StepperParticipant",

@@ -237,6 +237,81 @@ class StepperParticipant(Participant):
         self.current_a = state["current_a"]
 
 
+class ModuleCellsParticipant(StepperParticipant):
+    """hevsim's n_s x n_p module (:class:`hevsim.battery.fmu.ModuleStepper`) in process with a
+    thermal port per cell, for coupling cell by cell with a thermal model
+    (:class:`hevsim.cosim.fem.FemModuleParticipant`).
+
+    Inputs ``current_a`` [A] (or ``power_w`` [W] when ``power_input``) and
+    ``cell<c>_port_temp_k`` [K]; outputs ``voltage_v``, ``current_a``, ``soc`` (mean),
+    ``port_heat_w`` (module total), ``temp_k`` (hottest cell), ``soh`` (lowest),
+    ``cell<c>_port_heat_w`` [W] (heat into cell c's port, step mean) and ``cell<c>_temp_k``
+    [K] (cell c's lumped temperature), c = 0 .. n_s n_p - 1 = series group * n_p + branch.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        params: str | Path = "thesis_table_4_1",
+        soc_initial: float = 1.0,
+        temp_initial_k: float = 298.15,
+        n_series: int = 2,
+        n_parallel: int = 6,
+        power_input: bool = False,
+        **overrides: float,
+    ):
+        super().__init__(
+            name, params, soc_initial, temp_initial_k, n_series, n_parallel, power_input, **overrides
+        )
+        self.n_cells = int(n_series) * int(n_parallel)
+        if self.n_cells < 2:
+            raise ConfigError(f"participant {name!r}: a per-cell module needs at least 2 cells.")
+        self.inputs = {
+            "power_w" if power_input else "current_a": "W" if power_input else "A",
+            **{f"cell{c}_port_temp_k": "K" for c in range(self.n_cells)},
+        }
+        self.outputs = {
+            "voltage_v": "V", "current_a": "A", "soc": "1", "port_heat_w": "W", "temp_k": "K", "soh": "1",
+            **{f"cell{c}_port_heat_w": "W" for c in range(self.n_cells)},
+            **{f"cell{c}_temp_k": "K" for c in range(self.n_cells)},
+        }  # fmt: skip
+        self.u = {"current_a": 0.0, "power_w": 0.0}
+        self.u.update({f"cell{c}_port_temp_k": float(temp_initial_k) for c in range(self.n_cells)})
+
+    def port_temps_k(self) -> np.ndarray:
+        """The cells' port temperatures [K] held over the step."""
+        return np.array([self.u[f"cell{c}_port_temp_k"] for c in range(self.n_cells)])
+
+    def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
+        from hevsim.battery.fmu import current_for_power
+
+        s, tp = self.stepper, self.port_temps_k()
+        if self.power_input:
+            self.current_a = current_for_power(s, self.u["power_w"], tp, h)
+        else:
+            self.current_a = self.u["current_a"]
+        s.step(self.current_a, tp, h)
+        return True, None
+
+    def get_outputs(self) -> dict[str, float]:
+        from hevsim.battery.kernel import STEMP
+
+        s = self.stepper
+        out = dict(s.outputs, current_a=self.current_a)
+        temps = s.m.state[:, STEMP]
+        for c in range(self.n_cells):
+            out[f"cell{c}_port_heat_w"] = float(s.cell_port_heat_w[c])
+            out[f"cell{c}_temp_k"] = float(temps[c])
+        return out
+
+    def get_state(self) -> Any:
+        return dict(super().get_state(), cell_port_heat_w=self.stepper.cell_port_heat_w.copy())
+
+    def set_state(self, state: Any) -> None:
+        super().set_state(state)
+        self.stepper.cell_port_heat_w = np.array(state["cell_port_heat_w"], dtype=float)
+
+
 class FMUParticipant(Participant):
     """An FMI 2.0 or 3.0 co-simulation FMU driven through FMPy in this process.
 
