@@ -16,6 +16,7 @@ co-simulation FMU through FMPy, in this process) and
 from __future__ import annotations
 
 import copy
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -25,7 +26,7 @@ import numpy as np
 from hevsim.errors import ConfigError, SimulationError
 
 
-class Participant:
+class Participant(ABC):
     """Base class: declares the interface and sensible defaults."""
 
     name: str = "participant"
@@ -33,20 +34,20 @@ class Participant:
     outputs: dict[str, str]
     terminate_requested: bool = False
 
-    def setup(self, t0: float) -> None:
+    def setup(self, t0: float) -> None:  # noqa: B027 (optional hook: nothing to prepare by default)
         """Prepare to run from ``t0`` [s] (instantiate, initialise)."""
 
+    @abstractmethod
     def set_inputs(self, values: Mapping[str, float]) -> None:
         """Set input values (units as declared in :attr:`inputs`)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
         """Advance from ``t`` by ``h`` [s]; return (accepted, preferred next step [s] or None)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def get_outputs(self) -> dict[str, float]:
         """Current output values (units as declared in :attr:`outputs`)."""
-        raise NotImplementedError
 
     def get_state(self) -> Any:
         """A picklable snapshot of the complete state (for iteration and checkpoints)."""
@@ -56,7 +57,7 @@ class Participant:
         """Restore a snapshot made by :meth:`get_state`."""
         raise SimulationError(f"participant {self.name!r} cannot restore a state.")
 
-    def terminate(self) -> None:
+    def terminate(self) -> None:  # noqa: B027 (optional hook: nothing to release by default)
         """Release resources; the participant is not stepped again."""
 
 
