@@ -9,8 +9,7 @@ temperature back to that cell's thermal port. Module initially at 30 degC, coola
 
 Run:  .venv/bin/python examples/cosim_module/run_module.py [OUT_DIR] [--duration 300]
 (or, once wired, ``hevsim cosim examples/cosim_module/module.ssd --out OUT_DIR``)
-Writes OUT_DIR/system.ssd, results.csv, summary.json (see docs/cosim.md) and
-OUT_DIR/pictures/*.png.
+Writes OUT_DIR/system.ssd, results.csv, summary.json and pictures/*.png (see docs/cosim.md).
 """
 
 from __future__ import annotations
@@ -18,7 +17,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hevsim.cosim import Connection, CosimResult
+from hevsim.cosim import Connection
 from hevsim.cosim.config import PY_TYPE, Component, SystemDescription, run_cosim, write_ssd
 
 HERE = Path(__file__).resolve().parent
@@ -50,63 +49,6 @@ def module_system(
     return SystemDescription("cosim_module", comps, conns, 0.0, duration_s, master, base_dir=HERE)
 
 
-def plot_results(res: CosimResult, out_dir: str | Path) -> list[Path]:
-    """PNG pictures: module current and voltage (thesis figs 4.33-4.34), coolant outlet
-    temperature (fig 4.31), cooling power, and the cells' final mean temperatures seen from
-    above with the hottest cell marked (fig 4.32's hot spots, per cell)."""
-    from matplotlib.figure import Figure
-
-    from hevsim.thermal.run import load_thermal_config
-
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    t = res.time_s
-    made = []
-    series = [
-        ("module_current_voltage.png",
-         [("battery.current_a", "current [A]"), ("battery.voltage_v", "voltage [V]")]),
-        ("coolant_outlet.png", [("fem.outlet_temp_k", "outlet temperature [degC]")]),
-        ("cooling_power.png", [("fem.cooling_power_w", "cooling power [W]")]),
-        ("cell_temperature.png", [("fem.cell_max_temp_k", "hottest cell node [degC]"),
-                                  ("fem.cell_mean_temp_k", "mean cell [degC]")]),
-    ]  # fmt: skip
-    for name, cols in series:
-        fig = Figure(figsize=(7, 2.4 * len(cols)), dpi=100)
-        for i, (col, label) in enumerate(cols):
-            ax = fig.add_subplot(len(cols), 1, i + 1)
-            y = res[col] - (273.15 if col.endswith("_k") else 0.0)
-            ax.plot(t, y)
-            ax.set_ylabel(label)
-            ax.grid(True)
-        ax.set_xlabel("time [s]")
-        fig.tight_layout()
-        fig.savefig(out / name)
-        made.append(out / name)
-    g = load_thermal_config(HERE.parent / "module_thermal.toml").geometry
-    temps = [res[f"fem.cell{i}_temp_k"][-1] - 273.15 for i in range(g.rows * g.columns)]
-    fig = Figure(figsize=(8, 3.5), dpi=100)
-    ax = fig.add_subplot()
-    hot = int(max(range(len(temps)), key=lambda i: temps[i]))
-    for i, temp in enumerate(temps):
-        x, y = g.cell_centre_xy_m(i // g.columns, i % g.columns)
-        edge = "cyan" if i == hot else "none"
-        lo, hi = min(temps), max(temps) + 1e-9
-        ax.scatter([x * 1e3], [y * 1e3], s=900, c=[temp], cmap="inferno", vmin=lo, vmax=hi, edgecolors=edge)
-        ax.annotate(f"{temp:.3f}", (x * 1e3, y * 1e3), ha="center", va="center", fontsize=7, color="grey")
-    pitch_mm = g.cell_pitch_m * 1e3
-    xs = [g.cell_centre_xy_m(0, c)[0] * 1e3 for c in (0, g.columns - 1)]
-    ys = [g.cell_centre_xy_m(r, 0)[1] * 1e3 for r in (0, g.rows - 1)]
-    ax.set_xlim(xs[0] - pitch_mm, xs[1] + pitch_mm)
-    ax.set_ylim(ys[0] - pitch_mm, ys[1] + pitch_mm)
-    ax.set_aspect("equal")
-    ax.set_title(f"final cell mean temperature [degC], hottest cell {hot} outlined")
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
-    fig.savefig(out / "cell_temperatures_top.png")
-    made.append(out / "cell_temperatures_top.png")
-    return made
-
-
 def write_shipped() -> Path:
     """(Re)write ``module.ssd`` next to this script."""
     return write_ssd(module_system(), HERE / "module.ssd")
@@ -120,7 +62,6 @@ def main() -> None:
     out = Path(a.out)
     # the shipped description for the thesis case, else the same system built in Python
     res = run_cosim(HERE / "module.ssd" if a.duration == 300.0 else module_system(a.duration), out)
-    plot_results(res, out / "pictures")
     for k in ("fem.cell_max_temp_k", "fem.outlet_temp_k", "fem.cooling_power_w", "battery.voltage_v"):
         print(f"{k:24s} final {res[k][-1]:10.3f}  max {res[k].max():10.3f}")
     final = [res[f"fem.cell{c}_temp_k"][-1] for c in range(N_CELLS)]

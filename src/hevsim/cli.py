@@ -248,7 +248,7 @@ def _cmd_cosim(args: argparse.Namespace) -> int:
         run_cosim(args.config, out, progress=progress, resume=args.resume)
     finally:
         bar.close()
-    print(f"results written to {out}/ (results.csv, summary.json, system.ssd)")
+    print(f"results written to {out}/ (results.csv, summary.json, system.ssd, pictures/)")
     return 0
 
 

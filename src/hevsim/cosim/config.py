@@ -696,7 +696,8 @@ def run_cosim(
     """Run the configuration ``config_path`` (``.ssp`` / ``.ssd`` / a bound CSE ``.xml``, or a
     :class:`SystemDescription`) and write ``out_dir``:
     ``results.csv`` (every output vs time), ``summary.json`` (final values, step
-    statistics, stop reason) and the system as ``system.ssd``. A checkpoint
+    statistics, stop reason), the system as ``system.ssd`` and ``pictures/*.png``
+    (:func:`hevsim.cosim.plots.plot_cosim`). A checkpoint
     ``<out_dir>.checkpoint`` is kept while running; with ``resume`` a killed run continues
     from it. On a participant fault the results so far are written to ``out_dir`` before
     the error is raised."""
@@ -716,6 +717,10 @@ def run_cosim(
                 "stopped_by": res.stopped_by, "error": error,
             })  # fmt: skip
             (tmp / "system.ssd").write_bytes(ssd_xml(desc))
+            if len(res.data):
+                from hevsim.cosim.plots import plot_cosim
+
+                plot_cosim(res, desc, tmp / "pictures")
 
     try:
         res = run_system(desc, progress, ck, resume)
