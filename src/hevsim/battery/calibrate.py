@@ -24,14 +24,7 @@ from hevsim.io import atomic_directory, write_json
 from hevsim.tables import FloatArray, read_csv_columns
 
 TEST_COLUMNS = ("time_s", "current_a", "voltage_v", "temp_k")
-_SCALARS = {
-    "c0_c": K.C0,
-    "alpha_c_per_k": K.ALPHAC,
-    "alpha_rs_per_k": K.ALPHARS,
-    "c_heat_j_per_k": K.CHEAT,
-    "r_skin_k_per_w": K.RSKIN,
-    "r_scale": K.RSCALE,
-}
+_SCALARS = K.TUNABLE_SCALARS
 _RC = re.compile(r"^(rc_discharge|rc_charge)\[(\d+)\]\.(r_ohm|tau_s)$")
 FITTABLE = (
     *_SCALARS,

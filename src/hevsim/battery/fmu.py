@@ -30,15 +30,8 @@ from hevsim.battery.ageing import soh_capacity
 from hevsim.battery.params import CellParameters, load_cell_parameters, parameters_from_dict
 from hevsim.errors import ConfigError
 
-FMU_PARAMETERS = {
-    "c0_c": K.C0,
-    "alpha_c_per_k": K.ALPHAC,
-    "alpha_rs_per_k": K.ALPHARS,
-    "c_heat_j_per_k": K.CHEAT,
-    "r_skin_k_per_w": K.RSKIN,
-    "r_scale": K.RSCALE,
-}
-"""FMU parameter name -> index in the cell parameter vector."""
+FMU_PARAMETERS = K.TUNABLE_SCALARS
+"""FMU parameter name -> index in the cell parameter vector (the calibration's scalars)."""
 
 OUTPUTS = ("voltage_v", "soc", "port_heat_w", "temp_k", "soh")
 INPUTS = ("current_a", "power_w", "port_temp_k")

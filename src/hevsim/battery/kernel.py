@@ -50,6 +50,16 @@ PARAMS = (
 )
 C0, KCQ, ALPHAC, TREF, ALPHARS, CHEAT, RSKIN, VMIN, VMAX, SOCINI, RSCALE, NRC, IBAND = range(len(PARAMS))
 
+TUNABLE_SCALARS = {
+    "c0_c": C0,
+    "alpha_c_per_k": ALPHAC,
+    "alpha_rs_per_k": ALPHARS,
+    "c_heat_j_per_k": CHEAT,
+    "r_skin_k_per_w": RSKIN,
+    "r_scale": RSCALE,
+}
+"""Scalar parameters that calibration fits and FMUs expose: name -> index in the vector."""
+
 # --- state vector layout: then n_rc discharge RC voltages, then n_rc charge RC voltages [V] ---
 STATES = ("q_c", "qabs_c", "temp_k", "direction", "cycles")
 SQ, SQABS, STEMP, SDIR, SCYC = range(len(STATES))

@@ -26,6 +26,14 @@ import numpy as np
 from hevsim.errors import ConfigError, SimulationError
 
 
+def store_inputs(p: Participant, store: dict[str, float], values: Mapping[str, float]) -> None:
+    """Check ``values`` against ``p.inputs`` and store them (as floats) in ``store``."""
+    for k, v in values.items():
+        if k not in p.inputs:
+            raise ConfigError(f"participant {p.name!r} has no input {k!r}; inputs: {sorted(p.inputs)}.")
+        store[k] = float(v)
+
+
 class Participant(ABC):
     """Base class: declares the interface and sensible defaults."""
 
@@ -100,12 +108,7 @@ class FunctionParticipant(Participant):
         self.state, self.out = copy.deepcopy(self._state0), dict(self._out0)
 
     def set_inputs(self, values: Mapping[str, float]) -> None:
-        for k, v in values.items():
-            if k not in self.inputs:
-                raise ConfigError(
-                    f"participant {self.name!r} has no input {k!r}; inputs: {sorted(self.inputs)}."
-                )
-            self.u[k] = float(v)
+        store_inputs(self, self.u, values)
 
     def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
         if self.reject_above_h is not None and h > self.reject_above_h * (1 + 1e-12):
@@ -201,12 +204,7 @@ class StepperParticipant(Participant):
         self.current_a = 0.0
 
     def set_inputs(self, values: Mapping[str, float]) -> None:
-        for k, v in values.items():
-            if k not in self.inputs:
-                raise ConfigError(
-                    f"participant {self.name!r} has no input {k!r}; inputs: {sorted(self.inputs)}."
-                )
-            self.u[k] = float(v)
+        store_inputs(self, self.u, values)
 
     def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
         from hevsim.battery.fmu import current_for_power

@@ -410,11 +410,7 @@ class Evaluator:
 
         def flat(a: Any, name: str, dtype: type) -> np.ndarray:
             arr: np.ndarray = np.asarray(a, dtype=dtype)
-            try:
-                ok = np.broadcast_shapes(arr.shape, shape) == shape
-            except ValueError:
-                ok = False
-            if not ok:
+            if not _broadcasts_to(arr.shape, shape):
                 raise DPModelError(
                     f"model output {name} at step {k} has shape {arr.shape}, which does not "
                     f"broadcast to the block shape {shape} (states {shape[:d]} x inputs "
@@ -482,11 +478,7 @@ class Evaluator:
         if tc is None:
             return np.zeros(shape)
         arr = np.asarray(tc(states), dtype=np.float64)
-        try:
-            ok = np.broadcast_shapes(arr.shape, shape) == shape
-        except ValueError:
-            ok = False
-        if not ok:
+        if not _broadcasts_to(arr.shape, shape):
             raise DPModelError(
                 f"terminal_cost returned shape {arr.shape}; expected an array broadcastable "
                 f"to the state shape {shape}."
@@ -497,3 +489,11 @@ class Evaluator:
         if np.isnan(out).any() or (out == -np.inf).any():
             raise DPModelError("terminal_cost returned NaN or -inf; expected finite values or +inf.")
         return out
+
+
+def _broadcasts_to(arr_shape: tuple[int, ...], shape: tuple[int, ...]) -> bool:
+    """True when an array of ``arr_shape`` broadcasts to exactly ``shape``."""
+    try:
+        return np.broadcast_shapes(arr_shape, shape) == shape
+    except ValueError:
+        return False
