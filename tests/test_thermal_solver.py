@@ -159,3 +159,32 @@ def test_steady_energy_balance_films_only() -> None:
     model.steady()
     rep = model.report()
     assert rep.film_w == pytest.approx(3.0, rel=1e-9)
+
+
+def test_lumped_capacity_keeps_the_maximum_principle() -> None:
+    """No heat sources, a 30 degC module on a 15 degC coolant: no node should rise above
+    30 degC. The consistent capacity matrix overshoots by kelvins next to the cooling front
+    (spurious hot spots); the lumped one (default) stays within a few tenths of a kelvin (what
+    is left comes from obtuse tetrahedra: positive off-diagonal conduction entries), and both
+    hold the same total heat capacity."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from hevsim.thermal.geometry import build_module_mesh
+    from hevsim.thermal.run import load_thermal_config, module_model
+
+    cfg = load_thermal_config(Path(__file__).resolve().parents[1] / "examples" / "module_thermal.toml")
+    cfg = replace(cfg, geometry=replace(cfg.geometry, mesh_size_m=0.008))
+    mesh = build_module_mesh(cfg.geometry)
+    peaks = {}
+    for kind in ("lumped", "consistent"):
+        c = replace(cfg, simulation=replace(cfg.simulation, capacity=kind))
+        _, _, model = module_model(c, mesh)
+        model.set_cell_heat_w(0.0)
+        peak = 0.0
+        for _ in range(20):
+            peak = max(peak, float(model.step().max()))
+        peaks[kind] = peak - 303.15
+        assert float(np.sum(model.capacity)) == pytest.approx(float(np.sum(model.disc.capacity)), rel=1e-12)
+    assert 0.0 < peaks["lumped"] < 0.25, peaks
+    assert peaks["consistent"] > 20 * peaks["lumped"], peaks  # the artefact lumping removes

@@ -7,8 +7,26 @@ Interface: inputs ``current_a`` [A, discharge > 0] (or ``power_w`` [W] with ``po
 and ``port_temp_k`` [K]; outputs
 ``voltage_v`` [V], ``soc`` [-], ``port_heat_w`` [W, heat flow into the port], ``temp_k``
 [K, core] and ``soh`` [-] (SOH_C of eq 43; the impedance factor of eq 44 is 1 because the
-cell's impedance does not age within a run); parameters ``soc_initial``, ``temp_initial_k``
-and the scalars of :data:`FMU_PARAMETERS`.
+cell's impedance does not age within a run); parameters ``power_input`` (Boolean),
+``soc_initial``, ``temp_initial_k`` and the scalars of :data:`FMU_PARAMETERS`. With
+``power_input`` the solved current is readable as ``current_a`` (an input variable, so
+``fmi2GetReal`` returns it after each step); the output ``terminal_current_a`` [A] is the
+current drawn over the last step either way (connectable, recorded by masters).
+
+A module FMU (n_s x n_p > 1 cells, cell c = series group * n_p + branch) has in addition, with
+the names of :class:`hevsim.cosim.participant.ModuleCellsParticipant`: inputs
+``cell<c>_port_temp_k`` [K], outputs ``cell<c>_port_heat_w`` [W, heat into cell c's port, step
+mean] and ``cell<c>_temp_k`` [K, cell c's lumped temperature], and the Boolean parameter
+``per_cell_ports`` (default false): when true cell c's port temperature is
+``cell<c>_port_temp_k``, otherwise every cell's is ``port_temp_k``. Its lumped outputs are the
+module voltage, the mean SOC, the total port heat, the hottest cell's temperature and the
+lowest SOH.
+
+Units: ``modelDescription.xml`` declares ``UnitDefinitions`` and the unit of every Real
+variable whose name ends in a unit suffix (:data:`UNIT_SUFFIXES`; ``_k`` K, ``_w`` W, ``_v``
+V, ``_a`` A, ...), so a master converts units on connections. FMU state: the FMU can get, set
+and serialise its complete state (``canGetAndSetFMUstate``, ``canSerializeFMUstate``), for
+iteration and checkpoints of co-simulations.
 
 Run-time needs: a host process with CPython loaded (FMPy and other Python-based masters; a C
 master must preload libpython) in which ``hevsim`` is importable. The FMU carries Linux and
@@ -18,8 +36,11 @@ different names can share a process.
 
 from __future__ import annotations
 
+import os
 import re
 import tempfile
+import zipfile
+from functools import partial
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -37,6 +58,34 @@ OUTPUTS = ("voltage_v", "soc", "port_heat_w", "temp_k", "soh")
 INPUTS = ("current_a", "power_w", "port_temp_k")
 """``power_w`` [W, discharge > 0] is used instead of ``current_a`` when the Boolean
 parameter ``power_input`` is true."""
+
+CELL_INPUTS = ("cell{c}_port_temp_k",)
+CELL_OUTPUTS = ("cell{c}_port_heat_w", "cell{c}_temp_k")
+"""Per-cell variables of a module FMU (``c`` = cell index), used when ``per_cell_ports``."""
+
+UNIT_SUFFIXES = (
+    ("_j_per_k", "J/K"),
+    ("_k_per_w", "K/W"),
+    ("_per_k", "1/K"),
+    ("_k", "K"),
+    ("_w", "W"),
+    ("_v", "V"),
+    ("_a", "A"),
+    ("_c", "C"),
+)
+"""Variable-name suffix -> unit declared in the model description (first match wins)."""
+
+UNIT_EXPONENTS = {
+    "J/K": {"kg": 1, "m": 2, "s": -2, "K": -1},
+    "K/W": {"kg": -1, "m": -2, "s": 3, "K": 1},
+    "1/K": {"K": -1},
+    "K": {"K": 1},
+    "W": {"kg": 1, "m": 2, "s": -3},
+    "V": {"kg": 1, "m": 2, "s": -3, "A": -1},
+    "A": {"A": 1},
+    "C": {"s": 1, "A": 1},
+}
+"""SI base-unit exponents (FMI ``BaseUnit`` attributes) of the declared units."""
 
 
 def current_for_power(stepper: Any, power_w: float, port_temp_k: float | np.ndarray, dt_s: float) -> float:
@@ -97,6 +146,22 @@ class CellStepper:
             "soh": self._soh(float(r[K.RCAP])),
         }
         return self.outputs
+
+    def get_state(self) -> dict[str, Any]:
+        """The complete mutable state as JSON-able lists and floats (a copy)."""
+        return {
+            "p": self.p.tolist(),
+            "x": self.x.tolist(),
+            "rec": self.rec.tolist(),
+            "outputs": dict(self.outputs),
+        }
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        """Restore a state made by :meth:`get_state` (bit-identical continuation)."""
+        self.p[:] = state["p"]
+        self.x[:] = state["x"]
+        self.rec[:] = state["rec"]
+        self.outputs = {k: float(v) for k, v in state["outputs"].items()}
 
 
 class ModuleStepper:
@@ -183,16 +248,38 @@ class ModuleStepper:
         }
         return self.outputs
 
+    def get_state(self) -> dict[str, Any]:
+        """The complete mutable state as JSON-able lists and floats (a copy)."""
+        return {
+            "p": self.m.p.tolist(),
+            "x": self.m.state.tolist(),
+            "out_m": self.out_m.tolist(),
+            "out_c": self.out_c.tolist(),
+            "cell_port_heat_w": self.cell_port_heat_w.tolist(),
+            "outputs": dict(self.outputs),
+        }
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        """Restore a state made by :meth:`get_state` (bit-identical continuation)."""
+        self.m.p[:] = state["p"]
+        self.m.state[:] = state["x"]
+        self.out_m[:] = state["out_m"]
+        self.out_c[:] = state["out_c"]
+        self.cell_port_heat_w = np.array(state["cell_port_heat_w"], dtype=float)
+        self.outputs = {k: float(v) for k, v in state["outputs"].items()}
+
 
 class CellSlaveMixin:
     """FMU behaviour, mixed into the generated ``pythonfmu.Fmi2Slave`` subclass.
 
     The generated class sets :attr:`PARAMETERS_TOML` (the embedded cell parameter file) and
-    :attr:`DEFAULTS` (``soc_initial``, ``temp_initial_k``).
+    :attr:`DEFAULTS` (``soc_initial``, ``temp_initial_k``; for a module also ``n_series``,
+    ``n_parallel``, ``capacity_spread``, ``resistance_spread``, ``seed``).
     """
 
     PARAMETERS_TOML = ""
     DEFAULTS: ClassVar[dict[str, Any]] = {}
+    _STEPPER_KEY = "__hevsim_stepper__"
 
     def __init__(self, **kwargs: Any) -> None:
         import tomllib
@@ -207,9 +294,12 @@ class CellSlaveMixin:
         self.current_a = 0.0
         self.power_w = 0.0
         self.power_input = False
+        self.per_cell_ports = False
         self.soc_initial = float(self.DEFAULTS["soc_initial"])
         self.temp_initial_k = float(self.DEFAULTS["temp_initial_k"])
         self.port_temp_k = self.temp_initial_k
+        self._n_cells = int(self.DEFAULTS.get("n_series", 1)) * int(self.DEFAULTS.get("n_parallel", 1))
+        self._cell_port_temp_k = np.full(self._n_cells, self.temp_initial_k)
         vec = self._params.vector(self.soc_initial)
         for name, idx in FMU_PARAMETERS.items():
             setattr(self, name, float(vec[idx]))
@@ -218,18 +308,50 @@ class CellSlaveMixin:
         register = self.register_variable  # type: ignore[attr-defined]
         for name in INPUTS:
             register(Real(name, causality=Fmi2Causality.input))
-        register(
-            Boolean("power_input", causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable)
-        )
+        booleans = ("power_input", "per_cell_ports") if self._n_cells > 1 else ("power_input",)
+        for name in booleans:
+            register(Boolean(name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable))
         for name in ("soc_initial", "temp_initial_k", *FMU_PARAMETERS):
             register(Real(name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable))
         for name in OUTPUTS:
             register(Real(name, causality=Fmi2Causality.output, initial=Fmi2Initial.exact))
+        self.terminal_current_a = 0.0  # the current drawn over the last step (input or solved)
+        register(Real("terminal_current_a", causality=Fmi2Causality.output, initial=Fmi2Initial.exact))
+        if self._n_cells > 1:
+            (port_in,) = CELL_INPUTS
+            for c in range(self._n_cells):
+                get_in, set_in = partial(self._cell_port_temp, c), partial(self._set_cell_port_temp, c)
+                register(
+                    Real(port_in.format(c=c), causality=Fmi2Causality.input, getter=get_in, setter=set_in)
+                )
+            getters = dict(zip(CELL_OUTPUTS, (self._cell_port_heat, self._cell_temp), strict=True))
+            for template, getter in getters.items():
+                for c in range(self._n_cells):
+                    out = Real(
+                        template.format(c=c),
+                        causality=Fmi2Causality.output,
+                        initial=Fmi2Initial.exact,
+                        getter=partial(getter, c),
+                    )
+                    register(out)
+
+    # per-cell variables of a module FMU (getters and setters of cell c)
+    def _cell_port_temp(self, c: int) -> float:
+        return float(self._cell_port_temp_k[c])
+
+    def _set_cell_port_temp(self, c: int, value: float) -> None:
+        self._cell_port_temp_k[c] = value
+
+    def _cell_port_heat(self, c: int) -> float:
+        return float(self._stepper.cell_port_heat_w[c])  # type: ignore[union-attr]
+
+    def _cell_temp(self, c: int) -> float:
+        return float(self._stepper.m.state[c, K.STEMP])  # type: ignore[union-attr]
 
     def _new_stepper(self) -> CellStepper | ModuleStepper:
         overrides = {n: float(getattr(self, n)) for n in FMU_PARAMETERS}
         layout = {k: v for k, v in self.DEFAULTS.items() if k not in ("soc_initial", "temp_initial_k")}
-        if layout.get("n_series", 1) * layout.get("n_parallel", 1) == 1:
+        if self._n_cells == 1:
             return CellStepper(self._params, self.soc_initial, self.temp_initial_k, **overrides)
         return ModuleStepper(self._params, self.soc_initial, self.temp_initial_k, **layout, **overrides)  # type: ignore[arg-type]
 
@@ -243,11 +365,41 @@ class CellSlaveMixin:
         self._set_outputs(self._stepper.outputs)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        """One communication step at the current inputs (current, or power when power_input)."""
+        """One communication step at the current inputs (current, or power when power_input;
+        one port temperature, or one per cell when per_cell_ports)."""
+        port: float | np.ndarray = self.port_temp_k
+        if self._n_cells > 1 and self.per_cell_ports:
+            port = self._cell_port_temp_k.copy()
         if self.power_input:
-            self.current_a = current_for_power(self._stepper, self.power_w, self.port_temp_k, step_size)
-        self._set_outputs(self._stepper.step(self.current_a, self.port_temp_k, step_size))
+            self.current_a = current_for_power(self._stepper, self.power_w, port, step_size)
+        self._set_outputs(self._stepper.step(self.current_a, port, step_size))  # type: ignore[arg-type]
+        self.terminal_current_a = self.current_a
         return True
+
+    # FMU state (fmi2Get/SetFMUstate, fmi2(De)SerializeFMUstate): the registered variables
+    # (inputs, parameters, outputs) plus the stepper's arrays, all JSON-able.
+    def _get_fmu_state(self) -> dict[str, Any]:
+        state: dict[str, Any] = {k: _plain(v) for k, v in super()._get_fmu_state().items()}  # type: ignore[misc]
+        state[self._STEPPER_KEY] = self._stepper.get_state()
+        return state
+
+    def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        rest = {k: v for k, v in state.items() if k != self._STEPPER_KEY}
+        super()._set_fmu_state(rest)  # type: ignore[misc]
+        if self._STEPPER_KEY in state:
+            self._stepper.set_state(state[self._STEPPER_KEY])
+        self._set_outputs(self._stepper.outputs)
+
+
+def _plain(value: Any) -> Any:
+    """A JSON-able Python scalar (bool, int, float or str) for ``value``."""
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if isinstance(value, int | np.integer):
+        return int(value)
+    if isinstance(value, float | np.floating):
+        return float(value)
+    return value
 
 
 _SCRIPT = '''"""FMU model module generated by hevsim.battery.fmu.export_fmu."""
@@ -305,11 +457,70 @@ def export_fmu(
     with tempfile.TemporaryDirectory() as tmp:
         script = Path(tmp) / f"{name}.py"
         script.write_text(_SCRIPT.format(toml=src.read_text(), name=name, defaults=defaults))
-        built = FmuBuilder.build_FMU(script, dest=tmp)
+        built = FmuBuilder.build_FMU(script, dest=tmp, canGetAndSetFMUstate=True, canSerializeFMUstate=True)
+        declare_units(built)
         tmp_fmu = out.with_name(f".{out.name}.tmp")
         Path(built).replace(tmp_fmu)
+        tmp_fmu.chmod(0o644)  # a normal file, not the temporary directory's private mode
         tmp_fmu.replace(out)
     return out
+
+
+_AFTER_UNIT_DEFINITIONS = (
+    "TypeDefinitions", "LogCategories", "DefaultExperiment", "VendorAnnotations", "ModelVariables",
+    "ModelStructure",
+)  # fmt: skip
+"""fmiModelDescription children that follow ``UnitDefinitions`` (FMI 2.0 schema order)."""
+
+
+def unit_of(name: str) -> str | None:
+    """The unit of an FMU variable from its name's suffix (:data:`UNIT_SUFFIXES`), or None."""
+    return next((unit for suffix, unit in UNIT_SUFFIXES if name.endswith(suffix)), None)
+
+
+def declare_units(fmu: str | Path) -> Path:
+    """Add units to the ``modelDescription.xml`` of ``fmu`` (pythonfmu cannot declare them):
+    ``UnitDefinitions`` with SI base-unit exponents and a ``unit`` on the ``Real`` element of
+    every variable named with a unit suffix (:func:`unit_of`). The zip is rewritten atomically
+    (a temporary file in the same folder, then a rename). Returns the FMU path."""
+    import xml.etree.ElementTree as ET
+
+    path = Path(fmu)
+    with zipfile.ZipFile(path) as zin:
+        root = ET.fromstring(zin.read("modelDescription.xml"))
+    used: list[str] = []
+    for var in root.iter("ScalarVariable"):
+        real, unit = var.find("Real"), unit_of(var.get("name", ""))
+        if real is not None and unit is not None:
+            real.set("unit", unit)
+            if unit not in used:
+                used.append(unit)
+    defs = root.find("UnitDefinitions")
+    if defs is None and used:
+        defs = ET.Element("UnitDefinitions")
+        pos = next((i for i, e in enumerate(root) if e.tag in _AFTER_UNIT_DEFINITIONS), len(root))
+        root.insert(pos, defs)
+    if defs is not None:
+        declared = {u.get("name") for u in defs.findall("Unit")}
+        for unit in used:
+            if unit not in declared:
+                u = ET.SubElement(defs, "Unit", name=unit)
+                ET.SubElement(u, "BaseUnit", {k: str(v) for k, v in UNIT_EXPONENTS[unit].items()})
+    ET.indent(root)
+    xml = ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        with zipfile.ZipFile(path) as zin, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zout:
+            for item in zin.infolist():
+                data = xml if item.filename == "modelDescription.xml" else zin.read(item.filename)
+                zout.writestr(item, data)
+        tmp.replace(path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
 
 
 def simulate_fmu(
@@ -320,13 +531,18 @@ def simulate_fmu(
     parameters: dict[str, float] | None = None,
     timeout_s: float = 600.0,
     power_w: Any = None,
+    cell_port_temps_k: Any = None,
+    outputs: tuple[str, ...] | list[str] | None = None,
 ) -> dict[str, np.ndarray]:
-    """Drive a cell FMU with FMPy, in a worker process, one step per input sample.
+    """Drive a cell or module FMU with FMPy, in a worker process, one step per input sample.
 
     ``current_a`` [A] and ``port_temp_k`` [K] are arrays (or a scalar temperature);
     ``parameters`` are set during initialisation. With ``power_w`` [W] (array) the FMU is
     driven by power instead (``current_a`` is then ignored and may be None); the solved
-    current is returned as output ``current_a``. Returns the outputs per step.
+    current is returned as output ``current_a``. ``cell_port_temps_k`` [K] (module FMU only,
+    shape (steps, cells) or (cells,)) drives the per-cell ports (``per_cell_ports`` is set).
+    ``outputs`` names the variables returned (default :data:`OUTPUTS` and ``current_a``).
+    Returns the outputs per step.
     """
     import json
     import subprocess
@@ -337,13 +553,20 @@ def simulate_fmu(
     drive = np.asarray(power_w if power_w is not None else current_a, float)
     port = np.broadcast_to(np.asarray(port_temp_k, float), drive.shape)
     key = "power_w" if power_w is not None else "current_a"
+    inputs = {key: drive.tolist(), "port_temp_k": port.tolist()}
+    booleans = {"power_input": power_w is not None}
+    if cell_port_temps_k is not None:
+        cells = np.asarray(cell_port_temps_k, float)
+        cells = np.broadcast_to(cells, (drive.size, cells.shape[-1]))
+        inputs.update({f"cell{c}_port_temp_k": cells[:, c].tolist() for c in range(cells.shape[1])})
+        booleans["per_cell_ports"] = True
     req = {
         "fmu": str(fmu),
         "dt_s": float(dt_s),
-        "inputs": {key: drive.tolist(), "port_temp_k": port.tolist()},
+        "inputs": inputs,
         "parameters": parameters or {},
-        "booleans": {"power_input": power_w is not None},
-        "outputs": [*OUTPUTS, "current_a"],
+        "booleans": booleans,
+        "outputs": list(outputs) if outputs is not None else [*OUTPUTS, "current_a"],
     }
     proc = subprocess.run(
         [sys.executable, "-m", "hevsim.battery._fmu_worker"],

@@ -697,7 +697,10 @@ def run_cosim(
     :class:`SystemDescription`) and write ``out_dir``:
     ``results.csv`` (every output vs time), ``summary.json`` (final values, step
     statistics, stop reason), the system as ``system.ssd`` and ``pictures/*.png``
-    (:func:`hevsim.cosim.plots.plot_cosim`). A checkpoint
+    (:func:`hevsim.cosim.plots.plot_cosim`), plus what participants keep beyond their
+    outputs (:meth:`~hevsim.cosim.participant.Participant.write_fields`: the FEM module's
+    temperature fields ``fields/*.vtu`` with a ``.pvd``, plate and cell pictures; listed with
+    the hot spots under ``fields`` in ``summary.json``). A checkpoint
     ``<out_dir>.checkpoint`` is kept while running; with ``resume`` a killed run continues
     from it. On a participant fault the results so far are written to ``out_dir`` before
     the error is raised."""
@@ -712,15 +715,18 @@ def run_cosim(
         with atomic_directory(out) as tmp:
             res.write_csv(tmp / "results.csv")
             final = {c: float(res.data[-1, i]) for i, c in enumerate(res.columns)} if len(res.data) else {}
-            write_json(tmp / "summary.json", {
-                "config": desc.source, "final": final, "stats": res.stats,
-                "stopped_by": res.stopped_by, "error": error,
-            })  # fmt: skip
-            (tmp / "system.ssd").write_bytes(ssd_xml(desc))
+            fields: dict[str, Any] = {}
             if len(res.data):
                 from hevsim.cosim.plots import plot_cosim
 
                 plot_cosim(res, desc, tmp / "pictures")
+                fields = {n: p.write_fields(tmp) for n, p in res.participants.items()}
+            write_json(tmp / "summary.json", {
+                "config": desc.source, "final": final, "stats": res.stats,
+                "stopped_by": res.stopped_by, "error": error,
+                "fields": {n: f for n, f in fields.items() if f},
+            })  # fmt: skip
+            (tmp / "system.ssd").write_bytes(ssd_xml(desc))
 
     try:
         res = run_system(desc, progress, ck, resume)

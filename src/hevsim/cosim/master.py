@@ -91,13 +91,15 @@ class Options:
 @dataclass
 class CosimResult:
     """Time series of every participant output (``columns`` "participant.variable", the
-    time in ``time_s``), plus step statistics and why the run stopped."""
+    time in ``time_s``), plus step statistics, why the run stopped and the participants
+    (for what they keep beyond their outputs, e.g. temperature fields)."""
 
     time_s: np.ndarray
     columns: list[str]
     data: np.ndarray
     stats: dict[str, Any]
     stopped_by: str | None = None
+    participants: dict[str, Participant] = field(default_factory=dict, repr=False)
 
     def __getitem__(self, key: str) -> np.ndarray:
         try:
@@ -230,7 +232,7 @@ class Master:
     def _result(self, stopped_by: str | None) -> CosimResult:
         cols = [f"{n}.{v}" for n, v in self._cols]
         data = np.array(self._rows, float).reshape(len(self._rows), len(cols))
-        return CosimResult(np.array(self._times), cols, data, dict(self.stats), stopped_by)
+        return CosimResult(np.array(self._times), cols, data, dict(self.stats), stopped_by, dict(self.p))
 
     def _checkpoint(self, t: float, h: float, y: dict[str, dict[str, float]], nsteps: int) -> None:
         path = Path(self.opt.checkpoint_path)  # type: ignore[arg-type]

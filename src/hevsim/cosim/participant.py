@@ -68,6 +68,11 @@ class Participant(ABC):
     def terminate(self) -> None:  # noqa: B027 (optional hook: nothing to release by default)
         """Release resources; the participant is not stepped again."""
 
+    def write_fields(self, out_dir: Path) -> dict[str, Any]:
+        """Write what the participant keeps beyond its outputs (fields, pictures) under
+        ``out_dir`` after the run; returns a JSON-able summary ({} when there is nothing)."""
+        return {}
+
 
 StepFunction = Callable[[float, float, Any, dict[str, float]], tuple[Any, dict[str, float]]]
 """``step(t, h, state, inputs) -> (new_state, outputs)``; must not mutate ``state``."""

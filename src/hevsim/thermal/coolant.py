@@ -138,6 +138,8 @@ class ChannelModel:
         if n_segments < 1:
             raise ConfigError(f"coolant: n_segments = {n_segments}; expected at least 1.")
         self.n_segments = int(n_segments)
+        #: configured channel segment of each segment (when empty ones were dropped)
+        self.configured_segments = np.arange(self.n_segments)
         self.inlet_temp_k = float(inlet_temp_k)
         self.flow_m3_s = float(flow_m3_s)
         area = width_m * height_m
@@ -181,3 +183,32 @@ def segments_along_path(centroids_m: np.ndarray, path_m: np.ndarray, n_segments:
     j = np.argmin(dist, axis=1)
     s = s0[j] + u[np.arange(len(j)), j] * seg_len[j]
     return np.minimum((s / s0[-1] * n_segments).astype(np.int64), n_segments - 1)
+
+
+class PrescribedWallCoolant:
+    """A :class:`hevsim.thermal.solver.WallCoolant` whose film [W/(m^2 K)] and fluid
+    temperature [K] per segment are set from outside (a coolant model in another process or
+    tool, coupled through the co-simulation master)."""
+
+    def __init__(self, n_segments: int) -> None:
+        self.n_segments = int(n_segments)
+        self.configured_segments = np.arange(self.n_segments)
+        self.h_w_m2k = np.zeros(self.n_segments)
+        self.fluid_k = np.zeros(self.n_segments)
+
+    def heat_transfer_coefficient_w_m2k(self) -> np.ndarray:
+        return self.h_w_m2k.copy()
+
+    def fluid_temperature_k(self, wall_temp_k: np.ndarray, wall_area_m2: np.ndarray) -> np.ndarray:
+        return self.fluid_k.copy()
+
+
+def channel_segments(
+    wall_centroids_m: np.ndarray, path_m: np.ndarray, n_segments: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Coolant segment of each wall facet, numbered without gaps, and the configured segment
+    (0 .. n_segments-1 along ``path_m``) of each of those: ``(segment_of_facet, configured)``.
+    Segments that no facet reaches (coarse meshes) are dropped."""
+    seg = segments_along_path(wall_centroids_m, path_m, n_segments)
+    used = np.unique(seg)
+    return np.searchsorted(used, seg), used

@@ -23,6 +23,7 @@ from hevsim.thermal.materials import (
     TABLE_4_3,
     Material,
 )
+from hevsim.thermal.solver import CAPACITY_KINDS
 from hevsim.units import KELVIN_OFFSET
 
 KELVIN = KELVIN_OFFSET  # [K] at 0 degC
@@ -42,6 +43,7 @@ class SimulationSection:
     gap_conductance_w_m2k: float = GAP_CONDUCTANCE_W_M2K
     cell_heat_w: tuple[float, ...] = (1.0,)
     coupling_iterations: int = 1
+    capacity: str = "lumped"  # or "consistent" (see hevsim.thermal.solver.HeatModel)
 
 
 @dataclass(frozen=True)
@@ -125,7 +127,7 @@ def thermal_config_from_dict(
     data = dict(data)
     raw_mat = data.pop("materials", {})
     raw_contact = data.pop("contact", {})
-    choices = {"coolant.properties": ("table_4_4", "meg50_table")}
+    choices = {"coolant.properties": ("table_4_4", "meg50_table"), "simulation.capacity": CAPACITY_KINDS}
     cfg = build_config(ThermalConfig, data, source, base_dir, choices, _BOUNDS)
     if not isinstance(raw_mat, dict):
         raise ConfigError(f"{source}: [materials]: expected tables [materials.<part>], got {raw_mat!r}.")
@@ -413,8 +415,6 @@ def _write(
 ) -> None:
     import csv
 
-    import meshio
-
     from hevsim.io import atomic_directory, write_json
 
     with atomic_directory(out) as tmp:
@@ -435,87 +435,54 @@ def _write(
                 "metadata": result.metadata,
             },
         )
-        fields = tmp / "fields"
-        fields.mkdir()
-        cells = [("tetra", disc.tets)]
-        cell_data = {"part": [mesh.part_of_tet.astype(np.int32)], "cell": [mesh.cell_of_tet.astype(np.int32)]}
-        entries = []
-        for i, (t, temp) in enumerate(snapshots):
-            name = f"temperature_{i:04d}.vtu"
-            meshio.write(
-                fields / name,
-                meshio.Mesh(disc.points_m, cells, point_data={"temperature_c": temp}, cell_data=cell_data),
-                binary=True,
-            )
-            entries.append(f'    <DataSet timestep="{t:g}" part="0" file="fields/{name}"/>')
-        (tmp / "temperature.pvd").write_text(
-            '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
-            + "\n".join(entries)
-            + "\n  </Collection>\n</VTKFile>\n"
-        )
+        write_field_series(tmp, disc, mesh, snapshots)
         if cfg.output.pictures:
             _pictures(tmp, result, disc, mesh, cfg, final_c)
     result.out_dir = out
 
 
+def write_field_series(
+    out_dir: Path, disc: Any, mesh: Any, series: list[tuple[float, np.ndarray]], prefix: str = ""
+) -> Path:
+    """Write nodal temperature fields [°C] ``series`` = ``[(time_s, temp_c), ...]`` as
+    ``out_dir/fields/{prefix}temperature_NNNN.vtu`` (split mesh, cell data ``part`` and ``cell``)
+    and the ParaView collection ``out_dir/{prefix}temperature.pvd``; returns the .pvd path."""
+    import meshio
+
+    out = Path(out_dir)
+    fields = out / "fields"
+    fields.mkdir(parents=True, exist_ok=True)
+    cells = [("tetra", disc.tets)]
+    cell_data = {"part": [mesh.part_of_tet.astype(np.int32)], "cell": [mesh.cell_of_tet.astype(np.int32)]}
+    entries = []
+    for i, (t, temp) in enumerate(series):
+        name = f"{prefix}temperature_{i:04d}.vtu"
+        meshio.write(
+            fields / name,
+            meshio.Mesh(disc.points_m, cells, point_data={"temperature_c": temp}, cell_data=cell_data),
+            binary=True,
+        )
+        entries.append(f'    <DataSet timestep="{t:g}" part="0" file="fields/{name}"/>')
+    pvd = out / f"{prefix}temperature.pvd"
+    pvd.write_text(
+        '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
+        + "\n".join(entries)
+        + "\n  </Collection>\n</VTKFile>\n"
+    )
+    return pvd
+
+
 def _pictures(
     tmp: Path, result: ThermalResult, disc: Any, mesh: Any, cfg: ThermalConfig, tc: np.ndarray
 ) -> None:
+    """cells_temperature.png, plate_temperature.png, cells_section.png (final field) and timeseries.png."""
     from matplotlib.figure import Figure
-    from matplotlib.patches import Circle
-    from matplotlib.tri import Triangulation
 
-    g = cfg.geometry
+    from hevsim.thermal.pictures import plot_fields
+
     ts = result.timeseries
-    # 1. cells: top view, each cell coloured by its mean temperature, labelled mean / max
-    fig = Figure(figsize=(9, 4), dpi=110)
-    ax = fig.add_subplot()
-    means = np.array([c["mean_temp_c"] for c in result.cell_stats])
-    lo, hi = float(means.min()), float(max(means.max(), means.min() + 1e-6))
-    from matplotlib import colormaps
-    from matplotlib.cm import ScalarMappable
-    from matplotlib.colors import Normalize
-
-    norm, cmap = Normalize(lo, hi), colormaps["inferno"]
-    for c in result.cell_stats:
-        x, y = g.cell_centre_xy_m(int(c["row"]) - 1, int(c["column"]) - 1)
-        ax.add_patch(Circle((x * 1e3, y * 1e3), g.cell_diameter_m * 500, color=cmap(norm(c["mean_temp_c"]))))
-        ax.text(
-            x * 1e3,
-            y * 1e3,
-            f"{c['mean_temp_c']:.2f}\nmax {c['max_temp_c']:.2f}",
-            ha="center",
-            va="center",
-            fontsize=7,
-            color="white" if norm(c["mean_temp_c"]) < 0.6 else "black",
-        )
-    ax.set_xlim(0, g.length_x_m * 1e3)
-    ax.set_ylim(0, g.length_y_m * 1e3)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
-    ax.set_title(f"Cell mean temperature [°C] at t = {ts['time_s'][-1]:g} s (top view)")
-    fig.colorbar(ScalarMappable(norm, cmap), ax=ax, label="°C")
-    fig.savefig(tmp / "cells_temperature.png")
-    # 2. cooling plate: temperature on its top face, channel path overlaid
-    plate = mesh.part_names.index("plate")
-    top = (disc.node_part == plate) & (np.abs(disc.points_m[:, 2] - g.plate_thickness_m) < 1e-9)
-    fig = Figure(figsize=(9, 4), dpi=110)
-    ax = fig.add_subplot()
-    xy = disc.points_m[top, :2] * 1e3
-    if top.sum() >= 3:
-        tri = Triangulation(xy[:, 0], xy[:, 1])
-        pc = ax.tripcolor(tri, tc[top], shading="gouraud", cmap="coolwarm")
-        fig.colorbar(pc, ax=ax, label="°C")
-    path = mesh.channel_path_m * 1e3
-    ax.plot(path[:, 0], path[:, 1], "k--", lw=1, label="channel (inlet at x = 0)")
-    ax.legend(loc="upper right", fontsize=7)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
-    ax.set_title(f"Cooling plate top-face temperature [°C] at t = {ts['time_s'][-1]:g} s")
-    fig.savefig(tmp / "plate_temperature.png")
-    # 3. time series
+    plot_fields(mesh, disc, cfg.geometry, tc, float(ts["time_s"][-1]), tmp)
+    # time series
     fig = Figure(figsize=(8, 6), dpi=100)
     a1, a2 = fig.subplots(2, 1, sharex=True)
     a1.plot(ts["time_s"], ts["cell_max_temp_c"], label="cell max")
@@ -538,22 +505,26 @@ __all__ = [
     "load_thermal_config",
     "run_thermal",
     "thermal_config_from_dict",
+    "write_field_series",
 ]
 
 
-def module_model(cfg: ThermalConfig, mesh: Any) -> tuple[Any, Any, Any]:
-    """Discretisation, coolant channel and heat model of a module case (shared by
-    :func:`run_thermal` and the co-simulation's FEM participant): ``(disc, channel, model)``."""
-    from hevsim.thermal.coolant import ChannelModel, segments_along_path
+def module_model(cfg: ThermalConfig, mesh: Any, external_coolant: bool = False) -> tuple[Any, Any, Any]:
+    """Discretisation, coolant and heat model of a module case (shared by :func:`run_thermal`
+    and the co-simulation's FEM participant): ``(disc, coolant, model)``.
+
+    The coolant is the configured 1-D channel (:class:`~hevsim.thermal.coolant.ChannelModel`),
+    or with ``external_coolant`` a :class:`~hevsim.thermal.coolant.PrescribedWallCoolant`
+    whose film and fluid temperature are set from outside. Its ``configured_segments`` gives
+    the configured channel segment (0 .. segments-1) of each wall segment of ``disc``."""
+    from hevsim.thermal.coolant import ChannelModel, PrescribedWallCoolant, channel_segments
     from hevsim.thermal.mesh import CHANNEL_WALL
     from hevsim.thermal.solver import HeatModel, discretise
 
     sim, cool = cfg.simulation, cfg.coolant
     wall = mesh.facet_groups[CHANNEL_WALL]
     assert mesh.channel_path_m is not None
-    seg = segments_along_path(mesh.points_m[wall].mean(axis=1), mesh.channel_path_m, cool.segments)
-    used = np.unique(seg)
-    seg = np.searchsorted(used, seg)  # drop empty segments (coarse meshes)
+    seg, used = channel_segments(mesh.points_m[wall].mean(axis=1), mesh.channel_path_m, cool.segments)
     disc = discretise(
         mesh,
         cfg.materials,
@@ -563,20 +534,26 @@ def module_model(cfg: ThermalConfig, mesh: Any) -> tuple[Any, Any, Any]:
         ambient_k=sim.ambient_temp_c + KELVIN,
         wall_segment_of_facet=seg,
     )
-    channel = ChannelModel(
-        used.size,
-        inlet_temp_k=cool.inlet_temp_c + KELVIN,
-        flow_m3_s=cool.flow_l_min * LITRE_PER_MIN_M3_S,
-        width_m=cfg.geometry.channel_width_m,
-        height_m=cfg.geometry.channel_height_m,
-        coolant=coolant_from_section(cool),
-    )
+    coolant: Any
+    if external_coolant:
+        coolant = PrescribedWallCoolant(used.size)
+    else:
+        coolant = ChannelModel(
+            used.size,
+            inlet_temp_k=cool.inlet_temp_c + KELVIN,
+            flow_m3_s=cool.flow_l_min * LITRE_PER_MIN_M3_S,
+            width_m=cfg.geometry.channel_width_m,
+            height_m=cfg.geometry.channel_height_m,
+            coolant=coolant_from_section(cool),
+        )
+    coolant.configured_segments = used
     model = HeatModel(
         disc,
         dt_s=sim.dt_s,
         theta=sim.theta,
         initial_temp_k=sim.initial_temp_c + KELVIN,
-        coolant=channel,
+        coolant=coolant,
         coupling_iterations=sim.coupling_iterations,
+        lumped_capacity=sim.capacity == "lumped",
     )
-    return disc, channel, model
+    return disc, coolant, model
