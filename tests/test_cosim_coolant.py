@@ -28,7 +28,7 @@ def _heat(name: str = "heat") -> FunctionParticipant:
     )
 
 
-def _coupled(duration: float) -> tuple[object, int]:
+def _coupled(duration: float, fluid: bool = False, **options: object) -> tuple[object, int]:
     fem = FemModuleParticipant("fem", CONFIG, mesh_size_m=MESH, coolant="external")
     cool = CoolantChannelParticipant("coolant", CONFIG)
     n = cool.n_segments
@@ -40,16 +40,20 @@ def _coupled(duration: float) -> tuple[object, int]:
             Connection("coolant", f"wall{j}_heat_flux_w_m2", "fem", f"wall{j}_heat_flux_w_m2"),
             Connection("coolant", f"wall{j}_film_w_m2k", "fem", f"wall{j}_film_w_m2k"),
         ]
+        if fluid:
+            conns.append(Connection("coolant", f"wall{j}_fluid_temp_k", "fem", f"wall{j}_fluid_temp_k"))
     res = simulate([_heat(), fem, cool], conns, stop_time_s=duration, step_s=1.0,
-                   algorithm="gauss-seidel", order=["heat", "fem", "coolant"])  # fmt: skip
+                   algorithm="gauss-seidel", order=["heat", "fem", "coolant"], **options)  # fmt: skip
     return res, n
 
 
-def test_separate_coolant_reproduces_internal_coupling() -> None:
+@pytest.mark.parametrize("fluid", [False, True], ids=["flux-and-film", "fluid-temperature"])
+def test_separate_coolant_reproduces_internal_coupling(fluid: bool) -> None:
     """Plate stepped before the coolant, 1 s exchange = the FEM's step: the separate coolant
-    participant gives the internal quasi-steady coupling to round-off."""
+    participant gives the internal quasi-steady coupling to round-off, whether the plate gets
+    the heat flux and film (thesis) or the fluid temperature and film."""
     duration = 12.0
-    res, n = _coupled(duration)
+    res, n = _coupled(duration, fluid)
     ref = simulate([_heat(), FemModuleParticipant("fem", CONFIG, mesh_size_m=MESH)],
                    [Connection("heat", "cell_heat_w", "fem", "cell_heat_w")],
                    stop_time_s=duration, step_s=1.0, order=["heat", "fem"])  # fmt: skip
@@ -66,6 +70,17 @@ def test_separate_coolant_reproduces_internal_coupling() -> None:
     assert res["coolant.cooling_power_w"][1] > 1.0  # the 30 degC module heats the 15 degC coolant
     areas = np.array([res[f"fem.wall{j}_area_m2"][-1] for j in range(n)])
     assert np.all(areas > 0)
+
+
+def test_iterated_coupling_closes_the_wall_energy_balance() -> None:
+    """Explicit exchange: the heat leaving the plate and the coolant's heat differ by the lag.
+    Iterating each step (end-value hold, fluid temperature connected) converges to the
+    implicit coupling, where they agree at every communication point."""
+    plain, _ = _coupled(6.0, fluid=True)
+    lag = np.abs(plain["fem.wall_heat_w"][1:] / plain["coolant.cooling_power_w"][1:] - 1).max()
+    assert lag > 1e-3
+    res, _ = _coupled(6.0, fluid=True, max_iterations=40, tolerance=1e-12, hold="end")
+    np.testing.assert_allclose(res["fem.wall_heat_w"][1:], res["coolant.cooling_power_w"][1:], rtol=1e-6)
 
 
 def test_segments_without_wall_exchange_nothing() -> None:

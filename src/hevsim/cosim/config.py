@@ -16,7 +16,7 @@ Component types in an SSD:
 Master settings go in ``ssd:DefaultExperiment`` (``startTime``, ``stopTime``) and an
 ``ssc:Annotation type="org.hevsim.cosim"`` holding ``<hevsim:Master algorithm=... step_s=...
 negotiation=... max_iterations=... tolerance=... relaxation=... order="a b"
-send_before_receive="a:false" fmu_process=.../>``.
+send_before_receive="a:false" rates="fem:5" fmu_process=.../>``.
 """
 
 from __future__ import annotations
@@ -229,13 +229,26 @@ def read_ssd(path: str | Path, text: bytes | None = None, base_dir: Path | None 
     return desc
 
 
+def _pairs(value: str, key: str, where: str) -> list[tuple[str, str]]:
+    """``"a:x b:y"`` -> ``[("a", "x"), ("b", "y")]``."""
+    items = [item.split(":") for item in value.split()]
+    if any(len(i) != 2 or not all(i) for i in items):
+        raise ConfigError(f"{where}: {key}={value!r}: expected space-separated 'participant:value' pairs.")
+    return [(a, b) for a, b in items]
+
+
 def _master_options(attrs: dict[str, str], where: str) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for k, v in attrs.items():
         if k == "order":
             out[k] = v.split()
         elif k == "send_before_receive":
-            out[k] = {a: b.lower() == "true" for a, b in (item.split(":") for item in v.split())}
+            out[k] = {a: b.lower() == "true" for a, b in _pairs(v, k, where)}
+        elif k == "rates":
+            try:
+                out[k] = {a: int(b) for a, b in _pairs(v, k, where)}
+            except ValueError:
+                raise ConfigError(f"{where}: rates={v!r}: expected 'participant:integer ...'.") from None
         elif k == "fmu_process":
             if v not in ("worker", "inprocess"):
                 raise ConfigError(f"{where}: fmu_process {v!r}; valid: worker, inprocess.")
@@ -248,7 +261,7 @@ def _master_options(attrs: dict[str, str], where: str) -> dict[str, Any]:
                     f"{where}: attribute {k}={v!r} is not a valid {OPTION_TYPES[k].__name__}."
                 ) from None
         else:
-            valid = sorted([*OPTION_TYPES, "order", "send_before_receive", "fmu_process"])
+            valid = sorted([*OPTION_TYPES, "order", "send_before_receive", "rates", "fmu_process"])
             raise ConfigError(f"{where}: unknown attribute {k!r}; valid: {', '.join(valid)}.")
     return out
 
@@ -330,6 +343,8 @@ def ssd_xml(desc: SystemDescription) -> bytes:
                 attrs[key] = " ".join(v)
             elif key == "send_before_receive":
                 attrs[key] = " ".join(f"{a}:{str(b).lower()}" for a, b in v.items())
+            elif key == "rates":
+                attrs[key] = " ".join(f"{a}:{b}" for a, b in v.items())
             else:
                 attrs[key] = str(v)
         ET.SubElement(ann, q("hevsim", "Master"), attrs)

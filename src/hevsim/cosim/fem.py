@@ -19,11 +19,14 @@ extra outputs ``outlet_temp_k`` [K] and ``cooling_power_w`` [W].
 (:class:`hevsim.cosim.coolant.CoolantChannelParticipant`, or any fluid model with the same
 variables), as the thesis's Abaqus/CFD. Per configured channel segment j: outputs
 ``wall<j>_temp_k`` [K] and ``wall<j>_area_m2`` [m^2]; inputs ``wall<j>_heat_flux_w_m2``
-[W/m^2, into the coolant] and ``wall<j>_film_w_m2k`` [W/(m^2 K), d flux / d wall
-temperature]. The plate applies the linearised exchange ``q(T) = q* + h (T - T*)`` around the
-wall temperature ``T*`` the coolant was given, i.e. a film ``h`` to the sink temperature
-``T* - q*/h`` (a pure heat flux where h = 0). With the coolant stepped after the plate this
-reproduces the internal coupling (``coupling_iterations = 1``) exactly.
+[W/m^2, into the coolant], ``wall<j>_film_w_m2k`` [W/(m^2 K), d flux / d wall temperature]
+and optionally ``wall<j>_fluid_temp_k`` [K]. The thesis's exchange (heat flux and lumped
+heat capacitance): the plate applies ``q(T) = q* + h (T - T*)`` linearised around its
+current wall temperature ``T*``, i.e. a film ``h`` to the sink temperature ``T* - q*/h`` (a
+pure heat flux where h = 0); with the coolant stepped after the plate this reproduces the
+internal coupling (``coupling_iterations = 1``) exactly. With the fluid temperature
+connected the film acts towards it instead, which stays exact when the master iterates a
+step (``max_iterations``) and so converges to the implicit plate-coolant coupling.
 
 Temperature fields are kept every ``[output] field_every_s`` of the configuration and at the
 end; :meth:`FemModuleParticipant.write_fields` writes them (VTU/PVD), the pictures of the
@@ -91,6 +94,7 @@ class FemModuleParticipant(Participant):
             n = self.n_segments
             self.inputs.update({f"wall{j}_heat_flux_w_m2": "W/m2" for j in range(n)})
             self.inputs.update({f"wall{j}_film_w_m2k": "W/(m2.K)" for j in range(n)})
+            self.inputs.update({f"wall{j}_fluid_temp_k": "K" for j in range(n)})
             self.outputs.update({f"wall{j}_temp_k": "K" for j in range(n)})
             self.outputs.update({f"wall{j}_area_m2": "m2" for j in range(n)})
         else:
@@ -123,6 +127,7 @@ class FemModuleParticipant(Participant):
         self.common = 0.0
         self.wall_flux = np.zeros(self.n_segments)
         self.wall_film = np.zeros(self.n_segments)
+        self.wall_fluid = np.full(self.n_segments, np.nan)  # set when the fluid temperature is connected
         self.snapshots: dict[float, np.ndarray] = {float(t0): self._field_c()}
         self.t0 = float(t0)
 
@@ -134,7 +139,11 @@ class FemModuleParticipant(Participant):
                 self.common = float(v) / self.n_cells
             elif k.startswith("wall") and k in self.inputs:
                 j = int(k[4:].split("_")[0])
-                (self.wall_flux if k.endswith("_heat_flux_w_m2") else self.wall_film)[j] = float(v)
+                kind = k.split("_", 1)[1]
+                store = {"heat_flux_w_m2": self.wall_flux, "film_w_m2k": self.wall_film}.get(
+                    kind, self.wall_fluid
+                )
+                store[j] = float(v)
             elif k in self.inputs:
                 i = int(k[4:].split("_")[0])
                 self.heat[i], self.per_cell[i] = float(v), True
@@ -142,9 +151,11 @@ class FemModuleParticipant(Participant):
                 raise ConfigError(f"participant {self.name!r} has no input {k!r}.")
 
     def _apply_wall_exchange(self) -> None:
-        """Film and sink temperature (or pure flux) per wall segment from the coolant's inputs."""
+        """Film and sink temperature (or pure flux) per wall segment from the coolant's inputs:
+        with the fluid temperature connected, a film to it; else the heat flux linearised
+        around the current wall temperature with the film; with no film, the heat flux."""
         m, seg = self.model, self.segments
-        flux, film = self.wall_flux[seg], self.wall_film[seg]
+        flux, film, fluid = self.wall_flux[seg], self.wall_film[seg], self.wall_fluid[seg]
         if not (np.all(np.isfinite(flux)) and np.all(np.isfinite(film)) and film.min(initial=0.0) >= 0.0):
             raise SimulationError(
                 f"participant {self.name!r}: wall heat flux {flux.tolist()} W/m^2 / film {film.tolist()} "
@@ -153,7 +164,8 @@ class FemModuleParticipant(Participant):
         wall_t = m.wall_temp_k()
         has_film = film > 0.0
         m.set_wall_film(film)
-        self.channel.fluid_k = np.where(has_film, wall_t - flux / np.where(has_film, film, 1.0), 0.0)
+        sink = np.where(np.isfinite(fluid), fluid, wall_t - flux / np.where(has_film, film, 1.0))
+        self.channel.fluid_k = np.where(has_film, sink, 0.0)
         m.fluid_k = self.channel.fluid_k.copy()
         m.wall_flux_w_m2 = np.where(has_film, 0.0, flux)
 
@@ -210,6 +222,7 @@ class FemModuleParticipant(Participant):
             "wall_flux_model": m.wall_flux_w_m2.copy(),
             "heat": self.heat.copy(), "per_cell": self.per_cell.copy(), "common": self.common,
             "wall_flux": self.wall_flux.copy(), "wall_film": self.wall_film.copy(),
+            "wall_fluid": self.wall_fluid.copy(),
             "snapshots": dict(self.snapshots),
         }  # fmt: skip
         if not self.external:
@@ -224,6 +237,7 @@ class FemModuleParticipant(Participant):
         m.wall_flux_w_m2 = s["wall_flux_model"].copy()
         self.heat, self.per_cell, self.common = s["heat"].copy(), s["per_cell"].copy(), s["common"]
         self.wall_flux, self.wall_film = s["wall_flux"].copy(), s["wall_film"].copy()
+        self.wall_fluid = s["wall_fluid"].copy()
         self.snapshots = dict(s["snapshots"])
         if not self.external:
             c.outlet_temp_k, c.heat_w = s["outlet"], s["cool_w"]

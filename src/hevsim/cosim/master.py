@@ -14,6 +14,13 @@ Algorithm per communication step from ``t`` by ``h`` (inputs held constant over 
 * **Step size**: fixed ``step_s``, or negotiated: the MIN or MAX of the participants'
   preferred steps (bounded by ``min_step_s`` and ``max_step_s``); a rejected step is
   redone with the participant's preferred (smaller) step.
+* **Multi-rate** (``rates={"fem": 5}``, fixed steps only): participant ``fem`` exchanges
+  every 5th communication step only. It steps once over its whole window (5 steps) on the
+  window's last communication step, with the inputs of that moment (under Gauss-Seidel the
+  newest values of the participants before it); between its exchanges the others see its
+  outputs held from the window's start. Participants that are slow to step and change
+  slowly (a thermal model) then cost a fraction while fast ones (electrics) keep a short
+  step. The final window is shortened to end at the stop time.
 """
 
 from __future__ import annotations
@@ -65,6 +72,7 @@ class Options:
     relaxation: float = 1.0
     hold: str = "midpoint"
     send_before_receive: dict[str, bool] = field(default_factory=dict)
+    rates: dict[str, int] = field(default_factory=dict)
     checkpoint_path: str | Path | None = None
     checkpoint_every: int = 1
     record_every: int = 1
@@ -86,6 +94,13 @@ class Options:
             raise ConfigError(f"iteration hold {self.hold!r}; valid: midpoint, end.")
         if self.max_iterations < 1:
             raise ConfigError(f"max_iterations {self.max_iterations} must be >= 1.")
+        for name, k in self.rates.items():
+            if not (isinstance(k, int) and k >= 1):
+                raise ConfigError(f"rates: participant {name!r} rate {k!r}; expected an integer >= 1.")
+        if any(k > 1 for k in self.rates.values()) and self.negotiation != "fixed":
+            raise ConfigError(
+                "rates (multi-rate exchange) need negotiation 'fixed': the windows are whole steps."
+            )
 
 
 @dataclass
@@ -147,6 +162,11 @@ class Master:
             if n not in self.p:
                 raise ConfigError(f"order names unknown participant {n!r}; participants: {sorted(self.p)}.")
         self.order = order + [n for n in self.p if n not in order]
+        for n in options.rates:
+            if n not in self.p:
+                raise ConfigError(f"rates name unknown participant {n!r}; participants: {sorted(self.p)}.")
+        self.rates = {n: int(options.rates.get(n, 1)) for n in self.order}
+        self._window_start = {n: options.start_time_s for n in self.order}  # last exchange [s]
         # connections, grouped by destination: (dst_var, src, src_var, factor, offset)
         self.feeds: dict[str, list[tuple[str, str, str, float, float]]] = {n: [] for n in self.p}
         seen: set[tuple[str, str]] = set()
@@ -210,12 +230,19 @@ class Master:
         new: dict[str, dict[str, float]] = {}
         prefs: list[float] = []
         for n in self.order:
+            t_n, h_n = t, h
+            if self.rates[n] > 1:
+                if not self._exchanges(n, t + h):
+                    new[n] = y0[n]  # held over its window
+                    continue
+                t_n = self._window_start[n]
+                h_n = t + h - t_n
             if mid:
                 sent = {s: {v: 0.5 * (y0[s][v] + cur[s][v]) for v in y0[s]} for s in y0}
                 self._send(n, sent, t)
             else:
                 self._send(n, cur, t)
-            ok, pref = self._call(n, "do_step", t, lambda n=n: self.p[n].do_step(t, h))  # type: ignore[misc]
+            ok, pref = self._call(n, "do_step", t_n, lambda n=n, a=t_n, b=h_n: self.p[n].do_step(a, b))  # type: ignore[misc]
             if not ok:
                 return new, (pref if pref and pref < h else h / 2), prefs
             if pref:
@@ -224,6 +251,12 @@ class Master:
             if not jacobi:
                 cur[n] = new[n]
         return new, None, prefs
+
+    def _exchanges(self, n: str, t_end: float) -> bool:
+        """Whether multi-rate participant ``n`` steps in the communication step ending at ``t_end``."""
+        eps = 1e-9 * max(1.0, abs(self.opt.stop_time_s))
+        window = self.rates[n] * self.opt.step_s
+        return t_end >= self._window_start[n] + window - eps or t_end >= self.opt.stop_time_s - eps
 
     def _record(self, t: float, y: dict[str, dict[str, float]]) -> None:
         self._times.append(t)
@@ -241,6 +274,7 @@ class Master:
             "h": h,
             "y": y,
             "nsteps": nsteps,
+            "window_start": self._window_start,
             "states": self._save(t),
             "times": self._times,
             "rows": self._rows,
@@ -270,6 +304,7 @@ class Master:
         if resume and ck is not None and ck.is_file():
             blob = pickle.loads(ck.read_bytes())
             t, h, y, nsteps = blob["t"], blob["h"], blob["y"], blob["nsteps"]
+            self._window_start = dict(blob["window_start"])
             self._times, self._rows, self.stats = blob["times"], blob["rows"], blob["stats"]
             self._restore(blob["states"], t)
         else:
@@ -318,6 +353,9 @@ class Master:
                         default=0.0,
                     )
                     self.stats["max_residual"] = max(self.stats["max_residual"], res)
+                for n in self.order:
+                    if self.rates[n] > 1 and self._exchanges(n, t + h):
+                        self._window_start[n] = t + h
                 y = new
                 t = t + h
                 nsteps += 1
