@@ -320,8 +320,15 @@ class FMUParticipant(Participant):
     """An FMI 2.0 or 3.0 co-simulation FMU driven through FMPy in this process.
 
     ``parameters`` (name -> value) are set during initialisation. Inputs and outputs are the
-    FMU's Real (FMI 3: Float64) variables of causality input / output, with their declared
-    units. State save/restore uses FMI get/set FMU state where the FMU supports it.
+    FMU's Real (FMI 3: scalar Float64) variables of causality input / output, with their
+    declared units. State save/restore uses FMI get/set FMU state where the FMU supports it.
+
+    FMI 3.0: a step returned with ``terminateSimulation`` sets :attr:`terminate_requested`; a
+    step the FMU discards (``fmi3Discard``) is rejected (the master redoes it with a shorter
+    step: ``lastSuccessfulTime - t`` when the FMU got part way, else half), unless the FMU
+    also asks to terminate, which is an error. The FMU is instantiated without early return
+    or event mode, and stepped with ``noSetFMUStatePriorToCurrentPoint = false`` (the master
+    may restore earlier states when iterating or rejecting steps).
     """
 
     def __init__(self, name: str, fmu: str | Path, parameters: Mapping[str, float] | None = None):
@@ -341,12 +348,13 @@ class FMUParticipant(Participant):
         self.fmi3 = md.fmiVersion.startswith("3")
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         real = ("Float64", "Real") if not self.fmi3 else ("Float64",)
-        self.inputs = {
-            v.name: _unit(v) for v in md.modelVariables if v.causality == "input" and v.type in real
-        }
-        self.outputs = {
-            v.name: _unit(v) for v in md.modelVariables if v.causality == "output" and v.type in real
-        }
+
+        def scalar_real(v: Any, causality: str) -> bool:
+            arrayed = getattr(v, "dimensions", None) or getattr(v, "dimensionValueReferences", None)
+            return v.causality == causality and v.type in real and not arrayed
+
+        self.inputs = {v.name: _unit(v) for v in md.modelVariables if scalar_real(v, "input")}
+        self.outputs = {v.name: _unit(v) for v in md.modelVariables if scalar_real(v, "output")}
         self.parameters = dict(parameters or {})
         for k in self.parameters:
             if k not in self.vr:
@@ -392,8 +400,12 @@ class FMUParticipant(Participant):
             var = next(x for x in self.md.modelVariables if x.name == k)
             if var.type == "Boolean":
                 self.slave.setBoolean([self.vr[k]], [bool(v)])
-            elif var.type in ("Integer", "Int32", "Int64"):
-                getattr(self.slave, "setInteger" if not self.fmi3 else "setInt32")([self.vr[k]], [int(v)])
+            elif self.fmi3 and var.type in _FMI3_INTEGER_SETTERS:
+                getattr(self.slave, _FMI3_INTEGER_SETTERS[var.type])([self.vr[k]], [int(v)])
+            elif self.fmi3 and var.type == "Float32":
+                self.slave.setFloat32([self.vr[k]], [float(v)])
+            elif not self.fmi3 and var.type in ("Integer", "Enumeration"):
+                self.slave.setInteger([self.vr[k]], [int(v)])
             else:
                 self._set_real([self.vr[k]], [float(v)])
 
@@ -412,14 +424,55 @@ class FMUParticipant(Participant):
     def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
         try:
             if self.fmi3:
-                r = self.slave.doStep(currentCommunicationPoint=t, communicationStepSize=h)
-                if r[1]:  # terminateSimulation
-                    self.terminate_requested = True
-            else:
-                self.slave.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+                return self._do_step3(t, h)
+            self.slave.doStep(currentCommunicationPoint=t, communicationStepSize=h)
         except Exception:
             self._failed = True
             raise
+        return True, None
+
+    def _do_step3(self, t: float, h: float) -> tuple[bool, float | None]:
+        """fmi3DoStep with its status and out-arguments (FMPy's ``doStep`` raises on
+        fmi3Discard before returning them, and defaults noSetFMUStatePriorToCurrentPoint to
+        true)."""
+        from ctypes import byref
+
+        from fmpy.fmi1 import FMICallException
+        from fmpy.fmi3 import fmi3Boolean, fmi3Discard, fmi3Float64
+
+        event, term, early, last = fmi3Boolean(), fmi3Boolean(), fmi3Boolean(), fmi3Float64()
+        discarded = False
+        try:
+            self.slave.fmi3DoStep(
+                self.slave.component,
+                t,
+                h,
+                fmi3Boolean(False),
+                byref(event),
+                byref(term),
+                byref(early),
+                byref(last),
+            )
+        except FMICallException as exc:
+            if exc.status != fmi3Discard:
+                raise
+            discarded = True
+        if discarded:
+            if term.value:
+                raise SimulationError(
+                    f"FMU {self.fmu.name} discarded the step from t = {t:g} s and requested termination "
+                    f"at t = {last.value:g} s."
+                )
+            reached = float(last.value)
+            self.terminate_requested = False
+            return False, (reached - t if t < reached < t + h else None)
+        # per step: a request from a step the master then redid (restored state) is void
+        self.terminate_requested = bool(term.value)
+        if not term.value and early.value:  # not allowed at instantiation: a non-conforming FMU
+            raise SimulationError(
+                f"FMU {self.fmu.name} returned early at t = {last.value:g} s although early return "
+                "was not allowed."
+            )
         return True, None
 
     def get_outputs(self) -> dict[str, float]:
@@ -467,6 +520,11 @@ class FMUParticipant(Participant):
 
 
 _FAILED_INSTANCES: list[Any] = []
+
+_FMI3_INTEGER_SETTERS = {
+    **{t: f"set{t}" for t in ("Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")},
+    "Enumeration": "setInt64",
+}
 
 
 def _unit(v: Any) -> str:
