@@ -6,15 +6,14 @@ process: in-process pythonfmu FMUs can corrupt the heap of the host and abort it
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 pytest.importorskip("pythonfmu3")
+
+from tests.cosim_helpers import interrupt_after, run_child
 
 from hevsim.cosim import Connection, CosimFault, simulate
 from hevsim.cosim.trivial import build_integrator_fmu, build_integrator_fmu3
@@ -117,13 +116,8 @@ def test_fmi3_state_roundtrip_bit_identical(fmus: dict[str, Path]) -> None:
 
 def test_fmi3_checkpoint_resume_identical(fmus: dict[str, Path], tmp_path: Path) -> None:
     ck = tmp_path / "ck.pkl"
-
-    def stop(t: float, s: float) -> None:
-        if t > 0.55:
-            raise KeyboardInterrupt
-
-    with pytest.raises(KeyboardInterrupt):
-        simulate(*oscillator(fmus), stop_time_s=1.0, step_s=0.1, checkpoint_path=ck, progress=stop)
+    interrupt_after(lambda **kw: simulate(*oscillator(fmus), **kw), 0.55,
+                    stop_time_s=1.0, step_s=0.1, checkpoint_path=ck)  # fmt: skip
     assert ck.is_file()
     full = simulate(*oscillator(fmus), stop_time_s=1.0, step_s=0.1)
     resumed = simulate(*oscillator(fmus), stop_time_s=1.0, step_s=0.1, checkpoint_path=ck, resume=True)
@@ -168,9 +162,6 @@ def test_fmi3_discarded_step_is_redone_shorter(fmus: dict[str, Path]) -> None:
 # The in-process FMUParticipant's FMI 3.0 code, in a child process that prints JSON and
 # leaves with os._exit.
 _INPROCESS = """
-import json, os, sys
-result_fd = os.dup(1)
-os.dup2(2, 1)  # pythonfmu3 prints FMU log messages to stdout
 from hevsim.cosim import Connection, CosimFault, simulate
 from hevsim.cosim.participant import FMUParticipant as F
 f = json.loads(sys.argv[1])
@@ -189,28 +180,18 @@ try:
     simulate(*osc(stop_at=0.35), stop_time_s=1.0, step_s=0.1)
 except CosimFault as e:
     out["fault"] = str(e)
-os.write(result_fd, json.dumps(out).encode())
-os._exit(0)
+finish(out)
 """
 
 
 def test_fmi3_in_process_participant_matches_worker(fmus: dict[str, Path], tmp_path: Path) -> None:
     ck = tmp_path / "ck.pkl"
-
-    def stop(t: float, s: float) -> None:
-        if t > 0.55:
-            raise KeyboardInterrupt
-
-    with pytest.raises(KeyboardInterrupt):  # a worker run's checkpoint, resumed in process
-        simulate(*oscillator(fmus), stop_time_s=1.0, step_s=0.1, checkpoint_path=ck, progress=stop)
+    # a worker run's checkpoint, resumed in process
+    interrupt_after(lambda **kw: simulate(*oscillator(fmus), **kw), 0.55,
+                    stop_time_s=1.0, step_s=0.1, checkpoint_path=ck)  # fmt: skip
     full = simulate(*oscillator(fmus), stop_time_s=1.0, step_s=0.1)
     iterated = simulate(*oscillator(fmus), stop_time_s=1.0, step_s=0.05, max_iterations=20, tolerance=1e-12)
-    arg = json.dumps({k: str(v) for k, v in fmus.items()} | {"ck": str(ck)})
-    proc = subprocess.run(
-        [sys.executable, "-c", _INPROCESS, arg], capture_output=True, text=True, timeout=120
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    out = json.loads(proc.stdout)
+    out = run_child(_INPROCESS, {k: str(v) for k, v in fmus.items()} | {"ck": str(ck)})
     assert np.array_equal(np.array(out["iterated"]), iterated.data)
     assert out["stopped_by"] == "participant 'x' requested termination at t = 0.5 s"
     assert out["rejected"] == 9

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.cosim_helpers import interrupt_after, run_child
 
 from hevsim.cosim import Connection, CosimFault, StepperParticipant, simulate
 from hevsim.cosim.participant import FMUParticipant
@@ -48,7 +49,6 @@ def test_fmu_oscillator_first_order(fmus: dict[str, Path], cls: type) -> None:
 # exit (../shared/DEPENDENCIES.md), so in-process runs happen in a child process that prints
 # its results as JSON and leaves with os._exit; the test process only loads FMUs in workers.
 _INPROCESS = """
-import json, os, sys
 import numpy as np
 from hevsim.cosim import Connection, CosimFault, simulate
 from hevsim.cosim.participant import FMUParticipant as F
@@ -73,46 +73,19 @@ try:
 except CosimFault as e:
     out["fault"] = str(e)
     out["partial_t"] = float(e.partial.time_s[-1])
-sys.stdout.write(json.dumps(out))
-sys.stdout.flush()
-os._exit(0)
+finish(out)
 """
 
 
 def test_in_process_fmu_participant(fmus: dict[str, Path], tmp_path: Path) -> None:
-    import json
-    import subprocess
-    import sys
-
     ck = tmp_path / "ck.pkl"
-
-    def stop(t: float, s: float) -> None:
-        if t > 0.55:
-            raise KeyboardInterrupt
-
     # a checkpoint written by a run of worker FMUs, resumed in process
-    with pytest.raises(KeyboardInterrupt):
-        simulate(
-            *oscillator(fmus, WorkerFMUParticipant),
-            stop_time_s=1.0,
-            step_s=0.1,
-            checkpoint_path=ck,
-            progress=stop,
-        )
+    interrupt_after(lambda **kw: simulate(*oscillator(fmus, WorkerFMUParticipant), **kw), 0.55,
+                    stop_time_s=1.0, step_s=0.1, checkpoint_path=ck)  # fmt: skip
     full = simulate(*oscillator(fmus, WorkerFMUParticipant), stop_time_s=1.0, step_s=0.1)
-    worker_iter = simulate(
-        *oscillator(fmus, WorkerFMUParticipant),
-        stop_time_s=1.0,
-        step_s=0.05,
-        max_iterations=20,
-        tolerance=1e-12,
-    )
-    arg = json.dumps({k: str(v) for k, v in fmus.items()} | {"ck": str(ck)})
-    proc = subprocess.run(
-        [sys.executable, "-c", _INPROCESS, arg], capture_output=True, text=True, timeout=120
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    out = json.loads(proc.stdout)
+    worker_iter = simulate(*oscillator(fmus, WorkerFMUParticipant), stop_time_s=1.0, step_s=0.05,
+                           max_iterations=20, tolerance=1e-12)  # fmt: skip
+    out = run_child(_INPROCESS, {k: str(v) for k, v in fmus.items()} | {"ck": str(ck)})
     assert np.array_equal(np.array(out["iterated"]), worker_iter.data)  # worker == in process
     assert np.abs(worker_iter["x.y"] - np.cos(worker_iter.time_s)).max() < 5e-4  # 2nd order once iterated
     e1, e2 = out["errs"]

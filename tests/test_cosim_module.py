@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.cosim_helpers import interrupt_after
 
 from hevsim.cosim.config import datacheck, read_ssd, run_cosim, run_system
 
@@ -84,13 +85,7 @@ def test_module_cosim_physics_and_resume(tmp_path: Path) -> None:
     assert summary["error"] is None and summary["stats"]["steps"] == 20
 
     ck = tmp_path / "ck.pkl"
-
-    def kill(t: float, stop: float) -> None:
-        if t >= 8.0:
-            raise KeyboardInterrupt
-
-    with pytest.raises(KeyboardInterrupt):
-        run_system(desc, progress=kill, checkpoint_path=ck)
+    interrupt_after(lambda **kw: run_system(desc, **kw), 7.5, checkpoint_path=ck)
     resumed = run_system(desc, checkpoint_path=ck, resume=True)
     assert np.array_equal(resumed.data, res.data)
 

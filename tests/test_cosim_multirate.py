@@ -7,9 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy.linalg import expm
+from tests.cosim_helpers import interrupt_after
 from tests.test_cosim_master import T_END, X0, A, split_system
 
 from hevsim.cosim import Connection, FunctionParticipant, simulate
+from hevsim.cosim.master import CosimResult
 from hevsim.errors import ConfigError
 
 
@@ -69,19 +71,14 @@ def test_slow_participant_steps_once_per_window_and_holds_its_outputs() -> None:
 
 
 def test_checkpoint_inside_a_window_resumes_identically(tmp_path: Path) -> None:
+    def run(**kw: object) -> CosimResult:
+        return simulate([source(), counting("slow", [])], [Connection("src", "u", "slow", "u")],
+                        stop_time_s=2.0, step_s=0.1, rates={"slow": 3}, **kw)  # fmt: skip
+
     ck = tmp_path / "ck.pkl"
-    full = simulate([source(), counting("slow", [])], [Connection("src", "u", "slow", "u")],
-                    stop_time_s=2.0, step_s=0.1, rates={"slow": 3})  # fmt: skip
-
-    def kill(t: float, stop: float) -> None:
-        if t >= 0.75:  # inside the window 0.6 .. 0.9
-            raise KeyboardInterrupt
-
-    with pytest.raises(KeyboardInterrupt):
-        simulate([source(), counting("slow", [])], [Connection("src", "u", "slow", "u")], progress=kill,
-                 stop_time_s=2.0, step_s=0.1, rates={"slow": 3}, checkpoint_path=ck)  # fmt: skip
-    resumed = simulate([source(), counting("slow", [])], [Connection("src", "u", "slow", "u")], resume=True,
-                       stop_time_s=2.0, step_s=0.1, rates={"slow": 3}, checkpoint_path=ck)  # fmt: skip
+    full = run()
+    interrupt_after(run, 0.75, checkpoint_path=ck)  # killed inside the window 0.6 .. 0.9
+    resumed = run(checkpoint_path=ck, resume=True)
     assert np.array_equal(resumed.data, full.data)
 
 
