@@ -215,3 +215,22 @@ def test_cosim_command(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def
     bad.write_text(ssd.read_text().replace("</", "<", 1))
     assert main(["cosim", str(bad), "--check"]) == 2
     assert "bad.ssd" in capsys.readouterr().err
+
+
+def test_cosim_command_runs_and_summarises(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """``hevsim cosim CONFIG --out DIR`` on (a 3 s cut of) the shipped module case."""
+    import shutil
+    from pathlib import Path
+
+    from hevsim.cli import main
+
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    shutil.copytree(examples / "cosim_module", tmp_path / "cosim_module")
+    shutil.copy(examples / "module_thermal.toml", tmp_path / "module_thermal.toml")
+    ssd = tmp_path / "cosim_module" / "module.ssd"
+    ssd.write_text(ssd.read_text().replace('stopTime="300.0"', 'stopTime="3.0"'))
+    assert main(["cosim", str(ssd), "--out", str(tmp_path / "out")]) == 0
+    text = capsys.readouterr().out
+    assert "3 communication steps to t = 3 s" in text
+    assert "coolant.outlet_temp_k" in text and "°C" in text and "hot spot 1 (fem, " in text
+    assert (tmp_path / "out" / "fem_temperature.pvd").is_file()

@@ -245,11 +245,38 @@ def _cmd_cosim(args: argparse.Namespace) -> int:
         bar.refresh()
 
     try:
-        run_cosim(args.config, out, progress=progress, resume=args.resume)
+        res = run_cosim(args.config, out, progress=progress, resume=args.resume)
     finally:
         bar.close()
-    print(f"results written to {out}/ (results.csv, summary.json, system.ssd, pictures/)")
+    print(format_cosim_summary(res, out))
     return 0
+
+
+def format_cosim_summary(res: Any, out: Path) -> str:
+    """A few lines for the terminal: steps, wall time, stop reason, the temperatures and
+    powers at the end (recognised by their names) and the hot spots of field participants."""
+    import json
+
+    from hevsim.units import KELVIN_OFFSET
+
+    st = res.stats
+    lines = [
+        f"{st['steps']} communication steps to t = {res.time_s[-1]:g} s in {st.get('wall_s', 0.0):.1f} s"
+        + (f"; stopped: {res.stopped_by}" if res.stopped_by else "")
+    ]
+    shown = ("cell_max_temp_k", "plate_max_temp_k", "outlet_temp_k", "cooling_power_w", "voltage_v")
+    for i, col in enumerate(res.columns):
+        if col.split(".", 1)[1] in shown:
+            v = float(res.data[-1, i])
+            text = f"{v - KELVIN_OFFSET:.3f} °C" if col.endswith("_k") else f"{v:.4g} {col[-1].upper()}"
+            lines.append(f"  {col:28s} {text}")
+    fields = json.loads((out / "summary.json").read_text()).get("fields", {})
+    for name, f in fields.items():
+        for h in f.get("hot_spots", [])[:3]:
+            xyz = ", ".join(f"{h[k] * 1e3:.1f}" for k in ("x_m", "y_m", "z_m"))
+            lines.append(f"  hot spot {h['rank']} ({name}, {h['part']}) at ({xyz}) mm: {h['temp_c']:.3f} °C")
+    lines.append(f"results written to {out}/ (results.csv, summary.json, system.ssd, pictures/, fields)")
+    return "\n".join(lines)
 
 
 def _cmd_thermal(args: argparse.Namespace) -> int:
