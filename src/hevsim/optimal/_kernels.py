@@ -28,6 +28,9 @@ Modes (how the final-state constraint is enforced, see ``dp.py``):
 
 from __future__ import annotations
 
+from types import FunctionType
+from typing import Any
+
 import numpy as np
 from numba import njit, prange, types
 
@@ -69,6 +72,28 @@ SIG_ND = types.void(
     _F2, _F2, _F2, _F2, _F2, _I, _F2, _B2, _BOOL, _F1, _I1, _B1, _F1, _I1, _F1, _F1, _I,
     _BOOL, _F1, _F1, _OF, _OI, _OS, _OF, _OI,
 )  # fmt: skip
+
+
+def _par_and_ser(body: Any, sig: Any) -> tuple[Any, Any]:
+    """Compile the row loop ``body`` (a ``prange`` loop) twice: parallel and serial.
+
+    The engine runs the serial kernel on blocks below ``PARALLEL_MIN_PAIRS`` (``_engine.py``:
+    small grids, the one-row steps of the forward pass, boundary-line and point queries),
+    which would otherwise pay the thread launch of a parallel region; with
+    ``parallel=False``, ``prange`` is a plain ``range``. Each kernel is compiled from a copy
+    of ``body`` under its own name (``bellman_1d_par``, ``bellman_1d_ser``, ...): numba's
+    disk cache keys a function by module, qualified name, line and bytecode, not by its
+    compile flags, so compiling ``body`` itself twice would make the serial kernel load the
+    parallel one from the cache.
+    """
+    kernels = []
+    for parallel, suffix in ((True, "par"), (False, "ser")):
+        name = f"{body.__name__.lstrip('_')}_{suffix}"
+        f = FunctionType(body.__code__, body.__globals__, name)
+        f.__qualname__ = name
+        f.__doc__ = body.__doc__
+        kernels.append(njit(sig, parallel=parallel, cache=True)(f))
+    return kernels[0], kernels[1]
 
 
 @njit(cache=True, inline="always")
@@ -461,32 +486,11 @@ def _row_1d(
     out_fmin[s] = fmin
 
 
-@njit(SIG_1D, parallel=True, cache=True)
-def bellman_1d_par(
-    xb,
-    xn,
-    g,
-    mask,
-    has_mask,
-    grid,
-    uniform,
-    inv_dx,
-    J,
-    V,
-    mode,
-    band,
-    band_i,
-    use_box,
-    box,
-    out_J,
-    out_arg,
-    out_status,
-    out_V,
-    out_argV,
-    out_fmax,
-    out_fmin,
-):
-    """One Bellman step for one state variable, parallel over the rows (state nodes).
+def _bellman_1d(
+    xb, xn, g, mask, has_mask, grid, uniform, inv_dx, J, V, mode, band, band_i, use_box, box,
+    out_J, out_arg, out_status, out_V, out_argV, out_fmax, out_fmin,
+):  # fmt: skip
+    """One Bellman step for one state variable, over the rows (state nodes).
 
     ``xn``, ``g``, ``mask``: (S, M) next state, stage cost, infeasibility mask.
     ``J``, ``V``: cost-to-go and level-set function of the next step on ``grid``.
@@ -497,84 +501,12 @@ def bellman_1d_par(
     """
     for s in prange(xn.shape[0]):
         _row_1d(
-            s,
-            xb,
-            xn,
-            g,
-            mask,
-            has_mask,
-            grid,
-            uniform,
-            inv_dx,
-            J,
-            V,
-            mode,
-            band,
-            band_i,
-            use_box,
-            box,
-            out_J,
-            out_arg,
-            out_status,
-            out_V,
-            out_argV,
-            out_fmax,
-            out_fmin,
-        )
+            s, xb, xn, g, mask, has_mask, grid, uniform, inv_dx, J, V, mode, band, band_i, use_box,
+            box, out_J, out_arg, out_status, out_V, out_argV, out_fmax, out_fmin,
+        )  # fmt: skip
 
 
-@njit(SIG_1D, cache=True)
-def bellman_1d_ser(
-    xb,
-    xn,
-    g,
-    mask,
-    has_mask,
-    grid,
-    uniform,
-    inv_dx,
-    J,
-    V,
-    mode,
-    band,
-    band_i,
-    use_box,
-    box,
-    out_J,
-    out_arg,
-    out_status,
-    out_V,
-    out_argV,
-    out_fmax,
-    out_fmin,
-):
-    """Serial twin of :func:`bellman_1d_par` for small blocks (no thread start-up)."""
-    for s in range(xn.shape[0]):
-        _row_1d(
-            s,
-            xb,
-            xn,
-            g,
-            mask,
-            has_mask,
-            grid,
-            uniform,
-            inv_dx,
-            J,
-            V,
-            mode,
-            band,
-            band_i,
-            use_box,
-            box,
-            out_J,
-            out_arg,
-            out_status,
-            out_V,
-            out_argV,
-            out_fmax,
-            out_fmin,
-        )
+bellman_1d_par, bellman_1d_ser = _par_and_ser(_bellman_1d, SIG_1D)
 
 
 @njit(cache=True)
@@ -736,126 +668,21 @@ def _row_nd(
     out_argV[s] = arg_v
 
 
-@njit(SIG_ND, parallel=True, cache=True)
-def bellman_nd_par(
-    xb,
-    x1,
-    x2,
-    x3,
-    x4,
-    d,
-    g,
-    mask,
-    has_mask,
-    gflat,
-    goff,
-    guni,
-    ginv,
-    gstride,
-    J,
-    V,
-    mode,
-    use_box,
-    box_lo,
-    box_hi,
-    out_J,
-    out_arg,
-    out_status,
-    out_V,
-    out_argV,
-):
+def _bellman_nd(
+    xb, x1, x2, x3, x4, d, g, mask, has_mask, gflat, goff, guni, ginv, gstride, J, V, mode,
+    use_box, box_lo, box_hi, out_J, out_arg, out_status, out_V, out_argV,
+):  # fmt: skip
     """One Bellman step for 2 to 4 state variables (modes plain and level set).
 
     ``x1..x4``: (S, M) next-state components (unused ones are dummies); the grid of
     dimension ``j`` is ``gflat[goff[j]:goff[j+1]]`` and its flat-index stride ``gstride[j]``.
-    Other arguments as in :func:`bellman_1d_par`.
+    Other arguments as in :func:`_bellman_1d`.
     """
     for s in prange(g.shape[0]):
         _row_nd(
-            s,
-            xb,
-            x1,
-            x2,
-            x3,
-            x4,
-            d,
-            g,
-            mask,
-            has_mask,
-            gflat,
-            goff,
-            guni,
-            ginv,
-            gstride,
-            J,
-            V,
-            mode,
-            use_box,
-            box_lo,
-            box_hi,
-            out_J,
-            out_arg,
-            out_status,
-            out_V,
-            out_argV,
-        )
+            s, xb, x1, x2, x3, x4, d, g, mask, has_mask, gflat, goff, guni, ginv, gstride, J, V,
+            mode, use_box, box_lo, box_hi, out_J, out_arg, out_status, out_V, out_argV,
+        )  # fmt: skip
 
 
-@njit(SIG_ND, cache=True)
-def bellman_nd_ser(
-    xb,
-    x1,
-    x2,
-    x3,
-    x4,
-    d,
-    g,
-    mask,
-    has_mask,
-    gflat,
-    goff,
-    guni,
-    ginv,
-    gstride,
-    J,
-    V,
-    mode,
-    use_box,
-    box_lo,
-    box_hi,
-    out_J,
-    out_arg,
-    out_status,
-    out_V,
-    out_argV,
-):
-    """Serial twin of :func:`bellman_nd_par` for small blocks."""
-    for s in range(g.shape[0]):
-        _row_nd(
-            s,
-            xb,
-            x1,
-            x2,
-            x3,
-            x4,
-            d,
-            g,
-            mask,
-            has_mask,
-            gflat,
-            goff,
-            guni,
-            ginv,
-            gstride,
-            J,
-            V,
-            mode,
-            use_box,
-            box_lo,
-            box_hi,
-            out_J,
-            out_arg,
-            out_status,
-            out_V,
-            out_argV,
-        )
+bellman_nd_par, bellman_nd_ser = _par_and_ser(_bellman_nd, SIG_ND)
