@@ -105,18 +105,15 @@ class FemModuleParticipant(Participant):
     def setup(self, t0: float) -> None:
         from hevsim.thermal.geometry import build_module_mesh
         from hevsim.thermal.run import module_model
+        from hevsim.thermal.solver import cell_nodes
 
         cfg = self.cfg
         mesh = build_module_mesh(cfg.geometry, source=f"{cfg.name}: geometry")
         disc, self.channel, self.model = module_model(cfg, mesh, external_coolant=self.external)
         self.mesh, self.disc = mesh, disc
-        n = disc.points_m.shape[0]
-        vol = np.bincount(disc.tets.ravel(), weights=np.repeat(disc.tet_volume_m3 / 4, 4), minlength=n)
-        self.cell_nodes = []
-        w = np.zeros((self.n_cells, n))
-        for c in range(self.n_cells):
-            nodes = np.unique(disc.tets[mesh.cell_of_tet == c].ravel())
-            self.cell_nodes.append(nodes)
+        vol, self.cell_nodes = cell_nodes(mesh, disc)
+        w = np.zeros((self.n_cells, vol.size))
+        for c, nodes in enumerate(self.cell_nodes):
             w[c, nodes] = vol[nodes]
         self.cell_weights = w / w.sum(axis=1, keepdims=True)
         self.all_cell_nodes = np.unique(np.concatenate(self.cell_nodes))

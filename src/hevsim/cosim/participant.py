@@ -226,17 +226,10 @@ class StepperParticipant(Participant):
         return dict(self.stepper.outputs, current_a=self.current_a)
 
     def get_state(self) -> Any:
-        s = self.stepper
-        core = s.x.copy() if hasattr(s, "x") else s.m.state.copy()
-        return {"x": core, "outputs": dict(s.outputs), "u": dict(self.u), "current_a": self.current_a}
+        return {"stepper": self.stepper.get_state(), "u": dict(self.u), "current_a": self.current_a}
 
     def set_state(self, state: Any) -> None:
-        s = self.stepper
-        if hasattr(s, "x"):
-            s.x[:] = state["x"]
-        else:
-            s.m.state[:] = state["x"]
-        s.outputs = dict(state["outputs"])
+        self.stepper.set_state(state["stepper"])
         self.u = dict(state["u"])
         self.current_a = state["current_a"]
 
@@ -307,13 +300,6 @@ class ModuleCellsParticipant(StepperParticipant):
             out[f"cell{c}_port_heat_w"] = float(s.cell_port_heat_w[c])
             out[f"cell{c}_temp_k"] = float(temps[c])
         return out
-
-    def get_state(self) -> Any:
-        return dict(super().get_state(), cell_port_heat_w=self.stepper.cell_port_heat_w.copy())
-
-    def set_state(self, state: Any) -> None:
-        super().set_state(state)
-        self.stepper.cell_port_heat_w = np.array(state["cell_port_heat_w"], dtype=float)
 
 
 class FMUParticipant(Participant):

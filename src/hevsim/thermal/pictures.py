@@ -23,7 +23,6 @@ from typing import Any
 import numpy as np
 
 from hevsim.errors import InputError
-from hevsim.thermal.mesh import tet_volumes_m3
 
 #: Colour map of the temperature fields (rainbow, as the thesis's Abaqus pictures).
 FIELD_CMAP = "turbo"
@@ -58,16 +57,12 @@ def cell_temperatures_c(mesh: Any, disc: Any, temp_c: Any) -> tuple[np.ndarray, 
     A cell's nodes are those of the tetrahedra with ``mesh.cell_of_tet == cell``; nodal weights
     are a quarter of the volume of each tetrahedron touching the node (as in ``run_thermal``).
     """
+    from hevsim.thermal.solver import cell_nodes
+
     t = check_field(mesh, disc, temp_c, "cell temperatures")
-    n, ncell = t.size, int(mesh.cell_of_tet.max(initial=-1)) + 1
-    in_cell = mesh.cell_of_tet >= 0
-    vol = np.abs(tet_volumes_m3(disc.points_m, disc.tets))
-    node_vol = np.bincount(disc.tets.ravel(), weights=np.repeat(vol / 4, 4), minlength=n)
-    cell_of_node = np.full(n, -1)
-    cell_of_node[disc.tets[in_cell].ravel()] = np.repeat(mesh.cell_of_tet[in_cell], 4)
-    mean, peak = np.full(ncell, np.nan), np.full(ncell, np.nan)
-    for c in range(ncell):
-        nodes = np.flatnonzero(cell_of_node == c)
+    node_vol, nodes_of_cell = cell_nodes(mesh, disc)
+    mean, peak = np.full(len(nodes_of_cell), np.nan), np.full(len(nodes_of_cell), np.nan)
+    for c, nodes in enumerate(nodes_of_cell):
         if nodes.size:
             mean[c] = np.average(t[nodes], weights=node_vol[nodes])
             peak[c] = t[nodes].max()

@@ -24,6 +24,7 @@ from hevsim.thermal.materials import (
     Material,
 )
 from hevsim.thermal.solver import CAPACITY_KINDS
+from hevsim.thermal.solver import cell_nodes as cell_node_sets
 from hevsim.units import KELVIN_OFFSET
 
 KELVIN = KELVIN_OFFSET  # [K] at 0 degC
@@ -256,11 +257,7 @@ def run_thermal(config_path: str | Path | ThermalConfig, out_dir: str | Path | N
 
     # observation operators
     n = disc.points_m.shape[0]
-    node_vol = np.bincount(disc.tets.ravel(), weights=np.repeat(disc.tet_volume_m3 / 4, 4), minlength=n)
-    cell_of_node = np.full(n, -1)
-    cell_of_node[disc.tets[mesh.cell_of_tet >= 0].ravel()] = np.repeat(
-        mesh.cell_of_tet[mesh.cell_of_tet >= 0], 4
-    )
+    node_vol, cell_nodes = cell_node_sets(mesh, disc)
     faces = mesh_faces(disc.tets)
     surf = (faces.other < 0) & (mesh.cell_of_tet[faces.owner] >= 0)
     tri = faces.nodes[surf]
@@ -269,7 +266,6 @@ def run_thermal(config_path: str | Path | ThermalConfig, out_dir: str | Path | N
     surf_w = np.zeros((ncell, n))
     np.add.at(surf_w, (cid, tri.ravel()), a3)
     surf_w /= surf_w.sum(axis=1, keepdims=True)
-    cell_nodes = [np.flatnonzero(cell_of_node == c) for c in range(ncell)]
 
     steps = round(sim.duration_s / sim.dt_s)
     every = max(1, round(cfg.output.field_every_s / sim.dt_s)) if cfg.output.field_every_s > 0 else 0

@@ -300,6 +300,17 @@ def discretise(
     )
 
 
+def cell_nodes(mesh: ThermalMesh, disc: Discretisation) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Nodal volume [m^3] (a quarter of every tetrahedron touching the node) and the nodes of
+    every battery cell (those of the tetrahedra with ``mesh.cell_of_tet == cell``)."""
+    n = disc.points_m.shape[0]
+    node_vol = np.bincount(disc.tets.ravel(), weights=np.repeat(disc.tet_volume_m3 / 4, 4), minlength=n)
+    in_cell = mesh.cell_of_tet >= 0
+    cell_of_node = np.full(n, -1)
+    cell_of_node[disc.tets[in_cell].ravel()] = np.repeat(mesh.cell_of_tet[in_cell], 4)
+    return node_vol, [np.flatnonzero(cell_of_node == c) for c in range(mesh.n_cells)]
+
+
 @dataclass(frozen=True)
 class StepReport:
     """Heat flows at the end of one step [W] (positive = into the module for heat_in)."""
