@@ -74,7 +74,8 @@ def main() -> None:
             f"  worker-process FMUs: {res.stats['wall_s'] / steps_w / a.fmus * 1e6:8.2f} µs per step per FMU"
         )
     if not a.skip_module:
-        from hevsim.cosim.config import read_ssd, run_system
+        from hevsim.cosim.ssd import read_ssd
+        from hevsim.cosim.system import run_system
 
         example = Path(__file__).resolve().parents[1] / "examples" / "cosim_module" / "module.ssd"
         t0 = time.perf_counter()

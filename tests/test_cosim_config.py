@@ -3,26 +3,18 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from hevsim.cosim import Connection
-from hevsim.cosim.config import (
-    FMU_TYPE,
-    PY_TYPE,
-    Component,
-    Connector,
-    SystemDescription,
-    datacheck,
-    read_cse,
-    read_ssd,
-    read_ssp,
-    run_cosim,
-    write_ssd,
-    write_ssp,
-)
+from hevsim.cosim.cse import read_cse
+from hevsim.cosim.datacheck import datacheck
+from hevsim.cosim.ssd import FMU_TYPE, PY_TYPE, Component, Connector, SystemDescription, read_ssd, read_ssp
+from hevsim.cosim.ssp_write import write_ssd, write_ssp
+from hevsim.cosim.system import run_cosim
 from hevsim.cosim.trivial import build_integrator_fmu
 from hevsim.errors import ConfigError
 
@@ -232,5 +224,9 @@ def test_cosim_command_runs_and_summarises(tmp_path, capsys) -> None:  # type: i
     assert main(["cosim", str(ssd), "--out", str(tmp_path / "out")]) == 0
     text = capsys.readouterr().out
     assert "3 communication steps to t = 3 s" in text
-    assert "coolant.outlet_temp_k" in text and "°C" in text and "hot spot 1 (fem, " in text
+    assert "hot spot 1 (fem, " in text
+    # units match values: temperatures in °C without the kelvin suffix, powers in W
+    assert re.search(r"coolant\.outlet_temp +\d+\.\d{3} °C", text), text
+    assert re.search(r"fem\.cell_max_temp +\d+\.\d{3} °C", text), text
+    assert "_temp_k" not in text
     assert (tmp_path / "out" / "fem_temperature.pvd").is_file()

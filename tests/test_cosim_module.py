@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 from tests.cosim_helpers import interrupt_after
 
-from hevsim.cosim.config import datacheck, read_ssd, run_cosim, run_system
+from hevsim.cosim.datacheck import datacheck
+from hevsim.cosim.ssd import read_ssd
+from hevsim.cosim.system import run_cosim, run_system
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "cosim_module"
 

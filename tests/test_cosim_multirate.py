@@ -93,7 +93,8 @@ def test_rates_are_validated() -> None:
 
 
 def test_rates_round_trip_through_ssd(tmp_path: Path) -> None:
-    from hevsim.cosim.config import PY_TYPE, Component, SystemDescription, read_ssd, write_ssd
+    from hevsim.cosim.ssd import PY_TYPE, Component, SystemDescription, read_ssd
+    from hevsim.cosim.ssp_write import write_ssd
 
     desc = SystemDescription("s", [Component("a", PY_TYPE, "m:f")], [], 0.0, 1.0,
                              {"step_s": 0.1, "rates": {"a": 5}})  # fmt: skip

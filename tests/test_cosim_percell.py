@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hevsim.battery.kernel import STEMP
-from hevsim.cosim.config import run_cosim
+from hevsim.cosim.system import run_cosim
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -77,7 +77,7 @@ def test_per_cell_coupling_conserves_energy_and_cells_differ() -> None:
 def test_shipped_module_case_is_per_cell(tmp_path: Path) -> None:
     import dataclasses
 
-    from hevsim.cosim.config import read_ssd
+    from hevsim.cosim.ssd import read_ssd
 
     desc = read_ssd(EXAMPLES / "cosim_module" / "module.ssd")
     pairs = {(c.src, c.src_var, c.dst, c.dst_var) for c in desc.connections}

@@ -28,7 +28,9 @@ import argparse
 from pathlib import Path
 
 from hevsim.cosim import Connection
-from hevsim.cosim.config import FMU_TYPE, PY_TYPE, Component, SystemDescription, run_cosim, write_ssd
+from hevsim.cosim.ssd import FMU_TYPE, PY_TYPE, Component, SystemDescription
+from hevsim.cosim.ssp_write import write_ssd
+from hevsim.cosim.system import run_cosim
 
 HERE = Path(__file__).resolve().parent
 N_CELLS = 12  # 2s6p, the FEM module's 2 x 6 cells

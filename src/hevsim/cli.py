@@ -229,7 +229,8 @@ def _cmd_age(args: argparse.Namespace) -> int:
 
 
 def _cmd_cosim(args: argparse.Namespace) -> int:
-    from hevsim.cosim.config import datacheck, run_cosim
+    from hevsim.cosim.datacheck import datacheck
+    from hevsim.cosim.system import run_cosim
 
     if args.check:
         datacheck(args.config)
@@ -268,8 +269,11 @@ def format_cosim_summary(res: Any, out: Path) -> str:
     for i, col in enumerate(res.columns):
         if col.split(".", 1)[1] in shown:
             v = float(res.data[-1, i])
-            text = f"{v - KELVIN_OFFSET:.3f} °C" if col.endswith("_k") else f"{v:.4g} {col[-1].upper()}"
-            lines.append(f"  {col:28s} {text}")
+            if col.endswith("_k"):  # shown in °C: drop the kelvin suffix from the name
+                label, text = col[: -len("_k")], f"{v - KELVIN_OFFSET:.3f} °C"
+            else:
+                label, text = col, f"{v:.4g} {col[-1].upper()}"
+            lines.append(f"  {label:28s} {text}")
     fields = json.loads((out / "summary.json").read_text()).get("fields", {})
     for name, f in fields.items():
         for h in f.get("hot_spots", [])[:3]:

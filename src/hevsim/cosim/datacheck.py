@@ -1,0 +1,95 @@
+"""The data check of a co-simulation configuration (thesis section 4.1.4): :func:`datacheck`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from hevsim.cosim import units as U
+from hevsim.cosim.load import load_system
+from hevsim.cosim.ssd import FMU_TYPE, Component, Connector, SystemDescription
+from hevsim.errors import ConfigError
+
+
+def datacheck(
+    path_or_desc: str | Path | SystemDescription, bindings: dict[str, Component] | None = None
+) -> SystemDescription:
+    """Check a configuration against section 4.1.4's requirements: (1) well-formed XML and
+    (2) the schema's structure (both while reading), (3) internal references (components,
+    connectors, FMU files and their variables), (4) input/output pairing of connections
+    (an output feeds an input; an input is fed once) and (5) compatible, known units.
+    Returns the description; raises :class:`ConfigError` naming the element otherwise.
+    Given a path, the temporary folder an ``.ssp`` is extracted to is removed before
+    returning (also on error): to run the system, load it with
+    :func:`~hevsim.cosim.load.load_system`."""
+    if isinstance(path_or_desc, SystemDescription):
+        return _check(path_or_desc)
+    with load_system(path_or_desc, bindings) as desc:
+        return _check(desc)
+
+
+def _check(desc: SystemDescription) -> SystemDescription:
+    src = desc.source
+    names = [c.name for c in desc.components]
+    dup = {n for n in names if names.count(n) > 1}
+    if dup:
+        raise ConfigError(f"{src}: duplicate component name(s) {sorted(dup)}.")
+    kinds: dict[str, dict[str, Connector]] = {}
+    for c in desc.components:
+        kinds[c.name] = {k.name: k for k in c.connectors}
+        if c.type == FMU_TYPE:
+            kinds[c.name].update(_fmu_connectors(desc, c))
+    fed: set[tuple[str, str]] = set()
+    for k in desc.connections:
+        what = f"{src}: connection {k.src}.{k.src_var} -> {k.dst}.{k.dst_var}"
+        for comp, var, want in ((k.src, k.src_var, "output"), (k.dst, k.dst_var, "input")):
+            if comp not in kinds:
+                raise ConfigError(f"{what}: unknown component {comp!r}; components: {names}.")
+            declared = kinds[comp]
+            if declared and var not in declared:
+                raise ConfigError(
+                    f"{what}: component {comp!r} has no variable {var!r}; variables: {sorted(declared)}."
+                )
+            if var in declared and declared[var].kind not in (want, "inout"):
+                raise ConfigError(f"{what}: {comp}.{var} is an {declared[var].kind}, expected an {want}.")
+        if (k.dst, k.dst_var) in fed:
+            raise ConfigError(f"{what}: input {k.dst}.{k.dst_var} is connected more than once.")
+        fed.add((k.dst, k.dst_var))
+        su = k.src_unit if k.src_unit is not None else getattr(kinds[k.src].get(k.src_var), "unit", "")
+        du = k.dst_unit if k.dst_unit is not None else getattr(kinds[k.dst].get(k.dst_var), "unit", "")
+        U.conversion(su, du, desc.units, what)
+    if desc.stop_time_s <= desc.start_time_s:
+        raise ConfigError(
+            f"{src}: stop time {desc.stop_time_s} s must exceed start time {desc.start_time_s} s."
+        )
+    return desc
+
+
+def _fmu_connectors(desc: SystemDescription, c: Component) -> dict[str, Connector]:
+    from fmpy import read_model_description
+
+    f = desc.base_dir / c.source
+    if not f.is_file():
+        raise ConfigError(f"{desc.source}: component {c.name!r}: FMU file {str(f)!r} does not exist.")
+    try:
+        md = read_model_description(str(f))
+    except Exception as exc:
+        raise ConfigError(f"{desc.source}: component {c.name!r}: {f} is not a valid FMU ({exc}).") from None
+    out: dict[str, Connector] = {}
+    for v in md.modelVariables:
+        unit = (
+            getattr(v, "unit", None)
+            or (v.declaredType.unit if getattr(v, "declaredType", None) else None)
+            or ""
+        )
+        out[v.name] = Connector(v.name, v.causality, unit)
+    for p in c.parameters:
+        if p not in out:
+            raise ConfigError(
+                f"{desc.source}: component {c.name!r}: FMU {f.name} has no variable {p!r} (parameter)."
+            )
+    for k in c.connectors:
+        if k.name not in out:
+            raise ConfigError(
+                f"{desc.source}: component {c.name!r}: FMU {f.name} has no variable {k.name!r} (connector)."
+            )
+    return out

@@ -1,0 +1,132 @@
+"""Running a co-simulation configuration: :func:`build_participants` (the participants of a
+:class:`~hevsim.cosim.ssd.SystemDescription`), :func:`run_system` (check, build, run the
+master) and :func:`run_cosim` (a configuration file or description to a results folder)."""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from hevsim.cosim.datacheck import datacheck
+from hevsim.cosim.load import load_system
+from hevsim.cosim.master import CosimResult, Options, simulate
+from hevsim.cosim.participant import Participant
+from hevsim.cosim.ssd import COMPONENT_TYPES, FMU_TYPE, PY_TYPE, SystemDescription
+from hevsim.cosim.ssp_write import ssd_xml
+from hevsim.errors import ConfigError
+
+
+def build_participants(desc: SystemDescription) -> list[Participant]:
+    """Instantiate the participants of ``desc`` (FMUs in worker processes by default)."""
+    from hevsim.cosim.participant import FMUParticipant
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
+    inproc = desc.master.get("fmu_process", "worker") == "inprocess"
+    parts: list[Participant] = []
+    for c in desc.components:
+        if c.type == FMU_TYPE:
+            cls = FMUParticipant if inproc else WorkerFMUParticipant
+            parts.append(cls(c.name, desc.base_dir / c.source, c.parameters))
+        elif c.type == PY_TYPE:
+            mod, _, fn = c.source.partition(":")
+            try:
+                factory = getattr(importlib.import_module(mod), fn)
+            except (ImportError, AttributeError, ValueError) as exc:
+                raise ConfigError(
+                    f"{desc.source}: component {c.name!r}: cannot import {c.source!r} ({exc})."
+                ) from None
+            params = {
+                k: str((desc.base_dir / v).resolve())
+                if isinstance(v, str) and v.startswith(("./", "../"))
+                else v
+                for k, v in c.parameters.items()
+            }
+            parts.append(factory(name=c.name, **params))
+        else:
+            raise ConfigError(
+                f"{desc.source}: component {c.name!r} is not bound to an implementation (type {c.type!r})."
+            )
+    return parts
+
+
+def run_system(
+    desc: SystemDescription,
+    progress: Callable[[float, float], None] | None = None,
+    checkpoint_path: str | Path | None = None,
+    resume: bool = False,
+) -> CosimResult:
+    """Check ``desc``, build its participants and run the master."""
+    datacheck(desc)
+    for c in desc.components:
+        if c.type not in COMPONENT_TYPES:
+            raise ConfigError(
+                f"{desc.source}: component {c.name!r} is not bound to an implementation (type {c.type!r})."
+            )
+    m = dict(desc.master)
+    m.pop("fmu_process", None)
+    if "step_s" not in m:
+        raise ConfigError(f"{desc.source}: the master settings lack step_s (the communication step [s]).")
+    opts = Options(
+        stop_time_s=desc.stop_time_s, start_time_s=desc.start_time_s, checkpoint_path=checkpoint_path, **m
+    )
+    opts.check()
+    return simulate(build_participants(desc), desc.connections, progress=progress, resume=resume,
+                    extra_units=desc.units, **vars(opts))  # fmt: skip
+
+
+def run_cosim(
+    config_path: str | Path | SystemDescription,
+    out_dir: str | Path,
+    progress: Callable[[float, float], None] | None = None,
+    resume: bool = False,
+) -> CosimResult:
+    """Run the configuration ``config_path`` (``.ssp`` / ``.ssd`` / a bound CSE ``.xml``, or a
+    :class:`SystemDescription`) and write ``out_dir``:
+    ``results.csv`` (every output vs time), ``summary.json`` (final values, step
+    statistics, stop reason), the system as ``system.ssd`` and ``pictures/*.png``
+    (:func:`hevsim.cosim.plots.plot_cosim`), plus what participants keep beyond their
+    outputs (:meth:`~hevsim.cosim.participant.Participant.write_fields`: the FEM module's
+    temperature fields ``fields/*.vtu`` with a ``.pvd``, plate and cell pictures; listed with
+    the hot spots under ``fields`` in ``summary.json``). A checkpoint
+    ``<out_dir>.checkpoint`` is kept while running; with ``resume`` a killed run continues
+    from it. On a participant fault the results so far are written to ``out_dir`` before
+    the error is raised. A temporary folder an ``.ssp`` is extracted to is removed at the end
+    (also on error) when ``config_path`` is a file."""
+    from hevsim.cosim.master import CosimFault
+    from hevsim.io import atomic_directory, write_json
+
+    if not isinstance(config_path, SystemDescription):
+        with load_system(config_path) as desc:
+            return run_cosim(desc, out_dir, progress, resume)
+    desc = config_path
+    out = Path(out_dir)
+    ck = out.with_name(f".{out.name}.checkpoint")
+
+    def write(res: CosimResult, error: str | None) -> None:
+        with atomic_directory(out) as tmp:
+            res.write_csv(tmp / "results.csv")
+            final = {c: float(res.data[-1, i]) for i, c in enumerate(res.columns)} if len(res.data) else {}
+            fields: dict[str, Any] = {}
+            if len(res.data):
+                from hevsim.cosim.plots import plot_cosim
+
+                plot_cosim(res, desc, tmp / "pictures")
+                fields = {n: p.write_fields(tmp) for n, p in res.participants.items()}
+            write_json(tmp / "summary.json", {
+                "config": desc.source, "final": final, "stats": res.stats,
+                "stopped_by": res.stopped_by, "error": error,
+                "fields": {n: f for n, f in fields.items() if f},
+            })  # fmt: skip
+            (tmp / "system.ssd").write_bytes(ssd_xml(desc))
+
+    try:
+        res = run_system(desc, progress, ck, resume)
+    except CosimFault as exc:
+        if exc.partial is not None:
+            write(exc.partial, str(exc))
+        raise
+    write(res, None)
+    ck.unlink(missing_ok=True)
+    return res
