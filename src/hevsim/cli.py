@@ -1,18 +1,52 @@
 """The ``hevsim`` command: one subcommand per job, each backed by the Python API.
 
 Bad input (a :class:`hevsim.errors.HevsimError`) prints a one-paragraph message and exits 2
-without writing a partial output folder.
+without writing a partial output folder. Exit statuses: 0 success; 2 bad input, or a run that
+left its physical domain (:class:`~hevsim.errors.DomainError`: NaN/inf in a channel, SOC
+outside [0, 1], a cell beyond its short-circuit current); 3 a run that completed but whose
+vehicle could not follow the drive cycle (:class:`~hevsim.errors.TrackingError`, bound
+:data:`hevsim.sim.checks.TRACKING_BOUND`). Messages say what, where (time, channel) and the
+likely cause; no results are written on a non-zero exit.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from hevsim.errors import HevsimError
+
+
+def _prepare(
+    args: argparse.Namespace,
+    out: str | Path,
+    *inputs: str | Path | None,
+    kind: Literal["dir", "file"] = "dir",
+    option: str = "--out",
+    ours: Callable[[Path], bool] | None = None,
+) -> Path:
+    """Check the output path before any computation (:func:`hevsim.io.prepare_output`);
+    ``inputs`` (the files the command reads) are never replaced nor a folder holding them."""
+    from hevsim.io import prepare_output
+
+    protect = [p for p in inputs if p is not None and Path(p).exists()]
+    prepare_output(out, kind=kind, force=args.force, option=option, protect=protect, ours=ours)
+    return Path(out)
+
+
+def _written(out: Path) -> str:
+    """The files of the results folder ``out`` as its marker lists them, PNGs counted."""
+    from hevsim.io import results_files
+
+    files = results_files(out) or []
+    png = [f for f in files if f.endswith(".png")]
+    names = [f for f in files if not f.endswith(".png")]
+    if png:
+        names.append(f"{len(png)} PNG plot{'s' if len(png) > 1 else ''}")
+    return ", ".join(names)
 
 
 def _cmd_cycles(args: argparse.Namespace) -> int:
@@ -29,32 +63,44 @@ def _cmd_cycles(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from hevsim.config import load_config
+    from hevsim.config import SeriesHEVConfig, SimulationSection, load_vehicle_config
     from hevsim.cycles import load_cycle
+    from hevsim.errors import ConfigError
+    from hevsim.schema import check_option
     from hevsim.sim.simulator import simulate
 
-    cfg = load_config(args.config)
+    check_option("--dt", args.dt, SimulationSection, "dt_s")
+    check_option("--soc-initial", args.soc_initial, SimulationSection, "soc_initial")
+    cfg = load_vehicle_config(args.config)
+    if not isinstance(cfg, SeriesHEVConfig):
+        raise ConfigError(
+            f"{args.config}: key 'powertrain.architecture' = {cfg.architecture!r}: the forward simulator "
+            f"supports series only for now; {cfg.architecture} runs with `hevsim optimize`."
+        )
     cycle = load_cycle(args.cycle or cfg.simulation.cycle)
+    out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_{cycle.name}"
+    _prepare(args, out, args.config, args.cycle, args.schedule)
     schedule = None
     if args.schedule:
         from hevsim.sim.simulator import GensetSchedule
 
         schedule = GensetSchedule.from_csv(args.schedule)
     result = simulate(cfg, cycle, dt_s=args.dt, soc_initial=args.soc_initial, schedule=schedule)
-    out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_{cycle.name}"
-    result.save(out, plots=not args.no_plots)
+    result.save(out, plots=not args.no_plots, csv=True if args.csv else None)
     m = result.metrics
     print(f"{cfg.name} on {cycle.name}: {m['distance_mi']['value']:.2f} mi")
     for key in ("mpg", "mpgge", "l_per_100km", "co2_g_per_km", "soc_final",
                 "speed_error_rms_mph", "energy_audit_residual_pct"):  # fmt: skip
         print(f"  {key:<28}{m[key]['value']:>12.4g} {m[key]['unit']}")
-    print(f"results written to {out}/ (report.md, metrics.json, timeseries.parquet, plots)")
+    print(f"results written to {out}/ ({_written(out)})")
     return 0
 
 
 def _cmd_refinement(args: argparse.Namespace) -> int:
     from hevsim.refinement import format_table, run_refinement
 
+    if args.out:
+        _prepare(args, args.out, args.cycle, kind="file", ours=_is_refinement_table)
     rows = run_refinement(cycle=args.cycle)
     text = format_table(rows, args.cycle)
     print(text)
@@ -65,11 +111,28 @@ def _cmd_refinement(args: argparse.Namespace) -> int:
     return 0
 
 
+def _is_refinement_table(path: Path) -> bool:
+    """True if ``path`` is a table written by ``hevsim refinement --out``."""
+    from hevsim.refinement import format_table
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            return fh.readline().startswith(format_table([], "").split(" on ")[0] + " on ")
+    except (OSError, UnicodeDecodeError):
+        return False
+
+
 def _dp_options(args: argparse.Namespace) -> dict[str, Any]:
+    from hevsim.config import OptimizationSection
+    from hevsim.schema import check_option
+
+    check_option("--soc-points", args.soc_points, OptimizationSection, "soc_grid_points")
+    check_option("--input-points", args.input_points, OptimizationSection, "throttle_grid_points")
+    check_option("--soc-initial", args.soc_initial, OptimizationSection, "soc_initial")
     opts: dict[str, Any] = {"final_constraint": args.final_constraint}
-    if args.soc_points:
+    if args.soc_points is not None:
         opts["soc_grid_points"] = args.soc_points
-    if args.input_points:
+    if args.input_points is not None:
         opts["input_grid_points"] = args.input_points
     if args.soc_initial is not None:
         opts["soc_initial"] = args.soc_initial
@@ -79,29 +142,34 @@ def _dp_options(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _cmd_optimize(args: argparse.Namespace) -> int:
-    from hevsim.optimal.hev import optimize
+    from hevsim.cycles import load_cycle
+    from hevsim.optimal.hev import optimize, resolve_model
 
-    res = optimize(
-        args.config, args.cycle, store_cost_to_go=not args.no_plots, progress=None, **_dp_options(args)
-    )
-    name = str(res.metadata.get("config", Path(args.config).stem))
-    out = Path(args.out) if args.out else Path("results") / f"{name}_{res.cycle.name}_optimal"
+    arch, hev = resolve_model(args.config)
+    cycle = load_cycle(args.cycle or arch.settings(hev).cycle)
+    name = str(hev.config.name)
+    out = Path(args.out) if args.out else Path("results") / f"{name}_{cycle.name}_optimal"
+    _prepare(args, out, args.config, args.cycle)
+    res = optimize(hev, cycle, store_cost_to_go=not args.no_plots, progress=None, **_dp_options(args))
     res.save(out, plots=not args.no_plots)
     print(f"{name} ({res.architecture} HEV) on {res.cycle.name}: DP optimum")
     for key in ("mpg", "mpgge", "l_per_100km", "co2_g_per_km", "soc_initial", "soc_final",
                 "engine_on_time_s", "compute_time_s"):  # fmt: skip
         print(f"  {key:<28}{res.metrics[key]['value']:>12.4g} {res.metrics[key]['unit']}")
-    print(f"results written to {out}/ (timeseries, metrics.json, costate.csv, plots)")
+    print(f"results written to {out}/ ({_written(out)})")
     return 0
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
+    from hevsim.io import atomic_directory
     from hevsim.optimal.compare import compare, format_table, write_table
 
     cycles = [c.strip() for c in args.cycles.split(",") if c.strip()]
     out = Path(args.out) if args.out else Path("results") / "comparison"
-    table = compare(args.configs, cycles, out_dir=out if args.save_runs else None, **_dp_options(args))
-    write_table(table, out)
+    _prepare(args, out, *args.configs)
+    with atomic_directory(out) as tmp:
+        table = compare(args.configs, cycles, out_dir=tmp if args.save_runs else None, **_dp_options(args))
+        write_table(table, tmp)
     print(format_table(table))
     print(f"table written to {out}/comparison.csv and comparison.md")
     return 0
@@ -110,8 +178,9 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 def _cmd_cell(args: argparse.Namespace) -> int:
     from hevsim.battery.config import run_config
 
-    result = run_config(args.config)
     out = Path(args.out) if args.out else Path("results") / Path(args.config).stem
+    _prepare(args, out, args.config)
+    result = run_config(args.config)
     result.save(out)
     for key, m in result.metrics.items():
         value = m["value"] if isinstance(m, dict) else m
@@ -138,8 +207,14 @@ def _parse_fit(items: list[str]) -> dict[str, tuple[float, float, float]]:
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from hevsim.battery.calibrate import CellTestRecord, calibrate
+    from hevsim.battery.config import CellSection
+    from hevsim.schema import check_option
     from hevsim.units import c_to_k
 
+    check_option("--soc-initial", args.soc_initial, CellSection, "soc_initial")
+    check_option("--ambient-c", args.ambient_c, CellSection, "temp_c")
+    out = Path(args.out) if args.out else Path("results") / f"calibration_{Path(args.test).stem}"
+    _prepare(args, out, args.params, args.test)
     record = CellTestRecord.from_csv(args.test)
     result = calibrate(
         args.params,
@@ -148,7 +223,6 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         soc_initial=args.soc_initial,
         port_temp_k=c_to_k(args.ambient_c) if args.ambient_c is not None else None,
     )
-    out = Path(args.out) if args.out else Path("results") / f"calibration_{Path(args.test).stem}"
     result.save(out)
     for name, value in result.values.items():
         print(f"  {name:<28}{value:>12.5g} +/- {result.std_errors[name]:.2g}")
@@ -160,8 +234,9 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
 def _cmd_export_fmu(args: argparse.Namespace) -> int:
     from hevsim.battery.config import load_config as load_cell_config
-    from hevsim.battery.fmu import export_fmu
+    from hevsim.battery.fmu import export_fmu, is_hevsim_fmu
 
+    _prepare(args, args.output, args.config, kind="file", option="-o", ours=is_hevsim_fmu)
     cfg = load_cell_config(args.config)
     m = cfg.module
     params = cfg.cell.parameters
@@ -189,7 +264,12 @@ def _cmd_age(args: argparse.Namespace) -> int:
     from hevsim.battery.config import profile_current
     from hevsim.io import atomic_directory
     from hevsim.report.plots import _figure, _grid, _save
+    from hevsim.schema import check_value
 
+    check_value(args.repetitions, int, "", "", {}, {}, {"bounds": (1, 10**7)}, where="--repetitions")
+    check_value(args.rest_h, float, "", "", {}, {}, {"bounds": (0.0, 1e6), "unit": "h"}, where="--rest-h")
+    out = Path(args.out) if args.out else Path("results") / f"{Path(args.config).stem}_ageing"
+    _prepare(args, out, args.config)
     cfg = load_cell_config(args.config)
     params = cfg.cell.parameters
     if (Path(cfg.base_dir) / params).is_file():
@@ -203,7 +283,6 @@ def _cmd_age(args: argparse.Namespace) -> int:
         soc_initial=cfg.cell.soc_initial,
         rest_s=args.rest_h * 3600.0,
     )
-    out = Path(args.out) if args.out else Path("results") / f"{Path(args.config).stem}_ageing"
     with atomic_directory(out) as tmp:
         table.to_csv(tmp / "ageing.csv", index=False, float_format="%.6g")
         fig, (ax1, ax2) = _figure(2, 1, figsize=(9.0, 6.0), sharex=True)
@@ -239,6 +318,7 @@ def _cmd_cosim(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     out = Path(args.out) if args.out else Path("results") / Path(args.config).stem
+    _prepare(args, out, args.config)
     bar = tqdm(total=1.0, unit="run", disable=not sys.stderr.isatty(), bar_format="{l_bar}{bar}| {elapsed}")
 
     def progress(t_s: float, stop_s: float) -> None:
@@ -287,6 +367,7 @@ def _cmd_thermal(args: argparse.Namespace) -> int:
     from hevsim.thermal.run import format_summary, run_thermal
 
     out = Path(args.out) if args.out else Path("results") / Path(args.config).stem
+    _prepare(args, out, args.config)
     print(format_summary(run_thermal(args.config, out)))
     return 0
 
@@ -310,9 +391,30 @@ def _add_dp_options(p: argparse.ArgumentParser, final_soc: str) -> None:
     )
 
 
+def _add_force(p: argparse.ArgumentParser, what: str) -> None:
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help=f"replace an existing {what} that hevsim did not write (never the working "
+        "directory or a folder holding an input)",
+    )
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("hevsim")
+    except PackageNotFoundError:  # pragma: no cover - running from a source tree
+        from hevsim import __version__
+
+        return __version__
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``hevsim`` command."""
     parser = argparse.ArgumentParser(prog="hevsim", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"hevsim {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("cycles", help="list the shipped drive cycles")
@@ -322,9 +424,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("config", help="vehicle configuration (TOML)")
     p.add_argument("--cycle", help="cycle name (see `hevsim cycles`) or CSV file")
     p.add_argument("--out", help="results folder (default results/<config>_<cycle>)")
+    _add_force(p, "folder at --out")
     p.add_argument("--dt", type=float, help="time step [s] (default from the configuration)")
     p.add_argument("--soc-initial", type=float, help="initial SOC [-]")
     p.add_argument("--no-plots", action="store_true", help="skip plots and report")
+    p.add_argument(
+        "--csv",
+        action="store_true",
+        help="also write timeseries.csv for long runs (default: CSV up to 50000 rows, Parquet always)",
+    )
     p.add_argument(
         "--schedule",
         help="replay a genset schedule CSV (time_s, engine_speed_rpm|engine_speed_radps, "
@@ -337,12 +445,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--cycle", default="udds", help="cycle name or CSV (default udds)")
     p.add_argument("--out", help="also write the table (Markdown) to this file")
+    _add_force(p, "file at --out")
     p.set_defaults(func=_cmd_refinement)
 
     p = sub.add_parser("optimize", help="globally optimal energy management (dynamic programming)")
     p.add_argument("config", help="vehicle configuration (TOML): series or parallel HEV")
     p.add_argument("--cycle", help="cycle name or CSV (default from the configuration)")
     p.add_argument("--out", help="results folder (default results/<config>_<cycle>_optimal)")
+    _add_force(p, "folder at --out")
     p.add_argument("--no-plots", action="store_true", help="skip plots (and the cost-to-go store)")
     _add_dp_options(p, "config")
     p.set_defaults(func=_cmd_optimize)
@@ -351,6 +461,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("configs", nargs="+", help="vehicle configurations (TOML)")
     p.add_argument("--cycles", default="udds,hwfet,us06", help="comma-separated cycle names")
     p.add_argument("--out", help="folder for comparison.csv / .md (default results/comparison)")
+    _add_force(p, "folder at --out")
     p.add_argument("--save-runs", action="store_true", help="also save each run's results folder")
     _add_dp_options(p, "sustain")
     p.set_defaults(func=_cmd_compare)
@@ -358,6 +469,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("cell", help="electro-thermal cell or module run (examples/cell.toml)")
     p.add_argument("config", help="cell/module configuration (TOML)")
     p.add_argument("--out", help="results folder (default results/<config>)")
+    _add_force(p, "folder at --out")
     p.set_defaults(func=_cmd_cell)
 
     p = sub.add_parser("calibrate", help="fit cell parameters to a test file")
@@ -373,6 +485,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--soc-initial", type=float, default=1.0, help="SOC at the start of the test")
     p.add_argument("--ambient-c", type=float, help="heat-port temperature [degC] (default: first sample)")
     p.add_argument("--out", help="results folder")
+    _add_force(p, "folder at --out")
     p.set_defaults(func=_cmd_calibrate)
 
     p = sub.add_parser("age", help="age a cell over repetitions of its configured load profile")
@@ -380,16 +493,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repetitions", type=int, default=1000, help="profile repetitions (default 1000)")
     p.add_argument("--rest-h", type=float, default=0.0, help="calendar rest after each repetition [h]")
     p.add_argument("--out", help="results folder")
+    _add_force(p, "folder at --out")
     p.set_defaults(func=_cmd_age)
 
     p = sub.add_parser("export-fmu", help="FMI 2.0 co-simulation FMU of a cell or module configuration")
     p.add_argument("config", help="cell configuration (TOML), e.g. examples/cell.toml")
     p.add_argument("-o", "--output", required=True, help="FMU file to write")
+    _add_force(p, "file at -o")
     p.set_defaults(func=_cmd_export_fmu)
 
     p = sub.add_parser("cosim", help="co-simulation of FMUs and hevsim models (SSP, SIMULIA CSE XML)")
     p.add_argument("config", help="system description: .ssp, .ssd or a CSE .xml (with --check)")
     p.add_argument("--out", help="results folder (default results/<config>)")
+    _add_force(p, "folder at --out")
     p.add_argument("--resume", action="store_true", help="resume from the last checkpoint of --out")
     p.add_argument("--check", action="store_true", help="only run the datacheck of section 4.1.4")
     p.set_defaults(func=_cmd_cosim)
@@ -397,15 +513,20 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("thermal", help="3D FEM heat model of a battery module with cooling plate and coolant")
     p.add_argument("config", help="module thermal configuration (TOML), e.g. examples/module_thermal.toml")
     p.add_argument("--out", help="results folder (default results/<config>)")
+    _add_force(p, "folder at --out")
     p.set_defaults(func=_cmd_thermal)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit status (0 ok, 2 bad input)."""
+    """Entry point; returns the exit status (0 ok, 2 bad input or physical domain left, 3 the
+    vehicle could not follow the cycle)."""
+    from hevsim.io import output_session
+
     args = build_parser().parse_args(argv)
     try:
-        return int(args.func(args))
+        with output_session():
+            return int(args.func(args))
     except HevsimError as exc:
         print(f"hevsim: error: {exc}", file=sys.stderr)
         return exc.exit_code

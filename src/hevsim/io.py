@@ -1,61 +1,403 @@
-"""Atomic output: result folders and files appear whole or not at all."""
+"""Atomic output: result folders and files appear whole or not at all, and never replace
+anything the user made.
+
+A results folder written by :func:`atomic_directory` carries a marker file
+:data:`MARKER` (JSON: hevsim version, command, creation time and the list of files written).
+An existing folder at the output path is replaced only if it is empty or is such a folder
+with nothing foreign in it; otherwise :class:`~hevsim.errors.OutputError` is raised unless
+replacing was forced. The current working directory, its ancestors and folders holding an
+input are never replaced, forced or not. The swap (old folder aside, new folder in, old
+folder removed) is serialised between processes by a lock on the parent folder, so two
+concurrent writers to one path never fail and the last complete result wins.
+
+Command-line tools call :func:`prepare_output` before any computation, inside
+:func:`output_session`, so that a bad ``--out`` fails at once.
+"""
 
 from __future__ import annotations
 
+import errno
 import json
+import os
+import secrets
 import shutil
-import tempfile
-from collections.abc import Iterator
+import sys
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
+from contextvars import ContextVar
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
+from hevsim.errors import OutputError
+
+MARKER = ".hevsim-results"
+"""Name of the marker file of a hevsim results folder."""
+
+_FORCED: ContextVar[set[Path] | None] = ContextVar("hevsim_forced_outputs", default=None)
+
+
+def _abs(path: str | Path) -> Path:
+    """``path`` made absolute and normalised (``..`` removed), without resolving symlinks."""
+    return Path(os.path.abspath(os.fspath(path)))
+
 
 @contextmanager
-def atomic_directory(out_dir: str | Path) -> Iterator[Path]:
-    """Yield a temporary sibling folder; on success it replaces ``out_dir`` in one rename.
+def output_session() -> Iterator[None]:
+    """Scope in which :func:`prepare_output` with ``force=True`` lets :func:`atomic_directory`
+    replace a foreign folder at that path (the command line runs each command in one)."""
+    token = _FORCED.set(set())
+    try:
+        yield
+    finally:
+        _FORCED.reset(token)
 
-    On any error the temporary folder is removed and ``out_dir`` is left as it was, so an
-    interrupted run never leaves a partial results folder.
+
+def _forced(out: Path) -> bool:
+    allowed = _FORCED.get()
+    return allowed is not None and out in allowed
+
+
+def results_files(folder: str | Path) -> list[str] | None:
+    """The files listed in the marker of the hevsim results folder ``folder`` (relative
+    POSIX paths), or None if ``folder`` has no readable marker."""
+    try:
+        data = json.loads((Path(folder) / MARKER).read_text())
+    except (OSError, ValueError):
+        return None
+    files = data.get("files") if isinstance(data, dict) else None
+    if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+        return None
+    return files
+
+
+def _is_results_folder(folder: Path) -> bool:
+    """True if ``folder`` has a hevsim marker and holds nothing the marker does not list."""
+    files = results_files(folder)
+    if files is None:
+        return False
+    allowed = {MARKER, *files}
+    dirs = {str(p) for f in files for p in Path(f).parents if str(p) != "."}
+    for root, subdirs, names in os.walk(folder):
+        rel = Path(root).relative_to(folder)
+        for d in subdirs:
+            r = (rel / d).as_posix()
+            if r not in dirs and os.path.islink(os.path.join(root, d)):
+                return False
+        for n in names:
+            if (rel / n).as_posix() not in allowed:
+                return False
+    # unlisted sub-folders are accepted only when empty (os.walk visited their contents)
+    return True
+
+
+def _protection(out: Path, protect: Iterable[str | Path]) -> str | None:
+    """Why ``out`` may never be replaced, or None."""
+    real = out.resolve()
+    cwd = Path.cwd().resolve()
+    if real == cwd:
+        return f"is the current working directory ({cwd})"
+    if real in cwd.parents:
+        return f"contains the current working directory {cwd}"
+    for p in protect:
+        pr = Path(p).resolve()
+        if real == pr:
+            return f"is the input {p}"
+        if real in pr.parents:
+            return f"contains the input {p}"
+    return None
+
+
+def _existing_ancestor(out: Path, option: str, shown: str | Path | None = None) -> Path:
+    """The nearest existing ancestor of ``out``; an error if it is not a folder."""
+    for anc in out.parents:
+        if os.path.exists(anc):
+            if not os.path.isdir(anc):
+                raise OutputError(
+                    f"{option} {shown or out}: {anc} is a file, not a folder; choose another {option}."
+                )
+            return anc
+    return Path(out.anchor)  # pragma: no cover - the root always exists
+
+
+def _check(
+    out: Path,
+    kind: Literal["dir", "file"],
+    force: bool,
+    option: str,
+    protect: Iterable[str | Path] = (),
+    ours: Callable[[Path], bool] | None = None,
+    shown: str | Path | None = None,
+) -> None:
+    """Raise :class:`OutputError` if writing ``out`` could destroy something of the user's
+    (messages name the path as ``shown``, the user's spelling)."""
+    name = out if shown is None else shown
+    if out.name in ("", ".", ".."):
+        raise OutputError(
+            f"{option} {name}: is not a name for a new {'folder' if kind == 'dir' else 'file'}."
+        )
+    why = _protection(out, protect)
+    if why:
+        raise OutputError(f"{option} {name}: {why}; hevsim never replaces it, even with --force.")
+    _existing_ancestor(out, option, name)
+    if not os.path.lexists(out):
+        return
+    if kind == "dir":
+        if os.path.islink(out):
+            if force:
+                return
+            raise OutputError(
+                f"{option} {name}: exists and is a symbolic link, not a hevsim results folder; choose "
+                f"another {option} or pass --force (only the link is replaced)."
+            )
+        if not os.path.isdir(out):
+            raise OutputError(
+                f"{option} {name}: exists and is a file; choose another {option} "
+                "(hevsim never replaces a file with a folder)."
+            )
+        if force or not os.listdir(out) or _is_results_folder(out):
+            return
+        raise OutputError(
+            f"{option} {name}: exists and is not a hevsim results folder; choose another {option} "
+            "or pass --force."
+        )
+    if os.path.isdir(out):
+        raise OutputError(f"{option} {name}: is a folder; {option} names a file to write.")
+    if force or (ours is not None and ours(out)):
+        return
+    raise OutputError(
+        f"{option} {name}: exists and was not written by hevsim; choose another {option} or pass --force."
+    )
+
+
+def _probe(folder: Path, out: Path, option: str) -> None:
+    """Create and remove a file in ``folder``: the only test of writability that holds for
+    every user (root ignores permission bits, not read-only file systems)."""
+    for _ in range(100):
+        probe = folder / f".hevsim-probe-{secrets.token_hex(4)}"
+        try:
+            fd = os.open(probe, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600)
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise OutputError(
+                f"{option} {out}: cannot write in {folder} ({exc.strerror or exc}); "
+                "choose a writable location."
+            ) from exc
+        os.close(fd)
+        os.unlink(probe)
+        return
+
+
+def prepare_output(
+    path: str | Path,
+    *,
+    kind: Literal["dir", "file"] = "dir",
+    force: bool = False,
+    option: str = "--out",
+    protect: Iterable[str | Path] = (),
+    ours: Callable[[Path], bool] | None = None,
+) -> Path:
+    """Check, before any computation, that ``path`` can be written without loss; returns it.
+
+    ``kind="dir"``: a results folder. Refused: the working directory or an ancestor of it or
+    of a ``protect``ed input (even with ``force``), an existing file, a path under a file, an
+    unwritable location, and, unless ``force``, an existing folder that is neither empty nor
+    a hevsim results folder. ``kind="file"``: refused: an existing folder, a protected input,
+    a path under a file, an unwritable location and, unless ``force``, an existing file for
+    which ``ours`` is not true. Inside :func:`output_session`, ``force`` also lets the later
+    :func:`atomic_directory` replace the folder. Nothing is created or removed (apart from a
+    probe file in the nearest existing ancestor).
     """
-    out = Path(out_dir)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    out = _abs(path)
+    anc = _existing_ancestor(out, option, path)
+    with _lock(anc if anc == out.parent else None):
+        _check(out, kind, force, option, protect, ours, shown=path)
+    _probe(anc, Path(path), option)
+    allowed = _FORCED.get()
+    if force and allowed is not None:
+        allowed.add(out)
+    return out
+
+
+@contextmanager
+def _lock(folder: Path | None) -> Iterator[None]:
+    """Exclusive lock (``flock``) on ``folder`` between processes; a no-op where unsupported."""
+    if folder is None:
+        yield
+        return
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        yield
+        return
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        yield
+        return
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError:  # pragma: no cover - file systems without flock
+            pass
+        yield
+    finally:
+        os.close(fd)  # closing releases the lock
+
+
+def _unique(parent: Path, prefix: str, make: Callable[[Path], None]) -> Path:
+    for _ in range(1000):
+        p = parent / f"{prefix}{secrets.token_hex(4)}"
+        try:
+            make(p)
+        except FileExistsError:
+            continue
+        return p
+    raise FileExistsError(errno.EEXIST, f"no free name {prefix}* in {parent}")  # pragma: no cover
+
+
+def _write_marker(folder: Path) -> None:
+    from hevsim import __version__
+
+    files = sorted(
+        (Path(root) / n).relative_to(folder).as_posix() for root, _, names in os.walk(folder) for n in names
+    )
+    data = {
+        "hevsim_version": __version__,
+        "command": [Path(sys.argv[0]).name, *sys.argv[1:]] if sys.argv else [],
+        "created": datetime.now(UTC).isoformat(timespec="seconds"),
+        "files": [f for f in files if f != MARKER],
+    }
+    (folder / MARKER).write_text(json.dumps(data, indent=2) + "\n")
+
+
+def _remove(path: Path) -> None:
+    if path.is_symlink() or not path.is_dir():
+        path.unlink(missing_ok=True)
+    else:
+        shutil.rmtree(path, ignore_errors=True)
+
+
+@contextmanager
+def atomic_directory(out_dir: str | Path, *, force: bool = False) -> Iterator[Path]:
+    """Yield a new temporary sibling folder; on success it replaces ``out_dir`` in one rename.
+
+    The folder gets the marker :data:`MARKER` and the user's umask. ``out_dir`` must be
+    absent, empty or a hevsim results folder (or, with ``force`` or after
+    :func:`prepare_output` with ``force``, any folder or symbolic link; never a file, the
+    working directory or an ancestor of it); this is checked before the body runs and again
+    at the swap, which is locked between processes. On any error the temporary folder is
+    removed and ``out_dir`` is left as it was, so an interrupted run never leaves a partial
+    results folder.
+
+    Raises:
+        OutputError: ``out_dir`` holds something of the user's, or cannot be written.
+    """
+    out = _abs(out_dir)
+    forced = force or _forced(out)
+    _existing_ancestor(out, "output folder")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(
+            f"output folder {out}: cannot create {out.parent} ({exc.strerror or exc})."
+        ) from exc
+    with _lock(out.parent):
+        _check(out, "dir", forced, "output folder")
+    try:
+        # os.mkdir applies the umask (tempfile.mkdtemp would make the folder 0700)
+        tmp = _unique(out.parent, f".{out.name}.", lambda p: p.mkdir(0o777))
+    except OSError as exc:
+        raise OutputError(
+            f"output folder {out}: cannot write in {out.parent} ({exc.strerror or exc})."
+        ) from exc
     try:
         yield tmp
-        if out.exists():
-            old = out.with_name(f".{out.name}.old")
-            shutil.rmtree(old, ignore_errors=True)
-            out.rename(old)
-            tmp.rename(out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            tmp.rename(out)
+        _write_marker(tmp)
+        old: Path | None = None
+        with _lock(out.parent):
+            _check(out, "dir", forced, "output folder")
+            if os.path.lexists(out):
+                old = out.parent / f".{out.name}.old.{secrets.token_hex(8)}"  # unique: swaps are locked
+                os.rename(out, old)
+            os.rename(tmp, out)
+        if old is not None:
+            _remove(old)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
 
 
+def _strict(o: Any) -> Any:
+    """``o`` with numpy values converted and non-finite floats replaced by None; a dict with
+    a non-finite ``"value"`` (a metric) gains a ``"note"`` saying what the value was."""
+    if isinstance(o, np.ndarray):
+        o = o.tolist()
+    elif isinstance(o, np.generic):
+        o = o.item()
+    if isinstance(o, float):
+        return o if np.isfinite(o) else None
+    if isinstance(o, dict):
+        out = {k: _strict(v) for k, v in o.items()}
+        value = o.get("value")
+        if isinstance(value, float | np.floating) and not np.isfinite(value) and "note" not in o:
+            out["note"] = f"the value was {float(value):g} (not a JSON number), written as null"
+        return out
+    if isinstance(o, list | tuple):
+        return [_strict(v) for v in o]
+    return o
+
+
 def write_json(path: str | Path, data: Any) -> None:
-    """Write ``data`` as indented JSON (numpy scalars and arrays converted)."""
+    """Write ``data`` as indented, strict JSON (numpy scalars and arrays converted).
+
+    JSON has no NaN or infinity: a non-finite number is written as ``null``, and a metric
+    entry (a dict with a ``"value"``) whose value was not finite gains a ``"note"``.
+    """
 
     def default(o: Any) -> Any:
-        if isinstance(o, np.generic):
-            return o.item()
-        if isinstance(o, np.ndarray):
-            return o.tolist()
         return str(o)
 
-    Path(path).write_text(json.dumps(data, indent=2, default=default, allow_nan=True) + "\n")
+    Path(path).write_text(json.dumps(_strict(data), indent=2, default=default, allow_nan=False) + "\n")
+
+
+def _new_file(p: Path) -> None:
+    os.close(os.open(p, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))  # the umask applies
+
+
+@contextmanager
+def atomic_file(path: str | Path) -> Iterator[Path]:
+    """Yield a new, uniquely named temporary sibling of ``path`` (mode from the umask); on
+    success it replaces ``path`` in one rename, on error it is removed. Concurrent writers
+    never collide. A folder at ``path`` is never replaced (:class:`~hevsim.errors.OutputError`).
+    """
+    target = _abs(path)
+    if target.is_dir():
+        raise OutputError(f"{path}: is a folder; expected a file to write.")
+    _existing_ancestor(target, "output file", path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _unique(target.parent, f".{target.name}.", _new_file)
+    try:
+        yield tmp
+        os.replace(tmp, target)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def write_text_atomic(path: str | Path, text: str) -> Path:
-    """Write ``text`` to ``path`` through a temporary file and a rename."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = target.with_name(f".{target.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(target)
-    return target
+    """Write ``text`` to ``path`` atomically (:func:`atomic_file`)."""
+    with atomic_file(path) as tmp:
+        tmp.write_text(text)
+    return Path(path)
+
+
+def copy_file_atomic(src: str | Path, path: str | Path) -> Path:
+    """Copy ``src`` to ``path`` atomically (:func:`atomic_file`); ``src`` may be on another
+    file system (a plain rename would fail with "Invalid cross-device link")."""
+    with atomic_file(path) as tmp:
+        shutil.copyfile(src, tmp)
+    return Path(path)
