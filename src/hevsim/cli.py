@@ -1,12 +1,7 @@
 """The ``hevsim`` command: one subcommand per job, each backed by the Python API.
 
 Bad input (a :class:`hevsim.errors.HevsimError`) prints a one-paragraph message and exits 2
-without writing a partial output folder. Exit statuses: 0 success; 2 bad input, or a run that
-left its physical domain (:class:`~hevsim.errors.DomainError`: NaN/inf in a channel, SOC
-outside [0, 1], a cell beyond its short-circuit current); 3 a run that completed but whose
-vehicle could not follow the drive cycle (:class:`~hevsim.errors.TrackingError`, bound
-:data:`hevsim.sim.checks.TRACKING_BOUND`). Messages say what, where (time, channel) and the
-likely cause; no results are written on a non-zero exit.
+without writing a partial output folder.
 """
 
 from __future__ import annotations
@@ -63,20 +58,11 @@ def _cmd_cycles(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from hevsim.config import SeriesHEVConfig, SimulationSection, load_vehicle_config
+    from hevsim.config import load_config
     from hevsim.cycles import load_cycle
-    from hevsim.errors import ConfigError
-    from hevsim.schema import check_option
     from hevsim.sim.simulator import simulate
 
-    check_option("--dt", args.dt, SimulationSection, "dt_s")
-    check_option("--soc-initial", args.soc_initial, SimulationSection, "soc_initial")
-    cfg = load_vehicle_config(args.config)
-    if not isinstance(cfg, SeriesHEVConfig):
-        raise ConfigError(
-            f"{args.config}: key 'powertrain.architecture' = {cfg.architecture!r}: the forward simulator "
-            f"supports series only for now; {cfg.architecture} runs with `hevsim optimize`."
-        )
+    cfg = load_config(args.config)
     cycle = load_cycle(args.cycle or cfg.simulation.cycle)
     out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_{cycle.name}"
     _prepare(args, out, args.config, args.cycle, args.schedule)
@@ -86,7 +72,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
         schedule = GensetSchedule.from_csv(args.schedule)
     result = simulate(cfg, cycle, dt_s=args.dt, soc_initial=args.soc_initial, schedule=schedule)
-    result.save(out, plots=not args.no_plots, csv=True if args.csv else None)
+    result.save(out, plots=not args.no_plots)
     m = result.metrics
     print(f"{cfg.name} on {cycle.name}: {m['distance_mi']['value']:.2f} mi")
     for key in ("mpg", "mpgge", "l_per_100km", "co2_g_per_km", "soc_final",
@@ -123,16 +109,10 @@ def _is_refinement_table(path: Path) -> bool:
 
 
 def _dp_options(args: argparse.Namespace) -> dict[str, Any]:
-    from hevsim.config import OptimizationSection
-    from hevsim.schema import check_option
-
-    check_option("--soc-points", args.soc_points, OptimizationSection, "soc_grid_points")
-    check_option("--input-points", args.input_points, OptimizationSection, "throttle_grid_points")
-    check_option("--soc-initial", args.soc_initial, OptimizationSection, "soc_initial")
     opts: dict[str, Any] = {"final_constraint": args.final_constraint}
-    if args.soc_points is not None:
+    if args.soc_points:
         opts["soc_grid_points"] = args.soc_points
-    if args.input_points is not None:
+    if args.input_points:
         opts["input_grid_points"] = args.input_points
     if args.soc_initial is not None:
         opts["soc_initial"] = args.soc_initial
@@ -207,12 +187,8 @@ def _parse_fit(items: list[str]) -> dict[str, tuple[float, float, float]]:
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from hevsim.battery.calibrate import CellTestRecord, calibrate
-    from hevsim.battery.config import CellSection
-    from hevsim.schema import check_option
     from hevsim.units import c_to_k
 
-    check_option("--soc-initial", args.soc_initial, CellSection, "soc_initial")
-    check_option("--ambient-c", args.ambient_c, CellSection, "temp_c")
     out = Path(args.out) if args.out else Path("results") / f"calibration_{Path(args.test).stem}"
     _prepare(args, out, args.params, args.test)
     record = CellTestRecord.from_csv(args.test)
@@ -264,10 +240,7 @@ def _cmd_age(args: argparse.Namespace) -> int:
     from hevsim.battery.config import profile_current
     from hevsim.io import atomic_directory
     from hevsim.report.plots import _figure, _grid, _save
-    from hevsim.schema import check_value
 
-    check_value(args.repetitions, int, "", "", {}, {}, {"bounds": (1, 10**7)}, where="--repetitions")
-    check_value(args.rest_h, float, "", "", {}, {}, {"bounds": (0.0, 1e6), "unit": "h"}, where="--rest-h")
     out = Path(args.out) if args.out else Path("results") / f"{Path(args.config).stem}_ageing"
     _prepare(args, out, args.config)
     cfg = load_cell_config(args.config)
@@ -429,11 +402,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--soc-initial", type=float, help="initial SOC [-]")
     p.add_argument("--no-plots", action="store_true", help="skip plots and report")
     p.add_argument(
-        "--csv",
-        action="store_true",
-        help="also write timeseries.csv for long runs (default: CSV up to 50000 rows, Parquet always)",
-    )
-    p.add_argument(
         "--schedule",
         help="replay a genset schedule CSV (time_s, engine_speed_rpm|engine_speed_radps, "
         "engine_throttle), e.g. the timeseries.csv of `hevsim optimize` on a series HEV",
@@ -519,8 +487,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit status (0 ok, 2 bad input or physical domain left, 3 the
-    vehicle could not follow the cycle)."""
+    """Entry point; returns the exit status (0 ok, 2 bad input)."""
     from hevsim.io import output_session
 
     args = build_parser().parse_args(argv)
