@@ -1,7 +1,12 @@
 """The ``hevsim`` command: one subcommand per job, each backed by the Python API.
 
 Bad input (a :class:`hevsim.errors.HevsimError`) prints a one-paragraph message and exits 2
-without writing a partial output folder.
+without writing a partial output folder. Exit statuses: 0 success; 2 bad input, or a run that
+left its physical domain (:class:`~hevsim.errors.DomainError`: NaN/inf in a channel, SOC
+outside [0, 1], a cell beyond its short-circuit current); 3 a run that completed but whose
+vehicle could not follow the drive cycle (:class:`~hevsim.errors.TrackingError`, bound
+:data:`hevsim.sim.checks.TRACKING_BOUND`). Messages say what, where (time, channel) and the
+likely cause; no results are written on a non-zero exit.
 """
 
 from __future__ import annotations
@@ -487,7 +492,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit status (0 ok, 2 bad input)."""
+    """Entry point; returns the exit status (0 ok, 2 bad input or physical domain left, 3 the
+    vehicle could not follow the cycle)."""
     from hevsim.io import output_session
 
     args = build_parser().parse_args(argv)

@@ -51,6 +51,10 @@ SPEED_COLUMNS: dict[str, float] = {
 converts each to [m/s]."""
 GRADE_COLUMN = "grade"
 """Name of the optional road grade column of a cycle CSV file [rise/run fraction]."""
+MAX_SPEED_MPS = 150.0
+"""Highest speed a drive cycle may ask for [m/s] (540 km/h, 336 mph). The fastest road cars
+reach about 135 m/s (490 km/h); a cycle beyond 150 m/s is a unit or data error (m/s read as
+km/h, or a corrupted row), not a drive a road vehicle can be asked to follow."""
 
 _DATA_PACKAGE = "hevsim"
 _CYCLES_TOML = "cycles/cycles.toml"
@@ -78,43 +82,53 @@ def _check_samples(
     where: str,
     locate: Callable[[int], str],
     columns: tuple[str, str, str] = (TIME_COLUMN, "speed_mps", GRADE_COLUMN),
+    to_mps: float = 1.0,
 ) -> None:
     """Raise :class:`InputError` at the first bad sample.
 
     Args:
-        time_s, speed, grade: equal-length 1-D arrays (speed in any unit; only its sign is
-            checked) [s], [-], [-].
+        time_s, speed, grade: equal-length 1-D arrays (speed in the unit of its column)
+            [s], [-], [-].
         where: the cycle or file named in the message.
         locate: turns a sample index into "line 7" or "index 5" for the message.
         columns: names of the time, speed and grade columns for the message.
+        to_mps: factor converting ``speed`` to [m/s] (for the :data:`MAX_SPEED_MPS` check).
     """
     for values, column in zip((time_s, speed, grade), columns, strict=True):
         bad = np.flatnonzero(~np.isfinite(values))
         if bad.size:
             i = int(bad[0])
             raise InputError(
-                f"{where}: {locate(i)}, column '{column}': value {float(values[i])!r} is not "
+                f"{where}: {locate(i)}, column '{column}': value {float(values[i]):g} is not "
                 "a finite number; expected a finite number."
             )
     if time_s[0] < 0.0:
         raise InputError(
-            f"{where}: {locate(0)}, column '{columns[0]}': value {float(time_s[0])!r} is "
+            f"{where}: {locate(0)}, column '{columns[0]}': value {float(time_s[0]):g} is "
             "negative; expected the cycle to start at a time >= 0 [s]."
         )
     bad = np.flatnonzero(np.diff(time_s) <= 0.0)
     if bad.size:
         i = int(bad[0]) + 1
         raise InputError(
-            f"{where}: {locate(i)}, column '{columns[0]}': value {float(time_s[i])!r} does not "
-            f"increase on the previous sample {float(time_s[i - 1])!r}; expected strictly "
+            f"{where}: {locate(i)}, column '{columns[0]}': value {float(time_s[i]):g} does not "
+            f"increase on the previous sample {float(time_s[i - 1]):g}; expected strictly "
             "increasing times [s]."
         )
     bad = np.flatnonzero(speed < 0.0)
     if bad.size:
         i = int(bad[0])
         raise InputError(
-            f"{where}: {locate(i)}, column '{columns[1]}': value {float(speed[i])!r} is "
+            f"{where}: {locate(i)}, column '{columns[1]}': value {float(speed[i]):g} is "
             "negative; expected a speed >= 0."
+        )
+    bad = np.flatnonzero(speed * to_mps > MAX_SPEED_MPS)
+    if bad.size:
+        i = int(bad[0])
+        raise InputError(
+            f"{where}: {locate(i)}, column '{columns[1]}': value {float(speed[i]):g} is "
+            f"{float(speed[i]) * to_mps:g} m/s; expected a speed <= {MAX_SPEED_MPS:g} m/s "
+            f"({MAX_SPEED_MPS / to_mps:g} in this column's unit; check the unit of the column)."
         )
 
 
@@ -250,7 +264,7 @@ class DriveCycle:
         """
         if not (math.isfinite(dt_s) and dt_s > 0.0):
             raise InputError(
-                f"drive cycle '{self.name}': resampling step dt_s={dt_s!r}; expected a finite step > 0 [s]."
+                f"drive cycle '{self.name}': resampling step dt_s={dt_s:g}; expected a finite step > 0 [s]."
             )
         t0 = float(self.time_s[0])
         t1 = float(self.time_s[-1])
@@ -304,7 +318,7 @@ class DriveCycle:
         t0 = float(self.time_s[0])
         if not (math.isfinite(t_end_s) and t_end_s > t0):
             raise InputError(
-                f"drive cycle '{self.name}': truncation time t_end_s={t_end_s!r}; expected a "
+                f"drive cycle '{self.name}': truncation time t_end_s={t_end_s:g}; expected a "
                 f"time after the first sample {t0:g} s [s]."
             )
         if t_end_s >= self.time_s[-1]:
@@ -332,6 +346,10 @@ def _read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
 
     Blank lines and lines starting with ``#`` are skipped; fields are stripped.
     """
+    if path.is_dir():
+        raise InputError(
+            f"{path} is a directory; expected a CSV file or a shipped cycle name ({', '.join(CYCLE_NAMES)})."
+        )
     if not path.is_file():
         raise InputError(
             f"{path}: file not found; expected a CSV file with columns '{TIME_COLUMN}' and "
@@ -425,6 +443,7 @@ def load_cycle_csv(path: str | Path, name: str | None = None) -> DriveCycle:
         str(p),
         lambda i: f"line {lines[i]}",
         (TIME_COLUMN, speed_column, GRADE_COLUMN),
+        SPEED_COLUMNS[speed_column],
     )
     return DriveCycle(
         name=name if name is not None else p.stem,
@@ -536,7 +555,7 @@ def load_cycle(name_or_path: str | Path) -> DriveCycle:
         spec = _REGISTRY.get(name_or_path.strip().lower())
         if spec is not None:
             return spec.load(name_or_path.strip().lower())
-        if not Path(name_or_path).is_file():
+        if not Path(name_or_path).exists():
             raise InputError(
                 f"unknown drive cycle {name_or_path!r} (not a registered name and no such "
                 f"file); expected one of {', '.join(CYCLE_NAMES)} or the path of a CSV file "

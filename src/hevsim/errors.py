@@ -28,6 +28,32 @@ class SimulationError(HevsimError):
     """A simulation cannot proceed (for example the vehicle cannot follow the cycle at all)."""
 
 
+class DomainError(SimulationError):
+    """A run left the physical domain of its model (exit status 2).
+
+    Raised when a recorded state becomes NaN or infinite, a state of charge leaves [0, 1], or
+    a cell is driven outside the voltage/temperature range its model is defined for. The
+    message names the time, the channel and the likely cause; no results are written.
+    """
+
+
+class TrackingError(SimulationError):
+    """The run completed but the vehicle could not follow the drive cycle (exit status 3).
+
+    The speed-tracking error stayed beyond the stated bound
+    (:data:`hevsim.sim.simulator.TRACKING_BOUND`) for longer than allowed. The message names
+    the time, the error and the likely cause (motor, battery or brake limits). ``result``
+    holds the completed :class:`~hevsim.sim.simulator.SimulationResult` for inspection
+    (Python API); the command line writes no results folder.
+    """
+
+    exit_code = 3
+
+    def __init__(self, message: str, result: object | None = None) -> None:
+        super().__init__(message)
+        self.result = result
+
+
 def where(file: str | Path | None = None, key: str | None = None, line: int | None = None) -> str:
     """Format a location prefix such as ``"vehicle.toml: key 'body.mass_kg'"``."""
     parts: list[str] = []

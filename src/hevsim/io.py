@@ -331,17 +331,37 @@ def atomic_directory(out_dir: str | Path, *, force: bool = False) -> Iterator[Pa
         raise
 
 
+def _strict(o: Any) -> Any:
+    """``o`` with numpy values converted and non-finite floats replaced by None; a dict with
+    a non-finite ``"value"`` (a metric) gains a ``"note"`` saying what the value was."""
+    if isinstance(o, np.ndarray):
+        o = o.tolist()
+    elif isinstance(o, np.generic):
+        o = o.item()
+    if isinstance(o, float):
+        return o if np.isfinite(o) else None
+    if isinstance(o, dict):
+        out = {k: _strict(v) for k, v in o.items()}
+        value = o.get("value")
+        if isinstance(value, float | np.floating) and not np.isfinite(value) and "note" not in o:
+            out["note"] = f"the value was {float(value):g} (not a JSON number), written as null"
+        return out
+    if isinstance(o, list | tuple):
+        return [_strict(v) for v in o]
+    return o
+
+
 def write_json(path: str | Path, data: Any) -> None:
-    """Write ``data`` as indented JSON (numpy scalars and arrays converted)."""
+    """Write ``data`` as indented, strict JSON (numpy scalars and arrays converted).
+
+    JSON has no NaN or infinity: a non-finite number is written as ``null``, and a metric
+    entry (a dict with a ``"value"``) whose value was not finite gains a ``"note"``.
+    """
 
     def default(o: Any) -> Any:
-        if isinstance(o, np.generic):
-            return o.item()
-        if isinstance(o, np.ndarray):
-            return o.tolist()
         return str(o)
 
-    Path(path).write_text(json.dumps(data, indent=2, default=default, allow_nan=True) + "\n")
+    Path(path).write_text(json.dumps(_strict(data), indent=2, default=default, allow_nan=False) + "\n")
 
 
 def _new_file(p: Path) -> None:

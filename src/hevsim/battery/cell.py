@@ -13,7 +13,7 @@ import pandas as pd
 
 from hevsim.battery import kernel as K
 from hevsim.battery.params import CellParameters, load_cell_parameters
-from hevsim.errors import InputError
+from hevsim.errors import DomainError, InputError
 from hevsim.io import atomic_directory, write_json
 from hevsim.tables import FloatArray
 
@@ -27,15 +27,58 @@ def as_profile(values: npt.ArrayLike, n: int, what: str, unit: str) -> FloatArra
         raise InputError(f"{what}: expected a scalar or {n} values [{unit}], got shape {a.shape}.")
     if not np.all(np.isfinite(a)):
         k = int(np.flatnonzero(~np.isfinite(a))[0])
-        raise InputError(f"{what}: value {a[k]!r} at step {k} is not finite; expected numbers [{unit}].")
+        raise InputError(f"{what}: value {a[k]:g} at step {k} is not finite; expected numbers [{unit}].")
     return np.ascontiguousarray(a)
 
 
 def check_dt(dt: float) -> float:
     """A positive finite step [s]."""
     if not (np.isfinite(dt) and dt > 0):
-        raise InputError(f"time step dt = {dt!r} s: expected a positive number of seconds.")
+        raise InputError(f"time step dt = {dt:g} s: expected a positive number of seconds.")
     return float(dt)
+
+
+CELL_TEMP_RANGE_K = (150.0, 500.0)
+"""Temperatures the lumped cell model is defined for [K] (the range accepted for
+``cell.temp_k`` and ``thermal.port_temp_k`` in a cell configuration). Beyond 500 K a
+Li-ion cell is in thermal runaway; the model's tables and eq (35) mean nothing there."""
+
+
+def check_cell_domain(
+    what: str,
+    time_s: npt.NDArray[Any],
+    current_a: npt.NDArray[Any],
+    voltage_v: npt.NDArray[Any],
+    temp_k: npt.NDArray[Any],
+    capacity_c: npt.NDArray[Any],
+    short_circuit_a: npt.NDArray[Any],
+) -> None:
+    """Raise :class:`DomainError` at the first step where the cell left its model's domain.
+
+    The domain: every recorded value finite, terminal voltage > 0 V (a cell is a source: at
+    or below 0 V the current exceeds its short-circuit current OCV / R_s), temperature in
+    :data:`CELL_TEMP_RANGE_K` and capacity (eq 35) > 0. All arguments are per step: times [s],
+    currents [A], voltages [V], temperatures [K], capacities [C], OCV / R_s [A].
+    """
+    t_lo, t_hi = CELL_TEMP_RANGE_K
+    checks = (
+        (~np.isfinite(voltage_v) | ~np.isfinite(temp_k) | ~np.isfinite(capacity_c), "a state is not finite"),
+        (voltage_v <= 0.0, "terminal voltage {v:g} V <= 0"),
+        ((temp_k < t_lo) | (temp_k > t_hi), f"temperature {{T:g}} K outside {t_lo:g}..{t_hi:g} K"),
+        (capacity_c <= 0.0, "capacity {C:g} C <= 0 (eq 35)"),
+    )
+    first = [(int(np.flatnonzero(mask)[0]), j, text) for j, (mask, text) in enumerate(checks) if mask.any()]
+    if not first:
+        return
+    k, _, text = min(first)
+    fault = text.format(v=float(voltage_v[k]), T=float(temp_k[k]), C=float(capacity_c[k]))
+    i_k = float(current_a[k])
+    raise DomainError(
+        f"{what}: at t = {float(time_s[k]):g} s with a current of {i_k:g} A the cell left its "
+        f"model's domain: {fault}. The model holds for a positive terminal voltage, i.e. a "
+        f"current below the short-circuit current OCV/R_s = {float(short_circuit_a[k]):.4g} A at "
+        f"that state, and {t_lo:g}..{t_hi:g} K; reduce the current (or its scale) or the duration."
+    )
 
 
 @dataclass
@@ -126,6 +169,17 @@ class Cell:
         out = np.empty((i.size, len(K.RECORD)))
         tabs = self.params.tables()
         K.run_cell(self.p, *tabs, x, i, dt, tp, out)  # type: ignore[call-arg]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            i_short = out[:, K.ROCV] / out[:, K.RRS]
+        check_cell_domain(
+            f"cell {self.params.name}",
+            dt * np.arange(1, i.size + 1),
+            i,
+            out[:, K.RV],
+            out[:, K.RTEMP],
+            out[:, K.RCAP],
+            i_short,
+        )
         e_rc1 = float(K.rc_energy(self.p, tabs[7], tabs[8], x))
         if advance:
             self.state = x

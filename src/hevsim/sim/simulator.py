@@ -16,9 +16,10 @@ import hevsim
 from hevsim.components.engine import Engine
 from hevsim.config import VehicleConfig
 from hevsim.cycles import DriveCycle, load_cycle
-from hevsim.errors import ConfigError, SimulationError
+from hevsim.errors import ConfigError, DomainError, InputError, TrackingError
 from hevsim.io import atomic_directory, write_json
 from hevsim.sim import kernel as K
+from hevsim.sim.checks import TRACKING_BOUND, TrackingBound, check_domain, check_metrics, tracking_message
 from hevsim.sim.metrics import compute_metrics, energy_audit
 from hevsim.sim.model import SeriesHEV, build_series_hev
 from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
@@ -106,11 +107,11 @@ class GensetSchedule:
             bad = np.flatnonzero(~np.isfinite(arr))
             if bad.size:
                 raise ConfigError(
-                    f"{self.source}: {name} row {bad[0]} is {arr[bad[0]]!r}; expected a finite number."
+                    f"{self.source}: {name} row {bad[0]} is {arr[bad[0]]:g}; expected a finite number."
                 )
         if np.any(np.diff(t) <= 0):
             i = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
-            raise ConfigError(f"{self.source}: time_s row {i} = {t[i]!r} does not increase.")
+            raise ConfigError(f"{self.source}: time_s row {i} = {t[i]:g} does not increase.")
         if np.any((thr < 0) | (thr > 1)) or np.any(w < 0):
             raise ConfigError(f"{self.source}: throttle must be within 0..1 and engine speed >= 0.")
         object.__setattr__(self, "time_s", t)
@@ -166,7 +167,14 @@ def _prepare(
     cyc = cycle if isinstance(cycle, DriveCycle) else load_cycle(cycle or cfg.simulation.cycle)
     dt = float(dt_s if dt_s is not None else cfg.simulation.dt_s)
     if not 1e-3 <= dt <= 10.0:
-        raise ConfigError(f"time step dt_s = {dt!r} is out of range; expected 0.001 to 10 s.")
+        raise ConfigError(f"time step dt_s = {dt:g} is out of range; expected 0.001 to 10 s.")
+    if cyc.distance_m <= 0.0:
+        raise InputError(
+            f"drive cycle '{cyc.name}'"
+            + (f" ({cyc.source})" if cyc.source else "")
+            + ": the vehicle stands still for the whole cycle (distance 0 m); expected a cycle "
+            "with some speed > 0 (fuel economy and per-distance figures are undefined otherwise)."
+        )
     res = cyc.resampled(dt)
     grid = DriveCycle(res.name, np.array(res.time_s), np.array(res.speed_mps), np.array(res.grade))
     return hev, cyc, grid, dt
@@ -190,12 +198,18 @@ def simulate(
     dt_s: float | None = None,
     soc_initial: float | None = None,
     schedule: GensetSchedule | None = None,
+    tracking: TrackingBound | None = TRACKING_BOUND,
 ) -> SimulationResult:
     """Simulate ``model`` forward over ``cycle`` with a fixed step ``dt_s`` [s].
 
     ``cycle`` is a :class:`DriveCycle`, a registered name or a CSV path (default: the
     configuration's). ``schedule`` replaces the configured supervisory controller by a genset
     schedule (for example a DP optimum). Returns a :class:`SimulationResult`.
+
+    Raises :class:`~hevsim.errors.DomainError` when a recorded channel becomes NaN or
+    infinite or the SOC leaves [0, 1], and :class:`~hevsim.errors.TrackingError` (holding the
+    completed result as ``.result``) when the speed error stays beyond ``tracking``
+    (default :data:`~hevsim.sim.checks.TRACKING_BOUND`; None skips that check).
     """
     t_start = time.perf_counter()
     hev, cyc, dt, args = kernel_inputs(model, cycle, dt_s, soc_initial, schedule)
@@ -203,7 +217,15 @@ def simulate(
     ARCHITECTURES["series"][0](*args)
     t_done = time.perf_counter()
     p, out, energy, summary = args[0], args[-3], args[-2], args[-1]
-    return _assemble(hev, cyc, dt, p, out, energy, summary, t_done - t_kernel, t_done - t_start)
+    label = f"{hev.name} on {cyc.name}"
+    check_domain(label, args[6], out, energy, summary, p)
+    result = _assemble(hev, cyc, dt, p, out, energy, summary, t_done - t_kernel, t_done - t_start)
+    if tracking is not None:
+        message = tracking_message(label, result.timeseries, p, tracking)
+        if message is not None:
+            raise TrackingError(message, result)
+    check_metrics(label, result.metrics)
+    return result
 
 
 def kernel_inputs(
@@ -379,7 +401,12 @@ def simulate_batch(
         row.update({name: v["value"] for name, v in m.items()})
         rows.append(row)
     if not np.all(np.isfinite(summary)):
-        raise SimulationError("batch: a variant produced non-finite results; check its parameters.")
+        i = int(np.flatnonzero(~np.isfinite(summary).all(axis=1))[0])
+        values = ", ".join(f"{k} = {float(pmat[i, K.P[k]]):g}" for k in arrays)
+        raise DomainError(
+            f"batch: variant {i} ({values}) produced non-finite results; expected parameters "
+            "within their physical ranges."
+        )
     return BatchResult(pd.DataFrame(rows), elapsed)
 
 
