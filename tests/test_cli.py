@@ -23,7 +23,7 @@ def test_simulate_writes_results_folder(tmp_path: Path, capsys: pytest.CaptureFi
                  "soc.png", "currents.png", "engine.png", "engine_operating_points.png"):  # fmt: skip
         assert (out / name).is_file(), name
     metrics = json.loads((out / "metrics.json").read_text())
-    assert metrics["mpgge"]["unit"] == "mpgge" and metrics["mpgge"]["value"] > 0
+    assert metrics["mpgge"]["unit"] == "mi/gal" and metrics["mpgge"]["value"] > 0
     ts = pd.read_parquet(out / "timeseries.parquet")
     assert ts["time_s"].iloc[-1] == pytest.approx(505.0)
     assert "mpgge" in capsys.readouterr().out

@@ -17,6 +17,7 @@ from typing import Any
 
 from hevsim import schema
 from hevsim.errors import ConfigError
+from hevsim.fuels import FuelSection
 
 
 @dataclass(frozen=True)
@@ -183,6 +184,7 @@ class VehicleConfig:
     driver: DriverSection = field(default_factory=DriverSection)
     controller: ControllerSection = field(default_factory=ControllerSection)
     metrics: MetricsSection = field(default_factory=MetricsSection)
+    fuel: FuelSection = field(default_factory=FuelSection)  # hevsim.fuels: choose/override the fuel
     base_dir: str = "."
 
     def to_dict(self) -> dict[str, Any]:

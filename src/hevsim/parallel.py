@@ -31,7 +31,9 @@ from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
 from hevsim.components.electric_machine import ElectricMachine
 from hevsim.components.engine import Engine
+from hevsim.fuels import with_config_fuel
 from hevsim.errors import ConfigError
+from hevsim.fuels import FuelSection
 from hevsim.sim.model import resolve_component
 from hevsim.units import c_to_k, rpm_to_radps
 
@@ -156,6 +158,7 @@ class ParallelHEVConfig:
     battery: BatterySection = field(default_factory=BatterySection)
     optimization: OptimizationSection = field(default_factory=OptimizationSection)
     metrics: MetricsSection = field(default_factory=MetricsSection)
+    fuel: FuelSection = field(default_factory=FuelSection)  # hevsim.fuels: choose/override the fuel
     base_dir: str = "."
 
     def to_dict(self) -> dict[str, Any]:
@@ -340,7 +343,7 @@ def build_parallel_hev(cfg: ParallelHEVConfig) -> ParallelHEV:
         tire=Tire(radius_m=cfg.tire.radius_m),
         final_drive=Gear(ratio=cfg.final_drive.ratio, efficiency=cfg.final_drive.efficiency),
         gears=tuple(Gear(ratio=r, efficiency=g.efficiency) for r in g.ratios),
-        engine=engine,
+        engine=with_config_fuel(engine, cfg),  # [fuel] section of the configuration
         motor=_motor(cfg.motor, base),
         motor_coupling=Gear(ratio=cfg.motor.coupling_ratio, efficiency=cfg.motor.coupling_efficiency),
         battery=_battery(cfg.battery, base),

@@ -16,13 +16,12 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from hevsim.fuels import declared_fuel
 from hevsim.tables import FloatArray, Table1D, Table2D, interp1, interp2, read_meta
 from hevsim.units import rpm_to_radps
 
 DIESEL_HEATING_VALUE_BTU_PER_GAL = 133393.1102
 """Heating value of B-20 diesel used by the tutorial (lecture 7) and eq (17) [BTU/gal]."""
-RFG_HEATING_VALUE_BTU_PER_GAL = 114871.7446
-"""Heating value of reformulated gasoline, eq (19) and lecture 7 [BTU/gal]."""
 DIESEL_CO2_KG_PER_KG = 3.16
 """CO2 emitted per kg of diesel burnt (carbon fraction 0.862, complete combustion) [kg/kg]."""
 
@@ -91,7 +90,9 @@ class Engine:
         inertia_kgm2: rotating inertia [kg·m^2].
         stall_speed_radps: minimum running speed [rad/s]; redline_radps: fuel cut [rad/s].
         fuel_lhv_jpkg [J/kg], fuel_density_kgpm3 [kg/m^3], heating_value_btu_per_gal [BTU/gal],
-        co2_kg_per_kg [kg/kg]; torque_scale [-] scales torque and fuel (engine sizing).
+        co2_kg_per_kg [kg/kg]: properties of the fuel ``fuel_name`` (from :mod:`hevsim.fuels`;
+        the defaults equal the table's diesel, which the builders pass explicitly);
+        torque_scale [-] scales torque and fuel (engine sizing).
     """
 
     name: str
@@ -107,6 +108,7 @@ class Engine:
     heating_value_btu_per_gal: float = DIESEL_HEATING_VALUE_BTU_PER_GAL
     co2_kg_per_kg: float = DIESEL_CO2_KG_PER_KG
     torque_scale: float = 1.0
+    fuel_name: str = "diesel"
 
     def kernel_tables(self) -> tuple[FloatArray, ...]:
         """Arrays for compiled loops: (tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z,
@@ -173,9 +175,6 @@ class Engine:
         }
         if "rotational_inertia_kg_m2" in params:
             kwargs["inertia_kgm2"] = float(params["rotational_inertia_kg_m2"])
-        if "fuel_lhv_J_per_g" in params:
-            kwargs["fuel_lhv_jpkg"] = float(params["fuel_lhv_J_per_g"]) * 1e3
-        if "fuel_density_g_per_L" in params:
-            kwargs["fuel_density_kgpm3"] = float(params["fuel_density_g_per_L"])
+        kwargs.update(declared_fuel(meta, d).engine_kwargs())  # meta.toml `fuel`, hevsim/data/fuels.toml
         kwargs.update(overrides)
         return cls(**kwargs)  # type: ignore[arg-type]

@@ -26,7 +26,7 @@ from hevsim.components.engine import Engine
 from hevsim.cycles import DriveCycle
 from hevsim.errors import DPInfeasibleError
 from hevsim.optimal._problem import DPProblem, FinalTarget
-from hevsim.sim.metrics import fuel_economy, metric
+from hevsim.sim.metrics import MPGGE_DESCRIPTION, fuel_economy, metric
 from hevsim.units import M3_PER_US_GALLON
 
 FloatArray = npt.NDArray[np.float64]
@@ -578,13 +578,11 @@ def hev_metrics(
         "fuel_kg": metric(fuel_kg, "kg", "fuel burnt on the optimal trajectory"),
         "fuel_l": metric(liters, "L", "fuel burnt"),
         "fuel_gal": metric(fe["gallons"], "gal", "fuel burnt (US gallons)"),
-        "mpg": metric(fe["mpg"], "mpg", "miles per gallon of fuel, no SOC correction"),
+        "mpg": metric(fe["mpg"], "mi/gal", f"miles per US gallon of {engine.fuel_name}, no SOC correction"),
         "l_per_100km": metric(
             liters / km * 100.0 if km > 0 else nan, "L/100km", "fuel consumption, no SOC correction"
         ),
-        "mpgge": metric(
-            fe["mpgge"], "mpgge", "miles per gallon of gasoline equivalent with SOC correction, eqs 14-20"
-        ),
+        "mpgge": metric(fe["mpgge"], "mi/gal", MPGGE_DESCRIPTION),
         "fuel_equivalent_kg": metric(
             eq_fuel_kg, "kg", "fuel burnt plus the fuel equivalent of the SOC change"
         ),

@@ -5,10 +5,19 @@ The SOC correction follows the thesis and tutorial lecture 7 exactly:
 1. ``Ah = (SOC_i - SOC_f) x capacity``                                   (14)
 2. ``E_battery [Wh] = Ah x OCV`` (OCV at the mean of initial and final SOC)  (15)
 3. ``E_electrical [BTU] = 3.412 x E_battery / eta_conversion``            (16)
-4. ``E_fuel [BTU] = gallons x 133393.1102`` (B-20 diesel heating value)   (17)
+4. ``E_fuel [BTU] = gallons x heating value of the fuel [BTU/gal]``     (17)
 5. ``E_total = E_fuel + E_electrical``                                    (18)
 6. ``gallons_RFG = E_total / 114871.7446`` (RFG heating value)            (19)
 7. ``MPGGE = miles / gallons_RFG``                                        (20)
+
+The fuel's heating value, density and CO2 factor are those of the engine's fuel
+(:mod:`hevsim.fuels`, ``hevsim/data/fuels.toml``): the thesis's B-20 diesel value
+133393.1102 BTU/gal for diesel, 114871.7446 BTU/gal for gasoline. The reference gallon of
+eq (19) is the table's ``mpgge.reference_heating_value_btu_per_us_gal``. So MPGGE is
+"miles per US gallon of gasoline equivalent": the distance over the gasoline gallons holding
+the same energy as the fuel burnt plus the SOC change; a gasoline vehicle with no SOC change
+has MPGGE = MPG, and two vehicles using the same fuel energy have the same MPGGE whatever
+they burn.
 
 A depleted battery (SOC_f < SOC_i) adds energy and lowers MPGGE; a charged one subtracts.
 (The tutorial's printed example adds a negative "electrical energy consumed" with the
@@ -21,11 +30,17 @@ from typing import Any
 
 import numpy as np
 
-from hevsim.components.engine import RFG_HEATING_VALUE_BTU_PER_GAL
+from hevsim.fuels import mpgge_reference_btu_per_us_gal
 from hevsim.sim import kernel as K
 from hevsim.units import BTU_PER_WH, J_PER_WH, M3_PER_US_GALLON, M_PER_MILE, MPS_PER_MPH
 
 SOURCES = ("fuel", "genset_source", "battery_chemical")
+MPGGE_DESCRIPTION = (
+    "MPGGE: miles per US gallon of gasoline equivalent with SOC correction, eqs 14-20: distance / "
+    "((fuel energy + battery energy / conversion efficiency) / reference gallon energy), "
+    "reference gallon = the fuel table's mpgge reference (RFG, 114871.7446 BTU/gal, thesis eq 19)"
+)
+"""What the ``mpgge`` metric is (its unit is mi/gal)."""
 
 
 def metric(value: float, unit: str, description: str) -> dict[str, Any]:
@@ -43,7 +58,7 @@ def energy_audit(energy: np.ndarray) -> dict[str, float]:
 
 
 def audit_residual_fraction(audit: dict[str, float]) -> float:
-    """|residual| relative to the gross energy throughput (sum of |terms|) [-]."""
+    """``|residual|`` relative to the gross energy throughput (sum of ``|terms|``) [-]."""
     gross = sum(abs(v) for k, v in audit.items() if k != "residual") / 2.0
     return abs(audit["residual"]) / gross if gross > 0 else 0.0
 
@@ -59,13 +74,18 @@ def fuel_economy(
     heating_value_btu_per_gal: float,
     conversion_efficiency: float,
     genset_source_j: float = 0.0,
+    reference_btu_per_gal: float | None = None,
 ) -> dict[str, float]:
     """MPG and SOC-corrected MPGGE, eqs (14)-(20).
 
-    ``genset_source_j`` [J] is electrical energy from an ideal genset (no engine model); it is
-    counted as fuel energy at 100 % conversion. Returns miles, gallons, BTU terms and both
-    fuel economies (inf when nothing is consumed).
+    ``heating_value_btu_per_gal`` [BTU/gal] and ``fuel_density_kgpm3`` [kg/m^3] are the
+    burnt fuel's; ``reference_btu_per_gal`` [BTU/gal] is the gasoline-equivalent gallon of
+    eq (19) (None: the fuel table's). ``genset_source_j`` [J] is electrical energy from an
+    ideal genset (no engine model); it is counted as fuel energy at 100 % conversion.
+    Returns miles, gallons, BTU terms and both fuel economies [mi/gal] (inf when nothing is
+    consumed).
     """
+    reference = mpgge_reference_btu_per_us_gal() if reference_btu_per_gal is None else reference_btu_per_gal
     miles = distance_m / M_PER_MILE
     gallons = fuel_kg / fuel_density_kgpm3 / M3_PER_US_GALLON
     e_fuel_btu = gallons * heating_value_btu_per_gal + genset_source_j / J_PER_WH * BTU_PER_WH
@@ -73,7 +93,7 @@ def fuel_economy(
     e_batt_wh = ah * ocv_v
     e_elec_btu = BTU_PER_WH * e_batt_wh / conversion_efficiency
     e_total = e_fuel_btu + e_elec_btu
-    gal_rfg = e_total / RFG_HEATING_VALUE_BTU_PER_GAL
+    gal_rfg = e_total / reference
     fuel_gal_total = gallons + genset_source_j / J_PER_WH * BTU_PER_WH / heating_value_btu_per_gal
     return {
         "miles": miles,
@@ -118,17 +138,13 @@ def compute_metrics(
         "fuel_kg": metric(fuel, "kg", "fuel burnt"),
         "fuel_l": metric(liters, "L", "fuel burnt"),
         "fuel_gal": metric(fe["gallons"], "gal", "fuel burnt (US gallons)"),
-        "mpg": metric(fe["mpg"], "mpg", "miles per gallon of fuel, no SOC correction"),
+        "mpg": metric(fe["mpg"], "mi/gal", "miles per US gallon of the fuel burnt, no SOC correction"),
         "l_per_100km": metric(
             liters / km * 100.0 if km > 0 else float("nan"),
             "L/100km",
             "fuel consumption, no SOC correction",
         ),
-        "mpgge": metric(
-            fe["mpgge"],
-            "mpgge",
-            "miles per gallon of gasoline equivalent with SOC correction, eqs 14-20",
-        ),
+        "mpgge": metric(fe["mpgge"], "mi/gal", MPGGE_DESCRIPTION),
         "fuel_equivalent_kg": metric(
             eq_fuel_kg, "kg", "fuel burnt plus the fuel equivalent of the SOC change"
         ),

@@ -20,6 +20,7 @@ from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
 from hevsim.components.electric_machine import ElectricMachine
 from hevsim.components.engine import Engine
+from hevsim.fuels import with_config_fuel
 from hevsim.config import MachineSection, VehicleConfig
 from hevsim.errors import ConfigError
 from hevsim.sim import kernel as K
@@ -271,7 +272,7 @@ def build_series_hev(cfg: VehicleConfig) -> SeriesHEV:
         gear=Gear(ratio=cfg.gear.ratio, efficiency=cfg.gear.efficiency),
         traction_motor=_machine(cfg.traction_motor, "traction_motor", base),
         generator=_machine(cfg.generator, "generator", base),
-        engine=engine,
+        engine=None if engine is None else with_config_fuel(engine, cfg),  # [fuel] section
         battery=battery,
         cell=cell,
     )

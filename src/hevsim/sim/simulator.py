@@ -14,6 +14,7 @@ import pandas as pd
 
 import hevsim
 from hevsim.components.engine import Engine
+from hevsim.fuels import config_fuel
 from hevsim.config import VehicleConfig
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DomainError, InputError, TrackingError
@@ -181,15 +182,8 @@ def _prepare(
 
 
 def _energy_keys(hev: SeriesHEV) -> tuple[float, float, float, float]:
-    eng = hev.engine
-    if eng is None:
-        return 843.0, 133393.1102, 3.16, 42.937e6
-    return (
-        eng.fuel_density_kgpm3,
-        eng.heating_value_btu_per_gal,
-        eng.co2_kg_per_kg,
-        eng.fuel_lhv_jpkg,
-    )
+    f = config_fuel(hev.config, hev.engine)  # the engine's fuel; no engine: the [fuel] section's
+    return f.density_kg_per_m3, f.heating_value_btu_per_us_gal, f.co2_kg_per_kg, f.lower_heating_value_j_per_kg
 
 
 def simulate(
@@ -277,6 +271,7 @@ def _assemble(
         "cycle": cyc.name,
         "cycle_source": cyc.source,
         "dt_s": dt,
+        "fuel": config_fuel(hev.config, hev.engine).metadata(),
         "hevsim_version": hevsim.__version__,
         "python": platform.python_version(),
         "numpy": np.__version__,
