@@ -46,7 +46,7 @@ def test_recovers_known_parameters_from_noisy_data(tmp_path: Path) -> None:
         assert abs(res.values[k] - v) < 4 * res.std_errors[k] + 1e-12, k
     assert res.rmse["voltage_v"] < 0.003 and res.rmse["temp_k"] < 0.08
     out = res.save(tmp_path / "fit")
-    assert {f.name for f in out.iterdir()} == {"fit.json", "timeseries.csv", "overlay.png"}
+    assert {f.name for f in out.iterdir()} == {"fit.json", "timeseries.csv", "overlay.png", ".hevsim-results"}
 
 
 def test_test_file_errors(tmp_path: Path) -> None:

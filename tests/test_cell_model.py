@@ -203,5 +203,6 @@ def test_batch_matches_single_cell() -> None:
 def test_result_save_is_complete(tmp_path: Any) -> None:
     r = Cell("thesis_table_4_1", soc_initial=0.9).simulate(np.full(10, 2.0), 1.0)
     out = r.save(tmp_path / "res")
-    assert {f.name for f in out.iterdir()} == {"timeseries.csv", "metrics.json", "metadata.json"}
+    names = {f.name for f in out.iterdir()}
+    assert names == {"timeseries.csv", "metrics.json", "metadata.json", ".hevsim-results"}
     assert "voltage_v" in (out / "timeseries.csv").read_text().splitlines()[0]
