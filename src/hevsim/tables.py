@@ -113,7 +113,7 @@ def _check_axis(axis: FloatArray, name: str, source: str) -> None:
     bad = np.flatnonzero(~np.isfinite(axis))
     if bad.size:
         raise InputError(
-            f"{source}: axis '{name}' has a non-finite value {axis[bad[0]]!r} at position "
+            f"{source}: axis '{name}' has a non-finite value {float(axis[bad[0]]):g} at position "
             f"{bad[0]}; expected finite numbers."
         )
     steps = np.diff(axis)
@@ -121,8 +121,8 @@ def _check_axis(axis: FloatArray, name: str, source: str) -> None:
     if bad.size:
         i = int(bad[0])
         raise InputError(
-            f"{source}: axis '{name}' is not strictly increasing: value {axis[i + 1]!r} at "
-            f"position {i + 1} follows {axis[i]!r}; expected sorted, distinct breakpoints."
+            f"{source}: axis '{name}' is not strictly increasing: value {float(axis[i + 1]):g} at "
+            f"position {i + 1} follows {float(axis[i]):g}; expected sorted, distinct breakpoints."
         )
 
 
@@ -131,7 +131,7 @@ def _check_values(values: FloatArray, name: str, source: str) -> None:
     if bad.size:
         idx = tuple(int(i) for i in bad[0])
         raise InputError(
-            f"{source}: table '{name}' has a non-finite value {values[idx]!r} at index {idx}; "
+            f"{source}: table '{name}' has a non-finite value {float(values[idx]):g} at index {idx}; "
             "expected finite numbers everywhere (fill gaps in the source data)."
         )
 
@@ -312,7 +312,7 @@ def read_csv_columns(path: str | Path, columns: list[str]) -> dict[str, FloatArr
         if bad.size:
             row = int(bad[0])
             raise InputError(
-                f"{p}: line {row + 2}, column '{c}': value {frame[c].iloc[row]!r} is not a "
+                f"{p}: line {row + 2}, column '{c}': value {str(frame[c].iloc[row])!r} is not a "
                 "finite number; expected a number."
             )
         out[c] = values
