@@ -4,6 +4,13 @@
 voltage, temperature) by weighted nonlinear least squares (``scipy.optimize.least_squares``,
 bounded), and reports the fitted values with standard errors from the Jacobian, the RMSE of
 each signal and the measured-vs-fitted series (with an overlay plot).
+
+Row convention (the same as :class:`hevsim.battery.cell.CellResult`, i.e. the
+``timeseries.csv`` that ``hevsim cell`` writes, so a cell's own output is a valid test record):
+row k holds step k. ``time_s`` is the end of the step, ``current_a`` the constant current over
+the step ``(t_k - dt, t_k]``, and ``voltage_v`` / ``temp_k`` the values at ``t_k``. The initial
+state (``soc_initial``, the initial temperature) holds at ``t_0 - dt``, one step before the
+first row. A lab record that starts at rest loses nothing by this: its first row is a rest step.
 """
 
 from __future__ import annotations
@@ -37,7 +44,10 @@ FITTABLE = (
 
 @dataclass(frozen=True, eq=False)
 class CellTestRecord:
-    """A cell test on a uniform step: time [s], current [A, discharge > 0], voltage [V], temperature [K]."""
+    """A cell test on a uniform step: time [s], current [A, discharge > 0], voltage [V], temperature [K].
+
+    Row k: current over ``(t_k - dt, t_k]``, voltage and temperature at ``t_k`` (module docstring).
+    """
 
     time_s: FloatArray
     current_a: FloatArray
@@ -145,17 +155,17 @@ def simulate_record(
     port_temp_k: float,
     initial_temp_k: float | None = None,
 ) -> tuple[FloatArray, FloatArray]:
-    """Simulated (voltage [V], temperature [K]) at the record's samples (sample k = state after step k)."""
+    """Simulated (voltage [V], temperature [K]) at the record's rows (row k = state after step k,
+    step k driven by row k's current; the initial state is one step before row 0)."""
     tabs = list(p.tables())
     if p.n_rc:
         tabs[7], tabs[8] = rc_d, rc_c
     t0 = float(rec.temp_k[0]) if initial_temp_k is None else initial_temp_k
     x = p.initial_state(t0)
-    n = rec.time_s.size - 1
+    n = rec.time_s.size
     out = np.empty((n, len(K.RECORD)))
-    K.run_cell(vec, *tabs, x, rec.current_a[1:], rec.dt_s, np.full(n, port_temp_k), out)  # type: ignore[call-arg]
-    v0 = rec.voltage_v[0]
-    return np.r_[v0, out[:, K.RV]], np.r_[t0, out[:, K.RTEMP]]
+    K.run_cell(vec, *tabs, x, rec.current_a, rec.dt_s, np.full(n, port_temp_k), out)  # type: ignore[call-arg]
+    return out[:, K.RV], out[:, K.RTEMP]
 
 
 def calibrate(
@@ -166,7 +176,8 @@ def calibrate(
 ) -> CalibrationResult:  # fmt: skip
     """Fit ``fit = {name: (initial, lower, upper)}`` to ``record``.
 
-    The current of sample k (k >= 1) drives the step from sample k-1 to k. Residuals are
+    Row k's current drives the step that ends at row k, from the initial state (``soc_initial``,
+    ``initial_temp_k``) one step before row 0 (module docstring). Residuals are
     ``w_V (V_sim - V)/sigma_v`` and ``w_T (T_sim - T)/sigma_t`` (``weights`` keys
     ``"voltage"``, ``"temperature"``, default 1). ``port_temp_k`` (ambient) and
     ``initial_temp_k`` default to the first measured temperature; give the known ambient
