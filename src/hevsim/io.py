@@ -96,10 +96,13 @@ def _is_results_folder(folder: Path) -> bool:
 def _protection(out: Path, protect: Iterable[str | Path]) -> str | None:
     """Why ``out`` may never be replaced, or None."""
     real = out.resolve()
-    cwd = Path.cwd().resolve()
-    if real == cwd:
+    try:
+        cwd: Path | None = Path.cwd().resolve()
+    except OSError:  # the working directory was removed: nothing there to protect
+        cwd = None
+    if cwd is not None and real == cwd:
         return f"is the current working directory ({cwd})"
-    if real in cwd.parents:
+    if cwd is not None and real in cwd.parents:
         return f"contains the current working directory {cwd}"
     for p in protect:
         pr = Path(p).resolve()
