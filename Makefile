@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test lint refinement bench clean
+.PHONY: setup demo test docs lint refinement bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,7 +21,12 @@ test: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples
 	$(BIN)/ruff format --check src tests benchmarks examples
 	$(BIN)/mypy
+	$(BIN)/python -m sphinx -W -q -b html docs/api build/api-html
 	$(BIN)/python -m pytest -q
+
+docs: $(STAMP)
+	$(BIN)/python -m sphinx -W --keep-going -b html docs/api build/api-html
+	@echo "API reference: build/api-html/index.html"
 
 refinement: $(STAMP)
 	$(BIN)/hevsim refinement --cycle udds
@@ -30,4 +35,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_simulate.py
 
 clean:
-	rm -rf $(VENV) results .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) results build .pytest_cache .mypy_cache .ruff_cache

@@ -121,7 +121,7 @@ def run_cycling(
     start_mode,
     out,
 ):
-    """Cycle a cell: load until V < v_min, CCCV charge to v_max until |I| < i_end, repeat.
+    """Cycle a cell: load until V < v_min, CCCV charge to v_max until ``|I| < i_end``, repeat.
 
     ``out[k]`` = (current [A], voltage [V], average voltage [V], SOC, temperature [K], mode).
     Returns (steps done, stop reason index).

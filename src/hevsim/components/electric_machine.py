@@ -32,7 +32,7 @@ def electrical_power(torque_nm, omega_radps, efficiency):
 def machine_efficiency(
     torque_nm, omega_radps, kind, const_eff, eff_x, eff_y, eff_z
 ):  # fmt: skip
-    """Efficiency [-] (scalar kernel): kind 0 ideal, 1 constant, 2 map over |speed| x torque."""
+    """Efficiency [-] (scalar kernel): kind 0 ideal, 1 constant, 2 map over ``|speed|`` x torque."""
     if kind == 0:
         return 1.0
     if kind == 1:

@@ -8,7 +8,7 @@ Algorithm per communication step from ``t`` by ``h`` (inputs held constant over 
   outputs of those already stepped to ``t + h`` and of the others at ``t``.
 * **Iteration** (``max_iterations > 1``): the step is redone from saved states with the new
   end-of-step outputs (under-relaxed by ``relaxation``) until every connected output changes
-  by less than ``tolerance`` (relative to 1 + |value|). With ``hold="midpoint"`` (default)
+  by less than ``tolerance`` (relative to ``1 + |value|``). With ``hold="midpoint"`` (default)
   the value held over the step is the mean of the start and end values (trapezoidal
   coupling: second order once converged); ``hold="end"`` holds the end value (first order).
 * **Step size**: fixed ``step_s``, or negotiated: the MIN or MAX of the participants'
