@@ -240,7 +240,7 @@ def _cmd_export_fmu(args: argparse.Namespace) -> int:
 
 
 def _cmd_age(args: argparse.Namespace) -> int:
-    from hevsim.battery.ageing import age_cell
+    from hevsim.battery.ageing import SOH_DEFINITION, age_cell
     from hevsim.battery.config import load_config as load_cell_config
     from hevsim.battery.config import profile_current
     from hevsim.io import atomic_directory
@@ -263,13 +263,14 @@ def _cmd_age(args: argparse.Namespace) -> int:
     )
     with atomic_directory(out) as tmp:
         table.to_csv(tmp / "ageing.csv", index=False, float_format="%.6g")
+        (tmp / "soh_definition.txt").write_text(SOH_DEFINITION + "\n", encoding="utf-8")
         fig, (ax1, ax2) = _figure(2, 1, figsize=(9.0, 6.0), sharex=True)
         ax1.plot(table["time_days"], 100 * table["capacity_fraction"], label="capacity")
         ax1.plot(table["time_days"], 100 * table["resistance_fraction"], label="resistance")
         ax1.set_ylabel("% of new")
         ax1.legend()
-        ax2.plot(table["time_days"], table["soh"], color="k", label="SOH (eq 42)")
-        ax2.set_ylabel("SOH [-]")
+        ax2.plot(table["time_days"], table["soh"], color="k", label="SOH (eq 42), capacity at T_ref")
+        ax2.set_ylabel("SOH [-] (1 new, 0 end of life)")
         ax2.set_xlabel("time [days]")
         for ax in (ax1, ax2):
             _grid(ax)
@@ -281,7 +282,8 @@ def _cmd_age(args: argparse.Namespace) -> int:
         f"{100 * last['capacity_fraction']:.1f} %, resistance {100 * last['resistance_fraction']:.1f} %, "
         f"SOH {last['soh']:.3f}"
     )
-    print(f"results written to {out}/ (ageing.csv, ageing.png)")
+    print(SOH_DEFINITION)
+    print(f"results written to {out}/ (ageing.csv, ageing.png, soh_definition.txt)")
     return 0
 
 

@@ -50,6 +50,34 @@ def soh(soh_c: npt.ArrayLike, soh_z: npt.ArrayLike) -> Any:
     return np.asarray(soh_c) * np.asarray(soh_z)
 
 
+SOH_DEFINITION = (
+    "SOH = SOH_C x SOH_Z (thesis eq 42): SOH_C = (C/C0 - x_C)/(1 - x_C) (eq 43), C = aged capacity at the "
+    "reference temperature T_ref, C0 = nominal capacity of the new cell; SOH_Z = (Z/Z0 - x_Z)/(1 - x_Z) "
+    "(eq 44), Z/Z0 = resistance growth; 1 = new cell, 0 = end of life (C = x_C C0 or Z = x_Z Z0). "
+    "The temperature's effect on the available capacity is not ageing and is not counted."
+)
+"""One-paragraph definition of the SOH that :func:`age_cell` and the FMUs report."""
+
+
+def reference_capacity_c(prm: npt.ArrayLike, qabs_c: npt.ArrayLike) -> Any:
+    """Capacity [C] at the reference temperature, eq (35) at T = T_ref: ``C0 + k_CQabs Q_abs``.
+
+    ``prm``: parameter vector(s) of :mod:`hevsim.battery.kernel` (last axis); ``qabs_c`` [C]:
+    absolute transferred charge. The temperature terms of eq (35) (``alpha_C`` and the
+    capacity-factor table, normalised at T_ref) change the *available* capacity, not the
+    health, so they are left out: a new cell has this capacity equal to C0 at any temperature.
+    """
+    p = np.asarray(prm, float)
+    return p[..., K.C0] + p[..., K.KCQ] * np.asarray(qabs_c, float)
+
+
+def soh_of_state(prm: npt.ArrayLike, qabs_c: npt.ArrayLike, c0_nominal_c: npt.ArrayLike, x_c: float) -> Any:
+    """SOH_C (eq 43) of cell state(s): the capacity at T_ref (:func:`reference_capacity_c`) against
+    the nominal capacity ``c0_nominal_c`` [C]; exactly 1 for a new cell at any temperature."""
+    ratio = reference_capacity_c(prm, qabs_c) / np.asarray(c0_nominal_c, float)
+    return soh_capacity(ratio, 1.0, x_c)
+
+
 @dataclass(frozen=True)
 class Stress:
     """Stress of one repetition of a profile (all for one cell)."""

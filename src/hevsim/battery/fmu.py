@@ -6,7 +6,8 @@ The FMU wraps the same compiled step (:func:`hevsim.battery.kernel.cell_step`) a
 Interface: inputs ``current_a`` [A, discharge > 0] (or ``power_w`` [W] with ``power_input``)
 and ``port_temp_k`` [K]; outputs
 ``voltage_v`` [V], ``soc`` [-], ``port_heat_w`` [W, heat flow into the port], ``temp_k``
-[K, core] and ``soh`` [-] (SOH_C of eq 43; the impedance factor of eq 44 is 1 because the
+[K, core] and ``soh`` [-] (SOH_C of eq 43 from the capacity at the reference temperature, so
+1 for a new cell at any temperature; the impedance factor of eq 44 is 1 because the
 cell's impedance does not age within a run); parameters ``power_input`` (Boolean),
 ``soc_initial``, ``temp_initial_k`` and the scalars of :data:`FMU_PARAMETERS`. With
 ``power_input`` the solved current is readable as ``current_a`` (an input variable, so
@@ -47,7 +48,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from hevsim.battery import kernel as K
-from hevsim.battery.ageing import soh_capacity
+from hevsim.battery.ageing import soh_of_state
 from hevsim.battery.params import CellParameters, load_cell_parameters, parameters_from_dict
 from hevsim.errors import ConfigError
 
@@ -120,13 +121,14 @@ class CellStepper:
         self.x = params.initial_state(temp_k)
         self.tabs = params.tables()
         self.rec = np.zeros(len(K.RECORD))
-        soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf = self.tabs[:7]
+        soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d = self.tabs[:6]
         ocv, _ = K.cell_ocv_rs(self.p, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, soc_initial, temp_k, 1.0)
         self.outputs = {"voltage_v": ocv, "soc": soc_initial, "port_heat_w": 0.0, "temp_k": temp_k}
-        self.outputs["soh"] = self._soh(K.cell_capacity(self.p, t_ax, capf, self.x[K.SQABS], temp_k))
+        self.outputs["soh"] = self._soh()
 
-    def _soh(self, capacity_c: float) -> float:
-        return float(soh_capacity(capacity_c, self.p[K.C0], self.params.ageing.x_c))
+    def _soh(self) -> float:
+        """SOH_C (eq 43) at the reference temperature: 1 for a new cell at any temperature."""
+        return float(soh_of_state(self.p, self.x[K.SQABS], self.p[K.C0], self.params.ageing.x_c))
 
     def trial_voltage(self, current_a: float, port_temp_k: float, dt_s: float) -> float:
         """Step-average terminal voltage [V] of a step at ``current_a``, state unchanged."""
@@ -143,7 +145,7 @@ class CellStepper:
             "soc": float(r[K.RSOC]),
             "port_heat_w": float(r[K.RPORT]),
             "temp_k": float(r[K.RTEMP]),
-            "soh": self._soh(float(r[K.RCAP])),
+            "soh": self._soh(),
         }
         return self.outputs
 
@@ -208,10 +210,9 @@ class ModuleStepper:
         }
 
     def _soh(self) -> float:
-        t_ax, capf = self.tabs[1], self.tabs[6]
+        """Lowest SOH_C (eq 43) of the cells, at the reference temperature (1 when new)."""
         x, p = self.m.state, self.m.p
-        caps = [K.cell_capacity(p[c], t_ax, capf, x[c, K.SQABS], x[c, K.STEMP]) for c in range(len(x))]
-        return float(min(soh_capacity(cap, p[c, K.C0], self.params.ageing.x_c) for c, cap in enumerate(caps)))
+        return float(np.min(soh_of_state(p, x[:, K.SQABS], p[:, K.C0], self.params.ageing.x_c)))
 
     def trial_voltage(self, current_a: float, port_temp_k: float | np.ndarray, dt_s: float) -> float:
         """Step-average module voltage [V] of a step at ``current_a``, state unchanged
