@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import hevsim.optimal._engine as dp_engine
+import hevsim.optimal._solver as dp_solver
 from hevsim.optimal import DPProblem, FinalTarget, Increment, solve_dp
 from hevsim.optimal._hull import hull_inputs
 
@@ -47,7 +47,7 @@ def test_hull_matches_generic_kernel(seed: int, method: str, monkeypatch: pytest
     if method == "penalty":
         kw["penalty_weight"] = 1e3
     fast = solve_dp(_problem(seed), [0.5], **kw)  # type: ignore[arg-type]
-    monkeypatch.setattr(dp_engine, "USE_HULL", False)
+    monkeypatch.setattr(dp_solver, "USE_HULL", False)
     slow = solve_dp(_problem(seed), [0.5], **kw)  # type: ignore[arg-type]
     assert fast.cost_to_go is not None and slow.cost_to_go is not None
     assert np.array_equal(np.isinf(fast.cost_to_go), np.isinf(slow.cost_to_go))

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import hevsim.optimal._engine as dp_engine
+import hevsim.optimal._solver as dp_solver
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DPInfeasibleError, DPSetupError
 from hevsim.optimal import ARCHITECTURES, OptimizationResult, optimize
@@ -180,7 +180,7 @@ def test_hull_pruning_is_exact(hev: ParallelHEV, monkeypatch: pytest.MonkeyPatch
     kw = {"soc_grid_points": 101, "input_grid_points": 61, "store_cost_to_go": True}
     cyc = load_cycle("udds").truncated(300.0)
     fast = optimize(hev, cyc, **kw)
-    monkeypatch.setattr(dp_engine, "USE_HULL", False)
+    monkeypatch.setattr(dp_solver, "USE_HULL", False)
     slow = optimize(hev, cyc, **kw)
     assert fast.dp.total_cost == pytest.approx(slow.dp.total_cost, rel=1e-12)
     assert fast.cost_to_go is not None and slow.cost_to_go is not None

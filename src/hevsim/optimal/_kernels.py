@@ -77,7 +77,7 @@ SIG_ND = types.void(
 def _par_and_ser(body: Any, sig: Any) -> tuple[Any, Any]:
     """Compile the row loop ``body`` (a ``prange`` loop) twice: parallel and serial.
 
-    The engine runs the serial kernel on blocks below ``PARALLEL_MIN_PAIRS`` (``_engine.py``:
+    The solver runs the serial kernel on blocks below ``PARALLEL_MIN_PAIRS`` (``_solver.py``:
     small grids, the one-row steps of the forward pass, boundary-line and point queries),
     which would otherwise pay the thread launch of a parallel region; with
     ``parallel=False``, ``prange`` is a plain ``range``. Each kernel is compiled from a copy

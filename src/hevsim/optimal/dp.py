@@ -46,8 +46,8 @@ import numpy as np
 import numpy.typing as npt
 
 from hevsim.errors import DPSetupError
-from hevsim.optimal._engine import METHODS, Engine, progress_bar
 from hevsim.optimal._problem import DPProblem, FinalTarget, FloatArray, Increment
+from hevsim.optimal._solver import METHODS, DPSolver, progress_bar
 
 __all__ = [
     "FINAL_CONSTRAINTS",
@@ -284,7 +284,7 @@ def solve_dp(
             "cost_dtype='float32', a coarser grid, fewer steps, store_policy=False, or "
             "raise the limit."
         )
-    engine = Engine(problem, method, weight, dtype)
+    solver = DPSolver(problem, method, weight, dtype)
     N = sp.n_steps
     if progress is None:
         isatty = getattr(sys.stderr, "isatty", None)
@@ -294,17 +294,17 @@ def solve_dp(
     bar = progress_bar(2 * N, show)
     try:
         t0 = time.perf_counter()
-        bw = engine.backward(sp.box_lo, sp.box_hi, store=True, keep_policy=keep_policy, bar=bar)
+        bw = solver.backward(sp.box_lo, sp.box_hi, store=True, keep_policy=keep_policy, bar=bar)
         t1 = time.perf_counter()
-        if not engine.point_feasible(x, bw):
-            raise engine.diagnose(x, bw)
-        xs, us, gs, n_fb = engine.forward(x, bw, forward == "policy", bar=bar)
+        if not solver.point_feasible(x, bw):
+            raise solver.diagnose(x, bw)
+        xs, us, gs, n_fb = solver.forward(x, bw, forward == "policy", bar=bar)
         t2 = time.perf_counter()
-        lam = engine.costate(bw, xs)
+        lam = solver.costate(bw, xs)
     finally:
         if bar is not None:
             bar.close()
-    phi, pen = engine.terminal_at(xs[-1])
+    phi, pen = solver.terminal_at(xs[-1])
     shape = (N + 1, *sp.shape)
     band = bw.band[:, [0, 2]].copy() if bw.band is not None else None
     return DPResult(

@@ -71,8 +71,11 @@ class Backward:
     k0: int
 
 
-class Engine:
-    """Runs one DP solution; holds the problem, the method and the storage choices."""
+class DPSolver:
+    """Runs one DP solution; holds the problem, the method and the storage choices.
+
+    (Named ``DPSolver``, not ``Engine``: :class:`hevsim.components.engine.Engine` is the
+    combustion engine.)"""
 
     def __init__(
         self,
