@@ -13,7 +13,6 @@ matplotlib is imported inside the functions: importing :mod:`hevsim.report` stay
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
@@ -188,17 +187,10 @@ def thin_line(
 
 
 def _save(fig: Figure, path: str | Path) -> Path:
-    """Write ``fig`` to ``path`` as PNG atomically and release it."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = target.with_name(target.name + ".tmp")
-    try:
-        fig.savefig(tmp, format="png", dpi=DPI)
-        os.replace(tmp, target)
-    finally:
-        tmp.unlink(missing_ok=True)
-        fig.clear()
-    return target
+    """Write ``fig`` to ``path`` as PNG atomically and release it (:func:`hevsim.report.save.save_png`)."""
+    from hevsim.report.save import save_png
+
+    return save_png(fig, path, DPI)
 
 
 def _col(ts: pd.DataFrame, name: str) -> FloatArray:

@@ -248,10 +248,10 @@ def raster_triangles(
 
 
 def _save(fig: Any, path: str | Path) -> Path:
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=_DPI, bbox_inches="tight")
-    return out
+    """Write ``fig`` to ``path`` (PNG, tight bounding box) through the package's one atomic save."""
+    from hevsim.report.save import save_png
+
+    return save_png(fig, path, _DPI, bbox_inches="tight")
 
 
 def _module_outline(ax: Any, geometry: Any) -> None:
