@@ -80,8 +80,17 @@ CONFIG_KEYS = {
 parameters)."""
 
 
+def _key(key: str) -> str:
+    """``key`` with its section under its current name (``[gear]`` became ``[final_drive]``)."""
+    from hevsim import config
+
+    section, _, rest = key.partition(".")
+    renamed: dict[str, str] = getattr(config, "RENAMED_SECTIONS", {})
+    return f"{renamed.get(section, section)}.{rest}"
+
+
 def _param_name(name: str) -> str:
-    return CONFIG_KEYS.get(name, f"kernel parameter '{name}'")
+    return _key(CONFIG_KEYS[name]) if name in CONFIG_KEYS else f"kernel parameter '{name}'"
 
 
 def _fmt(x: float) -> str:
@@ -216,8 +225,8 @@ def _likely_tracking_cause(ts: Any, rows: slice, error: np.ndarray, p: np.ndarra
     if np.mean(ts["driver_request"].to_numpy()[rows] >= 0.999) > 0.5:
         return (
             "motor-limited: the traction motor at full torque cannot accelerate the vehicle as the "
-            "cycle asks (traction_motor max torque / torque_scale, gear.ratio, body.mass_kg, "
-            "road load)"
+            f"cycle asks ({_key('traction_motor.max_torque_nm')} or "
+            f"{_key('traction_motor.torque_scale')}, {_key('gear.ratio')}, body.mass_kg, road load)"
         )
     return "the driver reacts too slowly (driver.gain_per_mph) for this cycle and time step"
 
