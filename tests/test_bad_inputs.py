@@ -28,6 +28,7 @@ from hevsim.cli import build_parser, main
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "series_hev.toml"
 CELL_EXAMPLE = ROOT / "examples" / "cell.toml"
+MODULE_EXAMPLE = ROOT / "examples" / "module.toml"
 SSD_EXAMPLE = ROOT / "examples" / "cosim_module" / "module.ssd"
 THERMAL_EXAMPLE = ROOT / "examples" / "module_thermal.toml"
 LEVEL2 = Path(str(files("hevsim") / "data" / "refinement" / "level2_ideal_battery_soc.toml"))
@@ -320,6 +321,12 @@ CASES = [
         lambda d: ["cell", str(cell(d, "profile", "current_a", "-4000.0"))],
         2,
         ("-4000 A", "150..500 K"),
+    ),
+    Case(
+        "module-current-beyond-cells",
+        lambda d: ["cell", str(_set_key(MODULE_EXAMPLE, d / "module.toml", "profile", "scale", "2000.0"))],
+        2,
+        ("2s6p module", "terminal voltage", "short-circuit current"),
     ),
     Case(
         "cell-soc-initial-1.5",

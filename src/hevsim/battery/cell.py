@@ -50,34 +50,46 @@ def check_cell_domain(
     current_a: npt.NDArray[Any],
     voltage_v: npt.NDArray[Any],
     temp_k: npt.NDArray[Any],
-    capacity_c: npt.NDArray[Any],
-    short_circuit_a: npt.NDArray[Any],
+    capacity_c: npt.NDArray[Any] | None = None,
+    short_circuit_a: npt.NDArray[Any] | None = None,
 ) -> None:
-    """Raise :class:`DomainError` at the first step where the cell left its model's domain.
+    """Raise :class:`DomainError` at the first step where a cell left its model's domain.
 
     The domain: every recorded value finite, terminal voltage > 0 V (a cell is a source: at
     or below 0 V the current exceeds its short-circuit current OCV / R_s), temperature in
-    :data:`CELL_TEMP_RANGE_K` and capacity (eq 35) > 0. All arguments are per step: times [s],
-    currents [A], voltages [V], temperatures [K], capacities [C], OCV / R_s [A].
+    :data:`CELL_TEMP_RANGE_K` and capacity (eq 35) > 0. Arguments are per step (row): times
+    [s], currents [A], terminal voltages [V], temperatures [K] (one column per cell for a
+    module), capacities [C] and OCV / R_s [A] when known.
     """
     t_lo, t_hi = CELL_TEMP_RANGE_K
+    temps = temp_k.reshape(temp_k.shape[0], -1)
+    cap = np.ones(time_s.size) if capacity_c is None else capacity_c
+    hot = (temps < t_lo) | (temps > t_hi)
     checks = (
-        (~np.isfinite(voltage_v) | ~np.isfinite(temp_k) | ~np.isfinite(capacity_c), "a state is not finite"),
+        (
+            ~np.isfinite(voltage_v) | ~np.isfinite(temps).all(axis=1) | ~np.isfinite(cap),
+            "a state is not finite",
+        ),
         (voltage_v <= 0.0, "terminal voltage {v:g} V <= 0"),
-        ((temp_k < t_lo) | (temp_k > t_hi), f"temperature {{T:g}} K outside {t_lo:g}..{t_hi:g} K"),
-        (capacity_c <= 0.0, "capacity {C:g} C <= 0 (eq 35)"),
+        (hot.any(axis=1), f"temperature {{T:g}} K outside {t_lo:g}..{t_hi:g} K"),
+        (cap <= 0.0, "capacity {C:g} C <= 0 (eq 35)"),
     )
     first = [(int(np.flatnonzero(mask)[0]), j, text) for j, (mask, text) in enumerate(checks) if mask.any()]
     if not first:
         return
     k, _, text = min(first)
-    fault = text.format(v=float(voltage_v[k]), T=float(temp_k[k]), C=float(capacity_c[k]))
-    i_k = float(current_a[k])
+    bad_t = temps[k][hot[k]] if hot[k].any() else temps[k]
+    fault = text.format(v=float(voltage_v[k]), T=float(bad_t[0]), C=float(cap[k]))
+    limit = (
+        f"a current below the short-circuit current OCV/R_s = {float(short_circuit_a[k]):.4g} A at that state"
+        if short_circuit_a is not None
+        else "a current below the cells' short-circuit current OCV/R_s"
+    )
     raise DomainError(
-        f"{what}: at t = {float(time_s[k]):g} s with a current of {i_k:g} A the cell left its "
-        f"model's domain: {fault}. The model holds for a positive terminal voltage, i.e. a "
-        f"current below the short-circuit current OCV/R_s = {float(short_circuit_a[k]):.4g} A at "
-        f"that state, and {t_lo:g}..{t_hi:g} K; reduce the current (or its scale) or the duration."
+        f"{what}: at t = {float(time_s[k]):g} s with a current of {float(current_a[k]):g} A the "
+        f"cell left its model's domain: {fault}. The model holds for a positive terminal "
+        f"voltage, i.e. {limit}, and {t_lo:g}..{t_hi:g} K; reduce the current (or its scale) "
+        "or the duration."
     )
 
 

@@ -18,7 +18,7 @@ import numpy.typing as npt
 import pandas as pd
 
 from hevsim.battery import kernel as K
-from hevsim.battery.cell import as_profile, check_dt
+from hevsim.battery.cell import as_profile, check_cell_domain, check_dt
 from hevsim.battery.params import CellParameters, load_cell_parameters
 from hevsim.errors import InputError
 from hevsim.io import atomic_directory, write_json
@@ -133,6 +133,13 @@ class Module:
         tabs = self.params.tables()
         K.run_module(  # type: ignore[call-arg]
             self.p, *tabs, self.state, self.n_series, self.n_parallel, i, dt, tp, out_m, out_c
+        )
+        check_cell_domain(
+            f"{self.n_series}s{self.n_parallel}p module of {self.params.name}",
+            dt * np.arange(1, i.size + 1),
+            i,
+            out_m[:, 0],
+            out_c[:, :, 2],
         )
         ts = pd.DataFrame(
             {

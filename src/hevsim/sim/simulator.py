@@ -20,7 +20,14 @@ from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DomainError, InputError, TrackingError
 from hevsim.io import atomic_directory, write_json
 from hevsim.sim import kernel as K
-from hevsim.sim.checks import TRACKING_BOUND, TrackingBound, check_domain, check_metrics, tracking_message
+from hevsim.sim.checks import (
+    SOC_TOLERANCE,
+    TRACKING_BOUND,
+    TrackingBound,
+    check_domain,
+    check_metrics,
+    tracking_message,
+)
 from hevsim.sim.metrics import compute_metrics, energy_audit
 from hevsim.sim.model import SeriesHEV, build_series_hev
 from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
@@ -413,6 +420,15 @@ def simulate_batch(
         raise DomainError(
             f"batch: variant {i} ({values}) produced non-finite results; expected parameters "
             "within their physical ranges."
+        )
+    socf = summary[:, K.S_SOCF]
+    out_of_range = np.flatnonzero((socf < -SOC_TOLERANCE) | (socf > 1.0 + SOC_TOLERANCE))
+    if out_of_range.size:  # a batch records no time series: only the final SOC is checked
+        i = int(out_of_range[0])
+        values = ", ".join(f"{k} = {float(pmat[i, K.P[k]]):g}" for k in arrays)
+        raise DomainError(
+            f"batch: variant {i} ({values}) ended with SOC {socf[i]:.4g}; expected a state of "
+            "charge in [0, 1] (the battery ran dry or was overcharged)."
         )
     return BatchResult(pd.DataFrame(rows), elapsed)
 
