@@ -126,6 +126,8 @@ def test_matrices_equal_the_hand_written_assembly(ref_and_new: tuple[Any, dict[s
     scale = abs(a).max()
     assert scale > 0
     assert abs(a - b).max() <= 1e-12 * scale, (name, abs(a - b).max() / scale)
+    # and the same sparsity pattern (no rounding-level entries between unrelated nodes)
+    assert a.nnz == b.nnz and (a != 0).multiply(b != 0).nnz == a.nnz
 
 
 @pytest.mark.parametrize("name", ["film_load_w", "film_area", "wall_area_m2", "interface_areas"])

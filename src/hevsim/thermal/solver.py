@@ -9,7 +9,12 @@ Equation, per part ``p`` with conductivity k_p and heat capacity rho_p c_p:
 
 Contact really resists: every node on a face shared by two parts is duplicated (one copy per
 part) and the two copies are tied by the interface conductance h_gap integrated with the
-consistent P1 surface mass matrix. The theta-method matrix ``C/dt + theta K`` is factorised
+consistent P1 surface mass matrix. Volume terms use a scikit-fem cell basis; the surface terms
+(films, channel wall, contact) use scikit-fem facet bases on the boundary facets of the split
+mesh (an interface face is a boundary facet of each of its two parts): ``int w u v`` for a
+film, and ``int h (u_a - u_b)(v_a - v_b)`` with one facet basis per side for a contact, the
+two sides' facets listed in the same order with the same vertex order, so that their
+quadrature points coincide. The theta-method matrix ``C/dt + theta K`` is factorised
 once with ``scipy.sparse.linalg.splu`` and reused while the step, materials, conductances and
 coolant heat-transfer coefficients stay fixed.
 """
@@ -30,8 +35,6 @@ from hevsim.thermal.mesh import CHANNEL_WALL, ThermalMesh, mesh_faces, tet_volum
 
 #: heat capacity matrix kinds of :class:`HeatModel` (``lumped_capacity`` true / false)
 CAPACITY_KINDS = ("lumped", "consistent")
-
-_TRI_MASS = np.array([[2.0, 1.0, 1.0], [1.0, 2.0, 1.0], [1.0, 1.0, 2.0]]) / 12.0
 
 
 class WallCoolant(Protocol):
@@ -54,15 +57,117 @@ class WallCoolant(Protocol):
         ...
 
 
-def _tri_mass(points_m: np.ndarray, tris: np.ndarray, weight: np.ndarray, n: int) -> sp.csr_matrix:
-    """Consistent P1 surface mass matrix sum_k weight_k int phi_i phi_j over triangles ``tris``."""
-    if tris.shape[0] == 0:
+def _facet_index(skm: Any, tris: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """Facets of the scikit-fem mesh ``skm`` that are the triangles ``tris`` (K, 3) (node
+    indices of ``skm``) of tetrahedra ``tets`` (K,)."""
+    cand = skm.t2f[:, tets]  # (4, K) the facets of each tetrahedron
+    nodes = np.sort(skm.facets[:, cand], axis=0)  # (3, 4, K)
+    hit = np.all(nodes == np.sort(tris, axis=1).T[:, None, :], axis=0)  # (4, K)
+    if not np.all(hit.sum(axis=0) == 1):
+        raise SimulationError("thermal mesh: a surface triangle is not a face of its tetrahedron.")
+    return cand[np.argmax(hit, axis=0), np.arange(tets.size)]
+
+
+def _facet_basis(skm: Any, facets: np.ndarray) -> Any:
+    """P1 basis on the facets ``facets`` of ``skm`` (exact for products of two P1 functions)."""
+    from skfem import ElementTetP1, FacetBasis
+
+    return FacetBasis(skm, ElementTetP1(), facets=facets, intorder=2)
+
+
+def _per_facet(basis: Any, value: np.ndarray) -> np.ndarray:
+    """A value per facet of ``basis`` at every quadrature point, shape (facets, points)."""
+    return np.repeat(np.asarray(value, dtype=float)[:, None], basis.X.shape[-1], axis=1)
+
+
+def _mass_form() -> Any:
+    """The bilinear form ``int w u v`` (``w``: the keyword argument ``weight``)."""
+    from skfem import BilinearForm
+
+    @BilinearForm
+    def mass(u: Any, v: Any, w: Any) -> Any:
+        return w.weight * u * v
+
+    return mass
+
+
+@dataclass(frozen=True)
+class FacetMass:
+    """The P1 surface mass matrices ``int phi_i phi_j`` of a set of facets, one per facet (the
+    element matrices of a scikit-fem facet basis), to be weighted per facet: entry ``k`` is
+    ``data[k]`` [m^2] at (``rows[k]``, ``cols[k]``) of facet ``facet[k]``."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    facet: np.ndarray
+    data: np.ndarray
+    n_facets: int
+    n_nodes: int
+
+    @classmethod
+    def assemble(cls, skm: Any, facets: np.ndarray) -> FacetMass:
+        """The facet matrices of ``facets`` (indices into the facets of ``skm``)."""
+        if facets.size == 0:
+            e = np.zeros(0, dtype=np.int64)
+            return cls(e, e, e, np.zeros(0), 0, skm.nvertices)
+        fb = _facet_basis(skm, facets)
+        el = _mass_form().elemental(fb, weight=_per_facet(fb, np.ones(facets.size)))
+        rows, cols = el.indices
+        facet = np.tile(np.arange(facets.size), el.data.size // facets.size)
+        keep = el.data != 0.0  # the function of the vertex off the facet vanishes on it
+        return cls(rows[keep], cols[keep], facet[keep], el.data[keep], facets.size, skm.nvertices)
+
+    def subset(self, which: np.ndarray) -> FacetMass:
+        """The facets ``which`` (indices into this set), numbered 0.. in that order."""
+        new = np.full(self.n_facets, -1)
+        new[which] = np.arange(which.size)
+        k = np.flatnonzero(new[self.facet] >= 0)
+        return FacetMass(
+            self.rows[k], self.cols[k], new[self.facet[k]], self.data[k], which.size, self.n_nodes
+        )
+
+    def matrix(self, weight: np.ndarray) -> sp.csr_matrix:
+        """``sum_f weight_f int_f u v`` (``weight`` per facet)."""
+        w = self.data * np.asarray(weight, dtype=float)[self.facet]
+        return sp.csr_matrix((w, (self.rows, self.cols)), shape=(self.n_nodes, self.n_nodes))
+
+    def load(self, weight: np.ndarray) -> np.ndarray:
+        """``sum_f weight_f int_f v`` (``weight`` per facet): the row sums of :meth:`matrix`,
+        as the P1 functions sum to one."""
+        w = self.data * np.asarray(weight, dtype=float)[self.facet]
+        return np.bincount(self.rows, weights=w, minlength=self.n_nodes)
+
+    def group_loads(self, group: np.ndarray, n_groups: int) -> sp.csr_matrix:
+        """``int v`` over the facets of each group (``group`` per facet), shape (nodes, groups)."""
+        shape = (self.n_nodes, max(n_groups, 1))
+        return sp.csr_matrix((self.data, (self.rows, np.asarray(group)[self.facet])), shape=shape)
+
+
+def _contact(skm: Any, facets_a: np.ndarray, facets_b: np.ndarray, h: np.ndarray) -> sp.csr_matrix:
+    """Contact conductance ``int h (u_a - u_b)(v_a - v_b)`` between the facets ``facets_a`` and
+    ``facets_b`` (the two copies of the same faces, listed in the same order, their vertices
+    in the same order), with ``h`` constant per face."""
+    from skfem import asm
+
+    n = skm.nvertices
+    if facets_a.size == 0:
         return sp.csr_matrix((n, n))
-    a = triangle_areas_m2(points_m, tris) * weight
-    vals = a[:, None, None] * _TRI_MASS[None]
-    rows = np.repeat(tris[:, :, None], 3, axis=2)
-    cols = np.repeat(tris[:, None, :], 3, axis=1)
-    return sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())), shape=(n, n))
+    mass = _mass_form()
+    fa, fb = _facet_basis(skm, facets_a), _facet_basis(skm, facets_b)
+    xa, xb = (np.asarray(basis.global_coordinates()) for basis in (fa, fb))
+    if not np.allclose(xa, xb, rtol=0.0, atol=1e-12):  # [m]
+        raise SimulationError("thermal mesh: the two sides of a contact interface do not coincide.")
+    w = _per_facet(fa, h)
+    cross = asm(mass, fb, fa, weight=w).tocsr()  # rows side a (test), columns side b (trial)
+    k = asm(mass, fa, weight=w) + asm(mass, fb, weight=w) - cross - cross.T
+    # The facet bases carry all four functions of each side's tetrahedron; the one of the vertex
+    # off the face is zero there up to rounding (~1e-19 relative), which would add entries
+    # between the two tetrahedra to the sparsity pattern: keep only those between face nodes.
+    nodes = np.vstack([skm.facets[:, facets_a], skm.facets[:, facets_b]])  # (6, K)
+    rows, cols = np.repeat(nodes[:, None, :], 6, axis=1), np.repeat(nodes[None, :, :], 6, axis=0)
+    on_face = sp.csr_matrix((np.ones(rows.size), (rows.ravel(), cols.ravel())), shape=(n, n))
+    on_face.data[:] = 1.0
+    return sp.csr_matrix(k.multiply(on_face))
 
 
 def interface_name(a: str, b: str) -> str:
@@ -88,6 +193,7 @@ class Discretisation:
     wall_tris: np.ndarray  # (K, 3) channel-wall triangles on split nodes
     wall_segment: np.ndarray  # (K,) segment of each wall triangle
     wall_weights: sp.csr_matrix  # (N, n_seg): int phi over each wall segment [m^2]
+    wall_mass: FacetMass  # of the wall triangles: film h (T - T_fluid) per segment
     wall_area_m2: np.ndarray  # (n_seg,)
     interfaces: dict[str, float]  # contact interface name -> area [m^2]
     cell_volume_m3: np.ndarray  # (n_cells,)
@@ -217,19 +323,18 @@ def discretise(
             raise ConfigError(f"{src}: contact '{name}' conductance {h!r} is not physical; expected > 0.")
     h_if = np.array([overrides.get(nm, gap_conductance_w_m2k) for nm in iface_names.tolist()])
     tri = faces.nodes[iface]
+    # Split node numbers keep the order of the input nodes within a part, so both copies of a
+    # face have their vertices in the same order: their facet quadrature points coincide.
     side_a, side_b = side(tri, pa[iface]), side(tri, pb[iface])
     area_if = triangle_areas_m2(mesh.points_m, tri)
     interfaces = {nm: float(area_if[iface_names == nm].sum()) for nm in present}
-    if iface.size:
-        ab = np.hstack([side_a, side_b])
-        local = np.kron(np.array([[1.0, -1.0], [-1.0, 1.0]]), _TRI_MASS)
-        vals = (area_if * h_if)[:, None, None] * local[None]
-        irow = np.repeat(ab[:, :, None], 6, axis=2)
-        icol = np.repeat(ab[:, None, :], 6, axis=1)
-        stiffness = stiffness + sp.csr_matrix((vals.ravel(), (irow.ravel(), icol.ravel())), shape=(n, n))
+    facets_a = _facet_index(skm, side_a, faces.owner[iface])
+    facets_b = _facet_index(skm, side_b, faces.other[iface])
+    stiffness = stiffness + _contact(skm, facets_a, facets_b, h_if)
 
     # ---- boundary films ---------------------------------------------------------------------
     bnd_side = side(faces.nodes[bnd], pa[bnd])
+    bnd_facets = _facet_index(skm, bnd_side, faces.owner[bnd])
     film_w = np.zeros(bnd.size)
     film_t = np.zeros(bnd.size)
     is_ambient = np.ones(bnd.size, dtype=bool)
@@ -241,10 +346,10 @@ def discretise(
         is_ambient[group_rows[gname]] = False
     film_w[is_ambient] = film_w_m2k
     film_t[is_ambient] = ambient_k
-    m_film = _tri_mass(points, bnd_side, film_w, n)
-    stiffness = stiffness + m_film
-    film_load = _tri_mass(points, bnd_side, film_w * film_t, n) @ np.ones(n)
-    film_area = _tri_mass(points, bnd_side[is_ambient], np.ones(int(is_ambient.sum())), n) @ np.ones(n)
+    bnd_mass = FacetMass.assemble(skm, bnd_facets)
+    stiffness = stiffness + bnd_mass.matrix(film_w)
+    film_load = bnd_mass.load(film_w * film_t)
+    film_area = bnd_mass.load(is_ambient.astype(float))
 
     # ---- channel wall (coolant film per segment) ------------------------------------------
     wall_rows = group_rows.get(CHANNEL_WALL, np.zeros(0, dtype=np.int64))
@@ -259,13 +364,11 @@ def discretise(
             )
     n_seg = int(wall_segment.max(initial=-1)) + 1
     wall_area = np.bincount(wall_segment, weights=triangle_areas_m2(points, wall_tris), minlength=n_seg)
-    wa = triangle_areas_m2(points, wall_tris) / 3.0
-    wall_weights = sp.csr_matrix(
-        (np.repeat(wa, 3), (wall_tris.ravel(), np.repeat(wall_segment, 3))), shape=(n, max(n_seg, 1))
-    )
+    wall_mass = bnd_mass.subset(wall_rows)
+    wall_weights = wall_mass.group_loads(wall_segment, n_seg)
     if wall_h_w_m2k is not None and wall_rows.size:
         hw = np.asarray(wall_h_w_m2k, dtype=float)
-        stiffness = stiffness + _tri_mass(points, wall_tris, hw[wall_segment], n)
+        stiffness = stiffness + wall_mass.matrix(hw[wall_segment])
 
     # ---- per-cell heat load (body heat flux, uniform in each cell) ------------------------
     vol = np.abs(tet_volumes_m3(points, tets))
@@ -293,6 +396,7 @@ def discretise(
         wall_tris,
         wall_segment,
         wall_weights.tocsr(),
+        wall_mass,
         wall_area,
         interfaces,
         cell_vol,
@@ -392,7 +496,7 @@ class HeatModel:
         d = self.disc
         k = d.stiffness
         if np.any(self.wall_h):
-            k = k + _tri_mass(d.points_m, d.wall_tris, self.wall_h[d.wall_segment], d.points_m.shape[0])
+            k = k + d.wall_mass.matrix(self.wall_h[d.wall_segment])
         self.k = k.tocsr()
         self._rhs_matrix = (self.capacity / self.dt_s - (1.0 - self.theta) * self.k).tocsr()
         # symmetric positive-definite matrix: minimum degree on A^T + A, diagonal pivots
