@@ -5,14 +5,18 @@ from __future__ import annotations
 
 import io
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from hevsim.errors import ConfigError, HevsimError
+from hevsim.guards import check_memory, mem_available_bytes
 from hevsim.progress import Task, cache_is_cold, compile_notice, format_duration, stage, task
 from hevsim.report.plots import MAX_LINE_POINTS, thin_line
-from hevsim.threads import SERIAL_BELOW_WORK, THREADS_ENV, choose_threads, free_cores, parse_threads
+from hevsim.threads import SERIAL_BELOW_WORK, THREADS_ENV, choose_threads, free_cores, own_load, parse_threads
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 # --------------------------------------------------------------------------- thin_line
 
@@ -71,7 +75,7 @@ def test_threads_option_and_env_win() -> None:
     # the option beats the environment
     assert choose_threads("1", env=env, cpu_count=4, loadavg=_load(0.0)).threads == 1
     # 'auto' asks for the load-based choice
-    assert choose_threads("auto", env=env, cpu_count=4, loadavg=_load(1.2)).threads == 3
+    assert choose_threads("auto", env=env, cpu_count=4, loadavg=_load(1.2), own=0.0).threads == 3
 
 
 @pytest.mark.parametrize("bad", ["0", "-1", "two", "1.5", "", "99"])
@@ -85,17 +89,20 @@ def test_threads_validation(bad: str) -> None:
 def test_threads_follow_the_load() -> None:
     cases = {0.0: 2, 0.4: 2, 0.6: 1, 1.0: 1, 2.0: 1, 7.5: 1}
     for load, want in cases.items():
-        assert choose_threads(env={}, cpu_count=2, loadavg=_load(load)).threads == want, load
-    assert free_cores(8, _load(2.3)) == (6, 2.3)
+        assert choose_threads(env={}, cpu_count=2, loadavg=_load(load), own=0.0).threads == want, load
+    assert free_cores(8, _load(2.3), own=0.0) == (6, 2.3)
+    # this process's own load is not "another process": busy alone on one core -> 2 free
+    assert free_cores(2, _load(1.0), own=1.0) == (2, 0.0)
+    assert 0.0 <= own_load() <= 1.0 + 1e-9  # a test process: at most one core busy
 
     def broken() -> tuple[float, float, float]:
         raise OSError("no load average here")
 
-    assert free_cores(4, broken) == (4, 0.0)
+    assert free_cores(4, broken, own=0.0) == (4, 0.0)
     # below the work threshold: serial whatever the cores
-    small = choose_threads(env={}, work=SERIAL_BELOW_WORK / 2, cpu_count=8, loadavg=_load(0.0))
+    small = choose_threads(env={}, work=SERIAL_BELOW_WORK / 2, cpu_count=8, loadavg=_load(0.0), own=0.0)
     assert small.threads == 1 and "small problem" in small.reason
-    big = choose_threads(env={}, work=SERIAL_BELOW_WORK * 2, cpu_count=8, loadavg=_load(0.0))
+    big = choose_threads(env={}, work=SERIAL_BELOW_WORK * 2, cpu_count=8, loadavg=_load(0.0), own=0.0)
     assert big.threads == 8
 
 
@@ -174,3 +181,126 @@ def test_real_kernels_have_a_cache_state() -> None:
     assert len(found) == 1
     assert isinstance(cache_is_cold(found), bool)
     assert issubclass(ConfigError, HevsimError)
+
+
+# --------------------------------------------------------------------------- refusals before heavy work
+
+
+def test_mem_available_parsing(tmp_path: Path) -> None:
+    f = tmp_path / "meminfo"
+    f.write_text("MemTotal:       24684328 kB\nMemFree:        1 kB\nMemAvailable:   2048 kB\n")
+    assert mem_available_bytes(f) == 2048 * 1024
+    f.write_text("MemTotal: 1 kB\n")
+    assert mem_available_bytes(f) is None
+    assert mem_available_bytes(tmp_path / "missing") is None
+    check_memory(
+        1e9, "x", "y", ConfigError, available_bytes=None, meminfo=tmp_path / "missing"
+    )  # unknown: ok
+    with pytest.raises(ConfigError, match=r"^job needs about 2,000 MB \(a 2000.0 MB\), more than the 900 MB"):
+        check_memory(2e9, "job", "do less.", ConfigError, {"a": 2e9}, available_bytes=1_000_000_000)
+
+
+def test_thermal_mesh_refused_before_meshing(monkeypatch: pytest.MonkeyPatch) -> None:
+    import dataclasses
+
+    import hevsim.thermal.geometry as geometry
+    from hevsim.thermal.mesh import estimate_mesh
+    from hevsim.thermal.run import load_thermal_config, run_thermal
+
+    def no_mesh(*args: object, **kwargs: object) -> None:
+        raise AssertionError("meshed before the memory check")
+
+    monkeypatch.setattr(geometry, "build_module_mesh", no_mesh)
+    cfg = load_thermal_config(EXAMPLES / "module_thermal.toml")
+    est = estimate_mesh(cfg.geometry)
+    assert 8_000 < est.nodes < 12_000  # 8 863 nodes measured at the example's 5 mm
+    fine = dataclasses.replace(cfg, geometry=dataclasses.replace(cfg.geometry, mesh_size_m=2e-4))
+    want = (
+        r"module_thermal: the thermal mesh at geometry.mesh_size_m = 0.0002 m"
+        r" \([\d,]+ nodes estimated\) needs about [\d,]+ MB.*MemAvailable.*larger geometry.mesh_size_m"
+    )
+    with pytest.raises(ConfigError, match=want):
+        run_thermal(fine, None)
+    monkeypatch.setattr("hevsim.guards.mem_available_bytes", lambda *a: 100_000_000)
+    with pytest.raises(
+        ConfigError, match=r"mesh_size_m = 0.005 m .* more than the 90 MB this machine has free"
+    ):
+        run_thermal(cfg, None)
+
+
+def test_dp_refused_before_the_stage_table(monkeypatch: pytest.MonkeyPatch) -> None:
+    from hevsim.errors import DPSetupError
+    from hevsim.optimal import _hev_common
+    from hevsim.optimal.hev import optimize
+
+    def no_table(self: object, *args: object, **kwargs: object) -> None:
+        raise AssertionError("stage table built before the memory check")
+
+    monkeypatch.setattr(_hev_common.HEVFormulation, "build_table", no_table)
+    monkeypatch.setattr(_hev_common.HEVFormulation, "check_followable", no_table)
+    with pytest.raises(
+        DPSetupError, match=r"the DP solution needs about [\d,]+ MB \(cost_to_go .*solver's limit"
+    ):
+        optimize(EXAMPLES / "parallel_hev.toml", "udds", soc_grid_points=500_000, input_grid_points=3)
+    monkeypatch.setattr("hevsim.guards.mem_available_bytes", lambda *a: 1_000_000)
+    with pytest.raises(DPSetupError, match=r"on udds: the DP needs about .* MB this machine has free"):
+        optimize(EXAMPLES / "parallel_hev.toml", "udds")
+
+
+def test_compare_validates_every_input_before_solving(monkeypatch: pytest.MonkeyPatch) -> None:
+    import hevsim.optimal.hev as hev
+    from hevsim.errors import DPSetupError
+    from hevsim.optimal.compare import compare
+
+    def no_solve(*args: object, **kwargs: object) -> None:
+        raise AssertionError("solved before every input was checked")
+
+    monkeypatch.setattr(hev, "optimize", no_solve)
+    with pytest.raises(HevsimError, match="no_such_cycle"):
+        compare([EXAMPLES / "series_hev.toml"], ["udds", "no_such_cycle"])
+    with pytest.raises(HevsimError, match=r"missing\.toml"):
+        compare([EXAMPLES / "series_hev.toml", EXAMPLES / "missing.toml"], ["udds"])
+    with pytest.raises(DPSetupError, match="on hwfet: the DP solution needs at least"):
+        compare([EXAMPLES / "series_hev.toml"], ["hwfet"], soc_grid_points=2_000_000)
+    with pytest.raises(ConfigError, match="--threads = 'lots'"):
+        compare([EXAMPLES / "series_hev.toml"], ["udds"], threads="lots")
+
+
+def test_cli_threads_option_is_validated(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from hevsim.cli import main
+
+    code = main(
+        ["optimize", str(EXAMPLES / "parallel_hev.toml"), "--threads", "0", "--out", str(tmp_path / "o")]
+    )
+    assert code == 2
+    assert "--threads = '0': expected a whole number of threads from 1 to" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_simulation_refused_before_running(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import hevsim.sim.simulator as simulator
+    from hevsim.cli import main
+    from hevsim.errors import SimulationError
+    from hevsim.guards import check_simulation
+
+    need, seconds = check_simulation(10_000_000, "car on cycle", available_bytes=64 * 10**9)
+    assert need == pytest.approx(1e10) and seconds == pytest.approx(300.0)
+    with pytest.raises(
+        SimulationError, match=r"^car on cycle: a simulation of 10,000,000 steps needs about 10,000 MB"
+    ):
+        check_simulation(10_000_000, "car on cycle", available_bytes=8 * 10**9)
+
+    def no_run(*args: object, **kwargs: object) -> None:
+        raise AssertionError("simulated before the memory check")
+
+    monkeypatch.setattr(simulator, "simulate", no_run)
+    monkeypatch.setattr("hevsim.guards.mem_available_bytes", lambda *a: 1_000_000)
+    code = main(
+        ["simulate", str(EXAMPLES / "series_hev.toml"), "--cycle", "udds", "--out", str(tmp_path / "s")]
+    )
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "on udds: a simulation of 2,739 steps needs about 3 MB" in err and "--dt" in err
+    assert not (tmp_path / "s").exists()

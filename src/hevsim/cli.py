@@ -76,6 +76,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         from hevsim.sim.simulator import GensetSchedule
 
         schedule = GensetSchedule.from_csv(args.schedule)
+    from hevsim.guards import simulation_preflight
+
+    simulation_preflight(cfg, cycle, args.dt)  # memory refusal, long-run line, compile notice
     result = simulate(cfg, cycle, dt_s=args.dt, soc_initial=args.soc_initial, schedule=schedule)
     result.save(out, plots=not args.no_plots)
     m = result.metrics
@@ -114,7 +117,7 @@ def _is_refinement_table(path: Path) -> bool:
 
 
 def _dp_options(args: argparse.Namespace) -> dict[str, Any]:
-    opts: dict[str, Any] = {"final_constraint": args.final_constraint}
+    opts: dict[str, Any] = {"final_constraint": args.final_constraint, "threads": args.threads}
     if args.soc_points:
         opts["soc_grid_points"] = args.soc_points
     if args.input_points:
@@ -348,7 +351,7 @@ def _cmd_thermal(args: argparse.Namespace) -> int:
 
     out = Path(args.out) if args.out else Path("results") / Path(args.config).stem
     _prepare(args, out, args.config)
-    print(format_summary(run_thermal(args.config, out)))
+    print(format_summary(run_thermal(args.config, out, progress=True)))
     return 0
 
 
@@ -368,6 +371,11 @@ def _add_dp_options(p: argparse.ArgumentParser, final_soc: str) -> None:
         default="auto",
         choices=("auto", "boundary_line", "levelset", "wall", "penalty"),
         help="final-SOC constraint method (default: the accurate one)",
+    )
+    p.add_argument(
+        "--threads",
+        help="threads of the DP kernels: a number or 'auto' (default: HEVSIM_THREADS, else the "
+        "cores not busy with other processes, from the 1-minute load average)",
     )
 
 

@@ -69,12 +69,14 @@ def format_duration(seconds: float) -> str:
 class Task:
     """Progress of one loop of ``total`` units; call :meth:`update` after each unit."""
 
-    def __init__(self, label: str, total: int, unit: str, stream: IO[str] | None, bar: bool | None) -> None:
+    def __init__(
+        self, label: str, total: int, unit: str, stream: IO[str] | None, bar: bool | None, show: bool = True
+    ) -> None:
         self.label = label
         self.total = max(0, int(total))
         self.unit = unit
         self.stream = _stream(stream)
-        self.on = enabled()
+        self.on = enabled() and show
         self.done = 0
         self.t0 = time.perf_counter()
         self._last_line = self.t0
@@ -123,10 +125,16 @@ class Task:
 
 @contextmanager
 def task(
-    label: str, total: int, unit: str = "step", stream: IO[str] | None = None, bar: bool | None = None
+    label: str,
+    total: int,
+    unit: str = "step",
+    stream: IO[str] | None = None,
+    bar: bool | None = None,
+    show: bool = True,
 ) -> Iterator[Task]:
-    """A :class:`Task` closed on exit (also on an exception, without the end line)."""
-    t = Task(label, total, unit, stream, bar)
+    """A :class:`Task` closed on exit (also on an exception, without the end line); ``bar``
+    None = a bar only on a terminal; ``show`` False = silent (counting only)."""
+    t = Task(label, total, unit, stream, bar, show)
     try:
         yield t
     except BaseException:

@@ -8,21 +8,23 @@ that shares its core with another process is the slowest. The policy, in order:
 1. ``--threads N`` on the command line (``option``), if given;
 2. the environment variable ``HEVSIM_THREADS``, if set;
 3. otherwise the cores actually free: ``os.cpu_count()`` minus the 1-minute load average of
-   the machine (:func:`os.getloadavg`), rounded to the nearest integer, at least 1; and one
-   thread whatever the cores when the work is below :data:`SERIAL_BELOW_WORK`.
+   the other processes (:func:`os.getloadavg` less this process's own share), rounded to the
+   nearest integer, at least 1; and one thread whatever the cores when the work is below
+   :data:`SERIAL_BELOW_WORK`.
 
 ``N`` must be a whole number from 1 to numba's thread pool size (the number of cores unless
-``NUMBA_NUM_THREADS`` says otherwise) or ``auto`` (the load-based choice). The load average
-is measured before the heavy work starts, so it counts the *other* processes (plus the short
-start-up of this one). :func:`apply_threads` hands the count to :func:`numba.set_num_threads`;
-the DP solver also runs its serial kernels when the count is 1.
+``NUMBA_NUM_THREADS`` says otherwise) or ``auto`` (the load-based choice).
+:func:`apply_threads` hands the count to :func:`numba.set_num_threads`; the DP solver also
+runs its serial kernels when the count is 1.
 """
 
 from __future__ import annotations
 
 import os
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from pathlib import Path
 
 from hevsim.errors import ConfigError
 
@@ -78,10 +80,34 @@ def parse_threads(value: object, source: str, limit: int | None = None) -> int |
     return n
 
 
+LOAD_WINDOW_S = 60.0
+"""Time constant of the 1-minute load average [s]."""
+
+
+def own_load() -> float:
+    """This process's share of the 1-minute load average [cores], estimated as its CPU time
+    over the last minute: ``min(CPU seconds, 60) / 60``, at most its average CPU rate since
+    it started. A fresh command (a second or two of imports) counts about 0.03; a process
+    that has solved on one core for minutes counts 1. 0 where ``/proc`` is missing."""
+    cpu_s = time.process_time()
+    try:
+        start_ticks = float(Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()[19])
+        uptime_s = float(Path("/proc/uptime").read_text().split()[0])
+        wall_s = uptime_s - start_ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return 0.0
+    if wall_s <= 0.0:
+        return 0.0
+    return min(min(cpu_s, LOAD_WINDOW_S) / LOAD_WINDOW_S, cpu_s / wall_s)
+
+
 def free_cores(
-    cpu_count: int | None = None, loadavg: Callable[[], tuple[float, float, float]] | None = None
+    cpu_count: int | None = None,
+    loadavg: Callable[[], tuple[float, float, float]] | None = None,
+    own: float | None = None,
 ) -> tuple[int, float]:
-    """(cores free now, 1-minute load average): ``cpu_count`` minus the load, rounded to the
+    """(cores free now, load of the other processes): ``cpu_count`` minus the 1-minute load
+    average less this process's own share (:func:`own_load`, or ``own``), rounded to the
     nearest integer, at least 1. Where the load average is unknown (not Unix) every core
     counts as free."""
     n = max(1, os.cpu_count() or 1) if cpu_count is None else cpu_count
@@ -90,7 +116,8 @@ def free_cores(
         load1 = float(get()[0])
     except (OSError, AttributeError):
         return n, 0.0
-    return max(1, min(n, int(n - load1 + 0.5))), load1
+    others = max(0.0, load1 - (own_load() if own is None else own))
+    return max(1, min(n, int(n - others + 0.5))), others
 
 
 def choose_threads(
@@ -99,13 +126,15 @@ def choose_threads(
     env: Mapping[str, str] | None = None,
     cpu_count: int | None = None,
     loadavg: Callable[[], tuple[float, float, float]] | None = None,
+    own: float | None = None,
 ) -> ThreadChoice:
     """The thread count by the policy of this module (see the module docstring).
 
     ``option`` is the ``--threads`` value (None when not given), ``work`` the size of the
     coming parallel work in :data:`SERIAL_BELOW_WORK` units (None when unknown: no serial
     threshold), ``env`` the environment (default :data:`os.environ`). ``cpu_count`` and
-    ``loadavg`` replace :func:`os.cpu_count` and :func:`os.getloadavg` (for tests).
+    ``loadavg`` replace :func:`os.cpu_count` and :func:`os.getloadavg`, ``own`` this
+    process's share of the load (for tests).
     """
     environ = os.environ if env is None else env
     limit = max_threads() if cpu_count is None else cpu_count
@@ -119,8 +148,8 @@ def choose_threads(
             return ThreadChoice(n, f"{THREADS_ENV}={n}")
     if work is not None and work < SERIAL_BELOW_WORK:
         return ThreadChoice(1, f"small problem: {work:.3g} < {SERIAL_BELOW_WORK:.3g} evaluations")
-    free, load1 = free_cores(limit, loadavg)
-    return ThreadChoice(free, f"{limit} cores, 1-min load {load1:.2f}")
+    free, others = free_cores(limit, loadavg, own)
+    return ThreadChoice(free, f"{limit} cores, load of other processes {others:.2f}")
 
 
 def apply_threads(option: object = None, work: float | None = None) -> ThreadChoice:

@@ -36,6 +36,13 @@ def _hull() -> Any:
     return hull
 
 
+def _numba_threads() -> int:
+    """Threads numba's parallel kernels use now (set by :func:`hevsim.threads.apply_threads`)."""
+    import numba
+
+    return int(numba.get_num_threads())
+
+
 def _kernels() -> Any:
     """The numba kernels, imported (and loaded from numba's cache) on first use only."""
     import hevsim.optimal._kernels as kernels
@@ -120,8 +127,10 @@ class DPSolver:
         mask = blk.mask if blk.mask is not None else _DUMMY_MASK
         J = np.asarray(J, dtype=np.float64)  # stored float32 rows are widened
         Vk = J if V is None else np.asarray(V, dtype=np.float64)
-        parallel = S >= 2 and S * M >= PARALLEL_MIN_PAIRS
-        if sp.d == 1 and USE_HULL and parallel and not use_box:
+        big = S >= 2 and S * M >= PARALLEL_MIN_PAIRS
+        # the thread policy (hevsim.threads): one thread -> the serial Bellman kernels
+        parallel = big and _numba_threads() > 1
+        if sp.d == 1 and USE_HULL and big and not use_box:
             hull = self._hull_step(blk, J, Vk, band, band_i, mode)
             if hull is not None:
                 return hull

@@ -36,21 +36,40 @@ def compare(
 ) -> pd.DataFrame:
     """Run :func:`hevsim.optimal.hev.optimize` for every configuration x cycle.
 
-    ``options`` go to ``optimize`` (grid sizes, final constraint...). With ``out_dir`` each
-    run's results folder is written to ``out_dir/<config>_<cycle>``. Returns one row per run
-    with the metrics of :data:`COLUMNS`.
+    ``options`` go to ``optimize`` (grid sizes, final constraint, threads...). With
+    ``out_dir`` each run's results folder is written to ``out_dir/<config>_<cycle>``. Returns
+    one row per run with the metrics of :data:`COLUMNS`.
+
+    Every configuration and cycle is loaded and validated, the thread count chosen once
+    (:mod:`hevsim.threads`) and every pair's DP size checked against the free memory
+    (:func:`hevsim.guards.check_dp_size`) before the first solve, so bad input is refused
+    in about a second rather than after the earlier pairs are solved (issue 15.9).
     """
     from tqdm import tqdm
 
+    from hevsim.cycles import DriveCycle, load_cycle
     from hevsim.errors import DPInfeasibleError
+    from hevsim.guards import check_dp_size
     from hevsim.optimal.hev import optimize, resolve_model
+    from hevsim.threads import choose_threads
 
     show = sys.stderr.isatty() if progress is None else progress
+    models = [resolve_model(c) for c in configs]
+    loaded = {c: load_cycle(c) for c in dict.fromkeys(cycles)}
+    for (arch, model), config in zip(models, configs, strict=True):
+        s = arch.settings(model)
+        soc_points = int(options.get("soc_grid_points") or s.soc_points)
+        input_points = int(options.get("input_grid_points") or s.input_points)
+        for name, cyc in loaded.items():
+            label = f"{getattr(model, 'name', Path(str(config)).stem)} on {name}"
+            n_steps = len(cyc.time_s) - 1 if isinstance(cyc, DriveCycle) else 0
+            check_dp_size(label, n_steps, soc_points, input_points)
+    options = {**options, "threads": choose_threads(options.get("threads")).threads}
     rows: list[dict[str, Any]] = []
     jobs = [(c, cyc) for c in configs for cyc in cycles]
     for config, cycle in tqdm(jobs, desc="DP runs", disable=not show):
         try:
-            res = optimize(config, cycle, progress=False, **options)
+            res = optimize(config, loaded[cycle], progress=False, **options)
         except DPInfeasibleError as exc:
             # a vehicle that cannot drive a cycle is a result of the benchmark, not a crash
             arch, model = resolve_model(config)

@@ -36,6 +36,7 @@ from hevsim.config import VehicleConfig, load_config
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DPInfeasibleError, DPSetupError
 from hevsim.io import atomic_directory, write_json
+from hevsim.optimal._feedback import dp_feedback
 from hevsim.optimal._hev_common import DETAIL_COLUMNS, HEVFormulation, hev_metrics
 from hevsim.optimal._problem import FinalTarget
 from hevsim.optimal.dp import FINAL_CONSTRAINTS, DPResult, solve_dp
@@ -323,6 +324,7 @@ def optimize(
     soc_tolerance: float | None = None,
     forward: str = "reoptimize",
     penalty_weight: float | None = None,
+    threads: object = None,
 ) -> OptimizationResult:
     """Fuel-optimal energy management of a hybrid vehicle over a drive cycle, by DP.
 
@@ -353,6 +355,9 @@ def optimize(
         penalty_weight: cost of a unit of final SOC outside the target [kg per unit SOC],
             for ``final_constraint="penalty"`` only; default the fuel worth of the battery
             energy at an equivalence factor of :data:`PENALTY_EQUIVALENCE_FACTOR`.
+        threads: threads of the DP kernels, a number or ``"auto"``; None = ``HEVSIM_THREADS``
+            or the cores free of other processes (:mod:`hevsim.threads`). The memory check
+            and the thread choice happen before the stage table is built.
 
     Returns:
         An :class:`OptimizationResult`.
@@ -407,9 +412,11 @@ def optimize(
     grid = np.linspace(s.soc_min, s.soc_max, int(s.soc_points))
     target, window = _final_target(s, s.soc_initial)
     form = arch.formulate(hev, cyc, s, grid, target)
+    feedback = dp_feedback(form, hev, cyc, s.final_constraint, forward, store_cost_to_go, threads, progress)
     t_setup = time.perf_counter()
     if form.soc_invariant:
-        form.build_table()
+        with feedback.timed("building the DP stage table"):
+            form.build_table()
     form.check_followable()
     problem = form.dp_problem()
     t_table = time.perf_counter()
@@ -442,6 +449,7 @@ def optimize(
         "total_s": t_end - t_start,
     }
     result.metadata["timings_s"] = timings
+    result.metadata["threads"] = {"count": feedback.threads.threads, "reason": feedback.threads.reason}
     result.metrics["compute_time_s"]["value"] = timings["total_s"]
     return result
 

@@ -232,17 +232,41 @@ def hot_spots(
     ]
 
 
-def run_thermal(config_path: str | Path | ThermalConfig, out_dir: str | Path | None) -> ThermalResult:
-    """Run a module case end to end; writes the results folder atomically when ``out_dir`` is given."""
+def run_thermal(
+    config_path: str | Path | ThermalConfig, out_dir: str | Path | None, *, progress: bool = False
+) -> ThermalResult:
+    """Run a module case end to end; writes the results folder atomically when ``out_dir`` is given.
+
+    Before meshing, the mesh size, memory and time are estimated
+    (:func:`hevsim.thermal.mesh.estimate_mesh`) and a mesh that would not fit in the free
+    memory is refused (:class:`~hevsim.errors.ConfigError`). ``progress`` prints a line per
+    stage on stderr (meshing, assembly, the time loop with its ETA; a bar on a terminal).
+    """
+    from hevsim.guards import check_memory
+    from hevsim.progress import stage, task
     from hevsim.thermal.geometry import build_module_mesh
-    from hevsim.thermal.mesh import mesh_faces, triangle_areas_m2
+    from hevsim.thermal.mesh import estimate_mesh, mesh_faces, triangle_areas_m2
 
     cfg = config_path if isinstance(config_path, ThermalConfig) else load_thermal_config(config_path)
     sim = cfg.simulation
+    est = estimate_mesh(cfg.geometry.check(f"{cfg.name}: geometry"))
+    n_steps = round(sim.duration_s / sim.dt_s)
+    check_memory(
+        est.memory_bytes,
+        f"{cfg.name}: the thermal mesh at geometry.mesh_size_m = {cfg.geometry.mesh_size_m:g} m "
+        f"({est.nodes:,} nodes estimated)",
+        "use a larger geometry.mesh_size_m (memory grows as 1/mesh_size^3).",
+        ConfigError,
+    )
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
+    if progress:
+        stage(f"meshing {cfg.name}: {est.describe(n_steps)} ...")
     mesh = build_module_mesh(cfg.geometry, source=f"{cfg.name}: geometry")
     timings["mesh_s"] = time.perf_counter() - t0
+    if progress:
+        n_nodes, n_tets = mesh.points_m.shape[0], mesh.tets.shape[0]
+        stage(f"meshed: {n_nodes:,} nodes, {n_tets:,} tetrahedra in {timings['mesh_s']:.1f} s")
     ncell = mesh.n_cells
     heat = np.asarray(sim.cell_heat_w, dtype=float)
     if heat.size not in (1, ncell):
@@ -251,9 +275,13 @@ def run_thermal(config_path: str | Path | ThermalConfig, out_dir: str | Path | N
         )
 
     t0 = time.perf_counter()
+    if progress:
+        stage("assembling and factorising the FEM matrices ...")
     disc, channel, model = module_model(cfg, mesh)
     model.set_cell_heat_w(heat)
     timings["assemble_factorise_s"] = time.perf_counter() - t0
+    if progress:
+        stage(f"assembled and factorised in {timings['assemble_factorise_s']:.1f} s")
 
     # observation operators
     n = disc.points_m.shape[0]
@@ -306,11 +334,13 @@ def run_thermal(config_path: str | Path | ThermalConfig, out_dir: str | Path | N
     if every:
         snapshots.append((0.0, model.temp_k - KELVIN))
     t0 = time.perf_counter()
-    for k in range(1, steps + 1):
-        model.step()
-        record()
-        if every and (k % every == 0 or k == steps):
-            snapshots.append((model.time_s, model.temp_k - KELVIN))
+    with task("time loop", steps, show=progress) as bar:
+        for k in range(1, steps + 1):
+            model.step()
+            record()
+            if every and (k % every == 0 or k == steps):
+                snapshots.append((model.time_s, model.temp_k - KELVIN))
+            bar.update()
     timings["solve_s"] = time.perf_counter() - t0
 
     tc = model.temp_k - KELVIN
