@@ -18,7 +18,7 @@ import hevsim.optimal._solver as dp_solver
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DPInfeasibleError, DPSetupError
 from hevsim.optimal import ARCHITECTURES, OptimizationResult, optimize
-from hevsim.parallel import ParallelHEV, ParallelHEVConfig, build_parallel_hev, load_parallel_config
+from hevsim.parallel import ParallelHEV, build_parallel_hev, load_parallel_config
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "parallel_hev.toml"
@@ -27,7 +27,7 @@ N_SOC, N_THR = 201, 101  # coarser than the appendix's 400 x 400 to keep the tes
 
 @pytest.fixture(scope="module")
 def hev() -> ParallelHEV:
-    return build_parallel_hev(ParallelHEVConfig())
+    return build_parallel_hev(load_parallel_config(EXAMPLE))
 
 
 @pytest.fixture(scope="module")
@@ -200,20 +200,22 @@ def test_example_file_loads_and_optimizes() -> None:
 
 
 @pytest.mark.parametrize(
-    ("text", "needle"),
+    ("old", "new", "needle"),
     [
-        ("[body]\nmass_kgg = 1.0\n", "key 'body.mass_kgg' is not known"),
-        ('[body]\nmass_kg = "heavy"\n', "key 'body.mass_kg'"),
-        ('[gearbox]\nratios = [3.0, "x"]\n', "key 'gearbox.ratios'[1]"),
-        ("[gearbox]\nratios = 3.0\n", "key 'gearbox.ratios'"),
-        ('[motor]\nmodel = "turbo"\n', "key 'motor.model'"),
-        ("[battery]\nsoc_min = 0.9\n", "battery.soc_min"),
-        ("colour = 1\n", "key 'colour' is not known"),
+        ("mass_kg = 1389.0", "mass_kgg = 1.0", "key 'body.mass_kgg' is not known"),
+        ("mass_kg = 1389.0", 'mass_kg = "heavy"', "key 'body.mass_kg'"),
+        ("ratios = [3.78, 2.12, 1.36, 1.03, 0.84]", 'ratios = [3.0, "x"]', "key 'gearbox.ratios'[1]"),
+        ("ratios = [3.78, 2.12, 1.36, 1.03, 0.84]", "ratios = 3.0", "key 'gearbox.ratios'"),
+        ('model = "constant_efficiency"', 'model = "turbo"', "key 'motor.model'"),
+        ("soc_min = 0.4 ", "soc_min = 0.9 ", "battery.soc_min"),
+        ('name = "parallel_hev"', 'name = "parallel_hev"\ncolour = 1', "key 'colour' is not known"),
     ],
 )
-def test_bad_config_names_file_and_key(tmp_path: Path, text: str, needle: str) -> None:
+def test_bad_config_names_file_and_key(tmp_path: Path, old: str, new: str, needle: str) -> None:
     path = tmp_path / "bad.toml"
-    path.write_text('architecture = "parallel"\n' + text)
+    text = EXAMPLE.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new, 1))
     with pytest.raises(ConfigError) as err:
         load_parallel_config(path)
     assert str(path) in str(err.value) and needle in str(err.value)
@@ -224,15 +226,15 @@ def test_bad_config_names_file_and_key(tmp_path: Path, text: str, needle: str) -
 def test_architecture_registry_and_dispatch(tmp_path: Path) -> None:
     assert set(ARCHITECTURES) >= {"parallel", "series"}
     path = tmp_path / "x.toml"
-    path.write_text('architecture = "planetary"\n')
+    path.write_text('[powertrain]\narchitecture = "planetary"\n')
     with pytest.raises(ConfigError, match="architecture"):
         optimize(path, "fu505")
     with pytest.raises(ConfigError, match="architecture"):
         optimize(42, "fu505")
     with pytest.raises(DPSetupError, match="final_soc"):
-        optimize(ParallelHEVConfig(), "fu505", final_soc="sometimes")
+        optimize(load_parallel_config(EXAMPLE), "fu505", final_soc="sometimes")
     with pytest.raises(DPSetupError, match="soc_grid_points"):
-        optimize(ParallelHEVConfig(), "fu505", soc_grid_points=1)
+        optimize(load_parallel_config(EXAMPLE), "fu505", soc_grid_points=1)
 
 
 def test_cycle_too_fast_is_a_clear_error(hev: ParallelHEV) -> None:

@@ -17,8 +17,8 @@ def _ev_config(**body: float) -> VehicleConfig:
         "name": "ev",
         "body": {"mass_kg": 1200.0, **body},
         "tire": {"radius_m": 0.3},
-        "gear": {"ratio": 2.0},
-        "traction_motor": {"model": "ideal", "max_torque_nm": 200.0},
+        "final_drive": {"ratio": 2.0},
+        "motor": {"model": "ideal", "max_torque_nm": 200.0},
         "genset": {"kind": "none"},
         "battery": {"model": "ideal", "capacity_ah": 1000.0},
     })  # fmt: skip
@@ -57,9 +57,7 @@ def test_launch_with_drag_matches_ode() -> None:
 
 
 def test_udds_tracking_with_enough_torque() -> None:
-    cfg = _ev_config(drag_coefficient=0.4, frontal_area_m2=3.0).replace(
-        **{"traction_motor.max_torque_nm": 600.0}
-    )
+    cfg = _ev_config(drag_coefficient=0.4, frontal_area_m2=3.0).replace(**{"motor.max_torque_nm": 600.0})
     r = simulate(cfg, "udds")
     assert r.value("speed_error_rms_mph") < 1.0
 

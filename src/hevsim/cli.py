@@ -63,11 +63,20 @@ def _cmd_cycles(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from hevsim.config import load_config
+    from hevsim.config import SeriesHEVConfig, SimulationSection, load_vehicle_config
     from hevsim.cycles import load_cycle
+    from hevsim.errors import ConfigError
+    from hevsim.schema import check_option
     from hevsim.sim.simulator import simulate
 
-    cfg = load_config(args.config)
+    check_option("--dt", args.dt, SimulationSection, "dt_s")
+    check_option("--soc-initial", args.soc_initial, SimulationSection, "soc_initial")
+    cfg = load_vehicle_config(args.config)
+    if not isinstance(cfg, SeriesHEVConfig):
+        raise ConfigError(
+            f"{args.config}: key 'powertrain.architecture' = {cfg.architecture!r}: the forward simulator "
+            f"supports series only for now; {cfg.architecture} runs with `hevsim optimize`."
+        )
     cycle = load_cycle(args.cycle or cfg.simulation.cycle)
     out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_{cycle.name}"
     _prepare(args, out, args.config, args.cycle, args.schedule)
@@ -117,10 +126,16 @@ def _is_refinement_table(path: Path) -> bool:
 
 
 def _dp_options(args: argparse.Namespace) -> dict[str, Any]:
+    from hevsim.config import OptimizationSection
+    from hevsim.schema import check_option
+
+    check_option("--soc-points", args.soc_points, OptimizationSection, "soc_grid_points")
+    check_option("--input-points", args.input_points, OptimizationSection, "throttle_grid_points")
+    check_option("--soc-initial", args.soc_initial, OptimizationSection, "soc_initial")
     opts: dict[str, Any] = {"final_constraint": args.final_constraint, "threads": args.threads}
-    if args.soc_points:
+    if args.soc_points is not None:
         opts["soc_grid_points"] = args.soc_points
-    if args.input_points:
+    if args.input_points is not None:
         opts["input_grid_points"] = args.input_points
     if args.soc_initial is not None:
         opts["soc_initial"] = args.soc_initial
@@ -195,7 +210,12 @@ def _parse_fit(items: list[str]) -> dict[str, tuple[float, float, float]]:
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from hevsim.battery.calibrate import CellTestRecord, calibrate
+    from hevsim.battery.config import CellSection
+    from hevsim.schema import check_option
     from hevsim.units import c_to_k
+
+    check_option("--soc-initial", args.soc_initial, CellSection, "soc_initial")
+    check_option("--ambient-c", args.ambient_c, CellSection, "temp_c")
 
     out = Path(args.out) if args.out else Path("results") / f"calibration_{Path(args.test).stem}"
     _prepare(args, out, args.params, args.test)
@@ -248,7 +268,10 @@ def _cmd_age(args: argparse.Namespace) -> int:
     from hevsim.battery.config import profile_current
     from hevsim.io import atomic_directory
     from hevsim.report.plots import _figure, _grid, _save
+    from hevsim.schema import check_value
 
+    check_value(args.repetitions, int, "", "", {}, {}, {"bounds": (1, 10**7)}, where="--repetitions")
+    check_value(args.rest_h, float, "", "", {}, {}, {"bounds": (0.0, 1e6), "unit": "h"}, where="--rest-h")
     out = Path(args.out) if args.out else Path("results") / f"{Path(args.config).stem}_ageing"
     _prepare(args, out, args.config)
     cfg = load_cell_config(args.config)

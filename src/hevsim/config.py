@@ -1,23 +1,66 @@
-"""Vehicle configuration files (TOML), validated on load.
+"""Vehicle configuration: one set of section types for every architecture, validated on load.
 
-A configuration is a set of sections, each a frozen dataclass below. Every key is checked:
-an unknown key, a wrong type or an out-of-range value raises :class:`ConfigError` naming the
-file, the key, the value and what was expected. Units are in the key names; the few
-non-SI keys (``*_rpm``, ``*_per_mph``, ``*_c``) are converted when the model is built.
-Component data (``data = "..."``) names a shipped folder under ``hevsim/data/components`` or a
-path relative to the configuration file.
+A vehicle file (TOML) names its topology in ``[powertrain] architecture = "series" |
+"parallel"`` and describes its components in shared sections: ``[body]``, ``[tire]``,
+``[final_drive]``, ``[gearbox]``, ``[engine]``, ``[motor]`` / ``[generator]``,
+``[battery]``, ``[simulation]``, ``[controller]``, ... Each section is ONE frozen dataclass
+below, used by every architecture, with one set of defaults. Every numeric field carries its
+validated range and unit next to it (``field(metadata={"bounds": ..., "unit": ...})``, made
+by :func:`param`); every float must be finite unless the field says ``allow_inf`` (only the
+battery current limits, where ``inf`` means "no limit").
+
+Every key is checked: an unknown key, a wrong type, a value out of range or not one of the
+choices raises :class:`~hevsim.errors.ConfigError` naming the file, the key, the value and
+what was expected. A file must hold every component section its architecture needs (the
+message lists the missing ones) unless it asks for defaults with ``preset = "defaults"``, or
+starts from a shipped tutorial vehicle with ``preset = "tutorial_level_N"`` (N = 1..8, the
+levels of :mod:`hevsim.refinement`; the file's keys override the preset's).
+
+Units are in the key names; the few non-SI keys (``*_rpm``, ``*_per_mph``, ``*_c``) are
+converted when the model is built (SI, kelvin inside). Component data (``data = "..."``) names
+a shipped folder under ``hevsim/data/components`` or a path relative to the configuration file.
+
+Architectures are looked up by name in :data:`ARCHITECTURES` (config class, builder,
+required sections); :func:`register_architecture` adds one.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import importlib
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from hevsim import schema
 from hevsim.errors import ConfigError
 from hevsim.fuels import FuelSection
+
+INF = math.inf
+T = TypeVar("T")
+
+
+def param(default: Any, lo: float, hi: float, unit: str, *, allow_inf: bool = False) -> Any:
+    """A numeric field with its inclusive range [lo, hi] and unit (``"-"``: dimensionless)."""
+    return field(default=default, metadata={"bounds": (lo, hi), "unit": unit, "allow_inf": allow_inf})
+
+
+def choice(default: str, *options: str) -> Any:
+    """A string field that must be one of ``options``."""
+    return field(default=default, metadata={"choices": options})
+
+
+# ------------------------------------------------------------------------------------------
+# Sections (one class per concept, shared by every architecture)
+# ------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PowertrainSection:
+    """Topology: the name of a registered architecture (see :data:`ARCHITECTURES`)."""
+
+    architecture: str = "series"
 
 
 @dataclass(frozen=True)
@@ -25,115 +68,132 @@ class SimulationSection:
     """Run settings: default cycle, fixed time step [s], initial SOC [-]."""
 
     cycle: str = "udds"
-    dt_s: float = 0.5
-    soc_initial: float = 0.7
+    dt_s: float = param(0.5, 1e-3, 10.0, "s")
+    soc_initial: float = param(0.7, 0.0, 1.0, "-")
 
 
 @dataclass(frozen=True)
 class BodySection:
     """Vehicle body (thesis Table 2.2; defaults are the Simscape Vehicle Body block's)."""
 
-    mass_kg: float = 1200.0
-    drag_coefficient: float = 0.4
-    frontal_area_m2: float = 3.0
-    rolling_resistance: float = 0.0
-    mass_factor: float = 1.0
-    air_density_kgpm3: float = 1.18
-    headwind_mps: float = 0.0
-    cg_height_m: float = 0.5
-    front_axle_to_cg_m: float = 1.4
-    rear_axle_to_cg_m: float = 1.6
-    wheels_per_axle: int = 2
+    mass_kg: float = param(1200.0, 1.0, 1e6, "kg")
+    drag_coefficient: float = param(0.4, 0.0, 10.0, "-")
+    frontal_area_m2: float = param(3.0, 0.0, 100.0, "m^2")
+    rolling_resistance: float = param(0.0, 0.0, 1.0, "-")
+    mass_factor: float = param(1.0, 1.0, 10.0, "-")
+    air_density_kgpm3: float = param(1.18, 0.0, 10.0, "kg/m^3")
+    headwind_mps: float = param(0.0, -100.0, 100.0, "m/s")
+    cg_height_m: float = param(0.5, 0.0, 10.0, "m")
+    front_axle_to_cg_m: float = param(1.4, 0.0, 50.0, "m")
+    rear_axle_to_cg_m: float = param(1.6, 0.0, 50.0, "m")
+    wheels_per_axle: int = param(2, 1, 20, "-")
 
 
 @dataclass(frozen=True)
 class TireSection:
-    """Tire rolling radius [m] (no slip in the forward simulator)."""
+    """Tire rolling radius [m] (no slip)."""
 
-    radius_m: float = 0.3
+    radius_m: float = param(0.3, 0.01, 5.0, "m")
 
 
 @dataclass(frozen=True)
 class GearSection:
-    """Final drive ratio [-] and efficiency [-]."""
+    """A fixed gear: ratio [-] (input speed / output speed) and efficiency [-].
 
-    ratio: float = 2.0
-    efficiency: float = 1.0
+    Used for ``[final_drive]`` and the parallel HEV's ``[motor_coupling]`` (machine speed /
+    final-drive input speed).
+    """
+
+    ratio: float = param(2.0, 1e-3, 1e3, "-")
+    efficiency: float = param(1.0, 0.01, 1.0, "-")
+
+
+@dataclass(frozen=True)
+class GearboxSection:
+    """Gearbox ratios [-] (first gear first) and efficiency [-] in the engine path."""
+
+    ratios: tuple[float, ...] = param((3.78, 2.12, 1.36, 1.03, 0.84), 1e-3, 1e3, "-")
+    efficiency: float = param(0.97, 0.01, 1.0, "-")
 
 
 @dataclass(frozen=True)
 class BrakesSection:
     """Friction brakes: max deceleration they can give [m/s^2]; regeneration cut-in [m/s]."""
 
-    max_decel_mps2: float = 7.0
-    regen_min_speed_mps: float = 0.0
+    max_decel_mps2: float = param(7.0, 0.0, 100.0, "m/s^2")
+    regen_min_speed_mps: float = param(0.0, 0.0, 100.0, "m/s")
 
 
 @dataclass(frozen=True)
 class MachineSection:
-    """Electric machine: model "ideal" | "constant_efficiency" | "map"."""
+    """Electric machine (``[motor]``, ``[generator]``): "ideal" | "constant_efficiency" | "map".
 
-    model: str = "ideal"
-    max_torque_nm: float = 200.0
-    efficiency: float = 1.0
+    ``max_torque_nm`` and ``efficiency`` apply to the first two; ``data`` and ``rating`` to
+    "map". ``torque_scale`` scales the torque limits of every model.
+    """
+
+    model: str = choice("ideal", "ideal", "constant_efficiency", "map")
+    max_torque_nm: float = param(200.0, 1e-6, 1e5, "N·m")
+    efficiency: float = param(1.0, 0.01, 1.0, "-")
     data: str = "honda_pm49"
-    rating: str = "cont"
-    torque_scale: float = 1.0
-    inertia_kgm2: float = 0.0
+    rating: str = choice("cont", "cont", "peak")
+    torque_scale: float = param(1.0, 1e-3, 1e3, "-")
+    inertia_kgm2: float = param(0.0, 0.0, 100.0, "kg·m^2")
 
 
 @dataclass(frozen=True)
 class EngineSection:
     """Engine: model "constant_torque" (ideal fuel) | "map" (measured maps in ``data``)."""
 
-    model: str = "map"
-    max_torque_nm: float = 200.0
+    model: str = choice("map", "constant_torque", "map")
+    max_torque_nm: float = param(200.0, 1e-6, 1e5, "N·m")
     data: str = "vw_1p9_tdi_ci67"
-    inertia_kgm2: float = 0.12
-    stall_speed_rpm: float = 750.0
-    redline_rpm: float = 4400.0
-    torque_scale: float = 1.0
+    inertia_kgm2: float = param(0.12, 0.0, 100.0, "kg·m^2")
+    stall_speed_rpm: float = param(750.0, 1.0, 1e5, "rpm")
+    redline_rpm: float = param(4400.0, 1.0, 1e5, "rpm")
+    torque_scale: float = param(1.0, 1e-3, 1e3, "-")
 
 
 @dataclass(frozen=True)
 class GensetSection:
-    """Genset: kind "none" | "current_source" (ideal constant current) | "engine"."""
+    """Series genset: kind "none" | "current_source" (ideal constant current) | "engine"."""
 
-    kind: str = "engine"
-    current_a: float = 50.0
+    kind: str = choice("engine", "none", "current_source", "engine")
+    current_a: float = param(50.0, 0.0, 1e4, "A")
 
 
 @dataclass(frozen=True)
 class BatterySection:
     """Battery: model "ideal" | "rint" | "table" (cell tables in ``data``) | "cell".
 
-    ``"cell"``: an ``n_series`` x ``n_parallel`` pack of the electro-thermal cell model of
-    :mod:`hevsim.battery` (``data`` names a shipped cell parameter set or a TOML path), with
-    its RC and thermal dynamics; ``temperature_c`` is its initial and heat-port temperature.
+    ``"cell"`` (series only): an ``n_series`` x ``n_parallel`` pack of the electro-thermal
+    cell model of :mod:`hevsim.battery` (``data`` names a shipped cell parameter set or a TOML
+    path), with its RC and thermal dynamics; ``temperature_c`` is its initial and heat-port
+    temperature. The current limits accept ``inf`` (the default): no limit.
     """
 
-    model: str = "ideal"
-    ocv_v: float = 336.0
-    resistance_ohm: float = 0.0
-    capacity_ah: float = 8.5
+    model: str = choice("ideal", "ideal", "rint", "table", "cell")
+    ocv_v: float = param(336.0, 1e-3, 1e5, "V")
+    resistance_ohm: float = param(0.0, 0.0, 1e3, "ohm")
+    capacity_ah: float = param(8.5, 1e-6, 1e6, "A·h")
     data: str = "nimh_spiral_6ah_insight_prius_nimh6"
-    n_series: int = 1
-    n_parallel: int = 1
-    r_extra_ohm: float = 0.0
-    temperature_c: float = 25.0
-    max_discharge_current_a: float = math.inf
-    max_charge_current_a: float = math.inf
-    soc_min: float = 0.0
-    soc_max: float = 1.0
+    n_series: int = param(1, 1, 10_000, "-")
+    n_parallel: int = param(1, 1, 10_000, "-")
+    r_extra_ohm: float = param(0.0, 0.0, 1e3, "ohm")
+    temperature_c: float = param(25.0, -60.0, 150.0, "degC")
+    max_discharge_current_a: float = param(INF, 1e-6, INF, "A", allow_inf=True)
+    max_charge_current_a: float = param(INF, 1e-6, INF, "A", allow_inf=True)
+    soc_min: float = param(0.0, 0.0, 1.0, "-")
+    soc_max: float = param(1.0, 0.0, 1.0, "-")
 
 
 @dataclass(frozen=True)
 class DriverSection:
     """Proportional speed controller: request = gain x error (per mph, as in the tutorial)."""
 
-    kind: str = "proportional"
-    gain_per_mph: float = 0.5
-    feedforward: float = 0.0
+    kind: str = choice("proportional", "proportional")
+    gain_per_mph: float = param(0.5, 0.0, 100.0, "1/mph")
+    feedforward: float = param(0.0, 0.0, 100.0, "s^2/m")
 
 
 @dataclass(frozen=True)
@@ -144,39 +204,86 @@ class ControllerSection:
     engine_speed_rpm, engine_throttle) instead, e.g. a DP optimum.
     """
 
-    kind: str = "thermostat"
+    kind: str = choice("thermostat", "thermostat", "schedule")
     schedule: str = ""
-    soc_low: float = 0.6
-    soc_high: float = 0.7
-    soc_boost: float = 0.0
-    engine_speed_rpm: float = 1800.0
-    start_speed_rpm: float = 1500.0
-    throttle: float = 0.5
-    throttle_boost: float = 1.0
-    speed_gain_per_rpm: float = 0.01
-    pure_ice_band_w: float = 500.0
-    aux_power_w: float = 0.0
+    soc_low: float = param(0.6, 0.0, 1.0, "-")
+    soc_high: float = param(0.7, 0.0, 1.0, "-")
+    soc_boost: float = param(0.0, 0.0, 1.0, "-")
+    engine_speed_rpm: float = param(1800.0, 0.0, 1e5, "rpm")
+    start_speed_rpm: float = param(1500.0, 0.0, 1e5, "rpm")
+    throttle: float = param(0.5, 0.0, 1.0, "-")
+    throttle_boost: float = param(1.0, 0.0, 1.0, "-")
+    speed_gain_per_rpm: float = param(0.01, 0.0, 100.0, "1/rpm")
+    pure_ice_band_w: float = param(500.0, 0.0, 1e7, "W")
+    aux_power_w: float = param(0.0, 0.0, 1e7, "W")
+
+
+@dataclass(frozen=True)
+class OptimizationSection:
+    """Dynamic-programming settings of the parallel HEV (the appendix's problem by default)."""
+
+    cycle: str = "udds"
+    soc_initial: float = param(0.8, 0.0, 1.0, "-")
+    final_soc: str = choice("window", "window", "sustain")
+    final_soc_min: float = param(0.7, 0.0, 1.0, "-")
+    final_soc_max: float = param(0.8, 0.0, 1.0, "-")
+    soc_tolerance: float = param(0.005, 0.0, 1.0, "-")
+    soc_grid_points: int = param(400, 2, 100_000, "-")
+    throttle_grid_points: int = param(400, 2, 100_000, "-")
+    final_constraint: str = choice("auto", "auto", "boundary_line", "levelset", "wall", "penalty")
 
 
 @dataclass(frozen=True)
 class MetricsSection:
     """Fuel-economy settings: fuel-to-battery conversion efficiency of eq (16) [-]."""
 
-    conversion_efficiency: float = 0.25
+    conversion_efficiency: float = param(0.25, 0.01, 1.0, "-")
+
+
+# ------------------------------------------------------------------------------------------
+# Vehicle configurations (one per architecture, built from the sections above)
+# ------------------------------------------------------------------------------------------
+class _VehicleConfig:
+    """Behaviour shared by the vehicle configurations (``name``, ``powertrain``, ``base_dir``)."""
+
+    name: str
+    base_dir: str
+    powertrain: PowertrainSection
+
+    @property
+    def architecture(self) -> str:
+        """The architecture name (``powertrain.architecture``)."""
+        return self.powertrain.architecture
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict of every value (the resolved configuration, for results)."""
+        return schema.to_dict(self)
+
+    def replace(self: T, **changes: Any) -> T:
+        """Copy with dotted-key overrides, e.g. ``replace(**{"body.mass_kg": 1500.0})``.
+
+        The copy is validated like a file: an override out of range raises ConfigError.
+        """
+        me: Any = self
+        data = schema.with_changes(me.to_dict(), changes)
+        out: T = config_from_dict(data, source=f"{me.name} (modified)", base_dir=Path(me.base_dir))
+        return out
 
 
 @dataclass(frozen=True)
-class VehicleConfig:
-    """A whole series-HEV configuration."""
+class SeriesHEVConfig(_VehicleConfig):
+    """A series-HEV configuration (thesis Fig. 2.3)."""
 
     name: str = "vehicle"
     description: str = ""
+    preset: str = ""
+    powertrain: PowertrainSection = field(default_factory=lambda: PowertrainSection("series"))
     simulation: SimulationSection = field(default_factory=SimulationSection)
     body: BodySection = field(default_factory=BodySection)
     tire: TireSection = field(default_factory=TireSection)
-    gear: GearSection = field(default_factory=GearSection)
+    final_drive: GearSection = field(default_factory=GearSection)
     brakes: BrakesSection = field(default_factory=BrakesSection)
-    traction_motor: MachineSection = field(default_factory=MachineSection)
+    motor: MachineSection = field(default_factory=MachineSection)
     generator: MachineSection = field(default_factory=MachineSection)
     engine: EngineSection = field(default_factory=EngineSection)
     genset: GensetSection = field(default_factory=GensetSection)
@@ -187,64 +294,292 @@ class VehicleConfig:
     fuel: FuelSection = field(default_factory=FuelSection)  # hevsim.fuels: choose/override the fuel
     base_dir: str = "."
 
-    def to_dict(self) -> dict[str, Any]:
-        """Plain dict of every value (the resolved configuration, for results)."""
-        return schema.to_dict(self)
 
-    def replace(self, **changes: Any) -> VehicleConfig:
-        """Copy with dotted-key overrides, e.g. ``replace(**{"body.mass_kg": 1500.0})``."""
-        data = schema.with_changes(self.to_dict(), changes)
-        return from_dict(data, source=f"{self.name} (modified)", base_dir=Path(self.base_dir))
+VehicleConfig = SeriesHEVConfig
+"""Former name of :class:`SeriesHEVConfig`."""
 
 
-# Allowed values of the string choices, checked on load.
-CHOICES: dict[str, tuple[str, ...]] = {
-    "traction_motor.model": ("ideal", "constant_efficiency", "map"),
-    "generator.model": ("ideal", "constant_efficiency", "map"),
-    "traction_motor.rating": ("cont", "peak"),
-    "generator.rating": ("cont", "peak"),
-    "engine.model": ("constant_torque", "map"),
-    "genset.kind": ("none", "current_source", "engine"),
-    "battery.model": ("ideal", "rint", "table", "cell"),
-    "controller.kind": ("thermostat", "schedule"),
-    "driver.kind": ("proportional",),
-}
-# (low, high) inclusive bounds of numeric keys.
-BOUNDS: dict[str, tuple[float, float]] = {
-    "simulation.dt_s": (1e-3, 10.0),
-    "simulation.soc_initial": (0.0, 1.0),
-    "body.mass_kg": (1.0, 1e6),
-    "tire.radius_m": (0.01, 5.0),
-    "gear.ratio": (1e-3, 1e3),
-    "gear.efficiency": (0.01, 1.0),
-    "traction_motor.efficiency": (0.01, 1.0),
-    "generator.efficiency": (0.01, 1.0),
-    "controller.soc_low": (0.0, 1.0),
-    "controller.soc_high": (0.0, 1.0),
-    "controller.throttle": (0.0, 1.0),
-    "controller.throttle_boost": (0.0, 1.0),
-    "metrics.conversion_efficiency": (0.01, 1.0),
-    "battery.n_series": (1, 10000),
-    "battery.n_parallel": (1, 10000),
-    "battery.capacity_ah": (1e-6, 1e6),
-    "battery.soc_min": (0.0, 1.0),
-    "battery.soc_max": (0.0, 1.0),
-}
+@dataclass(frozen=True)
+class ParallelHEVConfig(_VehicleConfig):
+    """A parallel-HEV configuration (the thesis appendix's DP vehicle; see hevsim.parallel)."""
+
+    name: str = "parallel_hev"
+    description: str = ""
+    preset: str = ""
+    powertrain: PowertrainSection = field(default_factory=lambda: PowertrainSection("parallel"))
+    body: BodySection = field(default_factory=BodySection)
+    tire: TireSection = field(default_factory=TireSection)
+    final_drive: GearSection = field(default_factory=GearSection)
+    gearbox: GearboxSection = field(default_factory=GearboxSection)
+    engine: EngineSection = field(default_factory=EngineSection)
+    motor: MachineSection = field(default_factory=MachineSection)
+    motor_coupling: GearSection = field(default_factory=lambda: GearSection(ratio=1.0))
+    battery: BatterySection = field(default_factory=BatterySection)
+    optimization: OptimizationSection = field(default_factory=OptimizationSection)
+    metrics: MetricsSection = field(default_factory=MetricsSection)
+    fuel: FuelSection = field(default_factory=FuelSection)  # hevsim.fuels: choose/override the fuel
+    base_dir: str = "."
 
 
-def from_dict(data: dict[str, Any], source: str = "<config>", base_dir: Path | None = None) -> VehicleConfig:
-    """Validate a parsed configuration mapping into a :class:`VehicleConfig`."""
-    cfg = schema.build_config(VehicleConfig, data, source, base_dir, CHOICES, BOUNDS)
-    c = cfg.controller
-    if c.soc_low >= c.soc_high:
+def _pairs_below(cfg: Any, source: str, pairs: tuple[tuple[str, str], ...]) -> None:
+    for lo_key, hi_key in pairs:
+        lo, hi = _get(cfg, lo_key), _get(cfg, hi_key)
+        if lo >= hi:
+            raise ConfigError(f"{source}: key '{lo_key}' = {lo} must be below '{hi_key}' = {hi}.")
+
+
+def _get(cfg: Any, dotted: str) -> Any:
+    sec, _, name = dotted.partition(".")
+    return getattr(getattr(cfg, sec), name)
+
+
+def _check_series(cfg: SeriesHEVConfig, source: str) -> None:
+    _pairs_below(cfg, source, (("controller.soc_low", "controller.soc_high"),
+                               ("battery.soc_min", "battery.soc_max"),
+                               ("engine.stall_speed_rpm", "engine.redline_rpm")))  # fmt: skip
+
+
+def _check_parallel(cfg: ParallelHEVConfig, source: str) -> None:
+    _pairs_below(cfg, source, (("battery.soc_min", "battery.soc_max"),
+                               ("engine.stall_speed_rpm", "engine.redline_rpm"),
+                               ("optimization.final_soc_min", "optimization.final_soc_max")))  # fmt: skip
+    b, o = cfg.battery, cfg.optimization
+    if not b.soc_min <= o.soc_initial <= b.soc_max:
         raise ConfigError(
-            f"{source}: key 'controller.soc_low' = {c.soc_low} must be below "
-            f"'controller.soc_high' = {c.soc_high}."
+            f"{source}: key 'optimization.soc_initial' = {o.soc_initial} lies outside the SOC window "
+            f"[battery.soc_min, battery.soc_max] = [{b.soc_min}, {b.soc_max}]."
+        )
+    if o.final_soc == "window" and (o.final_soc_min < b.soc_min or o.final_soc_max > b.soc_max):
+        raise ConfigError(
+            f"{source}: keys 'optimization.final_soc_min'/'final_soc_max' = [{o.final_soc_min}, "
+            f"{o.final_soc_max}] must lie inside the SOC window [{b.soc_min}, {b.soc_max}]."
+        )
+    if cfg.battery.model == "cell":
+        raise ConfigError(
+            f"{source}: key 'battery.model' = 'cell' is not supported by the parallel HEV; "
+            "expected one of ideal, rint, table."
+        )
+    if cfg.engine.model != "map":
+        raise ConfigError(
+            f"{source}: key 'engine.model' = {cfg.engine.model!r} is not supported by the parallel "
+            "HEV; expected 'map' (its DP needs a fuel map)."
+        )
+
+
+def _series_required(data: dict[str, Any]) -> tuple[str, ...]:
+    genset = data.get("genset", {})
+    kind = genset.get("kind", GensetSection.kind) if isinstance(genset, dict) else GensetSection.kind
+    extra = ("engine", "generator") if kind == "engine" else ()
+    return ("body", "tire", "final_drive", "motor", "battery", *extra)
+
+
+# ------------------------------------------------------------------------------------------
+# Registry of architectures
+# ------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ArchitectureSpec:
+    """One registered architecture.
+
+    Attributes:
+        name: value of ``[powertrain] architecture``. config_type: its configuration class.
+        builder: ``"module:function"`` that builds the vehicle model from a configuration
+            (imported on use, so this module imports no component code).
+        required: the component sections a file must hold, from the parsed file mapping.
+        check: cross-key checks of a validated configuration (raise ConfigError).
+    """
+
+    name: str
+    config_type: type
+    builder: str
+    required: Callable[[dict[str, Any]], tuple[str, ...]]
+    check: Callable[[Any, str], None]
+
+    def build(self, cfg: Any) -> Any:
+        """The vehicle model of ``cfg``."""
+        module, _, func = self.builder.partition(":")
+        return getattr(importlib.import_module(module), func)(cfg)
+
+
+ARCHITECTURES: dict[str, ArchitectureSpec] = {}
+"""Registered architectures by name (``[powertrain] architecture = ...``)."""
+
+
+def register_architecture(spec: ArchitectureSpec) -> None:
+    """Add (or replace) an architecture in :data:`ARCHITECTURES`."""
+    ARCHITECTURES[spec.name] = spec
+
+
+register_architecture(ArchitectureSpec(
+    "series", SeriesHEVConfig, "hevsim.sim.model:build_series_hev", _series_required, _check_series,
+))  # fmt: skip
+register_architecture(ArchitectureSpec(
+    "parallel", ParallelHEVConfig, "hevsim.parallel:build_parallel_hev",
+    lambda data: ("body", "tire", "final_drive", "gearbox", "engine", "motor", "motor_coupling", "battery"),
+    _check_parallel,
+))  # fmt: skip
+
+
+def architecture_of(cfg: Any) -> ArchitectureSpec:
+    """The registered architecture of a configuration object."""
+    for spec in ARCHITECTURES.values():
+        if isinstance(cfg, spec.config_type):
+            return spec
+    raise ConfigError(
+        f"{type(cfg).__name__} is not a vehicle configuration; expected one of "
+        f"{', '.join(s.config_type.__name__ for s in ARCHITECTURES.values())}."
+    )
+
+
+def build_vehicle(cfg: Any) -> Any:
+    """Build the vehicle model of a configuration through its architecture's builder."""
+    return architecture_of(cfg).build(cfg)
+
+
+# ------------------------------------------------------------------------------------------
+# Layout, presets, completeness
+# ------------------------------------------------------------------------------------------
+RENAMED_SECTIONS: dict[str, str] = {"gear": "final_drive", "traction_motor": "motor"}
+"""Old series-file sections and their new names."""
+RENAMED_KEYS: dict[str, str] = {
+    "motor.coupling_ratio": "[motor_coupling] ratio",
+    "motor.coupling_efficiency": "[motor_coupling] efficiency",
+}
+"""Old parallel-file keys and where they moved."""
+PRESET_DEFAULTS = "defaults"
+"""``preset`` value: every omitted section takes its class defaults (a toy vehicle)."""
+
+
+def presets() -> list[str]:
+    """Valid ``preset`` values: ``"defaults"`` and ``"tutorial_level_N"`` (refinement levels)."""
+    return [PRESET_DEFAULTS, *(f"tutorial_level_{i}" for i in range(1, len(_level_files()) + 1))]
+
+
+def _level_files() -> list[Path]:
+    root = Path(str(resources.files("hevsim") / "data" / "refinement"))
+    return sorted(root.glob("level*.toml"))
+
+
+def _old_layout(data: dict[str, Any], source: str) -> None:
+    fixes: list[str] = []
+    if "architecture" in data:
+        fixes.append(
+            f"move the top-level key 'architecture' = {data['architecture']!r} into a "
+            f"[powertrain] section (architecture = {data['architecture']!r})"
+        )
+    for old, new in RENAMED_SECTIONS.items():
+        if old in data:
+            fixes.append(f"rename [{old}] to [{new}]")
+    for old, new in RENAMED_KEYS.items():
+        sec, _, key = old.partition(".")
+        if isinstance(data.get(sec), dict) and key in data[sec]:
+            fixes.append(f"move '{old}' to {new}")
+    if fixes:
+        arch = "" if "powertrain" in data or "architecture" in data else (
+            "; add [powertrain] architecture = \"series\"" if any(s in data for s in RENAMED_SECTIONS) else ""
+        )  # fmt: skip
+        raise ConfigError(f"{source}: old configuration layout: {'; '.join(fixes)}{arch}.")
+
+
+def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for k, v in over.items():
+        out[k] = {**out[k], **v} if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def _apply_preset(data: dict[str, Any], source: str) -> dict[str, Any]:
+    name = data.get("preset", "")
+    if name in ("", PRESET_DEFAULTS):
+        return data
+    valid = presets()
+    if not isinstance(name, str) or name not in valid:
+        raise ConfigError(
+            f"{source}: key 'preset' = {name!r} is not known; expected one of {', '.join(valid)}."
+        )
+    base = schema.read_toml(_level_files()[int(name.rsplit("_", 1)[1]) - 1])
+    base.pop("name", None)
+    return _merge(base, data)
+
+
+def config_from_dict(data: dict[str, Any], source: str = "<config>", base_dir: Path | None = None) -> Any:
+    """Validate a parsed vehicle mapping into the configuration of its architecture.
+
+    Raises:
+        ConfigError: old layout (with what to rename), unknown architecture (with the valid
+            names), missing component sections (all listed), or any invalid key.
+    """
+    _old_layout(data, source)
+    data = _apply_preset(data, source)
+    pt = data.get("powertrain")
+    if pt is None:
+        raise ConfigError(
+            f"{source}: section [powertrain] is missing; expected [powertrain] architecture = one "
+            f"of {', '.join(repr(a) for a in ARCHITECTURES)}"
+            + ("." if data.get("preset") else f" (then the sections it needs: {_needs()}).")
+        )
+    name = pt.get("architecture") if isinstance(pt, dict) else None
+    spec = ARCHITECTURES.get(name) if isinstance(name, str) else None
+    if spec is None:
+        raise ConfigError(
+            f"{source}: key 'powertrain.architecture' = {name!r} is not known; expected one of "
+            f"{', '.join(ARCHITECTURES)}."
+        )
+    cfg: Any = schema.build_config(spec.config_type, data, source, base_dir, {}, {})
+    if not data.get("preset"):
+        missing = [s for s in spec.required(data) if s not in data]
+        if missing:
+            raise ConfigError(
+                f"{source}: the {spec.name} architecture needs sections that are missing: "
+                f'{", ".join(f"[{s}]" for s in missing)}; add them, or set preset = "defaults" '
+                "to take the defaults of every omitted section."
+            )
+    spec.check(cfg, source)
+    return cfg
+
+
+def _needs() -> str:
+    return "; ".join(f"{a}: {', '.join(s.required({}))}" for a, s in ARCHITECTURES.items())
+
+
+def load_vehicle_config(path: str | Path) -> Any:
+    """Read and validate a vehicle TOML file of any registered architecture."""
+    p = Path(path)
+    return config_from_dict(schema.read_toml(p), source=str(p), base_dir=p.resolve().parent)
+
+
+def _of_architecture(cfg: Any, name: str, source: str) -> Any:
+    if cfg.architecture != name:
+        raise ConfigError(
+            f"{source}: key 'powertrain.architecture' = {cfg.architecture!r}; expected {name!r} here."
         )
     return cfg
 
 
-def load_config(path: str | Path) -> VehicleConfig:
-    """Read and validate a TOML configuration file."""
+def from_dict(
+    data: dict[str, Any], source: str = "<config>", base_dir: Path | None = None
+) -> SeriesHEVConfig:
+    """Validate a series-HEV mapping (``[powertrain]`` may be omitted: it defaults to series)."""
+    data = dict(data)
+    if "powertrain" not in data and "architecture" not in data:
+        data["powertrain"] = {"architecture": "series"}
+    cfg: SeriesHEVConfig = _of_architecture(config_from_dict(data, source, base_dir), "series", source)
+    return cfg
+
+
+def load_config(path: str | Path) -> SeriesHEVConfig:
+    """Read and validate a series-HEV TOML file."""
     p = Path(path)
-    return from_dict(schema.read_toml(p), source=str(p), base_dir=p.resolve().parent)
+    cfg: SeriesHEVConfig = _of_architecture(load_vehicle_config(p), "series", str(p))
+    return cfg
+
+
+def fields_with_bounds(cls: type) -> list[tuple[str, dataclasses.Field[Any]]]:
+    """Every (dotted key, field) of a configuration class and its sections, for tests/docs."""
+    out: list[tuple[str, dataclasses.Field[Any]]] = []
+    for f in dataclasses.fields(cls):
+        tp = f.default_factory() if f.default_factory is not dataclasses.MISSING else None
+        if tp is not None and dataclasses.is_dataclass(tp):
+            out.extend((f"{f.name}.{g.name}", g) for g in dataclasses.fields(tp))
+        else:
+            out.append((f.name, f))
+    return out

@@ -4,6 +4,12 @@ A configuration class is a dataclass whose fields are scalars (float, int, str),
 scalars, or section dataclasses of such fields. Every key is checked: an unknown key, a
 wrong type, a value outside ``bounds`` or not in ``choices`` raises :class:`ConfigError`
 naming the file, the key, the value and what was expected.
+
+A field states its own range next to it: ``field(metadata={"bounds": (lo, hi), "unit": "kg"})``
+(or ``"choices": (...)``); the ``choices``/``bounds`` mappings by dotted key are the older
+form, still accepted. Floats must be finite (``inf`` and ``nan`` are rejected) unless the
+field's metadata says ``"allow_inf": True``. :func:`check_option` applies a field's range to a
+command-line option, so options and files share one validation.
 """
 
 from __future__ import annotations
@@ -23,12 +29,14 @@ Choices = Mapping[str, tuple[str, ...]]
 Bounds = Mapping[str, tuple[float, float]]
 
 
-def _check_scalar(value: Any, tp: Any, where: str) -> Any:
+def _check_scalar(value: Any, tp: Any, where: str, allow_inf: bool = False) -> Any:
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ConfigError(f"{where}: value {value!r} has the wrong type; expected a number.")
         if math.isnan(value):
             raise ConfigError(f"{where}: value nan is not a number; expected a number.")
+        if math.isinf(value) and not allow_inf:
+            raise ConfigError(f"{where}: value {value} is not finite; expected a finite number.")
         return float(value)
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
@@ -41,32 +49,73 @@ def _check_scalar(value: Any, tp: Any, where: str) -> Any:
     raise ConfigError(f"{where}: unsupported type {tp}.")  # pragma: no cover
 
 
-def check_value(value: Any, tp: Any, source: str, full: str, choices: Choices, bounds: Bounds) -> Any:
-    """Check one value of type ``tp`` at dotted key ``full``; returns it converted."""
-    where = f"{source}: key '{full}'"
+def _unit_text(unit: str) -> str:
+    return f" {unit}" if unit and unit != "-" else ""
+
+
+def check_value(
+    value: Any, tp: Any, source: str, full: str, choices: Choices, bounds: Bounds,
+    meta: Mapping[str, Any] | None = None, where: str | None = None,
+) -> Any:  # fmt: skip
+    """Check one value of type ``tp`` at dotted key ``full``; returns it converted.
+
+    ``meta`` is the field's metadata (``bounds``, ``unit``, ``choices``, ``allow_inf``); it
+    takes precedence over the ``choices``/``bounds`` mappings. ``where`` replaces the
+    ``"<source>: key '<full>'"`` prefix of messages (e.g. ``"--soc-initial"``).
+    """
+    meta = meta or {}
+    where = where or f"{source}: key '{full}'"
+    allow_inf = bool(meta.get("allow_inf", False))
     if typing.get_origin(tp) is tuple:
         (item_tp, _) = typing.get_args(tp)
-        if not isinstance(value, list) or not value:
+        if not isinstance(value, list | tuple) or not value:
             raise ConfigError(
                 f"{where}: value {value!r} has the wrong type; expected a non-empty list of numbers."
             )
-        out = tuple(_check_scalar(v, item_tp, f"{where}[{i}]") for i, v in enumerate(value))
+        out = tuple(_check_scalar(v, item_tp, f"{where}[{i}]", allow_inf) for i, v in enumerate(value))
         items: tuple[Any, ...] = out
     else:
-        out = _check_scalar(value, tp, where)
+        out = _check_scalar(value, tp, where, allow_inf)
         items = (out,)
-    if full in choices and out not in choices[full]:
-        raise ConfigError(
-            f"{where} = {value!r} is not a valid choice; expected one of {', '.join(choices[full])}."
-        )
-    if full in bounds:
-        lo, hi = bounds[full]
+    options = meta.get("choices", choices.get(full))
+    if options is not None and out not in options:
+        raise ConfigError(f"{where} = {value!r} is not a valid choice; expected one of {', '.join(options)}.")
+    rng = meta.get("bounds", bounds.get(full))
+    if rng is not None:
+        lo, hi = rng
+        unit = _unit_text(str(meta.get("unit", "")))
         for v in items:
             if not lo <= v <= hi:
                 raise ConfigError(
-                    f"{where} = {value!r} is out of range; expected a value between {lo} and {hi}."
+                    f"{where} = {value!r} is out of range; expected a value between {lo:g} and {hi:g}{unit}."
                 )
     return out
+
+
+def field_of(cls: type, key: str) -> tuple[Any, Mapping[str, Any]]:
+    """(type, metadata) of the field at dotted ``key`` of configuration class ``cls``."""
+    tp: Any = cls
+    meta: Mapping[str, Any] = {}
+    for name in key.split("."):
+        fields = {f.name: f for f in dataclasses.fields(tp)}
+        if name not in fields:
+            raise KeyError(key)
+        f = fields[name]
+        meta = f.metadata
+        tp = typing.get_type_hints(tp)[name]
+    return tp, meta
+
+
+def check_option(option: str, value: Any, cls: type, key: str) -> Any:
+    """Validate a command-line ``option``'s value with the range of field ``key`` of ``cls``.
+
+    Example: ``check_option("--soc-initial", 1.5, SimulationSection, "soc_initial")`` raises
+    ConfigError("--soc-initial = 1.5 is out of range; expected a value between 0 and 1.").
+    """
+    if value is None:
+        return None
+    tp, meta = field_of(cls, key)
+    return check_value(value, tp, "", key, {}, {}, meta, where=option)
 
 
 def build_section(cls: type[T], data: Any, source: str, section: str, choices: Choices, bounds: Bounds) -> T:
@@ -74,15 +123,17 @@ def build_section(cls: type[T], data: Any, source: str, section: str, choices: C
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: [{section}]: expected a table of keys, got {data!r}.")
     hints = typing.get_type_hints(cls)
-    names = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
+    fields = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
     kwargs: dict[str, Any] = {}
     for key, value in data.items():
-        if key not in names:
+        if key not in fields:
             raise ConfigError(
                 f"{source}: key '{section}.{key}' is not known; valid keys in [{section}] are: "
-                f"{', '.join(names)}."
+                f"{', '.join(fields)}."
             )
-        kwargs[key] = check_value(value, hints[key], source, f"{section}.{key}", choices, bounds)
+        kwargs[key] = check_value(
+            value, hints[key], source, f"{section}.{key}", choices, bounds, fields[key].metadata
+        )
     return cls(**kwargs)
 
 
@@ -92,7 +143,8 @@ def build_config(
 ) -> T:  # fmt: skip
     """Validate a parsed configuration mapping into ``cls`` (which has a ``base_dir`` field)."""
     hints = typing.get_type_hints(cls)
-    valid = [f.name for f in dataclasses.fields(cls) if f.name != "base_dir"]  # type: ignore[arg-type]
+    fields = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    valid = [n for n in fields if n != "base_dir"]
     kwargs: dict[str, Any] = {"base_dir": str(base_dir or Path("."))}
     for key, value in data.items():
         if key not in valid:
@@ -103,7 +155,7 @@ def build_config(
         if isinstance(tp, type) and dataclasses.is_dataclass(tp):
             kwargs[key] = build_section(tp, value, source, key, choices, bounds)
         else:
-            kwargs[key] = check_value(value, tp, source, key, choices, bounds)
+            kwargs[key] = check_value(value, tp, source, key, choices, bounds, fields[key].metadata)
     return cls(**kwargs)
 
 

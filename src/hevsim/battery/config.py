@@ -1,6 +1,9 @@
 """Cell and module simulation configurations (TOML, validated through :mod:`hevsim.schema`).
 
-Example: ``examples/cell.toml``; run with :func:`run_config`.
+Example: ``examples/cell.toml``; run with :func:`run_config`. Temperatures are in degrees
+Celsius in the files (``temp_c``, ``port_temp_c``) and in kelvin inside (the ``temp_k`` and
+``port_temp_k`` properties); a file with the former kelvin keys gets a message saying what to
+rename.
 """
 
 from __future__ import annotations
@@ -17,6 +20,12 @@ from hevsim.battery.profiles import cycle_cell_current
 from hevsim.errors import ConfigError
 from hevsim.schema import build_config, read_toml
 from hevsim.tables import FloatArray
+from hevsim.units import c_to_k
+
+_TEMP_C = {"bounds": (-120.0, 225.0), "unit": "degC"}
+"""Range of the cell temperatures [degC] (150 K to about 500 K)."""
+RENAMED_KEYS = {"cell.temp_k": "cell.temp_c", "thermal.port_temp_k": "thermal.port_temp_c"}
+"""Former kelvin keys and their Celsius replacements."""
 
 
 @dataclass(frozen=True)
@@ -24,8 +33,13 @@ class CellSection:
     """Which parameter set (shipped name or a path relative to the config) and initial state."""
 
     parameters: str = "thesis_table_4_1"
-    soc_initial: float = 1.0
-    temp_k: float = 298.15
+    soc_initial: float = field(default=1.0, metadata={"bounds": (0.0, 1.0), "unit": "-"})
+    temp_c: float = field(default=25.0, metadata=_TEMP_C)
+
+    @property
+    def temp_k(self) -> float:
+        """Initial cell temperature [K]."""
+        return c_to_k(self.temp_c)
 
 
 @dataclass(frozen=True)
@@ -53,9 +67,14 @@ class ProfileSection:
 
 @dataclass(frozen=True)
 class ThermalSection:
-    """Heat-port temperature [K]."""
+    """Heat-port temperature [degC]."""
 
-    port_temp_k: float = 298.15
+    port_temp_c: float = field(default=25.0, metadata=_TEMP_C)
+
+    @property
+    def port_temp_k(self) -> float:
+        """Heat-port temperature [K]."""
+        return c_to_k(self.port_temp_c)
 
 
 @dataclass(frozen=True)
@@ -72,22 +91,27 @@ class CellConfig:
 
 _CHOICES = {"profile.kind": ("constant", "cycle")}
 _BOUNDS = {
-    "cell.soc_initial": (0.0, 1.0),
-    "cell.temp_k": (150.0, 500.0),
     "module.n_series": (1, 10_000),
     "module.n_parallel": (1, 10_000),
     "module.capacity_spread": (0.0, 0.3),
     "module.resistance_spread": (0.0, 0.3),
     "profile.duration_s": (1e-9, 1e9),
     "profile.dt_s": (1e-9, 1e6),
-    "thermal.port_temp_k": (150.0, 500.0),
 }
 
 
 def load_config(path: str | Path) -> CellConfig:
     """Read and validate a cell/module configuration file."""
     p = Path(path)
-    return build_config(CellConfig, read_toml(p), str(p), p.parent, _CHOICES, _BOUNDS)
+    data = read_toml(p)
+    for old, new in RENAMED_KEYS.items():
+        sec, _, key = old.partition(".")
+        if isinstance(data.get(sec), dict) and key in data[sec]:
+            raise ConfigError(
+                f"{p}: key '{old}' = {data[sec][key]!r}: temperatures are in degrees Celsius in files; "
+                f"rename it to '{new}' (value - 273.15)."
+            )
+    return build_config(CellConfig, data, str(p), p.parent, _CHOICES, _BOUNDS)
 
 
 def profile_current(cfg: CellConfig) -> FloatArray:

@@ -8,7 +8,7 @@ generic solver :func:`hevsim.optimal.solve_dp`. Architectures are looked up by n
 
 * ``"parallel"``: the thesis appendix's parallel HEV with a multi-speed gearbox
   (:mod:`hevsim.parallel`; inputs gear and engine throttle);
-* ``"series"``: the chapter-2 series HEV (:class:`hevsim.config.VehicleConfig`; input the
+* ``"series"``: the chapter-2 series HEV (:class:`hevsim.config.SeriesHEVConfig`; input the
   genset electrical power, engine on its fuel-optimal operating line).
 
 The result (:class:`OptimizationResult`) holds the optimal time series with operating
@@ -30,9 +30,8 @@ import numpy as np
 import pandas as pd
 
 import hevsim
-from hevsim import schema
 from hevsim.components.engine import Engine
-from hevsim.config import VehicleConfig, load_config
+from hevsim.config import SeriesHEVConfig, load_config, load_vehicle_config
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DPInfeasibleError, DPSetupError
 from hevsim.io import atomic_directory, write_json
@@ -145,14 +144,12 @@ ARCHITECTURES: dict[str, Architecture] = {
         _parallel_settings, _formulate_parallel,
     ),
     "series": Architecture(
-        "series", VehicleConfig, SeriesHEV, load_config, build_series_hev, _series_settings,
+        "series", SeriesHEVConfig, SeriesHEV, load_config, build_series_hev, _series_settings,
         _formulate_series,
     ),
 }  # fmt: skip
-"""Registered architectures, by the name used in configuration files (``architecture = ...``)."""
-DEFAULT_FILE_ARCHITECTURE = "series"
-"""Architecture of a configuration file without an ``architecture`` key (the series HEV
-files of the forward simulator)."""
+"""Architectures with a DP formulation, by the name used in configuration files
+(``[powertrain] architecture = ...``; the configuration types are :data:`hevsim.config.ARCHITECTURES`)."""
 
 
 def _by_type() -> dict[type, tuple[Architecture, bool]]:
@@ -164,19 +161,13 @@ def _by_type() -> dict[type, tuple[Architecture, bool]]:
 
 
 def _load_file(path: Path) -> Any:
-    data = schema.read_toml(path)
-    name = data.get("architecture", DEFAULT_FILE_ARCHITECTURE)
-    arch = ARCHITECTURES.get(name) if isinstance(name, str) else None
-    if arch is None:
+    cfg = load_vehicle_config(path)
+    if cfg.architecture not in ARCHITECTURES:
         raise ConfigError(
-            f"{path}: key 'architecture' = {name!r} is not known; expected one of {', '.join(ARCHITECTURES)}."
+            f"{path}: key 'powertrain.architecture' = {cfg.architecture!r} has no DP formulation; "
+            f"expected one of {', '.join(ARCHITECTURES)}."
         )
-    if name == DEFAULT_FILE_ARCHITECTURE and "architecture" in data:
-        raise ConfigError(
-            f"{path}: key 'architecture' = {name!r}: series configurations are plain vehicle files "
-            "without an 'architecture' key; remove the key."
-        )
-    return arch.load(path)
+    return cfg
 
 
 def resolve_model(config_or_model: Any) -> tuple[Architecture, Any]:
@@ -329,9 +320,9 @@ def optimize(
     """Fuel-optimal energy management of a hybrid vehicle over a drive cycle, by DP.
 
     Args:
-        config_or_model: a configuration file path (``architecture = "parallel"`` for the
+        config_or_model: a configuration file path (``[powertrain] architecture = "parallel"`` for the
             parallel HEV; series-HEV files have no such key), a configuration object
-            (:class:`~hevsim.parallel.ParallelHEVConfig`, :class:`~hevsim.config.VehicleConfig`)
+            (:class:`~hevsim.config.ParallelHEVConfig`, :class:`~hevsim.config.SeriesHEVConfig`)
             or a built model (:class:`~hevsim.parallel.ParallelHEV`,
             :class:`~hevsim.sim.model.SeriesHEV`). The architecture is looked up in
             :data:`ARCHITECTURES`.

@@ -8,6 +8,7 @@ settings; :meth:`SeriesHEV.param_vector` packs every scalar into the kernel's ve
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -20,9 +21,9 @@ from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
 from hevsim.components.electric_machine import ElectricMachine
 from hevsim.components.engine import Engine
-from hevsim.fuels import with_config_fuel
-from hevsim.config import MachineSection, VehicleConfig
+from hevsim.config import BatterySection, EngineSection, MachineSection, SeriesHEVConfig
 from hevsim.errors import ConfigError
+from hevsim.fuels import with_config_fuel
 from hevsim.sim import kernel as K
 from hevsim.tables import FloatArray, Table1D
 from hevsim.units import MPS_PER_MPH, c_to_k, rpm_to_radps
@@ -54,7 +55,7 @@ def resolve_component(name: str, kind: str, base_dir: Path, key: str) -> Path:
 class SeriesHEV:
     """A series hybrid vehicle ready to simulate (components + control settings)."""
 
-    config: VehicleConfig
+    config: SeriesHEVConfig
     body: VehicleBody
     tire: Tire
     gear: Gear
@@ -179,7 +180,11 @@ class SeriesHEV:
         )
 
 
-def _machine(sec: MachineSection, label: str, base: Path) -> ElectricMachine:
+def build_machine(sec: MachineSection, label: str, base: Path) -> ElectricMachine:
+    """Electric machine of a ``[motor]``/``[generator]`` section (any architecture).
+
+    ``torque_scale`` scales the torque limits of every model (map, ideal, constant efficiency).
+    """
     if sec.model == "map":
         folder = resolve_component(sec.data, "motor", base, f"{label}.data")
         return ElectricMachine.from_directory(
@@ -189,46 +194,39 @@ def _machine(sec: MachineSection, label: str, base: Path) -> ElectricMachine:
             inertia_kgm2=sec.inertia_kgm2,
             name=f"{label}: {folder.name}",
         )
+    eff = sec.efficiency if sec.model == "constant_efficiency" else 1.0
     m = ElectricMachine.constant_torque(
-        f"{label}: constant {sec.max_torque_nm:g} N·m",
-        sec.max_torque_nm,
-        efficiency=sec.efficiency if sec.model == "constant_efficiency" else 1.0,
+        f"{label}: constant {sec.max_torque_nm:g} N·m", sec.max_torque_nm, efficiency=eff,
         inertia_kgm2=sec.inertia_kgm2,
-    )
-    if sec.model == "constant_efficiency" and sec.efficiency == 1.0:
-        return ElectricMachine(
-            m.name, "constant_efficiency", m.max_motoring_torque, m.max_generating_torque, 1.0,
-            None, sec.inertia_kgm2, sec.torque_scale,
-        )  # fmt: skip
+    )  # fmt: skip
+    if sec.torque_scale != 1.0 or (sec.model == "constant_efficiency" and eff == 1.0):
+        return dataclasses.replace(m, kind=sec.model, torque_scale=sec.torque_scale)
     return m
 
 
-def build_series_hev(cfg: VehicleConfig) -> SeriesHEV:
-    """Build the component objects of a series HEV from its configuration."""
-    base = Path(cfg.base_dir)
-    body = VehicleBody.from_section(cfg.body)
-    engine: Engine | None = None
-    e = cfg.engine
-    if cfg.genset.kind == "engine":
-        common = {
-            "inertia_kgm2": e.inertia_kgm2,
-            "stall_speed_radps": rpm_to_radps(e.stall_speed_rpm),
-            "redline_radps": rpm_to_radps(e.redline_rpm),
-            "torque_scale": e.torque_scale,
-        }
-        if e.model == "map":
-            folder = resolve_component(e.data, "engine", base, "engine.data")
-            engine = Engine.from_directory(folder, **common)
-        else:
-            x = np.array([0.0])
-            engine = Engine(
-                name=f"constant {e.max_torque_nm:g} N·m engine (ideal fuel)",
-                max_torque=Table1D(x, np.array([e.max_torque_nm])),
-                closed_throttle_torque=Table1D(x, np.array([0.0])),
-                fuel_map=None,
-                **common,  # type: ignore[arg-type]
-            )
-    bs = cfg.battery
+def build_engine(e: EngineSection, base: Path) -> Engine:
+    """Engine of an ``[engine]`` section: measured maps, or a constant-torque ideal-fuel engine."""
+    common = {
+        "inertia_kgm2": e.inertia_kgm2,
+        "stall_speed_radps": rpm_to_radps(e.stall_speed_rpm),
+        "redline_radps": rpm_to_radps(e.redline_rpm),
+        "torque_scale": e.torque_scale,
+    }
+    if e.model == "map":
+        folder = resolve_component(e.data, "engine", base, "engine.data")
+        return Engine.from_directory(folder, **common)
+    x = np.array([0.0])
+    return Engine(
+        name=f"constant {e.max_torque_nm:g} N·m engine (ideal fuel)",
+        max_torque=Table1D(x, np.array([e.max_torque_nm])),
+        closed_throttle_torque=Table1D(x, np.array([0.0])),
+        fuel_map=None,
+        **common,  # type: ignore[arg-type]
+    )
+
+
+def build_battery(bs: BatterySection, base: Path) -> tuple[BatteryPack, Any]:
+    """(pack, cell parameters or None) of a ``[battery]`` section; temperatures in K inside."""
     limits = {
         "max_discharge_current_a": bs.max_discharge_current_a,
         "max_charge_current_a": bs.max_charge_current_a,
@@ -237,17 +235,16 @@ def build_series_hev(cfg: VehicleConfig) -> SeriesHEV:
         "n_series": bs.n_series,
         "n_parallel": bs.n_parallel,
     }
-    cell = None
     if bs.model == "table":
         folder = resolve_component(bs.data, "battery", base, "battery.data")
-        battery = BatteryPack.from_directory(folder, **limits)
-    elif bs.model == "cell":
+        return BatteryPack.from_directory(folder, **limits), None
+    if bs.model == "cell":
         from hevsim.battery import load_cell_parameters
         from hevsim.battery.vehicle import quasi_static_pack
 
         path = base / bs.data
         cell = load_cell_parameters(path if path.suffix == ".toml" and path.is_file() else bs.data)
-        battery = quasi_static_pack(
+        pack = quasi_static_pack(
             cell,
             bs.n_series,
             bs.n_parallel,
@@ -256,22 +253,31 @@ def build_series_hev(cfg: VehicleConfig) -> SeriesHEV:
             max_charge_current_a=bs.max_charge_current_a,
             r_extra_ohm=bs.r_extra_ohm,
         )
-    else:
-        battery = BatteryPack.constant(
-            f"{bs.model} {bs.ocv_v:g} V",
-            bs.model,
-            bs.ocv_v,
-            bs.capacity_ah,
-            bs.resistance_ohm if bs.model == "rint" else 0.0,
-            **limits,
-        )
+        return pack, cell
+    pack = BatteryPack.constant(
+        f"{bs.model} {bs.ocv_v:g} V {bs.capacity_ah:g} Ah",
+        bs.model,
+        bs.ocv_v,
+        bs.capacity_ah,
+        bs.resistance_ohm if bs.model == "rint" else 0.0,
+        **limits,
+    )
+    return pack, None
+
+
+def build_series_hev(cfg: SeriesHEVConfig) -> SeriesHEV:
+    """Build the component objects of a series HEV from its configuration."""
+    base = Path(cfg.base_dir)
+    body = VehicleBody.from_section(cfg.body)
+    engine = build_engine(cfg.engine, base) if cfg.genset.kind == "engine" else None
+    battery, cell = build_battery(cfg.battery, base)
     return SeriesHEV(
         config=cfg,
         body=body,
         tire=Tire(radius_m=cfg.tire.radius_m),
-        gear=Gear(ratio=cfg.gear.ratio, efficiency=cfg.gear.efficiency),
-        traction_motor=_machine(cfg.traction_motor, "traction_motor", base),
-        generator=_machine(cfg.generator, "generator", base),
+        gear=Gear(ratio=cfg.final_drive.ratio, efficiency=cfg.final_drive.efficiency),
+        traction_motor=build_machine(cfg.motor, "motor", base),
+        generator=build_machine(cfg.generator, "generator", base),
         engine=None if engine is None else with_config_fuel(engine, cfg),  # [fuel] section
         battery=battery,
         cell=cell,
