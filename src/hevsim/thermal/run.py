@@ -278,7 +278,7 @@ def run_thermal(
     if progress:
         stage("assembling and factorising the FEM matrices ...")
     disc, channel, model = module_model(cfg, mesh)
-    model.set_cell_heat_w(heat)
+    model.set_cell_heat_w(heat, from_now=True)  # the heat is on from t = 0
     timings["assemble_factorise_s"] = time.perf_counter() - t0
     if progress:
         stage(f"assembled and factorised in {timings['assemble_factorise_s']:.1f} s")
@@ -330,6 +330,7 @@ def run_thermal(
         cell_surface.append(surf_w @ tc)
 
     channel.fluid_temperature_k(model.wall_temp_k(), disc.wall_area_m2)
+    initial_temp_k = model.temp_k.copy()
     record()
     if every:
         snapshots.append((0.0, model.temp_k - KELVIN))
@@ -374,15 +375,13 @@ def run_thermal(
     for c in range(ncell):
         ts[f"cell{c + 1}_surface_temp_c"] = surf_arr[:, c]
     rel_balance = (ts["heat_in_w"][-1] - ts["wall_heat_w"][-1] - ts["film_heat_w"][-1]) if steps else 0.0
+    energy = energy_balance(ts, sim.theta, sim.dt_s, model.capacity, model.temp_k - initial_temp_k)
     metrics = {
         "cell_max_temp_c": {"value": float(ts["cell_max_temp_c"][-1]), "unit": "degC"},
         "module_max_temp_c": {"value": float(ts["module_max_temp_c"][-1]), "unit": "degC"},
         "outlet_temp_c": {"value": float(ts["outlet_temp_c"][-1]), "unit": "degC"},
         "cooling_power_w": {"value": float(ts["cooling_power_w"][-1]), "unit": "W"},
-        "heat_removed_j": {
-            "value": float(np.trapezoid(ts["cooling_power_w"], ts["time_s"])) if steps else 0.0,
-            "unit": "J",
-        },
+        **energy,
         "heat_rate_residual_w": {
             "value": float(rel_balance),
             "unit": "W",
@@ -410,13 +409,76 @@ def run_thermal(
     return result
 
 
+def energy_balance(
+    ts: dict[str, np.ndarray], theta: float, dt_s: float, capacity: Any, delta_temp_k: np.ndarray
+) -> dict[str, dict[str, Any]]:
+    """Energy metrics [J] of a run from the heat flows recorded at every step end.
+
+    The theta method applies in step k the flows ``theta * P_k + (1 - theta) * P_(k-1)``
+    (``P_k``: the flow at the end of step k, at the fluid temperature used in that step), so
+    these sums are exactly what the solid gained and lost: ``heat_removed_j`` is the wall heat
+    applied to the solid, ``heat_to_ambient_j`` the external films, ``heat_stored_j`` the change
+    of ``sum C T`` and ``energy_balance_residual_j`` = in - stored - removed - to ambient (zero
+    up to the linear solver's rounding). ``coolant_heat_j`` is what the 1-D coolant took
+    (``m c_p (T_out - T_in)`` per step): under the staggered coupling it is computed from the
+    wall temperature at the start of the step, so it lags the wall heat;
+    ``coupling_lag_j`` = coolant - removed.
+    """
+
+    def applied_j(key: str) -> float:
+        p = np.asarray(ts[key], dtype=float)
+        return float(np.sum(dt_s * (theta * p[1:] + (1.0 - theta) * p[:-1])))
+
+    heat_in = applied_j("heat_in_w")
+    removed = applied_j("wall_heat_w")
+    ambient = applied_j("film_heat_w")
+    stored = float(np.sum(capacity @ delta_temp_k))
+    coolant = float(np.sum(dt_s * np.asarray(ts["cooling_power_w"], dtype=float)[1:]))
+    residual = heat_in - stored - removed - ambient
+    scale = max(abs(heat_in), abs(stored), abs(removed), abs(ambient), 1e-300)
+    return {
+        "heat_in_j": {"value": heat_in, "unit": "J", "note": "cell heat applied to the solid"},
+        "heat_stored_j": {"value": stored, "unit": "J", "note": "sum C (T_end - T_start)"},
+        "heat_removed_j": {
+            "value": removed,
+            "unit": "J",
+            "note": "heat through the channel wall into the coolant, as applied to the solid",
+        },
+        "heat_to_ambient_j": {"value": ambient, "unit": "J", "note": "external films"},
+        "energy_balance_residual_j": {
+            "value": residual,
+            "unit": "J",
+            "note": "heat in - stored - removed - to ambient",
+        },
+        "energy_balance_relative": {
+            "value": residual / scale,
+            "unit": "-",
+            "note": "residual / the largest of the four terms",
+        },
+        "coolant_heat_j": {
+            "value": coolant,
+            "unit": "J",
+            "note": "m c_p (T_out - T_in) summed over the steps; lags the wall heat by one step",
+        },
+        "coupling_lag_j": {
+            "value": coolant - removed,
+            "unit": "J",
+            "note": "coolant_heat_j - heat_removed_j",
+        },
+    }
+
+
 def format_summary(result: ThermalResult) -> str:
     """A few lines for the terminal: metrics and the hottest spots."""
     m = result.metrics
     lines = [f"{result.metadata['config'].get('name', 'module')}: {m['nodes']['value']} nodes, "
              f"{m['tetrahedra']['value']} tetrahedra"]  # fmt: skip
-    for key in ("cell_max_temp_c", "module_max_temp_c", "outlet_temp_c", "cooling_power_w", "heat_removed_j"):
-        lines.append(f"  {key:<22}{m[key]['value']:>12.4f} {m[key]['unit']}")
+    keys = ("cell_max_temp_c", "module_max_temp_c", "outlet_temp_c", "cooling_power_w", "heat_in_j",
+            "heat_stored_j", "heat_removed_j", "heat_to_ambient_j", "coupling_lag_j")  # fmt: skip
+    for key in (k for k in keys if k in m):
+        lines.append(f"  {key:<26}{m[key]['value']:>12.4f} {m[key]['unit']}")
+    if "energy_balance_relative" in m:
+        lines.append(f"  {'energy_balance_relative':<26}{m['energy_balance_relative']['value']:>12.2e} -")
     lines.append("  hot spots (part, x y z [mm], °C):")
     for h in result.hot_spots[:5]:
         lines.append(

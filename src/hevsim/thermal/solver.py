@@ -520,12 +520,20 @@ class HeatModel:
             self._factorise()
 
     # -- inputs -------------------------------------------------------------------------------
-    def set_cell_heat_w(self, heat_w: float | Sequence[float] | np.ndarray) -> None:
-        """Heat generated in every cell [W] (body heat flux, uniform over each cell's volume)."""
+    def set_cell_heat_w(
+        self, heat_w: float | Sequence[float] | np.ndarray, *, from_now: bool = False
+    ) -> None:
+        """Heat generated in every cell [W] (body heat flux, uniform over each cell's volume).
+
+        It is the load at the end of the next step; with ``from_now`` it is also the load now
+        (a step change at the current time: with theta < 1 the next step otherwise ramps from
+        the previous heat)."""
         q = np.broadcast_to(np.asarray(heat_w, dtype=float), self.cell_heat_w.shape)
         if not np.all(np.isfinite(q)):
             raise SimulationError(f"heat model: cell heat {q.tolist()} is not finite.")
         self.cell_heat_w = q.copy()
+        if from_now:
+            self._f_old = self._load()
 
     # -- observations --------------------------------------------------------------------------
     def wall_temp_k(self, temp_k: np.ndarray | None = None) -> np.ndarray:
