@@ -57,7 +57,7 @@ def test_unsorted_map_csv_names_file_and_value(tmp_path) -> None:  # type: ignor
     p.write_text("speed_rad_per_s,max_torque_N_m\n0,10\n20,12\n10,11\n")
     with pytest.raises(InputError) as err:
         Table1D.from_csv(p, "speed_rad_per_s", "max_torque_N_m")
-    assert "max_torque.csv" in str(err.value) and "10.0" in str(err.value)
+    assert "max_torque.csv" in str(err.value) and "value 10 at position 2 follows 20" in str(err.value)
 
 
 def test_nan_in_map_csv_names_line(tmp_path) -> None:  # type: ignore[no-untyped-def]
