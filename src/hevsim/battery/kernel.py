@@ -21,6 +21,29 @@ Energy bookkeeping per step (all exact for the piecewise-constant current):
 ``electrical out = -Δ(chemical) - Δ(RC capacitor energy) - heat``, with the chemical energy
 change ``-OCV_k i dt`` (stored chemical energy is ``-∫ OCV dQ``) and heat ``R_s i² dt`` plus the
 exact RC resistor losses ``∫ v²/R dt``.
+
+Model options (parameter vector entries; all off by default, which is the thesis's model above,
+bit for bit — see ``docs/battery.md``, "Cell model options"):
+
+* ``rc_persistent`` = 1: one RC set carries the polarisation through current reversals. Its
+  states are the first ``n_rc`` RC voltages; the element parameters are those of the current
+  direction's set (``rc_discharge`` / ``rc_charge``; give both the same values for the
+  symmetric set of linear diffusion). The set is always connected, so a reversal neither drops
+  nor resets the slow polarisation. Energy closes exactly when both sets are equal (a switch
+  between unequal sets keeps the voltage and changes the capacitance).
+* ``ocv_in_step`` = 1: the OCV is consistent within the step: the end-of-step voltage uses the
+  OCV at the end-of-step SOC, the step-average voltage and the chemical energy the exact mean
+  of the (piecewise-linear) OCV over the step's linear SOC path, and R_s the mid-step SOC, so
+  the terminal voltage is second order in the step (the thesis's start-of-step OCV leaves an
+  error ``dOCV/dSOC · i dt / C``).
+* ``ct_i0_a`` > 0: a Butler-Volmer (symmetric, alpha = 1/2) charge-transfer overpotential
+  ``eta = m (2 R T / F) asinh(i / (2 i0))`` in series with R_s (``m`` = ``ct_scale``, ``i0`` =
+  ``ct_i0_a / r_scale`` times an Arrhenius factor with ``ct_ea_j_per_mol``): its resistance
+  falls with current. Its heat is ``eta i``.
+* ``hyst_max_v`` > 0: one-state hysteresis voltage ``h`` added to the terminal voltage,
+  relaxing toward ``-M sign(i)`` with charge throughput:
+  ``dh/dt = -gamma |i| / C (h + M sign(i))`` (Plett's one-state model), exact for the step;
+  its work ``-h i`` counts as heat.
 """
 
 from __future__ import annotations
@@ -47,8 +70,29 @@ PARAMS = (
     "r_scale",
     "n_rc",
     "switch_band_a",
+    # model options (module docstring); zeros give the thesis's model
+    "rc_persistent",
+    "ocv_in_step",
+    "ct_i0_a",
+    "ct_scale",
+    "ct_ea_j_per_mol",
+    "hyst_max_v",
+    "hyst_gamma",
 )
-C0, KCQ, ALPHAC, TREF, ALPHARS, CHEAT, RSKIN, VMIN, VMAX, SOCINI, RSCALE, NRC, IBAND = range(len(PARAMS))
+C0, KCQ, ALPHAC, TREF, ALPHARS, CHEAT, RSKIN, VMIN, VMAX, SOCINI, RSCALE, NRC, IBAND = range(13)
+RCPERS, OCVSTEP, CTI0, CTM, CTEA, HMAX, HGAMMA = range(13, len(PARAMS))
+
+MODEL_SCALARS = {
+    "ct_i0_a": CTI0,
+    "ct_scale": CTM,
+    "ct_ea_j_per_mol": CTEA,
+    "hyst_max_v": HMAX,
+    "hyst_gamma": HGAMMA,
+}
+"""Scalar parameters of the model options that calibration fits: name -> index in the vector."""
+
+R_GAS_J_PER_MOL_K = 8.314462618  # molar gas constant [J/(mol K)], CODATA 2018 (exact)
+FARADAY_C_PER_MOL = 96485.33212  # Faraday constant [C/mol], CODATA 2018 (exact)
 
 TUNABLE_SCALARS = {
     "c0_c": C0,
@@ -61,8 +105,8 @@ TUNABLE_SCALARS = {
 """Scalar parameters that calibration fits and FMUs expose: name -> index in the vector."""
 
 # --- state vector layout: then n_rc discharge RC voltages, then n_rc charge RC voltages [V] ---
-STATES = ("q_c", "qabs_c", "temp_k", "direction", "cycles")
-SQ, SQABS, STEMP, SDIR, SCYC = range(len(STATES))
+STATES = ("q_c", "qabs_c", "temp_k", "direction", "cycles", "current_a", "hyst_v")
+SQ, SQABS, STEMP, SDIR, SCYC, SILAST, SHYST = range(len(STATES))
 N_FIXED_STATES = len(STATES)
 
 # --- per-step record (what one step reports) -----------------------------------------------
@@ -116,29 +160,129 @@ def step_direction(i_a, last_direction, band_a):
 
 
 @njit(cache=True)
+def cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, soc, temp_k, direction):
+    """OCV [V] of a direction (+1 discharge) at ``soc`` [-], ``temp_k`` [K], clamped to the limits."""
+    if direction >= 0.0:
+        ocv = interp2(soc_ax, t_ax, ocv_d, soc, temp_k, False)
+    else:
+        ocv = interp2(soc_ax, t_ax, ocv_c, soc, temp_k, False)
+    return min(max(ocv, prm[VMIN]), prm[VMAX])
+
+
+@njit(cache=True)
+def ocv_step_mean(prm, soc_ax, t_ax, ocv_c, ocv_d, soc0, soc1, temp_k, direction):
+    """Mean OCV [V] over a linear SOC path ``soc0 -> soc1`` at ``temp_k`` [K]: exact for the
+    piecewise-linear table (trapezoids between the SOC breakpoints inside the path)."""
+    lo = min(soc0, soc1)
+    hi = max(soc0, soc1)
+    f_prev = cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, lo, temp_k, direction)
+    if hi - lo <= 0.0:
+        return f_prev
+    acc = 0.0
+    s_prev = lo
+    for k in range(soc_ax.shape[0]):
+        s = soc_ax[k]
+        if lo < s < hi:
+            f = cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, s, temp_k, direction)
+            acc += 0.5 * (f + f_prev) * (s - s_prev)
+            s_prev = s
+            f_prev = f
+    f = cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, hi, temp_k, direction)
+    acc += 0.5 * (f + f_prev) * (hi - s_prev)
+    return acc / (hi - lo)
+
+
+@njit(cache=True)
+def ct_overpotential(prm, i_a, temp_k):
+    """Charge-transfer overpotential [V] and its slope d eta / d i [ohm] at ``i_a`` [A] and
+    ``temp_k`` [K] (module docstring); (0, 0) when the term is off (``ct_i0_a`` = 0)."""
+    if prm[CTI0] <= 0.0:
+        return 0.0, 0.0
+    i0 = prm[CTI0] / prm[RSCALE]
+    if prm[CTEA] != 0.0:
+        i0 *= math.exp(-prm[CTEA] / R_GAS_J_PER_MOL_K * (1.0 / temp_k - 1.0 / prm[TREF]))
+    b = prm[CTM] * 2.0 * R_GAS_J_PER_MOL_K * temp_k / FARADAY_C_PER_MOL
+    u = i_a / (2.0 * i0)
+    return b * math.asinh(u), b / (2.0 * i0 * math.sqrt(1.0 + u * u))
+
+
+@njit(cache=True)
+def hysteresis_step(prm, h0, i_a, dt, cap):
+    """One-state hysteresis over a step at constant ``i_a`` [A]: (end value [V], step mean [V])."""
+    if prm[HMAX] <= 0.0 or i_a == 0.0:
+        return h0, h0
+    target = -prm[HMAX] if i_a > 0.0 else prm[HMAX]
+    k = prm[HGAMMA] * abs(i_a) / cap  # decay rate [1/s]
+    if k <= 0.0:
+        return h0, h0
+    e1 = math.exp(-k * dt)
+    d = h0 - target
+    return target + d * e1, target + d * (1.0 - e1) / (k * dt)
+
+
+@njit(cache=True)
 def branch_affine(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, dt, direction):
     """Step-average terminal voltage as ``E - Z i`` for a current of the given direction.
 
     Returns ``(E [V], Z [ohm])``: the cell's step-averaged voltage is exactly ``E - Z i`` for
     any constant current ``i`` of that direction over ``dt`` (used to share current between
-    parallel cells).
+    parallel cells). With the nonlinear model options (charge transfer, in-step OCV,
+    hysteresis) it is the linearisation at the last step's current (:func:`branch_affine_at`).
     """
+    i_lin = x[SILAST] if x[SILAST] * direction > 0.0 else 0.0
+    return branch_affine_at(
+        prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, dt, direction, i_lin
+    )
+
+
+@njit(cache=True)
+def branch_affine_at(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, dt, direction, i_lin):
+    """:func:`branch_affine` linearised at current ``i_lin`` [A]: ``E - Z i_lin`` is the exact
+    step-average voltage at ``i_lin``; ``Z`` is exact for the affine parts and the charge
+    transfer term, approximate (quasi-Newton) for the in-step OCV and hysteresis."""
     n = int(prm[NRC])
     temp = x[STEMP]
     cap = cell_capacity(prm, t_ax, capf, x[SQABS], temp)
     soc = prm[SOCINI] - x[SQ] / cap
-    ocv, rs = cell_ocv_rs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, soc, temp, direction)
-    e = ocv
-    z = rs
-    for j in range(2 * n):
-        rc = rc_d if j < n else rc_c
-        jj = j if j < n else j - n
+    if prm[OCVSTEP] > 0.0:
+        soc1 = soc - i_lin * dt / cap
+        ocv_avg = ocv_step_mean(prm, soc_ax, t_ax, ocv_c, ocv_d, soc, soc1, temp, direction)
+        _, rs = cell_ocv_rs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, 0.5 * (soc + soc1), temp, direction)
+        if abs(soc1 - soc) > 1e-9:
+            f1 = cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, soc1, temp, direction)
+            z_ocv = dt / cap * (f1 - ocv_avg) / (soc1 - soc)
+        else:  # half the local slope on the side the SOC moves to
+            ds = -1e-6 * direction
+            f1 = cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, soc + ds, temp, direction)
+            z_ocv = 0.5 * dt / cap * (f1 - ocv_avg) / ds
+        e = ocv_avg + z_ocv * i_lin
+        z = rs + z_ocv
+    else:
+        ocv, rs = cell_ocv_rs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, soc, temp, direction)
+        e = ocv
+        z = rs
+    persistent = prm[RCPERS] > 0.0
+    for j in range(n if persistent else 2 * n):
+        if persistent:
+            rc = rc_d if direction > 0.0 else rc_c
+            jj = j
+            active = True
+        else:
+            rc = rc_d if j < n else rc_c
+            jj = j if j < n else j - n
+            active = (j < n and direction > 0.0) or (j >= n and direction < 0.0)
         tau = rc[jj, 1]
         g = tau * (1.0 - math.exp(-dt / tau)) / dt  # mean of exp(-t/tau) over the step
-        active = (j < n and direction > 0.0) or (j >= n and direction < 0.0)
         if active:
             e -= x[N_FIXED_STATES + j] * g
             z += rc[jj, 0] * prm[RSCALE] * (1.0 - g)
+    if prm[CTI0] > 0.0:
+        eta, d_eta = ct_overpotential(prm, i_lin, temp)
+        e -= eta - d_eta * i_lin
+        z += d_eta
+    if prm[HMAX] > 0.0:
+        _, h_avg = hysteresis_step(prm, x[SHYST], i_lin, dt, cap)
+        e += h_avg
     return e, z
 
 
@@ -153,17 +297,30 @@ def cell_step(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, 
     temp0 = x[STEMP]
     cap = cell_capacity(prm, t_ax, capf, x[SQABS], temp0)
     soc = prm[SOCINI] - x[SQ] / cap
-    ocv, rs = cell_ocv_rs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, soc, temp0, direction)
+    if prm[OCVSTEP] > 0.0:  # OCV consistent within the step (module docstring)
+        soc1 = soc - i_a * dt / cap
+        ocv = cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, soc1, temp0, direction)
+        ocv_avg = ocv_step_mean(prm, soc_ax, t_ax, ocv_c, ocv_d, soc, soc1, temp0, direction)
+        _, rs = cell_ocv_rs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, 0.5 * (soc + soc1), temp0, direction)
+    else:
+        ocv, rs = cell_ocv_rs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, soc, temp0, direction)
+        ocv_avg = ocv
     # RC elements: exact exponential, exact step integrals of v and v^2/R
     v_sum_end = 0.0
     v_sum_avg = 0.0
     rc_heat_j = 0.0
-    for j in range(2 * n):
-        rc = rc_d if j < n else rc_c
-        jj = j if j < n else j - n
+    persistent = prm[RCPERS] > 0.0
+    for j in range(n if persistent else 2 * n):
+        if persistent:
+            rc = rc_d if direction > 0.0 else rc_c
+            jj = j
+            active = True
+        else:
+            rc = rc_d if j < n else rc_c
+            jj = j if j < n else j - n
+            active = (j < n and direction > 0.0) or (j >= n and direction < 0.0)
         r_j = rc[jj, 0] * prm[RSCALE]
         tau = rc[jj, 1]
-        active = (j < n and direction > 0.0) or (j >= n and direction < 0.0)
         a = r_j * i_a if active else 0.0
         v0 = x[N_FIXED_STATES + j]
         e1 = math.exp(-dt / tau)
@@ -176,7 +333,11 @@ def cell_step(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, 
             v_sum_end += v1
             v_sum_avg += int_v / dt
         x[N_FIXED_STATES + j] = v1
+    eta, _ = ct_overpotential(prm, i_a, temp0)
+    h1, h_avg = hysteresis_step(prm, x[SHYST], i_a, dt, cap)
     heat_j = rs * i_a * i_a * dt + rc_heat_j
+    if prm[CTI0] > 0.0 or prm[HMAX] > 0.0:
+        heat_j += (eta - h_avg) * i_a * dt
     q_heat = heat_j / dt
     # lumped temperature, eq (41) with a skin resistance to the port: exact exponential
     tau_th = prm[CHEAT] * prm[RSKIN]
@@ -189,8 +350,14 @@ def cell_step(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, 
     x[SCYC] += abs(i_a) * dt / (2.0 * cap)
     x[STEMP] = temp1
     x[SDIR] = direction
-    v_avg = ocv - rs * i_a - v_sum_avg
-    rec[RV] = ocv - rs * i_a - v_sum_end
+    x[SILAST] = i_a
+    x[SHYST] = h1
+    v_avg = ocv_avg - rs * i_a - v_sum_avg
+    v_end = ocv - rs * i_a - v_sum_end
+    if prm[CTI0] > 0.0 or prm[HMAX] > 0.0:
+        v_avg += h_avg - eta
+        v_end += h1 - eta
+    rec[RV] = v_end
     rec[RVAVG] = v_avg
     rec[ROCV] = ocv
     rec[RSOC] = prm[SOCINI] - x[SQ] / cap  # end of step (capacity of the step)
@@ -200,19 +367,25 @@ def cell_step(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, 
     rec[RCAP] = cap
     rec[RRS] = rs
     rec[REEL] = v_avg * i_a * dt
-    rec[RECH] = -ocv * i_a * dt
+    rec[RECH] = -ocv_avg * i_a * dt
     rec[REHEAT] = heat_j
     rec[REPORT] = port_j
 
 
 @njit(cache=True)
 def rc_energy(prm, rc_d, rc_c, x):
-    """Energy stored in the RC capacitors [J] (C = tau / R)."""
+    """Energy stored in the RC capacitors [J] (C = tau / R; with ``rc_persistent`` the set of
+    the last direction)."""
     n = int(prm[NRC])
     e = 0.0
-    for j in range(2 * n):
-        rc = rc_d if j < n else rc_c
-        jj = j if j < n else j - n
+    persistent = prm[RCPERS] > 0.0
+    for j in range(n if persistent else 2 * n):
+        if persistent:
+            rc = rc_d if x[SDIR] > 0.0 else rc_c
+            jj = j
+        else:
+            rc = rc_d if j < n else rc_c
+            jj = j if j < n else j - n
         c = rc[jj, 1] / (rc[jj, 0] * prm[RSCALE])
         v = x[N_FIXED_STATES + j]
         e += 0.5 * c * v * v
@@ -301,36 +474,45 @@ def share_current(
     branch whose current comes out against its assumed direction is flipped and the system
     solved again (at most ``len(cells) + 2`` times; the direction rule is the cells' own,
     :func:`step_direction`, so the solved currents are the ones the cells then step with).
+    With the nonlinear model options the branches are relinearised at the solved currents
+    (:func:`branch_affine_at`) until the currents change by less than ``1e-9 (1 + |i_total|)`` A.
     Returns the shared step-average voltage [V].
     """
     m = cells.shape[0]
     dirs = np.empty(m)
     e = np.empty(m)
     z = np.empty(m)
+    nonlinear = False
     for b in range(m):
         c = cells[b]
         dirs[b] = step_direction(i_total, x[c, SDIR], prm[c, IBAND])
+        i_out[b] = i_total / m
+        if prm[c, OCVSTEP] > 0.0 or prm[c, CTI0] > 0.0 or prm[c, HMAX] > 0.0:
+            nonlinear = True
     v = 0.0
-    for _it in range(m + 2):
+    for _it in range(m + 2 + (50 if nonlinear else 0)):
         s_g = 0.0
         s_eg = 0.0
         for b in range(m):
             c = cells[b]
-            e[b], z[b] = branch_affine(
-                prm[c], soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x[c], dt, dirs[b]
+            e[b], z[b] = branch_affine_at(
+                prm[c], soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x[c], dt, dirs[b], i_out[b]
             )
             s_g += 1.0 / z[b]
             s_eg += e[b] / z[b]
         v = (s_eg - i_total) / s_g
         flipped = False
+        change = 0.0
         for b in range(m):
             c = cells[b]
-            i_out[b] = (e[b] - v) / z[b]
+            i_new = (e[b] - v) / z[b]
+            change = max(change, abs(i_new - i_out[b]))
+            i_out[b] = i_new
             d_new = step_direction(i_out[b], x[c, SDIR], prm[c, IBAND])
             if d_new != dirs[b]:
                 dirs[b] = d_new
                 flipped = True
-        if not flipped:
+        if not flipped and (not nonlinear or change < 1e-9 * (1.0 + abs(i_total))):
             break
     return v
 

@@ -9,7 +9,7 @@ See ``docs/battery.md`` for the file format.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -68,6 +68,48 @@ class AgeingSection:
     x_z: float = 2.0
 
 
+@dataclass(frozen=True)
+class ModelSection:
+    """Cell model options (:mod:`hevsim.battery.kernel`, "Model options"); the defaults are the
+    thesis's model (``rc_mode = "switched"``, ``ocv_mode = "step_start"``).
+
+    ``rc_mode``: ``"switched"`` (thesis: charge and discharge RC sets switched with the current
+    direction; the disconnected set relaxes) or ``"persistent"`` (one set, always connected,
+    parameters of the current direction's set). ``ocv_mode``: ``"step_start"`` (thesis: OCV at
+    the start-of-step SOC) or ``"step_consistent"`` (end-of-step OCV for the end voltage, the
+    step mean for the average; second order in the step).
+    """
+
+    rc_mode: str = field(default="switched", metadata={"choices": ("switched", "persistent")})
+    ocv_mode: str = field(default="step_start", metadata={"choices": ("step_start", "step_consistent")})
+
+
+@dataclass(frozen=True)
+class ChargeTransferSection:
+    """Butler-Volmer charge-transfer overpotential ``eta = scale (2RT/F) asinh(i / (2 i0))``.
+
+    ``i0_a`` [A]: exchange current at ``capacity.t_ref_k`` (0 = no term, the thesis's model);
+    ``scale`` [-]: lumped factor (1 for one electrode with alpha = 1/2, about 2 for two similar
+    electrodes); ``ea_j_per_mol`` [J/mol]: Arrhenius activation energy of ``i0``.
+    """
+
+    i0_a: float = field(default=0.0, metadata={"bounds": (0.0, float("inf")), "unit": "A"})
+    scale: float = field(default=1.0, metadata={"bounds": (1e-6, 100.0)})
+    ea_j_per_mol: float = field(default=0.0, metadata={"bounds": (0.0, 2e5), "unit": "J/mol"})
+
+
+@dataclass(frozen=True)
+class HysteresisSection:
+    """One-state hysteresis (off by default): ``dh/dt = -gamma |i| / C (h + max_v sign(i))``.
+
+    ``max_v`` [V]: the hysteresis amplitude M (0 = off); ``gamma`` [-]: its rate per unit of
+    charge throughput relative to the capacity.
+    """
+
+    max_v: float = field(default=0.0, metadata={"bounds": (0.0, 1.0), "unit": "V"})
+    gamma: float = field(default=0.0, metadata={"bounds": (0.0, 1e6)})
+
+
 _BOUNDS = {
     "capacity.c0_c": (0.0, float("inf")),
     "capacity.t_ref_k": (0.0, float("inf")),
@@ -86,6 +128,9 @@ _TOP_KEYS = (
     "thermal",
     "limits",
     "ageing",
+    "model",
+    "charge_transfer",
+    "hysteresis",
     "tables",
     "rc_discharge",
     "rc_charge",
@@ -118,6 +163,9 @@ class CellParameters:
     rc_charge: FloatArray
     description: str = ""
     source: str = "<in memory>"
+    model: ModelSection = ModelSection()
+    charge_transfer: ChargeTransferSection = ChargeTransferSection()
+    hysteresis: HysteresisSection = HysteresisSection()
 
     def __post_init__(self) -> None:
         validate(self)
@@ -152,6 +200,13 @@ class CellParameters:
         p[K.RSCALE] = r_scale
         p[K.NRC] = self.n_rc
         p[K.IBAND] = self.resistance.switch_band_a
+        p[K.RCPERS] = 1.0 if self.model.rc_mode == "persistent" else 0.0
+        p[K.OCVSTEP] = 1.0 if self.model.ocv_mode == "step_consistent" else 0.0
+        p[K.CTI0] = self.charge_transfer.i0_a
+        p[K.CTM] = self.charge_transfer.scale
+        p[K.CTEA] = self.charge_transfer.ea_j_per_mol
+        p[K.HMAX] = self.hysteresis.max_v
+        p[K.HGAMMA] = self.hysteresis.gamma
         return p
 
     def tables(self) -> tuple[FloatArray, ...]:
@@ -373,6 +428,9 @@ def parameters_from_dict(data: dict[str, Any], source: str) -> CellParameters:
         rc_discharge=_rc(data.get("rc_discharge"), "rc_discharge", source),
         rc_charge=_rc(data.get("rc_charge"), "rc_charge", source),
         source=source,
+        model=section(ModelSection, "model"),
+        charge_transfer=section(ChargeTransferSection, "charge_transfer"),
+        hysteresis=section(HysteresisSection, "hysteresis"),
     )
 
 
