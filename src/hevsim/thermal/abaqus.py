@@ -1,45 +1,107 @@
-"""Import of Abaqus/Standard heat-transfer input decks (``.inp``) such as the thesis's Standard.inp.
+"""Import of Abaqus/Standard and CalculiX heat-transfer input decks (``.inp``).
 
-Supported keywords: *Node, *Element (C3D4 / DC3D4 linear tetrahedra), *Elset and *Nset (with
-``generate``), *Solid Section (elset -> material: one part per section), *Material,
-*Conductivity, *Density, *Specific Heat, *Initial Conditions (type=TEMPERATURE), *Surface
-(type=ELEMENT, faces S1-S4), *Gap Conductance (the zero-clearance value), *Dflux (BF body
-flux per element set: each set becomes one heat source "cell"). The wrappers *Part, *End
-Part, *Assembly, *Instance, *End Instance, *End Assembly and purely descriptive keywords are
-accepted. An *Instance's data lines are applied to the nodes of its part (Abaqus Keywords
-Reference, *INSTANCE): the first line is a translation (dx, dy, dz), the optional second line a
-rotation about the axis through points a and b by an angle in degrees (right-hand rule about
-a -> b); when both are given the translation is applied first. A part placed by more than one
-instance is reported (only the first placement is applied: the reader keeps one copy).
-Every other keyword is reported in :attr:`AbaqusModel.unsupported` (keyword and line), never
-silently dropped.
+A deck is read as Abaqus/CAE or CalculiX write it, and the importer never changes a model
+silently: what it reads is applied, a keyword whose omission would change the heat-transfer
+physics is refused (:class:`~hevsim.errors.InputError`, exit 2, with its line), and every
+other keyword it does not use is listed in :attr:`AbaqusModel.unsupported` with its line.
+
+Read and applied:
+
+- geometry: *Node, *Element (C3D4 / DC3D4 / C3D4T linear tetrahedra), *Part ... *End Part
+  (nodes and elements numbered locally from 1 in every part), *Assembly with *Instance
+  (``part=``; first data line a translation, optional second line a rotation about the axis
+  through points a and b by an angle in degrees, right-hand rule about a -> b, applied after
+  the translation; Abaqus Keywords Reference, *INSTANCE). A part placed by several instances
+  gives several copies. A flat deck (no *Part) and parts without any *Instance are placed
+  once as they are. *Include, input= is read in place.
+- sets and surfaces: *Nset / *Elset (``generate``, ``internal``, ``instance=`` at assembly
+  level, members given by number or by set name), *Surface type=ELEMENT (faces S1-S4; a
+  member is an element set or an element number). Names are case-insensitive (as in Abaqus);
+  a part-level name is local to its part and reached from the assembly as ``INSTANCE.NAME``
+  (``PLATE-1._BOT_S1``), an element of an instance as ``INSTANCE.12``.
+- materials: *Solid Section (one thermal part per instance and section), *Material with
+  *Conductivity (isotropic), *Density, *Specific Heat: constant, or tables whose rows all give
+  the same value; temperature-dependent values and ``type=ORTHO/ANISO`` with unequal
+  components are refused (the FEM solver is linear with isotropic constant properties).
+- contact: *Contact Pair, interaction=NAME (slave, master surfaces) with the *Surface
+  Interaction's *Gap Conductance table of (conductance, clearance[, temperature]) rows (a blank
+  field is zero, as in Abaqus). The two surfaces must coincide node for node (parts meshed
+  with matching faces): their nodes are merged and the solver's contact conductance between
+  the two parts is the table's value at zero clearance. Non-matching surfaces, pressure- or
+  temperature-dependent conductance are refused.
+- loads and conditions: *Initial Conditions, type=TEMPERATURE (node set or node number),
+  *Dflux BF (body flux per element set or element; each becomes one heat-source "cell"; with
+  ``amplitude=``), *Amplitude (tabular, linear between points, last value held),
+  *Film (element faces F1-F4) and *Sfilm (surfaces) with constant film coefficient and sink
+  temperature, one *Step with *Heat Transfer (transient: initial increment and time period).
+
+Refused (they change the physics and the solver has no equivalent here): *Boundary (fixed
+temperature), *Cflux, *Dsflux, *Dflux face fluxes (S1-S4), *Radiate/*Sradiate, *Tie,
+*Heat Generation, *Latent Heat, *Gap Conductance with pressure, films and fluxes with
+amplitudes other than *Dflux BF, *Heat Transfer steady state, more than one *Step, elements
+other than linear tetrahedra.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from hevsim.errors import InputError
+from hevsim.errors import ConfigError, InputError
 from hevsim.thermal.materials import Material
-from hevsim.thermal.mesh import ThermalMesh
+from hevsim.thermal.mesh import DEGENERATE_RELATIVE_VOLUME, ThermalMesh, tet_volumes_m3
 
 #: Node order of faces S1..S4 of a 4-node tetrahedron (Abaqus Analysis User's Guide).
 TET_FACES = {"S1": (0, 1, 2), "S2": (0, 3, 1), "S3": (1, 3, 2), "S4": (2, 3, 0)}
 _TET_TYPES = {"C3D4", "DC3D4", "C3D4T"}
+#: Keywords that do not change a transient heat-transfer solution (output, descriptions).
 _ACCEPTED = {
-    "heading", "preprint", "part", "end part", "assembly", "end assembly", "instance", "end instance",
-    "amplitude", "step", "end step", "heat transfer", "output", "node output", "element output",
-    "contact output", "restart", "surface interaction", "contact pair", "co-simulation",
-    "co-simulation region", "co-simulation controls", "monitor",
+    "heading", "preprint", "output", "node output", "element output", "contact output",
+    "energy output", "restart", "monitor", "node print", "el print", "node file", "el file",
+    "contact print", "contact file", "print", "file format", "end step", "end part",
+    "end assembly", "end instance", "diagnostics", "controls",
+}  # fmt: skip
+#: Keywords refused: ignoring them would change the heat-transfer physics.
+_REFUSED = {
+    "boundary": "fixed temperatures",
+    "cflux": "concentrated heat fluxes",
+    "dsflux": "distributed surface heat fluxes",
+    "radiate": "radiation",
+    "sradiate": "radiation",
+    "tie": "tied surfaces",
+    "heat generation": "heat generation",
+    "latent heat": "latent heat",
+    "coupled temperature-displacement": "a coupled analysis",
+    "static": "a stress step",
+    "clearance": "contact clearances",
+    "contact clearance": "contact clearances",
+    "gap radiation": "gap radiation",
+    "thermal contact property": "contact properties",
+}
+#: Keywords the importer reads (see the module docstring).
+_READ = {
+    "node", "element", "elset", "nset", "part", "assembly", "instance", "solid section",
+    "material", "conductivity", "density", "specific heat", "initial conditions", "surface",
+    "surface interaction", "gap conductance", "contact pair", "dflux", "film", "sfilm",
+    "amplitude", "step", "heat transfer", "include",
 }  # fmt: skip
 
 
 @dataclass
 class AbaqusModel:
-    """What was read: the mesh, per-part materials, initial temperature and loads."""
+    """What was read from a deck (SI units as in the deck; temperatures in °C).
+
+    ``mesh``: nodes, tetrahedra, one part per instance and section, one "cell" per *Dflux set,
+    named surfaces (deck surfaces by their upper-case name, films as ``FILM_<line>``).
+    ``contact_w_m2k``: contact conductance per interface ``"partA|partB"`` from the contact
+    pairs; ``bonded_interfaces``: interfaces where two sections share nodes (perfect contact in
+    Abaqus). ``films``: surface -> (h [W/(m^2 K)], sink [°C]). ``node_temp_c``: initial
+    temperature per mesh node (NaN where no *Initial Conditions). ``amplitudes``: name ->
+    (time [s], factor) table; ``flux_amplitude``: *Dflux set -> amplitude name.
+    """
 
     mesh: ThermalMesh
     materials: dict[str, Material]
@@ -47,15 +109,135 @@ class AbaqusModel:
     gap_conductance_w_m2k: float | None = None
     body_flux_w_m3: dict[str, float] = field(default_factory=dict)  # element set -> W/m^3
     unsupported: list[str] = field(default_factory=list)
+    contact_w_m2k: dict[str, float] = field(default_factory=dict)
+    bonded_interfaces: list[str] = field(default_factory=list)
+    films: dict[str, tuple[float, float]] = field(default_factory=dict)
+    node_temp_c: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    amplitudes: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    flux_amplitude: dict[str, str] = field(default_factory=dict)
+    time_period_s: float | None = None
+    initial_increment_s: float | None = None
+    node_labels: list[str] = field(default_factory=list)
+    element_labels: list[str] = field(default_factory=list)
+
+    def amplitude(self, name: str | None, time_s: float) -> float:
+        """Factor of amplitude ``name`` at ``time_s`` (1 without amplitude)."""
+        if name is None:
+            return 1.0
+        t, a = self.amplitudes[name]
+        return float(np.interp(time_s, t, a))
+
+    def cell_heat_w(self, cell_volume_m3: np.ndarray, time_s: float = 0.0) -> np.ndarray:
+        """Heat of every *Dflux cell [W] at ``time_s``: body flux x meshed volume x amplitude."""
+        flux = [
+            self.body_flux_w_m3[s] * self.amplitude(self.flux_amplitude.get(s), time_s)
+            for s in self.body_flux_w_m3
+        ]
+        return np.asarray(flux, dtype=float) * np.asarray(cell_volume_m3, dtype=float)
+
+    def discretise(self, *, bonded_w_m2k: float | None = None, **kw: Any) -> Any:
+        """:func:`hevsim.thermal.solver.discretise` of the deck: its materials, contact pairs,
+        films (temperatures in K) and no film elsewhere (adiabatic, as in Abaqus).
+
+        Abaqus conducts perfectly where two sections share nodes; the solver puts a contact
+        conductance there: give it as ``bonded_w_m2k`` when the deck has such interfaces."""
+        from hevsim.thermal.solver import discretise
+
+        if self.bonded_interfaces and bonded_w_m2k is None:
+            raise ConfigError(
+                f"{self.mesh.source}: sections share nodes at {self.bonded_interfaces} (perfect "
+                "contact in Abaqus); expected bonded_w_m2k, the conductance [W/(m^2 K)] to use there."
+            )
+        films = {k: (h, t + 273.15) for k, (h, t) in self.films.items()}
+        return discretise(
+            self.mesh,
+            self.materials,
+            gap_conductance_w_m2k=1.0 if bonded_w_m2k is None else bonded_w_m2k,
+            interface_conductance_w_m2k=self.contact_w_m2k,
+            film_w_m2k=0.0,
+            surface_films=films,
+            **kw,
+        )
+
+    def initial_temp_k(self, disc: Any) -> np.ndarray:
+        """Initial temperature [K] of every node of ``disc`` (a discretisation of :attr:`mesh`)."""
+        t = self.node_temp_c[disc.original_node]
+        if np.isnan(t).any():
+            first = self.node_labels[int(disc.original_node[np.flatnonzero(np.isnan(t))[0]])]
+            raise InputError(
+                f"{self.mesh.source}: {int(np.isnan(self.node_temp_c).sum())} nodes (first {first}) have "
+                "no *Initial Conditions, type=TEMPERATURE; expected a temperature for every node."
+            )
+        return t + 273.15
+
+
+# ---------------------------------------------------------------------------- reading
+@dataclass
+class _Line:
+    src: str
+    no: int
+    text: str
+
+    def where(self) -> str:
+        return f"{self.src}: line {self.no}"
+
+
+def _read_lines(path: Path, depth: int = 0) -> list[_Line]:
+    """Lines of ``path`` with *Include files read in place."""
+    if depth > 10:
+        raise InputError(f"{path}: *Include nested more than 10 deep.")
+    out: list[_Line] = []
+    for no, raw in enumerate(path.read_text(encoding="utf-8", errors="replace").splitlines(), 1):
+        line = raw.strip()
+        if not line or line.startswith("**"):
+            continue
+        if line.startswith("*"):
+            kw, opts = _options(line)
+            if kw == "include":
+                name = opts.get("INPUT", "")
+                inc = (path.parent / name) if name else path.parent
+                if not name or not inc.is_file():
+                    raise InputError(
+                        f"{path}: line {no}: *Include file {name!r} not found; "
+                        "expected a file next to the deck."
+                    )
+                out.extend(_read_lines(inc, depth + 1))
+                continue
+        out.append(_Line(str(path), no, line))
+    return out
 
 
 def _options(line: str) -> tuple[str, dict[str, str]]:
+    """Keyword (lower case) and options (upper-case keys, values as written, quotes removed)."""
     parts = [p.strip() for p in line[1:].split(",")]
     opts = {}
     for p in parts[1:]:
+        if not p:
+            continue
         k, _, v = p.partition("=")
-        opts[k.strip().lower()] = v.strip()
-    return parts[0].lower(), opts
+        opts[k.strip().upper()] = v.strip().strip('"')
+    return " ".join(parts[0].lower().split()), opts
+
+
+def _fields(text: str) -> list[str]:
+    """Data fields of a line; a trailing comma gives no field, a blank field inside is ''."""
+    vals = [v.strip().strip('"') for v in text.split(",")]
+    while vals and vals[-1] == "":
+        vals.pop()
+    return vals
+
+
+def _num(v: str) -> float:
+    """A numeric field; blank is zero (Abaqus)."""
+    return 0.0 if v == "" else float(v)
+
+
+def _is_int(v: str) -> bool:
+    try:
+        int(v)
+    except ValueError:
+        return False
+    return True
 
 
 def _rotate(points: np.ndarray, a: np.ndarray, b: np.ndarray, angle_deg: float) -> np.ndarray:
@@ -71,179 +253,744 @@ def _rotate(points: np.ndarray, a: np.ndarray, b: np.ndarray, angle_deg: float) 
     return rot + a
 
 
+@dataclass
+class _Scope:
+    """A part (local numbering) or the assembly: its sets and surfaces by upper-case name."""
+
+    name: str
+    nodes: dict[int, tuple[float, float, float]] = field(default_factory=dict)
+    elements: dict[int, tuple[int, int, int, int]] = field(default_factory=dict)
+    element_line: dict[int, str] = field(default_factory=dict)
+    # set name -> [(member, instance option or "", where)]
+    elsets: dict[str, list[tuple[str, str, str]]] = field(default_factory=dict)
+    nsets: dict[str, list[tuple[str, str, str]]] = field(default_factory=dict)
+    surfaces: dict[str, list[tuple[str, str, str]]] = field(default_factory=dict)  # member, face
+    sections: list[tuple[str, str, str]] = field(default_factory=list)  # elset, material, where
+    display: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass
+class _Instance:
+    name: str  # as written
+    part: _Scope
+    data: list[list[float]]
+    where: str
+    auto: bool = False  # placed implicitly (flat deck or parts without *Instance)
+
+
+class _Deck:
+    """Parse state and name resolution."""
+
+    def __init__(self, src: str) -> None:
+        self.src = src
+        self.parts: dict[str, _Scope] = {}
+        self.top = _Scope("")  # flat deck: nodes, elements and sets outside *Part
+        self.assembly = _Scope("assembly")
+        self.instances: dict[str, _Instance] = {}
+        self.node_index: dict[tuple[str, int], int] = {}
+        self.elem_index: dict[tuple[str, int], int] = {}
+        self.tets = np.zeros((0, 4), dtype=np.int64)
+
+    # -- name resolution (after numbering) ------------------------------------------------------
+    def _inst_of(self, scope: _Scope) -> list[str]:
+        return [k for k, i in self.instances.items() if i.part is scope]
+
+    def _local(self, scope: _Scope, kind: str, name: str, where: str, seen: frozenset[str]) -> set[int]:
+        """Local labels of set ``name`` of ``scope`` (a part or the top level)."""
+        table = scope.elsets if kind == "elset" else scope.nsets
+        key = name.upper()
+        if key in seen:
+            raise InputError(f"{where}: {kind} '{name}' refers to itself.")
+        if key not in table:
+            raise InputError(
+                f"{where}: {kind} '{name}' is not defined"
+                + (f" in part '{scope.name}'" if scope.name else "")
+                + f"; expected one of {sorted(scope.display.get(k, k) for k in table) or '(none)'}."
+            )
+        out: set[int] = set()
+        for member, _, w in table[key]:
+            if _is_int(member):
+                out.add(int(member))
+            else:
+                out |= self._local(scope, kind, member, w, seen | {key})
+        return out
+
+    def _global(self, inst: str, kind: str, labels: set[int], where: str) -> list[int]:
+        index = self.elem_index if kind == "elset" else self.node_index
+        try:
+            return sorted(index[(inst, lab)] for lab in labels)
+        except KeyError as exc:
+            what = "element" if kind == "elset" else "node"
+            raise InputError(
+                f"{where}: {what} {exc.args[0][1]} is not defined"
+                + (f" in instance '{self.instances[inst].name}'" if inst in self.instances else "")
+                + "."
+            ) from exc
+
+    def resolve(self, kind: str, ref: str, where: str, seen: frozenset[str] = frozenset()) -> list[int]:
+        """Global element (``kind`` = "elset") or node ("nset") indices of a model-level
+        reference: a set name, ``INSTANCE.SET``, a number or ``INSTANCE.NUMBER``."""
+        key = ref.upper()
+        inst, dot, rest = key.partition(".")
+        if dot and inst in self.instances:
+            scope = self.instances[inst].part
+            labels = {int(rest)} if _is_int(rest) else self._local(scope, kind, rest, where, frozenset())
+            return self._global(inst, kind, labels, where)
+        if _is_int(key):
+            flat = self._flat_instance(where, ref)
+            return self._global(flat, kind, {int(key)}, where)
+        table = self.assembly.elsets if kind == "elset" else self.assembly.nsets
+        if key in table:
+            if key in seen:
+                raise InputError(f"{where}: {kind} '{ref}' refers to itself.")
+            out: set[int] = set()
+            for member, member_inst, w in table[key]:
+                if member_inst:
+                    mi = member_inst.upper()
+                    if mi not in self.instances:
+                        raise InputError(f"{w}: instance '{member_inst}' is not defined.")
+                    scope = self.instances[mi].part
+                    labels = (
+                        {int(member)} if _is_int(member) else self._local(scope, kind, member, w, frozenset())
+                    )
+                    out |= set(self._global(mi, kind, labels, w))
+                else:
+                    out |= set(self.resolve(kind, member, w, seen | {key}))
+            return sorted(out)
+        # a flat deck, or parts placed without instances: their own names are visible
+        owners = [k for k, i in self.instances.items() if key in getattr(i.part, kind + "s")]
+        if len(owners) == 1:
+            scope = self.instances[owners[0]].part
+            return self._global(owners[0], kind, self._local(scope, kind, ref, where, frozenset()), where)
+        if len(owners) > 1:
+            raise InputError(
+                f"{where}: {kind} '{ref}' is defined in several instances "
+                f"({', '.join(self.instances[o].name for o in owners)}); expected INSTANCE.{ref}."
+            )
+        known = sorted(self.assembly.display.get(k, k) for k in table)
+        raise InputError(
+            f"{where}: {kind} '{ref}' is not defined; expected a set name "
+            f"({', '.join(known) or 'none at assembly level'}), INSTANCE.NAME or a number."
+        )
+
+    def _flat_instance(self, where: str, ref: str) -> str:
+        if len(self.instances) != 1:
+            raise InputError(
+                f"{where}: number {ref} is ambiguous with {len(self.instances)} instances; "
+                "expected INSTANCE.NUMBER."
+            )
+        return next(iter(self.instances))
+
+    def surface(self, ref: str, where: str) -> np.ndarray:
+        """Triangles (K, 3) of global node indices of surface ``ref`` (model-level name or
+        ``INSTANCE.SURFACE``)."""
+        key = ref.upper()
+        inst, dot, rest = key.partition(".")
+        if dot and inst in self.instances:
+            scope = self.instances[inst].part
+            if rest not in scope.surfaces:
+                raise InputError(f"{where}: surface '{ref}' is not defined in part '{scope.name}'.")
+            return self._faces(scope.surfaces[rest], lambda m, w: self.resolve("elset", f"{inst}.{m}", w))
+        if key in self.assembly.surfaces:
+            return self._faces(self.assembly.surfaces[key], lambda m, w: self.resolve("elset", m, w))
+        owners = [k for k, i in self.instances.items() if key in i.part.surfaces]
+        if len(owners) == 1:
+            return self.surface(f"{owners[0]}.{key}", where)
+        known = sorted(self.assembly.display.get(k, k) for k in self.assembly.surfaces)
+        raise InputError(
+            f"{where}: surface '{ref}' is not defined; expected one of {known or '(none)'} or "
+            "INSTANCE.SURFACE."
+        )
+
+    def _faces(self, entries: list[tuple[str, str, str]], elems: Any) -> np.ndarray:
+        tris = []
+        for member, face, w in entries:
+            if face not in TET_FACES:
+                raise InputError(
+                    f"{w}: surface face {face!r} of '{member}'; expected one of S1-S4 (element faces)."
+                )
+            rows = np.asarray(elems(member, w), dtype=np.int64)
+            tris.append(self.tets[rows][:, list(TET_FACES[face])])
+        return np.vstack(tris) if tris else np.zeros((0, 3), dtype=np.int64)
+
+
+def _single_value(rows: list[tuple[list[str], str]], what: str, material: str) -> float:
+    """A material property: one row, or rows that all give the same value (refused otherwise)."""
+    if not rows:
+        raise ValueError(what)
+    values = {_num(r[0]) for r, _ in rows}
+    if len(values) > 1:
+        raise InputError(
+            f"{rows[1][1]}: material '{material}' *{what} depends on temperature "
+            f"({len(rows)} rows, values {sorted(values)}); expected one value: the FEM solver has "
+            "constant properties."
+        )
+    return values.pop()
+
+
 def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusModel:
     """Read an ``.inp`` deck; coordinates are multiplied by ``length_scale_m`` (1e-3 for mm decks)."""
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{p}: Abaqus input file not found.")
     src = str(p)
-    nodes: dict[int, tuple[float, float, float]] = {}
-    elements: dict[int, tuple[int, int, int, int]] = {}
-    elsets: dict[str, list[int]] = {}
-    nsets: dict[str, list[int]] = {}
-    sections: list[tuple[str, str]] = []
-    materials: dict[str, dict[str, float]] = {}
-    surfaces: dict[str, list[tuple[str, str]]] = {}
-    initial: dict[str, float] = {}
-    dflux: dict[str, float] = {}
-    gap: float | None = None
+    deck = _Deck(src)
+    materials: dict[str, dict[str, list[tuple[list[str], str]]]] = {}
+    mat_display: dict[str, str] = {}
+    interactions: dict[str, list[tuple[float, float, float | None, str]]] = {}
+    pairs: list[tuple[str, str, str, str]] = []  # slave, master, interaction, where
+    initial: list[tuple[str, float, str]] = []
+    dflux: list[tuple[str, float, str | None, str]] = []
+    films: list[tuple[str, str, float, float, str]] = []  # kind, ref/face, sink, h, where
+    amplitudes: dict[str, tuple[list[float], str]] = {}
     unsupported: list[str] = []
-    part_nodes: dict[str, list[int]] = {}
-    current_part = ""
-    placements: dict[str, list[list[float]]] = {}  # part -> instance data lines
-    instance_part = ""
-    kw, material = "", ""
+    steps: list[str] = []
+    heat_transfer: list[float] = []
+    scope: _Scope = deck.top
+    instance: _Instance | None = None
     opts: dict[str, str] = {}
-    lines = p.read_text(encoding="utf-8", errors="replace").splitlines()
-    for no, raw in enumerate(lines, start=1):
-        line = raw.strip()
-        if not line or line.startswith("**"):
-            continue
-        if line.startswith("*"):
-            kw, opts = _options(line)
-            if kw == "element" and opts.get("type", "").upper() not in _TET_TYPES:
+    kw, material, interaction, amp = "", "", "", ""
+    where = src
+    for ln in _read_lines(p):
+        where = ln.where()
+        if ln.text.startswith("*"):
+            kw, opts = _options(ln.text)
+            title = ln.text[1:].split(",")[0].strip()
+            if kw in _REFUSED:
                 raise InputError(
-                    f"{src}: line {no}: element type {opts.get('type')!r} is not supported; "
+                    f"{where}: *{title} ({_REFUSED[kw]}) is not supported; ignoring it would change "
+                    "the heat-transfer solution: remove it or model it another way."
+                )
+            if kw not in _READ:
+                if kw not in _ACCEPTED:
+                    unsupported.append(f"line {ln.no}: *{title} (ignored)")
+                if kw == "end part":
+                    scope = deck.top
+                elif kw == "end assembly":
+                    scope = deck.top
+                elif kw == "end instance":
+                    instance = None
+                    scope = deck.assembly
+                continue
+            if kw == "element" and opts.get("TYPE", "").upper() not in _TET_TYPES:
+                raise InputError(
+                    f"{where}: element type {opts.get('TYPE')!r} is not supported; "
                     f"expected one of {sorted(_TET_TYPES)} (linear tetrahedra)."
                 )
-            if kw == "material":
-                material = opts.get("name", "")
-                materials[material] = {}
-            elif kw == "solid section":
-                sections.append((opts.get("elset", ""), opts.get("material", "")))
-            elif kw == "surface":
-                if opts.get("type", "ELEMENT").upper() != "ELEMENT":
-                    unsupported.append(f"line {no}: *Surface type={opts.get('type')}")
-                surfaces[opts.get("name", "")] = []
-            elif kw == "part":
-                current_part = opts.get("name", "")
-            elif kw == "end part":
-                current_part = ""
+            if kw in ("node", "element") and scope is deck.assembly:
+                raise InputError(
+                    f"{where}: *{title} at assembly level (reference points or instance meshes) "
+                    "is not supported; expected nodes and elements inside *Part."
+                )
+            if kw == "part":
+                name = opts.get("NAME", "")
+                if name.upper() in deck.parts:
+                    raise InputError(f"{where}: *Part '{name}' is defined twice.")
+                scope = deck.parts[name.upper()] = _Scope(name)
+            elif kw == "assembly":
+                scope = deck.assembly
             elif kw == "instance":
-                instance_part = opts.get("part", "")
-                if instance_part in placements:
-                    unsupported.append(
-                        f"line {no}: *Instance of part '{instance_part}' placed a second time "
-                        "(only the first placement is applied)"
+                name, part_opt = opts.get("NAME", ""), opts.get("PART", "")
+                if part_opt.upper() not in deck.parts:
+                    raise InputError(
+                        f"{where}: *Instance '{name}' places part '{part_opt}' which is not defined "
+                        f"(before it); expected one of {[s.name for s in deck.parts.values()]}."
                     )
-                    instance_part = ""
-                elif instance_part:
-                    placements[instance_part] = []
-            elif kw == "initial conditions" and opts.get("type", "").upper() != "TEMPERATURE":
-                unsupported.append(f"line {no}: *Initial Conditions type={opts.get('type')}")
-            elif kw not in _ACCEPTED and kw not in {
-                "node", "element", "elset", "nset", "conductivity", "density", "specific heat",
-                "initial conditions", "gap conductance", "dflux",
-            }:  # fmt: skip
-                unsupported.append(f"line {no}: *{line[1:].split(',')[0].strip()}")
+                if name.upper() in deck.instances:
+                    raise InputError(f"{where}: *Instance '{name}' is defined twice.")
+                instance = _Instance(name, deck.parts[part_opt.upper()], [], where)
+                deck.instances[name.upper()] = instance
+            elif kw in ("elset", "nset"):
+                name = opts.get(kw.upper(), "")
+                getattr(scope, kw + "s").setdefault(name.upper(), [])
+                scope.display.setdefault(name.upper(), name)
+                if "INSTANCE" in opts and scope is not deck.assembly:
+                    raise InputError(f"{where}: *{title}, instance= outside *Assembly.")
+            elif kw == "surface":
+                if opts.get("TYPE", "ELEMENT").upper() != "ELEMENT":
+                    raise InputError(
+                        f"{where}: *Surface type={opts.get('TYPE')} is not supported; expected "
+                        "type=ELEMENT (element faces S1-S4)."
+                    )
+                name = opts.get("NAME", "")
+                scope.surfaces[name.upper()] = []
+                scope.display.setdefault(name.upper(), name)
+            elif kw == "solid section":
+                scope.sections.append((opts.get("ELSET", ""), opts.get("MATERIAL", ""), where))
+            elif kw == "material":
+                material = opts.get("NAME", "").upper()
+                materials[material] = {}
+                mat_display[material] = opts.get("NAME", "")
+            elif kw in ("conductivity", "density", "specific heat"):
+                if not material:
+                    raise InputError(f"{where}: *{title} outside a *Material.")
+                if kw == "conductivity" and opts.get("TYPE", "ISO").upper() not in ("ISO", "ORTHO", "ANISO"):
+                    raise InputError(f"{where}: *Conductivity type={opts.get('TYPE')}; expected ISO.")
+                if opts.get("DEPENDENCIES", "0") not in ("", "0"):
+                    raise InputError(
+                        f"{where}: *{title} with dependencies= (field variables) is not supported; "
+                        "expected constant properties."
+                    )
+                materials[material][kw] = []
+            elif kw == "surface interaction":
+                interaction = opts.get("NAME", "").upper()
+                interactions.setdefault(interaction, [])
+            elif kw == "gap conductance":
+                if "PRESSURE" in opts:
+                    raise InputError(
+                        f"{where}: *Gap Conductance, pressure (conductance by contact pressure) is not "
+                        "supported; expected conductance by clearance."
+                    )
+                if not interaction:
+                    raise InputError(f"{where}: *Gap Conductance outside a *Surface Interaction.")
+                if opts.get("DEPENDENCIES", "0") not in ("", "0") or "USER" in opts:
+                    raise InputError(f"{where}: *Gap Conductance with dependencies/user is not supported.")
+            elif kw == "contact pair":
+                interaction_name = opts.get("INTERACTION", "")
+                if not interaction_name:
+                    raise InputError(f"{where}: *Contact Pair without interaction=.")
+            elif kw == "amplitude":
+                amp = opts.get("NAME", "").upper()
+                definition = opts.get("DEFINITION", "TABULAR").upper()
+                if definition != "TABULAR" or opts.get("TIME", "STEP TIME").upper() != "STEP TIME":
+                    raise InputError(
+                        f"{where}: *Amplitude '{opts.get('NAME')}' definition={definition} "
+                        f"time={opts.get('TIME', 'STEP TIME')} is not supported; expected a TABULAR "
+                        "amplitude in STEP TIME."
+                    )
+                if "VALUE" in opts and opts["VALUE"].upper() != "RELATIVE":
+                    raise InputError(f"{where}: *Amplitude value=ABSOLUTE is not supported.")
+                amplitudes[amp] = ([], where)
+            elif kw == "step":
+                steps.append(where)
+                if len(steps) > 1:
+                    raise InputError(
+                        f"{where}: a second *Step; expected one heat-transfer step (the loads of the "
+                        "steps would be merged)."
+                    )
+            elif kw == "heat transfer":
+                if "STEADY STATE" in opts:
+                    raise InputError(
+                        f"{where}: *Heat Transfer, steady state; expected a transient step "
+                        "(use HeatModel.steady for a steady solution)."
+                    )
+            elif kw == "initial conditions" and opts.get("TYPE", "").upper() != "TEMPERATURE":
+                unsupported.append(f"line {ln.no}: *Initial Conditions type={opts.get('TYPE')} (ignored)")
+            elif kw in ("film", "sfilm") and "AMPLITUDE" in opts:
+                raise InputError(
+                    f"{where}: *{title}, amplitude= is not supported (the film is constant); "
+                    "expected a constant film coefficient and sink temperature."
+                )
             continue
-        vals = [v.strip() for v in line.split(",") if v.strip()]
+        vals = _fields(ln.text)
         try:
             if kw == "node":
-                nodes[int(vals[0])] = (float(vals[1]), float(vals[2]), float(vals[3]))
-                if current_part:
-                    part_nodes.setdefault(current_part, []).append(int(vals[0]))
+                label = int(vals[0])
+                if label in scope.nodes:
+                    raise InputError(
+                        f"{where}: node {label} is defined twice"
+                        + (f" in part '{scope.name}'" if scope.name else "")
+                        + "; expected unique node numbers."
+                    )
+                scope.nodes[label] = (float(vals[1]), float(vals[2]), float(vals[3]))
             elif kw == "instance":
-                if instance_part:
-                    if len(placements[instance_part]) >= 2:
-                        raise ValueError("more than two data lines")
-                    expected = 3 if not placements[instance_part] else 7
-                    if len(vals) != expected:
-                        raise ValueError(f"expected {expected} numbers, got {len(vals)}")
-                    placements[instance_part].append([float(v) for v in vals])
+                assert instance is not None
+                if len(instance.data) >= 2:
+                    raise ValueError("more than two data lines")
+                expected = 3 if not instance.data else 7
+                if len(vals) != expected:
+                    raise ValueError(f"expected {expected} numbers, got {len(vals)}")
+                instance.data.append([_num(v) for v in vals])
             elif kw == "element":
                 e = [int(v) for v in vals]
-                elements[e[0]] = (e[1], e[2], e[3], e[4])
-                if "elset" in opts:
-                    elsets.setdefault(opts["elset"], []).append(e[0])
+                if len(e) != 5:
+                    raise ValueError(f"expected an element number and 4 nodes, got {len(e)} numbers")
+                if e[0] in scope.elements:
+                    raise InputError(
+                        f"{where}: element {e[0]} is defined twice"
+                        + (f" in part '{scope.name}'" if scope.name else "")
+                        + "; expected unique element numbers."
+                    )
+                scope.elements[e[0]] = (e[1], e[2], e[3], e[4])
+                scope.element_line[e[0]] = where
+                if "ELSET" in opts:
+                    name = opts["ELSET"]
+                    scope.elsets.setdefault(name.upper(), []).append((str(e[0]), "", where))
+                    scope.display.setdefault(name.upper(), name)
             elif kw in ("elset", "nset"):
-                target = (elsets if kw == "elset" else nsets).setdefault(opts.get(kw, ""), [])
-                if "generate" in opts:
-                    a, b, *step = (int(v) for v in vals)
-                    target.extend(range(a, b + 1, step[0] if step else 1))
+                target = getattr(scope, kw + "s")[opts.get(kw.upper(), "").upper()]
+                inst_opt = opts.get("INSTANCE", "")
+                if "GENERATE" in opts:
+                    g0, g1, *step = (int(v) for v in vals)
+                    target.extend(
+                        (str(i), inst_opt, where) for i in range(g0, g1 + 1, step[0] if step else 1)
+                    )
                 else:
-                    target.extend(int(v) for v in vals)
+                    target.extend((v, inst_opt, where) for v in vals if v)
             elif kw in ("conductivity", "density", "specific heat"):
-                materials[material][kw] = float(vals[0])
-            elif kw == "initial conditions" and opts.get("type", "").upper() == "TEMPERATURE":
-                initial[vals[0]] = float(vals[1])
+                if kw == "conductivity" and opts.get("TYPE", "ISO").upper() in ("ORTHO", "ANISO"):
+                    n_comp = 3 if opts["TYPE"].upper() == "ORTHO" else 6
+                    comp = [_num(v) for v in vals[:n_comp]]
+                    off_diag = comp[3:]
+                    if len(set(comp[:3])) != 1 or any(off_diag):
+                        raise InputError(
+                            f"{where}: material '{mat_display[material]}' *Conductivity, "
+                            f"type={opts['TYPE']} {comp} is anisotropic; expected an isotropic "
+                            "conductivity (the FEM solver is isotropic)."
+                        )
+                    vals = [vals[0], *vals[n_comp:]]
+                materials[material][kw].append((vals, where))
+            elif kw == "initial conditions" and opts.get("TYPE", "").upper() == "TEMPERATURE":
+                initial.append((vals[0], float(vals[1]), where))
             elif kw == "surface":
-                surfaces[opts.get("name", "")].append((vals[0], vals[1].upper()))
-            elif kw == "gap conductance" and gap is None:
-                if len(vals) < 2 or float(vals[1]) == 0.0:
-                    gap = float(vals[0])
+                if len(vals) < 2:
+                    raise InputError(
+                        f"{where}: surface member {vals[0]!r} has no face; expected 'element set or "
+                        "number, S1-S4'."
+                    )
+                scope.surfaces[opts.get("NAME", "").upper()].append((vals[0], vals[1].upper(), where))
+            elif kw == "gap conductance":
+                temp = _num(vals[2]) if len(vals) > 2 and vals[2] != "" else None
+                interactions[interaction].append(
+                    (_num(vals[0]), _num(vals[1]) if len(vals) > 1 else 0.0, temp, where)
+                )
+            elif kw == "contact pair":
+                if len(vals) != 2:
+                    raise ValueError("expected 'slave surface, master surface'")
+                pairs.append((vals[0], vals[1], opts.get("INTERACTION", "").upper(), where))
+            elif kw == "amplitude":
+                amplitudes[amp][0].extend(_num(v) for v in vals)
+            elif kw == "heat transfer":
+                heat_transfer = [_num(v) for v in vals]
             elif kw == "dflux":
-                if vals[1].upper() != "BF":
-                    unsupported.append(f"line {no}: *Dflux load type {vals[1]} (only BF)")
-                else:
-                    dflux[vals[0]] = float(vals[2])
+                load = vals[1].upper()
+                if load != "BF":
+                    raise InputError(
+                        f"{where}: *Dflux load type {vals[1]} is not supported; expected BF (body flux "
+                        "[W/m^3] over an element set or element)."
+                    )
+                amp_opt = opts.get("AMPLITUDE")
+                dflux.append((vals[0], float(vals[2]), amp_opt.upper() if amp_opt else None, where))
+            elif kw == "film":
+                face = vals[1].upper()
+                if face not in ("F1", "F2", "F3", "F4"):
+                    raise InputError(
+                        f"{where}: *Film load type {vals[1]}; expected F1-F4 (constant film on a face)."
+                    )
+                films.append((vals[0], "S" + face[1], _num(vals[2]), _num(vals[3]), where))
+            elif kw == "sfilm":
+                if vals[1].upper() != "F":
+                    raise InputError(f"{where}: *Sfilm load type {vals[1]}; expected F (constant film).")
+                films.append((vals[0], "", _num(vals[2]), _num(vals[3]), where))
         except (ValueError, IndexError) as exc:
-            raise InputError(f"{src}: line {no}: cannot read data line {line!r} of *{kw} ({exc}).") from exc
+            raise InputError(f"{where}: cannot read data line {ln.text!r} of *{kw} ({exc}).") from exc
 
-    if not elements:
-        raise InputError(f"{src}: no *Element block of linear tetrahedra found.")
-    for pname, data in placements.items():
-        ids = part_nodes.get(pname, [])
-        if not data or not ids:
-            continue
-        xyz = np.array([nodes[i] for i in ids], dtype=float) + np.array(data[0])
-        if len(data) == 2:
-            r = data[1]
+    # ---- placement: every instance is a copy of its part ---------------------------------------
+    explicit = bool(deck.instances)
+    for key, prt in deck.parts.items():
+        if not any(i.part is prt for i in deck.instances.values()):
+            if explicit:
+                unsupported.append(f"part '{prt.name}' has no *Instance (not in the model)")
+            elif prt.nodes:
+                deck.instances[key] = _Instance(prt.name, prt, [], src, auto=True)
+    if deck.top.nodes or deck.top.elements:
+        deck.instances[""] = _Instance("", deck.top, [], src, auto=True)
+    points: list[np.ndarray] = []
+    node_labels: list[str] = []
+    elem_rows: list[tuple[str, int]] = []
+    for ikey, inst in deck.instances.items():
+        labels = sorted(inst.part.nodes)
+        start = len(node_labels)
+        xyz = np.array([inst.part.nodes[i] for i in labels], dtype=float).reshape(-1, 3)
+        if inst.data:
+            xyz = xyz + np.array(inst.data[0])
+        if len(inst.data) == 2:
+            r = inst.data[1]
             try:
                 xyz = _rotate(xyz, np.array(r[0:3]), np.array(r[3:6]), r[6])
             except ValueError as exc:
-                raise InputError(f"{src}: *Instance of part '{pname}': {exc}.") from exc
-        for i, row in zip(ids, xyz.tolist(), strict=True):
-            nodes[i] = (row[0], row[1], row[2])
-    nid = np.array(sorted(nodes))
-    lookup = {n: i for i, n in enumerate(nid.tolist())}
-    pts = np.array([nodes[n] for n in nid.tolist()]) * length_scale_m
-    eid = np.array(sorted(elements))
-    eindex = {e: i for i, e in enumerate(eid.tolist())}
-    try:
-        tets = np.array([[lookup[n] for n in elements[e]] for e in eid.tolist()], dtype=np.int64)
-    except KeyError as exc:
-        raise InputError(f"{src}: an element refers to node {exc.args[0]} which is not defined.") from exc
+                raise InputError(f"{inst.where}: *Instance '{inst.name}': {exc}.") from exc
+        points.append(xyz)
+        prefix = "" if inst.auto else f"{inst.name}."
+        for j, lab in enumerate(labels):
+            deck.node_index[(ikey, lab)] = start + j
+            node_labels.append(f"{prefix}{lab}")
+        for lab in sorted(inst.part.elements):
+            elem_rows.append((ikey, lab))
+    if not elem_rows:
+        raise InputError(f"{src}: no *Element block of linear tetrahedra found.")
+    pts = np.vstack(points) * length_scale_m
+    tets = np.empty((len(elem_rows), 4), dtype=np.int64)
+    element_labels: list[str] = []
+    for row, (ikey, lab) in enumerate(elem_rows):
+        inst = deck.instances[ikey]
+        deck.elem_index[(ikey, lab)] = row
+        prefix = "" if inst.auto else f"{inst.name}."
+        element_labels.append(f"{prefix}{lab}")
+        for c, nlab in enumerate(inst.part.elements[lab]):
+            if (ikey, nlab) not in deck.node_index:
+                raise InputError(
+                    f"{inst.part.element_line[lab]}: element {lab} refers to node {nlab} which is not "
+                    "defined" + (f" in part '{inst.part.name}'" if inst.part.name else "") + "."
+                )
+            tets[row, c] = deck.node_index[(ikey, nlab)]
+    deck.tets = tets
+    _check_orientation(src, pts, tets, element_labels, node_labels)
 
-    def elset_rows(name: str, what: str) -> np.ndarray:
-        if name not in elsets:
-            raise InputError(f"{src}: {what} refers to element set '{name}' which is not defined.")
-        return np.array([eindex[e] for e in elsets[name] if e in eindex], dtype=np.int64)
-
-    part = np.full(len(eid), -1)
+    # ---- sections -> thermal parts ---------------------------------------------------------------
+    n_inst = sum(1 for i in deck.instances.values() if i.part.nodes)
+    part = np.full(len(elem_rows), -1)
     part_names: list[str] = []
     mats: dict[str, Material] = {}
-    for elset, mname in sections:
-        if mname not in materials:
+    jobs: list[tuple[str, str, str, str, _Instance | None]] = [
+        (f"{ikey}.{elset}" if inst.part is not deck.top else elset, elset, mname, w, inst)
+        for ikey, inst in deck.instances.items()
+        for elset, mname, w in inst.part.sections
+    ]
+    if not any(i.part is deck.top for i in deck.instances.values()):
+        jobs += [(elset, elset, mname, w, None) for elset, mname, w in deck.top.sections]
+    for ref, elset, mname, w, owner in jobs:
+        if mname.upper() not in materials:
             raise InputError(
-                f"{src}: *Solid Section elset={elset} uses material '{mname}' which is not defined."
+                f"{w}: *Solid Section elset={elset} uses material '{mname}' which is not defined."
             )
-        props = materials[mname]
-        missing = [k for k in ("conductivity", "density", "specific heat") if k not in props]
+        props = materials[mname.upper()]
+        missing = [k for k in ("conductivity", "density", "specific heat") if not props.get(k)]
         if missing:
             raise InputError(
                 f"{src}: material '{mname}' has no {', '.join(missing)}; expected *Conductivity, "
                 "*Density and *Specific Heat for a transient heat analysis."
             )
-        part[elset_rows(elset, "*Solid Section")] = len(part_names)
-        part_names.append(elset)
-        mats[elset] = Material(mname, props["conductivity"], props["density"], props["specific heat"])
+        k, rho, cp = (
+            _single_value(props[x], x.title(), mname) for x in ("conductivity", "density", "specific heat")
+        )
+        rows = np.asarray(deck.resolve("elset", ref, w), dtype=np.int64)
+        if (part[rows] >= 0).any():
+            raise InputError(f"{w}: *Solid Section elset={elset} overlaps another section.")
+        shown = (owner.part if owner is not None else deck.top).display.get(elset.upper(), elset)
+        if owner is None or n_inst == 1:
+            name = shown
+        elif len(owner.part.sections) == 1:
+            name = owner.name
+        else:
+            name = f"{owner.name}.{shown}"
+        if name in mats:
+            raise InputError(f"{w}: thermal part name '{name}' is used twice; expected unique section sets.")
+        part[rows] = len(part_names)
+        part_names.append(name)
+        mats[name] = Material(mat_display[mname.upper()], k, rho, cp)
     if (part < 0).any():
+        first = element_labels[int(np.flatnonzero(part < 0)[0])]
         raise InputError(
-            f"{src}: {int((part < 0).sum())} elements (first {int(eid[part < 0][0])}) have no "
+            f"{src}: {int((part < 0).sum())} elements (first {first}) have no "
             "*Solid Section; expected every element to have a material."
         )
-    cell = np.full(len(eid), -1)
-    for i, name in enumerate(dflux):
-        cell[elset_rows(name, "*Dflux")] = i
+
+    # ---- loads --------------------------------------------------------------------------------------
+    cell = np.full(len(elem_rows), -1)
+    body_flux: dict[str, float] = {}
+    flux_amp: dict[str, str] = {}
+    for ref, value, a, w in dflux:
+        rows = np.asarray(deck.resolve("elset", ref, w), dtype=np.int64)
+        if ref in body_flux:
+            raise InputError(f"{w}: *Dflux on '{ref}' a second time; expected one body flux per set.")
+        if (cell[rows] >= 0).any():
+            raise InputError(f"{w}: *Dflux set '{ref}' overlaps another *Dflux set; expected disjoint sets.")
+        if a is not None:
+            if a not in amplitudes:
+                raise InputError(f"{w}: *Dflux amplitude '{a}' is not defined; expected an *Amplitude name.")
+            flux_amp[ref] = a
+        cell[rows] = len(body_flux)
+        body_flux[ref] = value
+    amps: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for name, (data, w) in amplitudes.items():
+        arr = np.asarray(data, dtype=float)
+        if arr.size < 2 or arr.size % 2 or np.any(np.diff(arr[0::2]) < 0):
+            raise InputError(
+                f"{w}: *Amplitude '{name}' has {arr.size} values; expected (time, value) pairs in "
+                "increasing time."
+            )
+        amps[name] = (arr[0::2], arr[1::2])
     groups: dict[str, np.ndarray] = {}
-    for sname, entries in surfaces.items():
-        tris = []
-        for elset, face in entries:
-            if face not in TET_FACES:
-                raise InputError(f"{src}: surface '{sname}' face {face!r}; expected one of S1-S4.")
-            rows = elset_rows(elset, f"*Surface {sname}")
-            tris.append(tets[rows][:, list(TET_FACES[face])])
-        groups[sname] = np.vstack(tris) if tris else np.zeros((0, 3), dtype=np.int64)
-    mesh = ThermalMesh(pts, tets, part, tuple(part_names), cell, groups, None, src).validate()
-    return AbaqusModel(mesh, mats, initial, gap, dflux, unsupported)
+    for skey in deck.assembly.surfaces:
+        groups[deck.assembly.display.get(skey, skey)] = deck.surface(skey, src)
+    for ikey, inst in deck.instances.items():
+        for skey in inst.part.surfaces:
+            shown = inst.part.display.get(skey, skey)
+            gname = shown if n_inst == 1 else f"{inst.name}.{shown}"
+            groups[gname] = deck.surface(f"{ikey}.{skey}" if ikey else skey, src)
+    film_of: dict[str, tuple[float, float]] = {}
+    for ref, face, sink, h, w in films:
+        line = w.rsplit(" ", 1)[-1]
+        if face:
+            tris = deck.tets[np.asarray(deck.resolve("elset", ref, w), dtype=np.int64)][
+                :, list(TET_FACES[face])
+            ]
+        else:
+            tris = deck.surface(ref, w)
+        gname = f"FILM_{line}_{len(film_of)}"
+        groups[gname] = tris
+        film_of[gname] = (h, sink)
+    node_temp = np.full(pts.shape[0], np.nan)
+    initial_c: dict[str, float] = {}
+    for ref, value, w in initial:
+        node_temp[deck.resolve("nset", ref, w)] = value
+        initial_c[ref] = value
+
+    # ---- contact pairs: merge the coincident nodes of the two surfaces ----------------------------
+    mesh_part = part.copy()
+    contact: dict[str, float] = {}
+    merge = np.arange(pts.shape[0])
+    first_gap: float | None = None
+    for rows_ in interactions.values():
+        if rows_ and first_gap is None:
+            first_gap = _gap_at_zero(rows_)
+    for slave, master, inter, w in pairs:
+        if inter not in interactions:
+            raise InputError(f"{w}: *Contact Pair interaction '{inter}' is not a *Surface Interaction.")
+        if not interactions[inter]:
+            unsupported.append(
+                f"line {w.rsplit(' ', 1)[-1]}: *Contact Pair {slave}/{master} without *Gap Conductance "
+                "(no heat crosses it, as in Abaqus)"
+            )
+            continue
+        h = _gap_at_zero(interactions[inter])
+        ts_, tm_ = deck.surface(slave, w), deck.surface(master, w)
+        mapping = _match_surfaces(pts, ts_, tm_, w, slave, master)
+        merge[list(mapping)] = list(mapping.values())
+        parts_s = set(mesh_part[_tets_of_faces(tets, ts_)].tolist())
+        parts_m = set(mesh_part[_tets_of_faces(tets, tm_)].tolist())
+        from hevsim.thermal.solver import interface_name
+
+        for a in parts_s:
+            for b in parts_m:
+                if a == b:
+                    raise InputError(
+                        f"{w}: *Contact Pair {slave}/{master} within one part; expected two parts."
+                    )
+                nm = interface_name(part_names[a], part_names[b])
+                if nm in contact and contact[nm] != h:
+                    raise InputError(
+                        f"{w}: interface {nm} gets gap conductance {h:g} and {contact[nm]:g}; expected one."
+                    )
+                contact[nm] = h
+    tets = merge[tets]
+    groups = {k: merge[v] for k, v in groups.items()}
+    mesh = ThermalMesh(pts, tets, mesh_part, tuple(part_names), cell, groups, None, src).validate()
+    bonded = _bonded(mesh, contact)
+    model = AbaqusModel(
+        mesh,
+        mats,
+        initial_c,
+        first_gap,
+        body_flux,
+        unsupported,
+        contact,
+        bonded,
+        film_of,
+        node_temp,
+        amps,
+        flux_amp,
+        heat_transfer[1] if len(heat_transfer) > 1 else None,
+        heat_transfer[0] if heat_transfer else None,
+        node_labels,
+        element_labels,
+    )
+    return model
+
+
+def _gap_at_zero(rows: list[tuple[float, float, float | None, str]]) -> float:
+    """Conductance of a *Gap Conductance table at zero clearance (constant beyond the ends)."""
+    temps = {t for _, _, t, _ in rows}
+    if len(temps) > 1:
+        raise InputError(
+            f"{rows[0][3]}: *Gap Conductance depends on temperature ({sorted(t or 0.0 for t in temps)}); "
+            "expected conductance by clearance only."
+        )
+    k = np.array([r[0] for r in rows])
+    d = np.array([r[1] for r in rows])
+    order = np.argsort(d, kind="stable")
+    if np.any(np.diff(d[order]) == 0):
+        raise InputError(f"{rows[0][3]}: *Gap Conductance lists a clearance twice; expected one value each.")
+    h = float(np.interp(0.0, d[order], k[order]))
+    if not (np.isfinite(h) and h > 0.0):
+        raise InputError(f"{rows[0][3]}: *Gap Conductance at zero clearance is {h!r}; expected > 0.")
+    return h
+
+
+def _tets_of_faces(tets: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """Tetrahedra owning each triangle (by its node set)."""
+    from hevsim.thermal.mesh import _FACES
+
+    faces = np.sort(tets[:, _FACES].reshape(-1, 3), axis=1)
+    lookup = {tuple(f): i // 4 for i, f in enumerate(faces.tolist())}
+    return np.array([lookup[tuple(t)] for t in np.sort(tris, axis=1).tolist()], dtype=np.int64)
+
+
+def _match_surfaces(
+    pts: np.ndarray, slave: np.ndarray, master: np.ndarray, where: str, sname: str, mname: str
+) -> dict[int, int]:
+    """Slave node -> master node at the same position, every slave face being a master face."""
+    from scipy.spatial import cKDTree
+
+    if slave.size == 0 or master.size == 0:
+        raise InputError(f"{where}: *Contact Pair {sname}/{mname}: a surface has no face.")
+    s_nodes, m_nodes = np.unique(slave), np.unique(master)
+    size = float(np.ptp(pts, axis=0).max()) or 1.0
+    tol = 1e-8 * size
+    dist, j = cKDTree(pts[m_nodes]).query(pts[s_nodes])
+    far = dist > tol
+    if far.any():
+        raise InputError(
+            f"{where}: *Contact Pair {sname}/{mname}: {int(far.sum())} of {s_nodes.size} slave nodes "
+            f"have no master node at the same position (largest distance {float(dist.max()):.3g}); only "
+            "surfaces meshed node for node (zero clearance) are supported."
+        )
+    mapping = dict(zip(s_nodes.tolist(), m_nodes[j].tolist(), strict=True))
+    mapped = np.sort(np.vectorize(mapping.get)(slave), axis=1)
+    master_set = {tuple(t) for t in np.sort(master, axis=1).tolist()}
+    missing = sum(tuple(t) not in master_set for t in mapped.tolist())
+    if missing:
+        raise InputError(
+            f"{where}: *Contact Pair {sname}/{mname}: {missing} slave faces are not faces of the master "
+            "surface (different triangulation); expected surfaces meshed face for face."
+        )
+    return mapping
+
+
+def _bonded(mesh: ThermalMesh, contact: dict[str, float]) -> list[str]:
+    """Interfaces between parts that share nodes without a contact pair."""
+    from hevsim.thermal.mesh import mesh_faces
+    from hevsim.thermal.solver import interface_name
+
+    faces = mesh_faces(mesh.tets)
+    inner = faces.other >= 0
+    pa = mesh.part_of_tet[faces.owner[inner]]
+    pb = mesh.part_of_tet[faces.other[inner]]
+    names = {
+        interface_name(mesh.part_names[a], mesh.part_names[b]) for a, b in zip(pa, pb, strict=True) if a != b
+    }
+    return sorted(names - set(contact))
+
+
+def _check_orientation(
+    src: str, pts: np.ndarray, tets: np.ndarray, element_labels: list[str], node_labels: list[str]
+) -> None:
+    """Refuse degenerate or inverted elements, naming the deck's element and node numbers."""
+    vol = tet_volumes_m3(pts, tets)
+    scale = float(np.mean(np.abs(vol))) if vol.size else 0.0
+    for bad, what, expect in (
+        (
+            np.abs(vol) <= DEGENERATE_RELATIVE_VOLUME * max(scale, 1e-300),
+            "degenerate (zero-volume)",
+            "positive volumes",
+        ),
+        (vol < 0.0, "inverted", "right-handed node order (positive volume)"),
+    ):
+        idx = np.flatnonzero(bad)
+        if idx.size:
+            e = int(idx[0])
+            raise InputError(
+                f"{src}: {idx.size} {what} tetrahedra, first is element {element_labels[e]} with nodes "
+                f"{[node_labels[n] for n in tets[e]]}; expected {expect}."
+            )
