@@ -304,3 +304,39 @@ def test_simulation_refused_before_running(
     assert code == 2, err
     assert "on udds: a simulation of 2,739 steps needs about 3 MB" in err and "--dt" in err
     assert not (tmp_path / "s").exists()
+
+
+def test_dp_runs_the_serial_kernels_with_one_thread(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The thread policy reaches the DP: one thread -> serial Bellman kernels, same optimum."""
+    import numba
+
+    from hevsim.optimal import _kernels
+    from hevsim.optimal.dp import DPProblem, solve_dp
+
+    def model(states, inputs, k, data):
+        x, u = states[0], inputs[0]
+        return (x + 0.01 * u - 0.004 * x,), (u - 0.3 * x) ** 2 + 0.1 * u, None  # state-dependent: no hull
+
+    problem = DPProblem(model, [np.linspace(0.0, 1.0, 201)], [np.linspace(0.0, 1.0, 201)], 6)  # S*M = 40 401
+    calls: dict[str, int] = {"par": 0, "ser": 0}
+    for kind in ("par", "ser"):
+        real = getattr(_kernels, f"bellman_1d_{kind}")
+
+        def counted(*args: object, _real: object = real, _kind: str = kind) -> object:
+            calls[_kind] += 1
+            return _real(*args)  # type: ignore[operator]
+
+        monkeypatch.setattr(_kernels, f"bellman_1d_{kind}", counted)
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = solve_dp(problem, [0.5])
+        assert calls["par"] == 0 and calls["ser"] > 0
+        if numba.config.NUMBA_NUM_THREADS >= 2:  # type: ignore[attr-defined]
+            numba.set_num_threads(2)
+            calls.update(par=0, ser=0)
+            two = solve_dp(problem, [0.5])
+            assert calls["par"] > 0
+            assert two.total_cost == one.total_cost
+    finally:
+        numba.set_num_threads(before)

@@ -73,8 +73,8 @@ def dp_feedback(
     name = getattr(getattr(hev, "config", None), "name", None) or getattr(hev, "name", "vehicle")
     label = f"{name} on {getattr(cycle, 'name', cycle)}"
     mem = check_dp_memory(form, final_constraint, forward, store_cost_to_go, label)
-    choice = apply_threads(threads)
     pairs = int(form.steps.n_steps) * int(np.prod(form.input_shape))
+    choice = apply_threads(threads, work=float(pairs) * form.soc_grid.size)
     talk = progress is not False and pairs >= STAGE_LINES_MIN_PAIRS
     if talk:
         from hevsim.progress import compile_notice, stage
