@@ -1,0 +1,452 @@
+"""Solvers a study can run per case, looked up by name in :data:`SOLVERS`.
+
+A solver states the architectures it supports, checks its options, names the metrics it can
+keep, prepares a picklable context once per study (in the client process), groups cases that
+can share one task, and runs a batch of cases on a worker, returning one :class:`Outcome` per
+case. A case that fails (invalid combination of values, infeasible cycle, solver error) gets
+``status = "failed"`` and the error message; it never stops the study.
+
+Registered here:
+
+- ``simulate``: forward simulation (series HEV) through :func:`hevsim.sim.simulator.simulate_batch`:
+  the cases of a batch that share the vehicle's component data run as parameter variants in
+  one compiled parallel call. Options: ``controller`` (a supervisory-controller kind of the
+  configuration), ``dt_s``.
+- ``optimize``: fuel-optimal energy management by dynamic programming
+  (:func:`hevsim.optimal.optimize`, series and parallel). Options: ``soc_grid_points``,
+  ``input_grid_points``, ``final_constraint``.
+
+``performance`` and ``ecms`` are not implemented yet; :func:`register_solver` adds a solver.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import pickle
+import time
+from collections import OrderedDict
+from collections.abc import Callable, Hashable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hevsim.errors import ConfigError, HevsimError
+
+OK, FAILED = "ok", "failed"
+"""Values of the ``status`` column."""
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """Result of one case: status, error message ("" when ok), kept metrics, wall time [s]."""
+
+    status: str
+    error: str
+    metrics: dict[str, float]
+    wall_time_s: float
+
+
+@dataclass(frozen=True)
+class Solver:
+    """A registered study solver (see the module docstring for the roles of the callables).
+
+    Attributes:
+        name: registry key (``name`` of a ``[[solvers]]`` table).
+        architectures: architectures it supports.
+        check_options: ``(vehicle config, options, where) -> resolved options``.
+        metric_names: ``(vehicle config) -> names`` of the metrics a case can keep.
+        prepare: ``(study, solver case) -> context`` (runs once, in the client).
+        group: ``(context, values row) -> key``; cases with equal keys may share one task.
+        run: ``(context, cycle, keys, values (m, d), metrics, threads) -> [Outcome] * m``.
+        default_batch: cases per task when the study does not say (0: automatic).
+    """
+
+    name: str
+    architectures: tuple[str, ...]
+    check_options: Callable[[Any, dict[str, Any], str], dict[str, Any]]
+    metric_names: Callable[[Any], tuple[str, ...]]
+    prepare: Callable[[Any, Any], Any]
+    group: Callable[[Any, np.ndarray], Hashable]
+    run: Callable[..., list[Outcome]]
+    default_batch: int = 0
+    description: str = ""
+
+    def check_architecture(self, cfg: Any, where: str) -> None:
+        """Raise ConfigError if the solver does not support ``cfg``'s architecture."""
+        if cfg.architecture not in self.architectures:
+            raise ConfigError(
+                f"{where}: solver '{self.name}' supports the {', '.join(self.architectures)} "
+                f"architecture(s); the vehicle is {cfg.architecture!r}."
+            )
+
+    def check(self, cfg: Any, options: dict[str, Any], where: str) -> dict[str, Any]:
+        """Validated options of this solver for ``cfg``."""
+        return self.check_options(cfg, options, where)
+
+
+SOLVERS: dict[str, Solver] = {}
+"""Registered study solvers by name."""
+
+
+def register_solver(solver: Solver) -> None:
+    """Add (or replace) a solver in :data:`SOLVERS`."""
+    SOLVERS[solver.name] = solver
+
+
+def solver_spec(name: Any, where: str) -> Solver:
+    """The registered solver ``name``; ConfigError listing the valid names otherwise."""
+    if not isinstance(name, str) or name not in SOLVERS:
+        raise ConfigError(
+            f"{where}: solver {name!r} is not known; expected one of {', '.join(sorted(SOLVERS))}."
+        )
+    return SOLVERS[name]
+
+
+def _unknown_options(options: dict[str, Any], valid: tuple[str, ...], name: str, where: str) -> None:
+    bad = [k for k in options if k not in valid]
+    if bad:
+        raise ConfigError(
+            f"{where}: option '{bad[0]}' is not known for solver '{name}'; valid options are: "
+            f"{', '.join(valid) or '(none)'}."
+        )
+
+
+def _fail(message: str, wall: float = 0.0) -> Outcome:
+    return Outcome(FAILED, message, {}, wall)
+
+
+# ------------------------------------------------------------------------------------------
+# Worker-side cache of built vehicle models (component data read once per worker)
+# ------------------------------------------------------------------------------------------
+_MODELS: OrderedDict[Hashable, Any] = OrderedDict()
+MODEL_CACHE_SIZE = 32
+"""Vehicle models a worker keeps built (least recently used dropped) [-]."""
+
+
+def cached_model(key: Hashable, build: Callable[[], Any]) -> Any:
+    """The model cached under ``key`` in this process, built on first use."""
+    if key in _MODELS:
+        _MODELS.move_to_end(key)
+        return _MODELS[key]
+    model = build()
+    _MODELS[key] = model
+    while len(_MODELS) > MODEL_CACHE_SIZE:
+        _MODELS.popitem(last=False)
+    return model
+
+
+def _overrides(keys: tuple[str, ...], row: np.ndarray, integer: tuple[bool, ...]) -> dict[str, Any]:
+    return {k: (int(v) if i else float(v)) for k, v, i in zip(keys, row, integer, strict=True)}
+
+
+# ------------------------------------------------------------------------------------------
+# simulate: forward simulation through simulate_batch
+# ------------------------------------------------------------------------------------------
+def _simulate_options(cfg: Any, options: dict[str, Any], where: str) -> dict[str, Any]:
+    from hevsim import schema
+
+    _unknown_options(options, ("controller", "dt_s"), "simulate", where)
+    out: dict[str, Any] = {}
+    if "controller" in options:
+        _, meta = schema.field_of(type(cfg.controller), "kind")
+        kinds = tuple(meta.get("choices", ()))
+        if options["controller"] not in kinds:
+            raise ConfigError(
+                f"{where}: controller = {options['controller']!r} is not known; expected one of "
+                f"{', '.join(kinds)}."
+            )
+        out["controller"] = options["controller"]
+    if "dt_s" in options:
+        out["dt_s"] = schema.check_option(f"{where}: dt_s", options["dt_s"], type(cfg.simulation), "dt_s")
+    return out
+
+
+def _simulate_metrics(cfg: Any) -> tuple[str, ...]:
+    from hevsim.sim import kernel as K
+    from hevsim.sim.metrics import compute_metrics, energy_audit
+
+    with np.errstate(all="ignore"):
+        m = compute_metrics(np.ones(len(K.SUMMARY)), energy_audit(np.ones(len(K.ENERGY_TERMS))),
+                            0.5, 1.0, 1.0, 1.0, 1.0, 1.0, 0.5)  # fmt: skip
+    return tuple(m)
+
+
+@dataclass(frozen=True)
+class KernelKey:
+    """A varied key that changes only kernel parameters: ``column = a + b * value`` for each
+    column (``b`` 1 and ``a`` 0 exactly: the value is copied)."""
+
+    axis: int
+    columns: tuple[str, ...]
+    a: tuple[float, ...]
+    b: tuple[float, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class SimulateContext:
+    """Client-prepared context of the ``simulate`` solver."""
+
+    base: Any
+    keys: tuple[str, ...]
+    integer: tuple[bool, ...]
+    dt_s: float | None
+    kernel: tuple[KernelKey, ...]
+    structural: tuple[int, ...]
+    token: str
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+
+def _model_fingerprint(hev: Any) -> bytes:
+    """Everything :func:`~hevsim.sim.simulator.simulate_batch` reads from a model besides its
+    kernel parameter vector: kernel tables, pack capacity and OCV, fuel, run settings."""
+    from hevsim.fuels import config_fuel
+
+    c = hev.config
+    return pickle.dumps((
+        hev.kernel_tables(), hev.battery.capacity_ah, np.asarray(hev.battery.ocv(np.linspace(0, 1, 101))),
+        config_fuel(c, hev.engine), c.metrics, c.controller.kind, c.controller.schedule, c.driver.kind,
+        c.simulation, hev.cell is None,
+    ))  # fmt: skip
+
+
+def _probe_model(base: Any, key: str, value: float, integer: bool) -> tuple[bytes, np.ndarray] | None:
+    from hevsim.config import build_vehicle
+    from hevsim.studies.spec import with_overrides
+
+    try:
+        hev = build_vehicle(with_overrides(base, {key: int(value) if integer else float(value)}))
+    except HevsimError:
+        return None
+    return _model_fingerprint(hev), hev.param_vector()
+
+
+def classify_keys(base: Any, keys: tuple[str, ...], integer: tuple[bool, ...], values: np.ndarray) -> tuple[
+    tuple[KernelKey, ...], tuple[int, ...], tuple[str, ...]
+]:  # fmt: skip
+    """Split the varied keys of a series-HEV study into kernel keys (batched as parameter
+    variants of one model) and structural keys (a model per distinct combination).
+
+    A key is a kernel key when changing it (probed at its smallest, largest and a middle sampled
+    value) leaves the model's fingerprint unchanged, changes the kernel parameter vector
+    affinely (to 1e-12), and touches columns no other varied key touches. Returns (kernel
+    keys, structural axis indices, notes saying why a key was structural).
+    """
+    from hevsim.sim import kernel as K
+
+    changed: dict[int, set[int]] = {}
+    candidates: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    notes: list[str] = []
+    for j, key in enumerate(keys):
+        col = values[:, j]
+        uniq = np.unique(col)
+        if uniq.size < 2:
+            notes.append(f"{key}: one value")
+            continue
+        lo, hi, mid = float(uniq[0]), float(uniq[-1]), float(uniq[uniq.size // 2])
+        probes = [_probe_model(base, key, v, integer[j]) for v in (lo, hi, mid)]
+        if any(p is None for p in probes):
+            notes.append(f"{key}: a probe value is invalid with the base vehicle")
+            continue
+        (f_lo, p_lo), (f_hi, p_hi), (f_mid, p_mid) = probes  # type: ignore[misc]
+        cols = np.flatnonzero(p_hi != p_lo)
+        changed[j] = set(cols.tolist())
+        if f_lo != f_hi or f_lo != f_mid:
+            notes.append(f"{key}: changes component data or run settings")
+            continue
+        b = (p_hi - p_lo) / (hi - lo)
+        a = p_lo - b * lo
+        with np.errstate(all="ignore"):  # a pure scale (a = 0): b = p / v exactly, no round-off
+            scale = p_hi / hi if hi != 0.0 else np.full_like(p_hi, np.nan)
+        pure = (p_lo == scale * lo) & (p_hi == scale * hi) & (p_mid == scale * mid)
+        a = np.where(pure, 0.0, a)
+        b = np.where(pure, scale, b)
+        pred = a + b * mid
+        if not np.allclose(pred[cols], p_mid[cols], rtol=1e-12, atol=0.0) or cols.size == 0:
+            notes.append(f"{key}: not an affine change of the kernel parameters")
+            continue
+        candidates[j] = (cols, a, b)
+    kernel: list[KernelKey] = []
+    for j, (cols, a, b) in candidates.items():
+        others = set().union(*(c for i, c in changed.items() if i != j)) if len(changed) > 1 else set()
+        if others & set(cols.tolist()):
+            notes.append(f"{keys[j]}: shares kernel parameters with another varied key")
+            continue
+        names = tuple(K.PARAMS[c] for c in cols)
+        aa = tuple(0.0 if (a[c] == 0.0 and b[c] == 1.0) else float(a[c]) for c in cols)
+        kernel.append(KernelKey(j, names, aa, tuple(float(b[c]) for c in cols)))
+    kernel_axes = {k.axis for k in kernel}
+    structural = tuple(j for j in range(len(keys)) if j not in kernel_axes)
+    return tuple(kernel), structural, tuple(notes)
+
+
+def _simulate_prepare(study: Any, solver: Any) -> SimulateContext:
+    base = study.vehicle
+    if solver.option("controller"):
+        base = dataclasses.replace(
+            base, controller=dataclasses.replace(base.controller, kind=solver.option("controller"))
+        )
+    integer = tuple(a.integer for a in study.parameters)
+    kernel, structural, notes = classify_keys(base, study.keys, integer, study.values)
+    return SimulateContext(base, study.keys, integer, solver.option("dt_s"), kernel, structural,
+                           f"{study.fingerprint()}:{solver.label}", notes)  # fmt: skip
+
+
+def _simulate_group(ctx: SimulateContext, row: np.ndarray) -> Hashable:
+    return tuple(float(row[j]) for j in ctx.structural)
+
+
+def _variants(ctx: SimulateContext, rows: np.ndarray) -> dict[str, np.ndarray]:
+    out: dict[str, np.ndarray] = {}
+    for k in ctx.kernel:
+        v = rows[:, k.axis].astype(np.float64)
+        for name, a, b in zip(k.columns, k.a, k.b, strict=True):
+            out[name] = v.copy() if (a == 0.0 and b == 1.0) else a + b * v
+    return out
+
+
+def _simulate_run(
+    ctx: SimulateContext, cycle: Any, values: np.ndarray, metrics: tuple[str, ...], threads: int | None
+) -> list[Outcome]:
+    from hevsim.config import build_vehicle
+    from hevsim.sim import kernel as K
+    from hevsim.sim.simulator import simulate_batch
+    from hevsim.studies.spec import with_overrides
+
+    t0 = time.perf_counter()
+    m = values.shape[0]
+    outcomes: list[Outcome | None] = [None] * m
+    group_keys = [ctx.keys[j] for j in ctx.structural]
+    g_int = tuple(ctx.integer[j] for j in ctx.structural)
+    row0 = values[0]
+    try:
+        group_over = _overrides(tuple(group_keys), row0[list(ctx.structural)], g_int)
+        hev = cached_model((ctx.token, _simulate_group(ctx, row0)),
+                           lambda: build_vehicle(with_overrides(ctx.base, group_over)))  # fmt: skip
+    except HevsimError as exc:
+        wall = (time.perf_counter() - t0) / m
+        return [_fail(str(exc), wall)] * m
+    good: list[int] = []
+    for i in range(m):  # cross-key checks of each case (e.g. soc_low < soc_high)
+        try:
+            with_overrides(hev.config, _overrides(ctx.keys, values[i], ctx.integer))
+            good.append(i)
+        except HevsimError as exc:
+            outcomes[i] = _fail(str(exc))
+    if threads:
+        import numba
+
+        numba.set_num_threads(threads)
+
+    def run(idx: list[int]) -> list[Outcome]:
+        variants = _variants(ctx, values[idx])
+        if not variants:  # every key structural: the cases of a group are one vehicle
+            variants = {"mass_kg": np.full(len(idx), hev.param_vector()[K.P["mass_kg"]])}
+        table = simulate_batch(hev, variants, cycle=cycle, dt_s=ctx.dt_s).table
+        return [Outcome(OK, "", {k: float(table[k].iloc[r]) for k in metrics}, 0.0) for r in range(len(idx))]
+
+    if good:
+        try:
+            done = run(good)
+        except HevsimError:  # one bad variant fails the batch: run each alone to know which
+            done = []
+            for i in good:
+                try:
+                    done.extend(run([i]))
+                except HevsimError as exc:
+                    done.append(_fail(str(exc)))
+        for i, o in zip(good, done, strict=True):
+            outcomes[i] = o
+    wall = (time.perf_counter() - t0) / m
+    return [dataclasses.replace(o, wall_time_s=wall) for o in outcomes if o is not None]
+
+
+# ------------------------------------------------------------------------------------------
+# optimize: dynamic programming
+# ------------------------------------------------------------------------------------------
+OPTIMIZE_OPTIONS = ("soc_grid_points", "input_grid_points", "final_constraint")
+NONDETERMINISTIC_METRICS = ("compute_time_s",)
+"""Metrics that are timings (they differ from run to run); not offered (see ``wall_time_s``)."""
+
+
+def _optimize_options(cfg: Any, options: dict[str, Any], where: str) -> dict[str, Any]:
+    from hevsim.optimal import FINAL_CONSTRAINTS
+
+    _unknown_options(options, OPTIMIZE_OPTIONS, "optimize", where)
+    out: dict[str, Any] = {}
+    for k in ("soc_grid_points", "input_grid_points"):
+        if k in options:
+            v = options[k]
+            if isinstance(v, bool) or not isinstance(v, int) or v < 2:
+                raise ConfigError(f"{where}: {k} = {v!r}: expected an integer >= 2.")
+            out[k] = v
+    if "final_constraint" in options:
+        if options["final_constraint"] not in FINAL_CONSTRAINTS:
+            raise ConfigError(
+                f"{where}: final_constraint = {options['final_constraint']!r} is not known; expected one "
+                f"of {', '.join(FINAL_CONSTRAINTS)}."
+            )
+        out["final_constraint"] = options["final_constraint"]
+    return out
+
+
+def _optimize_metrics(cfg: Any) -> tuple[str, ...]:
+    from hevsim.config import build_vehicle
+    from hevsim.optimal._hev_common import hev_metrics
+
+    hev = build_vehicle(cfg)
+    engine = hev.engine
+    if engine is None:  # pragma: no cover - every DP architecture has an engine
+        return ()
+    with np.errstate(all="ignore"):
+        m = hev_metrics(fuel_kg=1.0, distance_m=1.0, duration_s=1.0, soc_initial=0.5, soc_final=0.5,
+                        battery=hev.battery, engine=engine, conversion_efficiency=0.5, engine_on_time_s=0.0,
+                        compute_time_s=0.0, dp_total_cost=0.0)  # fmt: skip
+    return tuple(k for k in m if k not in NONDETERMINISTIC_METRICS)
+
+
+@dataclass(frozen=True, eq=False)
+class OptimizeContext:
+    """Client-prepared context of the ``optimize`` solver."""
+
+    base: Any
+    keys: tuple[str, ...]
+    integer: tuple[bool, ...]
+    options: tuple[tuple[str, Any], ...]
+
+
+def _optimize_prepare(study: Any, solver: Any) -> OptimizeContext:
+    return OptimizeContext(
+        study.vehicle, study.keys, tuple(a.integer for a in study.parameters), solver.options
+    )
+
+
+def _optimize_run(
+    ctx: OptimizeContext, cycle: Any, values: np.ndarray, metrics: tuple[str, ...], threads: int | None
+) -> list[Outcome]:
+    from hevsim.optimal import optimize
+    from hevsim.studies.spec import with_overrides
+
+    out: list[Outcome] = []
+    for row in values:
+        t0 = time.perf_counter()
+        try:
+            cfg = with_overrides(ctx.base, _overrides(ctx.keys, row, ctx.integer))
+            res = optimize(cfg, cycle, progress=False, threads=threads, **dict(ctx.options))
+            out.append(Outcome(OK, "", {k: float(res.metrics[k]["value"]) for k in metrics},
+                               time.perf_counter() - t0))  # fmt: skip
+        except HevsimError as exc:
+            out.append(_fail(str(exc), time.perf_counter() - t0))
+    return out
+
+
+register_solver(Solver(
+    "simulate", ("series",), _simulate_options, _simulate_metrics, _simulate_prepare, _simulate_group,
+    _simulate_run, default_batch=0,
+    description="forward simulation (rule-based controller) via simulate_batch",
+))  # fmt: skip
+register_solver(Solver(
+    "optimize", ("series", "parallel"), _optimize_options, _optimize_metrics, _optimize_prepare,
+    lambda ctx, row: (), _optimize_run, default_batch=1,
+    description="fuel-optimal energy management by dynamic programming",
+))  # fmt: skip
