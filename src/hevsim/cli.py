@@ -378,6 +378,40 @@ def _cmd_thermal(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_study(args: argparse.Namespace) -> int:
+    from hevsim.studies.runner import run_study
+    from hevsim.studies.spec import load_study
+
+    study = load_study(args.study)
+    out = Path(args.out) if args.out else Path("results") / study.name
+    rows = run_study(study, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
+                     force=args.force)  # fmt: skip
+    ok = int((rows["status"] == "ok").sum())
+    print(f"study {study.name}: {len(rows)} of {study.n_cases} cases, {ok} ok, {len(rows) - ok} failed")
+    if not args.no_report:
+        _print_report(out)
+    print(f"results written to {out}/ (results/*.parquet, cases.parquet, study.json)")
+    return 0
+
+
+def _cmd_study_report(args: argparse.Namespace) -> int:
+    _print_report(Path(args.folder), plots=not args.no_plots)
+    return 0
+
+
+def _print_report(out: Path, plots: bool = True) -> None:
+    from hevsim.studies.report import study_report
+
+    rep = study_report(out, plots=plots)
+    for name, front in rep["fronts"].items():
+        print(f"Pareto front {name}: {len(front)} case(s)")
+    sens = rep["sensitivity"]
+    top = sens[sens["rank"] == 1]
+    for row in top.itertuples(index=False):
+        print(f"most influential on {row.metric} ({row.cycle}, {row.solver}): {row.parameter} ({row.method})")
+    print(f"report: {out / 'report.md'} ({', '.join(rep['files'])})")
+
+
 def _add_dp_options(p: argparse.ArgumentParser, final_soc: str) -> None:
     p.add_argument("--soc-initial", type=float, help="initial SOC [-] (default from the configuration)")
     p.add_argument(
@@ -521,6 +555,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="results folder (default results/<config>)")
     _add_force(p, "folder at --out")
     p.set_defaults(func=_cmd_thermal)
+
+    p = sub.add_parser("study", help="design-space study: sample parameters, run every case on Dask")
+    p.add_argument("study", help="study file (TOML), e.g. examples/study_series_sizing.toml")
+    p.add_argument("--out", help="results folder (default results/<study name>)")
+    _add_force(p, "folder at --out")
+    p.add_argument(
+        "--scheduler",
+        help="Dask scheduler tcp://HOST:PORT (default: $HEVSIM_DASK_SCHEDULER, else a local cluster); "
+        "'in-process' runs without Dask",
+    )
+    p.add_argument("--workers", type=int, help="local-cluster worker processes (default: the cores)")
+    p.add_argument("--resume", action="store_true", help="continue the study in --out (skip finished cases)")
+    p.add_argument("--no-report", action="store_true", help="skip the analysis (`hevsim study-report` later)")
+    p.set_defaults(func=_cmd_study)
+
+    p = sub.add_parser("study-report", help="Pareto fronts, sensitivity ranking and plots of a study folder")
+    p.add_argument("folder", help="the --out folder of `hevsim study`")
+    p.add_argument("--no-plots", action="store_true", help="skip the scatter matrices")
+    p.set_defaults(func=_cmd_study_report)
     return parser
 
 
