@@ -79,6 +79,8 @@ class ThermalMesh:
     facet_groups: dict[str, np.ndarray] = field(default_factory=dict)
     channel_path_m: np.ndarray | None = None
     source: str = "mesh"
+    #: exact (CAD) volume of every part [m^3] where known (a faceted mesh holds less)
+    nominal_volume_m3: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_cells(self) -> int:

@@ -112,6 +112,7 @@ _BOUNDS: dict[str, tuple[float, float]] = {
     "geometry.columns": (1, 40),
     "geometry.channel_passes": (1, 40),
     "geometry.mesh_size_m": (2e-4, 0.1),
+    "geometry.curvature_elements": (6, 360),
     **{
         f"geometry.{f.name}": (1e-5, 2.0)
         for f in dataclasses.fields(ModuleGeometry)
@@ -347,6 +348,7 @@ def run_thermal(
     tc = model.temp_k - KELVIN
     part_of_node = [mesh.part_names[i] for i in disc.node_part]
     part_stats = {}
+    meshed = np.bincount(mesh.part_of_tet, weights=disc.tet_volume_m3, minlength=len(mesh.part_names))
     for pi, name in enumerate(mesh.part_names):
         sel = disc.node_part == pi
         if sel.any():
@@ -354,7 +356,12 @@ def run_thermal(
                 "min_temp_c": float(tc[sel].min()),
                 "mean_temp_c": float(np.average(tc[sel], weights=node_vol[sel])),
                 "max_temp_c": float(tc[sel].max()),
+                "meshed_volume_m3": float(meshed[pi]),
             }
+            if name in mesh.nominal_volume_m3:
+                nominal = mesh.nominal_volume_m3[name]
+                part_stats[name]["nominal_volume_m3"] = nominal
+                part_stats[name]["volume_ratio"] = float(meshed[pi] / nominal) if nominal > 0 else 1.0
     cell_stats = []
     for c, nodes in enumerate(cell_nodes):
         r, col = divmod(c, cfg.geometry.columns)
@@ -477,6 +484,9 @@ def format_summary(result: ThermalResult) -> str:
             "heat_stored_j", "heat_removed_j", "heat_to_ambient_j", "coupling_lag_j")  # fmt: skip
     for key in (k for k in keys if k in m):
         lines.append(f"  {key:<26}{m[key]['value']:>12.4f} {m[key]['unit']}")
+    ratios = {k: v["volume_ratio"] for k, v in result.part_stats.items() if "volume_ratio" in v}
+    if ratios:
+        lines.append("  meshed/nominal volume: " + ", ".join(f"{k} {v:.4f}" for k, v in ratios.items()))
     if "energy_balance_relative" in m:
         lines.append(f"  {'energy_balance_relative':<26}{m['energy_balance_relative']['value']:>12.2e} -")
     lines.append("  hot spots (part, x y z [mm], °C):")
