@@ -13,6 +13,7 @@ from hevsim.battery.vehicle import (
     battery_ecm,
     battery_ecm_advance,
     ecm_kernel_tables,
+    pack_tables,
     pad_tables_kind,
     quasi_static_pack,
     vehicle_parameter_values,
@@ -25,7 +26,7 @@ def _dispatch(kind, p, bat, soc, sign):
     """What the kernel's battery_state dispatcher becomes with the ECM kind (code 1)."""
     if kind == 1:
         return battery_ecm(p, bat, soc, sign)
-    return pack_ocv_r(soc, 298.15, sign, bat[0], bat[1], bat[2], bat[3], bat[4], 2.0, 6.0, 0.0)
+    return pack_ocv_r(soc, 298.15, sign, 2.0, 6.0, 0.0, pack_tables(bat))
 
 
 @njit(cache=False)

@@ -145,8 +145,14 @@ def cell_ocv_rs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, soc, temp_k, direct
         ocv = interp2(soc_ax, t_ax, ocv_c, soc, temp_k, False)
         r = interp2(soc_ax, t_ax, rs_c, soc, temp_k, False)
     ocv = min(max(ocv, prm[VMIN]), prm[VMAX])
-    r = r * prm[RSCALE] * (1.0 + prm[ALPHARS] * (temp_k - prm[TREF]))
-    return ocv, r
+    return ocv, series_resistance(r, prm[RSCALE], prm[ALPHARS], temp_k, prm[TREF])
+
+
+@njit(cache=True)
+def series_resistance(rs_table_ohm, r_scale, alpha_rs_per_k, temp_k, t_ref_k):
+    """Series resistance R_s [ohm], eq (36): the table value times the ageing scale [-] and
+    ``1 + alpha_Rs (T - T_ref)`` (temperatures [K]); scalars or arrays."""
+    return rs_table_ohm * r_scale * (1.0 + alpha_rs_per_k * (temp_k - t_ref_k))
 
 
 @njit(cache=True)

@@ -14,40 +14,69 @@ Two ways to put an n_s x n_p pack of identical cells into the vehicle:
    the kernel's existing ``OCV - R I`` power solution stays exact. The kernel needs a new
    battery kind and one call after the battery current is solved (see ``docs/battery.md``).
 
-The ECM table tuple has 12 entries; its first five have the meaning of the ``"tables"``
-kind's tuple (SOC axis, temperature axis, OCV, R_dis, R_chg), and :func:`pad_tables_kind`
-extends a ``"tables"`` tuple to the same types so one compiled dispatcher serves both kinds.
+The kernel's battery tables are an :class:`EcmTables` named tuple (read by name in compiled
+code); :func:`pad_tables_kind` extends a ``"tables"`` kind's
+:class:`~hevsim.components.battery.PackTables` to the same types so one compiled dispatcher
+serves both kinds.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from hevsim.battery import kernel as K
 from hevsim.battery.params import CellParameters, load_cell_parameters
-from hevsim.components.battery import BatteryPack
+from hevsim.components.battery import BatteryPack, PackTables, pack_resistance
 from hevsim.tables import FloatArray, Table2D
 
 # aux vector of the ECM tuple (entry 11)
 AUX = ("n_series", "n_parallel", "dt_s", "port_temp_k", "r_extra_ohm", "heat_w", "cell_temp_k")
 A_NS, A_NP, A_DT, A_TPORT, A_REXT, A_HEAT, A_TCELL = range(len(AUX))
-ECM_TUPLE = (
-    "soc",
-    "temperature_k",
-    "ocv_discharge_v",
-    "rs_discharge_ohm",
-    "rs_charge_ohm",
-    "ocv_charge_v",
-    "capacity_factor",
-    "rc_discharge",
-    "rc_charge",
-    "params",
-    "state",
-    "aux",
-)
+
+
+class EcmTables(NamedTuple):
+    """The battery tables of the forward kernel, by name (both battery kinds).
+
+    The first five entries are the cell's tables over (``soc`` [-], ``temperature_k`` [K]):
+    discharge OCV [V], discharge and charge series resistance [ohm]; then the charge OCV [V],
+    the capacity-vs-temperature factor [-], the RC pairs of each direction, the cell
+    parameter vector (:data:`hevsim.battery.kernel.PARAMS`), the mutable cell state and the
+    ``aux`` vector (:data:`AUX`). :func:`pack_tables` reads the first five as the ``"tables"``
+    kind's :class:`PackTables`. (Flat on purpose: numba's parallel loops reject nested tuples.)
+    """
+
+    soc: FloatArray
+    temperature_k: FloatArray
+    ocv_discharge_v: FloatArray
+    rs_discharge_ohm: FloatArray
+    rs_charge_ohm: FloatArray
+    ocv_charge_v: FloatArray
+    capacity_factor: FloatArray
+    rc_discharge: FloatArray
+    rc_charge: FloatArray
+    params: FloatArray
+    state: FloatArray
+    aux: FloatArray
+
+
+ECM_TUPLE = EcmTables._fields
+"""Names of the ECM tuple's entries."""
+
+
+@njit(cache=True)
+def pack_tables(bat):
+    """The ``"tables"`` kind's :class:`PackTables` held in an :class:`EcmTables`."""
+    return PackTables(
+        soc=bat.soc,
+        temperature_k=bat.temperature_k,
+        ocv=bat.ocv_discharge_v,
+        r_discharge=bat.rs_discharge_ohm,
+        r_charge=bat.rs_charge_ohm,
+    )
 
 
 def _params(params: CellParameters | str | Path) -> CellParameters:
@@ -66,9 +95,13 @@ def quasi_static_pack(
     C(temp_k) of eq 35 [A h]. ``kwargs`` go to :class:`BatteryPack` (current limits, ...)."""
     p = _params(params)
     t = p.temperature_k
-    fac = 1.0 + p.resistance.alpha_rs_per_k * (t[None, :] - p.capacity.t_ref_k)
-    r_d = p.rs_discharge_ohm * fac + p.rc_discharge[:, 0].sum()
-    r_c = p.rs_charge_ohm * fac + p.rc_charge[:, 0].sum()
+    prm = p.vector(1.0)
+
+    def r_s(table: FloatArray) -> FloatArray:  # eq 36 on the table's temperature axis
+        return K.series_resistance(table, prm[K.RSCALE], prm[K.ALPHARS], t[None, :], prm[K.TREF])
+
+    r_d = r_s(p.rs_discharge_ohm) + p.rc_discharge[:, 0].sum()
+    r_c = r_s(p.rs_charge_ohm) + p.rc_charge[:, 0].sum()
     ocv = 0.5 * (p.ocv_charge_v + p.ocv_discharge_v)
     cap_c = K.cell_capacity(p.vector(1.0), t, p.capacity_factor, 0.0, temp_k)
 
@@ -107,45 +140,50 @@ def ecm_kernel_tables(
     port_temp_k: float | None = None,
     r_extra_ohm: float = 0.0,
 ) -> tuple[FloatArray, ...]:
-    """The battery table tuple of the dynamic ECM kind (layout :data:`ECM_TUPLE`).
+    """The battery tables of the dynamic ECM kind (:class:`EcmTables`).
 
     Holds mutable cell state (entry 10): build a fresh tuple for every simulation run.
     """
     p = _params(params)
-    tabs = p.tables()  # (soc, T, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c)
+    rc_d, rc_c = p.tables()[7:]  # the RC pairs (a dummy pair without RC elements)
     aux = np.zeros(len(AUX))
     aux[A_NS], aux[A_NP], aux[A_DT] = n_series, n_parallel, dt_s
     aux[A_TPORT] = temp_k if port_temp_k is None else port_temp_k
     aux[A_REXT] = r_extra_ohm
     aux[A_TCELL] = temp_k
-    return (
-        tabs[0],
-        tabs[1],
-        tabs[3],
-        tabs[5],
-        tabs[4],
-        tabs[2],
-        tabs[6],
-        tabs[7],
-        tabs[8],
-        p.vector(soc_initial),
-        p.initial_state(temp_k),
-        aux,
+    return EcmTables(
+        soc=p.soc,
+        temperature_k=p.temperature_k,
+        ocv_discharge_v=p.ocv_discharge_v,
+        rs_discharge_ohm=p.rs_discharge_ohm,
+        rs_charge_ohm=p.rs_charge_ohm,
+        ocv_charge_v=p.ocv_charge_v,
+        capacity_factor=p.capacity_factor,
+        rc_discharge=rc_d,
+        rc_charge=rc_c,
+        params=p.vector(soc_initial),
+        state=p.initial_state(temp_k),
+        aux=aux,
     )
 
 
-def pad_tables_kind(bat: tuple[FloatArray, ...]) -> tuple[FloatArray, ...]:
-    """Extend a ``"tables"`` kind tuple (5 arrays) to the ECM tuple's types (dummy entries)."""
+def pad_tables_kind(bat: PackTables) -> EcmTables:
+    """Extend a ``"tables"`` kind's :class:`PackTables` to the ECM tuple's types (dummy
+    entries beyond the pack's tables)."""
     one2 = np.ones((1, 2))
-    return (
-        *bat[:5],
-        bat[2],
-        np.ones(1),
-        one2,
-        one2.copy(),
-        np.zeros(len(K.PARAMS)),
-        np.zeros(K.N_FIXED_STATES),
-        np.zeros(len(AUX)),
+    return EcmTables(
+        soc=bat.soc,
+        temperature_k=bat.temperature_k,
+        ocv_discharge_v=bat.ocv,
+        rs_discharge_ohm=bat.r_discharge,
+        rs_charge_ohm=bat.r_charge,
+        ocv_charge_v=bat.ocv,
+        capacity_factor=np.ones(1),
+        rc_discharge=one2,
+        rc_charge=one2.copy(),
+        params=np.zeros(len(K.PARAMS)),
+        state=np.zeros(K.N_FIXED_STATES),
+        aux=np.zeros(len(AUX)),
     )
 
 
@@ -170,23 +208,23 @@ def battery_ecm(p, bat, soc, current_sign):
 
     The kernel's ``soc`` and ``p`` are not needed (the cells carry their own charge state).
     """
-    aux = bat[11]
+    aux = bat.aux
     e, z = K.branch_affine(
-        bat[9],
-        bat[0],
-        bat[1],
-        bat[5],
-        bat[2],
-        bat[4],
-        bat[3],
-        bat[6],
-        bat[7],
-        bat[8],
-        bat[10],
+        bat.params,
+        bat.soc,
+        bat.temperature_k,
+        bat.ocv_charge_v,
+        bat.ocv_discharge_v,
+        bat.rs_charge_ohm,
+        bat.rs_discharge_ohm,
+        bat.capacity_factor,
+        bat.rc_discharge,
+        bat.rc_charge,
+        bat.state,
         aux[A_DT],
         current_sign,
     )
-    return aux[A_NS] * e, aux[A_NS] / aux[A_NP] * z + aux[A_REXT]
+    return aux[A_NS] * e, pack_resistance(z, aux[A_NS], aux[A_NP], aux[A_REXT])
 
 
 @njit(cache=True)
@@ -195,20 +233,20 @@ def battery_ecm_advance(p, bat, i_pack, dt):
 
     Returns (pack heat [W], cell core temperature [K]); also stored in the aux vector.
     """
-    aux = bat[11]
+    aux = bat.aux
     rec = np.empty(len(K.RECORD))
     K.cell_step(
-        bat[9],
-        bat[0],
-        bat[1],
-        bat[5],
-        bat[2],
-        bat[4],
-        bat[3],
-        bat[6],
-        bat[7],
-        bat[8],
-        bat[10],
+        bat.params,
+        bat.soc,
+        bat.temperature_k,
+        bat.ocv_charge_v,
+        bat.ocv_discharge_v,
+        bat.rs_charge_ohm,
+        bat.rs_discharge_ohm,
+        bat.capacity_factor,
+        bat.rc_discharge,
+        bat.rc_charge,
+        bat.state,
         i_pack / aux[A_NP],
         dt,
         aux[A_TPORT],

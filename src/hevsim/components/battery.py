@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -22,16 +23,87 @@ from hevsim.tables import FloatArray, Table1D, Table2D, interp2, read_meta
 from hevsim.units import c_to_k
 
 
+class PackTables(NamedTuple):
+    """A pack's cell tables for compiled code, by name (a swapped array is a name error).
+
+    ``ocv`` [V], ``r_discharge`` and ``r_charge`` [ohm] of one cell over the shared axes
+    ``soc`` [-] x ``temperature_k`` [K].
+    """
+
+    soc: FloatArray
+    temperature_k: FloatArray
+    ocv: FloatArray
+    r_discharge: FloatArray
+    r_charge: FloatArray
+
+
 @njit(cache=True)
-def pack_ocv_r(soc, temp_k, current_sign, ocv_x, ocv_y, ocv_z, rd_z, rc_z, n_s, n_p, r_extra):
+def pack_resistance(r_cell_ohm, n_series, n_parallel, r_extra_ohm):
+    """Pack series resistance [ohm] of ``n_series`` x ``n_parallel`` cells of ``r_cell_ohm``
+    plus the wiring resistance of eq (22) [ohm]."""
+    return n_series / n_parallel * r_cell_ohm + r_extra_ohm
+
+
+@njit(cache=True)
+def pack_ocv_r(soc, temp_k, current_sign, n_s, n_p, r_extra, tab):
     """Pack open-circuit voltage [V] and series resistance [ohm] (scalar kernel).
 
     Tables share the axes (SOC [-], temperature [K]); ``current_sign`` > 0 selects discharge.
     """
-    ocv = n_s * interp2(ocv_x, ocv_y, ocv_z, soc, temp_k, False)
-    rz = rd_z if current_sign > 0 else rc_z
-    r = n_s / n_p * interp2(ocv_x, ocv_y, rz, soc, temp_k, False) + r_extra
+    ocv = n_s * interp2(tab.soc, tab.temperature_k, tab.ocv, soc, temp_k, False)
+    rz = tab.r_discharge if current_sign > 0 else tab.r_charge
+    r = pack_resistance(interp2(tab.soc, tab.temperature_k, rz, soc, temp_k, False), n_s, n_p, r_extra)
     return ocv, r
+
+
+@njit(cache=True)
+def charge_current(current_a, coulombic_efficiency):
+    """Current [A] that changes the stored charge: the terminal current (discharge > 0),
+    times the coulombic efficiency while charging (eq 13)."""
+    return current_a if current_a > 0.0 else current_a * coulombic_efficiency
+
+
+@njit(cache=True)
+def soc_rate(current_a, coulombic_efficiency, capacity_as):
+    """dSOC/dt [1/s] at current [A] (discharge > 0) for a capacity [A·s], eq (13)."""
+    return -charge_current(current_a, coulombic_efficiency) / capacity_as
+
+
+@njit(cache=True)
+def _ocv_r_many(soc, temp_k, current_a, n_s, n_p, r_extra, tab):
+    """:func:`pack_ocv_r` over flat arrays of SOC [-], temperature [K] and current [A]
+    (its sign picks the resistance) -> (OCV [V], R [ohm])."""
+    ocv = np.empty(soc.shape[0])
+    r = np.empty(soc.shape[0])
+    for i in range(soc.shape[0]):
+        ocv[i], r[i] = pack_ocv_r(soc[i], temp_k[i], current_a[i], n_s, n_p, r_extra, tab)
+    return ocv, r
+
+
+@njit(cache=True)
+def _current_many(power_w, soc, temp_k, n_s, n_p, r_extra, tab):
+    """Discharge-positive current [A] for terminal power [W] over flat arrays: the pack's
+    OCV and R (by the sign of the power) and :func:`current_for_power`."""
+    out = np.empty(power_w.shape[0])
+    for i in range(power_w.shape[0]):
+        ocv, r = pack_ocv_r(soc[i], temp_k[i], power_w[i], n_s, n_p, r_extra, tab)
+        out[i] = current_for_power(power_w[i], ocv, r)
+    return out
+
+
+@njit(cache=True)
+def _soc_rate_many(current_a, coulombic_efficiency, capacity_as):
+    """:func:`soc_rate` over a flat array of current [A] -> [1/s]."""
+    out = np.empty(current_a.shape[0])
+    for i in range(current_a.shape[0]):
+        out[i] = soc_rate(current_a[i], coulombic_efficiency, capacity_as)
+    return out
+
+
+def _flat(*arrays: object) -> tuple[tuple[int, ...], list[FloatArray]]:
+    """Broadcast arrays, return the shape and contiguous flat float64 copies."""
+    b = np.broadcast_arrays(*(np.asarray(a, np.float64) for a in arrays))
+    return b[0].shape, [np.ascontiguousarray(x.ravel()) for x in b]
 
 
 @njit(cache=True)
@@ -92,36 +164,40 @@ class BatteryPack:
         """Pack capacity [A·h]."""
         return self.capacity_cell_ah * self.n_parallel
 
-    def kernel_tables(self) -> tuple[FloatArray, ...]:
-        """(soc axis, temperature axis, ocv, r_dis, r_chg) for compiled loops."""
+    def kernel_tables(self) -> PackTables:
+        """The cell tables for compiled code (:class:`PackTables`)."""
         o = self.ocv_cell
-        return (o.x, o.y, o.z, self.r_discharge_cell.z, self.r_charge_cell.z)
+        return PackTables(
+            soc=o.x, temperature_k=o.y, ocv=o.z, r_discharge=self.r_discharge_cell.z,
+            r_charge=self.r_charge_cell.z,
+        )  # fmt: skip
+
+    def _ocv_r(self, soc, current_a, temp_k):
+        t = self.temperature_k if temp_k is None else temp_k
+        shape, (s, tk, i) = _flat(soc, t, current_a)
+        ocv, r = _ocv_r_many(s, tk, i, self.n_series, self.n_parallel, self.r_extra_ohm, self.kernel_tables())
+        return ocv.reshape(shape), r.reshape(shape)
 
     def ocv(self, soc, temp_k=None):
         """Pack OCV [V] at SOC [-] and temperature [K] (vectorised)."""
-        t = self.temperature_k if temp_k is None else temp_k
-        return self.n_series * self.ocv_cell(soc, t)
+        return self._ocv_r(soc, 1.0, temp_k)[0]
 
     def resistance(self, soc, current_a, temp_k=None):
         """Pack resistance [ohm] at SOC [-], current [A] (discharge > 0), temperature [K]."""
-        t = self.temperature_k if temp_k is None else temp_k
-        r_cell = np.where(
-            np.asarray(current_a) > 0, self.r_discharge_cell(soc, t), self.r_charge_cell(soc, t)
-        )
-        return self.n_series / self.n_parallel * r_cell + self.r_extra_ohm
+        return self._ocv_r(soc, current_a, temp_k)[1]
 
     def current(self, power_w, soc, temp_k=None):
         """Discharge-positive current [A] for terminal power [W] (> 0 discharging), vectorised."""
-        p = np.asarray(power_w, float)
-        ocv = self.ocv(soc, temp_k)
-        r = self.resistance(soc, p, temp_k)
-        return current_for_power(p, ocv, r)
+        t = self.temperature_k if temp_k is None else temp_k
+        shape, (p, s, tk) = _flat(power_w, soc, t)
+        tab = self.kernel_tables()
+        return _current_many(p, s, tk, self.n_series, self.n_parallel, self.r_extra_ohm, tab).reshape(shape)
 
     def soc_rate(self, current_a):
         """dSOC/dt [1/s] for current [A], eq (13) with coulombic efficiency on charge."""
-        i = np.asarray(current_a, float)
-        eff = np.where(i < 0, self.coulombic_efficiency, 1.0)
-        return -i * eff / (3600.0 * self.capacity_ah)
+        shape, (i,) = _flat(current_a)
+        cap_as = 3600.0 * self.capacity_ah
+        return _soc_rate_many(i, self.coulombic_efficiency, cap_as).reshape(shape)
 
     # --- constructors for the three fidelity levels -------------------------------------
     @classmethod

@@ -9,7 +9,9 @@ Electrical power is mechanical power / eta when motoring and x eta when generati
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -28,26 +30,87 @@ def electrical_power(torque_nm, omega_radps, efficiency):
     return p_mech * efficiency ** (-np.sign(p_mech))
 
 
+class MachineTables(NamedTuple):
+    """A machine's tables for compiled code, by name (a swapped array is a name error).
+
+    ``lim_x`` speed axis [rad/s] of ``lim_mot`` (max motoring torque >= 0 [N·m]) and
+    ``lim_gen`` (max generating torque <= 0 [N·m]); ``eff_z`` efficiency [-] over ``eff_x``
+    speed [rad/s] x ``eff_y`` torque [N·m] of the unscaled (``torque_scale`` = 1) machine.
+    """
+
+    lim_x: FloatArray
+    lim_mot: FloatArray
+    lim_gen: FloatArray
+    eff_x: FloatArray
+    eff_y: FloatArray
+    eff_z: FloatArray
+
+
 @njit(cache=True)
-def machine_efficiency(
-    torque_nm, omega_radps, kind, const_eff, eff_x, eff_y, eff_z
-):  # fmt: skip
-    """Efficiency [-] (scalar kernel): kind 0 ideal, 1 constant, 2 map over ``|speed|`` x torque."""
+def machine_efficiency(torque_nm, omega_radps, kind, const_eff, torque_scale, tab):
+    """Efficiency [-] (scalar kernel): kind 0 ideal, 1 constant, 2 map over ``|speed|`` x torque.
+
+    A machine sized by ``torque_scale`` scales the torque axis of its map with it: the map is
+    read at ``torque_nm / torque_scale`` (a machine twice as long has twice the torque at the
+    same efficiency, the usual linear scaling of a machine map).
+    """
     if kind == 0:
         return 1.0
     if kind == 1:
         return const_eff
-    return max(interp2(eff_x, eff_y, eff_z, abs(omega_radps), torque_nm, False), MIN_EFFICIENCY)
+    eff = interp2(tab.eff_x, tab.eff_y, tab.eff_z, abs(omega_radps), torque_nm / torque_scale, False)
+    return max(eff, MIN_EFFICIENCY)
 
 
 @njit(cache=True)
-def torque_limits(omega_radps, lim_x, lim_mot, lim_gen, torque_scale):
+def machine_power(torque_nm, omega_radps, kind, const_eff, torque_scale, tab):
+    """Electrical power [W] (> 0 drawn) at torque [N·m] and speed [rad/s] (scalar kernel)."""
+    eta = machine_efficiency(torque_nm, omega_radps, kind, const_eff, torque_scale, tab)
+    return electrical_power(torque_nm, omega_radps, eta)
+
+
+@njit(cache=True)
+def torque_limits(omega_radps, torque_scale, tab):
     """(max motoring torque >= 0, max generating torque <= 0) [N·m] at speed [rad/s]."""
     w = abs(omega_radps)
     return (
-        torque_scale * interp1(lim_x, lim_mot, w, False),
-        torque_scale * interp1(lim_x, lim_gen, w, False),
+        torque_scale * interp1(tab.lim_x, tab.lim_mot, w, False),
+        torque_scale * interp1(tab.lim_x, tab.lim_gen, w, False),
     )
+
+
+@njit(cache=True)
+def _efficiency_many(torque_nm, omega_radps, kind, const_eff, torque_scale, tab):
+    """:func:`machine_efficiency` over flat arrays of torque [N·m] and speed [rad/s]."""
+    out = np.empty(torque_nm.shape[0])
+    for i in range(torque_nm.shape[0]):
+        out[i] = machine_efficiency(torque_nm[i], omega_radps[i], kind, const_eff, torque_scale, tab)
+    return out
+
+
+@njit(cache=True)
+def _power_many(torque_nm, omega_radps, kind, const_eff, torque_scale, tab):
+    """:func:`machine_power` over flat arrays of torque [N·m] and speed [rad/s] -> [W]."""
+    out = np.empty(torque_nm.shape[0])
+    for i in range(torque_nm.shape[0]):
+        out[i] = machine_power(torque_nm[i], omega_radps[i], kind, const_eff, torque_scale, tab)
+    return out
+
+
+@njit(cache=True)
+def _limits_many(omega_radps, torque_scale, tab):
+    """:func:`torque_limits` over a flat array of speed [rad/s] -> two arrays [N·m]."""
+    t_mot = np.empty(omega_radps.shape[0])
+    t_gen = np.empty(omega_radps.shape[0])
+    for i in range(omega_radps.shape[0]):
+        t_mot[i], t_gen[i] = torque_limits(omega_radps[i], torque_scale, tab)
+    return t_mot, t_gen
+
+
+def _flat(*arrays: object) -> tuple[tuple[int, ...], list[FloatArray]]:
+    """Broadcast arrays, return the shape and contiguous flat float64 copies."""
+    b = np.broadcast_arrays(*(np.asarray(a, np.float64) for a in arrays))
+    return b[0].shape, [np.ascontiguousarray(x.ravel()) for x in b]
 
 
 KINDS = {"ideal": 0, "constant_efficiency": 1, "map": 2}
@@ -108,38 +171,40 @@ class ElectricMachine:
         """Integer code of ``kind`` used by compiled loops."""
         return KINDS[self.kind]
 
-    def kernel_tables(self) -> tuple[FloatArray, ...]:
-        """(lim_x, lim_mot, lim_gen, eff_x, eff_y, eff_z) for compiled loops."""
+    def kernel_tables(self) -> MachineTables:
+        """The machine's tables for compiled code (:class:`MachineTables`; built once).
+
+        The generating limit is resampled on the motoring limit's speed axis."""
+        return self._tables
+
+    @cached_property
+    def _tables(self) -> MachineTables:
         if self.efficiency_map is not None:
             e = self.efficiency_map
         else:
             e = Table2D(np.array([0.0]), np.array([0.0]), np.ones((1, 1)))
         gen = self.max_generating_torque(self.max_motoring_torque.x)
-        return (self.max_motoring_torque.x, self.max_motoring_torque.y, gen, e.x, e.y, e.z)
+        m = self.max_motoring_torque
+        return MachineTables(lim_x=m.x, lim_mot=m.y, lim_gen=gen, eff_x=e.x, eff_y=e.y, eff_z=e.z)
 
     def limits(self, omega_radps):
         """Vectorised (max motoring, max generating) torque [N·m] at speed [rad/s]."""
-        w = np.abs(np.asarray(omega_radps, float))
-        return (
-            self.torque_scale * self.max_motoring_torque(w),
-            self.torque_scale * self.max_generating_torque(w),
-        )
+        shape, (w,) = _flat(omega_radps)
+        t_mot, t_gen = _limits_many(w, self.torque_scale, self.kernel_tables())
+        return t_mot.reshape(shape), t_gen.reshape(shape)
 
     def efficiency_at(self, torque_nm, omega_radps):
-        """Vectorised efficiency [-] at torque [N·m] and speed [rad/s]."""
-        t, w = np.broadcast_arrays(np.asarray(torque_nm, float), np.asarray(omega_radps, float))
-        if self.kind == "ideal":
-            return np.ones(t.shape)
-        if self.kind == "constant_efficiency":
-            return np.full(t.shape, self.efficiency)
-        assert self.efficiency_map is not None
-        return np.maximum(self.efficiency_map(np.abs(w), t / self.torque_scale), MIN_EFFICIENCY)
+        """Vectorised efficiency [-] at torque [N·m] and speed [rad/s] (the map read at
+        ``torque / torque_scale``, see :func:`machine_efficiency`)."""
+        shape, (t, w) = _flat(torque_nm, omega_radps)
+        tab = self.kernel_tables()
+        return _efficiency_many(t, w, self.kind_code, self.efficiency, self.torque_scale, tab).reshape(shape)
 
     def electrical_power(self, torque_nm, omega_radps):
         """Vectorised electrical power [W] (> 0 drawn) at torque [N·m] and speed [rad/s]."""
-        t = np.asarray(torque_nm, float)
-        w = np.asarray(omega_radps, float)
-        return electrical_power(t, w, self.efficiency_at(t, w))
+        shape, (t, w) = _flat(torque_nm, omega_radps)
+        tab = self.kernel_tables()
+        return _power_many(t, w, self.kind_code, self.efficiency, self.torque_scale, tab).reshape(shape)
 
     @classmethod
     def from_directory(cls, path: str | Path, **overrides: object) -> ElectricMachine:

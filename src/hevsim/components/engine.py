@@ -11,7 +11,9 @@ early refinement levels of the tutorial, where the engine is a constant-torque s
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -26,11 +28,29 @@ DIESEL_CO2_KG_PER_KG = 3.16
 """CO2 emitted per kg of diesel burnt (carbon fraction 0.862, complete combustion) [kg/kg]."""
 
 
+class EngineTables(NamedTuple):
+    """An engine's tables for compiled code, by name (a swapped array is a name error).
+
+    ``tmax_y`` max torque and ``tct_y`` closed-throttle torque [N·m] over the speed axes
+    ``tmax_x``, ``tct_x`` [rad/s]; ``tmap_z`` torque [N·m] over ``tmap_x`` speed [rad/s] x
+    ``tmap_y`` throttle [-]; ``fuel_z`` fuel rate [kg/s] over ``fuel_x`` speed [rad/s] x
+    ``fuel_y`` torque [N·m]; all of the unscaled (``torque_scale`` = 1) engine.
+    """
+
+    tmax_x: FloatArray
+    tmax_y: FloatArray
+    tct_x: FloatArray
+    tct_y: FloatArray
+    tmap_x: FloatArray
+    tmap_y: FloatArray
+    tmap_z: FloatArray
+    fuel_x: FloatArray
+    fuel_y: FloatArray
+    fuel_z: FloatArray
+
+
 @njit(cache=True)
-def engine_torque(
-    throttle, omega_radps, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, use_tmap,
-    stall_radps, redline_radps, torque_scale,
-):  # fmt: skip
+def engine_torque(throttle, omega_radps, use_tmap, stall_radps, redline_radps, torque_scale, tab):
     """Brake torque [N·m] at throttle [0-1] and speed [rad/s] (scalar kernel).
 
     Fired (throttle > 0, stall <= speed <= redline): the torque map at (speed, throttle), or
@@ -39,43 +59,106 @@ def engine_torque(
     fired = throttle > 0.0 and omega_radps >= stall_radps and omega_radps <= redline_radps
     if fired:
         if use_tmap:
-            return torque_scale * interp2(tmap_x, tmap_y, tmap_z, omega_radps, throttle, False)
-        return torque_scale * throttle * interp1(tmax_x, tmax_y, omega_radps, False)
+            return torque_scale * interp2(tab.tmap_x, tab.tmap_y, tab.tmap_z, omega_radps, throttle, False)
+        return torque_scale * throttle * interp1(tab.tmax_x, tab.tmax_y, omega_radps, False)
     if omega_radps > 0.0:
-        return torque_scale * interp1(tct_x, tct_y, omega_radps, False)
+        return torque_scale * interp1(tab.tct_x, tab.tct_y, omega_radps, False)
     return 0.0
 
 
 @njit(cache=True)
-def _engine_torque_many(
-    throttle, omega_radps, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, use_tmap,
-    stall_radps, redline_radps, torque_scale,
-):  # fmt: skip
+def _engine_torque_many(throttle, omega_radps, use_tmap, stall_radps, redline_radps, torque_scale, tab):
     """:func:`engine_torque` over flat arrays of throttle [-] and speed [rad/s] -> [N·m]."""
     out = np.empty(throttle.shape[0])
     for i in range(throttle.shape[0]):
         out[i] = engine_torque(
-            throttle[i], omega_radps[i], tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z,
-            use_tmap, stall_radps, redline_radps, torque_scale,
+            throttle[i], omega_radps[i], use_tmap, stall_radps, redline_radps, torque_scale, tab
+        )
+    return out
+
+
+@njit(cache=True)
+def engine_fuel_rate(torque_nm, omega_radps, fired, use_fuel_map, lhv_jpkg, torque_scale, tab):
+    """Fuel mass rate [kg/s] at brake torque [N·m] and speed [rad/s] (scalar kernel).
+
+    Zero when not fired. With a fuel map the map is read at (speed, torque / torque_scale) and
+    scaled (the engine's torque axis and fuel flow scale together); an ideal engine burns
+    exactly its brake power.
+    """
+    if not fired or (torque_nm <= 0.0 and not use_fuel_map):
+        return 0.0
+    if use_fuel_map:
+        rate = torque_scale * interp2(
+            tab.fuel_x, tab.fuel_y, tab.fuel_z, omega_radps, torque_nm / torque_scale, False
+        )
+        return max(rate, 0.0)
+    return torque_nm * omega_radps / lhv_jpkg
+
+
+@njit(cache=True)
+def engine_max_torque(omega_radps, torque_scale, tab):
+    """Max brake torque [N·m] of the (scaled) engine at speed [rad/s] (scalar kernel)."""
+    return torque_scale * interp1(tab.tmax_x, tab.tmax_y, omega_radps, False)
+
+
+@njit(cache=True)
+def fired_fuel_rate(
+    torque_nm, omega_radps, use_fuel_map, lhv_jpkg, stall_radps, redline_radps, torque_scale, tab
+):  # fmt: skip
+    """:func:`engine_fuel_rate` of a fired engine [kg/s]; NaN outside stall..redline or above
+    the max-torque curve (an infeasible operating point)."""
+    tmax = engine_max_torque(omega_radps, torque_scale, tab)
+    if omega_radps < stall_radps or omega_radps > redline_radps or torque_nm > tmax * (1 + 1e-9):
+        return np.nan
+    return engine_fuel_rate(torque_nm, omega_radps, True, use_fuel_map, lhv_jpkg, torque_scale, tab)
+
+
+@njit(cache=True)
+def _fired_fuel_rate_many(
+    torque_nm, omega_radps, use_fuel_map, lhv_jpkg, stall_radps, redline_radps, torque_scale, tab
+):  # fmt: skip
+    """:func:`fired_fuel_rate` over flat arrays of torque [N·m] and speed [rad/s] -> [kg/s]."""
+    out = np.empty(torque_nm.shape[0])
+    for i in range(torque_nm.shape[0]):
+        out[i] = fired_fuel_rate(
+            torque_nm[i], omega_radps[i], use_fuel_map, lhv_jpkg, stall_radps, redline_radps,
+            torque_scale, tab,
         )  # fmt: skip
     return out
 
 
 @njit(cache=True)
-def engine_fuel_rate(
-    torque_nm, omega_radps, fired, fuel_x, fuel_y, fuel_z, use_fuel_map, lhv_jpkg, torque_scale
-):  # fmt: skip
-    """Fuel mass rate [kg/s] at brake torque [N·m] and speed [rad/s] (scalar kernel).
+def _fuel_map_rate_many(torque_nm, omega_radps, torque_scale, tab):
+    """:func:`engine_fuel_rate` of a fired engine with a fuel map, no limits -> [kg/s]."""
+    out = np.empty(torque_nm.shape[0])
+    for i in range(torque_nm.shape[0]):
+        out[i] = engine_fuel_rate(torque_nm[i], omega_radps[i], True, True, 1.0, torque_scale, tab)
+    return out
 
-    Zero when not fired. With a fuel map the map is read at (speed, torque / torque_scale) and
-    scaled; an ideal engine burns exactly its brake power.
-    """
-    if not fired or (torque_nm <= 0.0 and not use_fuel_map):
-        return 0.0
-    if use_fuel_map:
-        rate = torque_scale * interp2(fuel_x, fuel_y, fuel_z, omega_radps, torque_nm / torque_scale, False)
-        return max(rate, 0.0)
-    return torque_nm * omega_radps / lhv_jpkg
+
+@njit(cache=True)
+def _max_torque_many(omega_radps, torque_scale, tab):
+    """:func:`engine_max_torque` over a flat array of speed [rad/s] -> [N·m]."""
+    out = np.empty(omega_radps.shape[0])
+    for i in range(omega_radps.shape[0]):
+        out[i] = engine_max_torque(omega_radps[i], torque_scale, tab)
+    return out
+
+
+def scaled_fuel_map_rate(fuel_map: Table2D, torque_scale: float, torque_nm, omega_radps):
+    """Fuel rate [kg/s] of a fired engine sized by ``torque_scale`` from its unscaled
+    ``fuel_map`` [kg/s over rad/s x N·m], at broadcast torque [N·m] and speed [rad/s]
+    (:func:`engine_fuel_rate`, without the engine's speed and torque limits)."""
+    z1 = np.zeros(1)
+    tab = EngineTables(z1, z1, z1, z1, z1, z1, np.zeros((1, 1)), fuel_map.x, fuel_map.y, fuel_map.z)
+    shape, (t, w) = _flat(torque_nm, omega_radps)
+    return _fuel_map_rate_many(t, w, float(torque_scale), tab).reshape(shape)
+
+
+def _flat(*arrays: object) -> tuple[tuple[int, ...], list[FloatArray]]:
+    """Broadcast arrays, return the shape and contiguous flat float64 copies."""
+    b = np.broadcast_arrays(*(np.asarray(a, np.float64) for a in arrays))
+    return b[0].shape, [np.ascontiguousarray(x.ravel()) for x in b]
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,28 +193,34 @@ class Engine:
     torque_scale: float = 1.0
     fuel_name: str = "diesel"
 
-    def kernel_tables(self) -> tuple[FloatArray, ...]:
-        """Arrays for compiled loops: (tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z,
-        fuel_x, fuel_y, fuel_z)."""
+    def kernel_tables(self) -> EngineTables:
+        """The engine's tables for compiled code (:class:`EngineTables`; built once)."""
+        return self._tables
+
+    @cached_property
+    def _tables(self) -> EngineTables:
         dummy2 = Table2D(np.array([0.0]), np.array([0.0]), np.zeros((1, 1)))
         tmap = self.torque_map or dummy2
         fuel = self.fuel_map or dummy2
-        return (
-            self.max_torque.x, self.max_torque.y,
-            self.closed_throttle_torque.x, self.closed_throttle_torque.y,
-            tmap.x, tmap.y, tmap.z, fuel.x, fuel.y, fuel.z,
+        return EngineTables(
+            tmax_x=self.max_torque.x, tmax_y=self.max_torque.y,
+            tct_x=self.closed_throttle_torque.x, tct_y=self.closed_throttle_torque.y,
+            tmap_x=tmap.x, tmap_y=tmap.y, tmap_z=tmap.z, fuel_x=fuel.x, fuel_y=fuel.y, fuel_z=fuel.z,
         )  # fmt: skip
 
     def torque(self, throttle, omega_radps):
         """Vectorised brake torque [N·m] at throttle [-] and speed [rad/s]."""
-        t = self.kernel_tables()
-        thr, w = np.broadcast_arrays(np.asarray(throttle, float), np.asarray(omega_radps, float))
+        shape, (thr, w) = _flat(throttle, omega_radps)
         out = _engine_torque_many(
-            np.ascontiguousarray(thr.ravel()), np.ascontiguousarray(w.ravel()),
-            t[0], t[1], t[2], t[3], t[4], t[5], t[6], self.torque_map is not None,
-            self.stall_speed_radps, self.redline_radps, self.torque_scale,
+            thr, w, self.torque_map is not None, self.stall_speed_radps, self.redline_radps,
+            self.torque_scale, self.kernel_tables(),
         )  # fmt: skip
-        return out.reshape(thr.shape)
+        return out.reshape(shape)
+
+    def max_torque_nm(self, omega_radps):
+        """Vectorised max brake torque [N·m] of the (scaled) engine at speed [rad/s]."""
+        shape, (w,) = _flat(omega_radps)
+        return _max_torque_many(w, self.torque_scale, self.kernel_tables()).reshape(shape)
 
     def fuel_rate(self, torque_nm, omega_radps):
         """Vectorised fuel rate [kg/s] of a fired engine at torque [N·m] and speed [rad/s].
@@ -139,14 +228,19 @@ class Engine:
         Operating points outside stall..redline or with torque above the max-torque curve
         return NaN, so callers (DP) can mark them infeasible.
         """
-        torque, w = np.broadcast_arrays(np.asarray(torque_nm, float), np.asarray(omega_radps, float))
+        shape, (t, w) = _flat(torque_nm, omega_radps)
+        out = _fired_fuel_rate_many(
+            t, w, self.fuel_map is not None, self.fuel_lhv_jpkg, self.stall_speed_radps,
+            self.redline_radps, self.torque_scale, self.kernel_tables(),
+        )  # fmt: skip
+        return out.reshape(shape)
+
+    def fuel_map_rate(self, torque_nm, omega_radps):
+        """Vectorised fuel rate [kg/s] read from the (scaled) fuel map at torque [N·m] and
+        speed [rad/s], without the engine's speed and torque limits (maps, plots)."""
         if self.fuel_map is None:
-            rate = np.maximum(torque * w, 0.0) / self.fuel_lhv_jpkg
-        else:
-            rate = self.torque_scale * np.maximum(self.fuel_map(w, torque / self.torque_scale), 0.0)
-        tmax = self.torque_scale * self.max_torque(w)
-        bad = (w < self.stall_speed_radps) | (w > self.redline_radps) | (torque > tmax * (1 + 1e-9))
-        return np.where(bad, np.nan, rate)
+            raise ValueError(f"engine '{self.name}' has no fuel map")
+        return scaled_fuel_map_rate(self.fuel_map, self.torque_scale, torque_nm, omega_radps)
 
     @classmethod
     def from_directory(cls, path: str | Path, **overrides: float) -> Engine:

@@ -18,8 +18,9 @@ from typing import Any, ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from hevsim.components.battery import BatteryPack, current_for_power
+from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
+from hevsim.components.bus import battery_power_limits_many, bus_balance_many, machine_request_many
 from hevsim.components.driveline import Tire
 from hevsim.components.electric_machine import ElectricMachine
 from hevsim.components.engine import Engine
@@ -32,9 +33,6 @@ from hevsim.units import M3_PER_US_GALLON
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
-REGEN_ITERATIONS = 4
-"""Fixed-point iterations that scale regenerative torque down to the battery charge limit
-(exact after one for ideal and constant-efficiency machines, as in the forward kernel)."""
 LIMIT_RTOL = 1e-6
 """Relative tolerance on the battery current limits (absorbs the rounding of the regen
 scaling)."""
@@ -157,8 +155,10 @@ class BatteryState:
         ones = np.ones_like(ocv)
         r_dis = np.asarray(battery.resistance(soc, ones), dtype=np.float64)
         r_chg = np.asarray(battery.resistance(soc, -ones), dtype=np.float64)
-        i_max = battery.max_charge_current_a
-        p_chg = (ocv + r_chg * i_max) * i_max if np.isfinite(i_max) else np.full(ocv.shape, np.inf)
+        _, (o, rd, rc) = _flat(ocv, r_dis, r_chg)
+        i_dis, i_chg = float(battery.max_discharge_current_a), float(battery.max_charge_current_a)
+        _, p_chg_flat = battery_power_limits_many(o, rd, rc, i_dis, i_chg)
+        p_chg = p_chg_flat.reshape(ocv.shape)
         return cls(soc, ocv, r_dis, r_chg, np.asarray(p_chg, dtype=np.float64))
 
 
@@ -203,6 +203,12 @@ class ElectricFlow:
     infeasible: BoolArray
 
 
+def _flat(*arrays: Any) -> tuple[tuple[int, ...], list[FloatArray]]:
+    """Broadcast arrays; return the shape and contiguous flat float64 copies."""
+    b = np.broadcast_arrays(*(np.asarray(a, np.float64) for a in arrays))
+    return b[0].shape, [np.ascontiguousarray(x.ravel()) for x in b]
+
+
 def electric_flow(
     machine: ElectricMachine,
     battery: BatteryPack,
@@ -226,41 +232,30 @@ def electric_flow(
     flagged (``battery_power``: beyond ``OCV^2 / 4R``; discharge and charge current).
     ``state``: the pack evaluated at ``soc`` (:class:`BatteryState`), when already known.
     """
-    t_req = np.asarray(torque_req_nm, dtype=np.float64)
-    w = np.asarray(omega_radps, dtype=np.float64)
-    p_other = np.asarray(p_other_w, dtype=np.float64)
-    t_max, t_min = machine.limits(w)
-    over_torque = t_req > t_max * (1.0 + 1e-12)
-    torque = np.where(t_req < 0.0, np.where(regen_ok, np.maximum(t_req, t_min), 0.0), t_req)
-    p_el = np.asarray(machine.electrical_power(torque, w), dtype=np.float64)
     bs = state if state is not None else BatteryState.at(battery, soc)
-    p_chg = bs.p_charge_max_w
-    if np.isfinite(p_chg).any():
-        floor = -p_chg - p_other  # lowest machine power the battery can absorb
-        over = (torque < 0.0) & (p_el < floor)
-        if over.any():  # scale the regenerative torque down, on the affected pairs only
-            shape = over.shape
-            torque = np.array(np.broadcast_to(torque, shape))
-            p_el = np.array(np.broadcast_to(p_el, shape))
-            t_sub, p_sub = torque[over], p_el[over]
-            f_sub = np.broadcast_to(floor, shape)[over]
-            w_sub = np.broadcast_to(w, shape)[over]
-            for _ in range(REGEN_ITERATIONS):
-                still = p_sub < f_sub
-                if not still.any():
-                    break
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    t_sub = t_sub * np.where(still, np.clip(f_sub / p_sub, 0.0, 1.0), 1.0)
-                p_sub = np.asarray(machine.electrical_power(t_sub, w_sub), dtype=np.float64)
-            torque[over] = t_sub
-            p_el[over] = p_sub
-    p_bat = p_el + p_other
-    ocv = bs.ocv_v
-    r = np.where(p_bat > 0.0, bs.r_discharge_ohm, bs.r_charge_ohm)  # as BatteryPack.resistance
-    current = np.asarray(current_for_power(p_bat, ocv, r), dtype=np.float64)  # as BatteryPack.current
+    tab = machine.kernel_tables()
+    kind, eff, scale = machine.kind_code, machine.efficiency, machine.torque_scale
+    # the machine request does not depend on the state: once per input
+    shape0, (t_req, w0, ok) = _flat(torque_req_nm, omega_radps, regen_ok)
+    t0, p0 = np.empty(t_req.size), np.empty(t_req.size)
+    over_t0 = np.empty(t_req.size, np.bool_)
+    machine_request_many(t_req, w0, ok > 0.0, kind, eff, scale, tab, t0, p0, over_t0)
+    shape, (t1, p1, w1, p_oth, ocv, r_dis, r_chg, p_chg) = _flat(
+        t0.reshape(shape0), p0.reshape(shape0), w0.reshape(shape0), p_other_w, bs.ocv_v,
+        bs.r_discharge_ohm, bs.r_charge_ohm, bs.p_charge_max_w,
+    )  # fmt: skip
+    out = [np.empty(t1.size) for _ in range(4)]
+    over_p = np.empty(t1.size, np.bool_)
+    bus_balance_many(
+        t1, p1, w1, p_oth, ocv, r_dis, r_chg, p_chg, kind, eff, scale, tab, out[0], out[1], out[2],
+        out[3], over_p,
+    )  # fmt: skip
+    torque, p_el, p_bat, current = (a.reshape(shape) for a in out)
+    over_power = over_p.reshape(shape)
+    over_torque = np.broadcast_to(over_t0.reshape(shape0), shape)
     flags = {
         "motor_torque": over_torque,
-        "battery_power": (p_bat > 0.0) & (ocv * ocv < 4.0 * r * p_bat),
+        "battery_power": over_power,
         "battery_discharge_current": current > battery.max_discharge_current_a * (1.0 + LIMIT_RTOL),
         "battery_charge_current": current < -battery.max_charge_current_a * (1.0 + LIMIT_RTOL),
     }

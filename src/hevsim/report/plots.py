@@ -436,7 +436,9 @@ def bsfc_grid(
     ww, tt = np.meshgrid(w, trq)
     if fuel_map is None:
         return w, trq, np.full(ww.shape, np.nan)
-    fuel_kgps = scale * fuel_map(ww, tt / scale)
+    from hevsim.components.engine import scaled_fuel_map_rate  # the engine's own kernel
+
+    fuel_kgps = scaled_fuel_map_rate(fuel_map, scale, tt, ww)
     power_w = tt * ww
     peak_power = float(np.max(tmax_w * w))
     with np.errstate(divide="ignore", invalid="ignore"):

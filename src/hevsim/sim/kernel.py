@@ -17,11 +17,17 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from hevsim.battery.vehicle import battery_ecm, battery_ecm_advance
-from hevsim.components.battery import current_for_power, pack_ocv_r
-from hevsim.components.body import aero_force, grade_force, rolling_force
+from hevsim.battery.vehicle import battery_ecm, battery_ecm_advance, pack_tables
+from hevsim.components.battery import charge_current, pack_ocv_r
+from hevsim.components.body import aero_force, grade_force, road_load_force, rolling_force
+from hevsim.components.bus import battery_power_limits, bus_current, limit_machine_torque, regen_torque
 from hevsim.components.driveline import gear_output_torque
-from hevsim.components.electric_machine import electrical_power, machine_efficiency, torque_limits
+from hevsim.components.electric_machine import (
+    electrical_power,
+    machine_efficiency,
+    machine_power,
+    torque_limits,
+)
 from hevsim.components.engine import engine_fuel_rate, engine_torque
 
 # --- scalar parameter vector layout --------------------------------------------------------
@@ -41,14 +47,63 @@ PARAMS = (
     "driver_kind", "supervisor_kind", "battery_kind",
 )  # fmt: skip
 P = {name: i for i, name in enumerate(PARAMS)}
-(
-    MASS, MFACT, CD, AREA, RHO, WIND, CRR, RTIRE, RATIO, GEFF, FBRAKE, KDRV, KFF,
-    MKIND, MEFF, MSCALE, MINERT, GKIND, GEFFM, GSCALE, GINERT,
-    EPRES, ETMAP, EFMAP, ESTALL, ERED, ESCALE, EINERT, ELHV,
-    BNS, BNP, BREXT, BCAP, BCEFF, BIDIS, BICHG, BTEMP, SOC0, SOCMIN, SOCMAX,
-    GSKIND, SOCLO, SOCHI, SOCBOOST, GSW, GSWSTART, THRRUN, THRBOOST, GSKP,
-    GSCUR, REGENV, PAUX, PICEBAND, DRVKIND, SUPKIND, BATKIND,
-) = range(len(PARAMS))  # fmt: skip
+# Index constants by name: a reordered PARAMS cannot mis-assign them.
+MASS = P["mass_kg"]
+MFACT = P["mass_factor"]
+CD = P["cd"]
+AREA = P["area_m2"]
+RHO = P["rho_kgpm3"]
+WIND = P["headwind_mps"]
+CRR = P["crr"]
+RTIRE = P["tire_radius_m"]
+RATIO = P["gear_ratio"]
+GEFF = P["gear_efficiency"]
+FBRAKE = P["max_brake_force_n"]
+KDRV = P["driver_gain_per_mps"]
+KFF = P["driver_feedforward"]
+MKIND = P["motor_kind"]
+MEFF = P["motor_eff"]
+MSCALE = P["motor_scale"]
+MINERT = P["motor_inertia"]
+GKIND = P["gen_kind"]
+GEFFM = P["gen_eff"]
+GSCALE = P["gen_scale"]
+GINERT = P["gen_inertia"]
+EPRES = P["engine_present"]
+ETMAP = P["engine_use_tmap"]
+EFMAP = P["engine_use_fuel_map"]
+ESTALL = P["engine_stall_radps"]
+ERED = P["engine_redline_radps"]
+ESCALE = P["engine_scale"]
+EINERT = P["engine_inertia"]
+ELHV = P["engine_lhv_jpkg"]
+BNS = P["bat_ns"]
+BNP = P["bat_np"]
+BREXT = P["bat_r_extra"]
+BCAP = P["bat_capacity_ah"]
+BCEFF = P["bat_coulombic_eff"]
+BIDIS = P["bat_max_dis_a"]
+BICHG = P["bat_max_chg_a"]
+BTEMP = P["bat_temp_k"]
+SOC0 = P["soc_initial"]
+SOCMIN = P["soc_min"]
+SOCMAX = P["soc_max"]
+GSKIND = P["genset_kind"]
+SOCLO = P["soc_low"]
+SOCHI = P["soc_high"]
+SOCBOOST = P["soc_boost"]
+GSW = P["genset_speed_radps"]
+GSWSTART = P["genset_start_speed_radps"]
+THRRUN = P["throttle_run"]
+THRBOOST = P["throttle_boost"]
+GSKP = P["genset_gain_per_radps"]
+GSCUR = P["genset_current_a"]
+REGENV = P["regen_min_speed_mps"]
+PAUX = P["aux_power_w"]
+PICEBAND = P["pure_ice_band_w"]
+DRVKIND = P["driver_kind"]
+SUPKIND = P["supervisor_kind"]
+BATKIND = P["battery_kind"]
 
 # Genset kinds and states, power modes (thesis Table 2.1) and reasons for changes.
 GENSET_NONE, GENSET_CURRENT_SOURCE, GENSET_ENGINE = 0, 1, 2
@@ -197,9 +252,7 @@ def supervisor_schedule(p, sched, k, soc, w_gs, gs_state):
 @njit(cache=True)
 def battery_tables(p, bat, soc, current_sign):
     """OCV(SOC, T) and R(SOC, T, sign) of the pack (ideal and Rint packs are 1-point tables)."""
-    return pack_ocv_r(
-        soc, p[BTEMP], current_sign, bat[0], bat[1], bat[2], bat[3], bat[4], p[BNS], p[BNP], p[BREXT]
-    )
+    return pack_ocv_r(soc, p[BTEMP], current_sign, p[BNS], p[BNP], p[BREXT], pack_tables(bat))
 
 
 DRIVER_KINDS = ("proportional",)
@@ -225,8 +278,8 @@ def supervise(kind, p, sched, k, soc, w_gs, gs_state):
 def battery_state(kind, p, bat, soc, current_sign):
     """Battery-model dispatcher (codes: :data:`BATTERY_KINDS`).
 
-    ``bat`` has the 12-entry layout of :data:`hevsim.battery.vehicle.ECM_TUPLE` for every kind
-    (the ``tables`` kind padded), so one compiled dispatcher serves both.
+    ``bat`` is a :class:`hevsim.battery.vehicle.EcmTables` for every kind (the ``tables`` kind
+    padded), so one compiled dispatcher serves both.
     """
     if kind == 1:
         return battery_ecm(p, bat, soc, current_sign)
@@ -239,7 +292,10 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
 
     The driver, supervisor and battery model are chosen by ``p[DRVKIND]``, ``p[SUPKIND]``
     and ``p[BATKIND]`` (see the dispatchers above).
-    ``eng``, ``mot``, ``gen``, ``bat``: table tuples from the components' ``kernel_tables``;
+    ``eng``, ``mot``, ``gen``, ``bat``: the named table tuples of the components
+    (:class:`~hevsim.components.engine.EngineTables`, two
+    :class:`~hevsim.components.electric_machine.MachineTables`,
+    :class:`~hevsim.battery.vehicle.EcmTables`);
     ``sched``: per-step data for the supervisor (a schedule), shape (n, m).
     Fills ``energy`` (:data:`ENERGY_TERMS`, J) and ``summary`` (:data:`SUMMARY`); when
     ``record`` is true, ``out[k]`` holds the channels of step k (k = 0..n-1 steps, plus the
@@ -276,12 +332,8 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
         # ---------------- driver ---------------------------------------------------------------
         v_target = v_des[k + 1]
         w_m0 = v / r * ratio
-        m_max, m_min = torque_limits(w_m0, mot[0], mot[1], mot[2], p[MSCALE])
-        f_res0 = (
-            aero_force(v, p[WIND], p[CD], p[AREA], p[RHO])
-            + grade_force(p[MASS], grade[k])
-            + rolling_force(p[MASS], grade[k], p[CRR]) * (v > 0.0)
-        )
+        m_max, m_min = torque_limits(w_m0, p[MSCALE], mot)
+        f_res0 = road_load_force(v, 0.0, grade[k], p[MASS], p[MFACT], p[CD], p[AREA], p[RHO], p[WIND], p[CRR])
         f_drive_max = m_max * ratio * p[GEFF] / r
         u = drive(drv_kind, p, v, v_target, v_des[k], dt, f_res0, f_drive_max, m_eff)
 
@@ -302,11 +354,8 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
         if p[GSKIND] == GENSET_ENGINE:
             thr = thr_cmd
             fired = thr > 0.0 and w_gs >= p[ESTALL] and w_gs <= p[ERED]
-            t_eng = engine_torque(
-                thr, w_gs, eng[0], eng[1], eng[2], eng[3], eng[4], eng[5], eng[6],
-                p[ETMAP] > 0, p[ESTALL], p[ERED], p[ESCALE],
-            )  # fmt: skip
-            g_mot, g_gen = torque_limits(w_gs, gen[0], gen[1], gen[2], p[GSCALE])
+            t_eng = engine_torque(thr, w_gs, p[ETMAP] > 0, p[ESTALL], p[ERED], p[ESCALE], eng)
+            g_mot, g_gen = torque_limits(w_gs, p[GSCALE], gen)
             if gs_state == GS_OFF:
                 t_gen = 0.0
                 w1 = w_gs + dt / j_shaft * t_eng
@@ -329,10 +378,8 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
                     w1 = 0.0
                     t_gen = -w_gs * j_shaft / dt - t_eng
             w_mid_gs = 0.5 * (w_gs + w1)
-            fuel_rate = engine_fuel_rate(
-                t_eng, w_gs, fired, eng[7], eng[8], eng[9], p[EFMAP] > 0, p[ELHV], p[ESCALE]
-            )
-            eta_g = machine_efficiency(t_gen, w_mid_gs, p[GKIND], p[GEFFM], gen[3], gen[4], gen[5])
+            fuel_rate = engine_fuel_rate(t_eng, w_gs, fired, p[EFMAP] > 0, p[ELHV], p[ESCALE], eng)
+            eta_g = machine_efficiency(t_gen, w_mid_gs, p[GKIND], p[GEFFM], p[GSCALE], gen)
             p_gen_el = electrical_power(t_gen, w_mid_gs, eta_g)
             p_eng = t_eng * w_mid_gs
             energy[E_FUEL] += fuel_rate * p[ELHV] * dt
@@ -351,16 +398,11 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
         else:
             f_brake_req = -u * p[FBRAKE]
             t_regen_req = -f_brake_req * r / ratio * p[GEFF]  # motor torque for the full request
-            t_m = max(t_regen_req, m_min) if v > p[REGENV] else 0.0
-        # battery current limits: bound the motor's electrical power
+            t_m = regen_torque(t_regen_req, m_min, v > p[REGENV])
+        # the bus balance (components.bus): battery power limits bound the motor's torque
         ocv, r_b = battery_state(bat_kind, p, bat, soc, 1.0)
-        p_dis_max = (
-            (ocv - r_b * p[BIDIS]) * p[BIDIS]
-            if p[BIDIS] < ocv / (2.0 * r_b + 1e-300)
-            else ocv * ocv / (4.0 * r_b + 1e-300)
-        )
         ocv_c, r_c = battery_state(bat_kind, p, bat, soc, -1.0)
-        p_chg_max = (ocv_c + r_c * p[BICHG]) * p[BICHG]
+        p_dis_max, p_chg_max = battery_power_limits(ocv, r_b, ocv_c, r_c, p[BIDIS], p[BICHG])
         if soc <= p[SOCMIN]:
             p_dis_max = 0.0
         if soc >= p[SOCMAX]:
@@ -368,20 +410,11 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
         p_other = p_gen_el + p[PAUX]
         if p_gs_src > 0.0:
             p_other -= ocv * p[GSCUR]
-        limited = 0.0
-        for _it in range(4):
-            eta_m = machine_efficiency(t_m, w_m0, p[MKIND], p[MEFF], mot[3], mot[4], mot[5])
-            p_m_el = electrical_power(t_m, w_m0, eta_m)
-            hi = p_dis_max - p_other
-            lo = -p_chg_max - p_other
-            if p_m_el > hi and t_m > 0.0 and p_m_el > 0.0:
-                t_m *= max(hi, 0.0) / p_m_el
-                limited = 1.0
-            elif p_m_el < lo and t_m < 0.0 and p_m_el < 0.0:
-                t_m *= min(lo, 0.0) / p_m_el
-                limited = 1.0
-            else:
-                break
+        p_m_el0 = machine_power(t_m, w_m0, p[MKIND], p[MEFF], p[MSCALE], mot)
+        t_m, _, bus_limited = limit_machine_torque(
+            t_m, p_m_el0, w_m0, p_other, p_dis_max, p_chg_max, p[MKIND], p[MEFF], p[MSCALE], mot
+        )
+        limited = 1.0 if bus_limited else 0.0
         f_motor = gear_output_torque(t_m, ratio, p[GEFF]) / r
         f_fric = max(f_brake_req + min(f_motor, 0.0), 0.0) if u < 0.0 else 0.0
 
@@ -412,23 +445,21 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
             v1 = 0.0
         v_mid = 0.5 * (v + v1)
         w_m = v_mid / r * ratio
-        eta_m = machine_efficiency(t_m, w_m, p[MKIND], p[MEFF], mot[3], mot[4], mot[5])
+        eta_m = machine_efficiency(t_m, w_m, p[MKIND], p[MEFF], p[MSCALE], mot)
         p_m_mech = t_m * w_m
         p_m_el = electrical_power(t_m, w_m, eta_m)
 
         # ---------------- battery: eq (21)-(22), SOC eq (13) -------------------------------
         p_src = ocv * p[GSCUR] if p_gs_src > 0.0 else 0.0
         p_bat = p_m_el + p_gen_el + p[PAUX] - p_src
-        sgn = 1.0 if p_bat > 0.0 else -1.0
         # the discharge and charge states were evaluated above for the limits
-        ocv_b, r_bat = (ocv, r_b) if sgn > 0.0 else (ocv_c, r_c)
-        i_bat = current_for_power(p_bat, ocv_b, r_bat)
-        if p_bat > 0.0 and ocv_b * ocv_b < 4.0 * r_bat * p_bat:
+        i_bat, ocv_b, r_bat, over_power = bus_current(p_bat, ocv, r_b, ocv_c, r_c)
+        if over_power:
             limited = 1.0  # beyond the deliverable power: the bus sags (reported)
         v_bat = ocv_b - r_bat * i_bat
         if bat_kind == 1:  # dynamic cells: advance their RC, charge and thermal states
             battery_ecm_advance(p, bat, i_bat, dt)
-        i_soc = i_bat if i_bat > 0.0 else i_bat * p[BCEFF]
+        i_soc = charge_current(i_bat, p[BCEFF])
         soc1 = soc - i_soc * dt / cap_as
 
         # ---------------- energy audit ------------------------------------------------------

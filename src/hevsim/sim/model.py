@@ -20,7 +20,7 @@ from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
 from hevsim.components.electric_machine import ElectricMachine
-from hevsim.components.engine import Engine
+from hevsim.components.engine import Engine, EngineTables
 from hevsim.config import BatterySection, EngineSection, MachineSection, SeriesHEVConfig
 from hevsim.errors import ConfigError
 from hevsim.fuels import with_config_fuel
@@ -145,6 +145,10 @@ class SeriesHEV:
                     self.cell, self.battery.n_series, self.battery.n_parallel, self.battery.temperature_k
                 )
             )
+        missing = set(K.PARAMS) - set(values) - {"driver_kind", "supervisor_kind", "battery_kind"}
+        unknown = set(values) - set(K.PARAMS)
+        if missing or unknown:  # a kernel parameter added or renamed on one side only
+            raise KeyError(f"kernel parameters missing: {sorted(missing)}; unknown: {sorted(unknown)}")
         for name, value in values.items():
             p[K.P[name]] = value
         return p
@@ -170,8 +174,8 @@ class SeriesHEV:
         if self.engine is not None:
             eng = self.engine.kernel_tables()
         else:
-            z1 = np.zeros(1)
-            eng = (z1, z1, z1, z1, z1, z1, np.zeros((1, 1)), z1, z1, np.zeros((1, 1)))
+            z1, z2 = np.zeros(1), np.zeros((1, 1))
+            eng = EngineTables(z1, z1, z1, z1, z1, z1, z2, z1, z1, z2)  # no engine: all dummies
         return (
             eng,
             self.traction_motor.kernel_tables(),
