@@ -81,7 +81,7 @@ def test_in_process_fmu_participant(fmus: dict[str, Path], tmp_path: Path) -> No
     ck = tmp_path / "ck.pkl"
     # a checkpoint written by a run of worker FMUs, resumed in process
     interrupt_after(lambda **kw: simulate(*oscillator(fmus, WorkerFMUParticipant), **kw), 0.55,
-                    stop_time_s=1.0, step_s=0.1, checkpoint_path=ck)  # fmt: skip
+                    stop_time_s=1.0, step_s=0.1, checkpoint_path=ck, checkpoint_every=1)  # fmt: skip
     full = simulate(*oscillator(fmus, WorkerFMUParticipant), stop_time_s=1.0, step_s=0.1)
     worker_iter = simulate(*oscillator(fmus, WorkerFMUParticipant), stop_time_s=1.0, step_s=0.05,
                            max_iterations=20, tolerance=1e-12)  # fmt: skip

@@ -207,6 +207,7 @@ def test_checkpoint_resume_identical(tmp_path) -> None:
             step_s=0.1,
             algorithm="jacobi",
             checkpoint_path=ck,
+            checkpoint_every=1,
             progress=kill_at_1,
         )
     assert ck.is_file()

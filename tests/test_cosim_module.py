@@ -87,6 +87,7 @@ def test_module_cosim_physics_and_resume(tmp_path: Path) -> None:
     assert summary["error"] is None and summary["stats"]["steps"] == 20
 
     ck = tmp_path / "ck.pkl"
+    desc.master["checkpoint_every"] = 1
     interrupt_after(lambda **kw: run_system(desc, **kw), 7.5, checkpoint_path=ck)
     resumed = run_system(desc, checkpoint_path=ck, resume=True)
     assert np.array_equal(resumed.data, res.data)

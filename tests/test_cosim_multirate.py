@@ -77,7 +77,7 @@ def test_checkpoint_inside_a_window_resumes_identically(tmp_path: Path) -> None:
 
     ck = tmp_path / "ck.pkl"
     full = run()
-    interrupt_after(run, 0.75, checkpoint_path=ck)  # killed inside the window 0.6 .. 0.9
+    interrupt_after(run, 0.75, checkpoint_path=ck, checkpoint_every=1)  # killed inside the window 0.6 .. 0.9
     resumed = run(checkpoint_path=ck, resume=True)
     assert np.array_equal(resumed.data, full.data)
 

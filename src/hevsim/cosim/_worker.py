@@ -28,7 +28,12 @@ def main() -> None:
             res: Any = None
             if cmd == "open":
                 p = FMUParticipant(req["name"], req["fmu"], req.get("parameters"))
-                res = {"inputs": p.inputs, "outputs": p.outputs}
+                res = {
+                    "inputs": p.inputs,
+                    "outputs": p.outputs,
+                    "can_state": p.can_save_state,
+                    "state_note": p.state_note,
+                }
             elif cmd == "quit":
                 break
             else:
@@ -41,7 +46,13 @@ def main() -> None:
                     if req.get("values"):
                         p.set_inputs(req["values"])
                     ok, pref = p.do_step(req["t"], req["h"])
-                    res = [ok, pref, p.terminate_requested, p.get_outputs() if ok else None]
+                    res = [
+                        ok,
+                        pref,
+                        p.terminate_requested,
+                        p.terminate_time,
+                        p.get_outputs() if ok else None,
+                    ]
                 elif cmd == "get":
                     res = p.get_outputs()
                 elif cmd == "get_state":

@@ -74,7 +74,8 @@ class Options:
     send_before_receive: dict[str, bool] = field(default_factory=dict)
     rates: dict[str, int] = field(default_factory=dict)
     checkpoint_path: str | Path | None = None
-    checkpoint_every: int = 1
+    checkpoint_every: int | None = None
+    checkpoint_wall_s: float = 30.0
     record_every: int = 1
 
     def check(self) -> None:
@@ -94,6 +95,17 @@ class Options:
             raise ConfigError(f"iteration hold {self.hold!r}; valid: midpoint, end.")
         if self.max_iterations < 1:
             raise ConfigError(f"max_iterations {self.max_iterations} must be >= 1.")
+        if self.checkpoint_every is not None and not (
+            isinstance(self.checkpoint_every, int) and self.checkpoint_every >= 1
+        ):
+            raise ConfigError(
+                f"checkpoint_every {self.checkpoint_every!r}; expected an integer number of steps >= 1 "
+                "(or a wall-clock interval such as '30s' in an SSD)."
+            )
+        if not self.checkpoint_wall_s > 0:
+            raise ConfigError(f"checkpoint wall-clock interval {self.checkpoint_wall_s!r} s must be > 0.")
+        if not (isinstance(self.record_every, int) and self.record_every >= 1):
+            raise ConfigError(f"record_every {self.record_every!r}; expected an integer >= 1.")
         for name, k in self.rates.items():
             if not (isinstance(k, int) and k >= 1):
                 raise ConfigError(f"rates: participant {name!r} rate {k!r}; expected an integer >= 1.")
@@ -166,6 +178,14 @@ class Master:
             if n not in self.p:
                 raise ConfigError(f"rates name unknown participant {n!r}; participants: {sorted(self.p)}.")
         self.rates = {n: int(options.rates.get(n, 1)) for n in self.order}
+        self._stateless = [n for n in self.order if not self.p[n].can_save_state]
+        needs = state_needs(options)
+        if needs and self._stateless:
+            n = self._stateless[0]
+            raise ConfigError(
+                f"participant {n!r} cannot save and restore its state ({self.p[n].state_note}), "
+                f"which {needs} needs; use max_iterations=1 and negotiation 'fixed' with it."
+            )
         self._window_start = {n: options.start_time_s for n in self.order}  # last exchange [s]
         # connections, grouped by destination: (dst_var, src, src_var, factor, offset)
         self.feeds: dict[str, list[tuple[str, str, str, float, float]]] = {n: [] for n in self.p}
@@ -259,124 +279,242 @@ class Master:
         return t_end >= self._window_start[n] + window - eps or t_end >= self.opt.stop_time_s - eps
 
     def _record(self, t: float, y: dict[str, dict[str, float]]) -> None:
+        row = [y[n][v] for n, v in self._cols]
+        if self._replay is not None and len(self._rows) < len(self._replay):
+            i = len(self._rows)
+            ref = self._replay[i]
+            if t != ref[0] or not np.array_equal(np.array(row, float), ref[1:], equal_nan=True):
+                names = ", ".join(repr(n) for n in self._stateless)
+                raise CosimFault(
+                    f"cannot resume: participant(s) {names} cannot save their state, so the run was "
+                    f"replayed from the start, but the replay differs from the stored results at "
+                    f"t = {t:g} s (row {i}): the participants are not deterministic. Run again "
+                    "without resume."
+                )
         self._times.append(t)
-        self._rows.append([y[n][v] for n, v in self._cols])
+        self._rows.append(row)
+        if self._stream is not None:
+            self._stream.write(np.array([t, *row], float).tobytes())
 
     def _result(self, stopped_by: str | None) -> CosimResult:
         cols = [f"{n}.{v}" for n, v in self._cols]
         data = np.array(self._rows, float).reshape(len(self._rows), len(cols))
         return CosimResult(np.array(self._times), cols, data, dict(self.stats), stopped_by, dict(self.p))
 
+    # -- checkpoints: the state only; the rows stream append-only to <checkpoint>.rows ------
+    def _rows_path(self) -> Path:
+        ck = Path(self.opt.checkpoint_path)  # type: ignore[arg-type]
+        return ck.with_name(ck.name + ".rows")
+
     def _checkpoint(self, t: float, h: float, y: dict[str, dict[str, float]], nsteps: int) -> None:
+        """Write the checkpoint: O(state), independent of the steps so far."""
         path = Path(self.opt.checkpoint_path)  # type: ignore[arg-type]
+        assert self._stream is not None
+        self._stream.flush()
         blob = {
+            "version": 2,
             "t": t,
             "h": h,
             "y": y,
             "nsteps": nsteps,
             "window_start": self._window_start,
-            "states": self._save(t),
-            "times": self._times,
-            "rows": self._rows,
+            "states": None if self._stateless else self._save(t),
             "stats": self.stats,
+            "columns": self._cols,
+            "rows": len(self._rows),
         }
         tmp = path.with_name(f".{path.name}.tmp")
         tmp.write_bytes(pickle.dumps(blob))
         tmp.replace(path)
+        self._last_ck = _time.monotonic()
+
+    def _load_checkpoint(self, ck: Path) -> dict[str, Any]:
+        try:
+            blob = pickle.loads(ck.read_bytes())
+        except Exception as exc:
+            raise ConfigError(f"{ck}: not a readable checkpoint ({type(exc).__name__}: {exc}).") from None
+        if not isinstance(blob, dict) or blob.get("version") != 2:
+            raise ConfigError(f"{ck}: checkpoint of an older hevsim version; run again without resume.")
+        if blob["columns"] != self._cols:
+            raise ConfigError(f"{ck}: checkpoint of a different system (other outputs); run without resume.")
+        width = 1 + len(self._cols)
+        rows_path = self._rows_path()
+        raw = rows_path.read_bytes() if rows_path.is_file() else b""
+        n = int(blob["rows"])
+        if len(raw) < 8 * width * n:
+            raise ConfigError(f"{rows_path}: holds fewer result rows than its checkpoint ({n}).")
+        table = np.frombuffer(raw[: 8 * width * n], float).reshape(n, width)
+        with open(rows_path, "r+b") as f:  # drop rows written after the checkpoint
+            f.truncate(8 * width * n)
+        blob["table"] = table
+        return blob
+
+    def _grid(self, t: float, h: float) -> float:
+        """End of the step from ``t`` by ``h``: snapped to ``t_start + n * step_s`` when it is
+        that point up to rounding (no drift over long runs), and to the stop time."""
+        o = self.opt
+        t_end = t + h
+        k = round((t_end - o.start_time_s) / o.step_s)
+        g = o.start_time_s + k * o.step_s
+        if abs(t_end - g) <= 1e-9 * o.step_s:
+            t_end = g
+        if t_end >= o.stop_time_s - 1e-9 * max(1.0, abs(o.stop_time_s)):
+            t_end = o.stop_time_s
+        return t_end
 
     # -- run -------------------------------------------------------------------------------
     def run(
         self, progress: Callable[[float, float], None] | None = None, resume: bool = False
     ) -> CosimResult:
         """Run from start to stop time; ``progress(t, stop)`` is called per communication step.
-        With ``resume`` and an existing checkpoint file, continue from the checkpoint."""
+        With ``resume`` and an existing checkpoint file, continue from the checkpoint (or,
+        when a participant cannot save its state, replay from the start and check that the
+        replay reproduces the stored rows)."""
         o = self.opt
         t, h = o.start_time_s, o.step_s
         self.stats: dict[str, Any] = {"steps": 0, "iterations": 0, "rejected": 0, "max_residual": 0.0}
         self._times: list[float] = []
         self._rows: list[list[float]] = []
+        self._replay: np.ndarray | None = None
+        self._stream: Any = None
         for n in self.order:
             self._call(n, "setup", t, lambda n=n: self.p[n].setup(t))  # type: ignore[misc]
         y = self._initial_exchange(t)
         self._cols = [(n, v) for n in self.order for v in y[n]]
         nsteps = 0
         ck = Path(o.checkpoint_path) if o.checkpoint_path else None
-        if resume and ck is not None and ck.is_file():
-            blob = pickle.loads(ck.read_bytes())
-            t, h, y, nsteps = blob["t"], blob["h"], blob["y"], blob["nsteps"]
-            self._window_start = dict(blob["window_start"])
-            self._times, self._rows, self.stats = blob["times"], blob["rows"], blob["stats"]
-            self._restore(blob["states"], t)
-        else:
-            self._record(t, y)
+        blob = self._load_checkpoint(ck) if resume and ck is not None and ck.is_file() else None
+        if ck is not None:
+            self._stream = open(self._rows_path(), "ab" if blob is not None else "wb")
+        self._last_ck = _time.monotonic()
         stopped_by = None
-        eps = 1e-9 * max(1.0, abs(o.stop_time_s))
-        need_state = o.max_iterations > 1 or o.negotiation != "fixed"
         try:
-            while t < o.stop_time_s - eps:
-                h = min(h, o.stop_time_s - t)
-                saved = self._save(t) if need_state else None
-                guess = y
-                it = 0
-                while True:
-                    new, reject_h, prefs = self._step_once(t, h, y, guess)
-                    if reject_h is not None:
-                        self.stats["rejected"] += 1
-                        if saved is None:
-                            saved = self._save_for_reject(t)
-                        self._restore(saved, t)
-                        lo = o.min_step_s or 0.0
-                        if reject_h <= lo or reject_h < 1e-12:
-                            raise CosimFault(
-                                f"step rejected at t = {t:g} s with h = {h:g} s below the minimum step."
-                            )
-                        h = reject_h
-                        guess = y
-                        it = 0
-                        continue
-                    it += 1
-                    self.stats["iterations"] += 1
-                    if it >= o.max_iterations:
-                        break
-                    res = max(
-                        (abs(new[n][v] - guess[n][v]) / (1 + abs(new[n][v])) for n, v in self._cols),
-                        default=0.0,
-                    )
-                    if res <= o.tolerance:
-                        break
-                    self._restore(saved, t)  # type: ignore[arg-type]
-                    w = o.relaxation
-                    guess = {n: {v: w * new[n][v] + (1 - w) * guess[n][v] for v in new[n]} for n in new}
-                if o.max_iterations > 1:
-                    res = max(
-                        (abs(new[n][v] - guess[n][v]) / (1 + abs(new[n][v])) for n, v in self._cols),
-                        default=0.0,
-                    )
-                    self.stats["max_residual"] = max(self.stats["max_residual"], res)
-                for n in self.order:
-                    if self.rates[n] > 1 and self._exchanges(n, t + h):
-                        self._window_start[n] = t + h
-                y = new
-                t = t + h
-                nsteps += 1
-                self.stats["steps"] = nsteps
-                if nsteps % o.record_every == 0 or t >= o.stop_time_s - eps:
-                    self._record(t, y)
-                h = self._next_h(h, prefs)
-                term = [n for n in self.order if self.p[n].terminate_requested]
-                if term:
-                    stopped_by = f"participant {term[0]!r} requested termination at t = {t:g} s"
-                    break
-                if ck is not None and nsteps % o.checkpoint_every == 0:
-                    self._checkpoint(t, h, y, nsteps)
-                if progress is not None:
-                    progress(t, o.stop_time_s)
+            if blob is not None and blob["states"] is None:
+                self._refuse_replay(ck)  # type: ignore[arg-type]
+                self._replay = blob["table"]
+                # the replay rewrites the rows from the start
+                self._stream.seek(0)
+                self._stream.truncate()
+            if blob is not None and blob["states"] is not None:
+                t, h, y, nsteps = blob["t"], blob["h"], blob["y"], blob["nsteps"]
+                self._window_start = dict(blob["window_start"])
+                self.stats = blob["stats"]
+                table = blob["table"]
+                self._times = [float(v) for v in table[:, 0]]
+                self._rows = table[:, 1:].tolist()
+                self._restore(blob["states"], t)
+            else:
+                self._record(t, y)
+            stopped_by = self._loop(t, h, y, nsteps, ck, progress)
         except CosimFault as exc:
             exc.partial = self._result(f"fault: {exc}")
             self._terminate_all(t)
+            self._close_stream()
             raise
-        self._terminate_all(t)
+        except BaseException:
+            self._close_stream()
+            raise
+        self._terminate_all(self._times[-1] if self._times else t)
+        self._close_stream()
+        if ck is not None:
+            self._rows_path().unlink(missing_ok=True)
         return self._result(stopped_by)
+
+    def _close_stream(self) -> None:
+        if self._stream is not None:
+            self._stream.close()
+            self._stream = None
+
+    def _refuse_replay(self, ck: Path) -> None:
+        bad = [n for n in self._stateless if not self.p[n].deterministic]
+        if bad:
+            raise CosimFault(
+                f"{ck}: cannot resume: participant(s) {', '.join(repr(n) for n in bad)} can neither "
+                "save their state nor be replayed (not deterministic); run again without resume."
+            )
+
+    def _loop(
+        self,
+        t: float,
+        h: float,
+        y: dict[str, dict[str, float]],
+        nsteps: int,
+        ck: Path | None,
+        progress: Callable[[float, float], None] | None,
+    ) -> str | None:
+        o = self.opt
+        eps = 1e-9 * max(1.0, abs(o.stop_time_s))
+        need_state = o.max_iterations > 1 or o.negotiation != "fixed"
+        while t < o.stop_time_s - eps:
+            t_end = self._grid(t, h)
+            h = t_end - t
+            saved = self._save(t) if need_state else None
+            guess = y
+            it = 0
+            while True:
+                new, reject_h, prefs = self._step_once(t, h, y, guess)
+                if reject_h is not None:
+                    self.stats["rejected"] += 1
+                    if saved is None:
+                        saved = self._save_for_reject(t)
+                    self._restore(saved, t)
+                    lo = o.min_step_s or 0.0
+                    if reject_h <= lo or reject_h < 1e-12:
+                        raise CosimFault(
+                            f"step rejected at t = {t:g} s with h = {h:g} s below the minimum step."
+                        )
+                    h = reject_h
+                    t_end = t + h
+                    guess = y
+                    it = 0
+                    continue
+                it += 1
+                self.stats["iterations"] += 1
+                if it >= o.max_iterations:
+                    break
+                res = max(
+                    (abs(new[n][v] - guess[n][v]) / (1 + abs(new[n][v])) for n, v in self._cols),
+                    default=0.0,
+                )
+                if res <= o.tolerance:
+                    break
+                self._restore(saved, t)  # type: ignore[arg-type]
+                w = o.relaxation
+                guess = {n: {v: w * new[n][v] + (1 - w) * guess[n][v] for v in new[n]} for n in new}
+            if o.max_iterations > 1:
+                res = max(
+                    (abs(new[n][v] - guess[n][v]) / (1 + abs(new[n][v])) for n, v in self._cols),
+                    default=0.0,
+                )
+                self.stats["max_residual"] = max(self.stats["max_residual"], res)
+            for n in self.order:
+                if self.rates[n] > 1 and self._exchanges(n, t_end):
+                    self._window_start[n] = t_end
+            y = new
+            t = t_end
+            nsteps += 1
+            self.stats["steps"] = nsteps
+            term = [n for n in self.order if self.p[n].terminate_requested]
+            if term:
+                ends = [self.p[n].terminate_time for n in term]
+                t_stop = min((te for te in ends if te is not None and te < t), default=t)
+                self._record(t_stop, y)
+                who = term[ends.index(t_stop)] if t_stop in ends else term[0]
+                return f"participant {who!r} requested termination at t = {t_stop:g} s"
+            if nsteps % o.record_every == 0 or t >= o.stop_time_s - eps:
+                self._record(t, y)
+            h = self._next_h(h, prefs)
+            if ck is not None and (
+                nsteps % o.checkpoint_every == 0
+                if o.checkpoint_every
+                else _time.monotonic() - self._last_ck >= o.checkpoint_wall_s
+            ):
+                if self._replay is None or len(self._rows) >= len(self._replay):
+                    self._replay = None
+                    self._checkpoint(t, h, y, nsteps)
+            if progress is not None:
+                progress(t, o.stop_time_s)
+        return None
 
     def _save_for_reject(self, t: float) -> dict[str, Any]:
         raise CosimFault(
@@ -418,6 +556,15 @@ class Master:
                 self.p[n].terminate()
             except Exception:
                 pass
+
+
+def state_needs(options: Options) -> str:
+    """What in ``options`` needs participants that save and restore their state ("" none)."""
+    if options.max_iterations > 1:
+        return f"iterative coupling (max_iterations={options.max_iterations})"
+    if options.negotiation != "fixed":
+        return f"step negotiation {options.negotiation!r} (steps may be rejected and redone)"
+    return ""
 
 
 def simulate(

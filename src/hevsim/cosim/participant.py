@@ -41,6 +41,22 @@ class Participant(ABC):
     inputs: dict[str, str]
     outputs: dict[str, str]
     terminate_requested: bool = False
+    terminate_time: float | None = None
+    """Where a participant that asked to stop got to [s] (None: the end of the step)."""
+    deterministic: bool = True
+    """Same inputs give the same outputs: a run it cannot checkpoint can be resumed by
+    replaying from the start (the replay is compared with the stored results)."""
+
+    @property
+    def can_save_state(self) -> bool:
+        """Whether :meth:`get_state` / :meth:`set_state` work (iteration, step rejection,
+        checkpoints need them)."""
+        return type(self).get_state is not Participant.get_state
+
+    @property
+    def state_note(self) -> str:
+        """Why the participant cannot save its state (for messages)."""
+        return "it does not implement get_state / set_state"
 
     def setup(self, t0: float) -> None:  # noqa: B027 (optional hook: nothing to prepare by default)
         """Prepare to run from ``t0`` [s] (instantiate, initialise)."""
@@ -309,10 +325,13 @@ class FMUParticipant(Participant):
     FMU's Real (FMI 3: scalar Float64) variables of causality input / output, with their
     declared units. State save/restore uses FMI get/set FMU state where the FMU supports it.
 
-    FMI 3.0: a step returned with ``terminateSimulation`` sets :attr:`terminate_requested`; a
-    step the FMU discards (``fmi3Discard``) is rejected (the master redoes it with a shorter
-    step: ``lastSuccessfulTime - t`` when the FMU got part way, else half), unless the FMU
-    also asks to terminate, which is an error. The FMU is instantiated without early return
+    Early termination: an FMI 3.0 step returned with ``terminateSimulation``, or a step
+    discarded (``fmi2Discard`` / ``fmi3Discard``) by an FMU that then reports termination
+    (FMI 2.0: ``fmi2GetBooleanStatus(fmi2Terminated)``; FMI 3.0: ``terminateSimulation``),
+    sets :attr:`terminate_requested` and :attr:`terminate_time` (the last successful time):
+    the master records that point and ends the run cleanly. Any other discarded step is
+    rejected (the master redoes it with a shorter step: ``lastSuccessfulTime - t`` when the
+    FMU got part way, else half). The FMU is instantiated without early return
     or event mode, and stepped with ``noSetFMUStatePriorToCurrentPoint = false`` (the master
     may restore earlier states when iterating or rejecting steps).
     """
@@ -347,7 +366,10 @@ class FMUParticipant(Participant):
                 raise ConfigError(
                     f"participant {name!r}: FMU {self.fmu.name} has no variable {k!r} (parameter)."
                 )
-        self.can_state = bool(getattr(md.coSimulation, "canGetAndSetFMUstate", False))
+        cs = md.coSimulation
+        self.can_state = bool(getattr(cs, "canGetAndSetFMUstate", False)) and bool(
+            getattr(cs, "canSerializeFMUstate", False)
+        )
         self.slave: Any = None
         self._in_refs: dict[str, int] = {k: self.vr[k] for k in self.inputs}
         self._out_names = list(self.outputs)
@@ -407,15 +429,54 @@ class FMUParticipant(Participant):
             ) from None
         self._set_real(refs, [float(v) for v in values.values()])
 
+    @property
+    def can_save_state(self) -> bool:
+        return self.can_state
+
+    @property
+    def state_note(self) -> str:
+        key = "FMUState" if self.fmi3 else "FMUstate"
+        return f'FMU {self.fmu.name} declares canGetAndSet{key}="false" or canSerialize{key}="false"'
+
     def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
         try:
             if self.fmi3:
                 return self._do_step3(t, h)
-            self.slave.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+            return self._do_step2(t, h)
         except Exception:
             self._failed = True
             raise
-        return True, None
+
+    def _do_step2(self, t: float, h: float) -> tuple[bool, float | None]:
+        """fmi2DoStep; on fmi2Discard ask fmi2GetBooleanStatus(fmi2Terminated): a terminated
+        FMU ends the run at fmi2LastSuccessfulTime (as FMPy does), otherwise the step is
+        rejected (the master redoes it shorter where it can restore states)."""
+        from fmpy.fmi1 import FMICallException
+        from fmpy.fmi2 import fmi2Discard, fmi2LastSuccessfulTime, fmi2Terminated
+
+        try:
+            self.slave.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+        except FMICallException as exc:
+            if exc.status != fmi2Discard:
+                raise
+        else:
+            self.terminate_requested = False
+            return True, None
+        try:
+            terminated = bool(self.slave.getBooleanStatus(fmi2Terminated))
+        except FMICallException:
+            terminated = False
+        last: float | None = None
+        try:
+            last = float(self.slave.getRealStatus(fmi2LastSuccessfulTime))
+        except FMICallException:
+            pass
+        if terminated:
+            self.terminate_requested = True
+            self.terminate_time = last if last is not None and t <= last <= t + h else t + h
+            return True, None
+        self.terminate_requested = False
+        return False, (last - t if last is not None and t < last < t + h else None)
 
     def _do_step3(self, t: float, h: float) -> tuple[bool, float | None]:
         """fmi3DoStep with its status and out-arguments (FMPy's ``doStep`` raises on
@@ -444,11 +505,11 @@ class FMUParticipant(Participant):
                 raise
             discarded = True
         if discarded:
-            if term.value:
-                raise SimulationError(
-                    f"FMU {self.fmu.name} discarded the step from t = {t:g} s and requested termination "
-                    f"at t = {last.value:g} s."
-                )
+            if term.value:  # stop where it got to, as an FMI 2.0 discard + fmi2Terminated
+                self.terminate_requested = True
+                lt = float(last.value)
+                self.terminate_time = lt if t <= lt <= t + h else t
+                return True, None
             reached = float(last.value)
             self.terminate_requested = False
             return False, (reached - t if t < reached < t + h else None)

@@ -17,7 +17,9 @@ Component types in an SSD:
 Master settings go in ``ssd:DefaultExperiment`` (``startTime``, ``stopTime``) and an
 ``ssc:Annotation type="org.hevsim.cosim"`` holding ``<hevsim:Master algorithm=... step_s=...
 negotiation=... max_iterations=... tolerance=... relaxation=... order="a b"
-send_before_receive="a:false" rates="fem:5" fmu_process=.../>``.
+send_before_receive="a:false" rates="fem:5" fmu_process=... checkpoint_every=.../>``
+(``checkpoint_every="50"``: a checkpoint every 50 communication steps; ``"30s"``: every 30 s
+of wall time, the default).
 """
 
 from __future__ import annotations
@@ -54,7 +56,6 @@ OPTION_TYPES: dict[str, Callable[[str], Any]] = {
     "tolerance": float,
     "relaxation": float,
     "hold": str,
-    "checkpoint_every": int,
     "record_every": int,
 }
 
@@ -234,6 +235,17 @@ def _master_options(attrs: dict[str, str], where: str) -> dict[str, Any]:
                 out[k] = {a: int(b) for a, b in _pairs(v, k, where)}
             except ValueError:
                 raise ConfigError(f"{where}: rates={v!r}: expected 'participant:integer ...'.") from None
+        elif k == "checkpoint_every":  # "50": every 50 steps; "30s": every 30 s of wall time
+            try:
+                if v.strip().endswith("s"):
+                    out["checkpoint_wall_s"] = float(v.strip()[:-1])
+                else:
+                    out[k] = int(v)
+            except ValueError:
+                raise ConfigError(
+                    f"{where}: checkpoint_every={v!r}: expected a number of steps ('50') or a "
+                    "wall-clock interval in seconds ('30s')."
+                ) from None
         elif k == "fmu_process":
             if v not in ("worker", "inprocess"):
                 raise ConfigError(f"{where}: fmu_process {v!r}; valid: worker, inprocess.")
@@ -246,7 +258,8 @@ def _master_options(attrs: dict[str, str], where: str) -> dict[str, Any]:
                     f"{where}: attribute {k}={v!r} is not a valid {OPTION_TYPES[k].__name__}."
                 ) from None
         else:
-            valid = sorted([*OPTION_TYPES, "order", "send_before_receive", "rates", "fmu_process"])
+            valid = sorted([*OPTION_TYPES, "order", "send_before_receive", "rates", "fmu_process",
+                            "checkpoint_every"])  # fmt: skip
             raise ConfigError(f"{where}: unknown attribute {k!r}; valid: {', '.join(valid)}.")
     return out
 

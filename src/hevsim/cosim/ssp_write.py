@@ -96,6 +96,8 @@ def ssd_xml(desc: SystemDescription) -> bytes:
                 attrs[key] = " ".join(f"{a}:{str(b).lower()}" for a, b in v.items())
             elif key == "rates":
                 attrs[key] = " ".join(f"{a}:{b}" for a, b in v.items())
+            elif key == "checkpoint_wall_s":
+                attrs.setdefault("checkpoint_every", f"{v!r}s")
             else:
                 attrs[key] = str(v)
         ET.SubElement(ann, q("hevsim", "Master"), attrs)

@@ -39,6 +39,15 @@ class WorkerFMUParticipant(Participant):
             self.close()
             raise ConfigError(str(exc)) from None
         self.inputs, self.outputs = dict(info["inputs"]), dict(info["outputs"])
+        self._can_state, self._state_note = bool(info["can_state"]), str(info["state_note"])
+
+    @property
+    def can_save_state(self) -> bool:
+        return self._can_state
+
+    @property
+    def state_note(self) -> str:
+        return self._state_note
 
     def _rpc(self, cmd: str, **kw: Any) -> Any:
         proc = self.proc
@@ -78,9 +87,10 @@ class WorkerFMUParticipant(Participant):
         self._out = None
 
     def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
-        ok, pref, term, out = self._rpc("step", t=t, h=h, values=self._pending)
+        ok, pref, term, t_term, out = self._rpc("step", t=t, h=h, values=self._pending)
         self._pending = {}
         self.terminate_requested = bool(term)
+        self.terminate_time = t_term
         self._out = out
         return bool(ok), pref
 
