@@ -384,8 +384,13 @@ def _cmd_study(args: argparse.Namespace) -> int:
 
     study = load_study(args.study)
     out = Path(args.out) if args.out else Path("results") / study.name
-    rows = run_study(study, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
-                     force=args.force)  # fmt: skip
+    try:
+        rows = run_study(study, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
+                         force=args.force)  # fmt: skip
+    except KeyboardInterrupt:
+        print(f"hevsim: study interrupted; the finished cases are in {out}/results/ "
+              f"(continue with --resume --out {out})", file=sys.stderr)  # fmt: skip
+        return 130
     ok = int((rows["status"] == "ok").sum())
     print(f"study {study.name}: {len(rows)} of {study.n_cases} cases, {ok} ok, {len(rows) - ok} failed")
     if not args.no_report:
