@@ -1,0 +1,139 @@
+"""Study throughput on Dask against ``simulate_batch`` in one process (issue 17).
+
+Run from the repository root::
+
+    .venv/bin/python benchmarks/bench_study.py [--cases 100000] [--workers 2]
+        [--dp-cases 8 --dp-grid 101]
+
+What is timed (``time.perf_counter``; the numba cache is warmed first):
+
+(a) baseline: ``simulate_batch`` of the series HEV (rule-based) on UDDS with ``--cases``
+    variants (body mass x final-drive ratio from a Latin hypercube) in this process, numba at
+    its default thread count (every core);
+(b) the same cases as a study (``run_study``, ``simulate`` solver) on a ``--workers`` Dask
+    LocalCluster writing its Parquet dataset to a temporary folder: cluster start, planning,
+    batches, writing. Reported: throughput ratio (b)/(a) (target >= 0.8), and the overhead
+    per case ``(t_b - t_a) / cases`` (target <= 1 ms at 100 000 cases);
+(c) the same study in process (no Dask), to separate Dask's cost from the study's own;
+(d) optional DP scaling: ``--dp-cases`` DP cases (parallel HEV, UDDS, ``--dp-grid`` SOC and
+    throttle points) on 1 and on 2 workers: the speed-up.
+
+The 1-minute load average before and after, and the other processes' load during each
+timing, are printed: on a shared machine the ratios, not the absolute figures, are the result.
+The script only reports: it always exits 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from _machine import OtherLoad
+
+REPO = Path(__file__).resolve().parents[1]
+SERIES = REPO / "examples" / "series_hev.toml"
+PARALLEL = REPO / "examples" / "parallel_hev.toml"
+
+
+def _load() -> str:
+    one, five, _ = os.getloadavg()
+    return f"load average {one:.2f} (1 min), {five:.2f} (5 min) on {os.cpu_count()} cores"
+
+
+def _study(cases: int) -> object:
+    from hevsim.studies.spec import study_from_dict
+
+    return study_from_dict({
+        "name": "bench", "vehicle": str(SERIES), "cycles": ["udds"], "metrics": ["mpgge", "soc_final"],
+        "sampling": {"method": "lhs", "samples": cases, "seed": 1},
+        "parameters": {"body.mass_kg": {"min": 1100.0, "max": 1500.0},
+                       "final_drive.ratio": {"min": 3.0, "max": 5.0}},
+        "solvers": [{"name": "simulate"}],
+    })  # fmt: skip
+
+
+def bench_simulate(cases: int, workers: int) -> None:
+    from hevsim.config import load_vehicle_config
+    from hevsim.sim.model import build_series_hev
+    from hevsim.sim.simulator import simulate_batch
+    from hevsim.studies.runner import run_study
+
+    study = _study(cases)
+    hev = build_series_hev(load_vehicle_config(SERIES))
+    values = study.values  # type: ignore[attr-defined]
+    simulate_batch(hev, {"mass_kg": values[:4, 0], "gear_ratio": values[:4, 1]}, cycle="udds")  # warm-up
+    print(f"(a) simulate_batch, {cases} UDDS variants in one process ...", flush=True)
+    with OtherLoad() as la:
+        t0 = time.perf_counter()
+        base = simulate_batch(hev, {"mass_kg": values[:, 0], "gear_ratio": values[:, 1]}, cycle="udds")
+        t_a = time.perf_counter() - t0
+    print(f"    {t_a:.2f} s, {cases / t_a:,.0f} cases/s ({la.text()})")
+    with tempfile.TemporaryDirectory() as tmp:
+        print(
+            f"(b) run_study on a {workers}-worker LocalCluster, Parquet to a temporary folder ...", flush=True
+        )
+        with OtherLoad() as lb:
+            t0 = time.perf_counter()
+            rows = run_study(study, Path(tmp) / "dask", workers=workers, progress=False)  # type: ignore[arg-type]
+            t_b = time.perf_counter() - t0
+        print(f"    {t_b:.2f} s, {cases / t_b:,.0f} cases/s ({lb.text()})")
+        print("(c) run_study in process (no Dask) ...", flush=True)
+        with OtherLoad() as lc:
+            t0 = time.perf_counter()
+            run_study(study, Path(tmp) / "inproc", scheduler="in-process", progress=False)  # type: ignore[arg-type]
+            t_c = time.perf_counter() - t0
+        print(f"    {t_c:.2f} s, {cases / t_c:,.0f} cases/s ({lc.text()})")
+    same = np.array_equal(rows["mpgge"].to_numpy(), base.table["mpgge"].to_numpy())
+    print(f"    study rows equal simulate_batch's: {same}")
+    print(f"throughput ratio (b)/(a) = {t_a / t_b:.2f}  (target >= 0.80)")
+    print(
+        f"overhead per case (b) - (a) = {(t_b - t_a) / cases * 1e3:.3f} ms  (target <= 1 ms at 100 000 cases)"
+    )
+    print(f"in-process study (c)/(a) = {t_a / t_c:.2f}")
+
+
+def bench_dp(cases: int, grid: int) -> None:
+    from hevsim.studies.runner import run_study
+    from hevsim.studies.spec import study_from_dict
+
+    study = study_from_dict({
+        "name": "bench_dp", "vehicle": str(PARALLEL), "cycles": ["udds"], "metrics": ["mpgge"],
+        "sampling": {"method": "lhs", "samples": cases, "seed": 2},
+        "parameters": {"motor.torque_scale": {"min": 0.7, "max": 1.0},
+                       "battery.capacity_ah": {"min": 4.0, "max": 6.0}},
+        "solvers": [{"name": "optimize", "soc_grid_points": grid, "input_grid_points": grid}],
+    })  # fmt: skip
+    times = {}
+    for w in (1, 2):
+        print(f"(d) {cases} DP cases ({grid} x {grid}, UDDS) on {w} worker(s) ...", flush=True)
+        with OtherLoad() as ld:
+            t0 = time.perf_counter()
+            rows = run_study(study, workers=w, progress=False)
+            times[w] = time.perf_counter() - t0
+        print(f"    {times[w]:.1f} s, {int((rows['status'] == 'ok').sum())} ok ({ld.text()})")
+    print(f"DP speed-up 1 -> 2 workers: {times[1] / times[2]:.2f}x")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", type=int, default=100_000)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--dp-cases", type=int, default=0, help="DP cases for the scaling run (0: skip)")
+    ap.add_argument("--dp-grid", type=int, default=101)
+    a = ap.parse_args()
+    print(f"python {sys.version.split()[0]}; {_load()}")
+    bench_simulate(a.cases, a.workers)
+    if a.dp_cases:
+        bench_dp(a.dp_cases, a.dp_grid)
+    print(f"after: {_load()}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
