@@ -8,6 +8,7 @@ battery eqs 13 and 21).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -15,6 +16,7 @@ import numpy as np
 import pytest
 
 import hevsim.optimal._solver as dp_solver
+from hevsim.components.electric_machine import ElectricMachine
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DPInfeasibleError, DPSetupError
 from hevsim.optimal import ARCHITECTURES, OptimizationResult, optimize
@@ -88,6 +90,25 @@ def test_replay_reproduces_dp_fuel_and_soc(hev: ParallelHEV, window_run: Optimiz
     assert dp_fuel > 0
     assert abs(fuel - dp_fuel) <= 0.005 * dp_fuel  # issue 3: within 0.5 %
     assert abs(fuel - window_run.dp.total_cost) <= 1e-9 * dp_fuel  # in fact exact
+    assert np.max(np.abs(soc - ts["soc"].to_numpy())) < 1e-9
+
+
+@pytest.mark.parametrize("scale", [0.7, 1.4])
+def test_replay_with_a_scaled_map_motor(hev: ParallelHEV, scale: float) -> None:
+    """Issue 18: a sized map machine (efficiency map read at torque / torque_scale) replays
+    within the same bound as the example's constant-efficiency machine."""
+    folder = ROOT / "src" / "hevsim" / "data" / "components" / "motors" / "honda_pm49"
+    motor = ElectricMachine.from_directory(folder, torque_scale=scale)
+    scaled = dataclasses.replace(hev, motor=motor)
+    run = optimize(scaled, "fu505", soc_grid_points=101, input_grid_points=51)
+    ts = run.timeseries
+    gear = ts["gear"].to_numpy()[:-1]
+    thr = ts["engine_throttle"].to_numpy()[:-1]
+    fuel, soc, _ = replay(scaled, run.cycle, gear, thr, float(ts["soc"].iloc[0]))
+    dp_fuel = run.value("fuel_kg")
+    assert dp_fuel > 0
+    assert abs(fuel - dp_fuel) <= 0.005 * dp_fuel
+    assert abs(fuel - run.dp.total_cost) <= 1e-9 * dp_fuel
     assert np.max(np.abs(soc - ts["soc"].to_numpy())) < 1e-9
 
 

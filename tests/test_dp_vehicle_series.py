@@ -8,6 +8,8 @@ traction motor, generator on the engine shaft, battery closing the DC bus (eqs 1
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -81,6 +83,27 @@ def test_replay_reproduces_dp_fuel_and_soc(hev: SeriesHEV, run: OptimizationResu
     # the genset delivers the scheduled electrical power
     p_sched = ts["genset_power_w"].to_numpy()[:-1]
     assert np.allclose(rows[:, 4], p_sched, rtol=1e-3, atol=1.0)
+
+
+@pytest.mark.parametrize("scale", [0.7, 1.4])
+def test_replay_with_scaled_machines(hev: SeriesHEV, scale: float) -> None:
+    """Issue 18: sized machines (torque axis of the efficiency map scaled with the machine)
+    replay as tightly as the unscaled ones, and the sizing does change the losses."""
+    mot = dataclasses.replace(hev.traction_motor, torque_scale=scale)
+    gen = dataclasses.replace(hev.generator, torque_scale=scale)
+    assert mot.kind == gen.kind == "map"
+    scaled = dataclasses.replace(hev, traction_motor=mot, generator=gen)
+    run = optimize(scaled, "fu505", soc_grid_points=101, input_grid_points=51)
+    ts = run.timeseries
+    w_e = ts["engine_speed_radps"].to_numpy()[:-1]
+    t_e = ts["engine_torque_nm"].to_numpy()[:-1]
+    fuel, soc, _ = replay(scaled, run.cycle, w_e, t_e, float(ts["soc"].iloc[0]))
+    dp_fuel = run.value("fuel_kg")
+    assert abs(fuel - dp_fuel) <= 0.005 * dp_fuel
+    assert abs(fuel - run.dp.total_cost) <= 1e-9 * dp_fuel
+    assert np.max(np.abs(soc - ts["soc"].to_numpy())) < 1e-9
+    t_m, w_m = ts["motor_torque_nm"].to_numpy(), ts["motor_speed_radps"].to_numpy()
+    assert not np.allclose(mot.electrical_power(t_m, w_m), hev.traction_motor.electrical_power(t_m, w_m))
 
 
 def test_charge_sustaining_and_limits(hev: SeriesHEV, run: OptimizationResult) -> None:
