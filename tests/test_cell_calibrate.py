@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hevsim.battery import kernel as K
 from hevsim.battery import load_cell_parameters
 from hevsim.battery.calibrate import CellTestRecord, calibrate, simulate_record
 from hevsim.errors import InputError
@@ -93,3 +94,143 @@ def test_calibrate_and_cell_commands(tmp_path: Path, capsys: pytest.CaptureFixtu
     root = Path(__file__).resolve().parents[1]
     assert main(["cell", str(root / "examples" / "cell.toml"), "--out", str(tmp_path / "cell")]) == 0
     assert (tmp_path / "cell" / "timeseries.csv").is_file()
+
+
+# --- full calibration (issue 14): OCV and R_s tables, RC, charge transfer, thermal -------------
+
+_AXIS = np.array([0.0, 0.65, 0.75, 0.85, 0.95, 1.0])
+_OCV = np.array([3.3, 3.85, 3.93, 4.02, 4.10, 4.14])
+_RS = np.array([0.024, 0.021, 0.020, 0.019, 0.018, 0.018])
+
+
+def _true_cell(rc=((0.006, 12.0), (0.010, 200.0)), i0=4.0):
+    from hevsim.battery.params import (
+        CapacitySection,
+        ChargeTransferSection,
+        ModelSection,
+        ThermalSection,
+    )
+
+    p = load_cell_parameters("thesis_table_4_1")
+    rc_arr = np.array(rc, float)
+    return p.replace(
+        soc=_AXIS, temperature_k=np.array([298.15]), capacity_factor=np.ones(1),
+        ocv_charge_v=_OCV[:, None].copy(), ocv_discharge_v=_OCV[:, None].copy(),
+        rs_charge_ohm=_RS[:, None].copy(), rs_discharge_ohm=_RS[:, None].copy(),
+        rc_discharge=rc_arr, rc_charge=rc_arr.copy(),
+        capacity=CapacitySection(c0_c=5.0 * 3600.0, t_ref_k=298.15),
+        resistance=p.resistance.__class__(alpha_rs_per_k=0.0),
+        thermal=ThermalSection(70.0, 8.0),
+        model=ModelSection(rc_mode="persistent", ocv_mode="step_consistent"),
+        charge_transfer=ChargeTransferSection(i0_a=i0, scale=1.5) if i0 else ChargeTransferSection(),
+    )  # fmt: skip
+
+
+def _hppc(p, levels: int, seed: int = 1) -> CellTestRecord:
+    """Pulses 1C/2C/3C both ways at each level, 0.1 SOC discharges, 900 s rests; noisy."""
+    from hevsim.battery.identify import _simulate
+
+    seg = [(0.0, 600)]
+    for _ in range(levels):
+        for rate in (1.0, 2.0, 3.0):
+            seg += [(5 * rate, 10), (0.0, 40), (-5 * rate, 10), (0.0, 40)]
+        seg += [(5.0, 360), (0.0, 900)]
+    cur = np.concatenate([np.full(d, c) for c, d in seg])
+    t = np.arange(1, cur.size + 1, dtype=float)
+    v, temp = _simulate(p, CellTestRecord(t, cur, t * 0, t * 0 + 298.15), 0.95, 298.15, 298.15)
+    rng = np.random.default_rng(seed)
+    v = v + rng.normal(0, 0.5e-3, v.size)
+    return CellTestRecord(t, cur, v, temp + rng.normal(0, 0.02, v.size), "synthetic")
+
+
+@pytest.fixture(scope="module")
+def identified():
+    from hevsim.battery.identify import identify
+
+    rec = _hppc(_true_cell(), levels=3)
+    return rec, identify("thesis_table_4_1", rec, soc_initial=0.95, capacity_ah=5.0, port_temp_k=298.15)
+
+
+def test_full_calibration_recovers_ocv_and_r_tables_rc_charge_transfer_thermal(identified) -> None:
+    _, res = identified
+    tab = res.parameters.set_index("name")
+    for s, v in zip(_AXIS[1:-1], _OCV[1:-1], strict=True):
+        assert tab.loc[f"ocv_v[soc={s:.3f}]", "value"] == pytest.approx(v, abs=0.5e-3)
+    for s, r in zip(_AXIS[1:-1], _RS[1:-1], strict=True):
+        assert tab.loc[f"rs_ohm[soc={s:.3f}]", "value"] == pytest.approx(r, rel=0.05)
+    truth = {"rc[0].r_ohm": 0.006, "rc[0].tau_s": 12.0, "rc[1].r_ohm": 0.010, "rc[1].tau_s": 200.0,
+             "ct_i0_a": 4.0, "ct_scale": 1.5, "c_heat_j_per_k": 70.0, "r_skin_k_per_w": 8.0}  # fmt: skip
+    for name, v in truth.items():
+        row = tab.loc[name]
+        assert row["value"] == pytest.approx(v, rel=0.1 if name.startswith("ct") else 0.02), name
+        assert row["flag"] == "", name
+    # the intervals cover the truth (a 99.9 % margin: 3.3 standard errors)
+    for name, v in truth.items():
+        assert abs(tab.loc[name, "value"] - v) < 3.3 * tab.loc[name, "std_error"] + 1e-3 * v, name
+    assert res.rmse["voltage_v"] < 0.6e-3 and res.rmse["temp_k"] < 0.025
+    assert res.flagged().empty
+
+
+def test_full_calibration_writes_a_loadable_parameter_set(identified, tmp_path: Path) -> None:
+    from hevsim.battery.identify import _simulate
+    from hevsim.battery.vehicle import ecm_kernel_tables
+
+    rec, res = identified
+    out = res.save(tmp_path / "cal")
+    files = {f.name for f in out.iterdir()}
+    assert {"cell.toml", "tables.csv", "parameters.csv", "fit.json", "timeseries.csv", "fit.png"} <= files
+    p = load_cell_parameters(out / "cell.toml")
+    assert p.model.rc_mode == "persistent" and p.charge_transfer.i0_a == res.params.charge_transfer.i0_a
+    text = (out / "cell.toml").read_text()
+    assert "source_sha256" in text and "fitted_soc_range" in text
+    v, _ = _simulate(p, rec, 0.95, 298.15, 298.15)
+    np.testing.assert_allclose(v, res.timeseries["voltage_fitted_v"], atol=1e-9)
+
+    bat = ecm_kernel_tables(p, 96, 1, 0.8, 298.15, dt_s=1.0)  # the vehicle's cell pack takes it
+    assert bat.params[K.RCPERS] == 1.0 and bat.params[K.CTI0] > 0
+
+
+def test_full_calibration_flags_an_unidentifiable_parameter() -> None:
+    """A third RC pair the data cannot tell from the second is flagged with the reason."""
+    from hevsim.battery.identify import identify
+
+    rec = _hppc(_true_cell(i0=0.0), levels=1, seed=2)
+    res = identify(
+        "thesis_table_4_1", rec, soc_initial=0.95, capacity_ah=5.0, port_temp_k=298.15, n_rc=3,
+        charge_transfer=False,
+    )  # fmt: skip
+    flagged = res.flagged()
+    assert not flagged.empty
+    assert flagged["name"].str.startswith("rc[").all()
+    assert flagged["flag"].str.contains("correlation|standard error|longer than|bound").all()
+
+
+def test_full_calibration_bad_inputs_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import pandas as pd
+
+    from hevsim.cli import main
+
+    t = np.arange(1.0, 401.0)
+    i = np.where(t % 20 < 10, 5.0, -5.0)  # pulses, never a rest
+    f = tmp_path / "norest.csv"
+    pd.DataFrame({"time_s": t, "current_a": i, "voltage_v": 3.7 - 0.02 * i, "temp_k": 298.15}).to_csv(
+        f, index=False
+    )
+    base = ["calibrate", "thesis_table_4_1"]
+    assert main([*base, str(f), "--capacity-ah", "5", "--out", str(tmp_path / "o1")]) == 2
+    assert "no rest periods" in capsys.readouterr().err
+    g = tmp_path / "nocurrent.csv"
+    g.write_text("time_s,voltage_v,temp_k\n1,3.7,298\n2,3.7,298\n3,3.7,298\n")
+    assert main([*base, str(g), "--out", str(tmp_path / "o2")]) == 2
+    assert "current_a" in capsys.readouterr().err
+    h = tmp_path / "backwards.csv"
+    h.write_text("time_s,current_a,voltage_v,temp_k\n1,0,3.7,298\n2,0,3.7,298\n3,0,3.7,298\n2,0,3.7,298\n")
+    assert main([*base, str(h), "--out", str(tmp_path / "o3")]) == 2
+    assert "time_s" in capsys.readouterr().err
+    bad = tmp_path / "bad.toml"
+    text = Path(load_cell_parameters("thesis_table_4_1").source).read_text()
+    bad.write_text(text.replace("rs_charge_ohm", "rs_charge_ohm_missing"))
+    assert main(["calibrate", str(bad), str(f), "--out", str(tmp_path / "o4")]) == 2
+    assert "rs_charge_ohm" in capsys.readouterr().err
+    assert main([*base, str(f), "--capacity-ah", "-1", "--out", str(tmp_path / "o5")]) == 2
+    assert "capacity" in capsys.readouterr().err

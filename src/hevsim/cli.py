@@ -218,8 +218,14 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     check_option("--ambient-c", args.ambient_c, CellSection, "temp_c")
 
     out = Path(args.out) if args.out else Path("results") / f"calibration_{Path(args.test).stem}"
-    _prepare(args, out, args.params, args.test)
+    _prepare(args, out, args.params, args.test, args.validate)
     record = CellTestRecord.from_csv(args.test)
+    if args.fit is None:
+        return _calibrate_full(args, record, out)
+    if args.validate is not None:
+        from hevsim.errors import InputError
+
+        raise InputError("calibrate: --validate needs the full calibration (leave out --fit).")
     result = calibrate(
         args.params,
         record,
@@ -233,6 +239,43 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     for sig, err in result.rmse.items():
         print(f"  RMSE {sig:<23}{err:>12.4g}")
     print(f"results written to {out}/ (fit.json, timeseries.csv, overlay.png)")
+    return 0
+
+
+def _calibrate_full(args: argparse.Namespace, record: Any, out: Path) -> int:
+    """``hevsim calibrate`` without ``--fit``: OCV, R_s, RC, charge transfer and thermal
+    (:func:`hevsim.battery.identify.identify`), optionally validated on ``--validate``."""
+    from hevsim.battery.calibrate import CellTestRecord
+    from hevsim.battery.identify import identify, validate
+    from hevsim.units import c_to_k
+
+    result = identify(
+        args.params,
+        record,
+        soc_initial=args.soc_initial,
+        capacity_ah=args.capacity_ah,
+        port_temp_k=c_to_k(args.ambient_c) if args.ambient_c is not None else None,
+        n_rc=args.n_rc,
+        charge_transfer=not args.no_charge_transfer,
+    )
+    if args.validate is not None:
+        result = validate(result, CellTestRecord.from_csv(args.validate), soc_initial=args.validate_soc)
+    result.save(out)
+    for row in result.parameters.to_dict(orient="records"):
+        flag = f"  UNIDENTIFIABLE: {row['flag']}" if row["flag"] else ""
+        ci = f"95% [{row['ci95_low']:.4g}, {row['ci95_high']:.4g}]"
+        print(f"  {row['name']:<24}{row['value']:>12.5g} {row['unit']:<4} {ci}{flag}")
+    rmse = result.rmse
+    print(
+        f"  RMSE voltage {1e3 * rmse['voltage_v']:.2f} mV (max {1e3 * rmse['voltage_max_v']:.1f} mV), "
+        f"temperature {rmse['temp_k']:.3g} K"
+    )
+    if result.validation_errors is not None:
+        print(f"validation on {args.validate}:")
+        for r in result.validation_errors.to_dict(orient="records"):
+            err = f"RMSE {1e3 * float(r['rmse_v']):6.2f} mV  max {1e3 * float(r['max_abs_v']):6.1f} mV"
+            print(f"  {r['range']:<10}{r['samples']:>7} samples  {err}")
+    print(f"results written to {out}/ (cell.toml: the parameter set; {_written(out)})")
     return 0
 
 
@@ -523,11 +566,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--fit",
         nargs="+",
-        required=True,
         metavar="NAME=INIT,LO,HI",
-        help="parameters to fit with initial value and bounds (see hevsim.battery.calibrate.FITTABLE)",
+        help="fit only these parameters (initial value and bounds; see hevsim.battery.calibrate.FITTABLE); "
+        "without --fit: the full calibration (OCV from rests, R_s from steps, RC, charge transfer, "
+        "thermal) writing a complete parameter set cell.toml",
     )
     p.add_argument("--soc-initial", type=float, default=1.0, help="SOC at the start of the test")
+    p.add_argument("--capacity-ah", type=float, help="full calibration: capacity [A h] (default: params)")
+    p.add_argument("--n-rc", type=int, default=2, choices=(1, 2, 3), help="full calibration: RC pairs")
+    p.add_argument(
+        "--no-charge-transfer", action="store_true", help="full calibration: no Butler-Volmer term"
+    )
+    p.add_argument("--validate", metavar="FILE", help="full calibration: validation test CSV (drive cycle)")
+    p.add_argument(
+        "--validate-soc", type=float, help="SOC at the start of --validate (default: from its first voltage)"
+    )
     p.add_argument("--ambient-c", type=float, help="heat-port temperature [degC] (default: first sample)")
     p.add_argument("--out", help="results folder")
     _add_force(p, "folder at --out")

@@ -1,0 +1,645 @@
+"""End-to-end cell identification from a pulse / HPPC test (issue 14; ``hevsim calibrate``
+without ``--fit``).
+
+Order of the steps (each feeds the next as its initial guess):
+
+1. **OCV(SOC) from the rests.** SOC by coulomb counting from ``soc_initial`` and the capacity
+   of the base set; every rest (``|i| <= rest_band_a`` for at least ``min_rest_s``) gives one
+   OCV point, extrapolated to full relaxation with ``V(t) = OCV - d exp(-t/tau)`` fitted to the
+   rest's last three quarters (the correction is capped at the voltage change over that part).
+2. **R_s(SOC) from the instantaneous steps**: ``-dV/dI`` over one sample at every current step.
+3. **Least squares** on the voltage (``scipy.optimize.least_squares``): the OCV and R_s
+   values at the tested SOC breakpoints, ``n_rc`` persistent RC pairs (same in both
+   directions), and the Butler-Volmer charge-transfer term (``i0``, ``scale``); the model
+   options are ``rc_mode = "persistent"`` and ``ocv_mode = "step_consistent"``.
+4. **Thermal**: the heat capacity and skin resistance on the temperature, with the electrical
+   parameters fixed.
+
+Every fitted parameter is reported with its standard error and 95 % interval (from the
+Jacobian at the optimum; log-parameters give asymmetric intervals) and flagged when the test
+cannot identify it: a time constant longer than the longest constant-current segment, a
+correlation above 0.95 with another parameter together with a relative standard error above
+10 % (a strong correlation alone is noted, not flagged), a value at a bound, or a standard
+error larger than the value. The result writes a complete parameter set (``cell.toml``, loadable by
+``hevsim cell``, the module, the FMU export and the vehicle's ``battery.model = "cell"``) with
+its provenance, the tables as CSV, the parameter table with intervals and flags, and plots.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import hashlib
+import itertools
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from hevsim.battery import kernel as K
+from hevsim.battery.calibrate import CellTestRecord
+from hevsim.battery.params import (
+    CapacitySection,
+    CellParameters,
+    ChargeTransferSection,
+    ModelSection,
+    ThermalSection,
+    load_cell_parameters,
+)
+from hevsim.errors import InputError
+from hevsim.io import atomic_directory, write_json
+from hevsim.tables import FloatArray
+
+CORRELATION_LIMIT = 0.95
+"""|correlation| above which two fitted parameters are flagged as not separable."""
+RELATIVE_ERROR_LIMIT = 0.1
+"""Relative standard error above which a strongly correlated parameter is flagged (below it the
+correlation is only noted: the test separates the pair well enough)."""
+CURRENT_BINS_C = (0.0, 0.5, 1.0, 2.0, 3.0, np.inf)
+"""Current ranges [C-rate] of the validation error table."""
+
+
+@dataclass
+class Identification:
+    """Result of :func:`identify`: the parameter set, the parameter table and the fits."""
+
+    params: CellParameters
+    parameters: pd.DataFrame
+    rmse: dict[str, float]
+    timeseries: pd.DataFrame
+    validation: pd.DataFrame | None = None
+    validation_errors: pd.DataFrame | None = None
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def flagged(self) -> pd.DataFrame:
+        """Rows of the parameter table the test cannot identify."""
+        return self.parameters[self.parameters["flag"] != ""]
+
+    def save(self, out_dir: str | Path, force: bool = False) -> Path:
+        """Write cell.toml, tables.csv, parameters.csv, fit.json, timeseries.csv, fit.png (and
+        validation.csv, validation_errors.csv, validation.png) atomically."""
+        with atomic_directory(out_dir, force=force) as tmp:
+            (tmp / "cell.toml").write_text(parameter_toml(self.params, self.metadata))
+            table_frame(self.params).to_csv(tmp / "tables.csv", index=False)
+            self.parameters.to_csv(tmp / "parameters.csv", index=False)
+            write_json(
+                tmp / "fit.json",
+                {
+                    "rmse": self.rmse,
+                    "parameters": self.parameters.to_dict(orient="records"),
+                    **self.metadata,
+                },
+            )
+            self.timeseries.to_csv(tmp / "timeseries.csv", index=False)
+            plot_fit(self.timeseries, tmp / "fit.png", "calibration")
+            if self.validation is not None and self.validation_errors is not None:
+                self.validation.to_csv(tmp / "validation.csv", index=False)
+                self.validation_errors.to_csv(tmp / "validation_errors.csv", index=False)
+                plot_fit(self.validation, tmp / "validation.png", "validation")
+        return Path(out_dir)
+
+
+# --- steps 1 and 2 ----------------------------------------------------------------------------
+
+
+def coulomb_soc(rec: CellTestRecord, soc_initial: float, capacity_c: float) -> FloatArray:
+    """SOC [-] at each row (end of the row's step) by coulomb counting."""
+    return soc_initial - np.cumsum(rec.current_a) * rec.dt_s / capacity_c
+
+
+def find_rests(rec: CellTestRecord, band_a: float, min_rest_s: float) -> list[tuple[int, int]]:
+    """Row ranges ``(first, last)`` (inclusive) of rests: ``|i| <= band_a`` for ``>= min_rest_s``."""
+    still = np.abs(rec.current_a) <= band_a
+    out = []
+    k = 0
+    n = still.size
+    while k < n:
+        if still[k]:
+            j = k
+            while j + 1 < n and still[j + 1]:
+                j += 1
+            if (j - k + 1) * rec.dt_s >= min_rest_s:
+                out.append((k, j))
+            k = j + 1
+        else:
+            k += 1
+    return out
+
+
+def relaxed_voltage(t_s: FloatArray, v: FloatArray) -> float:
+    """Fully relaxed voltage [V] of a rest: ``OCV - d exp(-t/tau)`` fitted over the last three
+    quarters (tau on a log grid, 5 s to 10x the rest); the step from the last sample is capped
+    at the voltage change over the fitted part."""
+    a = v.size // 4
+    t, y = t_s[a:] - t_s[a], v[a:]
+    best = (np.inf, float(y[-1]))
+    for tau in np.geomspace(5.0, 10.0 * max(t[-1], 1.0), 60):
+        basis = np.c_[np.ones_like(t), np.exp(-t / tau)]
+        coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
+        ssr = float(np.sum((basis @ coef - y) ** 2))
+        if ssr < best[0]:
+            best = (ssr, float(coef[0]))
+    cap = abs(float(y[-1] - y[0]))
+    return float(y[-1] + np.clip(best[1] - y[-1], -cap, cap))
+
+
+def ocv_points(
+    rec: CellTestRecord, soc: FloatArray, rests: list[tuple[int, int]]
+) -> tuple[FloatArray, FloatArray]:
+    """(SOC [-], relaxed OCV [V]) per rest, merged where the SOC is within 0.01."""
+    pts = sorted(
+        (float(soc[j]), relaxed_voltage(rec.time_s[k : j + 1], rec.voltage_v[k : j + 1])) for k, j in rests
+    )
+    s_out: list[float] = []
+    v_out: list[list[float]] = []
+    for s, v in pts:
+        if s_out and s - s_out[-1] < 0.01:
+            v_out[-1].append(v)
+        else:
+            s_out.append(s)
+            v_out.append([v])
+    return np.array(s_out), np.array([float(np.mean(v)) for v in v_out])
+
+
+def step_resistances(
+    rec: CellTestRecord, soc: FloatArray, min_step_a: float
+) -> tuple[FloatArray, FloatArray]:
+    """(SOC [-], resistance [ohm]) of every current step larger than ``min_step_a``: ``-dV/dI``
+    over one sample."""
+    di = np.diff(rec.current_a)
+    dv = np.diff(rec.voltage_v)
+    k = np.flatnonzero(np.abs(di) >= min_step_a)
+    r = -dv[k] / di[k]
+    ok = r > 0
+    return soc[k[ok]], r[ok]
+
+
+# --- step 3 and 4: least squares --------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Param:
+    name: str
+    unit: str
+    log: bool
+    lo: float
+    hi: float
+
+
+def _simulate(p: CellParameters, rec: CellTestRecord, soc_initial: float, port_k: float, t0_k: float):
+    vec = p.vector(soc_initial)
+    x = p.initial_state(t0_k)
+    n = rec.time_s.size
+    out = np.empty((n, len(K.RECORD)))
+    K.run_cell(vec, *p.tables(), x, rec.current_a, rec.dt_s, np.full(n, port_k), out)  # type: ignore[call-arg]
+    return out[:, K.RV], out[:, K.RTEMP]
+
+
+def _longest_segment_s(rec: CellTestRecord) -> float:
+    """Longest run of (nearly) constant current [s]."""
+    i = rec.current_a
+    tol = 1e-3 * max(float(np.max(np.abs(i))), 1e-9)
+    change = np.flatnonzero(np.abs(np.diff(i)) > tol)
+    edges = np.r_[-1, change, i.size - 1]
+    return float(np.max(np.diff(edges)) * rec.dt_s)
+
+
+def _stats(sol: Any, specs: list[_Param], longest_s: float) -> pd.DataFrame:
+    """Parameter table with standard errors, 95 % intervals, correlations and flags."""
+    n = len(specs)
+    m = sol.fun.size
+    ssr = float(sol.fun @ sol.fun)
+    jac = sol.jac
+    with np.errstate(all="ignore"):
+        try:
+            cov = np.linalg.pinv(jac.T @ jac) * ssr / max(m - n, 1)
+        except np.linalg.LinAlgError:
+            cov = np.full((n, n), np.nan)
+        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        corr = cov / np.outer(std, std)
+    rows = []
+    for k, s in enumerate(specs):
+        th = float(sol.x[k])
+        value = float(np.exp(th)) if s.log else th
+        lo, hi = (
+            (value * np.exp(-1.96 * std[k]), value * np.exp(1.96 * std[k]))
+            if s.log
+            else (th - 1.96 * std[k], th + 1.96 * std[k])
+        )
+        se = value * std[k] if s.log else std[k]
+        reasons = []
+        if s.name.endswith("tau_s") and value > longest_s:
+            reasons.append(
+                f"time constant {value:.4g} s longer than the longest pulse or rest ({longest_s:.4g} s)"
+            )
+        width = s.hi - s.lo
+        if min(th - s.lo, s.hi - th) <= 1e-3 * width:
+            reasons.append("at a bound of its search range")
+        rel = std[k] if s.log else (se / abs(value) if value else np.inf)
+        others = [(abs(corr[k, j]), specs[j].name) for j in range(n) if j != k and np.isfinite(corr[k, j])]
+        note = ""
+        if others:
+            c, other = max(others)
+            if c > CORRELATION_LIMIT:
+                note = f"correlation {c:.3f} with {other}"
+                if rel > RELATIVE_ERROR_LIMIT:  # correlated and poorly determined
+                    reasons.append(note)
+        if not np.isfinite(rel) or rel > 1.0:
+            reasons.append("standard error larger than the value")
+        rows.append(
+            {
+                "name": s.name,
+                "value": value,
+                "unit": s.unit,
+                "std_error": float(se),
+                "ci95_low": float(lo),
+                "ci95_high": float(hi),
+                "flag": "; ".join(reasons),
+                "note": note,
+            }
+        )
+    return pd.DataFrame(rows)
+
+
+def _with(p: CellParameters, **kw: Any) -> CellParameters:
+    return dataclasses.replace(p, **kw)
+
+
+def identify(
+    base: CellParameters | str | Path,
+    record: CellTestRecord,
+    soc_initial: float = 1.0,
+    capacity_ah: float | None = None,
+    port_temp_k: float | None = None,
+    n_rc: int = 2,
+    charge_transfer: bool = True,
+    rest_band_a: float | None = None,
+    min_rest_s: float = 300.0,
+    sigma_v: float = 0.001,
+    sigma_t: float = 0.1,
+) -> Identification:
+    """Identify a complete parameter set from ``record`` (module docstring).
+
+    ``base`` supplies what the test does not: voltage limits, ageing factors, the initial
+    thermal values and (unless ``capacity_ah`` [A h] is given) the capacity. ``soc_initial``
+    is the SOC one step before the first row; ``port_temp_k`` (ambient) defaults to the first
+    temperature sample. The record must hold rests for the OCV.
+    """
+    from scipy.optimize import least_squares
+
+    p0 = base if isinstance(base, CellParameters) else load_cell_parameters(base)
+    src = record.source
+    if capacity_ah is not None:
+        if not capacity_ah > 0:
+            raise InputError(f"calibrate: --capacity-ah {capacity_ah!r}: expected a capacity > 0 A h.")
+        p0 = _with(p0, capacity=dataclasses.replace(p0.capacity, c0_c=capacity_ah * 3600.0, k_cqabs=0.0))
+    cap_c = p0.capacity.c0_c
+    if not 0.0 <= soc_initial <= 1.0:
+        raise InputError(f"calibrate: soc_initial {soc_initial!r} must be between 0 and 1.")
+    i_max = float(np.max(np.abs(record.current_a)))
+    if i_max <= 0:
+        raise InputError(f"{src}: column 'current_a' is zero throughout; expected pulses to fit.")
+    band = 1e-3 * i_max if rest_band_a is None else rest_band_a
+    soc = coulomb_soc(record, soc_initial, cap_c)
+    rests = find_rests(record, band, min_rest_s)
+    if not rests:
+        raise InputError(
+            f"{src}: no rest periods (|current_a| <= {band:.3g} A for at least {min_rest_s:g} s): "
+            "the OCV cannot be fitted; add rests to the test or give an OCV table with --fit."
+        )
+    s_pts, v_pts = ocv_points(record, soc, rests)
+    s_r, r_pts = step_resistances(record, soc, 0.1 * i_max)
+    if r_pts.size == 0:
+        raise InputError(f"{src}: no current steps larger than {0.1 * i_max:.3g} A: R_s cannot be fitted.")
+    # SOC axis: the rests' SOCs, plus 0 and 1 (extrapolated, not fitted)
+    axis = np.unique(np.r_[0.0, np.clip(s_pts, 0.0, 1.0), 1.0])
+    tested = (axis >= s_pts.min() - 1e-9) & (axis <= s_pts.max() + 1e-9)
+    ocv_init = np.interp(axis, s_pts, v_pts)
+    if s_pts.size >= 2:  # linear extrapolation of the end segments
+        lo_slope = (v_pts[1] - v_pts[0]) / (s_pts[1] - s_pts[0])
+        hi_slope = (v_pts[-1] - v_pts[-2]) / (s_pts[-1] - s_pts[-2])
+        ocv_init = np.where(axis < s_pts[0], v_pts[0] + lo_slope * (axis - s_pts[0]), ocv_init)
+        ocv_init = np.where(axis > s_pts[-1], v_pts[-1] + hi_slope * (axis - s_pts[-1]), ocv_init)
+    lim = p0.limits
+    ocv_init = np.maximum.accumulate(np.clip(ocv_init, lim.v_min_v, lim.v_max_v))
+    r_init = np.array([float(np.median(r_pts[np.abs(s_r - s) == np.min(np.abs(s_r - s))])) for s in axis])
+    t_meas = record.temp_k
+    port_k = float(t_meas[0]) if port_temp_k is None else float(port_temp_k)
+    longest = _longest_segment_s(record)
+
+    # parameter vector: OCV and log R_s at tested breakpoints, log RC, log ct
+    idx = np.flatnonzero(tested)
+    specs: list[_Param] = []
+    theta0: list[float] = []
+    for k in idx:
+        specs.append(_Param(f"ocv_v[soc={axis[k]:.3f}]", "V", False, lim.v_min_v, lim.v_max_v))
+        theta0.append(float(ocv_init[k]))
+    for k in idx:
+        specs.append(_Param(f"rs_ohm[soc={axis[k]:.3f}]", "ohm", True, np.log(1e-5), np.log(10.0)))
+        theta0.append(float(np.log(0.7 * r_init[k])))
+    taus = np.geomspace(10.0, max(0.5 * longest, 20.0), n_rc) if n_rc > 1 else np.array([60.0])
+    for j in range(n_rc):
+        specs.append(_Param(f"rc[{j}].r_ohm", "ohm", True, np.log(1e-6), np.log(1.0)))
+        theta0.append(float(np.log(0.2 * np.median(r_init))))
+        specs.append(_Param(f"rc[{j}].tau_s", "s", True, np.log(0.5), np.log(1e5)))
+        theta0.append(float(np.log(taus[j])))
+    if charge_transfer:
+        specs.append(_Param("ct_i0_a", "A", True, np.log(1e-3 * i_max), np.log(1e3 * i_max)))
+        theta0.append(float(np.log(i_max)))
+        specs.append(_Param("ct_scale", "-", True, np.log(0.05), np.log(20.0)))
+        theta0.append(0.0)
+    n_ocv = idx.size
+
+    model = ModelSection(rc_mode="persistent", ocv_mode="step_consistent")
+
+    def build(theta: FloatArray) -> CellParameters:
+        ocv = ocv_init.copy()
+        ocv[idx] = theta[:n_ocv]
+        ocv = np.maximum.accumulate(np.clip(ocv, lim.v_min_v, lim.v_max_v))
+        if s_pts.size >= 2:  # keep the extrapolated ends on the fitted end segments
+            lo_i, hi_i = idx[0], idx[-1]
+            if lo_i + 1 <= hi_i:
+                sl = (ocv[lo_i + 1] - ocv[lo_i]) / (axis[lo_i + 1] - axis[lo_i])
+                ocv[:lo_i] = ocv[lo_i] + sl * (axis[:lo_i] - axis[lo_i])
+                sh = (ocv[hi_i] - ocv[hi_i - 1]) / (axis[hi_i] - axis[hi_i - 1])
+                ocv[hi_i + 1 :] = ocv[hi_i] + sh * (axis[hi_i + 1 :] - axis[hi_i])
+            ocv = np.maximum.accumulate(np.clip(ocv, lim.v_min_v, lim.v_max_v))
+        rs = np.interp(axis, axis[idx], np.exp(theta[n_ocv : 2 * n_ocv]))
+        k0 = 2 * n_ocv
+        rc = np.exp(theta[k0 : k0 + 2 * n_rc]).reshape(n_rc, 2) if n_rc else np.zeros((0, 2))
+        ct = ChargeTransferSection()
+        if charge_transfer:
+            ct = ChargeTransferSection(i0_a=float(np.exp(theta[-2])), scale=float(np.exp(theta[-1])))
+        return _with(
+            p0,
+            soc=axis,
+            temperature_k=np.array([p0.capacity.t_ref_k]),
+            ocv_charge_v=ocv[:, None].copy(),
+            ocv_discharge_v=ocv[:, None].copy(),
+            rs_charge_ohm=rs[:, None].copy(),
+            rs_discharge_ohm=rs[:, None].copy(),
+            capacity_factor=np.ones(1),
+            rc_discharge=rc,
+            rc_charge=rc.copy(),
+            model=model,
+            charge_transfer=ct,
+            hysteresis=dataclasses.replace(p0.hysteresis, max_v=0.0),
+            resistance=dataclasses.replace(p0.resistance, alpha_rs_per_k=0.0),
+            capacity=dataclasses.replace(p0.capacity, alpha_c_per_k=0.0),
+            source=f"calibrated from {src}",
+        )
+
+    def res_v(theta: FloatArray) -> FloatArray:
+        v, _ = _simulate(build(theta), record, soc_initial, port_k, port_k)
+        return (v - record.voltage_v) / sigma_v
+
+    lo = np.array([s.lo for s in specs])
+    hi = np.array([s.hi for s in specs])
+    x0 = np.clip(np.array(theta0), lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
+    sol_v = least_squares(res_v, x0, bounds=(lo, hi), x_scale="jac", ftol=1e-10, xtol=1e-10, max_nfev=100)
+    p_el = build(sol_v.x)
+    table = _stats(sol_v, specs, longest)
+
+    # thermal: log C_heat, log R_skin with the electrical parameters fixed
+    has_t = bool(np.any(np.abs(t_meas - t_meas[0]) > 1e-9))
+    nfev_t = 0
+    p_fit = p_el
+    if has_t:
+        th = p0.thermal
+        t_specs = [
+            _Param("c_heat_j_per_k", "J/K", True, np.log(1e-2), np.log(1e6)),
+            _Param("r_skin_k_per_w", "K/W", True, np.log(1e-3), np.log(1e4)),
+        ]
+
+        def with_thermal(theta: FloatArray) -> CellParameters:
+            return _with(p_el, thermal=ThermalSection(float(np.exp(theta[0])), float(np.exp(theta[1]))))
+
+        def res_t(theta: FloatArray) -> FloatArray:
+            _, t = _simulate(with_thermal(theta), record, soc_initial, port_k, port_k)
+            return (t - t_meas) / sigma_t
+
+        t0 = np.log([th.c_heat_j_per_k, th.r_skin_k_per_w])
+        sol_t = least_squares(
+            res_t, t0, bounds=([s.lo for s in t_specs], [s.hi for s in t_specs]), x_scale="jac"
+        )
+        nfev_t = int(sol_t.nfev)
+        p_fit = with_thermal(sol_t.x)
+        table = pd.concat([table, _stats(sol_t, t_specs, np.inf)], ignore_index=True)
+    v, t = _simulate(p_fit, record, soc_initial, port_k, port_k)
+    ts = pd.DataFrame(
+        {
+            "time_s": record.time_s,
+            "current_a": record.current_a,
+            "soc": soc,
+            "voltage_measured_v": record.voltage_v,
+            "voltage_fitted_v": v,
+            "voltage_error_v": v - record.voltage_v,
+            "temp_measured_k": t_meas,
+            "temp_fitted_k": t,
+            "temp_error_k": t - t_meas,
+        }
+    )
+    rmse = {
+        "voltage_v": float(np.sqrt(np.mean((v - record.voltage_v) ** 2))),
+        "voltage_max_v": float(np.max(np.abs(v - record.voltage_v))),
+        "temp_k": float(np.sqrt(np.mean((t - t_meas) ** 2))) if has_t else float("nan"),
+    }
+    meta = {
+        "source_file": src,
+        "source_sha256": _sha256(src),
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "base_parameters": p0.source,
+        "soc_initial": soc_initial,
+        "capacity_ah": cap_c / 3600.0,
+        "port_temp_k": port_k,
+        "fitted_soc_range": [float(s_pts.min()), float(s_pts.max())],
+        "fitted_current_range_a": [float(record.current_a.min()), float(record.current_a.max())],
+        "fitted_temp_range_k": [float(t_meas.min()), float(t_meas.max())],
+        "rests": len(rests),
+        "current_steps": int(r_pts.size),
+        "nfev": int(sol_v.nfev) + nfev_t,
+        "success": bool(sol_v.success),
+    }
+    return Identification(p_fit, table, rmse, ts, metadata=meta)
+
+
+def _sha256(path: str) -> str:
+    p = Path(path)
+    return hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else ""
+
+
+def validate(
+    result: Identification,
+    record: CellTestRecord,
+    soc_initial: float | None = None,
+    port_temp_k: float | None = None,
+) -> Identification:
+    """Simulate ``record`` with the identified set and tabulate the errors per current range.
+
+    ``soc_initial`` defaults to the OCV inverse of the first voltage (the record should start
+    at rest); ``port_temp_k`` to the first temperature sample.
+    """
+    p = result.params
+    if soc_initial is None:
+        ocv = p.ocv_discharge_v[:, 0]
+        if np.any(np.diff(ocv) <= 0):
+            raise InputError("calibrate --validate: the OCV is not strictly increasing; give --validate-soc.")
+        soc_initial = float(np.clip(np.interp(record.voltage_v[0], ocv, p.soc), 0.0, 1.0))
+    port_k = float(record.temp_k[0]) if port_temp_k is None else float(port_temp_k)
+    v, t = _simulate(p, record, soc_initial, port_k, float(record.temp_k[0]))
+    ts = pd.DataFrame(
+        {
+            "time_s": record.time_s,
+            "current_a": record.current_a,
+            "voltage_measured_v": record.voltage_v,
+            "voltage_fitted_v": v,
+            "voltage_error_v": v - record.voltage_v,
+            "temp_measured_k": record.temp_k,
+            "temp_fitted_k": t,
+            "temp_error_k": t - record.temp_k,
+        }
+    )
+    errors = error_table(ts, p.capacity.c0_c / 3600.0)
+    meta = {
+        **result.metadata,
+        "validation_file": record.source,
+        "validation_sha256": _sha256(record.source),
+        "validation_soc_initial": soc_initial,
+    }
+    return dataclasses.replace(result, validation=ts, validation_errors=errors, metadata=meta)
+
+
+def error_table(ts: pd.DataFrame, capacity_ah: float) -> pd.DataFrame:
+    """Voltage RMSE / max error [V] per |current| range [C-rate] (:data:`CURRENT_BINS_C`) and
+    overall, and the temperature RMSE [K] overall."""
+    c_rate = np.abs(ts["current_a"].to_numpy()) / capacity_ah
+    err = ts["voltage_error_v"].to_numpy()
+    rows = []
+    for a, b in itertools.pairwise(CURRENT_BINS_C):
+        sel = (c_rate >= a) & (c_rate < b)
+        if sel.any():
+            label = f"{a:g}-{b:g}C" if np.isfinite(b) else f">={a:g}C"
+            rows.append(
+                {
+                    "range": label,
+                    "samples": int(sel.sum()),
+                    "rmse_v": float(np.sqrt(np.mean(err[sel] ** 2))),
+                    "max_abs_v": float(np.max(np.abs(err[sel]))),
+                    "mean_v": float(np.mean(err[sel])),
+                }
+            )
+    t_err = ts["temp_error_k"].to_numpy()
+    rows.append(
+        {
+            "range": "all",
+            "samples": int(err.size),
+            "rmse_v": float(np.sqrt(np.mean(err**2))),
+            "max_abs_v": float(np.max(np.abs(err))),
+            "mean_v": float(np.mean(err)),
+            "temp_rmse_k": float(np.sqrt(np.mean(t_err**2))),
+        }
+    )
+    return pd.DataFrame(rows)
+
+
+# --- output -----------------------------------------------------------------------------------
+
+
+def table_frame(p: CellParameters) -> pd.DataFrame:
+    """The SOC tables (at the first temperature) as a frame with units in the column names."""
+    return pd.DataFrame(
+        {
+            "soc": p.soc,
+            "ocv_discharge_v": p.ocv_discharge_v[:, 0],
+            "ocv_charge_v": p.ocv_charge_v[:, 0],
+            "rs_discharge_ohm": p.rs_discharge_ohm[:, 0],
+            "rs_charge_ohm": p.rs_charge_ohm[:, 0],
+        }
+    )
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, list | tuple | np.ndarray):
+        return "[" + ", ".join(_fmt(x) for x in v) + "]"
+    return repr(float(v))
+
+
+def parameter_toml(p: CellParameters, meta: dict[str, Any]) -> str:
+    """A complete parameter file (the format of ``hevsim/data/cells``) with provenance."""
+    lines = [
+        "# Cell parameter set identified by `hevsim calibrate` (hevsim.battery.identify)",
+        f"name = {_fmt(p.name + '_calibrated')}",
+        f"description = {_fmt('calibrated from ' + str(meta.get('source_file', '')))}",
+        "",
+        "[source]",
+    ]
+    for k, v in meta.items():
+        if isinstance(v, str | int | float | bool | list):
+            lines.append(f"{k} = {_fmt(v)}")
+    sections: dict[str, Any] = {
+        "capacity": p.capacity,
+        "resistance": p.resistance,
+        "thermal": p.thermal,
+        "limits": p.limits,
+        "ageing": p.ageing,
+        "model": p.model,
+        "charge_transfer": p.charge_transfer,
+        "hysteresis": p.hysteresis,
+    }
+    for name, sec in sections.items():
+        lines += ["", f"[{name}]"]
+        lines += [f"{f.name} = {_fmt(getattr(sec, f.name))}" for f in dataclasses.fields(sec)]
+    lines += ["", "[tables]", f"soc = {_fmt(list(p.soc))}", f"temperature_k = {_fmt(list(p.temperature_k))}"]
+    lines.append(f"capacity_factor = {_fmt(list(p.capacity_factor))}")
+    for key in ("ocv_discharge_v", "ocv_charge_v", "rs_discharge_ohm", "rs_charge_ohm"):
+        z = getattr(p, key).T  # rows per temperature
+        lines.append(f"{key} = [")
+        lines += [f"    {_fmt(list(row))}," for row in z]
+        lines.append("]")
+    for key in ("rc_discharge", "rc_charge"):
+        for r, tau in getattr(p, key):
+            lines += ["", f"[[{key}]]", f"r_ohm = {_fmt(r)}", f"tau_s = {_fmt(tau)}"]
+    return "\n".join(lines) + "\n"
+
+
+def plot_fit(ts: pd.DataFrame, path: Path, title: str) -> Path:
+    """Voltage fit and residual, temperature fit (measured vs model) as one PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from hevsim.report.save import save_png
+
+    fig, ax = plt.subplots(3, 1, sharex=True, figsize=(9, 7))
+    t = ts["time_s"].to_numpy()
+    ax[0].plot(t, ts["voltage_measured_v"], "-", lw=0.8, label="measured")
+    ax[0].plot(t, ts["voltage_fitted_v"], "-", lw=0.8, label="model")
+    ax[0].set_ylabel("voltage [V]")
+    ax[0].legend(loc="best")
+    ax[0].set_title(title)
+    ax[1].plot(t, 1e3 * ts["voltage_error_v"].to_numpy(), "-", lw=0.6)
+    ax[1].set_ylabel("model - measured [mV]")
+    ax[2].plot(t, ts["temp_measured_k"] - 273.15, "-", lw=0.8, label="measured")
+    ax[2].plot(t, ts["temp_fitted_k"] - 273.15, "-", lw=0.8, label="model")
+    ax[2].set_ylabel("temperature [°C]")
+    ax[2].set_xlabel("time [s]")
+    fig.tight_layout()
+    save_png(fig, path, dpi=100)
+    return path
+
+
+__all__ = [
+    "CapacitySection",
+    "Identification",
+    "error_table",
+    "identify",
+    "parameter_toml",
+    "validate",
+]
