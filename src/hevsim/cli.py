@@ -417,7 +417,15 @@ def _cmd_thermal(args: argparse.Namespace) -> int:
 
     out = Path(args.out) if args.out else Path("results") / Path(args.config).stem
     _prepare(args, out, args.config)
-    print(format_summary(run_thermal(args.config, out, progress=True)))
+    config: Any = args.config
+    if args.boundary:  # fixed conditions given on the command line, after the file's [[boundary]]
+        from hevsim.schema import read_toml
+        from hevsim.thermal.run import boundary_from_option, thermal_config_from_dict
+
+        data = read_toml(args.config)
+        data["boundary"] = [*data.get("boundary", []), *(boundary_from_option(b) for b in args.boundary)]
+        config = thermal_config_from_dict(data, str(args.config), Path(args.config).parent)
+    print(format_summary(run_thermal(config, out, progress=True)))
     return 0
 
 
@@ -611,6 +619,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("thermal", help="3D FEM heat model of a battery module with cooling plate and coolant")
     p.add_argument("config", help="module thermal configuration (TOML), e.g. examples/module_thermal.toml")
     p.add_argument("--out", help="results folder (default results/<config>)")
+    p.add_argument(
+        "--boundary",
+        action="append",
+        metavar="SURFACE:KIND:KEY=VALUE,...",
+        help="fixed condition on INTERFACE or EXTERNAL, as a [[boundary]] table: film (film_w_m2k, "
+        "temp_c), temperature (temp_c) or heat_flux (heat_flux_w_m2); repeatable",
+    )
     _add_force(p, "folder at --out")
     p.set_defaults(func=_cmd_thermal)
 
