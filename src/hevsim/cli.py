@@ -282,14 +282,23 @@ def _calibrate_full(args: argparse.Namespace, record: Any, out: Path) -> int:
 def _cmd_export_fmu(args: argparse.Namespace) -> int:
     from hevsim.battery.config import load_config as load_cell_config
     from hevsim.battery.fmu import export_fmu, is_hevsim_fmu
+    from hevsim.battery.native import export_native_fmu, is_native_fmu
+    from hevsim.errors import ConfigError
 
-    _prepare(args, args.output, args.config, kind="file", option="-o", ours=is_hevsim_fmu)
+    if args.fmi_version == 3 and not args.native:
+        raise ConfigError("--fmi-version 3: FMI 3.0 FMUs are native only; add --native.")
+
+    def ours(path: Path) -> bool:
+        return is_hevsim_fmu(path) or is_native_fmu(path)
+
+    _prepare(args, args.output, args.config, kind="file", option="-o", ours=ours)
     cfg = load_cell_config(args.config)
     m = cfg.module
     params = cfg.cell.parameters
     if (Path(cfg.base_dir) / params).is_file():
         params = str(Path(cfg.base_dir) / params)
-    out = export_fmu(
+    extra = {"fmi_version": args.fmi_version} if args.native else {}
+    out = (export_native_fmu if args.native else export_fmu)(
         params,
         args.output,
         soc_initial=cfg.cell.soc_initial,
@@ -299,9 +308,11 @@ def _cmd_export_fmu(args: argparse.Namespace) -> int:
         capacity_spread=m.capacity_spread,
         resistance_spread=m.resistance_spread,
         seed=m.seed,
+        **extra,
     )
     what = "cell" if m.n_series * m.n_parallel == 1 else f"{m.n_series}s{m.n_parallel}p module"
-    print(f"FMU of the {what} written to {out} (FMI 2.0 co-simulation; inputs current_a, port_temp_k)")
+    kind = f"native C99, FMI {args.fmi_version}.0" if args.native else "pythonfmu, FMI 2.0"
+    print(f"FMU of the {what} written to {out} ({kind} co-simulation; inputs current_a, port_temp_k)")
     return 0
 
 
@@ -605,6 +616,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("export-fmu", help="FMI 2.0 co-simulation FMU of a cell or module configuration")
     p.add_argument("config", help="cell configuration (TOML), e.g. examples/cell.toml")
     p.add_argument("-o", "--output", required=True, help="FMU file to write")
+    p.add_argument(
+        "--native",
+        action="store_true",
+        help="compiled C99 FMU that needs no Python (built with the system C compiler)",
+    )
+    p.add_argument(
+        "--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version (3 needs --native; default 2)"
+    )
     _add_force(p, "file at -o")
     p.set_defaults(func=_cmd_export_fmu)
 

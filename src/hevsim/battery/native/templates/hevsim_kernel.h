@@ -1,0 +1,266 @@
+/* Electro-thermal cell and module kernel of hevsim (thesis section 4.1.1, eqs 33-41), C99.
+ *
+ * A line-by-line translation of hevsim.battery.kernel (cell_step, branch_affine,
+ * share_current, run_module) and hevsim.tables (interp1, interp2 with clamping) for the
+ * kernel's default options (switched RC sets, start-of-step OCV, no charge-transfer term, no
+ * hysteresis); the operations are kept in the same order so that the results equal the
+ * Python kernel's to rounding. The model data (tables, RC sets, sizes) come from
+ * model_data.h, generated from the parameter set. Sign convention: current > 0 discharges.
+ */
+#ifndef HEVSIM_KERNEL_H
+#define HEVSIM_KERNEL_H
+
+#include <math.h>
+#include <string.h>
+
+/* parameter vector of one cell (hevsim.battery.kernel.PARAMS, default options) */
+enum { P_C0, P_KCQ, P_ALPHAC, P_TREF, P_ALPHARS, P_CHEAT, P_RSKIN, P_VMIN, P_VMAX, P_SOCINI,
+       P_RSCALE, P_BAND, N_PRM };
+/* state vector (hevsim.battery.kernel.STATES), then NRC discharge and NRC charge RC voltages */
+enum { S_Q, S_QABS, S_TEMP, S_DIR, S_CYC, S_ILAST, S_HYST, N_FIXED };
+#define NX (N_FIXED + 2 * NRC)
+/* per-step record (hevsim.battery.kernel.RECORD, first entries) */
+enum { R_V, R_VAVG, R_OCV, R_SOC, R_TEMP, R_HEAT, R_PORT, R_CAP, R_RS, N_REC };
+
+static double hv_min(double a, double b) { return a < b ? a : b; }
+static double hv_max(double a, double b) { return a > b ? a : b; }
+
+/* index i of the segment [xp[i], xp[i+1]] holding x (edge segments outside the range) */
+static int hv_segment(const double *xp, int n, double x)
+{
+    int lo = 0, hi = n - 1, mid;
+    if (x <= xp[0]) return 0;
+    if (x >= xp[n - 1]) return n - 2;
+    while (hi - lo > 1) {
+        mid = (lo + hi) >> 1;
+        if (xp[mid] <= x) lo = mid; else hi = mid;
+    }
+    return lo;
+}
+
+/* linear interpolation of fp[k * stride] over xp[k], clamped outside the range */
+static double hv_interp1(const double *xp, int n, const double *fp, int stride, double x)
+{
+    int i;
+    double w;
+    if (n == 1) return fp[0];
+    if (x <= xp[0]) return fp[0];
+    if (x >= xp[n - 1]) return fp[(n - 1) * stride];
+    i = hv_segment(xp, n, x);
+    w = (x - xp[i]) / (xp[i + 1] - xp[i]);
+    return fp[i * stride] + w * (fp[(i + 1) * stride] - fp[i * stride]);
+}
+
+/* bilinear interpolation of a [NSOC][NT] table at (soc, temp_k), clamped */
+static double hv_interp2(const double fp[NSOC][NT], double x, double y)
+{
+    int i, j;
+    double wx, wy, f0, f1;
+    x = hv_min(hv_max(x, SOC_AX[0]), SOC_AX[NSOC - 1]);
+    y = hv_min(hv_max(y, T_AX[0]), T_AX[NT - 1]);
+    if (NSOC == 1) return hv_interp1(T_AX, NT, &fp[0][0], 1, y);
+    if (NT == 1) return hv_interp1(SOC_AX, NSOC, &fp[0][0], NT, x);
+    i = hv_segment(SOC_AX, NSOC, x);
+    j = hv_segment(T_AX, NT, y);
+    wx = (x - SOC_AX[i]) / (SOC_AX[i + 1] - SOC_AX[i]);
+    wy = (y - T_AX[j]) / (T_AX[j + 1] - T_AX[j]);
+    f0 = fp[i][j] + wy * (fp[i][j + 1] - fp[i][j]);
+    f1 = fp[i + 1][j] + wy * (fp[i + 1][j + 1] - fp[i + 1][j]);
+    return f0 + wx * (f1 - f0);
+}
+
+/* capacity C [C], eq (35), times the capacity-vs-temperature factor */
+static double hv_capacity(const double *p, double qabs, double temp_k)
+{
+    double c = (p[P_C0] + p[P_KCQ] * qabs) * (1.0 + p[P_ALPHAC] * (temp_k - p[P_TREF]));
+    return c * hv_interp1(T_AX, NT, CAPF, 1, temp_k);
+}
+
+/* OCV [V] (clamped to the voltage limits) and R_s [ohm] (eq 36) of a direction (+1 discharge) */
+static void hv_ocv_rs(const double *p, double soc, double temp_k, double direction, double *ocv, double *rs)
+{
+    double o, r;
+    if (direction >= 0.0) {
+        o = hv_interp2(OCV_D, soc, temp_k);
+        r = hv_interp2(RS_D, soc, temp_k);
+    } else {
+        o = hv_interp2(OCV_C, soc, temp_k);
+        r = hv_interp2(RS_C, soc, temp_k);
+    }
+    *ocv = hv_min(hv_max(o, p[P_VMIN]), p[P_VMAX]);
+    *rs = r * p[P_RSCALE] * (1.0 + p[P_ALPHARS] * (temp_k - p[P_TREF]));
+}
+
+/* +1 discharge, -1 charge; inside the dead band the last direction is kept */
+static double hv_direction(double i_a, double last, double band)
+{
+    if (i_a > band) return 1.0;
+    if (i_a < -band) return -1.0;
+    return last;
+}
+
+/* RC element j of the switched sets: resistance [ohm, unscaled], time constant [s], connected? */
+static void hv_rc(int j, double direction, double *r, double *tau, int *active)
+{
+    if (j < NRC) {
+        *r = RC_D[j][0];
+        *tau = RC_D[j][1];
+        *active = direction > 0.0;
+    } else {
+        *r = RC_C[j - NRC][0];
+        *tau = RC_C[j - NRC][1];
+        *active = direction < 0.0;
+    }
+}
+
+/* advance cell state x by dt [s] at constant current i_a [A], port temperature t_port [K] */
+static void hv_cell_step(const double *p, double *x, double i_a, double dt, double t_port, double *rec)
+{
+    int j, active;
+    double direction = hv_direction(i_a, x[S_DIR], p[P_BAND]);
+    double temp0 = x[S_TEMP];
+    double cap = hv_capacity(p, x[S_QABS], temp0);
+    double soc = p[P_SOCINI] - x[S_Q] / cap;
+    double ocv, rs, ocv_avg;
+    double v_sum_end = 0.0, v_sum_avg = 0.0, rc_heat_j = 0.0;
+    double heat_j, q_heat, tau_th, t_inf, temp1, port_j, v_avg, v_end;
+    hv_ocv_rs(p, soc, temp0, direction, &ocv, &rs);
+    ocv_avg = ocv;
+    for (j = 0; j < 2 * NRC; j++) {
+        double r0, tau, r_j, a, v0, e1, d, v1, int_v, int_v2;
+        hv_rc(j, direction, &r0, &tau, &active);
+        r_j = r0 * p[P_RSCALE];
+        a = active ? r_j * i_a : 0.0;
+        v0 = x[N_FIXED + j];
+        e1 = exp(-dt / tau);
+        d = v0 - a;
+        v1 = a + d * e1;
+        int_v = a * dt + d * tau * (1.0 - e1);
+        int_v2 = a * a * dt + 2.0 * a * d * tau * (1.0 - e1) + d * d * 0.5 * tau * (1.0 - e1 * e1);
+        rc_heat_j += int_v2 / r_j;
+        if (active) {
+            v_sum_end += v1;
+            v_sum_avg += int_v / dt;
+        }
+        x[N_FIXED + j] = v1;
+    }
+    heat_j = rs * i_a * i_a * dt + rc_heat_j;
+    q_heat = heat_j / dt;
+    /* lumped temperature, eq (41) with a skin resistance to the port: exact exponential */
+    tau_th = p[P_CHEAT] * p[P_RSKIN];
+    t_inf = t_port + q_heat * p[P_RSKIN];
+    temp1 = t_inf + (temp0 - t_inf) * exp(-dt / tau_th);
+    port_j = heat_j - p[P_CHEAT] * (temp1 - temp0);
+    /* charge, eqs (33), (34), (38) */
+    x[S_Q] += i_a * dt;
+    x[S_QABS] += fabs(i_a) * dt;
+    x[S_CYC] += fabs(i_a) * dt / (2.0 * cap);
+    x[S_TEMP] = temp1;
+    x[S_DIR] = direction;
+    x[S_ILAST] = i_a;
+    v_avg = ocv_avg - rs * i_a - v_sum_avg;
+    v_end = ocv - rs * i_a - v_sum_end;
+    rec[R_V] = v_end;
+    rec[R_VAVG] = v_avg;
+    rec[R_OCV] = ocv;
+    rec[R_SOC] = p[P_SOCINI] - x[S_Q] / cap;
+    rec[R_TEMP] = temp1;
+    rec[R_HEAT] = q_heat;
+    rec[R_PORT] = port_j / dt;
+    rec[R_CAP] = cap;
+    rec[R_RS] = rs;
+}
+
+#if N_CELLS > 1
+/* step-average terminal voltage of a branch as E - Z i for a current of direction `direction` */
+static void hv_branch_affine(const double *p, const double *x, double dt, double direction, double *e, double *z)
+{
+    int j, active;
+    double temp = x[S_TEMP];
+    double cap = hv_capacity(p, x[S_QABS], temp);
+    double soc = p[P_SOCINI] - x[S_Q] / cap;
+    double ocv, rs;
+    hv_ocv_rs(p, soc, temp, direction, &ocv, &rs);
+    *e = ocv;
+    *z = rs;
+    for (j = 0; j < 2 * NRC; j++) {
+        double r0, tau, g;
+        hv_rc(j, direction, &r0, &tau, &active);
+        g = tau * (1.0 - exp(-dt / tau)) / dt;
+        if (active) {
+            *e -= x[N_FIXED + j] * g;
+            *z += r0 * p[P_RSCALE] * (1.0 - g);
+        }
+    }
+}
+
+/* branch currents i_out[b] of the N_PAR parallel cells first..first+N_PAR-1 carrying i_total */
+static void hv_share_current(const double p[][N_PRM], const double x[][NX], int first, double i_total, double dt,
+                             double *i_out)
+{
+    int b, it;
+    double dirs[N_PAR], e[N_PAR], z[N_PAR];
+    double v, s_g, s_eg;
+    for (b = 0; b < N_PAR; b++) {
+        dirs[b] = hv_direction(i_total, x[first + b][S_DIR], p[first + b][P_BAND]);
+        i_out[b] = i_total / N_PAR;
+    }
+    for (it = 0; it < N_PAR + 2; it++) {
+        int flipped = 0;
+        s_g = 0.0;
+        s_eg = 0.0;
+        for (b = 0; b < N_PAR; b++) {
+            hv_branch_affine(p[first + b], x[first + b], dt, dirs[b], &e[b], &z[b]);
+            s_g += 1.0 / z[b];
+            s_eg += e[b] / z[b];
+        }
+        v = (s_eg - i_total) / s_g;
+        for (b = 0; b < N_PAR; b++) {
+            double d_new;
+            i_out[b] = (e[b] - v) / z[b];
+            d_new = hv_direction(i_out[b], x[first + b][S_DIR], p[first + b][P_BAND]);
+            if (d_new != dirs[b]) {
+                dirs[b] = d_new;
+                flipped = 1;
+            }
+        }
+        if (!flipped) break;
+    }
+}
+
+/* one step of the module (hevsim.battery.kernel.run_module for one sample):
+ * out_m = (voltage end [V], voltage average [V], heat [W], port heat [W]);
+ * cell c: i_cell [A], soc_cell [-], heat_cell [W] (temperature is x[c][S_TEMP]) */
+static void hv_module_step(const double p[][N_PRM], double x[][NX], double current, double dt,
+                           const double *t_port, double *out_m, double *i_cell, double *soc_cell,
+                           double *heat_cell)
+{
+    int s, b;
+    double rec[N_REC], i_b[N_PAR];
+    double v_end = 0.0, v_avg = 0.0, heat = 0.0, port = 0.0;
+    for (s = 0; s < N_SER; s++) {
+        double v_group = 0.0, v_group_avg = 0.0;
+        int first = s * N_PAR;
+        hv_share_current(p, (const double(*)[NX])x, first, current, dt, i_b);
+        for (b = 0; b < N_PAR; b++) {
+            int c = first + b;
+            hv_cell_step(p[c], x[c], i_b[b], dt, t_port[c], rec);
+            v_group += rec[R_V] / N_PAR;
+            v_group_avg += rec[R_VAVG] / N_PAR;
+            heat += rec[R_HEAT];
+            port += rec[R_PORT];
+            i_cell[c] = i_b[b];
+            soc_cell[c] = rec[R_SOC];
+            heat_cell[c] = rec[R_HEAT];
+        }
+        v_end += v_group;
+        v_avg += v_group_avg;
+    }
+    out_m[0] = v_end;
+    out_m[1] = v_avg;
+    out_m[2] = heat;
+    out_m[3] = port;
+}
+#endif
+
+#endif

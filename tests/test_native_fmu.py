@@ -1,0 +1,549 @@
+"""Native (compiled C99) FMUs of the cell and the module (issue 16): FMPy validates them, they
+need no libpython, they equal the in-process model to 1e-12 per output and step over the
+shipped load profiles for every shipped cell parameter set, their state round-trips bit for
+bit, their sources compile with strict warnings, they refuse bad values with a logger message
+and run in fresh host processes and in libcosim (a C++ FMI host)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+import zipfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from hevsim.battery import Cell, Module
+from hevsim.battery import kernel as K
+from hevsim.battery.ageing import soh_of_state
+from hevsim.battery.fmu import CellStepper, ModuleStepper, current_for_power
+from hevsim.battery.params import load_cell_parameters, shipped_cells
+from hevsim.battery.profiles import cycle_cell_current
+from hevsim.cli import main
+
+pytest.importorskip("fmpy")
+CC = shutil.which("cc") or shutil.which("gcc") or ""
+pytestmark = pytest.mark.skipif(not CC, reason="no C compiler")
+
+from hevsim.battery.native import NativeFMUError, export_native_fmu, native_binary  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+TOL = 1e-12
+CELL_OUTPUTS = ("voltage_v", "soc", "temp_k", "port_heat_w", "soh", "terminal_current_a")
+
+
+class Runner:
+    """An FMI 2.0 native FMU instance stepped through FMPy's low-level calls, with the
+    messages of its logger collected."""
+
+    def __init__(
+        self, fmu: Path, params: dict[str, float] | None = None, booleans: dict[str, bool] | None = None
+    ):
+        from fmpy import extract, read_model_description
+        from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+
+        self.md = read_model_description(str(fmu))
+        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
+        self.messages: list[str] = []
+
+        def logger(env: Any, name: Any, status: int, category: Any, message: bytes) -> None:
+            self.messages.append(message.decode())
+
+        self.callbacks = fmi2CallbackFunctions()
+        self.callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+        self.slave = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=extract(str(fmu)),
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName="native",
+        )
+        self.slave.instantiate(callbacks=self.callbacks)
+        self.slave.setupExperiment(startTime=0.0)
+        self.slave.enterInitializationMode()
+        for name, value in (params or {}).items():
+            self.set(name, value)
+        for name, flag in (booleans or {}).items():
+            self.slave.setBoolean([self.vr[name]], [flag])
+        self.slave.exitInitializationMode()
+        self.t = 0.0
+
+    def set(self, name: str, value: float) -> None:
+        self.slave.setReal([self.vr[name]], [float(value)])
+
+    def get(self, names: tuple[str, ...] | list[str]) -> list[float]:
+        return list(self.slave.getReal([self.vr[n] for n in names]))
+
+    def run(self, inputs: dict[str, Any], dt: float, outputs: tuple[str, ...] | list[str]) -> np.ndarray:
+        n = len(next(iter(inputs.values())))
+        refs = [self.vr[k] for k in inputs]
+        cols = np.column_stack([np.broadcast_to(np.asarray(v, float), (n,)) for v in inputs.values()])
+        out = np.empty((n, len(outputs)))
+        for k in range(n):
+            self.slave.setReal(refs, cols[k].tolist())
+            self.slave.doStep(self.t, dt)
+            self.t += dt
+            out[k] = self.get(outputs)
+        return out
+
+    def close(self) -> None:
+        self.slave.terminate()
+        self.slave.freeInstance()
+
+
+@pytest.fixture(scope="module")
+def cell_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """A native FMI 2.0 cell FMU of every shipped parameter set (start SOC 0.9, 298.15 K)."""
+    folder = tmp_path_factory.mktemp("native")
+    return {name: export_native_fmu(name, folder / f"{name}.fmu", 0.9, 298.15) for name in shipped_cells()}
+
+
+@pytest.fixture(scope="module")
+def cli_cell_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("cli") / "cell.fmu"
+    assert main(["export-fmu", str(ROOT / "examples" / "cell.toml"), "-o", str(out), "--native"]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def module_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("cli") / "module.fmu"
+    assert main(["export-fmu", str(ROOT / "examples" / "module.toml"), "-o", str(out), "--native"]) == 0
+    return out
+
+
+def load_profiles(c0_c: float) -> Iterator[tuple[str, np.ndarray, float]]:
+    """The shipped load profiles as cell currents [A] for a cell of capacity ``c0_c`` [C]:
+    drive-cycle road-load currents (scaled from the pack's 7 A h cell by capacity, x3 for a
+    hard drive: up to 9 C) and the shipped calibration pulse test (of the 0.8 A h cell)."""
+    scale = 3.0 * c0_c / 25326.0
+    for cycle, seconds in (("udds", 1369.0), ("us06", 600.0), ("hwfet", 765.0)):
+        yield cycle, scale * cycle_cell_current(cycle, seconds, 1.0), 1.0
+    pulse = np.genfromtxt(ROOT / "examples" / "calibration_pulse.csv", delimiter=",", names=True)
+    yield "calibration_pulse", c0_c / 2880.0 * np.asarray(pulse["current_a"], float), 1.0
+
+
+def assert_close(got: np.ndarray, ref: np.ndarray, what: str) -> None:
+    scale = max(1.0, float(np.max(np.abs(ref))))
+    err = float(np.max(np.abs(got - ref)))
+    assert err <= TOL * scale, f"{what}: max |native - in-process| = {err:.3g} > {TOL} x {scale:g}"
+
+
+def test_fmus_pass_fmpy_validation(cell_fmus: dict[str, Path], module_fmu: Path, cli_cell_fmu: Path) -> None:
+    from fmpy.model_description import read_build_description
+    from fmpy.validation import validate_fmu
+
+    for fmu in [*cell_fmus.values(), module_fmu, cli_cell_fmu]:
+        assert validate_fmu(str(fmu)) == [], fmu
+        (config,) = read_build_description(str(fmu), validate=True)
+        assert config.sourceFileSets[0].sourceFiles == ["fmi2_model.c"]
+        with zipfile.ZipFile(fmu) as z:
+            names = set(z.namelist())
+        assert {"sources/model_data.h", "sources/hevsim_kernel.h", "sources/hevsim_model.h"} <= names
+
+
+def test_binary_needs_no_python(module_fmu: Path, cli_cell_fmu: Path, tmp_path: Path) -> None:
+    for fmu in (cli_cell_fmu, module_fmu):
+        name, data = native_binary(fmu)
+        lib = tmp_path / Path(name).name
+        lib.write_bytes(data)
+        dyn = subprocess.run(["readelf", "-d", str(lib)], capture_output=True, text=True, check=True).stdout
+        needed = [line for line in dyn.splitlines() if "(NEEDED)" in line]
+        assert needed, dyn
+        assert not any("python" in line.lower() for line in needed), needed
+        ldd = subprocess.run(["ldd", str(lib)], capture_output=True, text=True, check=False).stdout
+        assert "python" not in ldd.lower(), ldd
+
+
+def test_same_interface_as_pythonfmu_fmu(cli_cell_fmu: Path, module_fmu: Path) -> None:
+    """The pythonfmu FMU's variables with their value references, causality, variability,
+    initial, units and start values, and its capabilities; plus two constants."""
+    from fmpy import read_model_description
+
+    from hevsim.battery.fmu import export_fmu
+
+    for fmu, kw in (
+        (cli_cell_fmu, {"params": "thesis_table_4_1", "soc_initial": 1.0, "temp_initial_k": 296.15}),
+        (
+            module_fmu,
+            {
+                "params": "saft_li_ion_6ah",
+                "soc_initial": 0.8,
+                "temp_initial_k": 298.15,
+                "n_series": 2,
+                "n_parallel": 6,
+                "capacity_spread": 0.03,
+                "resistance_spread": 0.05,
+                "seed": 42,
+            },
+        ),
+    ):
+        py = export_fmu(out_fmu=fmu.with_suffix(".py.fmu"), **kw)  # type: ignore[arg-type]
+        a, b = read_model_description(str(py)), read_model_description(str(fmu))
+        assert a.coSimulation.modelIdentifier == b.coSimulation.modelIdentifier
+        for cap in ("canGetAndSetFMUstate", "canSerializeFMUstate", "canHandleVariableCommunicationStepSize"):
+            assert getattr(b.coSimulation, cap) is True
+        assert b.coSimulation.needsExecutionTool is False
+        native = {v.name: v for v in b.modelVariables}
+        for v in a.modelVariables:
+            w = native[v.name]
+            for attr in ("valueReference", "causality", "variability", "initial", "type", "unit"):
+                assert getattr(w, attr) == getattr(v, attr), (v.name, attr)
+            if v.type == "Boolean":
+                assert w.start == v.start, v.name
+            else:
+                assert float(w.start) == pytest.approx(float(v.start), rel=1e-15, abs=0), v.name
+        extra = {v.name: v for v in b.modelVariables if v.name not in {u.name for u in a.modelVariables}}
+        assert sorted(extra) == ["v_max_v", "v_min_v"]
+        assert all(v.variability == "constant" for v in extra.values())
+
+
+@pytest.mark.parametrize("name", shipped_cells())
+def test_cell_equals_in_process_model_over_shipped_profiles(cell_fmus: dict[str, Path], name: str) -> None:
+    p = load_cell_parameters(name)
+    for label, current, dt in load_profiles(p.capacity.c0_c):
+        port = 298.15 + 5.0 * np.sin(np.arange(current.size) / 200.0)
+        r = Runner(cell_fmus[name])
+        got = r.run({"current_a": current, "port_temp_k": port}, dt, CELL_OUTPUTS)
+        r.close()
+        cell = Cell(p, soc_initial=0.9, temp_k=298.15)
+        ts = cell.simulate(current, dt, port).timeseries
+        for j, out in enumerate(CELL_OUTPUTS[:4]):
+            assert_close(got[:, j], ts[out].to_numpy(), f"{name} {label} {out}")
+        soh = soh_of_state(cell.p, ts["qabs_c"].to_numpy(), cell.p[K.C0], p.ageing.x_c)
+        assert_close(got[:, 4], soh, f"{name} {label} soh")
+        np.testing.assert_array_equal(got[:, 5], current)
+
+
+def test_cell_power_input_equals_in_process_solver(cell_fmus: dict[str, Path]) -> None:
+    """Power input: the same secant solve of the current as the pythonfmu FMU's stepper."""
+    name = "thesis_table_4_1"
+    p = load_cell_parameters(name)
+    power = 3.6 * np.concatenate([np.full(60, 3.0), np.full(40, -1.5), 2.0 * np.sin(np.arange(100) / 7.0)])
+    r = Runner(cell_fmus[name], booleans={"power_input": True})
+    got = r.run(
+        {"power_w": power, "port_temp_k": np.full(power.size, 300.0)}, 1.0, ("current_a", "voltage_v", "soc")
+    )
+    r.close()
+    stepper = CellStepper(p, 0.9, 298.15)
+    for k, pw in enumerate(power):
+        i = current_for_power(stepper, float(pw), 300.0, 1.0)
+        out = stepper.step(i, 300.0, 1.0)
+        assert abs(got[k, 0] - i) <= TOL * max(1.0, abs(i)), k
+        assert abs(got[k, 1] - out["voltage_v"]) <= TOL * 4.0, k
+        assert abs(got[k, 2] - out["soc"]) <= TOL, k
+
+
+def test_module_equals_in_process_module(module_fmu: Path) -> None:
+    """The examples/module.toml module (2s6p, spread): module and per-cell outputs, lumped
+    and per-cell ports, current and power input."""
+    n, dt = 1369, 1.0
+    current = 12.0 * cycle_cell_current("udds", n, dt) * 6
+    mod = Module("saft_li_ion_6ah", 2, 6, 0.8, 298.15, 0.03, 0.05, seed=42)
+    heat_cap = mod.p[:, K.CHEAT].copy()
+    res = mod.simulate(current, dt, 303.15)
+    cells = [f"cell{c}_temp_k" for c in range(12)] + [f"cell{c}_port_heat_w" for c in range(12)]
+    r = Runner(module_fmu)
+    got = r.run(
+        {"current_a": current, "port_temp_k": np.full(n, 303.15)},
+        dt,
+        ["voltage_v", "soc", "temp_k", "port_heat_w", *cells],
+    )
+    r.close()
+    ts = res.timeseries
+    assert_close(got[:, 0], ts["voltage_v"].to_numpy(), "voltage_v")
+    assert_close(got[:, 1], res.cells[:, :, 1].mean(axis=1), "soc")
+    assert_close(got[:, 2], res.cells[:, :, 2].max(axis=1), "temp_k")
+    assert_close(got[:, 3], ts["port_heat_w"].to_numpy(), "port_heat_w")
+    temps = res.cells[:, :, 2]
+    assert_close(got[:, 4:16], temps, "cell temperatures")
+    prev = np.vstack([np.full(12, 298.15), temps[:-1]])
+    port_heat = res.cells[:, :, 3] - heat_cap * (temps - prev) / dt
+    assert_close(got[:, 16:28], port_heat, "cell port heat")
+
+    # per-cell ports and power input against the pythonfmu FMU's in-process stepper
+    steps = 200
+    tp = 295.0 + np.linspace(0.0, 10.0, 12)[None, :] + 0.01 * np.arange(steps)[:, None]
+    power = np.where(np.arange(steps) < 120, 400.0, -150.0)
+    inputs = {"power_w": power, **{f"cell{c}_port_temp_k": tp[:, c] for c in range(12)}}
+    r = Runner(module_fmu, booleans={"power_input": True, "per_cell_ports": True})
+    got = r.run(inputs, dt, ["current_a", "voltage_v", "soc", "port_heat_w", *cells])
+    r.close()
+    st = ModuleStepper(load_cell_parameters("saft_li_ion_6ah"), 0.8, 298.15, 2, 6, 0.03, 0.05, 42)
+    for k in range(steps):
+        i = current_for_power(st, float(power[k]), tp[k], dt)
+        out = st.step(i, tp[k], dt)
+        want = [
+            i,
+            out["voltage_v"],
+            out["soc"],
+            out["port_heat_w"],
+            *st.m.state[:, K.STEMP],
+            *st.cell_port_heat_w,
+        ]
+        assert_close(got[k], np.array(want), f"power step {k}")
+
+
+def test_state_round_trip_is_bit_identical(cli_cell_fmu: Path, module_fmu: Path) -> None:
+    for fmu, outs in ((cli_cell_fmu, list(CELL_OUTPUTS)), (module_fmu, ["voltage_v", "soc", "cell7_temp_k"])):
+        scale = 1.0 if fmu == cli_cell_fmu else 30.0
+        current = scale * np.sin(np.arange(120) / 5.0)
+        r = Runner(fmu)
+        r.run({"current_a": current[:40]}, 1.0, outs)
+        state = r.slave.getFMUstate()
+        blob = r.slave.serializeFMUstate(state)
+        t0 = r.t
+        first = r.run({"current_a": current[40:]}, 1.0, outs)
+        r.slave.setFMUstate(state)
+        r.t = t0
+        again = r.run({"current_a": current[40:]}, 1.0, outs)
+        np.testing.assert_array_equal(again, first)
+        # a new instance resumes from the serialised state
+        r2 = Runner(fmu)
+        r2.slave.setFMUstate(r2.slave.deSerializeFMUstate(blob))
+        r2.t = t0
+        np.testing.assert_array_equal(r2.run({"current_a": current[40:]}, 1.0, outs), first)
+        r.slave.freeFMUstate(state)
+        r.close()
+        r2.close()
+
+
+def test_sources_compile_with_strict_warnings(cli_cell_fmu: Path, module_fmu: Path, tmp_path: Path) -> None:
+    import fmpy
+
+    headers = Path(fmpy.__file__).parent / "c-code"
+    for fmu in (cli_cell_fmu, module_fmu):
+        src = tmp_path / fmu.stem
+        with zipfile.ZipFile(fmu) as z:
+            z.extractall(src, [n for n in z.namelist() if n.startswith("sources/")])
+        cmd = [
+            CC,
+            "-std=c99",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            "-pedantic",
+            "-fPIC",
+            "-shared",
+            f"-I{headers}",
+            f"-I{src / 'sources'}",
+            str(src / "sources" / "fmi2_model.c"),
+            "-o",
+            str(src / "m.so"),
+            "-lm",
+        ]
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        assert proc.returncode == 0, proc.stderr
+
+
+def test_set_real_on_a_constant_or_output_is_refused(cli_cell_fmu: Path) -> None:
+    from fmpy.fmi1 import FMICallException
+
+    r = Runner(cli_cell_fmu)
+    for name in ("v_min_v", "voltage_v"):
+        with pytest.raises(FMICallException):
+            r.set(name, 1.0)
+    assert any("'v_min_v'" in m and "constant" in m for m in r.messages), r.messages
+    assert any("'voltage_v'" in m and "output" in m for m in r.messages), r.messages
+    assert r.get(["v_min_v"]) == [load_cell_parameters("thesis_table_4_1").limits.v_min_v]
+    r.close()
+
+
+def test_out_of_range_values_return_error_with_message(cli_cell_fmu: Path) -> None:
+    """A parameter outside the table range, a port temperature outside the model's range and
+    a current beyond the short-circuit current: fmi2Error, a message naming the variable and
+    the value, and the state as before (the next valid step equals the in-process model)."""
+    from fmpy.fmi1 import FMICallException
+
+    r = Runner(cli_cell_fmu)
+    with pytest.raises(FMICallException):
+        r.set("soc_initial", 1.5)
+    assert any("soc_initial = 1.5" in m and "SOC axis" in m for m in r.messages), r.messages
+    r.run({"current_a": [4.0] * 10}, 1.0, CELL_OUTPUTS)
+    r.set("port_temp_k", 612.5)
+    with pytest.raises(FMICallException):
+        r.slave.doStep(r.t, 1.0)
+    assert any("port_temp_k = 612.5 K" in m for m in r.messages), r.messages
+    r.set("port_temp_k", 296.15)
+    r.set("current_a", 5000.0)
+    with pytest.raises(FMICallException):
+        r.slave.doStep(r.t, 1.0)
+    assert any("voltage_v = -" in m and "5000 A" in m for m in r.messages), r.messages
+    got = r.run({"current_a": [4.0] * 5}, 1.0, ("voltage_v",))
+    r.close()
+    ref = Cell("thesis_table_4_1", 1.0, 296.15).simulate([4.0] * 15, 1.0, 296.15).timeseries["voltage_v"]
+    np.testing.assert_array_equal(got[:, 0], ref.to_numpy()[10:])
+
+
+HOST_C = r"""
+#include <dlfcn.h>
+#include <stdio.h>
+#include <stdarg.h>
+#include "fmi2Functions.h"
+static void logger(fmi2ComponentEnvironment e, fmi2String n, fmi2Status s, fmi2String c, fmi2String m, ...)
+{ (void)e; (void)n; (void)s; (void)c; fprintf(stderr, "%s\n", m); }
+#define SYM(T, name) T name = (T)dlsym(h, #name); if (!name) return 3
+int main(int argc, char **argv)
+{
+    void *h = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
+    fmi2CallbackFunctions cb = {logger, NULL, NULL, NULL, NULL};
+    fmi2Component c;
+    fmi2ValueReference vr_i = 0, vr_v = 12;
+    fmi2Real i = 4.0, v = 0.0, t = 0.0;
+    int k;
+    if (!h || argc < 3) return 2;
+    {
+        SYM(fmi2InstantiateTYPE *, fmi2Instantiate);
+        SYM(fmi2SetupExperimentTYPE *, fmi2SetupExperiment);
+        SYM(fmi2EnterInitializationModeTYPE *, fmi2EnterInitializationMode);
+        SYM(fmi2ExitInitializationModeTYPE *, fmi2ExitInitializationMode);
+        SYM(fmi2SetRealTYPE *, fmi2SetReal);
+        SYM(fmi2GetRealTYPE *, fmi2GetReal);
+        SYM(fmi2DoStepTYPE *, fmi2DoStep);
+        SYM(fmi2TerminateTYPE *, fmi2Terminate);
+        SYM(fmi2FreeInstanceTYPE *, fmi2FreeInstance);
+        c = fmi2Instantiate("host", fmi2CoSimulation, argv[2], "", &cb, fmi2False, fmi2False);
+        if (!c) return 4;
+        fmi2SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0);
+        fmi2EnterInitializationMode(c);
+        fmi2ExitInitializationMode(c);
+        for (k = 0; k < 20; k++, t += 1.0) {
+            fmi2SetReal(c, &vr_i, 1, &i);
+            if (fmi2DoStep(c, t, 1.0, fmi2True) != fmi2OK) return 5;
+        }
+        fmi2GetReal(c, &vr_v, 1, &v);
+        fmi2Terminate(c);
+        fmi2FreeInstance(c);
+    }
+    if (dlclose(h) != 0) return 6;
+    printf("%.17g\n", v);
+    return 0;
+}
+"""
+
+
+def test_fresh_host_processes_load_and_unload_50_times(cli_cell_fmu: Path, tmp_path: Path) -> None:
+    """A small C host (no Python): 50 processes each load the binary, run 20 steps, unload it."""
+    import fmpy
+    from fmpy import read_model_description
+
+    md = read_model_description(str(cli_cell_fmu))
+    assert {v.name: v.valueReference for v in md.modelVariables}["voltage_v"] == 12
+    name, data = native_binary(cli_cell_fmu)
+    lib = tmp_path / Path(name).name
+    lib.write_bytes(data)
+    (tmp_path / "host.c").write_text(HOST_C)
+    host = tmp_path / "host"
+    headers = Path(fmpy.__file__).parent / "c-code"
+    cmd = [
+        CC,
+        "-std=c99",
+        "-Wall",
+        "-Werror",
+        f"-I{headers}",
+        str(tmp_path / "host.c"),
+        "-o",
+        str(host),
+        "-ldl",
+    ]
+    subprocess.run(cmd, check=True, capture_output=True)
+    ref = (
+        Cell("thesis_table_4_1", 1.0, 296.15).simulate(np.full(20, 4.0), 1.0, 296.15).timeseries["voltage_v"]
+    )
+    for _ in range(50):
+        proc = subprocess.run(
+            [str(host), str(lib), md.guid], capture_output=True, text=True, timeout=30, check=False
+        )
+        assert proc.returncode == 0, (proc.returncode, proc.stderr)
+        assert float(proc.stdout) == float(ref.iloc[-1])
+
+
+LIBCOSIM_SCRIPT = """
+import json, sys
+from libcosimpy.CosimExecution import CosimExecution
+from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+from libcosimpy.CosimManipulator import CosimManipulator
+from libcosimpy.CosimObserver import CosimObserver
+from libcosimpy.CosimSlave import CosimLocalSlave
+
+log_output_level(CosimLogLevel.ERROR)
+req = json.load(sys.stdin)
+ex = CosimExecution.from_step_size(step_size=int(req["dt_s"] * 1e9))
+idx = ex.add_local_slave(local_slave=CosimLocalSlave(fmu_path=req["fmu"], instance_name="cell"))
+vr = {v.name.decode(): v.reference for v in ex.slave_variables(idx)}
+man = CosimManipulator.create_override()
+ex.add_manipulator(manipulator=man)
+obs = CosimObserver.create_last_value()
+ex.add_observer(observer=obs)
+out = []
+for i, tp in zip(req["current_a"], req["port_temp_k"]):
+    man.slave_real_values(idx, [vr["current_a"], vr["port_temp_k"]], [i, tp])
+    ex.step()
+    out.append(obs.last_real_values(idx, [vr[n] for n in req["outputs"]]))
+print(json.dumps(out))
+"""
+
+
+def test_libcosim_runs_the_fmu(cli_cell_fmu: Path) -> None:
+    """libcosim (C++ FMI host, through libcosimpy) steps the FMI 2.0 FMU to the same results."""
+    pytest.importorskip("libcosimpy")
+    n = 300
+    current = np.where(np.arange(n) < 200, 4.0, -2.0)
+    port = 296.15 + 0.01 * np.arange(n)
+    outs = ["voltage_v", "soc", "temp_k", "port_heat_w"]
+    req = {
+        "fmu": str(cli_cell_fmu),
+        "dt_s": 1.0,
+        "current_a": current.tolist(),
+        "port_temp_k": port.tolist(),
+        "outputs": outs,
+    }
+    proc = subprocess.run(
+        [sys.executable, "-c", LIBCOSIM_SCRIPT],
+        input=json.dumps(req),
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    got = np.array(json.loads(proc.stdout.strip().splitlines()[-1]))
+    ts = Cell("thesis_table_4_1", 1.0, 296.15).simulate(current, 1.0, port).timeseries
+    for j, name in enumerate(outs):
+        assert_close(got[:, j], ts[name].to_numpy(), f"libcosim {name}")
+
+
+def test_unsupported_model_option_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    src = Path(load_cell_parameters("thesis_table_4_1").source).read_text()
+    for section, text, option in (
+        ("[model]", 'rc_mode = "persistent"', "rc_mode"),
+        ("[hysteresis]", "max_v = 0.01\ngamma = 5.0", "max_v"),
+    ):
+        params = tmp_path / f"{option}.toml"
+        params.write_text(src + f"\n{section}\n{text}\n")
+        cfg = tmp_path / f"{option}_cell.toml"
+        cfg.write_text(f'[cell]\nparameters = "{params.name}"\n')
+        assert main(["export-fmu", str(cfg), "-o", str(tmp_path / "x.fmu"), "--native"]) == 2
+        err = capsys.readouterr().err
+        assert option in err and "native FMU does not implement" in err, err
+        assert not (tmp_path / "x.fmu").exists()
+
+
+def test_missing_compiler_is_a_clear_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("PATH", str(tmp_path))
+    monkeypatch.delenv("CC", raising=False)
+    with pytest.raises(NativeFMUError, match=r"no C compiler found.*apt-get install gcc"):
+        export_native_fmu("thesis_table_4_1", tmp_path / "x.fmu")
+    assert not (tmp_path / "x.fmu").exists()
+
+
+def test_fmi3_needs_native(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "x.fmu"
+    assert (
+        main(["export-fmu", str(ROOT / "examples" / "cell.toml"), "-o", str(out), "--fmi-version", "3"]) == 2
+    )
+    assert "--native" in capsys.readouterr().err
