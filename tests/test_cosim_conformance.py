@@ -157,3 +157,58 @@ def test_ssd_checkpoint_every_steps_or_wall_time(tmp_path: Path) -> None:
     (tmp_path / "bad.ssd").write_text(text.replace('checkpoint_every="30.0s"', 'checkpoint_every="often"'))
     with pytest.raises(ConfigError, match=r"checkpoint_every='often': expected a number of steps"):
         read_ssd(tmp_path / "bad.ssd")
+
+
+# ---------------------------------------------------------------------------- item 5: order
+C = {"c1": 0.5, "c2": 0.25, "c3": 0.125}
+H = 0.1
+
+
+def feedthrough_chain(cfmu: Path, listing: tuple[str, ...]) -> tuple[list, list[Connection]]:
+    """src (outputs n h at t_n) -> c1.x, c1.z -> c2.x, c2.z -> c3.x; z = x + c (direct feedthrough)."""
+    made = {name: FMUParticipant(name, cfmu, {"c": c}) for name, c in C.items()}
+    made["src"] = FunctionParticipant(
+        "src", lambda t, h, n, u: (n + 1, {"v": (n + 1) * H}), 0, {"v": 0.0}, {}
+    )
+    conns = [
+        Connection("src", "v", "c1", "x"),
+        Connection("c1", "z", "c2", "x"),
+        Connection("c2", "z", "c3", "x"),
+    ]
+    return [made[n] for n in listing], conns
+
+
+def test_results_do_not_depend_on_the_listing_order(cfmu: Path) -> None:
+    from itertools import permutations
+
+    n = np.arange(11)
+    for algorithm in ("jacobi", "gauss-seidel"):
+        runs = []
+        for listing in permutations(["src", "c1", "c2", "c3"]):
+            res = simulate(*feedthrough_chain(cfmu, listing), stop_time_s=1.0, step_s=H, algorithm=algorithm)
+            runs.append({c: res[c] for c in res.columns})
+        for other in runs[1:]:
+            assert all(np.array_equal(other[c], runs[0][c]) for c in runs[0])
+        r = runs[0]
+        for k in (1, 2, 3):
+            lag = k if algorithm == "jacobi" else 0  # Jacobi: one step per link; Gauss-Seidel: none
+            src = np.maximum(n - lag, 0) * H  # the initial values are consistent (propagated)
+            expect = src
+            for j in range(1, k + 1):
+                expect = expect + C[f"c{j}"]
+            assert np.array_equal(r[f"c{k}.z"], expect), (algorithm, k)
+    # the default is Jacobi
+    res = simulate(*feedthrough_chain(cfmu, ("c3", "c2", "c1", "src")), stop_time_s=1.0, step_s=H)
+    assert res["c3.z"][3] == 0.0 + 0.875
+
+
+def test_feedthrough_loop_without_fixed_point_is_named(cfmu: Path) -> None:
+    a, b = FMUParticipant("a", cfmu, {"c": 1.0}), FMUParticipant("b", cfmu, {"c": 1.0})
+    loop = [Connection("a", "z", "b", "x"), Connection("b", "z", "a", "x")]
+    with pytest.raises(
+        CosimFault, match=r"initial values at t = 0 s do not converge: the outputs of 'a', 'b'"
+    ):
+        simulate([a, b], loop, stop_time_s=1.0, step_s=H)
+    a, b = FMUParticipant("a", cfmu, {"c": 0.0}), FMUParticipant("b", cfmu, {"c": 0.0})
+    res = simulate([a, b], loop, stop_time_s=1.0, step_s=H)  # a loop with a fixed point (0) runs
+    assert np.all(res["a.z"] == 0.0)

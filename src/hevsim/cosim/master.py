@@ -3,9 +3,15 @@ negotiation, unit conversion on connections, checkpoints and fault reporting.
 
 Algorithm per communication step from ``t`` by ``h`` (inputs held constant over the step):
 
-* **Jacobi**: every participant receives the others' outputs at ``t`` and steps.
-* **Gauss-Seidel**: participants step in ``order`` (the lead first); each receives the
-  outputs of those already stepped to ``t + h`` and of the others at ``t``.
+* **Jacobi** (the default, as libcosim's fixed-step algorithm and FMPy's SSP runner): every
+  participant receives the others' outputs at ``t`` and steps; each connection lags one step.
+* **Gauss-Seidel**: participants step in ``order``; each receives the outputs of those
+  already stepped to ``t + h`` and of the others at ``t``. Without an explicit ``order`` (or
+  after the participants it names) the order comes from the connection graph
+  (:func:`graph_order`: a participant after those feeding it, ties and loops broken by
+  name), so the listing order of the participants never changes the results.
+* **Initial values**: outputs propagate to the connected inputs in that dependency order,
+  sweeping to a fixed point where direct feedthrough chains or loops need it.
 * **Iteration** (``max_iterations > 1``): the step is redone from saved states with the new
   end-of-step outputs (under-relaxed by ``relaxation``) until every connected output changes
   by less than ``tolerance`` (relative to ``1 + |value|``). With ``hold="midpoint"`` (default)
@@ -62,7 +68,7 @@ class Options:
     stop_time_s: float
     step_s: float
     start_time_s: float = 0.0
-    algorithm: str = "gauss-seidel"
+    algorithm: str = "jacobi"
     order: Sequence[str] | None = None
     negotiation: str = "fixed"
     min_step_s: float | None = None
@@ -169,11 +175,11 @@ class Master:
         if len(self.p) != len(participants):
             raise ConfigError("co-simulation participants must have distinct names.")
         self.opt = options
-        order = list(options.order) if options.order else [p.name for p in participants]
-        for n in order:
+        for n in options.order or ():
             if n not in self.p:
                 raise ConfigError(f"order names unknown participant {n!r}; participants: {sorted(self.p)}.")
-        self.order = order + [n for n in self.p if n not in order]
+        self.listing = [p.name for p in participants]
+        self.order = sorted(self.p)  # until the connections are known (below)
         for n in options.rates:
             if n not in self.p:
                 raise ConfigError(f"rates name unknown participant {n!r}; participants: {sorted(self.p)}.")
@@ -208,6 +214,8 @@ class Master:
             du = c.dst_unit if c.dst_unit is not None else self.p[c.dst].inputs[c.dst_var]
             f, o = U.conversion(su, du, extra_units, what)
             self.feeds[c.dst].append((c.dst_var, c.src, c.src_var, f, o))
+        fixed = list(options.order or ())
+        self.order = fixed + [n for n in graph_order(self.feeds) if n not in fixed]
 
     # -- helpers ---------------------------------------------------------------------------
     def _call(self, name: str, call: str, t: float, fn: Callable[[], Any]) -> Any:
@@ -380,7 +388,7 @@ class Master:
         for n in self.order:
             self._call(n, "setup", t, lambda n=n: self.p[n].setup(t))  # type: ignore[misc]
         y = self._initial_exchange(t)
-        self._cols = [(n, v) for n in self.order for v in y[n]]
+        self._cols = [(n, v) for n in self.listing for v in y[n]]
         nsteps = 0
         ck = Path(o.checkpoint_path) if o.checkpoint_path else None
         blob = self._load_checkpoint(ck) if resume and ck is not None and ck.is_file() else None
@@ -537,18 +545,28 @@ class Master:
         return nh
 
     def _initial_exchange(self, t: float) -> dict[str, dict[str, float]]:
-        """Participants with sendBeforeReceive publish first; the others receive, then
-        publish; finally the first group receives."""
-        first = [n for n in self.order if self.opt.send_before_receive.get(n, True)]
-        later = [n for n in self.order if n not in first]
+        """Initial values: outputs propagate to the connected inputs in dependency order
+        (:attr:`order`; participants with ``send_before_receive`` false first), sweeping
+        until no output changes (direct feedthrough loops are iterated to their fixed point;
+        :data:`INIT_SWEEPS` at most, then a :class:`CosimFault` naming the participants)."""
+        late = [n for n in self.order if not self.opt.send_before_receive.get(n, True)]
+        sweep = late + [n for n in self.order if n not in late and self.feeds[n]]
         y = {n: self._get(n, t) for n in self.order}
-        for n in later:
-            self._send(n, y, t)
-            y[n] = self._get(n, t)
-        for n in first:
-            self._send(n, y, t)
-            y[n] = self._get(n, t)
-        return y
+        for _ in range(INIT_SWEEPS):
+            changed = []
+            for n in sweep:
+                self._send(n, y, t)
+                new = self._get(n, t)
+                if not _same(new, y[n]):
+                    changed.append(n)
+                    y[n] = new
+            if not changed:
+                return y
+        raise CosimFault(
+            f"initial values at t = {t:g} s do not converge: the outputs of "
+            f"{', '.join(repr(n) for n in changed)} still change after {INIT_SWEEPS} sweeps of "
+            "propagating outputs to inputs (a direct-feedthrough loop without a fixed point?)."
+        )
 
     def _terminate_all(self, t: float) -> None:
         for n in self.order:
@@ -556,6 +574,29 @@ class Master:
                 self.p[n].terminate()
             except Exception:
                 pass
+
+
+INIT_SWEEPS = 100
+"""Sweeps of the initial propagation of outputs to inputs before giving up."""
+
+
+def _same(a: dict[str, float], b: dict[str, float]) -> bool:
+    return a.keys() == b.keys() and all(a[k] == b[k] or (a[k] != a[k] and b[k] != b[k]) for k in a)
+
+
+def graph_order(feeds: dict[str, list[tuple[str, str, str, float, float]]]) -> list[str]:
+    """Participants in dependency order (a participant after those feeding it), whatever the
+    order in which they were listed: repeatedly take, by name, the first participant none of
+    the remaining ones feeds; in a feedback loop (none such) the first remaining by name."""
+    deps = {n: {src for _, src, *_ in f if src != n} for n, f in feeds.items()}
+    left = sorted(deps)
+    out: list[str] = []
+    while left:
+        free = [n for n in left if not deps[n] & set(left)]
+        n = free[0] if free else left[0]
+        out.append(n)
+        left.remove(n)
+    return out
 
 
 def state_needs(options: Options) -> str:
