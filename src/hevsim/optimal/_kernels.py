@@ -577,8 +577,7 @@ def _row_nd(
         n_ok += 1
         inb = True
         dout = 0.0
-        vbox = -np.inf  # target level value: max_j d_j inside, sum_j max(d_j, 0) outside
-        vpos = 0.0
+        vbox = -np.inf  # target level value: max_j d_j (Chebyshev distance, both sides)
         for j in range(d):
             a = goff[j]
             b = goff[j + 1]
@@ -589,7 +588,6 @@ def _row_nd(
             if use_box:
                 dj = max((box_lo[j] - x) / sp, (x - box_hi[j]) / sp)
                 vbox = max(vbox, dj)
-                vpos += max(dj, 0.0)
             if x < lo - BTOL * sp:
                 inb = False
                 dout += (lo - x) / sp
@@ -628,7 +626,7 @@ def _row_nd(
             if mode == MODE_LEVELSET:
                 vacc += wt * V[flat]
         if use_box:
-            v = vpos if vpos > 0.0 else vbox
+            v = vbox
         elif mode == MODE_LEVELSET:
             v = vacc if inb else max(vacc, 0.0) + dout
         else:

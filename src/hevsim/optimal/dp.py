@@ -18,12 +18,14 @@ Final-state constraint methods (``final_constraint``):
   treated exactly and the cost-to-go in the cells cut by a boundary is interpolated towards
   the boundary-line cost.
 * ``"levelset"`` (any number of states; default for 2-4 states): a level-set function
-  (span-normalised distance to the target box: the largest per-state distance inside, <= 0,
-  the sum of the per-state excesses outside; propagated backward by
-  ``V_k(x) = min_u V_{k+1}(f(x, u))``) defines the backward reachable set at every step;
-  both the recursion and the forward pass only admit inputs whose next state lies in it.
-  Nodes outside the set keep the finite cost of the input that comes closest to it, so no
-  infinite or large penalty is interpolated (Elbert et al. 2013).
+  (span-normalised Chebyshev distance to the target box, the largest per-state distance,
+  <= 0 inside; propagated backward by ``V_k(x) = min_u V_{k+1}(f(x, u))``) defines the
+  backward reachable set at every step; both the recursion and the forward pass only admit
+  inputs whose next state lies in it. Nodes outside the set keep the finite cost of the
+  input that comes closest to it, so no infinite or large penalty is interpolated (Elbert
+  et al. 2013); the nodes next to the set get the linear extrapolation of the cost-to-go
+  inside it (at least that closest-approach cost), so that interpolation does not
+  under-estimate the cost along the boundary.
 * ``"wall"``: infinite cost outside the target. Interpolation touching an infinite node is
   infinite, so the wall never leaks, but it is conservative by up to one cell per step
   near the boundary of the feasible region.
@@ -32,7 +34,9 @@ Final-state constraint methods (``final_constraint``):
   is met up to grid resolution); infeasible-by-target nodes keep finite costs.
 
 At the last step, every method evaluates the terminal cost, the penalty and the target box
-exactly at the next states (no interpolation).
+exactly at the next states (no interpolation). Targets narrower than the input grid
+resolves (equality targets ``lower == upper``) are reached with a fractional input between
+two neighbouring grid values of a continuous input.
 """
 
 from __future__ import annotations
