@@ -38,45 +38,72 @@ CELL_OUTPUTS = ("voltage_v", "soc", "temp_k", "port_heat_w", "soh", "terminal_cu
 
 
 class Runner:
-    """An FMI 2.0 native FMU instance stepped through FMPy's low-level calls, with the
+    """An FMI 2.0 or 3.0 native FMU instance stepped through FMPy's low-level calls, with the
     messages of its logger collected."""
 
     def __init__(
         self, fmu: Path, params: dict[str, float] | None = None, booleans: dict[str, bool] | None = None
-    ):
+    ) -> None:
         from fmpy import extract, read_model_description
-        from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 
         self.md = read_model_description(str(fmu))
+        self.v3 = self.md.fmiVersion.startswith("3")
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.messages: list[str] = []
+        kw = {
+            "guid": self.md.guid,
+            "unzipDirectory": extract(str(fmu)),
+            "modelIdentifier": self.md.coSimulation.modelIdentifier,
+            "instanceName": "native",
+        }
+        self.slave: Any
+        if self.v3:
+            from fmpy.fmi3 import FMU3Slave
 
-        def logger(env: Any, name: Any, status: int, category: Any, message: bytes) -> None:
-            self.messages.append(message.decode())
+            def log3(env: Any, status: int, category: Any, message: bytes) -> None:
+                self.messages.append(message.decode())
 
-        self.callbacks = fmi2CallbackFunctions()
-        self.callbacks.logger = fmi2CallbackLoggerTYPE(logger)
-        self.slave = FMU2Slave(
-            guid=self.md.guid,
-            unzipDirectory=extract(str(fmu)),
-            modelIdentifier=self.md.coSimulation.modelIdentifier,
-            instanceName="native",
-        )
-        self.slave.instantiate(callbacks=self.callbacks)
-        self.slave.setupExperiment(startTime=0.0)
-        self.slave.enterInitializationMode()
+            self.slave = FMU3Slave(**kw)
+            self.slave.instantiate(logMessage=log3)
+            self.slave.enterInitializationMode(startTime=0.0)
+            self._set, self._get, self._set_bool = (
+                self.slave.setFloat64,
+                self.slave.getFloat64,
+                self.slave.setBoolean,
+            )
+        else:
+            from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+
+            def log2(env: Any, name: Any, status: int, category: Any, message: bytes) -> None:
+                self.messages.append(message.decode())
+
+            self.callbacks = fmi2CallbackFunctions()
+            self.callbacks.logger = fmi2CallbackLoggerTYPE(log2)
+            self.slave = FMU2Slave(**kw)
+            self.slave.instantiate(callbacks=self.callbacks)
+            self.slave.setupExperiment(startTime=0.0)
+            self.slave.enterInitializationMode()
+            self._set, self._get, self._set_bool = (
+                self.slave.setReal,
+                self.slave.getReal,
+                self.slave.setBoolean,
+            )
         for name, value in (params or {}).items():
             self.set(name, value)
         for name, flag in (booleans or {}).items():
-            self.slave.setBoolean([self.vr[name]], [flag])
+            self._set_bool([self.vr[name]], [flag])
         self.slave.exitInitializationMode()
         self.t = 0.0
 
     def set(self, name: str, value: float) -> None:
-        self.slave.setReal([self.vr[name]], [float(value)])
+        self._set([self.vr[name]], [float(value)])
 
     def get(self, names: tuple[str, ...] | list[str]) -> list[float]:
-        return list(self.slave.getReal([self.vr[n] for n in names]))
+        return list(self._get([self.vr[n] for n in names]))
+
+    def step(self, dt: float) -> None:
+        self.slave.doStep(self.t, dt)
+        self.t += dt
 
     def run(self, inputs: dict[str, Any], dt: float, outputs: tuple[str, ...] | list[str]) -> np.ndarray:
         n = len(next(iter(inputs.values())))
@@ -84,36 +111,74 @@ class Runner:
         cols = np.column_stack([np.broadcast_to(np.asarray(v, float), (n,)) for v in inputs.values()])
         out = np.empty((n, len(outputs)))
         for k in range(n):
-            self.slave.setReal(refs, cols[k].tolist())
-            self.slave.doStep(self.t, dt)
-            self.t += dt
+            self._set(refs, cols[k].tolist())
+            self.step(dt)
             out[k] = self.get(outputs)
         return out
+
+    def get_state(self) -> Any:
+        return self.slave.getFMUState() if self.v3 else self.slave.getFMUstate()
+
+    def set_state(self, state: Any) -> None:
+        (self.slave.setFMUState if self.v3 else self.slave.setFMUstate)(state)
+
+    def free_state(self, state: Any) -> None:
+        (self.slave.freeFMUState if self.v3 else self.slave.freeFMUstate)(state)
+
+    def serialize(self, state: Any) -> bytes:
+        return bytes(self.slave.serializeFMUState(state) if self.v3 else self.slave.serializeFMUstate(state))
+
+    def deserialize(self, blob: bytes) -> Any:
+        return self.slave.deserializeFMUState(blob) if self.v3 else self.slave.deSerializeFMUstate(blob)
 
     def close(self) -> None:
         self.slave.terminate()
         self.slave.freeInstance()
 
 
+VERSIONS = (2, 3)
+
+
 @pytest.fixture(scope="module")
-def cell_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """A native FMI 2.0 cell FMU of every shipped parameter set (start SOC 0.9, 298.15 K)."""
+def cell_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[tuple[str, int], Path]:
+    """Native FMI 2.0 and 3.0 cell FMUs of every shipped parameter set (start SOC 0.9, 298.15 K)."""
     folder = tmp_path_factory.mktemp("native")
-    return {name: export_native_fmu(name, folder / f"{name}.fmu", 0.9, 298.15) for name in shipped_cells()}
+    return {
+        (name, v): export_native_fmu(name, folder / f"{name}_{v}.fmu", 0.9, 298.15, fmi_version=v)
+        for name in shipped_cells()
+        for v in VERSIONS
+    }
 
 
-@pytest.fixture(scope="module")
-def cli_cell_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("cli") / "cell.fmu"
-    assert main(["export-fmu", str(ROOT / "examples" / "cell.toml"), "-o", str(out), "--native"]) == 0
+def _cli_export(folder: Path, example: str) -> dict[int, Path]:
+    out = {}
+    for v in VERSIONS:
+        out[v] = folder / f"{example}_{v}.fmu"
+        args = ["export-fmu", str(ROOT / "examples" / f"{example}.toml"), "-o", str(out[v]), "--native"]
+        assert main([*args, "--fmi-version", str(v)]) == 0
     return out
 
 
 @pytest.fixture(scope="module")
-def module_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("cli") / "module.fmu"
-    assert main(["export-fmu", str(ROOT / "examples" / "module.toml"), "-o", str(out), "--native"]) == 0
-    return out
+def cli_cell_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[int, Path]:
+    """examples/cell.toml exported by the command line, FMI 2.0 and 3.0."""
+    return _cli_export(tmp_path_factory.mktemp("cli"), "cell")
+
+
+@pytest.fixture(scope="module")
+def module_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[int, Path]:
+    """examples/module.toml (2s6p with spread) exported by the command line, FMI 2.0 and 3.0."""
+    return _cli_export(tmp_path_factory.mktemp("cli"), "module")
+
+
+@pytest.fixture(scope="module")
+def cli_cell_fmu(cli_cell_fmus: dict[int, Path]) -> Path:
+    return cli_cell_fmus[2]
+
+
+@pytest.fixture(scope="module")
+def module_fmu(module_fmus: dict[int, Path]) -> Path:
+    return module_fmus[2]
 
 
 def load_profiles(c0_c: float) -> Iterator[tuple[str, np.ndarray, float]]:
@@ -133,21 +198,26 @@ def assert_close(got: np.ndarray, ref: np.ndarray, what: str) -> None:
     assert err <= TOL * scale, f"{what}: max |native - in-process| = {err:.3g} > {TOL} x {scale:g}"
 
 
-def test_fmus_pass_fmpy_validation(cell_fmus: dict[str, Path], module_fmu: Path, cli_cell_fmu: Path) -> None:
+def test_fmus_pass_fmpy_validation(
+    cell_fmus: dict[tuple[str, int], Path], module_fmus: dict[int, Path], cli_cell_fmus: dict[int, Path]
+) -> None:
     from fmpy.model_description import read_build_description
     from fmpy.validation import validate_fmu
 
-    for fmu in [*cell_fmus.values(), module_fmu, cli_cell_fmu]:
+    for fmu in [*cell_fmus.values(), *module_fmus.values(), *cli_cell_fmus.values()]:
         assert validate_fmu(str(fmu)) == [], fmu
         (config,) = read_build_description(str(fmu), validate=True)
-        assert config.sourceFileSets[0].sourceFiles == ["fmi2_model.c"]
+        version = 3 if fmu.stem.endswith("_3") else 2
+        assert config.sourceFileSets[0].sourceFiles == [f"fmi{version}_model.c"]
         with zipfile.ZipFile(fmu) as z:
             names = set(z.namelist())
         assert {"sources/model_data.h", "sources/hevsim_kernel.h", "sources/hevsim_model.h"} <= names
 
 
-def test_binary_needs_no_python(module_fmu: Path, cli_cell_fmu: Path, tmp_path: Path) -> None:
-    for fmu in (cli_cell_fmu, module_fmu):
+def test_binary_needs_no_python(
+    module_fmus: dict[int, Path], cli_cell_fmus: dict[int, Path], tmp_path: Path
+) -> None:
+    for fmu in (*cli_cell_fmus.values(), *module_fmus.values()):
         name, data = native_binary(fmu)
         lib = tmp_path / Path(name).name
         lib.write_bytes(data)
@@ -202,12 +272,15 @@ def test_same_interface_as_pythonfmu_fmu(cli_cell_fmu: Path, module_fmu: Path) -
         assert all(v.variability == "constant" for v in extra.values())
 
 
+@pytest.mark.parametrize("version", VERSIONS)
 @pytest.mark.parametrize("name", shipped_cells())
-def test_cell_equals_in_process_model_over_shipped_profiles(cell_fmus: dict[str, Path], name: str) -> None:
+def test_cell_equals_in_process_model_over_shipped_profiles(
+    cell_fmus: dict[tuple[str, int], Path], name: str, version: int
+) -> None:
     p = load_cell_parameters(name)
     for label, current, dt in load_profiles(p.capacity.c0_c):
         port = 298.15 + 5.0 * np.sin(np.arange(current.size) / 200.0)
-        r = Runner(cell_fmus[name])
+        r = Runner(cell_fmus[name, version])
         got = r.run({"current_a": current, "port_temp_k": port}, dt, CELL_OUTPUTS)
         r.close()
         cell = Cell(p, soc_initial=0.9, temp_k=298.15)
@@ -219,12 +292,15 @@ def test_cell_equals_in_process_model_over_shipped_profiles(cell_fmus: dict[str,
         np.testing.assert_array_equal(got[:, 5], current)
 
 
-def test_cell_power_input_equals_in_process_solver(cell_fmus: dict[str, Path]) -> None:
+@pytest.mark.parametrize("version", VERSIONS)
+def test_cell_power_input_equals_in_process_solver(
+    cell_fmus: dict[tuple[str, int], Path], version: int
+) -> None:
     """Power input: the same secant solve of the current as the pythonfmu FMU's stepper."""
     name = "thesis_table_4_1"
     p = load_cell_parameters(name)
     power = 3.6 * np.concatenate([np.full(60, 3.0), np.full(40, -1.5), 2.0 * np.sin(np.arange(100) / 7.0)])
-    r = Runner(cell_fmus[name], booleans={"power_input": True})
+    r = Runner(cell_fmus[name, version], booleans={"power_input": True})
     got = r.run(
         {"power_w": power, "port_temp_k": np.full(power.size, 300.0)}, 1.0, ("current_a", "voltage_v", "soc")
     )
@@ -238,7 +314,8 @@ def test_cell_power_input_equals_in_process_solver(cell_fmus: dict[str, Path]) -
         assert abs(got[k, 2] - out["soc"]) <= TOL, k
 
 
-def test_module_equals_in_process_module(module_fmu: Path) -> None:
+@pytest.mark.parametrize("version", VERSIONS)
+def test_module_equals_in_process_module(module_fmus: dict[int, Path], version: int) -> None:
     """The examples/module.toml module (2s6p, spread): module and per-cell outputs, lumped
     and per-cell ports, current and power input."""
     n, dt = 1369, 1.0
@@ -247,7 +324,7 @@ def test_module_equals_in_process_module(module_fmu: Path) -> None:
     heat_cap = mod.p[:, K.CHEAT].copy()
     res = mod.simulate(current, dt, 303.15)
     cells = [f"cell{c}_temp_k" for c in range(12)] + [f"cell{c}_port_heat_w" for c in range(12)]
-    r = Runner(module_fmu)
+    r = Runner(module_fmus[version])
     got = r.run(
         {"current_a": current, "port_temp_k": np.full(n, 303.15)},
         dt,
@@ -270,7 +347,7 @@ def test_module_equals_in_process_module(module_fmu: Path) -> None:
     tp = 295.0 + np.linspace(0.0, 10.0, 12)[None, :] + 0.01 * np.arange(steps)[:, None]
     power = np.where(np.arange(steps) < 120, 400.0, -150.0)
     inputs = {"power_w": power, **{f"cell{c}_port_temp_k": tp[:, c] for c in range(12)}}
-    r = Runner(module_fmu, booleans={"power_input": True, "per_cell_ports": True})
+    r = Runner(module_fmus[version], booleans={"power_input": True, "per_cell_ports": True})
     got = r.run(inputs, dt, ["current_a", "voltage_v", "soc", "port_heat_w", *cells])
     r.close()
     st = ModuleStepper(load_cell_parameters("saft_li_ion_6ah"), 0.8, 298.15, 2, 6, 0.03, 0.05, 42)
@@ -288,35 +365,42 @@ def test_module_equals_in_process_module(module_fmu: Path) -> None:
         assert_close(got[k], np.array(want), f"power step {k}")
 
 
-def test_state_round_trip_is_bit_identical(cli_cell_fmu: Path, module_fmu: Path) -> None:
-    for fmu, outs in ((cli_cell_fmu, list(CELL_OUTPUTS)), (module_fmu, ["voltage_v", "soc", "cell7_temp_k"])):
-        scale = 1.0 if fmu == cli_cell_fmu else 30.0
+@pytest.mark.parametrize("version", VERSIONS)
+def test_state_round_trip_is_bit_identical(
+    cli_cell_fmus: dict[int, Path], module_fmus: dict[int, Path], version: int
+) -> None:
+    cell, module = cli_cell_fmus[version], module_fmus[version]
+    for fmu, outs in ((cell, list(CELL_OUTPUTS)), (module, ["voltage_v", "soc", "cell7_temp_k"])):
+        scale = 1.0 if fmu == cell else 30.0
         current = scale * np.sin(np.arange(120) / 5.0)
         r = Runner(fmu)
         r.run({"current_a": current[:40]}, 1.0, outs)
-        state = r.slave.getFMUstate()
-        blob = r.slave.serializeFMUstate(state)
+        state = r.get_state()
+        blob = r.serialize(state)
         t0 = r.t
         first = r.run({"current_a": current[40:]}, 1.0, outs)
-        r.slave.setFMUstate(state)
+        r.set_state(state)
         r.t = t0
         again = r.run({"current_a": current[40:]}, 1.0, outs)
         np.testing.assert_array_equal(again, first)
         # a new instance resumes from the serialised state
         r2 = Runner(fmu)
-        r2.slave.setFMUstate(r2.slave.deSerializeFMUstate(blob))
+        r2.set_state(r2.deserialize(blob))
         r2.t = t0
         np.testing.assert_array_equal(r2.run({"current_a": current[40:]}, 1.0, outs), first)
-        r.slave.freeFMUstate(state)
+        r.free_state(state)
         r.close()
         r2.close()
 
 
-def test_sources_compile_with_strict_warnings(cli_cell_fmu: Path, module_fmu: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize("version", VERSIONS)
+def test_sources_compile_with_strict_warnings(
+    cli_cell_fmus: dict[int, Path], module_fmus: dict[int, Path], tmp_path: Path, version: int
+) -> None:
     import fmpy
 
     headers = Path(fmpy.__file__).parent / "c-code"
-    for fmu in (cli_cell_fmu, module_fmu):
+    for fmu in (cli_cell_fmus[version], module_fmus[version]):
         src = tmp_path / fmu.stem
         with zipfile.ZipFile(fmu) as z:
             z.extractall(src, [n for n in z.namelist() if n.startswith("sources/")])
@@ -331,7 +415,7 @@ def test_sources_compile_with_strict_warnings(cli_cell_fmu: Path, module_fmu: Pa
             "-shared",
             f"-I{headers}",
             f"-I{src / 'sources'}",
-            str(src / "sources" / "fmi2_model.c"),
+            str(src / "sources" / f"fmi{version}_model.c"),
             "-o",
             str(src / "m.so"),
             "-lm",
@@ -340,10 +424,11 @@ def test_sources_compile_with_strict_warnings(cli_cell_fmu: Path, module_fmu: Pa
         assert proc.returncode == 0, proc.stderr
 
 
-def test_set_real_on_a_constant_or_output_is_refused(cli_cell_fmu: Path) -> None:
+@pytest.mark.parametrize("version", VERSIONS)
+def test_set_real_on_a_constant_or_output_is_refused(cli_cell_fmus: dict[int, Path], version: int) -> None:
     from fmpy.fmi1 import FMICallException
 
-    r = Runner(cli_cell_fmu)
+    r = Runner(cli_cell_fmus[version])
     for name in ("v_min_v", "voltage_v"):
         with pytest.raises(FMICallException):
             r.set(name, 1.0)
@@ -353,25 +438,26 @@ def test_set_real_on_a_constant_or_output_is_refused(cli_cell_fmu: Path) -> None
     r.close()
 
 
-def test_out_of_range_values_return_error_with_message(cli_cell_fmu: Path) -> None:
+@pytest.mark.parametrize("version", VERSIONS)
+def test_out_of_range_values_return_error_with_message(cli_cell_fmus: dict[int, Path], version: int) -> None:
     """A parameter outside the table range, a port temperature outside the model's range and
     a current beyond the short-circuit current: fmi2Error, a message naming the variable and
     the value, and the state as before (the next valid step equals the in-process model)."""
     from fmpy.fmi1 import FMICallException
 
-    r = Runner(cli_cell_fmu)
+    r = Runner(cli_cell_fmus[version])
     with pytest.raises(FMICallException):
         r.set("soc_initial", 1.5)
     assert any("soc_initial = 1.5" in m and "SOC axis" in m for m in r.messages), r.messages
     r.run({"current_a": [4.0] * 10}, 1.0, CELL_OUTPUTS)
     r.set("port_temp_k", 612.5)
     with pytest.raises(FMICallException):
-        r.slave.doStep(r.t, 1.0)
+        r.step(1.0)
     assert any("port_temp_k = 612.5 K" in m for m in r.messages), r.messages
     r.set("port_temp_k", 296.15)
     r.set("current_a", 5000.0)
     with pytest.raises(FMICallException):
-        r.slave.doStep(r.t, 1.0)
+        r.step(1.0)
     assert any("voltage_v = -" in m and "5000 A" in m for m in r.messages), r.messages
     got = r.run({"current_a": [4.0] * 5}, 1.0, ("voltage_v",))
     r.close()

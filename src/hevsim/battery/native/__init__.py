@@ -68,7 +68,7 @@ compiled into the FMU as ``HV_T_MIN_K`` / ``HV_T_MAX_K``."""
 
 # variable kinds of the generated table VAR_KIND (hevsim_model.h, fmi2_model.c)
 _KINDS = {"input": "K_INPUT", "parameter": "K_PARAMETER", "boolean": "K_BOOLEAN", "output": "K_OUTPUT"}
-_KINDS["constant"] = "K_CONSTANT"
+_KINDS.update(constant="K_CONSTANT", independent="K_INDEPENDENT")
 
 
 class NativeFMUError(HevsimError):
@@ -80,7 +80,7 @@ class Variable:
     """One FMU variable: value reference = position in :func:`variables`."""
 
     name: str
-    kind: str  # input | parameter | boolean | output | constant
+    kind: str  # input | parameter | boolean | output | constant | independent
     start: float
     description: str = ""
     lo: float = -np.inf
@@ -91,6 +91,10 @@ class Variable:
     @property
     def causality(self) -> str:
         return {"boolean": "parameter", "constant": "local"}.get(self.kind, self.kind)
+
+    @property
+    def settable(self) -> bool:
+        return self.kind in ("input", "parameter", "boolean")
 
 
 def unsupported_options(p: CellParameters) -> list[str]:
@@ -130,9 +134,15 @@ def _c_limit(v: float) -> str:
 
 
 def variables(
-    p: CellParameters, n_cells: int, soc_initial: float, temp_initial_k: float, starts: dict[str, float]
+    p: CellParameters,
+    n_cells: int,
+    soc_initial: float,
+    temp_initial_k: float,
+    starts: dict[str, float],
+    fmi_version: int = 2,
 ) -> list[Variable]:
-    """The FMU's variables in the value-reference order of the pythonfmu FMU, then the constants.
+    """The FMU's variables in the value-reference order of the pythonfmu FMU, then the constants
+    (and, for FMI 3.0, the independent variable ``time`` [s]).
 
     ``starts``: start values of the outputs (the stepper's initial outputs).
     """
@@ -175,6 +185,8 @@ def variables(
         Variable("v_min_v", "constant", p.limits.v_min_v, "cell discharge voltage limit (OCV at SOC 0)"),
         Variable("v_max_v", "constant", p.limits.v_max_v, "cell charge voltage limit (OCV at SOC 1)"),
     ]
+    if fmi_version == 3:
+        out.append(Variable("time", "independent", 0.0, "simulation time [s]"))
     assert set(INPUTS) <= {v.name for v in out}
     return out
 
@@ -239,7 +251,7 @@ def model_data(
         f"#define HV_T_MIN_K {_num(CELL_TEMP_DOMAIN_K[0])}",
         f"#define HV_T_MAX_K {_num(CELL_TEMP_DOMAIN_K[1])}",
         "/* variables by value reference */",
-        "enum { K_INPUT, K_PARAMETER, K_BOOLEAN, K_OUTPUT, K_CONSTANT };",
+        "enum { K_INPUT, K_PARAMETER, K_BOOLEAN, K_OUTPUT, K_CONSTANT, K_INDEPENDENT };",
         f"#define N_VR {len(vars_)}",
     ]
     seen_cell = set()
@@ -265,10 +277,13 @@ def model_data(
     return "\n".join(lines) + "\n"
 
 
+_EXPONENTS = {**UNIT_EXPONENTS, "s": {"s": 1}}
+
+
 def _units_used(vars_: list[Variable]) -> list[str]:
     used: list[str] = []
     for v in vars_:
-        u = unit_of(v.name)
+        u = "s" if v.kind == "independent" else unit_of(v.name)
         if v.kind != "boolean" and u is not None and u not in used:
             used.append(u)
     return used
@@ -307,7 +322,7 @@ def model_description(
         defs = ET.SubElement(root, "UnitDefinitions")
         for name in used:
             u = ET.SubElement(defs, "Unit", name=name)
-            ET.SubElement(u, "BaseUnit", {k: str(v) for k, v in UNIT_EXPONENTS[name].items()})
+            ET.SubElement(u, "BaseUnit", {k: str(v) for k, v in _EXPONENTS[name].items()})
     cats = ET.SubElement(root, "LogCategories")
     for name, text in (
         ("logStatusError", "Log messages with error status (refused values, model domain left)."),
@@ -331,6 +346,10 @@ def model_description(
             outputs.append(vr)
         unit = None if v.kind == "boolean" else unit_of(v.name)
         start = ("true" if v.start else "false") if v.kind == "boolean" else _num(v.start)
+        if v.kind == "independent":
+            el = ET.SubElement(mv, "Float64", attrs)
+            el.set("unit", "s")
+            continue
         if fmi_version == 2:
             sv = ET.SubElement(mv, "ScalarVariable", attrs)
             typ = ET.SubElement(sv, "Boolean" if v.kind == "boolean" else "Real", start=start)
@@ -477,7 +496,7 @@ def export_native_fmu(
             p, soc_initial, temp_initial_k, n_series, n_parallel, capacity_spread, resistance_spread, seed
         )
         c0_scale, r_scale = stepper.m.c0_scale, stepper.m.r_scale
-    vars_ = variables(p, n_cells, float(soc_initial), float(temp_initial_k), stepper.outputs)
+    vars_ = variables(p, n_cells, float(soc_initial), float(temp_initial_k), stepper.outputs, fmi_version)
     data = model_data(p, name, vars_, int(n_series), int(n_parallel), c0_scale, r_scale)
     wrapper = _template(WRAPPERS[fmi_version])
     digest = hashlib.sha256((data + wrapper + "".join(_template(t) for t in TEMPLATES)).encode()).hexdigest()

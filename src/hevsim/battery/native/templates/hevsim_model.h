@@ -73,9 +73,11 @@ static void hv_init(hv_data *d)
 static int hv_check_set(int vr, double value, char *msg, size_t n)
 {
     int kind = VAR_KIND[vr];
-    if (kind == K_OUTPUT || kind == K_CONSTANT) {
+    if (kind == K_OUTPUT || kind == K_CONSTANT || kind == K_INDEPENDENT) {
         snprintf(msg, n, "variable '%s' (value reference %d) is %s and cannot be set (value %.17g refused)",
-                 VAR_NAME[vr], vr, kind == K_OUTPUT ? "an output" : "a constant", value);
+                 VAR_NAME[vr], vr,
+                 kind == K_OUTPUT ? "an output" : kind == K_CONSTANT ? "a constant" : "the independent variable",
+                 value);
         return 1;
     }
     if (!isfinite(value)) {
@@ -252,6 +254,9 @@ static int hv_do_step(hv_data *d, double t, double dt, char *msg, size_t n)
     d->r[VR_CURRENT_A] = current;
     d->r[VR_TERMINAL_CURRENT_A] = current;
     d->time = t + dt;
+#ifdef VR_TIME
+    d->r[VR_TIME] = d->time;
+#endif
     return 0;
 }
 
