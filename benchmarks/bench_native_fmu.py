@@ -177,7 +177,7 @@ def main() -> None:
     }
     with tempfile.TemporaryDirectory() as tmp_name, OtherLoad() as load:
         tmp = Path(tmp_name)
-        cases = {}
+        cases: dict[str, tuple[Path, Path, float, float, float]] = {}
         for label, kw, params, soc, current in (
             ("cell", {}, "thesis_table_4_1", 1.0, 2.0),
             ("module 2s6p", module_kw, "saft_li_ion_6ah", 0.8, 30.0),
