@@ -14,10 +14,10 @@ import pandas as pd
 
 import hevsim
 from hevsim.components.engine import Engine
-from hevsim.fuels import config_fuel
 from hevsim.config import VehicleConfig
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DomainError, InputError, TrackingError
+from hevsim.fuels import config_fuel
 from hevsim.io import atomic_directory, write_json
 from hevsim.sim import kernel as K
 from hevsim.sim.checks import (
@@ -31,7 +31,6 @@ from hevsim.sim.checks import (
 from hevsim.sim.metrics import compute_metrics, energy_audit
 from hevsim.sim.model import SeriesHEV, build_series_hev
 from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
-
 
 CSV_AUTO_MAX_ROWS = 50_000
 """Longest time series [rows] that :meth:`SimulationResult.save` also writes as CSV unless
@@ -202,7 +201,12 @@ def _prepare(
 
 def _energy_keys(hev: SeriesHEV) -> tuple[float, float, float, float]:
     f = config_fuel(hev.config, hev.engine)  # the engine's fuel; no engine: the [fuel] section's
-    return f.density_kg_per_m3, f.heating_value_btu_per_us_gal, f.co2_kg_per_kg, f.lower_heating_value_j_per_kg
+    return (
+        f.density_kg_per_m3,
+        f.heating_value_btu_per_us_gal,
+        f.co2_kg_per_kg,
+        f.lower_heating_value_j_per_kg,
+    )
 
 
 def simulate(
