@@ -176,14 +176,14 @@ def cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, soc, temp_k, direction):
 
 
 @njit(cache=True)
-def ocv_step_mean(prm, soc_ax, t_ax, ocv_c, ocv_d, soc0, soc1, temp_k, direction):
-    """Mean OCV [V] over a linear SOC path ``soc0 -> soc1`` at ``temp_k`` [K]: exact for the
-    piecewise-linear table (trapezoids between the SOC breakpoints inside the path)."""
-    lo = min(soc0, soc1)
-    hi = max(soc0, soc1)
-    f_prev = cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, lo, temp_k, direction)
-    if hi - lo <= 0.0:
-        return f_prev
+def ocv_step_mean(prm, soc_ax, t_ax, ocv_c, ocv_d, soc0, soc1, f0, f1, temp_k, direction):
+    """Mean OCV [V] over a linear SOC path ``soc0 -> soc1`` at ``temp_k`` [K], given the OCVs
+    ``f0``, ``f1`` [V] at its ends: exact for the piecewise-linear table (trapezoids between
+    the SOC breakpoints inside the path)."""
+    if soc1 == soc0:
+        return f0
+    lo, f_prev, hi, f = (soc0, f0, soc1, f1) if soc0 < soc1 else (soc1, f1, soc0, f0)
+    f_hi = f
     acc = 0.0
     s_prev = lo
     for k in range(soc_ax.shape[0]):
@@ -193,8 +193,7 @@ def ocv_step_mean(prm, soc_ax, t_ax, ocv_c, ocv_d, soc0, soc1, temp_k, direction
             acc += 0.5 * (f + f_prev) * (s - s_prev)
             s_prev = s
             f_prev = f
-    f = cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, hi, temp_k, direction)
-    acc += 0.5 * (f + f_prev) * (hi - s_prev)
+    acc += 0.5 * (f_hi + f_prev) * (hi - s_prev)
     return acc / (hi - lo)
 
 
@@ -252,10 +251,11 @@ def branch_affine_at(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc
     soc = prm[SOCINI] - x[SQ] / cap
     if prm[OCVSTEP] > 0.0:
         soc1 = soc - i_lin * dt / cap
-        ocv_avg = ocv_step_mean(prm, soc_ax, t_ax, ocv_c, ocv_d, soc, soc1, temp, direction)
+        f0 = cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, soc, temp, direction)
+        f1 = cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, soc1, temp, direction)
+        ocv_avg = ocv_step_mean(prm, soc_ax, t_ax, ocv_c, ocv_d, soc, soc1, f0, f1, temp, direction)
         _, rs = cell_ocv_rs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, 0.5 * (soc + soc1), temp, direction)
         if abs(soc1 - soc) > 1e-9:
-            f1 = cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, soc1, temp, direction)
             z_ocv = dt / cap * (f1 - ocv_avg) / (soc1 - soc)
         else:  # half the local slope on the side the SOC moves to
             ds = -1e-6 * direction
@@ -305,8 +305,9 @@ def cell_step(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, 
     soc = prm[SOCINI] - x[SQ] / cap
     if prm[OCVSTEP] > 0.0:  # OCV consistent within the step (module docstring)
         soc1 = soc - i_a * dt / cap
+        f0 = cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, soc, temp0, direction)
         ocv = cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, soc1, temp0, direction)
-        ocv_avg = ocv_step_mean(prm, soc_ax, t_ax, ocv_c, ocv_d, soc, soc1, temp0, direction)
+        ocv_avg = ocv_step_mean(prm, soc_ax, t_ax, ocv_c, ocv_d, soc, soc1, f0, ocv, temp0, direction)
         _, rs = cell_ocv_rs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, 0.5 * (soc + soc1), temp0, direction)
     else:
         ocv, rs = cell_ocv_rs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, soc, temp0, direction)
