@@ -112,6 +112,11 @@ def _unknown_options(options: dict[str, Any], valid: tuple[str, ...], name: str,
         )
 
 
+def _message(exc: Exception) -> str:
+    """A user error's message as it is; any other exception with its type (a solver error)."""
+    return str(exc) if isinstance(exc, HevsimError) else f"{type(exc).__name__}: {exc}"
+
+
 def _fail(message: str, wall: float = 0.0) -> Outcome:
     return Outcome(FAILED, message, {}, wall)
 
@@ -348,13 +353,13 @@ def _simulate_run(
     if good:
         try:
             done = run(good)
-        except HevsimError:  # one bad variant fails the batch: run each alone to know which
+        except Exception:  # one bad variant fails the batch: run each alone to know which
             done = []
             for i in good:
                 try:
                     done.extend(run([i]))
-                except HevsimError as exc:
-                    done.append(_fail(str(exc)))
+                except Exception as exc:  # recorded for the case; the study goes on
+                    done.append(_fail(_message(exc)))
         for i, o in zip(good, done, strict=True):
             outcomes[i] = o
     wall = (time.perf_counter() - t0) / m
@@ -435,8 +440,8 @@ def _optimize_run(
             res = optimize(cfg, cycle, progress=False, threads=threads, **dict(ctx.options))
             out.append(Outcome(OK, "", {k: float(res.metrics[k]["value"]) for k in metrics},
                                time.perf_counter() - t0))  # fmt: skip
-        except HevsimError as exc:
-            out.append(_fail(str(exc), time.perf_counter() - t0))
+        except Exception as exc:  # recorded for the case; the study goes on
+            out.append(_fail(_message(exc), time.perf_counter() - t0))
     return out
 
 
