@@ -67,7 +67,7 @@ ECM_TUPLE = EcmTables._fields
 """Names of the ECM tuple's entries."""
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def pack_tables(bat):
     """The ``"tables"`` kind's :class:`PackTables` held in an :class:`EcmTables`."""
     return PackTables(

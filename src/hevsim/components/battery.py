@@ -37,14 +37,14 @@ class PackTables(NamedTuple):
     r_charge: FloatArray
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def pack_resistance(r_cell_ohm, n_series, n_parallel, r_extra_ohm):
     """Pack series resistance [ohm] of ``n_series`` x ``n_parallel`` cells of ``r_cell_ohm``
     plus the wiring resistance of eq (22) [ohm]."""
     return n_series / n_parallel * r_cell_ohm + r_extra_ohm
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def pack_ocv_r(soc, temp_k, current_sign, n_s, n_p, r_extra, tab):
     """Pack open-circuit voltage [V] and series resistance [ohm] (scalar kernel).
 
@@ -56,7 +56,7 @@ def pack_ocv_r(soc, temp_k, current_sign, n_s, n_p, r_extra, tab):
     return ocv, r
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def charge_current(current_a, coulombic_efficiency):
     """Current [A] that changes the stored charge: the terminal current (discharge > 0),
     times the coulombic efficiency while charging (eq 13)."""

@@ -31,7 +31,7 @@ TORQUE_RTOL = 1e-12
 """Relative tolerance on the motoring torque limit (a request at the limit is feasible)."""
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def battery_power_limits(ocv_dis_v, r_dis_ohm, ocv_chg_v, r_chg_ohm, i_dis_max_a, i_chg_max_a):
     """(largest discharge power, largest charge power) at the battery terminals [W], >= 0.
 
@@ -47,7 +47,7 @@ def battery_power_limits(ocv_dis_v, r_dis_ohm, ocv_chg_v, r_chg_ohm, i_dis_max_a
     return p_dis, p_chg
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def regen_torque(torque_req_nm, torque_min_nm, regen_ok):
     """Machine torque [N·m] for a request: motoring as asked; braking down to the generating
     limit ``torque_min_nm`` (<= 0) where ``regen_ok``, else none (friction brakes take it)."""
@@ -56,7 +56,7 @@ def regen_torque(torque_req_nm, torque_min_nm, regen_ok):
     return max(torque_req_nm, torque_min_nm) if regen_ok else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def limit_machine_torque(
     torque_nm, p_el, omega_radps, p_other_w, p_dis_max_w, p_chg_max_w, kind, const_eff,
     torque_scale, tab,
@@ -87,7 +87,7 @@ def limit_machine_torque(
     return torque_nm, p_el, limited
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def bus_current(p_bat_w, ocv_dis_v, r_dis_ohm, ocv_chg_v, r_chg_ohm):
     """Battery current closing the bus at terminal power ``p_bat_w`` [W] (> 0 discharging).
 

@@ -46,7 +46,7 @@ class MachineTables(NamedTuple):
     eff_z: FloatArray
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def machine_efficiency(torque_nm, omega_radps, kind, const_eff, torque_scale, tab):
     """Efficiency [-] (scalar kernel): kind 0 ideal, 1 constant, 2 map over ``|speed|`` x torque.
 
@@ -62,14 +62,14 @@ def machine_efficiency(torque_nm, omega_radps, kind, const_eff, torque_scale, ta
     return max(eff, MIN_EFFICIENCY)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def machine_power(torque_nm, omega_radps, kind, const_eff, torque_scale, tab):
     """Electrical power [W] (> 0 drawn) at torque [N·m] and speed [rad/s] (scalar kernel)."""
     eta = machine_efficiency(torque_nm, omega_radps, kind, const_eff, torque_scale, tab)
     return electrical_power(torque_nm, omega_radps, eta)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def torque_limits(omega_radps, torque_scale, tab):
     """(max motoring torque >= 0, max generating torque <= 0) [N·m] at speed [rad/s]."""
     w = abs(omega_radps)

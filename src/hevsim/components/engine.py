@@ -49,7 +49,7 @@ class EngineTables(NamedTuple):
     fuel_z: FloatArray
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def engine_torque(throttle, omega_radps, use_tmap, stall_radps, redline_radps, torque_scale, tab):
     """Brake torque [N·m] at throttle [0-1] and speed [rad/s] (scalar kernel).
 
@@ -77,7 +77,7 @@ def _engine_torque_many(throttle, omega_radps, use_tmap, stall_radps, redline_ra
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def engine_fuel_rate(torque_nm, omega_radps, fired, use_fuel_map, lhv_jpkg, torque_scale, tab):
     """Fuel mass rate [kg/s] at brake torque [N·m] and speed [rad/s] (scalar kernel).
 

@@ -249,7 +249,7 @@ def supervisor_schedule(p, sched, k, soc, w_gs, gs_state):
     return gs_state, thr, w_target, reason
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def battery_tables(p, bat, soc, current_sign):
     """OCV(SOC, T) and R(SOC, T, sign) of the pack (ideal and Rint packs are 1-point tables)."""
     return pack_ocv_r(soc, p[BTEMP], current_sign, p[BNS], p[BNP], p[BREXT], pack_tables(bat))
