@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from hevsim.errors import ConfigError
+from hevsim.errors import ConfigError, SimulationError
 from hevsim.schema import build_config, check_value, read_toml, to_dict
 from hevsim.thermal.geometry import PART_ORDER, ModuleGeometry
 from hevsim.thermal.materials import (
@@ -45,6 +45,7 @@ class SimulationSection:
     cell_heat_w: tuple[float, ...] = (1.0,)
     coupling_iterations: int = 1
     capacity: str = "lumped"  # or "consistent" (see hevsim.thermal.solver.HeatModel)
+    stiffness: str = "galerkin"  # or "afc": algebraic flux correction (AFCHeatModel)
 
 
 @dataclass(frozen=True)
@@ -72,6 +73,181 @@ class OutputSection:
     field_every_s: float = 60.0
     hot_spots: int = 10
     pictures: int = 1
+
+
+#: ``[simulation] stiffness``: the Galerkin matrices, or "afc": algebraic flux correction
+#: (:class:`AFCHeatModel`), which keeps the discrete maximum principle.
+STIFFNESS_KINDS = ("galerkin", "afc")
+#: Overshoot above which the summary suggests ``stiffness = "afc"`` or a better mesh [K].
+OVERSHOOT_WARN_K = 0.05
+#: A source-free node counts as above its physical bound beyond this margin [K] (rounding).
+OVERSHOOT_TOL_K = 1e-7
+
+
+def dmp_diffusion(k: Any) -> Any:
+    """Symmetric artificial diffusion ``D`` that removes the positive off-diagonal couplings of
+    ``k`` [W/K] (obtuse tetrahedra, consistent contact and film surface matrices):
+    ``D = sum over pairs max(0, k_ij) (e_i - e_j)(e_i - e_j)^T``. ``k + D`` has non-positive
+    off-diagonal entries and the same row sums (no heat is created: the energy balance is
+    unchanged) and stays symmetric positive definite; with the lumped capacity and implicit
+    Euler its solution obeys the discrete maximum principle. This is the low-order operator of
+    algebraic flux correction for diffusion (D. Kuzmin, M. J. Shashkov, D. Svyatskiy, J. Comput.
+    Phys. 228 (2009) 3448-3463); alone it is far too diffusive on an unstructured mesh (42 % more
+    heat to the coolant in 20 s on the example mesh), so :class:`AFCHeatModel` adds back the
+    limited antidiffusion."""
+    import scipy.sparse as sp
+
+    ks = sp.coo_matrix((k + k.T) * 0.5)
+    off = (ks.row != ks.col) & (ks.data > 0.0)
+    r, c, v = ks.row[off], ks.col[off], ks.data[off]
+    n = k.shape[0]
+    return sp.csr_matrix(
+        (np.concatenate([-v, v]), (np.concatenate([r, r]), np.concatenate([c, r]))), shape=(n, n)
+    )
+
+
+class AFCHeatModel:
+    """Implicit-Euler heat model with algebraic flux correction (``[simulation] stiffness =
+    "afc"``): the low-order operator ``L = K + D`` (:func:`dmp_diffusion`) is factorised once and
+    the antidiffusive fluxes ``f_ij = d_ij (T_i - T_j)`` (``D T`` = their sum) are added back,
+    each limited by Zalesak's limiter so that no node leaves the range of its neighbours and its
+    previous value (Kuzmin, Shashkov, Svyatskiy 2009). The nonlinear step is solved by defect
+    correction with the same factorisation, the limited fluxes under-relaxed by ``relaxation``
+    (at most ``max_iterations``, to ``tol_k``; about 100 solves a step). Where the
+    limiter does not act the result is the Galerkin one; the fluxes are antisymmetric, so no
+    heat is created. Wraps a :class:`~hevsim.thermal.solver.HeatModel` built on ``L``."""
+
+    def __init__(
+        self,
+        model: Any,
+        diffusion: Any,
+        *,
+        max_iterations: int = 1000,
+        tol_k: float = 1e-8,
+        relaxation: float = 0.5,
+    ) -> None:
+        import scipy.sparse as sp
+
+        lumped = sp.issparse(model.capacity) and model.capacity.nnz == model.capacity.shape[0]
+        if model.theta != 1.0 or not lumped:
+            raise ConfigError(
+                'heat model: stiffness = "afc" needs theta = 1 and capacity = "lumped"; '
+                f"got theta = {model.theta} and {'a lumped' if lumped else 'a consistent'} capacity."
+            )
+        self.model = model
+        upper = sp.triu(diffusion, k=1).tocoo()
+        self.i, self.j, self.d = upper.row, upper.col, -upper.data  # d_ij > 0
+        low = model.k.tocsr()
+        self.indices, self.starts = low.indices, low.indptr[:-1]
+        off = np.abs(low - sp.diags(low.diagonal())).sum(axis=1)
+        self.q = model.capacity.diagonal() / model.dt_s + np.asarray(off).ravel()
+        self.film_sum = np.asarray(low.sum(axis=1)).ravel()  # conduction and contact rows sum to 0
+        self.film = self.film_sum > 1e-9 * np.abs(low.diagonal())
+        self.max_iterations = max_iterations
+        self.tol_k = tol_k
+        self.relaxation = relaxation
+        self.iterations = 0  # most defect-correction iterations of a step so far
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.model, name)
+
+    def _film_temp_k(self) -> np.ndarray:
+        """The temperature every film node is drawn to (the film-weighted fluid / ambient / set
+        temperature; NaN where there is no film): a film node may legitimately go there."""
+        m = self.model
+        d = m.disc
+        f = d.film_load_w.copy()
+        if m.coolant is not None:
+            f += np.asarray(d.wall_weights[:, : m.fluid_k.size] @ (m.wall_h * m.fluid_k)).ravel()
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(self.film, f / np.where(self.film, self.film_sum, 1.0), np.nan)
+
+    def _limited(self, u: np.ndarray, u_old: np.ndarray, film_k: np.ndarray) -> np.ndarray:
+        n = u.size
+        near = u[self.indices]
+        umax = np.fmax(np.maximum(np.maximum.reduceat(near, self.starts), u_old), film_k)
+        umin = np.fmin(np.minimum(np.minimum.reduceat(near, self.starts), u_old), film_k)
+        f = self.d * (u[self.i] - u[self.j])  # into i, out of j
+        fp, fm = np.maximum(f, 0.0), np.minimum(f, 0.0)
+        p_plus = np.bincount(self.i, fp, n) - np.bincount(self.j, fm, n)
+        p_minus = np.bincount(self.i, fm, n) - np.bincount(self.j, fp, n)
+        q_plus, q_minus = self.q * (umax - u), self.q * (umin - u)
+        r_plus = np.where(p_plus > 0.0, np.minimum(1.0, q_plus / np.where(p_plus > 0.0, p_plus, 1.0)), 1.0)
+        r_minus = np.where(
+            p_minus < 0.0, np.minimum(1.0, q_minus / np.where(p_minus < 0.0, p_minus, -1.0)), 1.0
+        )
+        alpha = np.where(
+            f > 0.0, np.minimum(r_plus[self.i], r_minus[self.j]), np.minimum(r_minus[self.i], r_plus[self.j])
+        )
+        g = alpha * f
+        return np.bincount(self.i, g, n) - np.bincount(self.j, g, n)
+
+    def step(self) -> np.ndarray:
+        """Advance one step of ``dt_s``; returns the new nodal temperatures [K]."""
+        m = self.model
+        old = m.temp_k
+        base = m._rhs_matrix @ old
+        new = old
+        for _ in range(m.coupling_iterations):
+            if m.coolant is not None:
+                m.fluid_k = m.coolant.fluid_temperature_k(m.wall_temp_k(new), m.disc.wall_area_m2)
+            rhs = base + m._load()
+            film_k = self._film_temp_k()
+            new = m._lu.solve(rhs)  # low-order solution
+            flux = np.zeros_like(new)
+            change, used = np.inf, 0
+            while used < self.max_iterations:
+                used += 1
+                # under-relaxed: the plain fixed point oscillates (0.2 K on the example mesh)
+                flux = (1.0 - self.relaxation) * flux + self.relaxation * self._limited(new, old, film_k)
+                nxt = m._lu.solve(rhs + flux)
+                change = float(np.abs(nxt - new).max())
+                new = nxt
+                if change <= self.tol_k:
+                    break
+            if change > self.tol_k:
+                raise SimulationError(
+                    f"heat model: the flux-corrected step at t = {m.time_s + m.dt_s} s did not converge in "
+                    f"{self.max_iterations} iterations (last change {change:.2e} K); expected <= "
+                    f'{self.tol_k:g} K: use stiffness = "galerkin" or a smaller dt_s.'
+                )
+            self.iterations = max(self.iterations, used)
+        if not np.all(np.isfinite(new)):
+            raise SimulationError(f"heat model: temperature became non-finite at t = {m.time_s + m.dt_s} s.")
+        m.temp_k = new
+        m._f_old = rhs - base
+        m.time_s += m.dt_s
+        return new
+
+
+class OvershootMonitor:
+    """Nodes above their physical bound: a node without heat source (no cell heat, no heat
+    flux) cannot get hotter than its own previous temperature, every node it is coupled to
+    and, when it has a film, the hottest fluid / ambient / set temperature (the parabolic
+    maximum principle). Updated after every step from the coupling pattern of the matrix."""
+
+    def __init__(self, k: Any, source_free: np.ndarray) -> None:
+        k = k.tocsr()
+        rows = np.repeat(np.arange(k.shape[0]), np.diff(k.indptr))
+        self.indices = k.indices
+        self.starts = k.indptr[:-1]
+        self.off = k.indices != rows
+        row_sum = np.asarray(k.sum(axis=1)).ravel()
+        self.film = row_sum > 1e-9 * np.abs(k.diagonal())
+        self.source_free = source_free
+        self.max_k = 0.0
+        self.nodes = 0
+        self.ever = np.zeros(k.shape[0], dtype=bool)
+
+    def update(self, old_k: np.ndarray, new_k: np.ndarray, hottest_fluid_k: float) -> None:
+        vals = np.where(self.off, new_k[self.indices], -np.inf)
+        bound = np.maximum(np.maximum.reduceat(vals, self.starts), old_k)
+        bound = np.where(self.film, np.maximum(bound, hottest_fluid_k), bound)
+        excess = np.where(self.source_free, new_k - bound, 0.0)
+        flagged = excess > OVERSHOOT_TOL_K
+        self.max_k = max(self.max_k, float(excess.max(initial=0.0)))
+        self.nodes = max(self.nodes, int(flagged.sum()))
+        self.ever |= flagged
 
 
 #: Kinds of ``[[boundary]]`` condition and the values each one takes.
@@ -225,7 +401,11 @@ def thermal_config_from_dict(
     raw_mat = data.pop("materials", {})
     raw_contact = data.pop("contact", {})
     boundary = boundary_conditions(data.pop("boundary", []), source)
-    choices = {"coolant.properties": ("table_4_4", "meg50_table"), "simulation.capacity": CAPACITY_KINDS}
+    choices = {
+        "coolant.properties": ("table_4_4", "meg50_table"),
+        "simulation.capacity": CAPACITY_KINDS,
+        "simulation.stiffness": STIFFNESS_KINDS,
+    }
     cfg = build_config(ThermalConfig, data, source, base_dir, choices, _BOUNDS)
     if not isinstance(raw_mat, dict):
         raise ConfigError(f"{source}: [materials]: expected tables [materials.<part>], got {raw_mat!r}.")
@@ -260,6 +440,13 @@ def thermal_config_from_dict(
         for k, v in raw_contact.items()
     }
     cfg.geometry.check(f"{source}: [geometry]")
+    if cfg.simulation.stiffness == "afc" and (
+        cfg.simulation.theta != 1.0 or cfg.simulation.capacity != "lumped"
+    ):
+        raise ConfigError(
+            f'{source}: key \'simulation.stiffness\' = "afc" needs theta = 1 and capacity = "lumped"; '
+            f'got theta = {cfg.simulation.theta:g}, capacity = "{cfg.simulation.capacity}".'
+        )
     if cfg.coolant.properties == "meg50_table":
         from hevsim.thermal.coolant import meg50_coolant
 
@@ -428,13 +615,28 @@ def run_thermal(
 
     channel.fluid_temperature_k(model.wall_temp_k(), disc.wall_area_m2)
     initial_temp_k = model.temp_k.copy()
+    source_free = np.asarray(disc.cell_load.sum(axis=1)).ravel() == 0.0
+    for b in cfg.boundary:  # a heat flux into the solid is a source too
+        if b.kind == "heat_flux" and b.heat_flux_w_m2 > 0.0:
+            flux_nodes = (
+                np.unique(disc.wall_tris)
+                if b.surface == "INTERFACE"
+                else surface_nodes_and_load(mesh, disc, b.surface)[0]
+            )
+            source_free[flux_nodes] = False
+    monitor = OvershootMonitor(model.k, source_free)
+    set_temps_k = [b.temp_c + KELVIN for b in cfg.boundary if b.kind != "heat_flux"]
     record()
     if every:
         snapshots.append((0.0, model.temp_k - KELVIN))
     t0 = time.perf_counter()
     with task("time loop", steps, show=progress) as bar:
         for k in range(1, steps + 1):
+            old_k = model.temp_k
             model.step()
+            fluids = np.asarray(model.fluid_k, dtype=float)[model.wall_h > 0]
+            hottest = max([disc.ambient_k, *set_temps_k, *fluids.tolist()])
+            monitor.update(old_k, model.temp_k, hottest)
             record()
             if every and (k % every == 0 or k == steps):
                 snapshots.append((model.time_s, model.temp_k - KELVIN))
@@ -492,6 +694,13 @@ def run_thermal(
         },
         **_channel_metrics(channel),
         **_boundary_metrics(cfg, mesh, disc, tc),
+        "overshoot_nodes": {
+            "value": monitor.nodes,
+            "unit": "-",
+            "note": "most source-free nodes above their physical bound (local maximum in space and "
+            "time above every coupled node and fluid) at one step",
+        },
+        "overshoot_max_k": {"value": monitor.max_k, "unit": "K", "note": "largest such excess"},
         "nodes": {"value": int(mesh.points_m.shape[0]), "unit": "-"},
         "nodes_split": {"value": int(n), "unit": "-"},
         "tetrahedra": {"value": int(mesh.tets.shape[0]), "unit": "-"},
@@ -504,6 +713,7 @@ def run_thermal(
         "interfaces_m2": disc.interfaces,
         "timings_s": timings,
         "factorisations": model.factorisations,
+        "afc_max_iterations": getattr(model, "iterations", None),
     }
     result = ThermalResult(ts, part_stats, cell_stats, spots, metrics, metadata)
     if out_dir is not None:
@@ -632,6 +842,15 @@ def format_summary(result: ThermalResult) -> str:
     ratios = {k: v["volume_ratio"] for k, v in result.part_stats.items() if "volume_ratio" in v}
     if ratios:
         lines.append("  meshed/nominal volume: " + ", ".join(f"{k} {v:.4f}" for k, v in ratios.items()))
+    if "overshoot_max_k" in m:
+        over, count = m["overshoot_max_k"]["value"], m["overshoot_nodes"]["value"]
+        lines.append(f"  {'overshoot (nodes, max)':<26}{count:>12d} {over:.4f} K")
+        if over > OVERSHOOT_WARN_K:
+            lines.append(
+                f"  note: source-free nodes overshoot their physical bound by up to {over:.3f} K "
+                f"(> {OVERSHOOT_WARN_K} K: obtuse tetrahedra or consistent surface matrices); "
+                '[simulation] stiffness = "afc" removes it (algebraic flux correction)'
+            )
     if "energy_balance_relative" in m:
         lines.append(f"  {'energy_balance_relative':<26}{m['energy_balance_relative']['value']:>12.2e} -")
     lines.append("  hot spots (part, x y z [mm], °C):")
@@ -819,7 +1038,15 @@ def module_model(cfg: ThermalConfig, mesh: Any, external_coolant: bool = False) 
             coolant=coolant_from_section(cool),
         )
     coolant.configured_segments = used
-    model = HeatModel(
+    diffusion = None
+    if sim.stiffness == "afc":  # low-order operator of conduction, contact and films
+        k_total = disc.stiffness
+        h_wall = np.asarray(coolant.heat_transfer_coefficient_w_m2k(), dtype=float)
+        if np.any(h_wall):
+            k_total = k_total + disc.wall_mass.matrix(h_wall[disc.wall_segment])
+        diffusion = dmp_diffusion(k_total)
+        disc = dataclasses.replace(disc, stiffness=(disc.stiffness + diffusion).tocsr())
+    model: Any = HeatModel(
         disc,
         dt_s=sim.dt_s,
         theta=sim.theta,
@@ -831,4 +1058,6 @@ def module_model(cfg: ThermalConfig, mesh: Any, external_coolant: bool = False) 
     if wall_bc is not None and wall_bc.kind == "heat_flux":
         model.wall_flux_w_m2[:] = -wall_bc.heat_flux_w_m2  # the wall loses -q
         model.set_cell_heat_w(model.cell_heat_w, from_now=True)  # the load now includes it
+    if diffusion is not None:
+        model = AFCHeatModel(model, diffusion)
     return disc, coolant, model
