@@ -15,7 +15,8 @@ Variables (value references in brackets):
   (``2*m``), ``e`` [3] Enumeration output (1 + n mod 3);
 * ``b`` [0] Boolean output (``y > 0.5``), ``bi`` [1] Boolean input, ``bo`` [2] Boolean output
   (``not bi``);
-* ``s`` [0] String input, ``slen`` [9] Real output (length of ``s``).
+* ``s`` [0] String input, ``so`` [1] String output (``s``), ``slen`` [9] Real output
+  (length of ``s``).
 
 ``canGetAndSetFMUstate="false"``: the FMU has no state support.
 """
@@ -80,7 +81,7 @@ fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]) {
     M *m = c; update(m); for (size_t k = 0; k < n; k++) { if (vr[k] > 2) return fmi2Error; v[k] = m->b[vr[k]]; } return fmi2OK; }
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]) {
-    M *m = c; for (size_t k = 0; k < n; k++) { if (vr[k] != 0) return fmi2Error; v[k] = m->s; } return fmi2OK; }
+    M *m = c; for (size_t k = 0; k < n; k++) { if (vr[k] > 1) return fmi2Error; v[k] = m->s; } return fmi2OK; }
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]) {
     M *m = c; for (size_t k = 0; k < n; k++) { if (vr[k] > 9) return fmi2Error; m->r[vr[k]] = v[k]; } return fmi2OK; }
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[]) {
@@ -162,11 +163,12 @@ _VARS = """
     <ScalarVariable name="bi" valueReference="1" causality="input" variability="discrete"><Boolean start="false"/></ScalarVariable>
     <ScalarVariable name="bo" valueReference="2" causality="output" variability="discrete" initial="calculated"><Boolean/></ScalarVariable>
     <ScalarVariable name="s" valueReference="0" causality="input" variability="discrete"><String start=""/></ScalarVariable>
+    <ScalarVariable name="so" valueReference="1" causality="output" variability="discrete" initial="calculated"><String/></ScalarVariable>
 """
 # 1-based indices (in ModelVariables order) of the outputs, and what each depends on
-_OUTPUTS = {2: "", 8: "7", 10: "18", 11: "", 13: "12", 14: "", 15: "", 17: "16"}
+_OUTPUTS = {2: "", 8: "7", 10: "18", 11: "", 13: "12", 14: "", 15: "", 17: "16", 19: "18"}
 
-_CALCULATED = (8, 10, 13, 14, 15, 17)
+_CALCULATED = (8, 10, 13, 14, 15, 17, 19)
 
 
 def model_description(ident: str) -> str:

@@ -212,3 +212,171 @@ def test_feedthrough_loop_without_fixed_point_is_named(cfmu: Path) -> None:
     a, b = FMUParticipant("a", cfmu, {"c": 0.0}), FMUParticipant("b", cfmu, {"c": 0.0})
     res = simulate([a, b], loop, stop_time_s=1.0, step_s=H)  # a loop with a fixed point (0) runs
     assert np.all(res["a.z"] == 0.0)
+
+
+# ---------------------------------------------------------------------------- item 3: types
+@pytest.mark.parametrize("cls", CLASSES)
+def test_all_fmi2_types_recorded_like_fmpy(cfmu: Path, cls: type, tmp_path: Path) -> None:
+    start = {"m": 3, "bi": True, "s": "hello, world", "u": 2.0}
+    names = ["y", "slen", "n", "mi", "e", "b", "bo"]
+    ref = fmpy_reference(cfmu, 0.5, 0.1, start, names)
+    p = cls("c", cfmu, start)
+    assert p.types == {"n": "Integer", "m": "Integer", "mi": "Integer", "e": "Enumeration", "b": "Boolean",
+                       "bi": "Boolean", "bo": "Boolean", "s": "String", "so": "String"}  # fmt: skip
+    res = simulate([p], [], stop_time_s=0.5, step_s=0.1)
+    assert np.array_equal(res.time_s, ref["time"])
+    for n in names:
+        assert np.array_equal(res[f"c.{n}"], ref[n].astype(float)), n
+    assert res["c.so"].tolist() == ["hello, world"] * 6
+    res.write_csv(tmp_path / "r.csv")
+    lines = (tmp_path / "r.csv").read_text().splitlines()
+    assert lines[0].endswith(",c.so") and lines[1].endswith(',"hello, world"') and ",True" not in lines[1]
+
+
+def test_typed_connections_and_conversions(cfmu: Path) -> None:
+    def parts() -> list:
+        a = FMUParticipant("a", cfmu, {"u": 1.0, "s": "abc", "bi": False, "m": 4})
+        return [a, FMUParticipant("b", cfmu)]
+
+    conns = [
+        Connection("a", "n", "b", "u"),  # Integer -> Real: converted
+        Connection("a", "bo", "b", "m"),  # Boolean -> Integer: 1 / 0
+        Connection("a", "so", "b", "s"),  # String -> String
+        Connection("a", "b", "b", "bi"),  # Boolean -> Boolean
+    ]
+    res = simulate(parts(), conns, stop_time_s=1.0, step_s=0.1, algorithm="jacobi")
+    n = np.arange(11)
+    assert np.array_equal(res["a.n"], n)
+    # b integrates u = a.n of the step start: y(t_k) = sum_{j<k} j * 0.1
+    assert np.allclose(res["b.y"], 0.1 * n * (n - 1) / 2, rtol=0, atol=1e-12)
+    assert np.all(res["b.mi"] == 2.0)  # m = bo = not False = 1
+    assert res["b.so"].tolist() == ["abc"] * 11 and np.all(res["b.slen"] == 3.0)
+    # b.bi follows a.b (a.y > 0.5 from t = 0.6), one step late: b.bo = not a.b(t - h)
+    assert res["a.b"].tolist() == [0.0] * 6 + [1.0] * 5
+    assert res["b.bo"].tolist() == [1.0] * 7 + [0.0] * 4
+    for src, dst, msg in (
+        (("a", "y"), ("b", "m"), "Real output to a Integer input"),
+        (("a", "y"), ("b", "bi"), "Real output to a Boolean input"),
+        (("a", "so"), ("b", "u"), "String output to a Real input"),
+        (("a", "n"), ("b", "s"), "Integer output to a String input"),
+    ):
+        with pytest.raises(ConfigError, match=rf"connection a.{src[1]} -> b.{dst[1]} \(a.{src[1]} is .*: "
+                           rf"cannot connect a {msg}; allowed conversions: Integer -> Real"):  # fmt: skip
+            simulate(parts(), [Connection(*src, *dst)], stop_time_s=1.0, step_s=0.1)
+    with pytest.raises(ConfigError, match=r"parameter 'm' is an Integer, got 2.5"):
+        simulate([FMUParticipant("a", cfmu, {"m": 2.5})], [], stop_time_s=1.0, step_s=0.1)
+    with pytest.raises(ConfigError, match=r"parameter 's' is a String, got 3"):
+        simulate([FMUParticipant("a", cfmu, {"s": 3})], [], stop_time_s=1.0, step_s=0.1)
+
+
+def test_string_results_survive_checkpoint_and_resume(cfmu: Path, tmp_path: Path) -> None:
+    def run(**kw: object):  # type: ignore[no-untyped-def]
+        a = FMUParticipant("a", cfmu, {"u": 1.0, "s": "x,y"})
+        return simulate([a], [], stop_time_s=1.0, step_s=0.1, **kw)
+
+    full = run()
+    ck = tmp_path / "ck.pkl"
+    interrupt_after(run, 0.55, checkpoint_path=ck, checkpoint_every=1)
+    resumed = run(checkpoint_path=ck, resume=True)  # no state support: replayed and compared
+    assert np.array_equal(resumed.data, full.data) and resumed.text == full.text
+    assert full.text["a.so"] == ["x,y"] * 11
+
+
+_ARRAY_MODEL = """
+import numpy as np
+from pythonfmu3 import Boolean, Dimension, Float64, Fmi3Causality, Fmi3Slave, Fmi3Variability, Int32
+from pythonfmu3.enums import Fmi3Initial
+
+D = Fmi3Variability.discrete
+
+
+class CosimArrayModel(Fmi3Slave):
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.time = 0.0
+        self.a = np.array([1.0, 2.0, 3.0])
+        self.w = np.array([0.0, 0.0, 0.0])
+        self.count = 0
+        self.inc = 1
+        self.odd = False
+        self.register_variable(Float64("time", causality=Fmi3Causality.independent,
+                                       variability=Fmi3Variability.continuous))
+        self.register_variable(Float64("a", causality=Fmi3Causality.output, initial=Fmi3Initial.exact,
+                                       dimensions=[Dimension(start="3")]))
+        # an explicit setter: pythonfmu3 0.3.4's own calls np.reshape(newshape=), gone in numpy 2
+        self.register_variable(Float64("w", causality=Fmi3Causality.input, dimensions=[Dimension(start="3")],
+                                       setter=lambda v: setattr(self, "w", np.array(v, float))))
+        self.register_variable(Int32("count", causality=Fmi3Causality.output, variability=D,
+                                     initial=Fmi3Initial.exact))
+        self.register_variable(Int32("inc", causality=Fmi3Causality.input, variability=D))
+        self.register_variable(Boolean("odd", causality=Fmi3Causality.output, variability=D,
+                                       initial=Fmi3Initial.exact))
+
+    def do_step(self, current_time, step_size):
+        self.a = self.a + self.w * step_size
+        self.count += self.inc
+        self.odd = bool(self.count % 2)
+        self.time = current_time + step_size
+        return True
+"""
+
+
+@pytest.fixture(scope="module")
+def array_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from pythonfmu3 import FmuBuilder
+
+    d = tmp_path_factory.mktemp("arr")
+    (d / "CosimArrayModel.py").write_text(_ARRAY_MODEL)
+    return Path(
+        FmuBuilder.build_FMU(d / "CosimArrayModel.py", dest=d, canHandleVariableCommunicationStepSize=True)
+    )
+
+
+def test_fmi3_arrays_and_integer_types_exchanged_and_recorded(array_fmu: Path) -> None:
+    w = [0.5, -1.0, 0.25]
+    src = FunctionParticipant("src", lambda t, h, x, u: (x, {f"w{i}": w[i] for i in range(3)}), 0,
+                              {f"w{i}": w[i] for i in range(3)}, {})  # fmt: skip
+    m1, m2 = WorkerFMUParticipant("m1", array_fmu), WorkerFMUParticipant("m2", array_fmu)
+    assert list(m1.outputs) == ["a[1]", "a[2]", "a[3]", "count", "odd"]
+    assert m1.types == {"count": "Integer", "inc": "Integer", "odd": "Boolean"}
+    conns = [Connection("src", f"w{i}", "m1", f"w[{i + 1}]") for i in range(3)]
+    conns += [Connection("m1", "count", "m2", "inc"), Connection("m1", "a[3]", "m2", "w[2]")]
+    res = simulate([src, m1, m2], conns, stop_time_s=1.0, step_s=0.1, algorithm="gauss-seidel")
+    a = np.array([1.0, 2.0, 3.0])
+    expect = [a.copy()]
+    hs = np.diff(res.time_s)  # t_(k+1) - t_k on the grid k h (0.1 up to round-off)
+    for k in range(10):
+        a = a + np.array(w) * hs[k]
+        expect.append(a.copy())
+    e = np.array(expect)
+    for i in range(3):
+        assert np.array_equal(res[f"m1.a[{i + 1}]"], e[:, i]), i
+    n = np.arange(11)
+    assert np.array_equal(res["m1.count"], n) and np.array_equal(res["m1.odd"], n % 2)
+    # Gauss-Seidel: m2 adds m1's count after m1's step: 1 + 2 + ... + k
+    assert np.array_equal(res["m2.count"], n * (n + 1) / 2)
+    # m2.w[2] = m1.a[3] at the step's end
+    m2a = [2.0]
+    for k in range(10):
+        m2a.append(m2a[-1] + e[k + 1, 2] * hs[k])
+    assert np.array_equal(res["m2.a[2]"], m2a)
+
+
+def test_check_catches_type_mismatch_and_bad_parameter(cfmu: Path) -> None:
+    from hevsim.cosim.datacheck import datacheck
+
+    def desc(conns: list[Connection], params: dict | None = None) -> SystemDescription:
+        comps = [Component(n, "application/x-fmu-sharedlibrary", cfmu.name, parameters=params or {})
+                 for n in ("a", "b")]  # fmt: skip
+        return SystemDescription(
+            "t", comps, conns, stop_time_s=1.0, master={"step_s": 0.1}, base_dir=cfmu.parent
+        )
+
+    ok = [Connection("a", "n", "b", "u"), Connection("a", "so", "b", "s"), Connection("a", "bo", "b", "m")]
+    datacheck(desc(ok))
+    with pytest.raises(ConfigError, match=r"a.y -> b.m \(a.y is Real, b.m is Integer\): cannot connect"):
+        datacheck(desc([Connection("a", "y", "b", "m")]))
+    with pytest.raises(
+        ConfigError, match=r"component 'a': FMU c.fmu: parameter 'bi' is a Boolean, got the text"
+    ):
+        datacheck(desc([], {"bi": "yes"}))

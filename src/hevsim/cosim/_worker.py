@@ -33,6 +33,7 @@ def main() -> None:
                     "outputs": p.outputs,
                     "can_state": p.can_save_state,
                     "state_note": p.state_note,
+                    "types": dict(p.types),
                 }
             elif cmd == "quit":
                 break

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from hevsim.cosim import units as U
+from hevsim.cosim.fmi_vars import TYPE_CLASS, FmuVariables, type_conversion
 from hevsim.cosim.load import load_system
 from hevsim.cosim.ssd import FMU_TYPE, Component, Connector, SystemDescription
 from hevsim.errors import ConfigError
@@ -56,7 +57,11 @@ def _check(desc: SystemDescription) -> SystemDescription:
         fed.add((k.dst, k.dst_var))
         su = k.src_unit if k.src_unit is not None else getattr(kinds[k.src].get(k.src_var), "unit", "")
         du = k.dst_unit if k.dst_unit is not None else getattr(kinds[k.dst].get(k.dst_var), "unit", "")
-        U.conversion(su, du, desc.units, what)
+        st = getattr(kinds[k.src].get(k.src_var), "type", "Real")
+        dt = getattr(kinds[k.dst].get(k.dst_var), "type", "Real")
+        type_conversion(st, dt, f"{what} ({k.src}.{k.src_var} is {st}, {k.dst}.{k.dst_var} is {dt})")
+        if st == dt == "Real":
+            U.conversion(su, du, desc.units, what)
     if desc.stop_time_s <= desc.start_time_s:
         raise ConfigError(
             f"{src}: stop time {desc.stop_time_s} s must exceed start time {desc.start_time_s} s."
@@ -74,6 +79,15 @@ def _fmu_connectors(desc: SystemDescription, c: Component) -> dict[str, Connecto
         md = read_model_description(str(f))
     except Exception as exc:
         raise ConfigError(f"{desc.source}: component {c.name!r}: {f} is not a valid FMU ({exc}).") from None
+    if md.coSimulation is None:
+        raise ConfigError(
+            f"{desc.source}: component {c.name!r}: FMU {f.name} has no co-simulation interface "
+            "(model exchange only); hevsim runs co-simulation FMUs."
+        )
+    try:
+        fv = FmuVariables(md, f.name)
+    except ConfigError as exc:
+        raise ConfigError(f"{desc.source}: component {c.name!r}: {exc}") from None
     out: dict[str, Connector] = {}
     for v in md.modelVariables:
         unit = (
@@ -81,12 +95,21 @@ def _fmu_connectors(desc: SystemDescription, c: Component) -> dict[str, Connecto
             or (v.declaredType.unit if getattr(v, "declaredType", None) else None)
             or ""
         )
-        out[v.name] = Connector(v.name, v.causality, unit)
-    for p in c.parameters:
+        out[v.name] = Connector(v.name, v.causality, unit, TYPE_CLASS.get(str(v.type), str(v.type)))
+    for kind, table in (("input", fv.inputs), ("output", fv.outputs)):
+        for e, u in table.items():
+            out[e] = Connector(e, kind, u, fv.types[e])
+    by_name = {v.name: v for v in md.modelVariables}
+    for p, val in c.parameters.items():
         if p not in out:
             raise ConfigError(
                 f"{desc.source}: component {c.name!r}: FMU {f.name} has no variable {p!r} (parameter)."
             )
+        if p in by_name:
+            try:
+                fv.check_parameter(by_name[p], val)
+            except ConfigError as exc:
+                raise ConfigError(f"{desc.source}: component {c.name!r}: {exc}") from None
     for k in c.connectors:
         if k.name not in out:
             raise ConfigError(

@@ -31,9 +31,10 @@ Algorithm per communication step from ``t`` by ``h`` (inputs held constant over 
 
 from __future__ import annotations
 
+import json
 import pickle
 import time as _time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,10 +42,13 @@ from typing import Any
 import numpy as np
 
 from hevsim.cosim import units as U
+from hevsim.cosim.fmi_vars import type_conversion
 from hevsim.cosim.participant import Participant
 from hevsim.errors import ConfigError, HevsimError, SimulationError
 
 ALGORITHMS = ("jacobi", "gauss-seidel")
+Feed = tuple[str, str, str, float, float, "Callable[[Any], Any] | None"]
+"""A connection into a participant: (input, source, output, factor, offset, type conversion)."""
 NEGOTIATION = ("fixed", "min", "max")
 
 
@@ -133,22 +137,33 @@ class CosimResult:
     stats: dict[str, Any]
     stopped_by: str | None = None
     participants: dict[str, Participant] = field(default_factory=dict, repr=False)
+    text: dict[str, list[str]] = field(default_factory=dict)
+    """String outputs ("participant.variable" -> one value per row); ``data`` holds the
+    numeric ones (Integer, Enumeration as numbers, Boolean as 0 / 1)."""
 
     def __getitem__(self, key: str) -> np.ndarray:
+        if key in self.text:
+            return np.array(self.text[key], dtype=object)
         try:
             return self.data[:, self.columns.index(key)]
         except ValueError:
-            raise KeyError(f"no result column {key!r}; columns: {self.columns}") from None
+            raise KeyError(f"no result column {key!r}; columns: {self.columns + list(self.text)}") from None
 
     def write_csv(self, path: str | Path) -> None:
         """Write the time series as CSV (atomically)."""
         from hevsim.io import write_text_atomic
 
-        lines = [",".join(["time_s", *self.columns])]
+        text = list(self.text.values())
+        lines = [",".join(["time_s", *self.columns, *self.text])]
         lines += [
-            ",".join(repr(float(v)) for v in (t, *row)) for t, row in zip(self.time_s, self.data, strict=True)
+            ",".join([*(repr(float(v)) for v in (t, *row)), *(_csv_field(c[i]) for c in text)])
+            for i, (t, row) in enumerate(zip(self.time_s, self.data, strict=True))
         ]
         write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+def _csv_field(s: str) -> str:
+    return '"' + s.replace('"', '""') + '"' if any(c in s for c in ',"\n\r') or s != s.strip() else s
 
 
 class CosimFault(SimulationError):
@@ -194,7 +209,7 @@ class Master:
             )
         self._window_start = {n: options.start_time_s for n in self.order}  # last exchange [s]
         # connections, grouped by destination: (dst_var, src, src_var, factor, offset)
-        self.feeds: dict[str, list[tuple[str, str, str, float, float]]] = {n: [] for n in self.p}
+        self.feeds: dict[str, list[Feed]] = {n: [] for n in self.p}
         seen: set[tuple[str, str]] = set()
         for c in connections:
             what = f"connection {c.src}.{c.src_var} -> {c.dst}.{c.dst_var}"
@@ -210,10 +225,19 @@ class Master:
             if (c.dst, c.dst_var) in seen:
                 raise ConfigError(f"{what}: input {c.dst}.{c.dst_var} is already connected.")
             seen.add((c.dst, c.dst_var))
-            su = c.src_unit if c.src_unit is not None else self.p[c.src].outputs[c.src_var]
-            du = c.dst_unit if c.dst_unit is not None else self.p[c.dst].inputs[c.dst_var]
-            f, o = U.conversion(su, du, extra_units, what)
-            self.feeds[c.dst].append((c.dst_var, c.src, c.src_var, f, o))
+            st = self.p[c.src].types.get(c.src_var, "Real")
+            dt = self.p[c.dst].types.get(c.dst_var, "Real")
+            conv = type_conversion(
+                st, dt, f"{what} ({c.src}.{c.src_var} is {st}, {c.dst}.{c.dst_var} is {dt})"
+            )
+            f, o = 1.0, 0.0
+            if st == dt == "Real":
+                su = c.src_unit if c.src_unit is not None else self.p[c.src].outputs[c.src_var]
+                du = c.dst_unit if c.dst_unit is not None else self.p[c.dst].inputs[c.dst_var]
+                f, o = U.conversion(su, du, extra_units, what)
+            elif conv is None:
+                conv = _identity
+            self.feeds[c.dst].append((c.dst_var, c.src, c.src_var, f, o, conv))
         fixed = list(options.order or ())
         self.order = fixed + [n for n in graph_order(self.feeds) if n not in fixed]
 
@@ -230,8 +254,10 @@ class Master:
                 f"participant {name!r} failed in {call} at t = {t:g} s: {type(exc).__name__}: {exc}"
             ) from exc
 
-    def _inputs_for(self, name: str, y: dict[str, dict[str, float]]) -> dict[str, float]:
-        return {dv: f * y[s][sv] + o for dv, s, sv, f, o in self.feeds[name]}
+    def _inputs_for(self, name: str, y: dict[str, dict[str, Any]]) -> dict[str, Any]:
+        return {
+            dv: f * y[s][sv] + o if cv is None else cv(y[s][sv]) for dv, s, sv, f, o, cv in self.feeds[name]
+        }
 
     def _send(self, name: str, y: dict[str, dict[str, float]], t: float) -> None:
         vals = self._inputs_for(name, y)
@@ -266,7 +292,7 @@ class Master:
                 t_n = self._window_start[n]
                 h_n = t + h - t_n
             if mid:
-                sent = {s: {v: 0.5 * (y0[s][v] + cur[s][v]) for v in y0[s]} for s in y0}
+                sent = {s: {v: _mix(cur[s][v], y0[s][v], 0.5) for v in y0[s]} for s in y0}
                 self._send(n, sent, t)
             else:
                 self._send(n, cur, t)
@@ -286,12 +312,14 @@ class Master:
         window = self.rates[n] * self.opt.step_s
         return t_end >= self._window_start[n] + window - eps or t_end >= self.opt.stop_time_s - eps
 
-    def _record(self, t: float, y: dict[str, dict[str, float]]) -> None:
-        row = [y[n][v] for n, v in self._cols]
+    def _record(self, t: float, y: dict[str, dict[str, Any]]) -> None:
+        row = [float(y[n][v]) for n, v in self._cols]
+        trow = [y[n][v] for n, v in self._tcols]
         if self._replay is not None and len(self._rows) < len(self._replay):
             i = len(self._rows)
             ref = self._replay[i]
-            if t != ref[0] or not np.array_equal(np.array(row, float), ref[1:], equal_nan=True):
+            same = np.array_equal(np.array(row, float), ref[1:], equal_nan=True)
+            if t != ref[0] or not same or (self._tcols and trow != self._treplay[i]):
                 names = ", ".join(repr(n) for n in self._stateless)
                 raise CosimFault(
                     f"cannot resume: participant(s) {names} cannot save their state, so the run was "
@@ -301,13 +329,20 @@ class Master:
                 )
         self._times.append(t)
         self._rows.append(row)
+        if self._tcols:
+            self._trows.append(trow)
         if self._stream is not None:
             self._stream.write(np.array([t, *row], float).tobytes())
+            if self._tcols:
+                self._tstream.write((json.dumps(trow) + "\n").encode())
 
     def _result(self, stopped_by: str | None) -> CosimResult:
         cols = [f"{n}.{v}" for n, v in self._cols]
         data = np.array(self._rows, float).reshape(len(self._rows), len(cols))
-        return CosimResult(np.array(self._times), cols, data, dict(self.stats), stopped_by, dict(self.p))
+        text = {f"{n}.{v}": [r[i] for r in self._trows] for i, (n, v) in enumerate(self._tcols)}
+        return CosimResult(
+            np.array(self._times), cols, data, dict(self.stats), stopped_by, dict(self.p), text
+        )
 
     # -- checkpoints: the state only; the rows stream append-only to <checkpoint>.rows ------
     def _rows_path(self) -> Path:
@@ -319,6 +354,7 @@ class Master:
         path = Path(self.opt.checkpoint_path)  # type: ignore[arg-type]
         assert self._stream is not None
         self._stream.flush()
+        self._tstream.flush()
         blob = {
             "version": 2,
             "t": t,
@@ -329,7 +365,9 @@ class Master:
             "states": None if self._stateless else self._save(t),
             "stats": self.stats,
             "columns": self._cols,
+            "text_columns": self._tcols,
             "rows": len(self._rows),
+            "text_bytes": self._tstream.tell(),
         }
         tmp = path.with_name(f".{path.name}.tmp")
         tmp.write_bytes(pickle.dumps(blob))
@@ -343,7 +381,7 @@ class Master:
             raise ConfigError(f"{ck}: not a readable checkpoint ({type(exc).__name__}: {exc}).") from None
         if not isinstance(blob, dict) or blob.get("version") != 2:
             raise ConfigError(f"{ck}: checkpoint of an older hevsim version; run again without resume.")
-        if blob["columns"] != self._cols:
+        if blob["columns"] != self._cols or blob["text_columns"] != self._tcols:
             raise ConfigError(f"{ck}: checkpoint of a different system (other outputs); run without resume.")
         width = 1 + len(self._cols)
         rows_path = self._rows_path()
@@ -355,6 +393,15 @@ class Master:
         with open(rows_path, "r+b") as f:  # drop rows written after the checkpoint
             f.truncate(8 * width * n)
         blob["table"] = table
+        tpath = rows_path.with_suffix(".text")
+        nb = int(blob["text_bytes"])
+        traw = tpath.read_bytes()[:nb] if tpath.is_file() else b""
+        blob["text_table"] = [json.loads(line) for line in traw.decode().splitlines()]
+        if len(traw) < nb or (self._tcols and len(blob["text_table"]) != n):
+            raise ConfigError(f"{tpath}: holds fewer text rows than its checkpoint ({n}).")
+        if tpath.is_file():
+            with open(tpath, "r+b") as f:
+                f.truncate(nb)
         return blob
 
     def _grid(self, t: float, h: float) -> float:
@@ -383,26 +430,32 @@ class Master:
         self.stats: dict[str, Any] = {"steps": 0, "iterations": 0, "rejected": 0, "max_residual": 0.0}
         self._times: list[float] = []
         self._rows: list[list[float]] = []
+        self._trows: list[list[str]] = []
         self._replay: np.ndarray | None = None
+        self._treplay: list[list[str]] = []
         self._stream: Any = None
+        self._tstream: Any = None
         for n in self.order:
             self._call(n, "setup", t, lambda n=n: self.p[n].setup(t))  # type: ignore[misc]
         y = self._initial_exchange(t)
-        self._cols = [(n, v) for n in self.listing for v in y[n]]
+        self._cols = [(n, v) for n in self.listing for v in y[n] if not isinstance(y[n][v], str)]
+        self._tcols = [(n, v) for n in self.listing for v in y[n] if isinstance(y[n][v], str)]
         nsteps = 0
         ck = Path(o.checkpoint_path) if o.checkpoint_path else None
         blob = self._load_checkpoint(ck) if resume and ck is not None and ck.is_file() else None
         if ck is not None:
             self._stream = open(self._rows_path(), "ab" if blob is not None else "wb")
+            self._tstream = open(self._rows_path().with_suffix(".text"), "ab" if blob is not None else "wb")
         self._last_ck = _time.monotonic()
         stopped_by = None
         try:
             if blob is not None and blob["states"] is None:
                 self._refuse_replay(ck)  # type: ignore[arg-type]
-                self._replay = blob["table"]
+                self._replay, self._treplay = blob["table"], blob["text_table"]
                 # the replay rewrites the rows from the start
-                self._stream.seek(0)
-                self._stream.truncate()
+                for f in (self._stream, self._tstream):
+                    f.seek(0)
+                    f.truncate()
             if blob is not None and blob["states"] is not None:
                 t, h, y, nsteps = blob["t"], blob["h"], blob["y"], blob["nsteps"]
                 self._window_start = dict(blob["window_start"])
@@ -410,6 +463,7 @@ class Master:
                 table = blob["table"]
                 self._times = [float(v) for v in table[:, 0]]
                 self._rows = table[:, 1:].tolist()
+                self._trows = blob["text_table"]
                 self._restore(blob["states"], t)
             else:
                 self._record(t, y)
@@ -426,12 +480,14 @@ class Master:
         self._close_stream()
         if ck is not None:
             self._rows_path().unlink(missing_ok=True)
+            self._rows_path().with_suffix(".text").unlink(missing_ok=True)
         return self._result(stopped_by)
 
     def _close_stream(self) -> None:
-        if self._stream is not None:
-            self._stream.close()
-            self._stream = None
+        for f in (self._stream, self._tstream):
+            if f is not None:
+                f.close()
+        self._stream = self._tstream = None
 
     def _refuse_replay(self, ck: Path) -> None:
         bad = [n for n in self._stateless if not self.p[n].deterministic]
@@ -488,7 +544,7 @@ class Master:
                     break
                 self._restore(saved, t)  # type: ignore[arg-type]
                 w = o.relaxation
-                guess = {n: {v: w * new[n][v] + (1 - w) * guess[n][v] for v in new[n]} for n in new}
+                guess = {n: {v: _mix(new[n][v], guess[n][v], w) for v in new[n]} for n in new}
             if o.max_iterations > 1:
                 res = max(
                     (abs(new[n][v] - guess[n][v]) / (1 + abs(new[n][v])) for n, v in self._cols),
@@ -576,6 +632,15 @@ class Master:
                 pass
 
 
+def _identity(v: Any) -> Any:
+    return v
+
+
+def _mix(a: Any, b: Any, w: float) -> Any:
+    """``w a + (1 - w) b`` for Real values; ``a`` for discrete ones (Integer, Boolean, String)."""
+    return w * a + (1 - w) * b if isinstance(a, (float, np.floating)) else a
+
+
 INIT_SWEEPS = 100
 """Sweeps of the initial propagation of outputs to inputs before giving up."""
 
@@ -584,7 +649,7 @@ def _same(a: dict[str, float], b: dict[str, float]) -> bool:
     return a.keys() == b.keys() and all(a[k] == b[k] or (a[k] != a[k] and b[k] != b[k]) for k in a)
 
 
-def graph_order(feeds: dict[str, list[tuple[str, str, str, float, float]]]) -> list[str]:
+def graph_order(feeds: Mapping[str, Sequence[tuple[Any, ...]]]) -> list[str]:
     """Participants in dependency order (a participant after those feeding it), whatever the
     order in which they were listed: repeatedly take, by name, the first participant none of
     the remaining ones feeds; in a feedback loop (none such) the first remaining by name."""

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from hevsim.cosim.fmi_vars import FmuVariables
 from hevsim.errors import ConfigError, SimulationError
 
 
@@ -42,6 +43,9 @@ class Participant(ABC):
     outputs: dict[str, str]
     terminate_requested: bool = False
     terminate_time: float | None = None
+    types: Mapping[str, str] = {}
+    """Type class of a variable that is not Real: "Integer", "Enumeration", "Boolean" or
+    "String" (:mod:`hevsim.cosim.fmi_vars`); absent: Real."""
     """Where a participant that asked to stop got to [s] (None: the end of the step)."""
     deterministic: bool = True
     """Same inputs give the same outputs: a run it cannot checkpoint can be resumed by
@@ -322,8 +326,10 @@ class FMUParticipant(Participant):
     """An FMI 2.0 or 3.0 co-simulation FMU driven through FMPy in this process.
 
     ``parameters`` (name -> value) are set during initialisation. Inputs and outputs are the
-    FMU's Real (FMI 3: scalar Float64) variables of causality input / output, with their
-    declared units. State save/restore uses FMI get/set FMU state where the FMU supports it.
+    FMU's variables of causality input / output of every type (Real / Float64 / Float32 with
+    their declared units, Integer and FMI 3.0 Int8 .. UInt64, Enumeration, Boolean, String;
+    FMI 3.0 arrays as one element each, ``a[1]`` ..: :mod:`hevsim.cosim.fmi_vars`). State
+    save/restore uses FMI get/set FMU state where the FMU supports it.
 
     Early termination: an FMI 3.0 step returned with ``terminateSimulation``, or a step
     discarded (``fmi2Discard`` / ``fmi3Discard``) by an FMU that then reports termination
@@ -352,28 +358,28 @@ class FMUParticipant(Participant):
         self.md = md
         self.fmi3 = md.fmiVersion.startswith("3")
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
-        real = ("Float64", "Real") if not self.fmi3 else ("Float64",)
-
-        def scalar_real(v: Any, causality: str) -> bool:
-            arrayed = getattr(v, "dimensions", None) or getattr(v, "dimensionValueReferences", None)
-            return v.causality == causality and v.type in real and not arrayed
-
-        self.inputs = {v.name: _unit(v) for v in md.modelVariables if scalar_real(v, "input")}
-        self.outputs = {v.name: _unit(v) for v in md.modelVariables if scalar_real(v, "output")}
+        self._var = {v.name: v for v in md.modelVariables}
+        try:
+            self.vars = FmuVariables(md, self.fmu.name)
+        except ConfigError as exc:
+            raise ConfigError(f"participant {name!r}: FMU {self.fmu.name}: {exc}") from None
+        self.inputs, self.outputs = self.vars.inputs, self.vars.outputs
+        self.types = {k: t for k, t in self.vars.types.items() if t != "Real"}
         self.parameters = dict(parameters or {})
-        for k in self.parameters:
+        for k, val in self.parameters.items():
             if k not in self.vr:
                 raise ConfigError(
                     f"participant {name!r}: FMU {self.fmu.name} has no variable {k!r} (parameter)."
                 )
+            try:
+                self.vars.check_parameter(self._var[k], val)
+            except ConfigError as exc:
+                raise ConfigError(f"participant {name!r}: {exc}") from None
         cs = md.coSimulation
         self.can_state = bool(getattr(cs, "canGetAndSetFMUstate", False)) and bool(
             getattr(cs, "canSerializeFMUstate", False)
         )
         self.slave: Any = None
-        self._in_refs: dict[str, int] = {k: self.vr[k] for k in self.inputs}
-        self._out_names = list(self.outputs)
-        self._out_refs = [self.vr[k] for k in self._out_names]
         self.terminate_requested = False
 
     def setup(self, t0: float) -> None:
@@ -405,29 +411,16 @@ class FMUParticipant(Participant):
 
     def _set_params(self) -> None:
         for k, v in self.parameters.items():
-            var = next(x for x in self.md.modelVariables if x.name == k)
-            if var.type == "Boolean":
-                self.slave.setBoolean([self.vr[k]], [bool(v)])
-            elif self.fmi3 and var.type in _FMI3_INTEGER_SETTERS:
-                getattr(self.slave, _FMI3_INTEGER_SETTERS[var.type])([self.vr[k]], [int(v)])
-            elif self.fmi3 and var.type == "Float32":
-                self.slave.setFloat32([self.vr[k]], [float(v)])
-            elif not self.fmi3 and var.type in ("Integer", "Enumeration"):
-                self.slave.setInteger([self.vr[k]], [int(v)])
-            else:
-                self._set_real([self.vr[k]], [float(v)])
+            try:
+                self.vars.set_parameter(self.slave, self._var[k], v)
+            except ConfigError as exc:
+                raise ConfigError(f"participant {self.name!r}: {exc}") from None
 
-    def _set_real(self, refs: list[int], vals: list[float]) -> None:
-        (self.slave.setFloat64 if self.fmi3 else self.slave.setReal)(refs, vals)
-
-    def set_inputs(self, values: Mapping[str, float]) -> None:
+    def set_inputs(self, values: Mapping[str, Any]) -> None:
         try:
-            refs = [self._in_refs[k] for k in values]
-        except KeyError as exc:
-            raise ConfigError(
-                f"participant {self.name!r}: FMU {self.fmu.name} has no input {exc.args[0]!r}."
-            ) from None
-        self._set_real(refs, [float(v) for v in values.values()])
+            self.vars.set_inputs(self.slave, values)
+        except ConfigError as exc:
+            raise ConfigError(f"participant {self.name!r}: {exc}") from None
 
     @property
     def can_save_state(self) -> bool:
@@ -522,9 +515,8 @@ class FMUParticipant(Participant):
             )
         return True, None
 
-    def get_outputs(self) -> dict[str, float]:
-        vals = (self.slave.getFloat64 if self.fmi3 else self.slave.getReal)(self._out_refs)
-        return dict(zip(self._out_names, (float(v) for v in vals), strict=True))
+    def get_outputs(self) -> dict[str, Any]:
+        return self.vars.get_outputs(self.slave)
 
     def get_state(self) -> Any:
         if not self.can_state:
@@ -567,13 +559,3 @@ class FMUParticipant(Participant):
 
 
 _FAILED_INSTANCES: list[Any] = []
-
-_FMI3_INTEGER_SETTERS = {
-    **{t: f"set{t}" for t in ("Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")},
-    "Enumeration": "setInt64",
-}
-
-
-def _unit(v: Any) -> str:
-    u = getattr(v, "unit", None) or (v.declaredType.unit if getattr(v, "declaredType", None) else None)
-    return str(u or "")

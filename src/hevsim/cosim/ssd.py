@@ -67,6 +67,8 @@ class Connector:
     name: str
     kind: str
     unit: str = ""
+    type: str = "Real"
+    """Type class: Real, Integer, Enumeration, Boolean, String (:mod:`hevsim.cosim.fmi_vars`)."""
 
 
 @dataclass
@@ -117,6 +119,15 @@ class SystemDescription:
         raise ConfigError(
             f"{self.source}: no component {name!r}; components: {[c.name for c in self.components]}."
         )
+
+
+_CONNECTOR_TYPES = {
+    "Real": "Real", "Float64": "Real", "Float32": "Real", "Integer": "Integer", "Int8": "Integer",
+    "UInt8": "Integer", "Int16": "Integer", "UInt16": "Integer", "Int32": "Integer", "UInt32": "Integer",
+    "Int64": "Integer", "UInt64": "Integer", "Boolean": "Boolean", "String": "String",
+    "Enumeration": "Enumeration",
+}  # fmt: skip
+"""Type elements of an ``ssd:Connector`` (SSP 1.0 ``ssc:Real`` ..., SSP 2.0 ``ssc:Float64`` ...)."""
 
 
 # --------------------------------------------------------------------------- typed values
@@ -185,8 +196,10 @@ def read_ssd(path: str | Path, text: bytes | None = None, base_dir: Path | None 
                 raise ConfigError(
                     f"{where}: connector {cname!r}: kind {kind!r}; valid: input, output, parameter."
                 )
-            real = c.find("ssc:Real", NS)
-            conns.append(Connector(cname, kind, (real.get("unit") or "") if real is not None else ""))
+            typed = next((t for t in c if local_name(t.tag) in _CONNECTOR_TYPES), None)
+            vtype = _CONNECTOR_TYPES[local_name(typed.tag)] if typed is not None else "Real"
+            unit = (typed.get("unit") or "") if typed is not None and vtype == "Real" else ""
+            conns.append(Connector(cname, kind, unit, vtype))
         params: dict[str, Any] = {}
         for p in el.findall(".//ssv:Parameter", NS):
             pname = required(p, "name", where + " <ssv:Parameter>")

@@ -29,8 +29,8 @@ def ssd_xml(desc: SystemDescription) -> bytes:
             cs = ET.SubElement(el, q("ssd", "Connectors"))
             for k in c.connectors:
                 ce = ET.SubElement(cs, q("ssd", "Connector"), name=k.name, kind=k.kind)
-                r = ET.SubElement(ce, q("ssc", "Real"))
-                if k.unit:
+                r = ET.SubElement(ce, q("ssc", k.type))
+                if k.unit and k.type == "Real":
                     r.set("unit", k.unit)
         if c.parameters:
             pb = ET.SubElement(ET.SubElement(el, q("ssd", "ParameterBindings")), q("ssd", "ParameterBinding"))

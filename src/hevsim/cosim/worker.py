@@ -40,6 +40,7 @@ class WorkerFMUParticipant(Participant):
             raise ConfigError(str(exc)) from None
         self.inputs, self.outputs = dict(info["inputs"]), dict(info["outputs"])
         self._can_state, self._state_note = bool(info["can_state"]), str(info["state_note"])
+        self.types = dict(info["types"])
 
     @property
     def can_save_state(self) -> bool:

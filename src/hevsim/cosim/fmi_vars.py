@@ -1,0 +1,223 @@
+"""The variables an FMU exchanges, of every type: :class:`FmuVariables` (inputs, outputs and
+parameters of an FMI 2.0 or 3.0 model description, arrays expanded to one element each) and
+the connection type rules (:func:`type_conversion`).
+
+Types are grouped in classes: ``Real`` (FMI 2.0 Real; FMI 3.0 Float64, Float32), ``Integer``
+(FMI 2.0 Integer; FMI 3.0 Int8 .. UInt64), ``Enumeration``, ``Boolean`` and ``String``.
+Values travel as Python ``float`` / ``int`` / ``bool`` / ``str``. An FMI 3.0 array variable
+``a`` with dimensions (n) is exchanged and recorded as ``a[1]`` .. ``a[n]`` (1-based, as
+FMI 2.0 names scalarised array elements; ``a[i,j]`` for two dimensions, row-major).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from hevsim.errors import ConfigError
+
+TYPE_CLASS = {
+    "Real": "Real",
+    "Float64": "Real",
+    "Float32": "Real",
+    "Integer": "Integer",
+    **{t: "Integer" for t in ("Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")},
+    "Enumeration": "Enumeration",
+    "Boolean": "Boolean",
+    "String": "String",
+}
+PY_TYPE: dict[str, Callable[[Any], Any]] = {
+    "Real": float,
+    "Integer": int,
+    "Enumeration": int,
+    "Boolean": bool,
+    "String": str,
+}
+
+# Conversions applied on a connection between different type classes: only lossless ones
+# (a Boolean is 0 / 1); anything else (Real -> Integer, Real -> Boolean, to or from String)
+# is refused naming both ends.
+_CONVERSIONS: dict[tuple[str, str], Callable[[Any], Any]] = {
+    ("Integer", "Real"): float,
+    ("Enumeration", "Real"): float,
+    ("Boolean", "Real"): float,
+    ("Boolean", "Integer"): int,
+    ("Integer", "Enumeration"): int,
+    ("Enumeration", "Integer"): int,
+}
+
+
+def type_conversion(src_type: str, dst_type: str, what: str) -> Callable[[Any], Any] | None:
+    """The conversion a connection from a ``src_type`` output to a ``dst_type`` input applies
+    (None: none needed, same class); :class:`ConfigError` naming ``what`` if not allowed."""
+    if src_type == dst_type:
+        return None
+    conv = _CONVERSIONS.get((src_type, dst_type))
+    if conv is None:
+        allowed = ", ".join(f"{a} -> {b}" for a, b in _CONVERSIONS)
+        raise ConfigError(
+            f"{what}: cannot connect a {src_type} output to a {dst_type} input; "
+            f"allowed conversions: {allowed} (and any type to itself)."
+        )
+    return conv
+
+
+def _fmi_type(v: Any) -> str:
+    return str(v.type)
+
+
+def element_names(v: Any, by_vr: Mapping[int, Any]) -> list[str]:
+    """``v.name`` for a scalar, ``name[1]`` .. for an array (sizes from the dimensions' start
+    values or the structural parameters they reference)."""
+    dims = getattr(v, "dimensions", None) or []
+    if not dims:
+        return [v.name]
+    sizes = []
+    for d in dims:
+        if d.start not in (None, ""):
+            sizes.append(int(d.start))
+        else:
+            ref = by_vr.get(d.valueReference)
+            if ref is None or ref.start in (None, ""):
+                raise ConfigError(
+                    f"array variable {v.name!r}: dimension refers to value reference {d.valueReference} "
+                    "without a start value."
+                )
+            sizes.append(int(ref.start))
+    idx = itertools.product(*(range(1, s + 1) for s in sizes))
+    return [f"{v.name}[{','.join(map(str, i))}]" for i in idx]
+
+
+@dataclass
+class _Group:
+    """Variables of one FMI type read or written in one call."""
+
+    fmi_type: str
+    vrs: list[int]
+    names: list[str]  # element names, in value order
+    convert: Callable[[Any], Any]
+
+
+class FmuVariables:
+    """Inputs, outputs (element name -> unit), their type classes (:attr:`types`) and the
+    calls that read / write them for one model description."""
+
+    def __init__(self, md: Any, fmu_name: str):
+        self.fmi3 = md.fmiVersion.startswith("3")
+        self.fmu_name = fmu_name
+        by_vr = {v.valueReference: v for v in md.modelVariables}
+        self.inputs: dict[str, str] = {}
+        self.outputs: dict[str, str] = {}
+        self.types: dict[str, str] = {}
+        self.unsupported: dict[str, str] = {}  # variable -> its FMI type (Binary, Clock)
+        out_groups: dict[str, _Group] = {}
+        self._in_vars: dict[str, tuple[str, int, list[str]]] = {}  # variable -> (type, vr, elements)
+        self._in_element: dict[str, str] = {}  # element -> variable
+        self._in_values: dict[str, list[Any]] = {}
+        for v in md.modelVariables:
+            if v.causality not in ("input", "output"):
+                continue
+            ftype = _fmi_type(v)
+            cls = TYPE_CLASS.get(ftype)
+            if cls is None:
+                self.unsupported[v.name] = ftype
+                continue
+            names = element_names(v, by_vr)
+            unit = _unit(v) if cls == "Real" else ""
+            for e in names:
+                self.types[e] = cls
+                (self.inputs if v.causality == "input" else self.outputs)[e] = unit
+            if v.causality == "output":
+                g = out_groups.setdefault(ftype, _Group(ftype, [], [], PY_TYPE[cls]))
+                g.vrs.append(v.valueReference)
+                g.names.extend(names)
+            else:
+                self._in_vars[v.name] = (ftype, v.valueReference, names)
+                self._in_values[v.name] = _starts(v, cls, len(names))
+                for e in names:
+                    self._in_element[e] = v.name
+        self._out_groups = list(out_groups.values())
+
+    def _call(self, op: str, ftype: str) -> str:
+        if self.fmi3:
+            return f"{op}{'Int64' if ftype == 'Enumeration' else ftype}"
+        return f"{op}{'Integer' if ftype == 'Enumeration' else ftype}"
+
+    def get_outputs(self, slave: Any) -> dict[str, Any]:
+        """Every output element's value."""
+        out: dict[str, Any] = {}
+        for g in self._out_groups:
+            fn = getattr(slave, self._call("get", g.fmi_type))
+            vals = fn(g.vrs, len(g.names)) if self.fmi3 else fn(g.vrs)
+            for n, val in zip(g.names, vals, strict=True):
+                out[n] = g.convert(val.decode() if isinstance(val, bytes) else val)
+        return out
+
+    def set_inputs(self, slave: Any, values: Mapping[str, Any]) -> None:
+        """Set input elements (an array variable is written whole, with its other elements
+        as last set)."""
+        touched: dict[str, None] = {}
+        for e, val in values.items():
+            var = self._in_element.get(e)
+            if var is None:
+                raise ConfigError(f"FMU {self.fmu_name} has no input {e!r}; inputs: {sorted(self.inputs)}.")
+            names = self._in_vars[var][2]
+            self._in_values[var][names.index(e) if len(names) > 1 else 0] = PY_TYPE[self.types[e]](val)
+            touched[var] = None
+        by_type: dict[str, tuple[list[int], list[Any]]] = {}
+        for var in touched:
+            ftype, vr, _ = self._in_vars[var]
+            refs, vals = by_type.setdefault(ftype, ([], []))
+            refs.append(vr)
+            vals.extend(self._in_values[var])
+        for ftype, (refs, vals) in by_type.items():
+            getattr(slave, self._call("set", ftype))(refs, vals)
+
+    def set_parameter(self, slave: Any, var: Any, value: Any) -> None:
+        """Set the scalar variable ``var`` (a model variable) to ``value`` (checked against
+        its type)."""
+        self.check_parameter(var, value)
+        ftype = _fmi_type(var)
+        cls = TYPE_CLASS[ftype]
+        getattr(slave, self._call("set", ftype))([var.valueReference], [PY_TYPE[cls](value)])
+
+    def check_parameter(self, var: Any, value: Any) -> None:
+        """:class:`ConfigError` unless ``value`` suits the scalar variable ``var``."""
+        ftype = _fmi_type(var)
+        cls = TYPE_CLASS.get(ftype)
+        if cls is None:
+            raise ConfigError(f"FMU {self.fmu_name}: variable {var.name!r} of type {ftype} cannot be set.")
+        if getattr(var, "dimensions", None):
+            raise ConfigError(
+                f"FMU {self.fmu_name}: variable {var.name!r} is an array; set array parameters through "
+                "a start value in the FMU."
+            )
+        if cls == "String" and not isinstance(value, str):
+            raise ConfigError(f"FMU {self.fmu_name}: parameter {var.name!r} is a String, got {value!r}.")
+        if cls in ("Integer", "Enumeration") and (isinstance(value, float) and value != int(value)):
+            raise ConfigError(f"FMU {self.fmu_name}: parameter {var.name!r} is an {cls}, got {value!r}.")
+        if cls != "String" and isinstance(value, str):
+            raise ConfigError(
+                f"FMU {self.fmu_name}: parameter {var.name!r} is a {cls}, got the text {value!r}."
+            )
+
+
+def _starts(v: Any, cls: str, n: int) -> list[Any]:
+    """Start values of the ``n`` elements of ``v`` (the type's zero without one)."""
+    s = getattr(v, "start", None)
+    if s in (None, ""):
+        return [PY_TYPE[cls]("" if cls == "String" else 0)] * n
+    if cls == "String":
+        return [str(s)] * n
+    items = str(s).split()
+    items = items if len(items) == n else [items[0]] * n
+    if cls == "Boolean":
+        return [i.lower() in ("true", "1") for i in items]
+    return [int(i) if cls in ("Integer", "Enumeration") else float(i) for i in items]
+
+
+def _unit(v: Any) -> str:
+    u = getattr(v, "unit", None) or (v.declaredType.unit if getattr(v, "declaredType", None) else None)
+    return str(u or "")
