@@ -284,16 +284,99 @@ def test_physics_changing_keywords_are_refused(tmp_path: Path, extra: str, step:
         read_abaqus_inp(deck, length_scale_m=1e-3)
 
 
-def test_temperature_dependent_gap_and_non_matching_contact_are_refused(tmp_path: Path) -> None:
+def test_temperature_dependent_gap_is_refused(tmp_path: Path) -> None:
     deck = tmp_path / "Job-1.inp"
     write_cae_deck(deck)
     text = deck.read_text()
     deck.write_text(text.replace(" 0., 0.5, 20.", " 0., 0.5, 20.\n 4000., 0., 80."))
     with pytest.raises(InputError, match="Gap Conductance depends on temperature"):
         read_abaqus_inp(deck, length_scale_m=1e-3)
-    deck.write_text(text.replace("1.0, 2.0, 3.0\n", "1.0, 2.0, 3.5\n"))  # the block lifted by 0.5 mm
-    with pytest.raises(InputError, match="slave nodes have no master node at the same position"):
-        read_abaqus_inp(deck, length_scale_m=1e-3)
+
+
+def test_contact_across_a_clearance_uses_the_gap_table(tmp_path: Path) -> None:
+    deck = tmp_path / "Job-1.inp"
+    write_cae_deck(deck)
+    deck.write_text(deck.read_text().replace("1.0, 2.0, 3.0\n", "1.0, 2.0, 3.25\n"))  # lifted 0.25 mm
+    model = read_abaqus_inp(deck, length_scale_m=1e-3)
+    assert model.contact_w_m2k == {} and len(model.surface_contacts) == 1
+    disc = model.discretise()
+    k_c = model.surface_contacts[0].matrix(disc, model.mesh.part_names)
+    block = disc.node_part == model.mesh.part_names.index("Block-1")
+    # h(0.25 mm) = 2500 W/(m^2 K), halfway down the table, over the 8 x 4 mm^2 face
+    assert k_c.diagonal()[block].sum() == pytest.approx(H_GAP / 2 * 8e-3 * 4e-3, rel=1e-12)
+    assert abs(k_c.sum()) < 1e-12 and abs(k_c - k_c.T).max() < 1e-15
+
+
+def _bar_part(name: str, x0: float, nx: int, ny: int) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """A 6 x 2 x 2 mm bar from x0 with nx x ny x ny cells, numbered from 1 in its part."""
+    from skfem import MeshTet
+
+    m = MeshTet.init_tensor(
+        np.linspace(x0, x0 + 6, nx + 1), np.linspace(0, 2, ny + 1), np.linspace(0, 2, ny + 1)
+    )
+    p, t = m.p.T, m.t.T.copy()
+    v = tet_volumes_m3(p, t)
+    t[v < 0] = t[v < 0][:, [1, 0, 2, 3]]
+    out = [f"*Part, name={name}", "*Node"]
+    out += [f"{i + 1}, {x:.17g}, {y:.17g}, {z:.17g}" for i, (x, y, z) in enumerate(p)]
+    out.append("*Element, type=DC3D4, elset=All")
+    out += [f"{e + 1}, " + ", ".join(str(n + 1) for n in row) for e, row in enumerate(t)]
+    for label, xs in (("Low", x0), ("High", x0 + 6)):
+        faces = _faces_at_x(p, t, xs)
+        for face, els in faces.items():
+            out += [f"*Elset, elset=_{label}_{face}, internal", *_lines(els)]
+        out += [f"*Surface, type=ELEMENT, name={label}", *[f"_{label}_{face}, {face}" for face in faces]]
+    out += [f"*Solid Section, elset=All, material={name}M", ",", "*End Part"]
+    return out, p, t
+
+
+def _faces_at_x(p: np.ndarray, t: np.ndarray, x: float) -> dict[str, list[int]]:
+    out: dict[str, list[int]] = {}
+    for e, row in enumerate(t):
+        for face, idx in TET_FACES.items():
+            if np.all(np.abs(p[row[list(idx)], 0] - x) < 1e-9):
+                out.setdefault(face, []).append(e + 1)
+    return out
+
+
+def test_non_matching_contact_carries_the_series_resistance_exactly(tmp_path: Path) -> None:
+    """Two bars meshed separately (3 x 1 x 1 and 4 x 3 x 3 cells) in contact at x = 6 mm, films
+    at both ends: the steady temperature is linear in each bar, which node-to-surface contact
+    represents exactly, so the jump at the contact is q / h to rounding."""
+    k_a, k_b, h_c, h1, h2, t1, t2 = 100.0, 10.0, 2000.0, 1000.0, 500.0, 50.0, 10.0
+    out = ["*Heading"]
+    for name, x0, nx, ny in (("A", 0.0, 3, 1), ("B", 6.0, 4, 3)):
+        out += _bar_part(name, x0, nx, ny)[0]
+    out += ["*Assembly, name=Assembly", "*Instance, name=A-1, part=A", "*End Instance"]
+    out += ["*Instance, name=B-1, part=B", "*End Instance", "*End Assembly"]
+    for name, k in (("A", k_a), ("B", k_b)):
+        out += [
+            f"*Material, name={name}M",
+            "*Conductivity",
+            f"{k},",
+            "*Density",
+            "1000.,",
+            "*Specific Heat",
+            "1000.,",
+        ]
+    out += ["*Surface Interaction, name=IP", "1.,", "*Gap Conductance", f"{h_c}, 0.", f"{h_c}, 1."]
+    out += ["*Contact Pair, interaction=IP", "B-1.Low, A-1.High"]
+    out += ["*Step, name=S", "*Heat Transfer", "1., 10."]
+    out += ["*Sfilm", f"A-1.Low, F, {t1}, {h1}", f"B-1.High, F, {t2}, {h2}", "*End Step"]
+    deck = tmp_path / "bars.inp"
+    deck.write_text("\n".join(out) + "\n")
+    model = read_abaqus_inp(deck, length_scale_m=1e-3)
+    assert len(model.surface_contacts) == 1 and model.contact_w_m2k == {}
+    disc = model.discretise()
+    temp = HeatModel(disc, dt_s=1.0).steady() - 273.15
+    q = (t1 - t2) / (1 / h1 + 6e-3 / k_a + 1 / h_c + 6e-3 / k_b + 1 / h2)  # [W/m^2]
+    x = disc.points_m[:, 0]
+    a = disc.node_part == model.mesh.part_names.index("A-1")
+    expected = np.where(
+        a, t1 - q / h1 - q * x / k_a, t1 - q / h1 - q * 6e-3 / k_a - q / h_c - q * (x - 6e-3) / k_b
+    )
+    assert q / h_c > 1.0  # a jump of kelvins at the contact
+    np.testing.assert_allclose(temp, expected, rtol=0, atol=1e-9 * (t1 - t2))
 
 
 def test_element_numbers_in_surfaces_and_dflux_and_case_insensitive_names(tmp_path: Path) -> None:

@@ -25,10 +25,12 @@ Read and applied:
   components are refused (the FEM solver is linear with isotropic constant properties).
 - contact: *Contact Pair, interaction=NAME (slave, master surfaces) with the *Surface
   Interaction's *Gap Conductance table of (conductance, clearance[, temperature]) rows (a blank
-  field is zero, as in Abaqus). The two surfaces must coincide node for node (parts meshed
-  with matching faces): their nodes are merged and the solver's contact conductance between
-  the two parts is the table's value at zero clearance. Non-matching surfaces, pressure- or
-  temperature-dependent conductance are refused.
+  field is zero, as in Abaqus). Surfaces that coincide node for node (parts meshed with
+  matching faces) have their nodes merged and get the solver's consistent contact conductance
+  at zero clearance; other surfaces get node-to-surface contact (:class:`SurfaceContact`):
+  each slave node exchanges heat with the nearest point of the master surface with the
+  table's conductance at that clearance (linear, constant beyond the ends). Pressure- or
+  temperature-dependent conductance is refused.
 - loads and conditions: *Initial Conditions, type=TEMPERATURE (node set or node number),
   *Dflux BF (body flux per element set or element; each becomes one heat-source "cell"; with
   ``amplitude=``), *Amplitude (tabular, linear between points, last value held),
@@ -90,6 +92,96 @@ _READ = {
 }  # fmt: skip
 
 
+@dataclass(frozen=True)
+class SurfaceContact:
+    """A contact pair whose surfaces are not meshed node for node: every slave node exchanges
+    ``h(d) a_s (T_s - T_m)`` with the point of the master surface nearest to it (``d``: the
+    clearance to it, ``a_s``: the slave node's share of the slave area, ``T_m``: the master
+    temperature interpolated there) - Abaqus's node-to-surface thermal contact."""
+
+    name: str
+    slave_tris: np.ndarray  # (K, 3) mesh nodes
+    slave_part: np.ndarray  # (K,) part of each slave triangle
+    master_tris: np.ndarray  # (M, 3)
+    master_part: np.ndarray  # (M,)
+    clearance_m: np.ndarray  # gap conductance table: clearance [m] (increasing) ...
+    conductance_w_m2k: np.ndarray  # ... and conductance [W/(m^2 K)]
+
+    def matrix(self, disc: Any, part_names: tuple[str, ...]) -> Any:
+        """The contact conductance matrix [W/K] on the split nodes of ``disc``."""
+        import scipy.sparse as sp
+
+        from hevsim.thermal.mesh import triangle_areas_m2
+
+        nparts = len(part_names)
+        keys = disc.original_node.astype(np.int64) * nparts + disc.node_part
+        s_split = np.searchsorted(keys, self.slave_tris * nparts + self.slave_part[:, None])
+        m_split = np.searchsorted(keys, self.master_tris * nparts + self.master_part[:, None])
+        pts = disc.points_m
+        area = np.zeros(pts.shape[0])
+        np.add.at(area, s_split.ravel(), np.repeat(triangle_areas_m2(pts, s_split) / 3.0, 3))
+        nodes = np.unique(s_split)
+        tri, bary, dist = _nearest_on_triangles(
+            pts[nodes], pts[m_split[:, 0]], pts[m_split[:, 1]], pts[m_split[:, 2]]
+        )
+        h = np.interp(dist, self.clearance_m, self.conductance_w_m2k) * area[nodes]
+        idx = np.column_stack([nodes, m_split[tri]])  # (S, 4)
+        coef = np.column_stack([np.ones(nodes.size), -bary])  # (S, 4)
+        rows = np.repeat(idx, 4, axis=1).ravel()
+        cols = np.tile(idx, (1, 4)).ravel()
+        vals = (h[:, None, None] * coef[:, :, None] * coef[:, None, :]).ravel()
+        n = pts.shape[0]
+        return sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+
+
+def _nearest_on_triangles(
+    p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray, candidates: int = 12
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For every point of ``p`` the nearest triangle (a, b, c) among the ``candidates`` with the
+    nearest centroids: its index, the barycentric coordinates of the nearest point and the
+    distance [m]."""
+    from scipy.spatial import cKDTree
+
+    k = min(candidates, a.shape[0])
+    _, cand = cKDTree((a + b + c) / 3.0).query(p, k=k)
+    cand = np.asarray(cand).reshape(p.shape[0], k)
+    best_d = np.full(p.shape[0], np.inf)
+    best_t = np.zeros(p.shape[0], dtype=np.int64)
+    best_w = np.zeros((p.shape[0], 3))
+    for col in range(k):
+        t = cand[:, col]
+        w, d = _closest_point(p, a[t], b[t], c[t])
+        better = d < best_d
+        best_d[better], best_t[better], best_w[better] = d[better], t[better], w[better]
+    return best_t, best_w, best_d
+
+
+def _closest_point(
+    p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentric coordinates (n, 3) of the point of each triangle nearest to ``p`` and the distance."""
+    n = np.cross(b - a, c - a)
+    nn = np.einsum("ij,ij->i", n, n)
+    q = p - (np.einsum("ij,ij->i", p - a, n) / nn)[:, None] * n
+    wa = np.einsum("ij,ij->i", np.cross(b - q, c - q), n) / nn
+    wb = np.einsum("ij,ij->i", np.cross(c - q, a - q), n) / nn
+    w = np.column_stack([wa, wb, 1.0 - wa - wb])
+    inside = np.all(w >= -1e-12, axis=1)
+    best_w = np.where(inside[:, None], np.clip(w, 0.0, 1.0), 0.0)
+    best_w /= np.where(inside, best_w.sum(axis=1), 1.0)[:, None]
+    best_d = np.where(inside, np.linalg.norm(p - q, axis=1), np.inf)
+    for i0, i1 in ((0, 1), (1, 2), (2, 0)):
+        e0, e1 = (a, b, c)[i0], (a, b, c)[i1]
+        e = e1 - e0
+        t = np.clip(np.einsum("ij,ij->i", p - e0, e) / np.einsum("ij,ij->i", e, e), 0.0, 1.0)
+        d = np.linalg.norm(p - (e0 + t[:, None] * e), axis=1)
+        better = ~inside & (d < best_d)
+        we = np.zeros((p.shape[0], 3))
+        we[:, i0], we[:, i1] = 1.0 - t, t
+        best_w[better], best_d[better] = we[better], d[better]
+    return best_w, best_d
+
+
 @dataclass
 class AbaqusModel:
     """What was read from a deck (SI units as in the deck; temperatures in °C).
@@ -119,6 +211,7 @@ class AbaqusModel:
     initial_increment_s: float | None = None
     node_labels: list[str] = field(default_factory=list)
     element_labels: list[str] = field(default_factory=list)
+    surface_contacts: list[SurfaceContact] = field(default_factory=list)
 
     def amplitude(self, name: str | None, time_s: float) -> float:
         """Factor of amplitude ``name`` at ``time_s`` (1 without amplitude)."""
@@ -148,8 +241,10 @@ class AbaqusModel:
                 f"{self.mesh.source}: sections share nodes at {self.bonded_interfaces} (perfect "
                 "contact in Abaqus); expected bonded_w_m2k, the conductance [W/(m^2 K)] to use there."
             )
+        import dataclasses
+
         films = {k: (h, t + 273.15) for k, (h, t) in self.films.items()}
-        return discretise(
+        disc = discretise(
             self.mesh,
             self.materials,
             gap_conductance_w_m2k=1.0 if bonded_w_m2k is None else bonded_w_m2k,
@@ -158,6 +253,11 @@ class AbaqusModel:
             surface_films=films,
             **kw,
         )
+        for sc in self.surface_contacts:  # contact between surfaces not meshed node for node
+            disc = dataclasses.replace(
+                disc, stiffness=(disc.stiffness + sc.matrix(disc, self.mesh.part_names)).tocsr()
+            )
+        return disc
 
     def initial_temp_k(self, disc: Any) -> np.ndarray:
         """Initial temperature [K] of every node of ``disc`` (a discretisation of :attr:`mesh`)."""
@@ -840,6 +940,7 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
     # ---- contact pairs: merge the coincident nodes of the two surfaces ----------------------------
     mesh_part = part.copy()
     contact: dict[str, float] = {}
+    surface_contacts: list[SurfaceContact] = []
     merge = np.arange(pts.shape[0])
     first_gap: float | None = None
     for rows_ in interactions.values():
@@ -857,9 +958,17 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
         h = _gap_at_zero(interactions[inter])
         ts_, tm_ = deck.surface(slave, w), deck.surface(master, w)
         mapping = _match_surfaces(pts, ts_, tm_, w, slave, master)
+        part_s, part_m = mesh_part[_tets_of_faces(tets, ts_)], mesh_part[_tets_of_faces(tets, tm_)]
+        if mapping is None:  # not meshed node for node: node-to-surface contact by clearance
+            d_tab, k_tab = _gap_table(interactions[inter])
+            if set(part_s.tolist()) & set(part_m.tolist()):
+                raise InputError(f"{w}: *Contact Pair {slave}/{master} within one part; expected two parts.")
+            surface_contacts.append(
+                SurfaceContact(f"{slave}/{master}", ts_, part_s, tm_, part_m, d_tab * length_scale_m, k_tab)
+            )
+            continue
         merge[list(mapping)] = list(mapping.values())
-        parts_s = set(mesh_part[_tets_of_faces(tets, ts_)].tolist())
-        parts_m = set(mesh_part[_tets_of_faces(tets, tm_)].tolist())
+        parts_s, parts_m = set(part_s.tolist()), set(part_m.tolist())
         from hevsim.thermal.solver import interface_name
 
         for a in parts_s:
@@ -876,6 +985,11 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
                 contact[nm] = h
     tets = merge[tets]
     groups = {k: merge[v] for k, v in groups.items()}
+    surface_contacts = [
+        SurfaceContact(sc.name, merge[sc.slave_tris], sc.slave_part, merge[sc.master_tris], sc.master_part,
+                       sc.clearance_m, sc.conductance_w_m2k)
+        for sc in surface_contacts
+    ]  # fmt: skip
     mesh = ThermalMesh(pts, tets, mesh_part, tuple(part_names), cell, groups, None, src).validate()
     bonded = _bonded(mesh, contact)
     model = AbaqusModel(
@@ -895,12 +1009,22 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
         heat_transfer[0] if heat_transfer else None,
         node_labels,
         element_labels,
+        surface_contacts,
     )
     return model
 
 
 def _gap_at_zero(rows: list[tuple[float, float, float | None, str]]) -> float:
     """Conductance of a *Gap Conductance table at zero clearance (constant beyond the ends)."""
+    d, k = _gap_table(rows)
+    h = float(np.interp(0.0, d, k))
+    if not (np.isfinite(h) and h > 0.0):
+        raise InputError(f"{rows[0][3]}: *Gap Conductance at zero clearance is {h!r}; expected > 0.")
+    return h
+
+
+def _gap_table(rows: list[tuple[float, float, float | None, str]]) -> tuple[np.ndarray, np.ndarray]:
+    """(clearance, conductance) of a *Gap Conductance table, by increasing clearance."""
     temps = {t for _, _, t, _ in rows}
     if len(temps) > 1:
         raise InputError(
@@ -912,10 +1036,9 @@ def _gap_at_zero(rows: list[tuple[float, float, float | None, str]]) -> float:
     order = np.argsort(d, kind="stable")
     if np.any(np.diff(d[order]) == 0):
         raise InputError(f"{rows[0][3]}: *Gap Conductance lists a clearance twice; expected one value each.")
-    h = float(np.interp(0.0, d[order], k[order]))
-    if not (np.isfinite(h) and h > 0.0):
-        raise InputError(f"{rows[0][3]}: *Gap Conductance at zero clearance is {h!r}; expected > 0.")
-    return h
+    if np.any(k < 0) or not np.all(np.isfinite(k)):
+        raise InputError(f"{rows[0][3]}: *Gap Conductance values {k.tolist()}; expected finite values >= 0.")
+    return d[order], k[order]
 
 
 def _tets_of_faces(tets: np.ndarray, tris: np.ndarray) -> np.ndarray:
@@ -929,8 +1052,9 @@ def _tets_of_faces(tets: np.ndarray, tris: np.ndarray) -> np.ndarray:
 
 def _match_surfaces(
     pts: np.ndarray, slave: np.ndarray, master: np.ndarray, where: str, sname: str, mname: str
-) -> dict[int, int]:
-    """Slave node -> master node at the same position, every slave face being a master face."""
+) -> dict[int, int] | None:
+    """Slave node -> master node at the same position, every slave face being a master face;
+    ``None`` when the surfaces are not meshed node for node."""
     from scipy.spatial import cKDTree
 
     if slave.size == 0 or master.size == 0:
@@ -939,22 +1063,13 @@ def _match_surfaces(
     size = float(np.ptp(pts, axis=0).max()) or 1.0
     tol = 1e-8 * size
     dist, j = cKDTree(pts[m_nodes]).query(pts[s_nodes])
-    far = dist > tol
-    if far.any():
-        raise InputError(
-            f"{where}: *Contact Pair {sname}/{mname}: {int(far.sum())} of {s_nodes.size} slave nodes "
-            f"have no master node at the same position (largest distance {float(dist.max()):.3g}); only "
-            "surfaces meshed node for node (zero clearance) are supported."
-        )
+    if (dist > tol).any():
+        return None
     mapping = dict(zip(s_nodes.tolist(), m_nodes[j].tolist(), strict=True))
     mapped = np.sort(np.vectorize(mapping.get)(slave), axis=1)
     master_set = {tuple(t) for t in np.sort(master, axis=1).tolist()}
-    missing = sum(tuple(t) not in master_set for t in mapped.tolist())
-    if missing:
-        raise InputError(
-            f"{where}: *Contact Pair {sname}/{mname}: {missing} slave faces are not faces of the master "
-            "surface (different triangulation); expected surfaces meshed face for face."
-        )
+    if any(tuple(t) not in master_set for t in mapped.tolist()):
+        return None
     return mapping
 
 
