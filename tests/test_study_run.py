@@ -105,6 +105,20 @@ def test_simulate_rows_equal_single_runs_and_failures_are_recorded() -> None:
     _same(rows, one)  # batch composition does not change a row
 
 
+def test_a_metric_one_solver_lacks_is_nan_in_its_rows() -> None:
+    register_slow(0.0)
+    study = study_from_dict({
+        "name": "mixed", "vehicle": SERIES, "cycles": ["udds"], "metrics": ["double_mass", "mpgge"],
+        "parameters": {"body.mass_kg": [1100.0], "final_drive.ratio": [4.0]},
+        "solvers": [{"name": "simulate"}, {"name": SLOW}],
+    })  # fmt: skip
+    rows = run_study(study, scheduler="in-process", progress=False)
+    assert rows["solver"].tolist() == ["simulate", SLOW] and (rows["status"] == OK).all()
+    assert np.isnan(rows["double_mass"][0]) and rows["double_mass"][1] == 2 * 1100.0 + 4.0
+    assert rows["mpgge"][0] > 0 and np.isnan(rows["mpgge"][1])
+    SOLVERS.pop(SLOW, None)
+
+
 def test_optimize_rows_equal_optimize_and_infeasible_cases_fail() -> None:
     study = study_from_dict({
         "name": "dp", "vehicle": PARALLEL, "cycles": ["us06"], "metrics": ["l_per_100km", "soc_final"],
@@ -207,7 +221,7 @@ def test_sigint_then_resume_gives_every_case_once(tmp_path: Path) -> None:
 
 
 def test_examples_load() -> None:
-    for name in ("study_series_sizing.toml", "study_parallel_sizing.toml"):
+    for name in ("study_series_sizing.toml", "study_parallel_sizing.toml", "study_series_controllers.toml"):
         s = load_study(ROOT / "examples" / name)
         assert s.n_cases > 0 and s.pareto, name
     assert os.path.isfile(ROOT / "docs" / "studies.md")

@@ -73,19 +73,20 @@ class Batch:
 
 @dataclass(frozen=True, eq=False)
 class Payload:
-    """What every worker receives once: run functions, solver contexts, cycles, metrics."""
+    """What every worker receives once: run functions, solver contexts, cycles, the metrics
+    each solver keeps."""
 
     runs: tuple[Any, ...]
     contexts: tuple[Any, ...]
     cycles: tuple[Any, ...]
-    metrics: tuple[str, ...]
+    metrics: tuple[tuple[str, ...], ...]
 
 
 def run_batch(payload: Payload, batch: Batch, threads: int | None) -> tuple[np.ndarray, list[Outcome]]:
     """Run one batch (on a worker); returns its case ids and one outcome per case."""
     run = payload.runs[batch.solver]
     outcomes = run(payload.contexts[batch.solver], payload.cycles[batch.cycle], batch.values,
-                   payload.metrics, threads)  # fmt: skip
+                   payload.metrics[batch.solver], threads)  # fmt: skip
     if len(outcomes) != len(batch.case_ids):  # a solver bug, not a user error
         raise RuntimeError(f"solver returned {len(outcomes)} outcomes for {len(batch.case_ids)} cases")
     return batch.case_ids, outcomes
@@ -347,7 +348,7 @@ def run_study(
         folder, existing = _prepare_folder(study, Path(out), resume, force)
     contexts = tuple(SOLVERS[s.name].prepare(study, s) for s in study.solvers)
     payload = Payload(tuple(SOLVERS[s.name].run for s in study.solvers), contexts, study.cycle_objects,
-                      study.metrics)  # fmt: skip
+                      tuple(s.kept_metrics(study.metrics, study.vehicle) for s in study.solvers))  # fmt: skip
     done = folder.done_ids() if (folder is not None and existing) else np.zeros(0, dtype=np.int64)
     todo = np.setdiff1d(np.arange(study.n_cases, dtype=np.int64), done)
     frames: list[pd.DataFrame] = []

@@ -161,6 +161,9 @@ def _simulate_options(cfg: Any, options: dict[str, Any], where: str) -> dict[str
                 f"{where}: controller = {options['controller']!r} is not known; expected one of "
                 f"{', '.join(kinds)}."
             )
+        from hevsim.studies.spec import with_overrides
+
+        with_overrides(cfg, {"controller.kind": options["controller"]}, where)  # the architecture's rules
         out["controller"] = options["controller"]
     if "dt_s" in options:
         out["dt_s"] = schema.check_option(f"{where}: dt_s", options["dt_s"], type(cfg.simulation), "dt_s")

@@ -55,6 +55,13 @@ class SolverCase:
         opts = ",".join(f"{k}={v}" for k, v in self.options if k == "controller")
         return f"{self.name}[{opts}]" if opts else self.name
 
+    def kept_metrics(self, metrics: tuple[str, ...], vehicle: Any) -> tuple[str, ...]:
+        """The study's ``metrics`` this solver gives (the others are NaN in its rows)."""
+        from hevsim.studies.solvers import solver_spec
+
+        offered = solver_spec(self.name, "study").metric_names(vehicle)
+        return tuple(m for m in metrics if m in offered)
+
     def option(self, key: str, default: Any = None) -> Any:
         """Option ``key`` (or ``default``)."""
         return dict(self.options).get(key, default)
@@ -459,13 +466,13 @@ def study_from_dict(data: dict[str, Any], source: str = "<study>", base_dir: Pat
         raise StudyError(f"{src}: solvers {labels}: two solvers are the same; expected distinct solvers.")
 
     metrics = _str_list(data["metrics"], f"{src}: key 'metrics'")
-    for s in solvers:
-        valid = solver_spec(s.name, src).metric_names(vehicle)
-        missing = [m for m in metrics if m not in valid]
-        if missing:
+    offered = {s.name: solver_spec(s.name, src).metric_names(vehicle) for s in solvers}
+    for m in metrics:  # a metric one solver does not give is NaN in its rows
+        if not any(m in names for names in offered.values()):
+            valid = sorted(set().union(*offered.values()))
             raise StudyError(
-                f"{src}: key 'metrics': {missing[0]!r} is not a metric of solver '{s.name}'; valid metrics "
-                f"are: {', '.join(valid)}."
+                f"{src}: key 'metrics': {m!r} is not a metric of solver(s) {', '.join(offered)}; valid "
+                f"metrics are: {', '.join(valid)}."
             )
 
     pareto: list[Pareto] = []
