@@ -440,6 +440,32 @@ def _cmd_thermal(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_rom_build(args: argparse.Namespace) -> int:
+    from hevsim.thermal.rom import BuildOptions, build_rom_from_config, format_rom, load_rom
+
+    def ours(path: Path) -> bool:  # only a ROM file is replaced without --force
+        try:
+            load_rom(path)
+        except HevsimError:
+            return False
+        return True
+
+    _prepare(args, args.output, args.config, kind="file", option="-o", ours=ours)
+    opts = BuildOptions(**({"tol_k": args.tol_k} if args.tol_k is not None else {}))
+    rom, _ = build_rom_from_config(args.config, opts)
+    rom.save(args.output)
+    print(format_rom(rom))
+    print(f"ROM written to {args.output}")
+    return 0
+
+
+def _cmd_rom_info(args: argparse.Namespace) -> int:
+    from hevsim.thermal.rom import format_rom, load_rom
+
+    print(format_rom(load_rom(args.rom)))
+    return 0
+
+
 def _cmd_study(args: argparse.Namespace) -> int:
     from hevsim.studies.runner import run_study
     from hevsim.studies.spec import load_study
@@ -647,6 +673,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_force(p, "folder at --out")
     p.set_defaults(func=_cmd_thermal)
+
+    p = sub.add_parser("rom", help="thermal reduced-order model of a module, projected from its 3D FEM")
+    rom_sub = p.add_subparsers(dest="rom_command", required=True)
+    p = rom_sub.add_parser("build", help="build a module's thermal ROM from its FEM (module_thermal TOML)")
+    p.add_argument("config", help="module thermal configuration (TOML), e.g. examples/module_thermal.toml")
+    p.add_argument("-o", "--out", dest="output", required=True, help="ROM file to write (.npz)")
+    p.add_argument("--tol-k", type=float, help="tolerance of the output error estimate [K] (default 0.05)")
+    _add_force(p, "file at -o")
+    p.set_defaults(func=_cmd_rom_build)
+    p = rom_sub.add_parser("info", help="order, error estimate and provenance of a ROM file")
+    p.add_argument("rom", help="ROM file (.npz) written by `hevsim rom build`")
+    p.set_defaults(func=_cmd_rom_info)
 
     p = sub.add_parser("study", help="design-space study: sample parameters, run every case on Dask")
     p.add_argument("study", help="study file (TOML), e.g. examples/study_series_sizing.toml")
