@@ -380,3 +380,42 @@ def test_check_catches_type_mismatch_and_bad_parameter(cfmu: Path) -> None:
         ConfigError, match=r"component 'a': FMU c.fmu: parameter 'bi' is a Boolean, got the text"
     ):
         datacheck(desc([], {"bi": "yes"}))
+
+
+# ---------------------------------------------------------------------------- item 7: the FMU log
+@pytest.mark.parametrize("cls", CLASSES)
+def test_fmu_log_messages_come_with_the_failure(cfmu: Path, cls: type, tmp_path: Path, capfd) -> None:  # type: ignore[no-untyped-def]
+    log = tmp_path / "fmu.log"
+    p = cls("c", cfmu, {"fail_at": 0.35, "u": 1.0}, log_level="error", fmu_log=log)
+    msg = r"participant 'c' failed in do_step at t = 0.3 s: .*fmi2DoStep failed.*FMU log: \[ERROR\] error: "
+    with pytest.raises(
+        CosimFault, match=msg + r"integrator blew up: step from t = 0.3 crosses fail_at = 0.35"
+    ):
+        simulate([p], [], stop_time_s=1.0, step_s=0.1)
+    assert "c [ERROR] error: integrator blew up" in log.read_text()
+    assert "FMU 'c' [ERROR] error: integrator blew up" in capfd.readouterr().err  # shown at log_level error
+    q = cls("q", cfmu, {"fail_at": 0.35}, log_level="fatal")
+    with pytest.raises(CosimFault, match="integrator blew up"):  # still explains the failure
+        simulate([q], [], stop_time_s=1.0, step_s=0.1)
+    assert "integrator blew up" not in capfd.readouterr().err
+    with pytest.raises(ConfigError, match="log level 'loud'; valid: all, warning"):
+        cls("r", cfmu, log_level="loud")
+
+
+def test_cli_log_options(cfmu: Path, tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    from hevsim.cli import main
+
+    desc = SystemDescription("f", [Component("c", "application/x-fmu-sharedlibrary", cfmu.name,
+                                             parameters={"fail_at": 0.35})], [],
+                             stop_time_s=1.0, master={"step_s": 0.1}, base_dir=cfmu.parent)  # fmt: skip
+    ssd = write_ssd(desc, tmp_path / "f.ssd")
+    # the SSD refers to the FMU next to it
+    (tmp_path / cfmu.name).write_bytes(cfmu.read_bytes())
+    log = tmp_path / "fmu.log"
+    code = main(
+        ["cosim", str(ssd), "--out", str(tmp_path / "out"), "--fmu-log", str(log), "--log-level", "none"]
+    )
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "integrator blew up" in err and "FMU log:" in err
+    assert log.read_text().startswith("c [ERROR] error: integrator blew up")

@@ -386,7 +386,8 @@ def _cmd_cosim(args: argparse.Namespace) -> int:
         bar.refresh()
 
     try:
-        res = run_cosim(args.config, out, progress=progress, resume=args.resume)
+        res = run_cosim(args.config, out, progress=progress, resume=args.resume, log_level=args.log_level,
+                        fmu_log=args.fmu_log)  # fmt: skip
     finally:
         bar.close()
     print(format_cosim_summary(res, out))
@@ -659,6 +660,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_force(p, "folder at --out")
     p.add_argument("--resume", action="store_true", help="resume from the last checkpoint of --out")
     p.add_argument("--check", action="store_true", help="only run the datacheck of section 4.1.4")
+    p.add_argument("--log-level", default="error",
+                   choices=["all", "warning", "discard", "error", "fatal", "none"],
+                   help="FMU log messages shown on stderr from this status up (default: error)")  # fmt: skip
+    p.add_argument("--fmu-log", metavar="FILE", help="append every FMU log message to FILE")
     p.set_defaults(func=_cmd_cosim)
 
     p = sub.add_parser("thermal", help="3D FEM heat model of a battery module with cooling plate and coolant")

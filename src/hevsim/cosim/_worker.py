@@ -18,8 +18,11 @@ def main() -> None:
     """Serve requests until ``quit`` or end of input."""
     from hevsim.cosim.participant import FMUParticipant
 
-    out = sys.stdout
-    sys.stdout = sys.stderr  # FMU chatter must not corrupt the protocol
+    # the protocol gets its own copy of fd 1; what the FMU prints (Python or C, fd 1 or 2)
+    # goes to the inherited stderr, with the FMU logger's lines (log_level and up)
+    out = os.fdopen(os.dup(1), "w", buffering=1)
+    os.dup2(2, 1)
+    sys.stdout = sys.stderr
     p: FMUParticipant | None = None
     for line in sys.stdin:
         req = json.loads(line)
@@ -27,7 +30,13 @@ def main() -> None:
         try:
             res: Any = None
             if cmd == "open":
-                p = FMUParticipant(req["name"], req["fmu"], req.get("parameters"))
+                p = FMUParticipant(
+                    req["name"],
+                    req["fmu"],
+                    req.get("parameters"),
+                    log_level=req.get("log_level", "error"),
+                    fmu_log=req.get("fmu_log"),
+                )
                 res = {
                     "inputs": p.inputs,
                     "outputs": p.outputs,

@@ -15,9 +15,12 @@ co-simulation FMU through FMPy, in this process) and
 
 from __future__ import annotations
 
+import collections
+import contextlib
 import copy
+import sys
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -342,10 +345,25 @@ class FMUParticipant(Participant):
     may restore earlier states when iterating or rejecting steps).
     """
 
-    def __init__(self, name: str, fmu: str | Path, parameters: Mapping[str, float] | None = None):
+    def __init__(
+        self,
+        name: str,
+        fmu: str | Path,
+        parameters: Mapping[str, Any] | None = None,
+        log_level: str = "error",
+        fmu_log: str | Path | None = None,
+    ):
         from fmpy import read_model_description
 
         self.name = name
+        if log_level not in LOG_LEVELS:
+            raise ConfigError(
+                f"participant {name!r}: log level {log_level!r}; valid: {', '.join(LOG_LEVELS)}."
+            )
+        self.log_threshold = LOG_LEVELS[log_level]
+        self.fmu_log = Path(fmu_log) if fmu_log else None
+        self.log: collections.deque[tuple[int, str]] = collections.deque(maxlen=LOG_KEEP)
+        self._log_count = 0
         self.fmu = Path(fmu)
         if not self.fmu.is_file():
             raise ConfigError(f"participant {name!r}: FMU file {str(self.fmu)!r} does not exist.")
@@ -387,27 +405,71 @@ class FMUParticipant(Participant):
 
         self._dir = extract(str(self.fmu))
         ident = self.md.coSimulation.modelIdentifier
-        if self.fmi3:
-            from fmpy.fmi3 import FMU3Slave
+        logging_on = self.fmu_log is not None or self.log_threshold <= 1
+        with self._logged():
+            if self.fmi3:
+                from fmpy.fmi3 import FMU3Slave
 
-            self.slave = FMU3Slave(
-                guid=self.md.guid, unzipDirectory=self._dir, modelIdentifier=ident, instanceName=self.name
-            )
-            self.slave.instantiate()
-            self.slave.enterInitializationMode(startTime=t0)
-            self._set_params()
-            self.slave.exitInitializationMode()
-        else:
-            from fmpy.fmi2 import FMU2Slave
+                self.slave = FMU3Slave(
+                    guid=self.md.guid, unzipDirectory=self._dir, modelIdentifier=ident, instanceName=self.name
+                )
+                self._log_cb = lambda env, status, cat, msg: self._on_log(status, cat, msg)
+                self.slave.instantiate(loggingOn=logging_on, logMessage=self._log_cb)
+                self.slave.enterInitializationMode(startTime=t0)
+                self._set_params()
+                self.slave.exitInitializationMode()
+            else:
+                from ctypes import byref
 
-            self.slave = FMU2Slave(
-                guid=self.md.guid, unzipDirectory=self._dir, modelIdentifier=ident, instanceName=self.name
-            )
-            self.slave.instantiate()
-            self.slave.setupExperiment(startTime=t0)
-            self.slave.enterInitializationMode()
-            self._set_params()
-            self.slave.exitInitializationMode()
+                from fmpy.fmi2 import (
+                    FMU2Slave,
+                    defaultCallbacks,
+                    fmi2CallbackFunctions,
+                    fmi2CallbackLoggerTYPE,
+                )
+                from fmpy.logging import addLoggerProxy
+
+                self.slave = FMU2Slave(
+                    guid=self.md.guid, unzipDirectory=self._dir, modelIdentifier=ident, instanceName=self.name
+                )
+                cb = fmi2CallbackFunctions()
+                cb.logger = fmi2CallbackLoggerTYPE(
+                    lambda c, inst, status, cat, msg: self._on_log(status, cat, msg)
+                )
+                cb.allocateMemory = defaultCallbacks.allocateMemory
+                cb.freeMemory = defaultCallbacks.freeMemory
+                addLoggerProxy(byref(cb))
+                self._callbacks = cb  # kept alive as long as the instance
+                self.slave.instantiate(callbacks=cb, loggingOn=logging_on)
+                self.slave.setupExperiment(startTime=t0)
+                self.slave.enterInitializationMode()
+                self._set_params()
+                self.slave.exitInitializationMode()
+
+    # -- the FMI logger: kept for failures, shown from log_level up, all to fmu_log ----------
+    def _on_log(self, status: int, category: bytes | str | None, message: bytes | str | None) -> None:
+        dec = lambda b: b.decode("utf-8", "replace") if isinstance(b, bytes) else str(b or "")  # noqa: E731
+        label = _STATUS_LABELS[status] if 0 <= status < len(_STATUS_LABELS) else str(status)
+        line = f"[{label}] {dec(category)}: {dec(message)}"
+        self._log_count += 1
+        self.log.append((self._log_count, line))
+        if self.fmu_log is not None:
+            with open(self.fmu_log, "a", encoding="utf-8") as f:
+                f.write(f"{self.name} {line}\n")
+        if status >= self.log_threshold:
+            print(f"FMU {self.name!r} {line}", file=sys.stderr, flush=True)
+
+    @contextlib.contextmanager
+    def _logged(self) -> Iterator[None]:
+        """Re-raise a failure with the FMU's log messages since the call began."""
+        mark = self._log_count
+        try:
+            yield
+        except Exception as exc:
+            lines = [line for n, line in self.log if n > mark]
+            if not lines:
+                raise
+            raise SimulationError(f"{exc}; FMU log: " + " | ".join(lines)) from exc
 
     def _set_params(self) -> None:
         for k, v in self.parameters.items():
@@ -418,7 +480,8 @@ class FMUParticipant(Participant):
 
     def set_inputs(self, values: Mapping[str, Any]) -> None:
         try:
-            self.vars.set_inputs(self.slave, values)
+            with self._logged():
+                self.vars.set_inputs(self.slave, values)
         except ConfigError as exc:
             raise ConfigError(f"participant {self.name!r}: {exc}") from None
 
@@ -433,9 +496,10 @@ class FMUParticipant(Participant):
 
     def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
         try:
-            if self.fmi3:
-                return self._do_step3(t, h)
-            return self._do_step2(t, h)
+            with self._logged():
+                if self.fmi3:
+                    return self._do_step3(t, h)
+                return self._do_step2(t, h)
         except Exception:
             self._failed = True
             raise
@@ -516,7 +580,8 @@ class FMUParticipant(Participant):
         return True, None
 
     def get_outputs(self) -> dict[str, Any]:
-        return self.vars.get_outputs(self.slave)
+        with self._logged():
+            return self.vars.get_outputs(self.slave)
 
     def get_state(self) -> Any:
         if not self.can_state:
@@ -559,3 +624,9 @@ class FMUParticipant(Participant):
 
 
 _FAILED_INSTANCES: list[Any] = []
+
+LOG_LEVELS = {"all": 0, "warning": 1, "discard": 2, "error": 3, "fatal": 4, "none": 99}
+"""``log_level``: FMU log messages of at least this status are printed to stderr."""
+LOG_KEEP = 50
+"""FMU log messages kept to explain a failure."""
+_STATUS_LABELS = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")

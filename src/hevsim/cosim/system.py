@@ -18,8 +18,11 @@ from hevsim.cosim.ssp_write import ssd_xml
 from hevsim.errors import ConfigError
 
 
-def build_participants(desc: SystemDescription) -> list[Participant]:
-    """Instantiate the participants of ``desc`` (FMUs in worker processes by default)."""
+def build_participants(
+    desc: SystemDescription, log_level: str = "error", fmu_log: str | Path | None = None
+) -> list[Participant]:
+    """Instantiate the participants of ``desc`` (FMUs in worker processes by default; their
+    logger messages from ``log_level`` up on stderr, all of them in ``fmu_log``)."""
     from hevsim.cosim.participant import FMUParticipant
     from hevsim.cosim.worker import WorkerFMUParticipant
 
@@ -28,7 +31,7 @@ def build_participants(desc: SystemDescription) -> list[Participant]:
     for c in desc.components:
         if c.type == FMU_TYPE:
             cls = FMUParticipant if inproc else WorkerFMUParticipant
-            parts.append(cls(c.name, desc.base_dir / c.source, c.parameters))
+            parts.append(cls(c.name, desc.base_dir / c.source, c.parameters, log_level, fmu_log))
         elif c.type == PY_TYPE:
             mod, _, fn = c.source.partition(":")
             try:
@@ -56,6 +59,8 @@ def run_system(
     progress: Callable[[float, float], None] | None = None,
     checkpoint_path: str | Path | None = None,
     resume: bool = False,
+    log_level: str = "error",
+    fmu_log: str | Path | None = None,
 ) -> CosimResult:
     """Check ``desc``, build its participants and run the master."""
     datacheck(desc)
@@ -72,8 +77,9 @@ def run_system(
         stop_time_s=desc.stop_time_s, start_time_s=desc.start_time_s, checkpoint_path=checkpoint_path, **m
     )
     opts.check()
-    return simulate(build_participants(desc), desc.connections, progress=progress, resume=resume,
-                    extra_units=desc.units, **vars(opts))  # fmt: skip
+    parts = build_participants(desc, log_level, fmu_log)
+    return simulate(parts, desc.connections, progress=progress, resume=resume, extra_units=desc.units,
+                    **vars(opts))  # fmt: skip
 
 
 def run_cosim(
@@ -81,6 +87,8 @@ def run_cosim(
     out_dir: str | Path,
     progress: Callable[[float, float], None] | None = None,
     resume: bool = False,
+    log_level: str = "error",
+    fmu_log: str | Path | None = None,
 ) -> CosimResult:
     """Run the configuration ``config_path`` (``.ssp`` / ``.ssd`` / a bound CSE ``.xml``, or a
     :class:`SystemDescription`) and write ``out_dir``:
@@ -99,7 +107,7 @@ def run_cosim(
 
     if not isinstance(config_path, SystemDescription):
         with load_system(config_path) as desc:
-            return run_cosim(desc, out_dir, progress, resume)
+            return run_cosim(desc, out_dir, progress, resume, log_level, fmu_log)
     desc = config_path
     out = Path(out_dir)
     ck = out.with_name(f".{out.name}.checkpoint")
@@ -122,7 +130,7 @@ def run_cosim(
             (tmp / "system.ssd").write_bytes(ssd_xml(desc))
 
     try:
-        res = run_system(desc, progress, ck, resume)
+        res = run_system(desc, progress, ck, resume, log_level, fmu_log)
     except CosimFault as exc:
         if exc.partial is not None:
             write(exc.partial, str(exc))

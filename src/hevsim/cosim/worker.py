@@ -19,7 +19,14 @@ from hevsim.errors import ConfigError, SimulationError
 class WorkerFMUParticipant(Participant):
     """Same behaviour as :class:`hevsim.cosim.participant.FMUParticipant`, in a subprocess."""
 
-    def __init__(self, name: str, fmu: str | Path, parameters: Mapping[str, float] | None = None):
+    def __init__(
+        self,
+        name: str,
+        fmu: str | Path,
+        parameters: Mapping[str, Any] | None = None,
+        log_level: str = "error",
+        fmu_log: str | Path | None = None,
+    ):
         self.name = name
         self.fmu = Path(fmu)
         if not self.fmu.is_file():
@@ -29,12 +36,13 @@ class WorkerFMUParticipant(Participant):
             [sys.executable, "-m", "hevsim.cosim._worker"],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
-            stderr=subprocess.DEVNULL,
+            stderr=None,  # the FMU's own output and its logger lines from log_level up
             text=True,
             bufsize=1,
         )
         try:
-            info = self._rpc("open", name=name, fmu=str(self.fmu), parameters=dict(parameters or {}))
+            info = self._rpc("open", name=name, fmu=str(self.fmu), parameters=dict(parameters or {}),
+                             log_level=log_level, fmu_log=str(fmu_log) if fmu_log else None)  # fmt: skip
         except SimulationError as exc:
             self.close()
             raise ConfigError(str(exc)) from None
