@@ -182,11 +182,14 @@ def test_cli_option_out_of_range_is_exit_2_naming_the_option(
     assert needle in err
 
 
-def test_simulate_on_a_parallel_config_says_use_optimize(
+def test_simulate_on_a_parallel_config_refuses_a_genset_schedule(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    err = _exit2(["simulate", str(PARALLEL), "--out", str(tmp_path / "o")], capsys)
-    assert "supports series only for now" in err and "hevsim optimize" in err
+    """Issue 11: the parallel HEV simulates forward; a series genset schedule is refused."""
+    sched = tmp_path / "s.csv"
+    sched.write_text("time_s,engine_speed_rpm,engine_throttle\n0,0,0\n")
+    err = _exit2(["simulate", str(PARALLEL), "--schedule", str(sched), "--out", str(tmp_path / "o")], capsys)
+    assert "parallel_hev.toml" in err and "--schedule" in err and "--controller" in err
     assert not (tmp_path / "o").exists()
 
 

@@ -196,15 +196,28 @@ class DriverSection:
     feedforward: float = param(0.0, 0.0, 100.0, "s^2/m")
 
 
+CONTROLLER_KINDS: tuple[str, ...] = ("thermostat", "schedule", "electric_assist", "ecms", "aecms")
+"""Every ``[controller] kind``; which ones an architecture admits is in
+:data:`hevsim.architectures.ARCHITECTURES` (``controllers``)."""
+
+
 @dataclass(frozen=True)
 class ControllerSection:
-    """Supervisory controller: genset thermostat on SOC, engine operating point, speed loop.
+    """Supervisory controller (:mod:`hevsim.control`), selected by ``kind``.
 
-    ``kind = "schedule"`` follows a genset schedule CSV (``schedule``: time_s,
-    engine_speed_rpm, engine_throttle) instead, e.g. a DP optimum.
+    Series HEV: ``"thermostat"`` (genset on SOC, engine operating point, speed loop) or
+    ``"schedule"`` (a genset schedule CSV ``schedule``: time_s, engine_speed_rpm,
+    engine_throttle, e.g. a DP optimum). Parallel HEV: ``"electric_assist"`` (rule-based:
+    EV below ``ev_speed_mps`` and ``ev_power_w``, engine load-following in the gear of the
+    ``upshift_rpm``/``downshift_rpm`` schedule plus ``charge_power_w`` below ``soc_low``,
+    machine assist), ``"ecms"`` (equivalence factor ``equivalence_factor``, over
+    ``control_points`` throttles per gear) or ``"aecms"`` (ECMS with the factor corrected by
+    a PI loop on the SOC error from the run's initial SOC less the recoverable share
+    ``aecms_kinetic_fraction`` of the kinetic energy, gains ``aecms_kp`` [-] and ``aecms_ki``
+    [1/s]).
     """
 
-    kind: str = choice("thermostat", "thermostat", "schedule")
+    kind: str = choice("thermostat", *CONTROLLER_KINDS)
     schedule: str = ""
     soc_low: float = param(0.6, 0.0, 1.0, "-")
     soc_high: float = param(0.7, 0.0, 1.0, "-")
@@ -216,6 +229,17 @@ class ControllerSection:
     speed_gain_per_rpm: float = param(0.01, 0.0, 100.0, "1/rpm")
     pure_ice_band_w: float = param(500.0, 0.0, 1e7, "W")
     aux_power_w: float = param(0.0, 0.0, 1e7, "W")
+    # parallel HEV (hevsim.control): electric assist, ECMS, adaptive ECMS
+    ev_speed_mps: float = param(8.0, 0.0, 100.0, "m/s")
+    ev_power_w: float = param(8000.0, 0.0, 1e7, "W")
+    charge_power_w: float = param(4000.0, 0.0, 1e7, "W")
+    upshift_rpm: float = param(2000.0, 1.0, 1e5, "rpm")
+    downshift_rpm: float = param(1100.0, 1.0, 1e5, "rpm")
+    equivalence_factor: float = param(2.5, 0.0, 100.0, "-")
+    aecms_kp: float = param(150.0, 0.0, 1e5, "-")
+    aecms_ki: float = param(0.2, 0.0, 1e5, "1/s")
+    aecms_kinetic_fraction: float = param(0.5, 0.0, 1.0, "-")
+    control_points: int = param(101, 2, 100_000, "-")
 
 
 @dataclass(frozen=True)
@@ -315,6 +339,8 @@ class ParallelHEVConfig(_VehicleConfig):
     motor: MachineSection = field(default_factory=MachineSection)
     motor_coupling: GearSection = field(default_factory=lambda: GearSection(ratio=1.0))
     battery: BatterySection = field(default_factory=BatterySection)
+    simulation: SimulationSection = field(default_factory=SimulationSection)
+    controller: ControllerSection = field(default_factory=lambda: ControllerSection(kind="electric_assist"))
     optimization: OptimizationSection = field(default_factory=OptimizationSection)
     metrics: MetricsSection = field(default_factory=MetricsSection)
     fuel: FuelSection = field(default_factory=FuelSection)  # hevsim.fuels: choose/override the fuel
@@ -333,16 +359,38 @@ def _get(cfg: Any, dotted: str) -> Any:
     return getattr(getattr(cfg, sec), name)
 
 
+def _check_controller(cfg: Any, source: str) -> None:
+    from hevsim.architectures import check_controller
+
+    check_controller(cfg, source)
+
+
 def _check_series(cfg: SeriesHEVConfig, source: str) -> None:
+    _check_controller(cfg, source)
     _pairs_below(cfg, source, (("controller.soc_low", "controller.soc_high"),
                                ("battery.soc_min", "battery.soc_max"),
                                ("engine.stall_speed_rpm", "engine.redline_rpm")))  # fmt: skip
 
 
 def _check_parallel(cfg: ParallelHEVConfig, source: str) -> None:
+    _check_controller(cfg, source)
     _pairs_below(cfg, source, (("battery.soc_min", "battery.soc_max"),
+                               ("controller.soc_low", "controller.soc_high"),
+                               ("controller.downshift_rpm", "controller.upshift_rpm"),
                                ("engine.stall_speed_rpm", "engine.redline_rpm"),
                                ("optimization.final_soc_min", "optimization.final_soc_max")))  # fmt: skip
+    ratios = cfg.gearbox.ratios  # never empty: the schema asks for a non-empty list
+    c = cfg.controller
+    for g in range(len(ratios) - 1):  # after an upshift the engine must stay above the downshift speed
+        after = c.upshift_rpm * ratios[g + 1] / ratios[g]
+        if after <= c.downshift_rpm:
+            raise ConfigError(
+                f"{source}: shift schedule 'controller.upshift_rpm' = {c.upshift_rpm:g} / "
+                f"'controller.downshift_rpm' = {c.downshift_rpm:g} is infeasible: an upshift from "
+                f"gear {g + 1} to {g + 2} (ratios {ratios[g]:g} -> {ratios[g + 1]:g}) lands at "
+                f"{after:.0f} rpm, at or below the downshift speed (the gears would hunt); expected "
+                f"upshift_rpm > downshift_rpm x {ratios[g] / ratios[g + 1]:.3g}."
+            )
     b, o = cfg.battery, cfg.optimization
     if not b.soc_min <= o.soc_initial <= b.soc_max:
         raise ConfigError(
@@ -413,7 +461,7 @@ register_architecture(ArchitectureSpec(
     "series", SeriesHEVConfig, "hevsim.sim.model:build_series_hev", _series_required, _check_series,
 ))  # fmt: skip
 register_architecture(ArchitectureSpec(
-    "parallel", ParallelHEVConfig, "hevsim.parallel:build_parallel_hev",
+    "parallel", ParallelHEVConfig, "hevsim.architectures.parallel:build_parallel_hev",
     lambda data: ("body", "tire", "final_drive", "gearbox", "engine", "motor", "motor_coupling", "battery"),
     _check_parallel,
 ))  # fmt: skip

@@ -205,8 +205,13 @@ class ElectricFlow:
 
 def _flat(*arrays: Any) -> tuple[tuple[int, ...], list[FloatArray]]:
     """Broadcast arrays; return the shape and contiguous flat float64 copies."""
-    b = np.broadcast_arrays(*(np.asarray(a, np.float64) for a in arrays))
-    return b[0].shape, [np.ascontiguousarray(x.ravel()) for x in b]
+    arrs = [np.asarray(a, np.float64) for a in arrays]
+    shape = np.broadcast_shapes(*(a.shape for a in arrs))
+    out = []
+    for a in arrs:  # writeable contiguous copies only where needed (numba, no broadcast views)
+        x = (a if a.shape == shape else np.broadcast_to(a, shape)).ravel()
+        out.append(x if x.flags.writeable and x.flags.c_contiguous else np.array(x))
+    return shape, out
 
 
 def electric_flow(

@@ -30,6 +30,12 @@ import numpy as np
 import pandas as pd
 
 import hevsim
+from hevsim.architectures.parallel import (
+    ParallelHEV,
+    ParallelHEVConfig,
+    build_parallel_hev,
+    load_parallel_config,
+)
 from hevsim.components.engine import Engine
 from hevsim.config import SeriesHEVConfig, load_config, load_vehicle_config
 from hevsim.cycles import DriveCycle, load_cycle
@@ -39,7 +45,6 @@ from hevsim.optimal._feedback import dp_feedback
 from hevsim.optimal._hev_common import DETAIL_COLUMNS, HEVFormulation, hev_metrics
 from hevsim.optimal._problem import FinalTarget
 from hevsim.optimal.dp import FINAL_CONSTRAINTS, DPResult, solve_dp
-from hevsim.parallel import ParallelHEV, ParallelHEVConfig, build_parallel_hev, load_parallel_config
 from hevsim.sim.model import SeriesHEV, build_series_hev
 
 FINAL_SOC_MODES: tuple[str, ...] = ("sustain", "window")

@@ -1,0 +1,310 @@
+"""Parallel hybrid-electric vehicle: model, admissible controls and THE power flow.
+
+The architecture is the one of the thesis's appendix DP script (Loghavi 2015): an engine
+driving the wheels through a clutch, a multi-speed gearbox and the final drive, and an
+electric machine coupled to the final-drive input through a fixed gear ("EM gear ratio",
+a P3 machine). At a standstill, or when the engine cannot turn at its running speed in the
+chosen gear, the clutch opens and the machine alone drives. The battery sits on the
+machine's DC bus.
+
+Controls (:data:`CONTROLS`): the gear (1..G) and the engine throttle ``u`` in [0, 1];
+``u = 0`` is engine off with the clutch open (EV mode; the gear is then irrelevant).
+
+:func:`mechanical` and :func:`electrical` are the one vectorised power flow of this
+architecture: (wheel demand, control) -> engine and gearbox operating points, then (state)
+-> machine, battery, SOC change and fuel, with every component limit as a flag. The DP
+(:mod:`hevsim.optimal._parallel_dp`) calls them over the whole grid of steps x gears x
+throttles x SOC; the forward simulator (:mod:`hevsim.sim.forward`) and the online
+controllers (:mod:`hevsim.control`) call them for the candidate controls of one step, and
+:func:`loss_powers` turns the same operating points into the energy audit's terms.
+
+A configuration file holds ``[powertrain] architecture = "parallel"`` and the shared sections
+of :mod:`hevsim.config` (:class:`~hevsim.config.ParallelHEVConfig`: body, tire, final_drive,
+gearbox, engine, motor, motor_coupling, battery, simulation, controller, optimization,
+metrics); every key is checked on load. ``examples/parallel_hev.toml`` documents every key.
+"""
+
+from __future__ import annotations
+
+import typing
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hevsim.components.battery import BatteryPack
+from hevsim.components.body import VehicleBody
+from hevsim.components.driveline import Gear, Tire
+from hevsim.components.electric_machine import ElectricMachine
+from hevsim.components.engine import Engine
+from hevsim.config import ParallelHEVConfig, config_from_dict, load_vehicle_config
+from hevsim.errors import ConfigError
+from hevsim.fuels import with_config_fuel
+from hevsim.sim.model import build_battery, build_engine, build_machine
+
+__all__ = ["ARCHITECTURE", "ParallelHEV", "ParallelHEVConfig", "build_parallel_hev", "load_parallel_config",
+           "parallel_from_dict"]  # fmt: skip
+
+ARCHITECTURE = "parallel"
+"""Value of ``[powertrain] architecture`` of a parallel-HEV configuration file."""
+
+
+def parallel_from_dict(
+    data: dict[str, Any], source: str = "<config>", base_dir: Path | None = None
+) -> ParallelHEVConfig:
+    """Validate a parsed parallel-HEV mapping (``[powertrain]`` may be omitted here)."""
+    data = dict(data)
+    if "powertrain" not in data and "architecture" not in data:
+        data["powertrain"] = {"architecture": ARCHITECTURE}
+    cfg = config_from_dict(data, source, base_dir)
+    if not isinstance(cfg, ParallelHEVConfig):
+        raise ConfigError(
+            f"{source}: key 'powertrain.architecture' = {cfg.architecture!r}; expected {ARCHITECTURE!r} here."
+        )
+    return cfg
+
+
+def load_parallel_config(path: str | Path) -> ParallelHEVConfig:
+    """Read and validate a parallel-HEV TOML configuration file."""
+    p = Path(path)
+    cfg = load_vehicle_config(p)
+    if not isinstance(cfg, ParallelHEVConfig):
+        raise ConfigError(
+            f"{p}: key 'powertrain.architecture' = {cfg.architecture!r}; expected {ARCHITECTURE!r} here."
+        )
+    return cfg
+
+
+@dataclass(frozen=True, eq=False)
+class ParallelHEV:
+    """A parallel hybrid vehicle: its configuration and component objects.
+
+    Attributes:
+        gears: one :class:`Gear` per gearbox ratio (engine path, with the gearbox efficiency).
+        final_drive: final drive (both paths). motor_coupling: machine to final-drive input.
+    """
+
+    config: ParallelHEVConfig
+    body: VehicleBody
+    tire: Tire
+    final_drive: Gear
+    gears: tuple[Gear, ...]
+    engine: Engine
+    motor: ElectricMachine
+    motor_coupling: Gear
+    battery: BatteryPack
+
+    architecture: typing.ClassVar[str] = ARCHITECTURE
+
+    @property
+    def name(self) -> str:
+        """Configuration name."""
+        return self.config.name
+
+    @property
+    def gear_ratios(self) -> np.ndarray:
+        """Gearbox ratios [-], first gear first."""
+        return np.array([g.ratio for g in self.gears])
+
+
+def build_parallel_hev(cfg: ParallelHEVConfig) -> ParallelHEV:
+    """Build the component objects of a parallel HEV from its configuration."""
+    base = Path(cfg.base_dir)
+    body = VehicleBody.from_section(cfg.body)
+    engine = build_engine(cfg.engine, base)
+    g = cfg.gearbox
+    return ParallelHEV(
+        config=cfg,
+        body=body,
+        tire=Tire(radius_m=cfg.tire.radius_m),
+        final_drive=Gear(ratio=cfg.final_drive.ratio, efficiency=cfg.final_drive.efficiency),
+        gears=tuple(Gear(ratio=r, efficiency=g.efficiency) for r in g.ratios),
+        engine=with_config_fuel(engine, cfg),  # [fuel] section of the configuration
+        motor=build_machine(cfg.motor, "motor", base),
+        motor_coupling=Gear(ratio=cfg.motor_coupling.ratio, efficiency=cfg.motor_coupling.efficiency),
+        battery=build_battery(cfg.battery, base)[0],
+    )
+
+
+# ------------------------------------------------------------------------------------------
+# The power flow (one copy: DP grid, ECMS candidates, forward step, energy audit)
+# ------------------------------------------------------------------------------------------
+CONTROLS: tuple[str, ...] = ("gear", "throttle")
+"""Control inputs of the parallel HEV: gear (1..G; ignored with the engine off) and engine
+throttle [-] (0 = engine off, clutch open)."""
+CONTROL_UNITS: tuple[str, ...] = ("-", "-")
+
+
+def mechanical(
+    hev: ParallelHEV,
+    wheel_speed_radps: Any,
+    wheel_torque_nm: Any,
+    gear: Any,
+    throttle: Any,
+    *,
+    grid_duplicates: bool = False,
+) -> dict[str, Any]:
+    """The state-independent half of the power flow, broadcast over every argument.
+
+    Wheel demand: speed [rad/s] and torque [N·m] at the wheels. Control: gear (1..G) and
+    throttle [-]. The final-drive input turns at ``w_fd = w_wheel i_fd`` and must receive
+    ``T_fd`` (the wheel torque through the final drive). In gear ``g`` the engine turns at
+    ``w_e = w_fd i_g``; with ``u > 0`` it is fired and clutched in, must turn within its
+    running window (stall..redline, eq 29), gives ``T_e = Engine.torque(u, w_e)`` and burns
+    ``Engine.fuel_rate(T_e, w_e)`` [kg/s]; the gearbox passes ``Gear.output_torque(T_e)``.
+    ``u = 0``: engine off and declutched. The machine (coupling gear on the final-drive
+    input) must give the rest: ``t_em_req``. ``grid_duplicates`` marks every gear but the
+    first with the engine off (duplicates on a DP grid) as infeasible.
+
+    Returns a dict of arrays: gi (gear index 0..G-1), thr, on, engine_speed (fired but
+    outside the running window), bad, w_fd, w_e, t_e, t_e_fd, t_fd, fuel [kg/s], w_em,
+    t_em_req.
+    """
+    eng = hev.engine
+    gi = np.rint(np.asarray(gear, dtype=np.float64)).astype(np.int64) - 1
+    w_fd = np.asarray(wheel_speed_radps, dtype=np.float64) * hev.final_drive.ratio
+    t_fd = np.asarray(hev.final_drive.input_torque(np.asarray(wheel_torque_nm, np.float64)), dtype=np.float64)
+    w_fd, t_fd, gi, thr = (
+        np.array(a) for a in np.broadcast_arrays(w_fd, t_fd, gi, np.asarray(throttle, dtype=np.float64))
+    )
+    w_e = w_fd * hev.gear_ratios[gi]
+    fired = thr > 0.0
+    can_run = (w_e >= eng.stall_speed_radps) & (w_e <= eng.redline_radps)
+    on = fired & can_run
+    t_e = np.zeros(gi.shape)
+    fuel = np.zeros(gi.shape)
+    t_e_fd = np.zeros(gi.shape)
+    if on.any():
+        t_e[on] = eng.torque(thr[on], w_e[on])
+        fuel[on] = eng.fuel_rate(t_e[on], w_e[on])
+        for g, gearbox in enumerate(hev.gears):
+            sel = on & (gi == g)
+            if sel.any():
+                t_e_fd[sel] = gearbox.output_torque(t_e[sel])
+    bad = (fired & ~can_run) | ~np.isfinite(fuel)
+    if grid_duplicates:
+        bad = bad | (~fired & (gi > 0))
+    return {
+        "gi": gi, "thr": thr, "on": on, "engine_speed": fired & ~can_run, "bad": bad,
+        "w_fd": w_fd, "w_e": w_e, "t_e": t_e, "t_e_fd": t_e_fd, "t_fd": t_fd, "fuel": fuel,
+        "w_em": w_fd * hev.motor_coupling.ratio,
+        "t_em_req": hev.motor_coupling.input_torque(t_fd - t_e_fd),
+    }  # fmt: skip
+
+
+def electrical(
+    hev: ParallelHEV,
+    mech: dict[str, Any],
+    soc: Any,
+    dt_s: Any,
+    regen_ok: Any,
+    battery_state: Any = None,
+    *,
+    detail: bool = False,
+) -> Any:
+    """The SOC-dependent half of the power flow: machine, battery, SOC change and fuel.
+
+    ``mech`` from :func:`mechanical`; ``soc`` [-], step ``dt_s`` [s] and ``regen_ok``
+    (regeneration allowed: the car moves) broadcast against it; ``battery_state`` a
+    :class:`~hevsim.optimal._hev_common.BatteryState` at ``soc`` when already known. The
+    machine and the battery meet in the shared bus balance
+    (:func:`~hevsim.optimal._hev_common.electric_flow`); the friction brakes take, at the
+    final-drive input, whatever braking torque the engine path and the machine leave.
+
+    Returns a :class:`~hevsim.optimal._hev_common.Stage` (SOC change, fuel mass [kg] over the
+    step, infeasibility, limit flags) whose ``details`` (with ``detail``) hold the operating
+    points; the bus balance is attached as ``stage.flow`` for :func:`loss_powers`.
+    """
+    from hevsim.optimal._hev_common import Stage, electric_flow
+
+    m = mech
+    flow = electric_flow(hev.motor, hev.battery, m["t_em_req"], m["w_em"], 0.0, soc, dt_s, regen_ok,
+                         battery_state)  # fmt: skip
+    flags = {"engine_speed": m["engine_speed"], **flow.flags}
+    st = Stage(d_soc=flow.d_soc, cost_kg=m["fuel"] * dt_s, infeasible=flow.infeasible | m["bad"], flags=flags)
+    st.flow = flow  # type: ignore[attr-defined]
+    if detail:
+        on, w_e, t_e = m["on"], m["w_e"], m["t_e"]
+        fric = np.minimum(m["t_fd"] - m["t_e_fd"] - hev.motor_coupling.output_torque(flow.torque_nm), 0.0)
+        shape = np.shape(flow.torque_nm)
+        st.details = {
+            "gear": np.where(on, m["gi"] + 1, 0).astype(np.float64),
+            "engine_on": on.astype(np.float64),
+            "engine_speed_radps": np.where(on, w_e, 0.0),
+            "engine_torque_nm": t_e,
+            "engine_throttle": np.where(on, m["thr"], 0.0),
+            "engine_power_w": t_e * np.where(on, w_e, 0.0),
+            "fuel_rate_gps": m["fuel"] * 1e3,
+            "motor_speed_radps": np.broadcast_to(m["w_em"], shape),
+            "motor_torque_nm": flow.torque_nm,
+            "motor_power_elec_w": flow.power_elec_w,
+            "battery_current_a": flow.current_a,
+            "battery_power_w": flow.battery_power_w,
+            "friction_brake_power_w": -fric * m["w_fd"],
+        }
+    return st
+
+
+def power_flow(
+    hev: ParallelHEV,
+    wheel_speed_radps: Any,
+    wheel_torque_nm: Any,
+    gear: Any,
+    throttle: Any,
+    soc: Any,
+    dt_s: Any,
+    regen_ok: Any,
+    battery_state: Any = None,
+    *,
+    detail: bool = False,
+) -> Any:
+    """(wheel demand, control, state) -> operating points, fuel, battery power, SOC change:
+    :func:`electrical` of :func:`mechanical` (see both), broadcast over every argument."""
+    mech = mechanical(hev, wheel_speed_radps, wheel_torque_nm, gear, throttle)
+    st = electrical(hev, mech, soc, dt_s, regen_ok, battery_state, detail=detail)
+    st.mech = mech
+    return st
+
+
+def loss_powers(hev: ParallelHEV, mech: dict[str, Any], stage: Any, wheel_speed_radps: Any,
+                wheel_torque_nm: Any) -> dict[str, Any]:  # fmt: skip
+    """Power [W] of every energy-audit term of a :func:`power_flow` result (> 0 dissipated).
+
+    ``fuel`` (fuel x LHV), ``engine_loss`` (fuel power - shaft power), ``gearbox_loss``,
+    ``motor_loss`` (electrical - mechanical), ``coupling_loss``, ``final_drive_loss``,
+    ``friction_brakes`` (at the final-drive input) and ``wheel`` (the power delivered to the
+    wheels, = road load x speed); the battery terms come from its current (see the forward
+    simulator). Every term is a product of the flow's own torques and speeds, so the balance
+    ``fuel + battery terminal = losses + wheel`` closes to round-off.
+    """
+    flow = stage.flow
+    w_fd = mech["w_fd"]
+    on = mech["on"]
+    lhv = hev.engine.fuel_lhv_jpkg
+    p_eng = mech["t_e"] * np.where(on, mech["w_e"], 0.0)
+    t_em = flow.torque_nm
+    t_em_fd = hev.motor_coupling.output_torque(t_em)
+    fric = np.minimum(mech["t_fd"] - mech["t_e_fd"] - t_em_fd, 0.0)
+    t_fd_total = mech["t_e_fd"] + t_em_fd + fric
+    p_wheel = np.asarray(hev.final_drive.output_torque(t_fd_total)) * np.asarray(wheel_speed_radps)
+    return {
+        "fuel": mech["fuel"] * lhv,
+        "engine_loss": mech["fuel"] * lhv - p_eng,
+        "gearbox_loss": p_eng - mech["t_e_fd"] * w_fd,
+        "motor_loss": flow.power_elec_w - t_em * mech["w_em"],
+        "coupling_loss": t_em * mech["w_em"] - t_em_fd * w_fd,
+        "friction_brakes": -fric * w_fd,
+        "final_drive_loss": t_fd_total * w_fd - p_wheel,
+        "wheel": p_wheel,
+    }
+
+
+def candidate_controls(hev: ParallelHEV, throttle_points: int) -> tuple[np.ndarray, np.ndarray]:
+    """The admissible control grid of one step, flat: engine off once (gear 1, throttle 0)
+    and every gear with ``throttle_points - 1`` throttles in (0, 1]. Returns (gear, throttle)."""
+    n = int(throttle_points)
+    thr = np.linspace(0.0, 1.0, n)[1:]
+    G = len(hev.gears)
+    gears = np.repeat(np.arange(1, G + 1, dtype=np.float64), thr.size)
+    return np.concatenate([[1.0], gears]), np.concatenate([[0.0], np.tile(thr, G)])

@@ -1,0 +1,270 @@
+"""Supervisory controllers of the parallel HEV: electric assist (rule-based), ECMS, adaptive
+ECMS and the replay of a control schedule (e.g. a DP optimum).
+
+Every controller scores candidate controls with the architecture's one power flow
+(:func:`hevsim.architectures.parallel.power_flow`, through ``step.evaluate``), the same
+function the DP evaluates over its grid. The candidate grid is
+:func:`hevsim.architectures.parallel.candidate_controls`: engine off, plus every gear x
+``control_points - 1`` throttles in (0, 1].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hevsim.architectures import parallel as P
+from hevsim.errors import ConfigError
+from hevsim.units import rpm_to_radps
+
+Control = tuple[float, float]
+"""(gear [1..G], throttle [-]); throttle 0 is engine off, clutch open."""
+
+
+def _argmin_feasible(cost: np.ndarray, feasible: np.ndarray) -> int | None:
+    if not feasible.any():
+        return None
+    c = np.where(feasible, cost, np.inf)
+    return int(np.argmin(c))
+
+
+class _GridController:
+    """Shared part: the candidate grid and the ECMS score."""
+
+    def __init__(self, hev: P.ParallelHEV, control_points: int) -> None:
+        self.hev = hev
+        self.gears, self.throttles = P.candidate_controls(hev, int(control_points))
+        self.lhv = hev.engine.fuel_lhv_jpkg
+
+    def reset(self, soc_initial: float) -> None:
+        """Before a run."""
+
+    def update(self, step: Any, stage: Any) -> None:
+        """After a step (nothing to remember)."""
+
+    def score(self, step: Any, s: float) -> tuple[np.ndarray, np.ndarray]:
+        """(ECMS cost [W] = fuel power + s x battery chemical power, feasible) per candidate.
+
+        The battery chemical power is ``-dSOC/dt x Q x OCV`` (the energy the DP's costate
+        prices: ``s = -costate x LHV / (Q OCV)``).
+        """
+        st, feasible = step.evaluate(self.gears, self.throttles)
+        p_fuel = st.cost_kg / step.dt_s * self.lhv
+        p_chem = -st.d_soc / step.dt_s * step.energy_per_soc_j
+        return p_fuel + s * p_chem, feasible
+
+    def best(self, step: Any, s: float) -> Control | None:
+        cost, feasible = self.score(step, s)
+        i = _argmin_feasible(cost, feasible)
+        return None if i is None else (float(self.gears[i]), float(self.throttles[i]))
+
+
+class ECMS(_GridController):
+    """Equivalent consumption minimisation with a constant equivalence factor ``s`` [-]."""
+
+    name = "ecms"
+
+    def __init__(self, hev: P.ParallelHEV, equivalence_factor: float, control_points: int) -> None:
+        super().__init__(hev, control_points)
+        self.s = float(equivalence_factor)
+
+    def choose(self, step: Any) -> Control | None:
+        """The feasible candidate of least fuel power + s x battery chemical power."""
+        return self.best(step, self.s)
+
+
+class AdaptiveECMS(_GridController):
+    """ECMS whose factor follows the SOC: ``s = s0 + kp e + ki ∫ e dt``, ``e = SOC_ref - SOC``.
+
+    Needs no knowledge of the cycle. The reference is the run's initial SOC lowered by the
+    share ``aecms_kinetic_fraction`` of the vehicle's kinetic energy that braking can bring
+    back, ``SOC_ref = SOC0 - f m_eff v^2 / 2 / (Q OCV)`` (a moving car keeps room for its
+    regeneration, so the run ends charge-sustaining when it stops).
+    """
+
+    name = "aecms"
+
+    def __init__(self, hev: P.ParallelHEV, equivalence_factor: float, aecms_kp: float, aecms_ki: float,
+                 aecms_kinetic_fraction: float, control_points: int) -> None:  # fmt: skip
+        super().__init__(hev, control_points)
+        self.s0 = float(equivalence_factor)
+        self.kp = float(aecms_kp)
+        self.ki = float(aecms_ki)
+        self.kin = float(aecms_kinetic_fraction) * 0.5 * hev.body.mass_kg * hev.body.mass_factor
+        self.soc_ref = 0.0
+        self.integral = 0.0
+        self.s = self.s0
+
+    def reset(self, soc_initial: float) -> None:
+        """Target the initial SOC; clear the integrator."""
+        self.soc_ref = float(soc_initial)
+        self.integral = 0.0
+        self.s = self.s0
+
+    def choose(self, step: Any) -> Control | None:
+        """ECMS with the current factor (floored at 0)."""
+        err = self.error(step)
+        self.s = max(0.0, self.s0 + self.kp * err + self.ki * self.integral)
+        return self.best(step, self.s)
+
+    def error(self, step: Any) -> float:
+        """SOC reference (initial SOC less the recoverable kinetic energy) - SOC [-]."""
+        return self.soc_ref - self.kin * step.v_mid_mps**2 / step.energy_per_soc_j - step.soc
+
+    def update(self, step: Any, stage: Any) -> None:
+        """Integrate the SOC error over the step."""
+        self.integral += self.error(step) * step.dt_s
+
+
+class ElectricAssist(_GridController):
+    """ADVISOR-style electric-assist / load-following baseline.
+
+    Gear: the shift schedule (up above ``upshift_rpm``, down below ``downshift_rpm`` of
+    engine speed). Engine off (EV) when braking or coasting, with SOC above ``soc_high``, or
+    below ``ev_speed_mps`` and ``ev_power_w`` with SOC above ``soc_low`` (the charge-sustaining
+    band is ``soc_low``..``soc_high``). Otherwise the engine
+    follows the load in the scheduled gear, plus a charging power ramping from 0 at
+    ``soc_high`` to ``charge_power_w`` at ``soc_low``; the machine assists beyond the
+    engine's torque. If that control is infeasible (a component limit), the feasible
+    candidate of least fuel is taken.
+    """
+
+    name = "electric_assist"
+
+    def __init__(self, hev: P.ParallelHEV, soc_low: float, soc_high: float, ev_speed_mps: float,
+                 ev_power_w: float, charge_power_w: float, upshift_rpm: float, downshift_rpm: float,
+                 control_points: int) -> None:  # fmt: skip
+        super().__init__(hev, control_points)
+        self.soc_low, self.soc_high = float(soc_low), float(soc_high)
+        self.ev_speed, self.ev_power, self.charge_power = (
+            float(ev_speed_mps),
+            float(ev_power_w),
+            float(charge_power_w),
+        )
+        self.w_up, self.w_down = rpm_to_radps(upshift_rpm), rpm_to_radps(downshift_rpm)
+        self.thr_grid = np.linspace(0.0, 1.0, int(control_points))[1:]
+        self.gear = 1
+
+    def reset(self, soc_initial: float) -> None:
+        """Start in first gear."""
+        self.gear = 1
+
+    def shift(self, w_fd: float) -> int:
+        """Apply the shift schedule at final-drive speed ``w_fd`` [rad/s]; return the gear."""
+        ratios = self.hev.gear_ratios
+        g = self.gear
+        if w_fd <= 0.0:
+            g = 1
+        while g < ratios.size and w_fd * ratios[g - 1] > self.w_up:
+            g += 1
+        while g > 1 and w_fd * ratios[g - 1] < self.w_down:
+            g -= 1
+        self.gear = g
+        return g
+
+    def choose(self, step: Any) -> Control | None:
+        hev = self.hev
+        w_fd = step.wheel_speed_radps * hev.final_drive.ratio
+        g = self.shift(w_fd)
+        p_dem = step.wheel_torque_nm * step.wheel_speed_radps
+        soc = step.soc
+        low_load = step.v_mid_mps < self.ev_speed and p_dem < self.ev_power
+        ev = p_dem <= 0.0 or soc > self.soc_high or (soc > self.soc_low and low_load)
+        control: Control = (float(g), 0.0)
+        if not ev:
+            w_e = w_fd * hev.gear_ratios[g - 1]
+            frac = np.clip((self.soc_high - soc) / (self.soc_high - self.soc_low), 0.0, 1.0)
+            t_fd = float(hev.final_drive.input_torque(step.wheel_torque_nm))
+            t_req = float(hev.gears[g - 1].input_torque(t_fd)) + (
+                frac * self.charge_power / w_e if w_e > 0 else 0.0
+            )
+            mech = P.mechanical(hev, step.wheel_speed_radps, 0.0, float(g), self.thr_grid)
+            ok = ~mech["bad"]
+            if ok.any():
+                t_e = np.where(ok, mech["t_e"], -np.inf)
+                above = np.flatnonzero(t_e >= t_req)
+                i = int(above[0]) if above.size else int(np.argmax(t_e))
+                control = (float(g), float(self.thr_grid[i]))
+        _, feasible = step.evaluate(np.array([control[0]]), np.array([control[1]]))
+        if feasible[0]:
+            return control
+        cost, feasible = self.score(step, 0.0)  # fallback: least fuel among the feasible
+        j = _argmin_feasible(cost, feasible)
+        return None if j is None else (float(self.gears[j]), float(self.throttles[j]))
+
+
+@dataclass
+class ControlSchedule:
+    """Replay a control sequence: ``gear`` [1..G, 0 = engine off] and ``throttle`` [-] per
+    step starting at ``time_s`` [s] (each holds until the next time), e.g. a DP optimum."""
+
+    time_s: np.ndarray
+    gear: np.ndarray
+    throttle: np.ndarray
+    source: str = "schedule"
+    name: str = "schedule"
+
+    def __post_init__(self) -> None:
+        t, g, u = (np.asarray(a, dtype=np.float64) for a in (self.time_s, self.gear, self.throttle))
+        if not (t.ndim == 1 and t.shape == g.shape == u.shape and t.size >= 1):
+            raise ConfigError(f"{self.source}: time, gear and throttle must be 1-D arrays of equal length.")
+        if np.any(~np.isfinite(u)) or np.any((u < 0) | (u > 1)):
+            raise ConfigError(f"{self.source}: throttle must be finite and within 0..1.")
+        self.time_s, self.gear, self.throttle = t, g, u
+
+    @classmethod
+    def from_optimization(cls, result: Any) -> ControlSchedule:
+        """The optimal controls of a parallel-HEV :class:`~hevsim.optimal.OptimizationResult`."""
+        if result.architecture != "parallel":
+            raise ConfigError(
+                f"a control schedule needs a parallel-HEV DP result, got {result.architecture!r}."
+            )
+        ts = result.timeseries
+        return cls(ts["time_s"].to_numpy(), ts["gear"].to_numpy(), ts["engine_throttle"].to_numpy(),
+                   source=f"DP optimum on {result.cycle.name}")  # fmt: skip
+
+    def reset(self, soc_initial: float) -> None:
+        """Nothing to reset."""
+
+    def update(self, step: Any, stage: Any) -> None:
+        """Nothing to remember."""
+
+    def choose(self, step: Any) -> Control | None:
+        """The scheduled control at the step's start time (None if infeasible)."""
+        i = int(np.clip(np.searchsorted(self.time_s, step.time_s + 1e-9, side="right") - 1, 0, None))
+        u = float(self.throttle[i])
+        g = float(self.gear[i]) if u > 0 else 1.0
+        _, feasible = step.evaluate(np.array([max(g, 1.0)]), np.array([u]))
+        return (max(g, 1.0), u) if feasible[0] else None
+
+
+def ecms_from_dp(result: Any) -> dict[str, float]:
+    """ECMS parameters from a DP result: ``equivalence_factor`` = the median of the DP's
+    ``-costate x LHV / (Q OCV)`` along the optimal path (the ``equivalence_factor_median``
+    metric of :func:`hevsim.optimal.optimize`)."""
+    s = float(result.metrics["equivalence_factor_median"]["value"])
+    if not np.isfinite(s) or s < 0:
+        raise ConfigError(f"DP result: equivalence factor {s!r} is not usable; expected a finite value >= 0.")
+    return {"equivalence_factor": s}
+
+
+def ecms_from_costate_csv(path: Any) -> dict[str, float]:
+    """ECMS parameters from the ``costate.csv`` of a saved DP result folder (or the file)."""
+    from pathlib import Path
+
+    import pandas as pd
+
+    p = Path(path)
+    f = p / "costate.csv" if p.is_dir() else p
+    if not f.is_file():
+        raise ConfigError(f"{p}: no costate.csv; expected a folder written by `hevsim optimize` or the file.")
+    frame = pd.read_csv(f)
+    if "equivalence_factor" not in frame:
+        raise ConfigError(f"{f}: missing column 'equivalence_factor'; found {list(frame.columns)}.")
+    s = frame["equivalence_factor"].to_numpy(float)
+    s = s[np.isfinite(s)]
+    if s.size == 0:
+        raise ConfigError(f"{f}: column 'equivalence_factor' holds no finite value.")
+    return {"equivalence_factor": float(np.median(s))}
