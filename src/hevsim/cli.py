@@ -72,11 +72,29 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     check_option("--dt", args.dt, SimulationSection, "dt_s")
     check_option("--soc-initial", args.soc_initial, SimulationSection, "soc_initial")
     cfg = load_vehicle_config(args.config)
-    if not isinstance(cfg, SeriesHEVConfig):
+    series = isinstance(cfg, SeriesHEVConfig)
+    ctl_options = {"--controller": args.controller, "--ecms-from": args.ecms_from}
+    if series and any(ctl_options.values()):
+        used = ", ".join(k for k, v in ctl_options.items() if v)
         raise ConfigError(
-            f"{args.config}: key 'powertrain.architecture' = {cfg.architecture!r}: the forward simulator "
-            f"supports series only for now; {cfg.architecture} runs with `hevsim optimize`."
+            f"{args.config}: option {used} is for architectures with online controllers; the series HEV's "
+            "controller is [controller] kind = thermostat | schedule (or --schedule)."
         )
+    if not series and args.schedule:
+        raise ConfigError(f"{args.config}: --schedule replays a series-HEV genset schedule; this is a "
+                          f"{cfg.architecture} HEV (use --controller).")  # fmt: skip
+    overrides: dict[str, object] = {}
+    if args.ecms_from:
+        from hevsim.control.parallel import ecms_from_costate_csv
+
+        overrides = dict(ecms_from_costate_csv(args.ecms_from))
+    kind = args.controller or (
+        "ecms" if args.ecms_from and cfg.controller.kind == "electric_assist" else None
+    )
+    if not series:
+        from hevsim.architectures import check_controller
+
+        check_controller(cfg.replace(**{"controller.kind": kind}) if kind else cfg, str(args.config))
     cycle = load_cycle(args.cycle or cfg.simulation.cycle)
     out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_{cycle.name}"
     _prepare(args, out, args.config, args.cycle, args.schedule)
@@ -88,7 +106,19 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from hevsim.guards import simulation_preflight
 
     simulation_preflight(cfg, cycle, args.dt)  # memory refusal, long-run line, compile notice
-    result = simulate(cfg, cycle, dt_s=args.dt, soc_initial=args.soc_initial, schedule=schedule)
+    if series:
+        result = simulate(cfg, cycle, dt_s=args.dt, soc_initial=args.soc_initial, schedule=schedule)
+    else:
+        from hevsim.architectures import architecture
+
+        arch = architecture(cfg.architecture, str(args.config))
+        result = arch.simulate(
+            cfg, cycle, dt_s=args.dt, soc_initial=args.soc_initial, controller=kind, **overrides
+        )
+        print(
+            f"controller: {result.metadata['controller']}"
+            + (f" (s = {overrides['equivalence_factor']:.4g} from {args.ecms_from})" if overrides else "")
+        )
     result.save(out, plots=not args.no_plots)
     m = result.metrics
     print(f"{cfg.name} on {cycle.name}: {m['distance_mi']['value']:.2f} mi")
@@ -571,6 +601,17 @@ def build_parser() -> argparse.ArgumentParser:
         "--schedule",
         help="replay a genset schedule CSV (time_s, engine_speed_rpm|engine_speed_radps, "
         "engine_throttle), e.g. the timeseries.csv of `hevsim optimize` on a series HEV",
+    )
+    p.add_argument(
+        "--controller",
+        help="supervisory controller, overriding [controller] kind (parallel: electric_assist, ecms, aecms)",
+    )
+    p.add_argument(
+        "--ecms-from",
+        metavar="DP_RESULT",
+        help="ECMS tuned from a DP result: its folder (costate.csv of `hevsim optimize`) sets the "
+        "equivalence factor (median of -costate*LHV/(Q*OCV)); the controller becomes ecms unless "
+        "--controller says aecms",
     )
     p.set_defaults(func=_cmd_simulate)
 
