@@ -419,3 +419,86 @@ def test_cli_log_options(cfmu: Path, tmp_path: Path, capsys) -> None:  # type: i
     err = capsys.readouterr().err
     assert "integrator blew up" in err and "FMU log:" in err
     assert log.read_text().startswith("c [ERROR] error: integrator blew up")
+
+
+# ---------------------------------------------------------------------------- item 6: SSP as others write it
+def test_written_ssp_runs_in_fmpys_ssp_reader(cfmu: Path, tmp_path: Path) -> None:
+    from types import SimpleNamespace
+
+    from fmpy.ssp.simulation import simulate_ssp
+
+    from hevsim.cosim.ssd import read_ssp
+    from hevsim.cosim.ssp_write import write_ssp
+    from hevsim.cosim.system import run_system
+
+    params = {"a": {"u": 1.0, "k": 2.0}, "b": {"k": -1.0}}
+    comps = [
+        Component(n, "application/x-fmu-sharedlibrary", cfmu.name, parameters=p) for n, p in params.items()
+    ]
+    conns = [Connection("a", "y", "b", "u"), Connection("b", "y", "a", "x")]
+    desc = SystemDescription("t", comps, conns, stop_time_s=1.0, master={"step_s": 0.1}, base_dir=cfmu.parent)
+    ssp = write_ssp(desc, tmp_path / "t.ssp")
+    # FMPy's runner is Jacobi, ignores the SSD's parameter bindings (given here instead) and
+    # labels each row with the start of the step it ends; its t += h also takes an 11th step
+    pset = SimpleNamespace(parameters=[SimpleNamespace(name=f"{c}.{k}", value=v)
+                                       for c, p in params.items() for k, v in p.items()])  # fmt: skip
+    ref = simulate_ssp(str(ssp), stop_time=1.0, step_size=0.1, parameter_set=pset)
+    with read_ssp(ssp) as d:
+        assert d.master["step_s"] == 0.1
+        res = run_system(d)
+    for col in ("a.y", "b.y"):
+        assert len(ref) == 11 and np.abs(res[col][1:] - ref[col][:10]).max() <= 1e-12, col
+    assert np.abs(res["b.y"][-1] - (-0.1 * sum(2.0 * 0.1 * j for j in range(10)))) <= 1e-12
+
+
+def test_osp_step_size_ssv_and_ssm(cfmu: Path, tmp_path: Path) -> None:
+    from hevsim.cosim.load import load_system
+    from hevsim.cosim.system import run_system
+
+    (tmp_path / cfmu.name).write_bytes(cfmu.read_bytes())
+    (tmp_path / "p.ssv").write_text("""<?xml version="1.0" encoding="UTF-8"?>
+<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+    version="1.0" name="p">
+  <ssv:Parameters>
+    <ssv:Parameter name="c.gain"><ssv:Real value="3.0"/></ssv:Parameter>
+    <ssv:Parameter name="c.u"><ssv:Real value="2.0"/></ssv:Parameter>
+    <ssv:Parameter name="c.count"><ssv:Integer value="7"/></ssv:Parameter>
+  </ssv:Parameters>
+</ssv:ParameterSet>""")
+    (tmp_path / "m.ssm").write_text("""<?xml version="1.0" encoding="UTF-8"?>
+<ssm:ParameterMapping xmlns:ssm="http://ssp-standard.org/SSP1/SystemStructureParameterMapping"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" version="1.0">
+  <ssm:MappingEntry source="gain" target="k">
+    <ssc:LinearTransformation factor="0.5" offset="1.0"/>
+  </ssm:MappingEntry>
+  <ssm:MappingEntry source="count" target="m"/>
+</ssm:ParameterMapping>""")
+    (tmp_path / "s.ssd").write_text(f"""<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:osp="http://opensimulationplatform.com/SSP/OSPAnnotations" version="1.0" name="s">
+  <ssd:System name="s">
+    <ssd:Elements>
+      <ssd:Component name="c" type="application/x-fmu-sharedlibrary" source="{cfmu.name}">
+        <ssd:ParameterBindings>
+          <ssd:ParameterBinding source="p.ssv" prefix="c.">
+            <ssd:ParameterMapping source="m.ssm"/>
+          </ssd:ParameterBinding>
+        </ssd:ParameterBindings>
+      </ssd:Component>
+    </ssd:Elements>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="1">
+    <ssd:Annotations>
+      <ssc:Annotation type="com.opensimulationplatform">
+        <osp:Algorithm><osp:FixedStepAlgorithm baseStepSize="0.25"/></osp:Algorithm>
+      </ssc:Annotation>
+    </ssd:Annotations>
+  </ssd:DefaultExperiment>
+</ssd:SystemStructureDescription>""")
+    with load_system(tmp_path / "s.ssd") as d:
+        assert d.master == {"step_s": 0.25}
+        assert d.components[0].parameters == {"k": 2.5, "u": 2.0, "m": 7}
+        res = run_system(d)
+    assert res.time_s.tolist() == [0.0, 0.25, 0.5, 0.75, 1.0]
+    assert res["c.y"][-1] == pytest.approx(2.5 * 2.0 * 1.0, abs=1e-12) and np.all(res["c.mi"] == 14.0)

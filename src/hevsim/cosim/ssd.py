@@ -201,12 +201,8 @@ def read_ssd(path: str | Path, text: bytes | None = None, base_dir: Path | None 
             unit = (typed.get("unit") or "") if typed is not None and vtype == "Real" else ""
             conns.append(Connector(cname, kind, unit, vtype))
         params: dict[str, Any] = {}
-        for p in el.findall(".//ssv:Parameter", NS):
-            pname = required(p, "name", where + " <ssv:Parameter>")
-            val = next(iter(p), None)
-            if val is None or val.get("value") is None:
-                raise ConfigError(f"{where}: parameter {pname!r} has no typed value element.")
-            params[pname] = _typed(local_name(val.tag), val.get("value", ""), f"{where}: parameter {pname!r}")
+        for pb in el.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
+            params.update(_binding(pb, base_dir if base_dir is not None else path.parent, where))
         comps.append(Component(name, ctype, required(el, "source", where), conns, params))
     connections = []
     for i, el in enumerate(system.findall("ssd:Connections/ssd:Connection", NS)):
@@ -225,7 +221,78 @@ def read_ssd(path: str | Path, text: bytes | None = None, base_dir: Path | None 
         m = exp.find(".//hevsim:Master", NS)
         if m is not None:
             desc.master = _master_options(dict(m.attrib), f"{src}: <hevsim:Master>")
+        if "step_s" not in desc.master:  # the common tool annotations
+            for a in exp.iter():
+                name = local_name(a.tag)
+                key = {"FixedStepAlgorithm": ("baseStepSize", "stepSize"), "FixedStepMaster": ("stepSize",)}
+                for attr in key.get(name, ()):
+                    if a.get(attr) is not None:
+                        desc.master["step_s"] = number(a.get(attr, ""), f"{src}: <{name}> {attr}")
+                        break
+                if "step_s" in desc.master:
+                    break
     return desc
+
+
+def _binding(pb: Any, base: Path, where: str) -> dict[str, Any]:
+    """Parameter values of one ``ssd:ParameterBinding``: inline ``ssv:ParameterSet`` or an
+    ``.ssv`` file (``source``), names without the binding's ``prefix``, renamed and linearly
+    transformed by an inline or ``.ssm`` ``ssd:ParameterMapping``."""
+    source = pb.get("source")
+    if source:
+        f = base / source
+        if not f.is_file():
+            raise ConfigError(
+                f"{where}: parameter values file {str(f)!r} (source={source!r}) does not exist."
+            )
+        pset = parse_xml(f)
+        pwhere = f"{f}"
+    else:
+        pset = pb.find("ssd:ParameterValues/ssv:ParameterSet", NS)
+        pwhere = where
+    out: dict[str, Any] = {}
+    if pset is None:
+        return out
+    if local_name(pset.tag) != "ParameterSet":
+        raise ConfigError(f"{pwhere}: root element is <{local_name(pset.tag)}>, expected <ssv:ParameterSet>.")
+    prefix = pb.get("prefix", "")
+    for p in pset.findall(".//ssv:Parameter", NS):
+        pname = required(p, "name", pwhere + " <ssv:Parameter>")
+        val = next((c for c in p if local_name(c.tag) != "Unit"), None)
+        if val is None or val.get("value") is None:
+            raise ConfigError(f"{pwhere}: parameter {pname!r} has no typed value element.")
+        if prefix and pname.startswith(prefix):
+            pname = pname[len(prefix) :]
+        out[pname] = _typed(local_name(val.tag), val.get("value", ""), f"{pwhere}: parameter {pname!r}")
+    mapping = pb.find("ssd:ParameterMapping", NS)
+    if mapping is not None:
+        msrc = mapping.get("source")
+        if msrc:
+            mf = base / msrc
+            if not mf.is_file():
+                raise ConfigError(
+                    f"{where}: parameter mapping file {str(mf)!r} (source={msrc!r}) does not exist."
+                )
+            mroot, mwhere = parse_xml(mf), str(mf)
+        else:
+            mroot, mwhere = mapping, where
+        for e in mroot.iter():
+            if local_name(e.tag) != "MappingEntry":
+                continue
+            s, t = required(e, "source", mwhere + " <ssm:MappingEntry>"), required(e, "target", mwhere)
+            if s not in out:
+                raise ConfigError(
+                    f"{mwhere}: mapping entry source {s!r} is not a parameter; parameters: {sorted(out)}."
+                )
+            v = out.pop(s)
+            lin = next((c for c in e if local_name(c.tag) == "LinearTransformation"), None)
+            if lin is not None:
+                if isinstance(v, (bool, str)):
+                    raise ConfigError(f"{mwhere}: linear transformation of the non-numeric parameter {s!r}.")
+                f_, o_ = float(lin.get("factor", "1")), float(lin.get("offset", "0"))
+                v = f_ * v + o_
+            out[t] = v
+    return out
 
 
 def _pairs(value: str, key: str, where: str) -> list[tuple[str, str]]:

@@ -10,11 +10,43 @@ import zipfile
 from pathlib import Path
 
 from hevsim.cosim import units as U
-from hevsim.cosim.ssd import FMU_TYPE, NS, Component, SystemDescription
+from hevsim.cosim.ssd import FMU_TYPE, NS, Component, Connector, SystemDescription
 from hevsim.errors import ConfigError
 
-for _p, _u in NS.items():
+OSP_NS = "http://opensimulationplatform.com/SSP/OSPAnnotations"
+for _p, _u in {**NS, "osp": OSP_NS}.items():
     ET.register_namespace(_p, _u)
+
+
+def _connected(desc: SystemDescription, c: Component) -> list[Connector]:
+    """Connectors of ``c`` from the connections (SSP readers such as libcosim and FMPy need
+    them declared), typed from the FMU where it can be read."""
+    types: dict[str, str] = {}
+    units: dict[str, str] = {}
+    f = desc.base_dir / c.source
+    if c.type == FMU_TYPE and f.is_file():
+        from fmpy import read_model_description
+
+        from hevsim.cosim.fmi_vars import FmuVariables
+
+        try:
+            fv = FmuVariables(read_model_description(str(f)), f.name)
+            types, units = fv.types, {**fv.inputs, **fv.outputs}
+        except Exception:  # an unreadable FMU is reported by the data check, not here
+            pass
+    out: dict[str, Connector] = {}
+    for k in desc.connections:
+        if k.src == c.name:
+            out.setdefault(
+                k.src_var,
+                Connector(k.src_var, "output", units.get(k.src_var, ""), types.get(k.src_var, "Real")),
+            )
+        if k.dst == c.name:
+            out.setdefault(
+                k.dst_var,
+                Connector(k.dst_var, "input", units.get(k.dst_var, ""), types.get(k.dst_var, "Real")),
+            )
+    return list(out.values())
 
 
 def ssd_xml(desc: SystemDescription) -> bytes:
@@ -25,9 +57,10 @@ def ssd_xml(desc: SystemDescription) -> bytes:
     elements = ET.SubElement(system, q("ssd", "Elements"))
     for c in desc.components:
         el = ET.SubElement(elements, q("ssd", "Component"), name=c.name, type=c.type, source=c.source)
-        if c.connectors:
+        connectors = c.connectors or _connected(desc, c)
+        if connectors:
             cs = ET.SubElement(el, q("ssd", "Connectors"))
-            for k in c.connectors:
+            for k in connectors:
                 ce = ET.SubElement(cs, q("ssd", "Connector"), name=k.name, kind=k.kind)
                 r = ET.SubElement(ce, q("ssc", k.type))
                 if k.unit and k.type == "Real":
@@ -85,9 +118,14 @@ def ssd_xml(desc: SystemDescription) -> bytes:
         stopTime=repr(desc.stop_time_s),
     )
     if desc.master:
-        ann = ET.SubElement(
-            ET.SubElement(exp, q("ssd", "Annotations")), q("ssc", "Annotation"), type="org.hevsim.cosim"
-        )
+        anns = ET.SubElement(exp, q("ssd", "Annotations"))
+        if "step_s" in desc.master:  # the OSP annotation libcosim reads
+            osp = ET.SubElement(anns, q("ssc", "Annotation"), type="com.opensimulationplatform")
+            alg = ET.SubElement(
+                ET.SubElement(osp, f"{{{OSP_NS}}}Algorithm"), f"{{{OSP_NS}}}FixedStepAlgorithm"
+            )
+            alg.set("baseStepSize", repr(float(desc.master["step_s"])))
+        ann = ET.SubElement(anns, q("ssc", "Annotation"), type="org.hevsim.cosim")
         attrs = {}
         for key, v in desc.master.items():
             if key == "order":
