@@ -471,6 +471,17 @@ def _cmd_thermal(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_pack(args: argparse.Namespace) -> int:
+    from hevsim.battery.pack import format_pack, run_pack
+
+    out = Path(args.out) if args.out else Path("results") / Path(args.config).stem
+    _prepare(args, out, args.config)
+    res = run_pack(args.config, out, cycle=args.cycle, duration_s=args.duration, current_scale=args.current_scale)
+    print(format_pack(res))
+    print(f"results written to {out}/ ({_written(out)})")
+    return 0
+
+
 def _cmd_rom_build(args: argparse.Namespace) -> int:
     from hevsim.thermal.rom import BuildOptions, build_rom_from_config, format_rom, load_rom
 
@@ -719,6 +730,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_force(p, "folder at --out")
     p.set_defaults(func=_cmd_thermal)
+
+    p = sub.add_parser("pack", help="battery pack: cells, module thermal ROMs and cooling loop over a cycle")
+    p.add_argument("config", help="pack configuration (TOML), e.g. examples/pack.toml")
+    p.add_argument("--cycle", default="udds", help="drive cycle of the road-load current (default udds)")
+    p.add_argument("--duration", type=float, default=1369.0, help="duration [s] (the cycle repeats; default 1369)")
+    p.add_argument("--current-scale", type=float, default=1.0, help="factor on the cycle's current (default 1)")
+    p.add_argument("--out", help="results folder (default results/<config>)")
+    _add_force(p, "folder at --out")
+    p.set_defaults(func=_cmd_pack)
 
     p = sub.add_parser("rom", help="thermal reduced-order model of a module, projected from its 3D FEM")
     rom_sub = p.add_subparsers(dest="rom_command", required=True)
