@@ -105,6 +105,25 @@ def test_simulate_rows_equal_single_runs_and_failures_are_recorded() -> None:
     _same(rows, one)  # batch composition does not change a row
 
 
+def test_sampled_values_between_the_probes_equal_single_runs_bit_for_bit() -> None:
+    """Kernel keys that scale a parameter (brake force = decel x mass, rpm -> rad/s) are
+    batched with the exact factor, not an interpolated one."""
+    study = study_from_dict({
+        "name": "lhs", "vehicle": SERIES, "cycles": ["udds"], "metrics": ["mpgge", "soc_final"],
+        "sampling": {"method": "lhs", "samples": 7, "seed": 9},
+        "parameters": {"body.mass_kg": {"min": 1100.0, "max": 1500.0},
+                       "controller.engine_speed_rpm": {"min": 1400.0, "max": 1700.0}},
+        "solvers": [{"name": "simulate"}],
+    })  # fmt: skip
+    ctx = SOLVERS["simulate"].prepare(study, study.solvers[0])
+    assert ctx.structural == () and len(ctx.kernel) == 2, ctx.notes  # both batched
+    rows = run_study(study, scheduler="in-process", progress=False)
+    for _, r in rows.iterrows():
+        over = {k: float(r[k]) for k in study.keys}
+        res = simulate(build_vehicle(with_overrides(study.vehicle, over)), "udds")
+        assert r["mpgge"] == res.value("mpgge") and r["soc_final"] == res.value("soc_final"), over
+
+
 def test_a_metric_one_solver_lacks_is_nan_in_its_rows() -> None:
     register_slow(0.0)
     study = study_from_dict({

@@ -229,16 +229,31 @@ def _probe_model(base: Any, key: str, value: float, integer: bool) -> tuple[byte
     return _model_fingerprint(hev), hev.param_vector()
 
 
+def _exact_scale(p: np.ndarray, v: np.ndarray) -> float | None:
+    """The factor ``c`` with ``c * v == p`` exactly at every probe (a pure scale), or None."""
+    cands: list[float] = []
+    for pk, vk in zip(p.tolist(), v.tolist(), strict=True):
+        if vk != 0.0:
+            r = pk / vk
+            cands += [r, float(np.nextafter(r, np.inf)), float(np.nextafter(r, -np.inf)), float(f"{r:.12g}")]
+    for c in cands:
+        if np.all(c * v == p):
+            return c
+    return None
+
+
 def classify_keys(base: Any, keys: tuple[str, ...], integer: tuple[bool, ...], values: np.ndarray) -> tuple[
     tuple[KernelKey, ...], tuple[int, ...], tuple[str, ...]
 ]:  # fmt: skip
     """Split the varied keys of a series-HEV study into kernel keys (batched as parameter
     variants of one model) and structural keys (a model per distinct combination).
 
-    A key is a kernel key when changing it (probed at its smallest, largest and a middle sampled
-    value) leaves the model's fingerprint unchanged, changes the kernel parameter vector
-    affinely (to 1e-12), and touches columns no other varied key touches. Returns (kernel
-    keys, structural axis indices, notes saying why a key was structural).
+    Each key is probed at up to five of its sampled values (smallest, quartiles, largest). It
+    is a kernel key when the model's fingerprint does not change, every kernel parameter it
+    changes is a copy of the value or an exact multiple of it (``c * value`` reproducing every
+    probe bit for bit, so rows equal single runs exactly) or else affine to 1e-12, and no other
+    varied key changes the same parameters. Returns (kernel keys, structural axis indices,
+    notes saying why a key was structural).
     """
     from hevsim.sim import kernel as K
 
@@ -246,31 +261,31 @@ def classify_keys(base: Any, keys: tuple[str, ...], integer: tuple[bool, ...], v
     candidates: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     notes: list[str] = []
     for j, key in enumerate(keys):
-        col = values[:, j]
-        uniq = np.unique(col)
+        uniq = np.unique(values[:, j])
         if uniq.size < 2:
             notes.append(f"{key}: one value")
             continue
-        lo, hi, mid = float(uniq[0]), float(uniq[-1]), float(uniq[uniq.size // 2])
-        probes = [_probe_model(base, key, v, integer[j]) for v in (lo, hi, mid)]
+        at = np.unique(uniq[np.rint(np.linspace(0, uniq.size - 1, min(5, uniq.size))).astype(int)])
+        probes = [_probe_model(base, key, float(v), integer[j]) for v in at]
         if any(p is None for p in probes):
             notes.append(f"{key}: a probe value is invalid with the base vehicle")
             continue
-        (f_lo, p_lo), (f_hi, p_hi), (f_mid, p_mid) = probes  # type: ignore[misc]
-        cols = np.flatnonzero(p_hi != p_lo)
+        prints = [p[0] for p in probes if p is not None]
+        pv = np.array([p[1] for p in probes if p is not None])  # (probes, params)
+        cols = np.flatnonzero(np.any(pv != pv[0], axis=0))
         changed[j] = set(cols.tolist())
-        if f_lo != f_hi or f_lo != f_mid:
+        if any(f != prints[0] for f in prints):
             notes.append(f"{key}: changes component data or run settings")
             continue
-        b = (p_hi - p_lo) / (hi - lo)
-        a = p_lo - b * lo
-        with np.errstate(all="ignore"):  # a pure scale (a = 0): b = p / v exactly, no round-off
-            scale = p_hi / hi if hi != 0.0 else np.full_like(p_hi, np.nan)
-        pure = (p_lo == scale * lo) & (p_hi == scale * hi) & (p_mid == scale * mid)
-        a = np.where(pure, 0.0, a)
-        b = np.where(pure, scale, b)
-        pred = a + b * mid
-        if not np.allclose(pred[cols], p_mid[cols], rtol=1e-12, atol=0.0) or cols.size == 0:
+        lo, hi = float(at[0]), float(at[-1])
+        b = (pv[-1] - pv[0]) / (hi - lo)
+        a = pv[0] - b * lo
+        for c in cols.tolist():
+            scale = _exact_scale(pv[:, c], at.astype(np.float64))
+            if scale is not None:
+                a[c], b[c] = 0.0, scale
+        pred = a[None, :] + b[None, :] * at[:, None]
+        if cols.size == 0 or not np.allclose(pred[:, cols], pv[:, cols], rtol=1e-12, atol=0.0):
             notes.append(f"{key}: not an affine change of the kernel parameters")
             continue
         candidates[j] = (cols, a, b)
@@ -281,8 +296,7 @@ def classify_keys(base: Any, keys: tuple[str, ...], integer: tuple[bool, ...], v
             notes.append(f"{keys[j]}: shares kernel parameters with another varied key")
             continue
         names = tuple(K.PARAMS[c] for c in cols)
-        aa = tuple(0.0 if (a[c] == 0.0 and b[c] == 1.0) else float(a[c]) for c in cols)
-        kernel.append(KernelKey(j, names, aa, tuple(float(b[c]) for c in cols)))
+        kernel.append(KernelKey(j, names, tuple(float(a[c]) for c in cols), tuple(float(b[c]) for c in cols)))
     kernel_axes = {k.axis for k in kernel}
     structural = tuple(j for j in range(len(keys)) if j not in kernel_axes)
     return tuple(kernel), structural, tuple(notes)
@@ -309,7 +323,7 @@ def _variants(ctx: SimulateContext, rows: np.ndarray) -> dict[str, np.ndarray]:
     for k in ctx.kernel:
         v = rows[:, k.axis].astype(np.float64)
         for name, a, b in zip(k.columns, k.a, k.b, strict=True):
-            out[name] = v.copy() if (a == 0.0 and b == 1.0) else a + b * v
+            out[name] = v.copy() if (a == 0.0 and b == 1.0) else (b * v if a == 0.0 else a + b * v)
     return out
 
 
