@@ -176,3 +176,19 @@ def test_killed_worker_leaves_every_case_done_exactly_once(cluster: Cluster, tmp
     assert sorted(parts["case_id"]) == list(range(24))  # exactly once on disk, too
     assert (rows["status"] == FAILED).sum() == 3
     slow.SOLVERS.pop(slow.SLOW, None)
+
+
+def test_a_scheduler_without_workers_is_a_clear_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from distributed import LocalCluster
+
+    from hevsim.studies import runner
+    from hevsim.studies.spec import StudyError
+
+    monkeypatch.setattr(runner, "WORKER_WAIT_S", 1.0)
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=None) as empty:
+        with pytest.raises(StudyError, match="no worker joined within 1 s") as exc:
+            run_study(_study(), tmp_path / "out", scheduler=empty.scheduler_address, progress=False)
+    assert "dask worker" in str(exc.value)
+    assert not (tmp_path / "out").exists()

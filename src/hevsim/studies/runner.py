@@ -51,6 +51,8 @@ IN_PROCESS = "in-process"
 """``scheduler`` value: run the batches in this process, without Dask."""
 CONNECT_TIMEOUT_S = 5.0
 """How long to try to reach a scheduler before giving up [s]."""
+WORKER_WAIT_S = 10.0
+"""How long to wait for a first worker on a cluster that has none [s]."""
 TASKS_PER_WORKER = 4
 """Automatic batch size: aim at this many tasks per worker for each group of cases [-]."""
 MAX_BATCH = 2048
@@ -242,6 +244,13 @@ def _dask_client(scheduler: str | None, workers: int | None) -> Iterator[tuple[A
                 f"(check --scheduler / ${SCHEDULER_ENV})."
             ) from exc
         try:
+            try:
+                client.wait_for_workers(1, timeout=WORKER_WAIT_S)
+            except (TimeoutError, OSError) as exc:
+                raise StudyError(
+                    f"scheduler {scheduler}: no worker joined within {WORKER_WAIT_S:g} s; expected "
+                    f"workers started with `dask worker {scheduler} --nthreads 1`."
+                ) from exc
             n = max(1, len(client.scheduler_info(n_workers=-1).get("workers", {})))
             yield client, n, f"Dask cluster at {scheduler}"
         finally:
