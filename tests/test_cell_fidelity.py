@@ -219,3 +219,26 @@ def test_unknown_model_option_names_key_and_choices(tmp_path):
     data["charge_transfer"] = {"i0_a": -1.0}
     with pytest.raises(HevsimError, match=r"charge_transfer\.i0_a"):
         parameters_from_dict(data, "x.toml")
+
+
+@pytest.fixture(scope="module")
+def dfn_validation():
+    """Calibrated on the DFN pulse test, validated on the DFN drive cycle (examples/validation)."""
+    import sys
+
+    sys.path.insert(0, str(VALIDATION))
+    try:
+        import validate_dfn
+    finally:
+        sys.path.remove(str(VALIDATION))
+    return validate_dfn.calibrate_and_validate("fidelity")
+
+
+def test_dfn_drive_cycle_validation_within_12_mv_rms_40_mv_max_0p3_k(dfn_validation):
+    errors = dfn_validation.validation_errors.set_index("range")
+    overall = errors.loc["all"]
+    assert overall["rmse_v"] <= 12e-3, errors
+    assert overall["max_abs_v"] <= 40e-3, errors
+    assert overall["temp_rmse_k"] <= 0.3, errors
+    assert dfn_validation.rmse["temp_k"] <= 0.3
+    assert set(errors.index) >= {"0-0.5C", "0.5-1C", "1-2C", "2-3C", "all"}

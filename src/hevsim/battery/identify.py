@@ -52,6 +52,8 @@ from hevsim.errors import InputError
 from hevsim.io import atomic_directory, write_json
 from hevsim.tables import FloatArray
 
+FIDELITY_MODEL = ModelSection(rc_mode="persistent", ocv_mode="step_consistent")
+"""The model structure :func:`identify` fits by default (issue 14)."""
 CORRELATION_LIMIT = 0.95
 """|correlation| above which two fitted parameters are flagged as not separable."""
 RELATIVE_ERROR_LIMIT = 0.1
@@ -176,6 +178,44 @@ def step_resistances(
     return soc[k[ok]], r[ok]
 
 
+def step_charge_transfer(
+    rec: CellTestRecord, soc: FloatArray, axis: FloatArray, min_step_a: float, temp_k: float
+) -> tuple[FloatArray, float, float] | None:
+    """Initial R_s [ohm] per SOC breakpoint and Butler-Volmer ``(i0 [A], scale [-])`` from the
+    steps out of rest: ``-dV/dI = R_s(SOC) + scale (2RT/F) asinh(|I| / (2 i0)) / |I|``, linear
+    in (R_s, scale) for a given ``i0``, which is searched on a grid. None without steps of
+    different sizes (the curvature cannot be seen)."""
+    i, v = rec.current_a, rec.voltage_v
+    di = np.diff(i)
+    still = np.abs(i) <= 1e-3 * min_step_a
+    k = np.flatnonzero((np.abs(di) >= min_step_a) & still[:-1] & np.r_[False, still[:-2]])
+    if k.size == 0:
+        return None
+    amp = np.abs(i[k + 1])
+    # the voltage step, less the relaxation still under way (the slope of the sample before)
+    r = -((v[k + 1] - v[k]) - (v[k] - v[k - 1])) / di[k]
+    if np.ptp(amp) < 0.2 * amp.max():
+        return None
+    near = np.argmin(np.abs(soc[k][:, None] - axis[None, :]), axis=1)
+    cols = np.unique(near)
+    b_unit = 2.0 * K.R_GAS_J_PER_MOL_K * temp_k / K.FARADAY_C_PER_MOL
+    best: tuple[float, FloatArray, float, float] | None = None
+    for i0 in np.geomspace(0.002 * amp.max(), 20.0 * amp.max(), 100):
+        a = np.zeros((k.size, cols.size + 1))
+        a[np.arange(k.size), np.searchsorted(cols, near)] = 1.0
+        a[:, -1] = b_unit * np.arcsinh(amp / (2.0 * i0)) / amp
+        coef, *_ = np.linalg.lstsq(a, r, rcond=None)
+        if coef[-1] <= 0 or np.any(coef[:-1] <= 0):
+            continue
+        ssr = float(np.sum((a @ coef - r) ** 2))
+        if best is None or ssr < best[0]:
+            best = (ssr, np.asarray(coef[:-1], dtype=float), float(i0), float(coef[-1]))
+    if best is None:
+        return None
+    rs = np.interp(axis, axis[cols], best[1])
+    return rs, best[2], best[3]
+
+
 # --- step 3 and 4: least squares --------------------------------------------------------------
 
 
@@ -223,11 +263,12 @@ def _stats(sol: Any, specs: list[_Param], longest_s: float) -> pd.DataFrame:
     for k, s in enumerate(specs):
         th = float(sol.x[k])
         value = float(np.exp(th)) if s.log else th
-        lo, hi = (
-            (value * np.exp(-1.96 * std[k]), value * np.exp(1.96 * std[k]))
-            if s.log
-            else (th - 1.96 * std[k], th + 1.96 * std[k])
-        )
+        with np.errstate(over="ignore"):  # an unidentifiable log-parameter: infinite upper bound
+            lo, hi = (
+                (value * np.exp(-1.96 * std[k]), value * np.exp(1.96 * std[k]))
+                if s.log
+                else (th - 1.96 * std[k], th + 1.96 * std[k])
+            )
         se = value * std[k] if s.log else std[k]
         reasons = []
         if s.name.endswith("tau_s") and value > longest_s:
@@ -279,13 +320,16 @@ def identify(
     min_rest_s: float = 300.0,
     sigma_v: float = 0.001,
     sigma_t: float = 0.1,
+    model: ModelSection = FIDELITY_MODEL,
 ) -> Identification:
     """Identify a complete parameter set from ``record`` (module docstring).
 
     ``base`` supplies what the test does not: voltage limits, ageing factors, the initial
     thermal values and (unless ``capacity_ah`` [A h] is given) the capacity. ``soc_initial``
     is the SOC one step before the first row; ``port_temp_k`` (ambient) defaults to the first
-    temperature sample. The record must hold rests for the OCV.
+    temperature sample. The record must hold rests for the OCV. ``model`` is the structure to
+    fit; with ``rc_mode = "switched"`` (the thesis's) the charge and discharge RC sets are
+    fitted separately (``rc_dis[j]``, ``rc_chg[j]``).
     """
     from scipy.optimize import least_squares
 
@@ -325,6 +369,13 @@ def identify(
     lim = p0.limits
     ocv_init = np.maximum.accumulate(np.clip(ocv_init, lim.v_min_v, lim.v_max_v))
     r_init = np.array([float(np.median(r_pts[np.abs(s_r - s) == np.min(np.abs(s_r - s))])) for s in axis])
+    ct_init = (
+        step_charge_transfer(record, soc, axis, 0.1 * i_max, float(record.temp_k[0]))
+        if charge_transfer
+        else None
+    )
+    rs_init = 0.7 * r_init if ct_init is None else 0.9 * ct_init[0]
+    i0_init, m_init = (10.0 * i_max, 1.0) if ct_init is None else ct_init[1:]
     t_meas = record.temp_k
     port_k = float(t_meas[0]) if port_temp_k is None else float(port_temp_k)
     longest = _longest_segment_s(record)
@@ -338,21 +389,21 @@ def identify(
         theta0.append(float(ocv_init[k]))
     for k in idx:
         specs.append(_Param(f"rs_ohm[soc={axis[k]:.3f}]", "ohm", True, np.log(1e-5), np.log(10.0)))
-        theta0.append(float(np.log(0.7 * r_init[k])))
+        theta0.append(float(np.log(rs_init[k])))
     taus = np.geomspace(10.0, max(0.5 * longest, 20.0), n_rc) if n_rc > 1 else np.array([60.0])
-    for j in range(n_rc):
-        specs.append(_Param(f"rc[{j}].r_ohm", "ohm", True, np.log(1e-6), np.log(1.0)))
-        theta0.append(float(np.log(0.2 * np.median(r_init))))
-        specs.append(_Param(f"rc[{j}].tau_s", "s", True, np.log(0.5), np.log(1e5)))
-        theta0.append(float(np.log(taus[j])))
+    switched = model.rc_mode == "switched"
+    for label in ("rc_dis", "rc_chg") if switched else ("rc",):
+        for j in range(n_rc):
+            specs.append(_Param(f"{label}[{j}].r_ohm", "ohm", True, np.log(1e-6), np.log(1.0)))
+            theta0.append(float(np.log(0.2 * np.median(r_init))))
+            specs.append(_Param(f"{label}[{j}].tau_s", "s", True, np.log(0.5), np.log(1e5)))
+            theta0.append(float(np.log(taus[j])))
     if charge_transfer:
         specs.append(_Param("ct_i0_a", "A", True, np.log(1e-3 * i_max), np.log(1e3 * i_max)))
-        theta0.append(float(np.log(i_max)))
+        theta0.append(float(np.log(i0_init)))
         specs.append(_Param("ct_scale", "-", True, np.log(0.05), np.log(20.0)))
-        theta0.append(0.0)
+        theta0.append(float(np.log(m_init)))
     n_ocv = idx.size
-
-    model = ModelSection(rc_mode="persistent", ocv_mode="step_consistent")
 
     def build(theta: FloatArray) -> CellParameters:
         ocv = ocv_init.copy()
@@ -369,6 +420,9 @@ def identify(
         rs = np.interp(axis, axis[idx], np.exp(theta[n_ocv : 2 * n_ocv]))
         k0 = 2 * n_ocv
         rc = np.exp(theta[k0 : k0 + 2 * n_rc]).reshape(n_rc, 2) if n_rc else np.zeros((0, 2))
+        rc_c = rc.copy()
+        if switched and n_rc:
+            rc_c = np.exp(theta[k0 + 2 * n_rc : k0 + 4 * n_rc]).reshape(n_rc, 2)
         ct = ChargeTransferSection()
         if charge_transfer:
             ct = ChargeTransferSection(i0_a=float(np.exp(theta[-2])), scale=float(np.exp(theta[-1])))
@@ -382,7 +436,7 @@ def identify(
             rs_discharge_ohm=rs[:, None].copy(),
             capacity_factor=np.ones(1),
             rc_discharge=rc,
-            rc_charge=rc.copy(),
+            rc_charge=rc_c,
             model=model,
             charge_transfer=ct,
             hysteresis=dataclasses.replace(p0.hysteresis, max_v=0.0),
