@@ -22,7 +22,12 @@ ROOT = Path(__file__).resolve().parents[1]
 SERIES = ROOT / "examples" / "series_hev.toml"
 PARALLEL = ROOT / "examples" / "parallel_hev.toml"
 CELL = ROOT / "examples" / "cell.toml"
-EXAMPLES = {"series": SERIES, "parallel": PARALLEL}
+EXAMPLES = {
+    "series": SERIES,
+    "parallel": PARALLEL,
+    "conventional": ROOT / "examples" / "conventional_sedan.toml",
+    "bev": ROOT / "examples" / "bev.toml",
+}
 CONFIG_TYPES = {name: spec.config_type for name, spec in C.ARCHITECTURES.items()}
 NUMERIC = (float, int)
 

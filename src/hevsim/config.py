@@ -1,7 +1,7 @@
 """Vehicle configuration: one set of section types for every architecture, validated on load.
 
 A vehicle file (TOML) names its topology in ``[powertrain] architecture = "series" |
-"parallel"`` and describes its components in shared sections: ``[body]``, ``[tire]``,
+"parallel" | "conventional" | "bev"`` and describes its components in shared sections: ``[body]``, ``[tire]``,
 ``[final_drive]``, ``[gearbox]``, ``[engine]``, ``[motor]`` / ``[generator]``,
 ``[battery]``, ``[simulation]``, ``[controller]``, ... Each section is ONE frozen dataclass
 below, used by every architecture, with one set of defaults. Every numeric field carries its
@@ -118,10 +118,12 @@ class GearboxSection:
 
 @dataclass(frozen=True)
 class BrakesSection:
-    """Friction brakes: max deceleration they can give [m/s^2]; regeneration cut-in [m/s]."""
+    """Friction brakes: max deceleration they can give [m/s^2]; regeneration cut-in [m/s];
+    brake blending (BEV): the largest share of the braking torque the machine takes [-]."""
 
     max_decel_mps2: float = param(7.0, 0.0, 100.0, "m/s^2")
     regen_min_speed_mps: float = param(0.0, 0.0, 100.0, "m/s")
+    regen_fraction: float = param(1.0, 0.0, 1.0, "-")
 
 
 @dataclass(frozen=True)
@@ -196,7 +198,9 @@ class DriverSection:
     feedforward: float = param(0.0, 0.0, 100.0, "s^2/m")
 
 
-CONTROLLER_KINDS: tuple[str, ...] = ("thermostat", "schedule", "electric_assist", "ecms", "aecms")
+CONTROLLER_KINDS: tuple[str, ...] = (
+    "thermostat", "schedule", "electric_assist", "ecms", "aecms", "shift_schedule", "direct",
+)  # fmt: skip
 """Every ``[controller] kind``; which ones an architecture admits is in
 :data:`hevsim.architectures.ARCHITECTURES` (``controllers``)."""
 
@@ -214,7 +218,10 @@ class ControllerSection:
     ``control_points`` throttles per gear) or ``"aecms"`` (ECMS with the factor corrected by
     a PI loop on the SOC error from the run's initial SOC less the recoverable share
     ``aecms_kinetic_fraction`` of the kinetic energy, gains ``aecms_kp`` [-] and ``aecms_ki``
-    [1/s]).
+    [1/s]). Conventional: ``"shift_schedule"`` (the gear of the ``upshift_rpm`` /
+    ``downshift_rpm`` schedule, kick-down when the engine cannot give the torque; the engine
+    idles, or with ``stop_start = "on"`` stops, when there is no traction demand). BEV:
+    ``"direct"`` (the machine gives what the driver asks, within its and the battery's limits).
     """
 
     kind: str = choice("thermostat", *CONTROLLER_KINDS)
@@ -240,6 +247,8 @@ class ControllerSection:
     aecms_ki: float = param(0.2, 0.0, 1e5, "1/s")
     aecms_kinetic_fraction: float = param(0.5, 0.0, 1.0, "-")
     control_points: int = param(101, 2, 100_000, "-")
+    # conventional vehicle: engine off instead of idling when there is no traction demand
+    stop_start: str = choice("off", "off", "on")
 
 
 @dataclass(frozen=True)
@@ -347,6 +356,48 @@ class ParallelHEVConfig(_VehicleConfig):
     base_dir: str = "."
 
 
+@dataclass(frozen=True)
+class ConventionalConfig(_VehicleConfig):
+    """A conventional vehicle: engine, launch clutch, automatic gearbox, final drive, brakes."""
+
+    name: str = "conventional"
+    description: str = ""
+    preset: str = ""
+    powertrain: PowertrainSection = field(default_factory=lambda: PowertrainSection("conventional"))
+    body: BodySection = field(default_factory=BodySection)
+    tire: TireSection = field(default_factory=TireSection)
+    final_drive: GearSection = field(default_factory=GearSection)
+    gearbox: GearboxSection = field(default_factory=GearboxSection)
+    engine: EngineSection = field(default_factory=EngineSection)
+    brakes: BrakesSection = field(default_factory=BrakesSection)
+    simulation: SimulationSection = field(default_factory=SimulationSection)
+    controller: ControllerSection = field(default_factory=lambda: ControllerSection(kind="shift_schedule"))
+    metrics: MetricsSection = field(default_factory=MetricsSection)
+    fuel: FuelSection = field(default_factory=FuelSection)
+    base_dir: str = "."
+
+
+@dataclass(frozen=True)
+class BEVConfig(_VehicleConfig):
+    """A battery-electric vehicle: machine on a single reduction, battery, blended brakes."""
+
+    name: str = "bev"
+    description: str = ""
+    preset: str = ""
+    powertrain: PowertrainSection = field(default_factory=lambda: PowertrainSection("bev"))
+    body: BodySection = field(default_factory=BodySection)
+    tire: TireSection = field(default_factory=TireSection)
+    final_drive: GearSection = field(default_factory=GearSection)
+    motor: MachineSection = field(default_factory=MachineSection)
+    battery: BatterySection = field(default_factory=BatterySection)
+    brakes: BrakesSection = field(default_factory=BrakesSection)
+    simulation: SimulationSection = field(default_factory=SimulationSection)
+    controller: ControllerSection = field(default_factory=lambda: ControllerSection(kind="direct"))
+    metrics: MetricsSection = field(default_factory=lambda: MetricsSection(conversion_efficiency=1.0))
+    fuel: FuelSection = field(default_factory=FuelSection)
+    base_dir: str = "."
+
+
 def _pairs_below(cfg: Any, source: str, pairs: tuple[tuple[str, str], ...]) -> None:
     for lo_key, hi_key in pairs:
         lo, hi = _get(cfg, lo_key), _get(cfg, hi_key)
@@ -379,18 +430,7 @@ def _check_parallel(cfg: ParallelHEVConfig, source: str) -> None:
                                ("controller.downshift_rpm", "controller.upshift_rpm"),
                                ("engine.stall_speed_rpm", "engine.redline_rpm"),
                                ("optimization.final_soc_min", "optimization.final_soc_max")))  # fmt: skip
-    ratios = cfg.gearbox.ratios  # never empty: the schema asks for a non-empty list
-    c = cfg.controller
-    for g in range(len(ratios) - 1):  # after an upshift the engine must stay above the downshift speed
-        after = c.upshift_rpm * ratios[g + 1] / ratios[g]
-        if after <= c.downshift_rpm:
-            raise ConfigError(
-                f"{source}: shift schedule 'controller.upshift_rpm' = {c.upshift_rpm:g} / "
-                f"'controller.downshift_rpm' = {c.downshift_rpm:g} is infeasible: an upshift from "
-                f"gear {g + 1} to {g + 2} (ratios {ratios[g]:g} -> {ratios[g + 1]:g}) lands at "
-                f"{after:.0f} rpm, at or below the downshift speed (the gears would hunt); expected "
-                f"upshift_rpm > downshift_rpm x {ratios[g] / ratios[g + 1]:.3g}."
-            )
+    _check_shift_schedule(cfg, source)
     b, o = cfg.battery, cfg.optimization
     if not b.soc_min <= o.soc_initial <= b.soc_max:
         raise ConfigError(
@@ -411,6 +451,38 @@ def _check_parallel(cfg: ParallelHEVConfig, source: str) -> None:
         raise ConfigError(
             f"{source}: key 'engine.model' = {cfg.engine.model!r} is not supported by the parallel "
             "HEV; expected 'map' (its DP needs a fuel map)."
+        )
+
+
+def _check_shift_schedule(cfg: Any, source: str) -> None:
+    ratios = cfg.gearbox.ratios  # never empty: the schema asks for a non-empty list
+    c = cfg.controller
+    for g in range(len(ratios) - 1):  # after an upshift the engine must stay above the downshift speed
+        after = c.upshift_rpm * ratios[g + 1] / ratios[g]
+        if after <= c.downshift_rpm:
+            raise ConfigError(
+                f"{source}: shift schedule 'controller.upshift_rpm' = {c.upshift_rpm:g} / "
+                f"'controller.downshift_rpm' = {c.downshift_rpm:g} is infeasible: an upshift from "
+                f"gear {g + 1} to {g + 2} (ratios {ratios[g]:g} -> {ratios[g + 1]:g}) lands at "
+                f"{after:.0f} rpm, at or below the downshift speed (the gears would hunt); expected "
+                f"upshift_rpm > downshift_rpm x {ratios[g] / ratios[g + 1]:.3g}."
+            )
+
+
+def _check_conventional(cfg: ConventionalConfig, source: str) -> None:
+    _check_controller(cfg, source)
+    _pairs_below(cfg, source, (("engine.stall_speed_rpm", "engine.redline_rpm"),
+                               ("controller.downshift_rpm", "controller.upshift_rpm")))  # fmt: skip
+    _check_shift_schedule(cfg, source)
+
+
+def _check_bev(cfg: BEVConfig, source: str) -> None:
+    _check_controller(cfg, source)
+    _pairs_below(cfg, source, (("battery.soc_min", "battery.soc_max"),))
+    if cfg.battery.model == "cell":
+        raise ConfigError(
+            f"{source}: key 'battery.model' = 'cell' is not supported by the bev architecture; "
+            "expected one of ideal, rint, table."
         )
 
 
@@ -464,6 +536,16 @@ register_architecture(ArchitectureSpec(
     "parallel", ParallelHEVConfig, "hevsim.architectures.parallel:build_parallel_hev",
     lambda data: ("body", "tire", "final_drive", "gearbox", "engine", "motor", "motor_coupling", "battery"),
     _check_parallel,
+))  # fmt: skip
+
+
+register_architecture(ArchitectureSpec(
+    "conventional", ConventionalConfig, "hevsim.architectures.conventional:build_conventional",
+    lambda data: ("body", "tire", "final_drive", "gearbox", "engine"), _check_conventional,
+))  # fmt: skip
+register_architecture(ArchitectureSpec(
+    "bev", BEVConfig, "hevsim.architectures.bev:build_bev",
+    lambda data: ("body", "tire", "final_drive", "motor", "battery"), _check_bev,
 ))  # fmt: skip
 
 

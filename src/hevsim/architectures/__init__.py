@@ -1,7 +1,8 @@
 """Vehicle architectures: how the components connect and how power flows, in one registry.
 
 Each architecture is a module here (:mod:`~hevsim.architectures.series`,
-:mod:`~hevsim.architectures.parallel`) and one :class:`Architecture` entry in
+:mod:`~hevsim.architectures.parallel`, :mod:`~hevsim.architectures.conventional`,
+:mod:`~hevsim.architectures.bev`) and one :class:`Architecture` entry in
 :data:`ARCHITECTURES`, holding together its configuration type and builder (from
 :data:`hevsim.config.ARCHITECTURES`), its control inputs, its forward simulation, its DP
 formulation and the supervisory controllers it admits. The power-flow function of an
@@ -39,7 +40,8 @@ class Architecture:
         controllers: the ``[controller] kind`` values it admits, the rule-based one first.
         forward: ``"module:function"`` simulating a configuration or model forward,
             ``f(model, cycle, dt_s=..., soc_initial=..., ...) -> SimulationResult``.
-        dp_formulation: ``"module:Class"`` of its DP problem (:mod:`hevsim.optimal`).
+        dp_formulation: ``"module:Class"`` of its DP problem (:mod:`hevsim.optimal`); empty
+            when it has none (nothing to optimise: conventional, BEV).
     """
 
     name: str
@@ -70,7 +72,9 @@ class Architecture:
         return _load(self.forward)(model, *args, **kwargs)
 
     def formulation(self) -> type:
-        """Its DP formulation class."""
+        """Its DP formulation class (ConfigError when it has none)."""
+        if not self.dp_formulation:
+            raise ConfigError(f"the {self.name} architecture has no DP formulation (no energy management).")
         return _load(self.dp_formulation)
 
     def power_module(self) -> Any:
@@ -96,6 +100,16 @@ register(Architecture(
     name="parallel", module="hevsim.architectures.parallel", controls=("gear", "throttle"),
     controllers=("electric_assist", "ecms", "aecms"), forward="hevsim.sim.forward:simulate_parallel",
     dp_formulation="hevsim.optimal._parallel_dp:ParallelFormulation",
+))  # fmt: skip
+
+
+register(Architecture(
+    name="conventional", module="hevsim.architectures.conventional", controls=("gear",),
+    controllers=("shift_schedule",), forward="hevsim.sim.forward:simulate_conventional", dp_formulation="",
+))  # fmt: skip
+register(Architecture(
+    name="bev", module="hevsim.architectures.bev", controls=(), controllers=("direct",),
+    forward="hevsim.sim.forward:simulate_bev", dp_formulation="",
 ))  # fmt: skip
 
 

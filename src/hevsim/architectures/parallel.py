@@ -223,7 +223,7 @@ def electrical(
                          battery_state)  # fmt: skip
     flags = {"engine_speed": m["engine_speed"], **flow.flags}
     st = Stage(d_soc=flow.d_soc, cost_kg=m["fuel"] * dt_s, infeasible=flow.infeasible | m["bad"], flags=flags)
-    st.flow = flow  # type: ignore[attr-defined]
+    st.flow = flow
     if detail:
         on, w_e, t_e = m["on"], m["w_e"], m["t_e"]
         fric = np.minimum(m["t_fd"] - m["t_e_fd"] - hev.motor_coupling.output_torque(flow.torque_nm), 0.0)
@@ -267,18 +267,18 @@ def power_flow(
     return st
 
 
-def loss_powers(hev: ParallelHEV, mech: dict[str, Any], stage: Any, wheel_speed_radps: Any,
-                wheel_torque_nm: Any) -> dict[str, Any]:  # fmt: skip
+def loss_powers(hev: ParallelHEV, stage: Any, wheel_speed_radps: Any, wheel_torque_nm: Any) -> dict[str, Any]:
     """Power [W] of every energy-audit term of a :func:`power_flow` result (> 0 dissipated).
 
-    ``fuel`` (fuel x LHV), ``engine_loss`` (fuel power - shaft power), ``gearbox_loss``,
+    ``stage`` from :func:`power_flow`. ``fuel`` (fuel x LHV, a source), ``engine_loss``
+    (fuel power - shaft power), ``gearbox_loss``,
     ``motor_loss`` (electrical - mechanical), ``coupling_loss``, ``final_drive_loss``,
     ``friction_brakes`` (at the final-drive input) and ``wheel`` (the power delivered to the
     wheels, = road load x speed); the battery terms come from its current (see the forward
     simulator). Every term is a product of the flow's own torques and speeds, so the balance
     ``fuel + battery terminal = losses + wheel`` closes to round-off.
     """
-    flow = stage.flow
+    flow, mech = stage.flow, stage.mech
     w_fd = mech["w_fd"]
     on = mech["on"]
     lhv = hev.engine.fuel_lhv_jpkg
@@ -308,3 +308,29 @@ def candidate_controls(hev: ParallelHEV, throttle_points: int) -> tuple[np.ndarr
     G = len(hev.gears)
     gears = np.repeat(np.arange(1, G + 1, dtype=np.float64), thr.size)
     return np.concatenate([[1.0], gears]), np.concatenate([[0.0], np.tile(thr, G)])
+
+
+MODES: tuple[str, ...] = ("standstill", "ev", "engine", "assist", "charging", "regen")
+"""Power modes: standstill; EV (engine off, machine drives); engine only (machine idle);
+engine with machine assist; engine charging the battery; braking with regeneration."""
+
+
+def power_mode(details: dict[str, float], wheel_force_n: float, v_mid_mps: float) -> int:
+    """Index in :data:`MODES` of one step's operating point (``details`` of :func:`electrical`)."""
+    on = details["engine_on"] > 0.0
+    p_m = details["motor_power_elec_w"]
+    if v_mid_mps <= 0.0:
+        return 0
+    if wheel_force_n < 0.0 or (not on and p_m < 0.0):
+        return 5
+    if not on:
+        return 1
+    if p_m > POWER_EPS_W:
+        return 3
+    if p_m < -POWER_EPS_W:
+        return 4
+    return 2
+
+
+POWER_EPS_W = 1e-9
+"""Machine electrical power [W] below which the machine counts as idle (power modes)."""

@@ -53,6 +53,13 @@ CONTROLLERS: dict[str, ControllerEntry] = {
         ("equivalence_factor", "aecms_kp", "aecms_ki", "aecms_kinetic_fraction", "control_points"),
         "adaptive ECMS: s corrected by a PI loop on the SOC error",
     ),
+    "shift_schedule": ControllerEntry(
+        "shift_schedule", "hevsim.control.simple:ShiftSchedule", ("upshift_rpm", "downshift_rpm"),
+        "conventional: automatic gearbox shift schedule with kick-down",
+    ),
+    "direct": ControllerEntry(
+        "direct", "hevsim.control.simple:Direct", (), "BEV: the machine meets the demand"
+    ),
 }  # fmt: skip
 """Online controllers by ``[controller] kind``."""
 

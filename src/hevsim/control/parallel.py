@@ -153,16 +153,10 @@ class ElectricAssist(_GridController):
 
     def shift(self, w_fd: float) -> int:
         """Apply the shift schedule at final-drive speed ``w_fd`` [rad/s]; return the gear."""
-        ratios = self.hev.gear_ratios
-        g = self.gear
-        if w_fd <= 0.0:
-            g = 1
-        while g < ratios.size and w_fd * ratios[g - 1] > self.w_up:
-            g += 1
-        while g > 1 and w_fd * ratios[g - 1] < self.w_down:
-            g -= 1
-        self.gear = g
-        return g
+        from hevsim.control.simple import shift_gear
+
+        self.gear = shift_gear(self.gear, w_fd, self.hev.gear_ratios, self.w_up, self.w_down)
+        return self.gear
 
     def choose(self, step: Any) -> Control | None:
         hev = self.hev

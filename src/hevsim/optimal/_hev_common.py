@@ -283,6 +283,10 @@ class Stage:
     infeasible: BoolArray
     flags: dict[str, BoolArray]
     details: dict[str, FloatArray] = field(default_factory=dict)
+    flow: Any = None
+    """The bus balance (:class:`ElectricFlow`) behind it, where an architecture keeps it."""
+    mech: Any = None
+    """The architecture's state-independent operating points, where it keeps them."""
 
 
 DETAIL_COLUMNS: tuple[str, ...] = (

@@ -1,5 +1,5 @@
-"""Forward simulation of the quasi-static architectures (the parallel HEV): driver ->
-supervisory controller -> the architecture's power flow -> vehicle.
+"""Forward simulation of the quasi-static architectures (parallel HEV, conventional, BEV):
+driver -> supervisory controller -> the architecture's power flow -> vehicle.
 
 Each step ``k`` (``t_k`` to ``t_k + dt``):
 
@@ -7,19 +7,26 @@ Each step ``k`` (``t_k`` to ``t_k + dt``):
    it asks for the wheel force that brings the car from its speed ``v`` to the cycle's
    next speed ``v*`` in one step, ``F = road_load(v_mid, (v* - v)/dt, grade)`` at the
    mid-step speed (eq 32).
-2. **Supervisory controller** (:mod:`hevsim.control`): picks the control (gear, throttle)
-   from the candidates, scoring them with the architecture's vectorised power flow
-   (``step.evaluate``). If no control can deliver the force, the end speed is lowered by
-   bisection until one can (the car falls behind the trace; ``traction_limited`` is set).
-3. **Power flow** (:func:`hevsim.architectures.parallel.power_flow`): the chosen control's
-   operating points, fuel, battery current and SOC change, and
-   :func:`~hevsim.architectures.parallel.loss_powers` for the energy audit.
+2. **Supervisory controller** (:mod:`hevsim.control`): picks the control (parallel: gear and
+   throttle; conventional: gear; BEV: none) from the candidates, scoring them with the
+   architecture's vectorised power flow (``step.evaluate``). If no control can deliver the
+   force, the end speed is lowered by bisection until one can (the car falls behind the
+   trace; ``traction_limited`` is set). A full-throttle launch is this limit.
+3. **Power flow** (``power_flow`` of the architecture's module in
+   :mod:`hevsim.architectures`): the chosen control's operating points, fuel, battery
+   current and SOC change, and ``loss_powers`` for the energy audit.
 4. **Vehicle**: the speed becomes the end speed that force gives; every power is taken at
    the mid-step speed, so ``F v_mid dt = Δ(m v²/2) + road losses`` exactly and the audit
    closes to round-off.
 
 The driver and the power flow are exactly the DP's quasi-static stage model when the car
 follows the trace, so replaying a DP optimum reproduces its fuel.
+
+An architecture module used here provides ``power_flow(model, wheel_speed_radps,
+wheel_torque_nm, *controls, soc, dt_s, regen_ok, battery_state, detail=False)`` (a
+:class:`~hevsim.optimal._hev_common.Stage` with ``details``), ``loss_powers(model, stage,
+wheel_speed_radps, wheel_torque_nm)`` (W per audit term, with ``fuel`` and ``wheel``),
+``MODES`` and ``power_mode(details, wheel_force_n, v_mid_mps)``.
 """
 
 from __future__ import annotations
@@ -35,7 +42,6 @@ import numpy as np
 import pandas as pd
 
 import hevsim
-from hevsim.architectures import parallel as P
 from hevsim.components.body import grade_force, rolling_force
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DomainError, InputError
@@ -46,28 +52,10 @@ from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
 
 BISECTION_STEPS = 40
 """Bisection steps on the end speed when the powertrain cannot follow the trace [-]."""
-AUDIT_TERMS = (
-    "fuel",
-    "genset_source",
-    "battery_chemical",
-    "aero",
-    "rolling",
-    "grade",
-    "kinetic_vehicle",
-    "friction_brakes",
-    "engine_loss",
-    "gearbox_loss",
-    "motor_loss",
-    "coupling_loss",
-    "final_drive_loss",
-    "battery_loss",
-)
-"""Energy-audit terms [J] of the parallel HEV; sources are fuel, genset_source (0) and
-battery_chemical, everything else is a sink."""
 SOURCES = ("fuel", "genset_source", "battery_chemical")
-MODES = ("standstill", "ev", "engine", "assist", "charging", "regen")
-"""Power modes: standstill; EV (engine off, machine drives); engine only (machine idle);
-engine with machine assist; engine charging the battery; braking with regeneration."""
+"""Energy sources of the audit; every other term is a sink."""
+INT_COLUMNS = ("gear", "power_mode", "traction_limited")
+BOOL_COLUMNS = ("engine_on", "clutch_closed", "clutch_slipping")
 
 
 @dataclass
@@ -75,10 +63,11 @@ class Step:
     """What a controller sees at one step: demand, state and the power flow of candidates.
 
     Attributes: k, time_s [s], dt_s [s], v_mid_mps [m/s], wheel_speed_radps [rad/s],
-    wheel_torque_nm [N·m], soc [-], energy_per_soc_j (Q x OCV) [J].
+    wheel_torque_nm [N·m], soc [-], energy_per_soc_j (Q x OCV, 1 without a battery) [J].
     """
 
-    hev: Any
+    model: Any
+    flow: Any
     k: int
     time_s: float
     dt_s: float
@@ -90,32 +79,28 @@ class Step:
     battery_state: Any
     soc_min: float
 
-    def evaluate(
-        self, gear: np.ndarray, throttle: np.ndarray, *, detail: bool = False
-    ) -> tuple[Any, np.ndarray]:
-        """(Stage of the power flow, feasible) for candidate controls (arrays)."""
-        st = P.power_flow(
-            self.hev,
-            self.wheel_speed_radps,
-            self.wheel_torque_nm,
-            gear,
-            throttle,
-            self.soc,
-            self.dt_s,
-            self.v_mid_mps > 0.0,
-            self.battery_state,
-            detail=detail,
-        )
+    @property
+    def hev(self) -> Any:
+        """The vehicle model (former name)."""
+        return self.model
+
+    def evaluate(self, *controls: Any, detail: bool = False) -> tuple[Any, np.ndarray]:
+        """(Stage of the power flow, feasible) for candidate controls (arrays, broadcast)."""
+        st = self.flow(
+            self.model, self.wheel_speed_radps, self.wheel_torque_nm, *controls, self.soc, self.dt_s,
+            self.v_mid_mps > 0.0, self.battery_state, detail=detail,
+        )  # fmt: skip
         feasible = ~np.asarray(st.infeasible)
-        if self.soc <= self.soc_min:  # empty: no discharge
-            feasible = feasible & (np.asarray(st.flow.battery_power_w) <= 0.0)
+        flow = getattr(st, "flow", None)
+        if flow is not None and self.soc <= self.soc_min:  # empty: no discharge
+            feasible = feasible & (np.asarray(flow.battery_power_w) <= 0.0)
         return st, np.broadcast_to(feasible, np.shape(st.d_soc))
 
 
-def _battery_state(hev: Any, soc: float, soc_max: float) -> Any:
+def _battery_state(model: Any, soc: float, soc_max: float) -> Any:
     from hevsim.optimal._hev_common import BatteryState
 
-    bs = BatteryState.at(hev.battery, np.asarray(soc))
+    bs = BatteryState.at(model.battery, np.asarray(soc))
     if soc >= soc_max:  # full: no charging (regeneration goes to the friction brakes)
         bs = dataclasses.replace(bs, p_charge_max_w=np.zeros_like(bs.p_charge_max_w))
     return bs
@@ -129,7 +114,47 @@ def simulate_parallel(
     controller: Any = None,
     **controller_params: Any,
 ) -> Any:
-    """Simulate a parallel HEV (configuration or built model) forward over ``cycle``.
+    """Simulate a parallel HEV forward (see :func:`simulate_architecture`)."""
+    return simulate_architecture("parallel", model, cycle, dt_s, soc_initial, controller, **controller_params)
+
+
+def simulate_conventional(
+    model: Any,
+    cycle: DriveCycle | str | None = None,
+    dt_s: float | None = None,
+    soc_initial: float | None = None,
+    controller: Any = None,
+    **controller_params: Any,
+) -> Any:
+    """Simulate a conventional vehicle forward (see :func:`simulate_architecture`)."""
+    return simulate_architecture(
+        "conventional", model, cycle, dt_s, soc_initial, controller, **controller_params
+    )
+
+
+def simulate_bev(
+    model: Any,
+    cycle: DriveCycle | str | None = None,
+    dt_s: float | None = None,
+    soc_initial: float | None = None,
+    controller: Any = None,
+    **controller_params: Any,
+) -> Any:
+    """Simulate a battery-electric vehicle forward (see :func:`simulate_architecture`)."""
+    return simulate_architecture("bev", model, cycle, dt_s, soc_initial, controller, **controller_params)
+
+
+def simulate_architecture(
+    name: str,
+    model: Any,
+    cycle: DriveCycle | str | None = None,
+    dt_s: float | None = None,
+    soc_initial: float | None = None,
+    controller: Any = None,
+    **controller_params: Any,
+) -> Any:
+    """Simulate a vehicle of architecture ``name`` (file path, configuration or built model)
+    forward over ``cycle``.
 
     ``controller``: a controller object (:mod:`hevsim.control`, e.g. a
     :class:`~hevsim.control.parallel.ControlSchedule`), a ``[controller] kind`` name, or
@@ -137,19 +162,27 @@ def simulate_parallel(
     (``equivalence_factor=2.6``). ``dt_s`` [s] defaults to the configuration's; the cycle is
     resampled to it. Returns a :class:`~hevsim.sim.simulator.SimulationResult`.
     """
+    from hevsim.architectures import architecture
+    from hevsim.config import load_vehicle_config
     from hevsim.control import make_controller
     from hevsim.sim.simulator import SimulationResult
 
     t_start = time.perf_counter()
+    arch = architecture(name)
+    mod = arch.power_module()
     if isinstance(model, str | Path):
-        model = P.load_parallel_config(model)
-    hev = model if isinstance(model, P.ParallelHEV) else P.build_parallel_hev(model)
-    cfg = hev.config
+        model = load_vehicle_config(model)
+    if isinstance(model, arch.config_type):
+        model = arch.build(model)
+    cfg = getattr(model, "config", None)
+    if cfg is None or cfg.architecture != name:
+        got = getattr(cfg, "architecture", type(model).__name__)
+        raise ConfigError(f"simulate: key 'powertrain.architecture' = {got!r}; expected {name!r} here.")
     ctl = controller if controller is not None and not isinstance(controller, str) else None
     if ctl is None:
-        ctl = make_controller(hev, controller, **controller_params)
+        ctl = make_controller(model, controller, **controller_params)
     elif controller_params:
-        raise ConfigError("simulate_parallel: controller parameters need a controller kind, not an object.")
+        raise ConfigError("simulate: controller parameters need a controller kind, not a controller object.")
     cyc = cycle if isinstance(cycle, DriveCycle) else load_cycle(cycle or cfg.simulation.cycle)
     dt = float(dt_s if dt_s is not None else cfg.simulation.dt_s)
     if not 1e-3 <= dt <= 10.0:
@@ -159,130 +192,91 @@ def simulate_parallel(
             f"drive cycle '{cyc.name}': the vehicle stands still for the whole cycle (distance 0 m)."
         )
     grid = cyc.resampled(dt)
+    battery = getattr(model, "battery", None)
+    b = getattr(cfg, "battery", None)
     soc0 = float(cfg.simulation.soc_initial if soc_initial is None else soc_initial)
-    b = cfg.battery
-    if not b.soc_min <= soc0 <= b.soc_max:
+    if b is not None and not b.soc_min <= soc0 <= b.soc_max:
         raise ConfigError(
             f"soc_initial = {soc0:g} lies outside [battery.soc_min, battery.soc_max] = "
             f"[{b.soc_min:g}, {b.soc_max:g}]."
         )
     t_k0 = time.perf_counter()
-    ts, audit, summary, events = _run(hev, ctl, grid, soc0, b.soc_min, b.soc_max)
+    window = (b.soc_min, b.soc_max) if b is not None else (0.0, 1.0)
+    ts, audit, summary, events = _run(mod, model, ctl, grid, soc0, *window)
     t_done = time.perf_counter()
-    f = config_fuel(cfg, hev.engine)
+    engine = getattr(model, "engine", None)
+    f = config_fuel(cfg, engine)
     socf = summary[K.S_SOCF]
-    ocv_mean = float(hev.battery.ocv(0.5 * (soc0 + socf)))
-    metrics = compute_metrics(
-        summary,
-        audit,
-        soc0,
-        hev.battery.capacity_ah,
-        ocv_mean,
-        f.density_kg_per_m3,
-        f.heating_value_btu_per_us_gal,
-        f.co2_kg_per_kg,
-        cfg.metrics.conversion_efficiency,
-    )
+    capacity = battery.capacity_ah if battery is not None else 0.0
+    ocv_mean = float(battery.ocv(0.5 * (soc0 + socf))) if battery is not None else 0.0
+    metrics = compute_metrics(summary, audit, soc0, capacity, ocv_mean, f.density_kg_per_m3,
+                              f.heating_value_btu_per_us_gal, f.co2_kg_per_kg,
+                              cfg.metrics.conversion_efficiency)  # fmt: skip
     metrics["engine_starts"]["description"] = "engine starts (off -> fired)"
     traction = float(np.sum(np.clip(ts["wheel_power_w"].to_numpy()[:-1], 0.0, None)) * dt)
     metrics["traction_energy_j"] = {"value": traction, "unit": "J", "description": "positive wheel energy"}
     metrics["energy_audit_residual_traction_pct"] = {
-        "value": 100.0 * abs(audit["residual"]) / traction if traction > 0 else 0.0,
-        "unit": "%",
+        "value": 100.0 * abs(audit["residual"]) / traction if traction > 0 else 0.0, "unit": "%",
         "description": "energy audit residual / positive traction energy at the wheels",
-    }
+    }  # fmt: skip
     metrics["traction_limited_s"] = {
-        "value": float(summary[K.S_BLIM]),
-        "unit": "s",
+        "value": float(summary[K.S_BLIM]), "unit": "s",
         "description": "time the powertrain could not follow the trace",
-    }
+    }  # fmt: skip
     bad = [k for k, m in metrics.items() if np.isnan(float(m["value"]))]
     if bad or not np.all(np.isfinite(ts.select_dtypes("number").to_numpy(dtype=float))):
         raise DomainError(
-            f"{hev.name} on {cyc.name}: non-finite results ({', '.join(bad) or 'time series'})."
+            f"{model.name} on {cyc.name}: non-finite results ({', '.join(bad) or 'time series'})."
         )
     metadata = {
-        "architecture": "parallel",
-        "config": hev.name,
-        "description": cfg.description,
-        "cycle": cyc.name,
-        "cycle_source": cyc.source,
-        "dt_s": dt,
-        "controller": getattr(ctl, "name", type(ctl).__name__),
-        "fuel": f.metadata(),
-        "hevsim_version": hevsim.__version__,
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "created_unix_s": time.time(),
-        "kernel_time_s": t_done - t_k0,
+        "architecture": name, "config": model.name, "description": cfg.description, "cycle": cyc.name,
+        "cycle_source": cyc.source, "dt_s": dt, "controller": getattr(ctl, "name", type(ctl).__name__),
+        "fuel": f.metadata(), "hevsim_version": hevsim.__version__, "python": platform.python_version(),
+        "numpy": np.__version__, "created_unix_s": time.time(), "kernel_time_s": t_done - t_k0,
         "total_time_s": time.perf_counter() - t_start,
-    }
+    }  # fmt: skip
     if hasattr(ctl, "s"):
         metadata["equivalence_factor_final"] = float(ctl.s)
-    return SimulationResult(ts, metrics, audit, events, metadata, hev, cyc)  # type: ignore[arg-type]
+    return SimulationResult(ts, metrics, audit, events, metadata, model, cyc)
 
 
-def _run(hev: Any, ctl: Any, grid: Any, soc0: float, soc_min: float, soc_max: float) -> tuple[Any, ...]:
-    body, r = hev.body, hev.tire.radius_m
+def _run(
+    mod: Any, model: Any, ctl: Any, grid: Any, soc0: float, soc_min: float, soc_max: float
+) -> tuple[Any, ...]:
+    body, r = model.body, model.tire.radius_m
     t, v_des, gr = (np.asarray(a, dtype=np.float64) for a in (grid.time_s, grid.speed_mps, grid.grade))
     n = t.size - 1
     dt = float(t[1] - t[0])
-    q_as = hev.battery.capacity_ah * 3600.0
+    battery = getattr(model, "battery", None)
+    q_as = battery.capacity_ah * 3600.0 if battery is not None else 0.0
     m_eff = body.mass_kg * body.mass_factor
-    cols = {
-        c: np.zeros(n + 1)
-        for c in (
-            "speed_desired_mps",
-            "speed_mps",
-            "accel_mps2",
-            "wheel_force_n",
-            "wheel_power_w",
-            "gear",
-            "clutch_closed",
-            "engine_on",
-            "engine_speed_radps",
-            "engine_torque_nm",
-            "engine_throttle",
-            "engine_power_w",
-            "fuel_rate_kgps",
-            "fuel_kg",
-            "motor_speed_radps",
-            "motor_torque_nm",
-            "motor_power_mech_w",
-            "motor_power_elec_w",
-            "battery_current_a",
-            "battery_voltage_v",
-            "battery_ocv_v",
-            "battery_power_w",
-            "soc",
-            "friction_brake_power_w",
-            "road_load_force_n",
-            "power_mode",
-            "traction_limited",
-        )
-    }
-    audit = dict.fromkeys(AUDIT_TERMS, 0.0)
+    cols: dict[str, np.ndarray] = {}
+    audit: dict[str, float] = dict.fromkeys(
+        ("fuel", "genset_source", "battery_chemical", "aero", "rolling", "grade", "kinetic_vehicle"), 0.0
+    )
     ctl.reset(soc0)
     v, soc, fuel = float(v_des[0]), soc0, 0.0
     err_sq = err_max = dist = eon = starts = lim_s = 0.0
     was_on = False
 
-    def demand(v1: float, k: int) -> tuple[float, float, float, float]:
-        v_mid = 0.5 * (v + v1)
-        a = (v1 - v) / dt
+    def demand(v0: float, v1: float, k: int) -> tuple[float, float, float, float]:
+        v_mid = 0.5 * (v0 + v1)
+        a = (v1 - v0) / dt
         g = 0.5 * (gr[k] + gr[k + 1])
         f = float(body.road_load_force(v_mid, a, g)) if v_mid > 0.0 else 0.0
         return v_mid, a, g, f
 
     for k in range(n):
-        bs = _battery_state(hev, soc, soc_max)
-        e_soc = float(q_as * np.asarray(bs.ocv_v))
+        bs = _battery_state(model, soc, soc_max) if battery is not None else None
+        ocv = float(np.asarray(bs.ocv_v)) if bs is not None else 0.0
+        e_soc = q_as * ocv if bs is not None else 1.0
 
-        def step_at(
-            v1: float, k: int = k, bs: Any = bs, e_soc: float = e_soc, soc: float = soc
-        ) -> tuple[Step, float, float, float]:
-            v_mid, a, g, f = demand(v1, k)
-            st = Step(hev, k, float(t[k]), dt, v_mid, v_mid / r, f * r, soc, e_soc, bs, soc_min)
+        def step_at(v1: float, k: int = k, v0: float = v, soc: float = soc, bs: Any = bs,
+                    e_soc: float = e_soc) -> tuple[Step, float, float, float]:  # fmt: skip
+            v_mid, a, g, f = demand(v0, v1, k)
+            st = Step(
+                model, mod.power_flow, k, float(t[k]), dt, v_mid, v_mid / r, f * r, soc, e_soc, bs, soc_min
+            )
             return st, a, g, f
 
         v1 = float(v_des[k + 1])
@@ -306,34 +300,26 @@ def _run(hev: Any, ctl: Any, grid: Any, soc0: float, soc_min: float, soc_max: fl
             (step, a, g, f), control = best
             v1 = step.v_mid_mps * 2.0 - v
             if control is None:
-                raise DomainError(f"{hev.name}: no feasible control at t = {t[k]:g} s even when stopping.")
-        gear_c, thr_c = control
-        st, _ = step.evaluate(np.array([gear_c]), np.array([thr_c]), detail=True)
+                raise DomainError(f"{model.name}: no feasible control at t = {t[k]:g} s even when stopping.")
+        st, _ = step.evaluate(*(np.array([c]) for c in control), detail=True)
         ctl.update(step, st)
-        mech = st.mech
         det = {key: float(np.ravel(val)[0]) for key, val in st.details.items()}
         loss = {
             key: float(np.ravel(val)[0])
-            for key, val in P.loss_powers(hev, mech, st, step.wheel_speed_radps, step.wheel_torque_nm).items()
+            for key, val in mod.loss_powers(model, st, step.wheel_speed_radps, step.wheel_torque_nm).items()
         }
-        i_bat = det["battery_current_a"]
-        ocv = float(np.asarray(bs.ocv_v))
         d_soc = float(np.ravel(st.d_soc)[0])
         v_mid = step.v_mid_mps
         # ---- energy audit [J] (all powers at the mid-step speed)
-        e_chem = -d_soc * q_as * ocv
-        audit["fuel"] += loss["fuel"] * dt
-        audit["battery_chemical"] += e_chem
-        audit["battery_loss"] += e_chem - det["battery_power_w"] * dt
-        for term in (
-            "engine_loss",
-            "gearbox_loss",
-            "motor_loss",
-            "coupling_loss",
-            "final_drive_loss",
-            "friction_brakes",
-        ):
-            audit[term] += loss[term] * dt
+        for term, p_w in loss.items():
+            if term == "fuel":
+                audit["fuel"] += p_w * dt
+            elif term != "wheel":
+                audit[term] = audit.get(term, 0.0) + p_w * dt
+        if battery is not None:
+            e_chem = -d_soc * q_as * ocv
+            audit["battery_chemical"] += e_chem
+            audit["battery_loss"] = audit.get("battery_loss", 0.0) + e_chem - det["battery_power_w"] * dt
         if v_mid > 0.0:
             f_grade = float(grade_force(body.mass_kg, g))
             f_roll = float(rolling_force(body.mass_kg, g, body.rolling_resistance))
@@ -342,23 +328,8 @@ def _run(hev: Any, ctl: Any, grid: Any, soc0: float, soc_min: float, soc_max: fl
             audit["rolling"] += f_roll * v_mid * dt
             audit["grade"] += f_grade * v_mid * dt
             audit["kinetic_vehicle"] += 0.5 * m_eff * (v1 * v1 - v * v)
-            # the wheel power the flow delivered vs the road load (round-off): into final-drive loss
-            audit["final_drive_loss"] += (loss["wheel"] - f * v_mid) * dt
         # ---- mode and bookkeeping
-        on = det["engine_on"] > 0.0
-        p_m = det["motor_power_elec_w"]
-        if v_mid <= 0.0:
-            mode = 0
-        elif f < 0.0 or (not on and p_m < 0.0):
-            mode = 5
-        elif not on:
-            mode = 1
-        elif p_m > 1e-9:
-            mode = 3
-        elif p_m < -1e-9:
-            mode = 4
-        else:
-            mode = 2
+        on = det.get("engine_on", 0.0) > 0.0
         if on and not was_on:
             starts += 1.0
         was_on = on
@@ -370,36 +341,18 @@ def _run(hev: Any, ctl: Any, grid: Any, soc0: float, soc_min: float, soc_max: fl
         dist += v_mid * dt
         lim_s += limited * dt
         row = {
-            "speed_desired_mps": v_des[k],
-            "speed_mps": v,
-            "accel_mps2": a,
-            "wheel_force_n": f,
-            "wheel_power_w": loss["wheel"],
-            "gear": det["gear"],
-            "clutch_closed": det["engine_on"],
-            "engine_on": det["engine_on"],
-            "engine_speed_radps": det["engine_speed_radps"],
-            "engine_torque_nm": det["engine_torque_nm"],
-            "engine_throttle": det["engine_throttle"],
-            "engine_power_w": det["engine_power_w"],
-            "fuel_rate_kgps": det["fuel_rate_gps"] / 1e3,
-            "fuel_kg": fuel,
-            "motor_speed_radps": det["motor_speed_radps"],
-            "motor_torque_nm": det["motor_torque_nm"],
-            "motor_power_mech_w": det["motor_torque_nm"] * det["motor_speed_radps"],
-            "motor_power_elec_w": p_m,
-            "battery_current_a": i_bat,
-            "battery_ocv_v": ocv,
-            "battery_voltage_v": det["battery_power_w"] / i_bat if i_bat != 0.0 else ocv,
-            "battery_power_w": det["battery_power_w"],
-            "soc": soc,
-            "friction_brake_power_w": det["friction_brake_power_w"],
-            "road_load_force_n": f - m_eff * a,
-            "power_mode": mode,
-            "traction_limited": limited,
-        }
+            "speed_desired_mps": v_des[k], "speed_mps": v, "accel_mps2": a, "wheel_force_n": f,
+            "wheel_power_w": loss["wheel"], "road_load_force_n": f - m_eff * a, "fuel_kg": fuel, "soc": soc,
+            **det, "power_mode": mod.power_mode(det, f, v_mid), "traction_limited": limited,
+        }  # fmt: skip
+        if "engine_on" in det and "clutch_closed" not in det:  # parallel: clutch closed iff engine on
+            row["clutch_closed"] = det["engine_on"]
+        if battery is not None:
+            i_bat = det["battery_current_a"]
+            row["battery_ocv_v"] = ocv
+            row["battery_voltage_v"] = det["battery_power_w"] / i_bat if i_bat != 0.0 else ocv
         for key, val in row.items():
-            cols[key][k] = val
+            cols.setdefault(key, np.zeros(n + 1))[k] = val
         v, soc = v1, soc + d_soc
     err = v_des[n] - v
     err_sq += err * err
@@ -417,58 +370,40 @@ def _run(hev: Any, ctl: Any, grid: Any, soc0: float, soc_min: float, soc_max: fl
     )
     summary = np.zeros(len(K.SUMMARY))
     summary[[K.S_DIST, K.S_FUEL, K.S_SOCF, K.S_RMS, K.S_MAXERR, K.S_EON, K.S_STARTS, K.S_BLIM, K.S_DUR]] = (
-        dist,
-        fuel,
-        soc,
-        np.sqrt(err_sq / (n + 1)),
-        err_max,
-        eon,
-        starts,
-        lim_s,
-        t[n] - t[0],
-    )
-    ts = _frame(t, cols)
-    return ts, audit, summary, _events(ts)
+        dist, fuel, soc, np.sqrt(err_sq / (n + 1)), err_max, eon, starts, lim_s, t[n] - t[0])  # fmt: skip
+    ts = _frame(t, cols, mod.MODES)
+    return ts, audit, summary, _events(ts, mod.MODES)
 
 
-def _frame(t: np.ndarray, cols: dict[str, np.ndarray]) -> pd.DataFrame:
+def _frame(t: np.ndarray, cols: dict[str, np.ndarray], modes: tuple[str, ...]) -> pd.DataFrame:
     out: dict[str, Any] = {"time_s": t}
     for name, col in cols.items():
-        if name in ("gear", "power_mode", "traction_limited"):
+        if name in INT_COLUMNS:
             out[name] = col.astype(np.int64)
-        elif name in ("clutch_closed", "engine_on"):
+        elif name in BOOL_COLUMNS:
             out[name] = col > 0.0
-        elif name == "fuel_rate_kgps":
-            out["fuel_rate_gps"] = col * 1e3
         else:
             out[name] = col
         if name in ("speed_desired_mps", "speed_mps"):
             out[name.replace("_mps", "_mph")] = col / MPS_PER_MPH
         elif name == "engine_speed_radps":
             out["engine_speed_rpm"] = col / RADPS_PER_RPM
-    out["power_mode_name"] = pd.Categorical.from_codes(out["power_mode"], pd.Index(MODES))
+    out["power_mode_name"] = pd.Categorical.from_codes(out["power_mode"], pd.Index(modes))
     return pd.DataFrame(out)
 
 
-def _events(ts: pd.DataFrame) -> pd.DataFrame:
+def _events(ts: pd.DataFrame, modes: tuple[str, ...]) -> pd.DataFrame:
     rows: list[dict[str, Any]] = []
     t = ts["time_s"].to_numpy()
-    for col, kind, names in (
-        ("power_mode", "power_mode", MODES),
-        ("gear", "gear", None),
-        ("traction_limited", "traction_limit", ("off", "on")),
-    ):
+    for col, kind, names in (("power_mode", "power_mode", modes), ("gear", "gear", None),
+                             ("traction_limited", "traction_limit", ("off", "on"))):  # fmt: skip
+        if col not in ts:
+            continue
         vals = ts[col].to_numpy()
         for i in (np.flatnonzero(np.diff(vals) != 0) + 1).tolist():
             a, b = int(vals[i - 1]), int(vals[i])
-            rows.append(
-                {
-                    "time_s": float(t[i]),
-                    "kind": kind,
-                    "from_state": names[a] if names else str(a),
-                    "to_state": names[b] if names else str(b),
-                    "reason": f"controller chose {kind} {names[b] if names else b}",
-                }
-            )
+            old, new = (names[a], names[b]) if names else (str(a), str(b))
+            rows.append({"time_s": float(t[i]), "kind": kind, "from_state": old, "to_state": new,
+                         "reason": f"controller chose {kind} {new}"})  # fmt: skip
     ev = pd.DataFrame(rows, columns=["time_s", "kind", "from_state", "to_state", "reason"])
     return ev.sort_values(["time_s", "kind"], kind="stable").reset_index(drop=True)

@@ -1,0 +1,77 @@
+"""Controllers of the conventional vehicle (shift schedule) and the BEV (direct drive)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from hevsim.units import rpm_to_radps
+
+
+def shift_gear(
+    gear: int, w_fd_radps: float, ratios: np.ndarray, w_up_radps: float, w_down_radps: float
+) -> int:
+    """The shift schedule: from ``gear`` (1..G) at final-drive speed ``w_fd_radps`` [rad/s],
+    shift up while the engine-side speed is above ``w_up_radps`` and down while below
+    ``w_down_radps`` [rad/s]; first gear at a standstill."""
+    g = int(gear)
+    if w_fd_radps <= 0.0:
+        return 1
+    while g < ratios.size and w_fd_radps * ratios[g - 1] > w_up_radps:
+        g += 1
+    while g > 1 and w_fd_radps * ratios[g - 1] < w_down_radps:
+        g -= 1
+    return g
+
+
+class ShiftSchedule:
+    """Automatic gearbox: the gear of the ``upshift_rpm``/``downshift_rpm`` schedule; if the
+    engine cannot give the torque in it, kick down to the highest lower gear that can (then
+    any gear that can); None when no gear can."""
+
+    name = "shift_schedule"
+
+    def __init__(self, model: Any, upshift_rpm: float, downshift_rpm: float) -> None:
+        self.model = model
+        self.w_up, self.w_down = rpm_to_radps(upshift_rpm), rpm_to_radps(downshift_rpm)
+        self.ratios = model.gear_ratios
+        self.gear = 1
+
+    def reset(self, soc_initial: float) -> None:
+        """Start in first gear."""
+        self.gear = 1
+
+    def update(self, step: Any, stage: Any) -> None:
+        """Remember the gear applied."""
+        self.gear = int(np.ravel(stage.mech["gi"])[0]) + 1
+
+    def choose(self, step: Any) -> tuple[float] | None:
+        """The scheduled gear, or a kick-down."""
+        w_fd = step.wheel_speed_radps * self.model.final_drive.ratio
+        g = shift_gear(self.gear, w_fd, self.ratios, self.w_up, self.w_down)
+        order = [g, *range(g - 1, 0, -1), *range(g + 1, self.ratios.size + 1)]
+        gears = np.array(order, dtype=np.float64)
+        _, feasible = step.evaluate(gears)
+        ok = np.flatnonzero(feasible)
+        return None if ok.size == 0 else (float(gears[ok[0]]),)
+
+
+class Direct:
+    """No choice to make (BEV): the empty control when the power flow is feasible, else None."""
+
+    name = "direct"
+
+    def __init__(self, model: Any) -> None:
+        self.model = model
+
+    def reset(self, soc_initial: float) -> None:
+        """Nothing to reset."""
+
+    def update(self, step: Any, stage: Any) -> None:
+        """Nothing to remember."""
+
+    def choose(self, step: Any) -> tuple[()] | None:
+        """() if the machine and battery can give the demand."""
+        _, feasible = step.evaluate()
+        return () if bool(np.ravel(feasible)[0]) else None
