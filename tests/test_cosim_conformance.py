@@ -502,3 +502,36 @@ def test_osp_step_size_ssv_and_ssm(cfmu: Path, tmp_path: Path) -> None:
         res = run_system(d)
     assert res.time_s.tolist() == [0.0, 0.25, 0.5, 0.75, 1.0]
     assert res["c.y"][-1] == pytest.approx(2.5 * 2.0 * 1.0, abs=1e-12) and np.all(res["c.mi"] == 14.0)
+
+
+# ---------------------------------------------------------------------------- item 4: --check
+def test_check_refuses_what_the_run_would(cfmu: Path) -> None:
+    from hevsim.cosim.datacheck import datacheck
+    from hevsim.cosim.system import run_system
+
+    def desc(conns: list[Connection], **master: object) -> SystemDescription:
+        comps = [Component(n, "application/x-fmu-sharedlibrary", cfmu.name) for n in ("a", "b")]
+        return SystemDescription(
+            "t", comps, conns, stop_time_s=1.0, master=dict(master), base_dir=cfmu.parent
+        )
+
+    with pytest.raises(ConfigError, match=r"no communication step size: give step_s"):
+        datacheck(desc([]))
+    with pytest.raises(ConfigError, match=r"valid: jacobi, gauss-seidel"):
+        datacheck(desc([], step_s=0.1, algorithm="newton"))
+    with pytest.raises(ConfigError, match=r"component 'a' cannot save and restore its state \(FMU c.fmu .*"
+                       r"iterative coupling \(max_iterations=2\)"):  # fmt: skip
+        datacheck(desc([], step_s=0.1, max_iterations=2))
+    loop = [Connection("a", "z", "b", "x"), Connection("b", "z", "a", "x")]
+    with pytest.raises(ConfigError, match=r"algebraic loop of direct feedthrough under Gauss-Seidel: "
+                       r"a.x -> a.z -> b.x -> b.z -> a.x"):  # fmt: skip
+        datacheck(desc(loop, step_s=0.1, algorithm="gauss-seidel"))
+    with pytest.raises(ConfigError, match="algebraic loop"):  # the run refuses it too
+        run_system(desc(loop, step_s=0.1, algorithm="gauss-seidel"))
+    # no loop through y (y does not depend on u directly): Gauss-Seidel is fine
+    datacheck(desc([Connection("a", "y", "b", "u"), Connection("b", "y", "a", "u")], step_s=0.1,
+                   algorithm="gauss-seidel"))  # fmt: skip
+    ok = desc(loop, step_s=0.1)  # Jacobi: passes the check, and runs
+    datacheck(ok)
+    res = run_system(ok)
+    assert np.all(res["a.z"] == 0.0) and len(res.time_s) == 11

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from hevsim.cosim import units as U
 from hevsim.cosim.fmi_vars import TYPE_CLASS, FmuVariables, type_conversion
 from hevsim.cosim.load import load_system
-from hevsim.cosim.ssd import FMU_TYPE, Component, Connector, SystemDescription
+from hevsim.cosim.master import Connection, Options, state_needs
+from hevsim.cosim.ssd import COMPONENT_TYPES, FMU_TYPE, Component, Connector, SystemDescription
 from hevsim.errors import ConfigError
 
 
@@ -35,10 +38,12 @@ def _check(desc: SystemDescription) -> SystemDescription:
     if dup:
         raise ConfigError(f"{src}: duplicate component name(s) {sorted(dup)}.")
     kinds: dict[str, dict[str, Connector]] = {}
+    info: dict[str, dict[str, Any]] = {}
     for c in desc.components:
         kinds[c.name] = {k.name: k for k in c.connectors}
         if c.type == FMU_TYPE:
-            kinds[c.name].update(_fmu_connectors(desc, c))
+            info[c.name] = {}
+            kinds[c.name].update(_fmu_connectors(desc, c, info[c.name]))
     fed: set[tuple[str, str]] = set()
     for k in desc.connections:
         what = f"{src}: connection {k.src}.{k.src_var} -> {k.dst}.{k.dst_var}"
@@ -66,10 +71,87 @@ def _check(desc: SystemDescription) -> SystemDescription:
         raise ConfigError(
             f"{src}: stop time {desc.stop_time_s} s must exceed start time {desc.start_time_s} s."
         )
+    if all(c.type in COMPONENT_TYPES for c in desc.components):  # runnable: what the run would refuse
+        _check_run(desc, info)
     return desc
 
 
-def _fmu_connectors(desc: SystemDescription, c: Component) -> dict[str, Connector]:
+def _check_run(desc: SystemDescription, info: dict[str, dict[str, Any]]) -> None:
+    """The master settings (step size, valid options), FMUs an iterative scheme cannot
+    restore, and algebraic loops of direct feedthrough under Gauss-Seidel."""
+    src = desc.source
+    m = {k: v for k, v in desc.master.items() if k != "fmu_process"}
+    if "step_s" not in m:
+        raise ConfigError(
+            f"{src}: no communication step size: give step_s in the hevsim master annotation or "
+            "the OSP annotation (osp:FixedStepAlgorithm baseStepSize) of ssd:DefaultExperiment."
+        )
+    try:
+        opts = Options(stop_time_s=desc.stop_time_s, start_time_s=desc.start_time_s, **m)
+    except TypeError as exc:
+        raise ConfigError(f"{src}: master settings: {exc}.") from None
+    try:
+        opts.check()
+    except ConfigError as exc:
+        raise ConfigError(f"{src}: {exc}") from None
+    needs = state_needs(opts)
+    for name, i in info.items():
+        if needs and not i["can_state"]:
+            raise ConfigError(
+                f"{src}: component {name!r} cannot save and restore its state ({i['state_note']}), "
+                f"which {needs} needs; use max_iterations=1 and negotiation 'fixed' with it."
+            )
+    if opts.algorithm == "gauss-seidel" and opts.max_iterations == 1:
+        loop = algebraic_loop(desc.connections, {n: i["feedthrough"] for n, i in info.items()})
+        if loop:
+            raise ConfigError(
+                f"{src}: algebraic loop of direct feedthrough under Gauss-Seidel: {' -> '.join(loop)}; "
+                "no order can give every participant its inputs at the end of the step. Use "
+                "algorithm 'jacobi' (one step of lag per connection) or max_iterations > 1."
+            )
+
+
+def algebraic_loop(
+    connections: Sequence[Connection], feedthrough: Mapping[str, Mapping[str, set[str]]]
+) -> list[str]:
+    """A cycle ["a.y", "b.u", "b.z", "a.x", "a.y"] of connections and direct feedthrough
+    (``feedthrough[component][output]`` = the inputs it depends on directly, as the FMUs'
+    ModelStructure declares), or [] when there is none."""
+    succ: dict[str, list[str]] = {}
+    for k in connections:
+        succ.setdefault(f"{k.src}.{k.src_var}", []).append(f"{k.dst}.{k.dst_var}")
+    for comp, outs in feedthrough.items():
+        for out, ins in outs.items():
+            for i in ins:
+                succ.setdefault(f"{comp}.{i}", []).append(f"{comp}.{out}")
+    state: dict[str, int] = {}
+    path: list[str] = []
+
+    def visit(n: str) -> list[str]:
+        state[n] = 1
+        path.append(n)
+        for m in sorted(succ.get(n, ())):
+            if state.get(m) == 1:
+                return [*path[path.index(m) :], m]
+            if m not in state:
+                found = visit(m)
+                if found:
+                    return found
+        state[n] = 2
+        path.pop()
+        return []
+
+    for n in sorted(succ):
+        if n not in state:
+            found = visit(n)
+            if found:
+                return found
+    return []
+
+
+def _fmu_connectors(desc: SystemDescription, c: Component, info: dict[str, Any]) -> dict[str, Connector]:
+    """The FMU's variables as connectors; ``info`` receives ``can_state``, ``state_note`` and
+    ``feedthrough`` (output -> inputs it depends on directly, from ModelStructure)."""
     from fmpy import read_model_description
 
     f = desc.base_dir / c.source
@@ -88,6 +170,17 @@ def _fmu_connectors(desc: SystemDescription, c: Component) -> dict[str, Connecto
         fv = FmuVariables(md, f.name)
     except ConfigError as exc:
         raise ConfigError(f"{desc.source}: component {c.name!r}: {exc}") from None
+    cs, key = md.coSimulation, "FMUState" if md.fmiVersion.startswith("3") else "FMUstate"
+    info["can_state"] = bool(getattr(cs, f"canGetAndSet{key}", False)) and bool(
+        getattr(cs, f"canSerialize{key}", False)
+    )
+    info["state_note"] = f'FMU {f.name} declares canGetAndSet{key}="false" or canSerialize{key}="false"'
+    inputs = {v.name for v in md.modelVariables if v.causality == "input"}
+    info["feedthrough"] = {
+        u.variable.name: {d.name for d in u.dependencies if d.name in inputs}
+        for u in getattr(md, "outputs", [])
+        if u.dependencies  # absent: unknown, not taken as feedthrough
+    }
     out: dict[str, Connector] = {}
     for v in md.modelVariables:
         unit = (
