@@ -44,6 +44,7 @@ Stored as ``.npz`` with the hash of the mesh (:func:`mesh_hash`) and the model's
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import time
 from dataclasses import dataclass, field
@@ -70,6 +71,8 @@ ROM_GRADIENT_SCALE_K = 5.0
 ROM_LOW_FILM_FRACTION = 0.05
 #: candidate hot-spot nodes per cell taken from each field [-]
 ROM_CANDIDATES = 4
+#: lowest positive test point of the error estimate [1/dt] (slower modes are matched by s = 0)
+ROM_S_MIN = 1e-4
 #: largest order the greedy build may reach
 ROM_MAX_ORDER = 400
 #: relative deflation tolerance of the block orthonormalisation
@@ -361,7 +364,8 @@ class BuildOptions:
     gradient_scale_k: float = ROM_GRADIENT_SCALE_K
     low_film_fraction: float = ROM_LOW_FILM_FRACTION
     candidates: int = ROM_CANDIDATES
-    test_points: int = 6
+    test_points: int = 8
+    refinements: int = 1
     max_order: int = ROM_MAX_ORDER
 
 
@@ -422,33 +426,51 @@ def build_rom(full: FullModel, mesh_digest: str, options: BuildOptions | None = 
     wall_rows = (full.w_wall.T.multiply(1.0 / full.wall_area_m2[:, None])).tocsr()
 
     s_max = 2.0 / full.dt_s
-    s_points = np.concatenate([[0.0], np.geomspace(1e-5, s_max, opt.test_points)])
-    responses: dict[tuple[int, int], np.ndarray] = {}
-    for hi_, h in enumerate(films):
-        k = full.stiffness(h)
-        b = inputs_dir(h)
-        for si, s in enumerate(s_points):
-            lu = splu((s * c + k).tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
-            responses[(si, hi_)] = lu.solve(b)
+    grid = [0.0, *np.geomspace(ROM_S_MIN / full.dt_s, s_max, opt.test_points).tolist()]
+    responses: dict[tuple[float, int], np.ndarray] = {}
+    b_dir = {hi_: inputs_dir(h) for hi_, h in enumerate(films)}
+
+    def factor(s: float, hi_: int) -> Any:
+        a = (s * c + full.stiffness(films[hi_])).tocsc()
+        return splu(a, permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
+
+    def respond(key: tuple[float, int]) -> np.ndarray:
+        if key not in responses:
+            responses[key] = factor(*key).solve(b_dir[key[1]])
+        return responses[key]
+
+    # test points: the grid at the configured film, every other point at the lowest film
+    test = [(s, 0) for s in grid] + [(s, 1) for s in grid[::2]]
+    for key in test:
+        respond(key)
     t_full = time.perf_counter() - t_start
 
     # hot-spot candidates: the design steady state and the responses to all cells' heat
-    x0 = responses[(0, 0)]
+    x0 = responses[(0.0, 0)]
     design = x0[:, :n_cells] @ (full.design_heat_w / opt.heat_scale_w)
     design = design + x0[:, n_cells] * (full.fluid_k / opt.temp_scale_k)
     design = design + x0[:, n_cells + modes.shape[1]] * (full.ambient_k / opt.temp_scale_k)
-    fields = [design] + [responses[(si, 0)][:, :n_cells].sum(axis=1) for si in range(0, len(s_points), 3)]
-    fields += [-responses[(si, 0)][:, n_cells] for si in (1, len(s_points) // 2)]
+    fields = [design] + [responses[(s, 0)][:, :n_cells].sum(axis=1) for s in grid[::3]]
+    fields += [-responses[(s, 0)][:, n_cells] for s in (grid[1], grid[len(grid) // 2])]
+    # and the transients of the design case (uniform start, design heat and inlet) at every test
+    # point and both films: the field at time ~1/s of the step response
+    step_in = full.fluid_k - full.initial_k
+    for key, x in responses.items():
+        if key[0] > 0:
+            fields.append(
+                x[:, :n_cells] @ (full.design_heat_w / opt.heat_scale_w)
+                + x[:, n_cells] * (step_in / opt.temp_scale_k)
+            )
     cand = _candidates(fields, full.cell_nodes, opt.candidates)
     cand_rows = sp.csr_matrix(
         (np.ones(cand.size), (np.arange(cand.size), cand.ravel())), shape=(cand.size, full.n_nodes)
     )
     outputs = sp.vstack([mean_rows, cand_rows, wall_rows]).tocsr()
-    y_full = {key: outputs @ x for key, x in responses.items()}
+    y_full: dict[tuple[float, int], np.ndarray] = {}
 
     cap_scale = float(np.sqrt(c.diagonal().sum()))
     v = _c_orth(c, None, np.ones((full.n_nodes, 1)), 1e-300)
-    used: set[tuple[int, int]] = set()
+    used: set[tuple[float, int]] = set()
     history: list[dict[str, float]] = []
 
     def add(x: np.ndarray) -> None:
@@ -457,44 +479,45 @@ def build_rom(full: FullModel, mesh_digest: str, options: BuildOptions | None = 
         q = _c_orth(c, v, x, float(norms.max(initial=0.0)) or cap_scale)
         v = np.hstack([v, q])
 
-    for key in ((0, 0), (0, 1)):
-        add(responses[key])
+    for key in ((0.0, 0), (0.0, 1)):
+        add(respond(key))
         used.add(key)
 
-    def errors() -> dict[tuple[int, int], float]:
+    def errors() -> dict[tuple[float, int], float]:
         ov = outputs @ v
-        out: dict[tuple[int, int], float] = {}
-        reduced = {}
-        for hi_, h in enumerate(films):
-            reduced[hi_] = (v.T @ (full.stiffness(h) @ v), v.T @ inputs_dir(h))
-        for (si, hi_), yf in y_full.items():
-            kr, br = reduced[hi_]
-            yr = ov @ np.linalg.solve(s_points[si] * np.eye(v.shape[1]) + kr, br)
-            out[(si, hi_)] = float(np.abs(yf - yr).sum(axis=1).max())
+        out: dict[tuple[float, int], float] = {}
+        reduced = {hi_: (v.T @ (full.stiffness(h) @ v), v.T @ b_dir[hi_]) for hi_, h in enumerate(films)}
+        for key in test:
+            if key not in y_full:
+                y_full[key] = outputs @ respond(key)
+            kr, br = reduced[key[1]]
+            yr = ov @ np.linalg.solve(key[0] * np.eye(v.shape[1]) + kr, br)
+            out[key] = float(np.abs(y_full[key] - yr).sum(axis=1).max())
         return out
 
-    err = errors()
-    moments: dict[tuple[int, int], np.ndarray] = {}
+    moments: dict[tuple[float, int], np.ndarray] = {}
+    refinements = 0
     while True:
+        err = errors()
         worst = max(err, key=lambda key: err[key])
-        history.append({"order": int(v.shape[1]), "error_k": err[worst]})
-        if err[worst] <= opt.tol_k or v.shape[1] >= opt.max_order:
+        history.append({"order": int(v.shape[1]), "error_k": err[worst], "test_points": len(test)})
+        if v.shape[1] >= opt.max_order:
             break
+        if err[worst] <= opt.tol_k:
+            if refinements >= opt.refinements:
+                break
+            # converged on the test points: check between them (geometric midpoints)
+            refinements += 1
+            pos = sorted({s for s, hi_ in test if s > 0 and hi_ == 0})
+            test += [(float(np.sqrt(a * b)), 0) for a, b in itertools.pairwise(pos)]
+            continue
         if worst not in used:
-            add(responses[worst])
+            add(respond(worst))
             used.add(worst)
         else:  # next moment at that point: (sC + K)^-1 C X
-            si, hi_ = worst
-            prev = moments.get(worst, responses[worst])
-            lu = splu(
-                (s_points[si] * c + full.stiffness(films[hi_])).tocsc(),
-                permc_spec="MMD_AT_PLUS_A",
-                options={"SymmetricMode": True},
-            )
-            nxt = lu.solve(c @ prev)
+            nxt = factor(*worst).solve(c @ moments.get(worst, responses[worst]))
             moments[worst] = nxt
             add(nxt)
-        err = errors()
     if err[worst] > opt.tol_k:
         raise ConfigError(
             f"thermal ROM: the error estimate {err[worst]:.3g} K is above tol_k = {opt.tol_k:g} K at the "
@@ -516,7 +539,7 @@ def build_rom(full: FullModel, mesh_digest: str, options: BuildOptions | None = 
         "nodes": full.n_nodes,
         "error_estimate_k": err[worst],
         "error_history": history,
-        "test_points_1_s": s_points.tolist(),
+        "test_points_1_s": sorted({key[0] for key in test}),
         "wall_h_w_m2k": [h_lo, h_hi],
         "options": {k: getattr(opt, k) for k in BuildOptions.__dataclass_fields__},
         "hot_spot": "max over candidate nodes per cell: the hottest nodes of the design steady state and "
