@@ -234,3 +234,45 @@ def test_full_calibration_bad_inputs_exit_2(tmp_path: Path, capsys: pytest.Captu
     assert "rs_charge_ohm" in capsys.readouterr().err
     assert main([*base, str(f), "--capacity-ah", "-1", "--out", str(tmp_path / "o5")]) == 2
     assert "capacity" in capsys.readouterr().err
+
+
+def test_full_calibration_cli_with_validation(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """hevsim calibrate without --fit, validated on a second record of the same cell."""
+    import pandas as pd
+
+    from hevsim.battery.identify import _simulate
+    from hevsim.cli import main
+
+    p = _true_cell()
+    rec = _hppc(p, levels=2, seed=4)
+    files = {}
+    t = np.arange(1.0, 601.0)
+    cur = 12.0 * np.sin(t / 23.0) + 3.0 * np.sign(np.sin(t / 7.0))  # reversals, 0-3C
+    val_v, val_t = _simulate(p, CellTestRecord(t, cur, t * 0, t * 0 + 298.15), 0.88, 298.15, 298.15)
+    for name, (tt, i, v, temp) in {
+        "pulse": (rec.time_s, rec.current_a, rec.voltage_v, rec.temp_k),
+        "drive": (t, cur, val_v, val_t),
+    }.items():
+        files[name] = tmp_path / f"{name}.csv"
+        pd.DataFrame({"time_s": tt, "current_a": i, "voltage_v": v, "temp_k": temp}).to_csv(
+            files[name], index=False
+        )
+    out = tmp_path / "cal"
+    args = ["calibrate", "thesis_table_4_1", str(files["pulse"]), "--soc-initial", "0.95"]
+    args += ["--capacity-ah", "5", "--ambient-c", "25", "--validate", str(files["drive"])]
+    assert main([*args, "--validate-soc", "0.88", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "validation on" in text and "cell.toml" in text
+    errors = pd.read_csv(out / "validation_errors.csv").set_index("range")
+    assert errors.loc["all", "rmse_v"] < 2e-3  # the same cell: noise-level agreement
+    assert (out / "validation.png").is_file()
+    run = tmp_path / "run.toml"  # `hevsim cell` runs the written set as it is
+    run.write_text(
+        f'[cell]\nparameters = "{out / "cell.toml"}"\nsoc_initial = 0.8\ntemp_c = 25.0\n'
+        '[profile]\nkind = "constant"\ncurrent_a = 10.0\nduration_s = 60.0\ndt_s = 1.0\n'
+        "[thermal]\nport_temp_c = 25.0\n"
+    )
+    assert main(["cell", str(run), "--out", str(tmp_path / "x")]) == 0
+    assert main([*args[:5], "--fit", "c_heat_j_per_k=60,10,500", "--validate", str(files["drive"]),
+                 "--out", str(tmp_path / "y")]) == 2  # fmt: skip
+    assert "--validate needs the full calibration" in capsys.readouterr().err
