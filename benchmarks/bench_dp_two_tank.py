@@ -8,9 +8,9 @@ of 0.1: the input grid alone costs 0.012 %), level-set method, re-optimising for
 
 Targets (issue 15 item 6): <= 0.3 % above the optimum at 101 x 101 nodes and <= 0.1 % at
 201 x 201, each in <= 10 s on 2 cores. Before the fix: +1.51 % (118 s) and +0.99 % (438 s).
-Measured after it (2 threads, 1.6 other cores busy): +0.041 % at 101 x 101 (9.6 s CPU,
-23 s wall) and +0.66 % at 201 x 201 (37 s CPU, 106 s wall): 201 x 201 misses both targets
-(one step moves the state by about one cell there; see CHANGELOG).
+Measured after it (2 threads, 1.8 other cores busy): +0.027 % at 101 x 101 (9.4 s CPU,
+43 s wall) and +0.085 % at 201 x 201 (37.5 s CPU, 135 s wall): both accuracy targets met;
+on an idle machine about half the CPU time is the wall time, so 201 x 201 misses 10 s.
 
 Run: ``.venv/bin/python benchmarks/bench_dp_two_tank.py [--sizes 51 101 201] [--inputs 11]``.
 Reports and never asserts (exit 0). Wall time, process CPU time and the cores other

@@ -23,9 +23,9 @@ Final-state constraint methods (``final_constraint``):
   backward reachable set at every step; both the recursion and the forward pass only admit
   inputs whose next state lies in it. Nodes outside the set keep the finite cost of the
   input that comes closest to it, so no infinite or large penalty is interpolated (Elbert
-  et al. 2013); the nodes next to the set get the linear extrapolation of the cost-to-go
-  inside it (at least that closest-approach cost), so that interpolation does not
-  under-estimate the cost along the boundary.
+  et al. 2013); the nodes next to the set get an extrapolation of the cost-to-go inside
+  it (``J(n+e) + |J(n+e) - J(n+2e)|`` averaged over the grid directions), so that
+  interpolation does not under-estimate the cost along the boundary.
 * ``"wall"``: infinite cost outside the target. Interpolation touching an infinite node is
   infinite, so the wall never leaks, but it is conservative by up to one cell per step
   near the boundary of the feasible region.
