@@ -6,6 +6,7 @@ driver asks for. :func:`power_flow` is the architecture's one power flow (the sh
 balance :func:`hevsim.optimal._hev_common.electric_flow` does the machine, regeneration and
 battery); :func:`loss_powers` the energy audit's terms.
 
+The machine cannot turn above the last speed of its map (``motor_speed`` limit).
 Braking: the machine takes at most ``[brakes] regen_fraction`` of the braking torque (brake
 blending), within its generating limit, above ``regen_min_speed_mps`` and within the
 battery's charge limit; the friction brakes take the rest. ``[controller] aux_power_w`` is a
@@ -68,6 +69,14 @@ def build_bev(cfg: BEVConfig) -> BEV:
     )
 
 
+def max_machine_speed_radps(machine: ElectricMachine) -> float:
+    """Highest speed [rad/s] of a map machine's torque-limit curve (no limit for the ideal
+    and constant-efficiency models): the machine cannot turn faster."""
+    if machine.kind != "map":
+        return float("inf")
+    return float(machine.kernel_tables().lim_x[-1])
+
+
 def power_flow(
     bev: BEV,
     wheel_speed_radps: Any,
@@ -89,7 +98,11 @@ def power_flow(
     ok = np.asarray(regen_ok) & (w_wh * bev.tire.radius_m > bev.regen_min_speed_mps)
     flow = electric_flow(bev.motor, bev.battery, t_req, w_m, bev.aux_power_w, soc, dt_s, ok, battery_state)
     shape = np.shape(flow.torque_nm)
-    st = Stage(d_soc=flow.d_soc, cost_kg=np.zeros(shape), infeasible=flow.infeasible, flags=flow.flags)
+    over_speed = np.broadcast_to(w_m > max_machine_speed_radps(bev.motor), shape)
+    flags = {**flow.flags, "motor_speed": over_speed}
+    st = Stage(
+        d_soc=flow.d_soc, cost_kg=np.zeros(shape), infeasible=flow.infeasible | over_speed, flags=flags
+    )
     st.flow = flow
     st.mech = {"w_fd": np.broadcast_to(w_m, shape), "t_fd": np.broadcast_to(t_fd, shape)}
     if detail:
@@ -129,3 +142,8 @@ def power_mode(details: dict[str, float], wheel_force_n: float, v_mid_mps: float
     if wheel_force_n >= 0.0:
         return 1
     return 2 if details["motor_torque_nm"] < 0.0 else 3
+
+
+def capability_controls(bev: BEV) -> tuple[np.ndarray, ...]:
+    """No control input."""
+    return ()

@@ -202,3 +202,8 @@ def power_mode(details: dict[str, float], wheel_force_n: float, v_mid_mps: float
     if details["clutch_closed"] > 0.0:
         return 1
     return 3
+
+
+def capability_controls(veh: ConventionalVehicle) -> tuple[np.ndarray, ...]:
+    """Candidate controls that span the powertrain's capability: every gear."""
+    return (np.arange(1, len(veh.gears) + 1, dtype=np.float64),)

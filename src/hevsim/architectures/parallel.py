@@ -334,3 +334,13 @@ def power_mode(details: dict[str, float], wheel_force_n: float, v_mid_mps: float
 
 POWER_EPS_W = 1e-9
 """Machine electrical power [W] below which the machine counts as idle (power modes)."""
+
+
+CAPABILITY_THROTTLE_POINTS = 11
+"""Throttles per gear (0..1) of the performance envelope's candidates [-] (full throttle
+is on the grid: the envelope needs only the extremes)."""
+
+
+def capability_controls(hev: ParallelHEV) -> tuple[np.ndarray, ...]:
+    """Candidate controls that span the powertrain's capability (performance tests)."""
+    return candidate_controls(hev, CAPABILITY_THROTTLE_POINTS)

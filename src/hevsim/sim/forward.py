@@ -52,6 +52,13 @@ from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
 
 BISECTION_STEPS = 40
 """Bisection steps on the end speed when the powertrain cannot follow the trace [-]."""
+REGEN_CURRENT_RTOL = 1e-3
+"""Relative excess [-] of the charge current over its limit accepted while regenerating. The
+shared bus balance scales regeneration to the charge limit by a fixed number of fixed-point
+iterations (:data:`hevsim.components.bus.REGEN_ITERATIONS`), exact for ideal and
+constant-efficiency machines but leaving ~1e-5 with a map machine and an SOC-dependent pack;
+the DP marks those pairs infeasible (tolerance 1e-6), but for the forward driver that would
+make "brake a little" infeasible while "brake hard" is not."""
 SOURCES = ("fuel", "genset_source", "battery_chemical")
 """Energy sources of the audit; every other term is a sink."""
 INT_COLUMNS = ("gear", "power_mode", "traction_limited")
@@ -92,8 +99,18 @@ class Step:
         )  # fmt: skip
         feasible = ~np.asarray(st.infeasible)
         flow = getattr(st, "flow", None)
-        if flow is not None and self.soc <= self.soc_min:  # empty: no discharge
-            feasible = feasible & (np.asarray(flow.battery_power_w) <= 0.0)
+        if flow is not None:
+            flags = st.flags
+            if "battery_charge_current" in flags:  # see REGEN_CURRENT_RTOL
+                others = np.zeros(np.shape(feasible), dtype=bool)
+                for name, flag in flags.items():
+                    if name != "battery_charge_current":
+                        others = others | np.asarray(flag)
+                limit = self.model.battery.max_charge_current_a
+                near = np.asarray(flow.current_a) >= -limit * (1.0 + REGEN_CURRENT_RTOL)
+                feasible = feasible | (~others & near & (np.asarray(flow.torque_nm) < 0.0))
+            if self.soc <= self.soc_min:  # empty: no discharge
+                feasible = feasible & (np.asarray(flow.battery_power_w) <= 0.0)
         return st, np.broadcast_to(feasible, np.shape(st.d_soc))
 
 

@@ -1,0 +1,301 @@
+"""Performance tests of any forward-simulated architecture: 0-60 mph, 0-100 km/h, 50-80 mph
+passing, quarter mile, top speed and gradeability, each with the limit that binds.
+
+Everything runs through the architecture's one power flow (``power_flow`` of its module in
+:mod:`hevsim.architectures`) over the candidate controls that span its capability
+(``capability_controls``: every gear, full throttle included, for the engine vehicles):
+
+* **Accelerations** are forward runs (:func:`hevsim.sim.forward.simulate_architecture`) on
+  a trace the car cannot follow (a step to a speed far above its top speed): the driver gets,
+  every step, the largest end speed some candidate can give. Times are interpolated
+  linearly between steps; the quarter mile is the time at 402.336 m.
+* **Top speed** is the largest speed at which some candidate still accelerates (by
+  :data:`TOP_SPEED_ACCEL_MPS2`) on the level, and **gradeability** the largest grade at
+  which some candidate holds the given speed (bisection on speed or grade).
+
+The **binding limit** of a test is the component limit that stops the candidates feasible
+just below the limit when asked for a little more (machine torque, engine torque, engine
+speed, battery power or current); for an acceleration, the most frequent one over its steps.
+Tire adhesion is not modelled (no traction limit).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from hevsim.cycles import DriveCycle
+from hevsim.errors import ConfigError
+from hevsim.sim.forward import Step, _battery_state, simulate_architecture
+from hevsim.units import MPS_PER_MPH
+
+QUARTER_MILE_M = 402.336
+"""A quarter of a statute mile [m]."""
+KMH_100_MPS = 100.0 / 3.6
+"""100 km/h [m/s]."""
+WALL_SPEED_MPS = 150.0
+"""Trace speed of the acceleration runs [m/s]: above any road vehicle's top speed."""
+TOP_SPEED_ACCEL_MPS2 = 1e-3
+"""Acceleration [m/s^2] the powertrain must still give at its top speed (so that a vehicle
+without road load has a top speed: the redline or the machine's last speed)."""
+BISECTION_STEPS = 50
+"""Bisection steps of the top-speed and gradeability searches [-]."""
+LIMIT_NAMES = {
+    "motor_torque": "machine torque",
+    "engine_torque": "engine torque",
+    "engine_speed": "engine speed (redline)",
+    "motor_speed": "machine speed (end of its map)",
+    "battery_power": "battery power (OCV^2/4R)",
+    "battery_discharge_current": "battery discharge current",
+    "battery_charge_current": "battery charge current",
+}
+"""Human names of the power-flow limit flags."""
+
+
+@dataclass
+class PerformanceResult:
+    """Performance table (test, value, unit, binding limit) and the acceleration runs."""
+
+    table: pd.DataFrame
+    runs: dict[str, pd.DataFrame]
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def value(self, test: str) -> float:
+        """Value of ``test`` (in its unit)."""
+        return float(self.table.set_index("test")["value"][test])
+
+    def binding(self, test: str) -> str:
+        """Binding limit of ``test``."""
+        return str(self.table.set_index("test").loc[test, "binding_limit"])
+
+    def format(self) -> str:
+        """The table as aligned text."""
+        lines = [f"{'test':<26}{'value':>10}  {'unit':<6} binding limit"]
+        for row in self.table.itertuples():
+            lines.append(f"{row.test:<26}{row.value:>10.4g}  {row.unit:<6} {row.binding_limit}")
+        return "\n".join(lines)
+
+    def save(self, out_dir: str | Path, plots: bool = True) -> Path:
+        """Write performance.csv, performance.md, the acceleration runs (CSV) and, with
+        ``plots``, speed_power.png, atomically."""
+        from hevsim.io import atomic_directory, write_json
+
+        with atomic_directory(out_dir) as tmp:
+            self.table.to_csv(tmp / "performance.csv", index=False)
+            (tmp / "performance.md").write_text("```\n" + self.format() + "\n```\n", encoding="utf-8")
+            write_json(tmp / "metadata.json", self.metadata)
+            for name, ts in self.runs.items():
+                ts.to_csv(tmp / f"{name}.csv", index=False, float_format="%.6g")
+            if plots:
+                plot_speed_power(self.runs, tmp / "speed_power.png")
+        return Path(out_dir)
+
+
+def plot_speed_power(runs: dict[str, pd.DataFrame], path: Path) -> Path:
+    """Speed [mph] and wheel power [kW] against time of the acceleration runs."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
+    for name, ts in runs.items():
+        ax1.plot(ts["time_s"], ts["speed_mph"], label=name)
+        ax2.plot(ts["time_s"], ts["wheel_power_w"] / 1e3, label=name)
+    ax1.set_ylabel("speed [mph]")
+    ax2.set_ylabel("wheel power [kW]")
+    ax2.set_xlabel("time [s]")
+    ax1.legend()
+    ax1.grid(True)
+    ax2.grid(True)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+class _Capability:
+    """Chooses any candidate that can give the demand (the powertrain's envelope)."""
+
+    name = "capability"
+
+    def __init__(self, controls: tuple[np.ndarray, ...]) -> None:
+        self.controls = controls
+
+    def reset(self, soc_initial: float) -> None:
+        """Nothing to reset."""
+
+    def update(self, step: Any, stage: Any) -> None:
+        """Nothing to remember."""
+
+    def choose(self, step: Any) -> tuple[float, ...] | None:
+        """The first feasible candidate (None if none)."""
+        _, feasible = step.evaluate(*self.controls)
+        ok = np.flatnonzero(np.ravel(feasible))
+        if ok.size == 0:
+            return None
+        return tuple(float(np.ravel(c)[ok[0]]) for c in self.controls)
+
+
+def _step(model: Any, mod: Any, v0: float, v1: float, grade: float, dt: float, soc: float) -> Step:
+    body, r = model.body, model.tire.radius_m
+    v_mid = 0.5 * (v0 + v1)
+    f = float(body.road_load_force(v_mid, (v1 - v0) / dt, grade)) if v_mid > 0 else 0.0
+    battery: Any = getattr(model, "battery", None)
+    bs, e_soc = None, 1.0
+    if battery is not None:
+        bs = _battery_state(model, soc, 1.0)
+        e_soc = battery.capacity_ah * 3600.0 * float(np.asarray(bs.ocv_v))
+    return Step(model, mod.power_flow, 0, 0.0, dt, v_mid, v_mid / r, f * r, soc, e_soc, bs, 0.0)
+
+
+def _binding(model: Any, mod: Any, controls: tuple[np.ndarray, ...], lo: Step, hi: Step) -> str:
+    """The limit flags that stop, at ``hi``, the candidates feasible at ``lo``."""
+    _, ok_lo = lo.evaluate(*controls)
+    st, _ = hi.evaluate(*controls)
+    was = np.ravel(ok_lo)
+    hits: Counter[str] = Counter()
+    for name, flag in st.flags.items():
+        n = int(np.count_nonzero(np.ravel(np.broadcast_to(flag, np.shape(ok_lo)))[was]))
+        if n:
+            hits[name] = n
+    if not hits:
+        return "none found"
+    return ", ".join(LIMIT_NAMES.get(n, n) for n, _ in hits.most_common(2))
+
+
+def _steady_limit(model: Any, mod: Any, controls: tuple[np.ndarray, ...], what: str, speed: float,
+                  soc: float, dt: float) -> tuple[float, str]:  # fmt: skip
+    """Largest speed [m/s] (``what = "speed"``) or grade [-] (``"grade"``) held steady."""
+    ctl = _Capability(controls)
+
+    def mk(x: float) -> Step:
+        if what == "speed":  # still able to accelerate a little: the top speed is a powertrain limit
+            return _step(model, mod, x, x + TOP_SPEED_ACCEL_MPS2 * dt, 0.0, dt, soc)
+        return _step(model, mod, speed, speed, x, dt, soc)
+
+    def ok(x: float) -> bool:
+        return ctl.choose(mk(x)) is not None
+
+    lo, hi = 0.0, (WALL_SPEED_MPS if what == "speed" else 1.0)
+    if ok(hi):
+        return hi, "none within the search range"
+    for _ in range(BISECTION_STEPS):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    return lo, _binding(model, mod, controls, mk(lo), mk(hi + max(1e-6, 1e-3 * hi)))
+
+
+def _time_to(ts: pd.DataFrame, column: str, target: float) -> float:
+    t, x = ts["time_s"].to_numpy(), ts[column].to_numpy()
+    i = np.flatnonzero(x >= target)
+    if i.size == 0:
+        return float("nan")
+    j = int(i[0])
+    if j == 0:
+        return float(t[0])
+    return float(t[j - 1] + (target - x[j - 1]) / (x[j] - x[j - 1]) * (t[j] - t[j - 1]))
+
+
+def _run_binding(model: Any, mod: Any, controls: tuple[np.ndarray, ...], ts: pd.DataFrame, dt: float,
+                 soc: float, t_from: float, t_to: float) -> str:  # fmt: skip
+    t, v, socs = (ts[c].to_numpy() for c in ("time_s", "speed_mps", "soc"))
+    names: Counter[str] = Counter()
+    for k in np.flatnonzero((t[:-1] >= t_from - 1e-9) & (t[:-1] < t_to)).tolist():
+        lo = _step(model, mod, v[k], v[k + 1], 0.0, dt, socs[k])
+        hi = _step(model, mod, v[k], v[k + 1] + 1e-3, 0.0, dt, socs[k])
+        names[_binding(model, mod, controls, lo, hi)] += 1
+    return names.most_common(1)[0][0] if names else "none found"
+
+
+def performance(
+    model: Any,
+    *,
+    dt_s: float = 0.2,
+    soc: float | None = None,
+    grade_speed_mps: float = 30.0 * MPS_PER_MPH,
+    duration_s: float = 40.0,
+) -> PerformanceResult:
+    """Performance tests of a vehicle (file path, configuration or built model).
+
+    ``dt_s`` [s]: step of the acceleration runs; ``soc`` [-]: battery SOC (default the
+    configuration's initial SOC; held for the steady tests); ``grade_speed_mps`` [m/s]: speed
+    of the gradeability test; ``duration_s`` [s]: length of the standing-start run.
+    """
+    from hevsim.architectures import architecture
+    from hevsim.config import load_vehicle_config
+
+    if isinstance(model, str | Path):
+        model = load_vehicle_config(model)
+    cfg = getattr(model, "config", model)
+    arch = architecture(cfg.architecture)
+    if not hasattr(arch.power_module(), "capability_controls"):
+        raise ConfigError(
+            f"{cfg.name}: key 'powertrain.architecture' = {cfg.architecture!r} has no performance "
+            "envelope here; expected one of parallel, conventional, bev."
+        )
+    if model is cfg:
+        model = arch.build(cfg)
+    mod = arch.power_module()
+    controls = mod.capability_controls(model)
+    soc0 = float(cfg.simulation.soc_initial if soc is None else soc)
+    n = round(duration_s / dt_s)
+    t = np.arange(n + 1, dtype=np.float64) * dt_s
+    rows: list[dict[str, Any]] = []
+    runs: dict[str, pd.DataFrame] = {}
+
+    def run(name: str, v_start: float, t_end: float) -> pd.DataFrame:
+        m = round(t_end / dt_s)
+        tt = t[: m + 1]
+        cyc = DriveCycle(name, tt, np.where(tt > 0, WALL_SPEED_MPS, v_start).astype(np.float64))
+        res = simulate_architecture(cfg.architecture, model, cyc, dt_s=dt_s, soc_initial=soc0,
+                                    controller=_Capability(controls))  # fmt: skip
+        ts = res.timeseries
+        v = ts["speed_mps"].to_numpy()
+        ts["distance_m"] = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt_s)])
+        runs[name] = ts
+        return ts
+
+    def add(test: str, value: float, unit: str, binding: str) -> None:
+        rows.append({"test": test, "value": value, "unit": unit, "binding_limit": binding})
+
+    ts = run("standing_start", 0.0, duration_s)
+    for test, target in (("0-60 mph", 60.0 * MPS_PER_MPH), ("0-100 km/h", KMH_100_MPS)):
+        tt = _time_to(ts, "speed_mps", target)
+        add(
+            test,
+            tt,
+            "s",
+            _run_binding(model, mod, controls, ts, dt_s, soc0, 0.0, tt) if np.isfinite(tt) else "not reached",
+        )
+    tq = _time_to(ts, "distance_m", QUARTER_MILE_M)
+    add(
+        "quarter mile",
+        tq,
+        "s",
+        _run_binding(model, mod, controls, ts, dt_s, soc0, 0.0, tq) if np.isfinite(tq) else "not reached",
+    )
+    v_q = (
+        float(np.interp(tq, ts["time_s"], ts["speed_mps"])) / MPS_PER_MPH if np.isfinite(tq) else float("nan")
+    )
+    add("quarter mile trap speed", v_q, "mph", "")
+    ts2 = run("passing_50_80_mph", 50.0 * MPS_PER_MPH, duration_s)
+    tp = _time_to(ts2, "speed_mps", 80.0 * MPS_PER_MPH)
+    add(
+        "50-80 mph",
+        tp,
+        "s",
+        _run_binding(model, mod, controls, ts2, dt_s, soc0, 0.0, tp) if np.isfinite(tp) else "not reached",
+    )
+    v_top, why = _steady_limit(model, mod, controls, "speed", 0.0, soc0, dt_s)
+    add("top speed", v_top / MPS_PER_MPH, "mph", why)
+    g_max, why = _steady_limit(model, mod, controls, "grade", grade_speed_mps, soc0, dt_s)
+    add(f"gradeability at {grade_speed_mps / MPS_PER_MPH:.0f} mph", 100.0 * g_max, "%", why)
+    meta = {"config": cfg.name, "architecture": cfg.architecture, "dt_s": dt_s, "soc": soc0,
+            "grade_speed_mps": grade_speed_mps}  # fmt: skip
+    return PerformanceResult(pd.DataFrame(rows), runs, meta)
