@@ -129,6 +129,32 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_performance(args: argparse.Namespace) -> int:
+    from hevsim.config import load_vehicle_config
+    from hevsim.errors import ConfigError
+    from hevsim.sim.performance import performance
+    from hevsim.units import MPS_PER_MPH
+
+    cfg = load_vehicle_config(args.config)
+    checks = (("--dt", args.dt, 1e-3, 10.0), ("--grade-speed-mph", args.grade_speed_mph, 0.0, 300.0),
+              ("--soc", args.soc, 0.0, 1.0))  # fmt: skip
+    for option, value, lo, hi in checks:
+        if value is not None and not lo <= value <= hi:
+            raise ConfigError(
+                f"option {option} = {value:g} is out of range; expected a value between {lo:g} and {hi:g}."
+            )
+    out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_performance"
+    _prepare(args, out, args.config)
+    res = performance(
+        cfg, dt_s=args.dt or 0.2, soc=args.soc, grade_speed_mps=args.grade_speed_mph * MPS_PER_MPH
+    )
+    res.save(out, plots=not args.no_plots)
+    print(f"{cfg.name} ({cfg.architecture}): performance")
+    print(res.format())
+    print(f"results written to {out}/ ({_written(out)})")
+    return 0
+
+
 def _cmd_refinement(args: argparse.Namespace) -> int:
     from hevsim.refinement import format_table, run_refinement
 
@@ -249,7 +275,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
     out = Path(args.out) if args.out else Path("results") / f"calibration_{Path(args.test).stem}"
     _prepare(args, out, args.params, args.test, args.validate)
-    record = CellTestRecord.from_csv(args.test)
+    no_temp_ok = args.fit is None and args.ambient_c is not None  # full calibration: temp_k optional
+    record = CellTestRecord.from_csv(args.test, temperature_k=c_to_k(args.ambient_c) if no_temp_ok else None)
     if args.fit is None:
         return _calibrate_full(args, record, out)
     if args.validate is not None:
@@ -289,7 +316,9 @@ def _calibrate_full(args: argparse.Namespace, record: Any, out: Path) -> int:
         charge_transfer=not args.no_charge_transfer,
     )
     if args.validate is not None:
-        result = validate(result, CellTestRecord.from_csv(args.validate), soc_initial=args.validate_soc)
+        ambient_k = c_to_k(args.ambient_c) if args.ambient_c is not None else None
+        val = CellTestRecord.from_csv(args.validate, temperature_k=ambient_k)
+        result = validate(result, val, soc_initial=args.validate_soc, port_temp_k=ambient_k)
     result.save(out)
     for row in result.parameters.to_dict(orient="records"):
         flag = f"  UNIDENTIFIABLE: {row['flag']}" if row["flag"] else ""
@@ -476,7 +505,9 @@ def _cmd_pack(args: argparse.Namespace) -> int:
 
     out = Path(args.out) if args.out else Path("results") / Path(args.config).stem
     _prepare(args, out, args.config)
-    res = run_pack(args.config, out, cycle=args.cycle, duration_s=args.duration, current_scale=args.current_scale)
+    res = run_pack(
+        args.config, out, cycle=args.cycle, duration_s=args.duration, current_scale=args.current_scale
+    )
     print(format_pack(res))
     print(f"results written to {out}/ ({_written(out)})")
     return 0
@@ -627,6 +658,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_simulate)
 
     p = sub.add_parser(
+        "performance",
+        help="0-60 mph, 0-100 km/h, 50-80 mph, quarter mile, top speed, gradeability (binding limits)",
+    )
+    p.add_argument("config", help="vehicle configuration (TOML): parallel, conventional or bev")
+    p.add_argument("--out", help="results folder (default results/<config>_performance)")
+    _add_force(p, "folder at --out")
+    p.add_argument("--dt", type=float, help="time step of the acceleration runs [s] (default 0.2)")
+    p.add_argument("--soc", type=float, help="battery SOC [-] (default the configuration's initial SOC)")
+    p.add_argument("--grade-speed-mph", type=float, default=30.0, help="speed of the gradeability test [mph]")
+    p.add_argument("--no-plots", action="store_true", help="skip the speed/power plot")
+    p.set_defaults(func=_cmd_performance)
+
+    p = sub.add_parser(
         "refinement", help="run the tutorial's sequential-refinement levels and tabulate MPGGE"
     )
     p.add_argument("--cycle", default="udds", help="cycle name or CSV (default udds)")
@@ -734,8 +778,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("pack", help="battery pack: cells, module thermal ROMs and cooling loop over a cycle")
     p.add_argument("config", help="pack configuration (TOML), e.g. examples/pack.toml")
     p.add_argument("--cycle", default="udds", help="drive cycle of the road-load current (default udds)")
-    p.add_argument("--duration", type=float, default=1369.0, help="duration [s] (the cycle repeats; default 1369)")
-    p.add_argument("--current-scale", type=float, default=1.0, help="factor on the cycle's current (default 1)")
+    p.add_argument(
+        "--duration", type=float, default=1369.0, help="duration [s] (the cycle repeats; default 1369)"
+    )
+    p.add_argument(
+        "--current-scale", type=float, default=1.0, help="factor on the cycle's current (default 1)"
+    )
     p.add_argument("--out", help="results folder (default results/<config>)")
     _add_force(p, "folder at --out")
     p.set_defaults(func=_cmd_pack)
