@@ -45,15 +45,25 @@ def pack_resistance(r_cell_ohm, n_series, n_parallel, r_extra_ohm):
 
 
 @njit(cache=True, inline="always")
-def pack_ocv_r(soc, temp_k, current_sign, n_s, n_p, r_extra, tab):
+def ocv_r_from_tables(soc, temp_k, current_sign, n_s, n_p, r_extra, soc_ax, temp_ax, ocv, r_dis, r_chg):
     """Pack open-circuit voltage [V] and series resistance [ohm] (scalar kernel).
 
-    Tables share the axes (SOC [-], temperature [K]); ``current_sign`` > 0 selects discharge.
+    Cell tables over the shared axes (SOC [-], temperature [K]) as in :class:`PackTables`;
+    ``current_sign`` > 0 selects discharge. Compiled loops unpack the tables once.
     """
-    ocv = n_s * interp2(tab.soc, tab.temperature_k, tab.ocv, soc, temp_k, False)
-    rz = tab.r_discharge if current_sign > 0 else tab.r_charge
-    r = pack_resistance(interp2(tab.soc, tab.temperature_k, rz, soc, temp_k, False), n_s, n_p, r_extra)
-    return ocv, r
+    ocv_v = n_s * interp2(soc_ax, temp_ax, ocv, soc, temp_k, False)
+    rz = r_dis if current_sign > 0 else r_chg
+    r = pack_resistance(interp2(soc_ax, temp_ax, rz, soc, temp_k, False), n_s, n_p, r_extra)
+    return ocv_v, r
+
+
+@njit(cache=True, inline="always")
+def pack_ocv_r(soc, temp_k, current_sign, n_s, n_p, r_extra, tab):
+    """:func:`ocv_r_from_tables` with the pack's :class:`PackTables` (per-step code)."""
+    return ocv_r_from_tables(
+        soc, temp_k, current_sign, n_s, n_p, r_extra, soc_ax=tab.soc, temp_ax=tab.temperature_k,
+        ocv=tab.ocv, r_dis=tab.r_discharge, r_chg=tab.r_charge,
+    )  # fmt: skip
 
 
 @njit(cache=True, inline="always")
@@ -73,10 +83,13 @@ def soc_rate(current_a, coulombic_efficiency, capacity_as):
 def _ocv_r_many(soc, temp_k, current_a, n_s, n_p, r_extra, tab):
     """:func:`pack_ocv_r` over flat arrays of SOC [-], temperature [K] and current [A]
     (its sign picks the resistance) -> (OCV [V], R [ohm])."""
+    soc_ax, temp_ax, ocv_z, r_dis, r_chg = tab.soc, tab.temperature_k, tab.ocv, tab.r_discharge, tab.r_charge
     ocv = np.empty(soc.shape[0])
     r = np.empty(soc.shape[0])
     for i in range(soc.shape[0]):
-        ocv[i], r[i] = pack_ocv_r(soc[i], temp_k[i], current_a[i], n_s, n_p, r_extra, tab)
+        ocv[i], r[i] = ocv_r_from_tables(
+            soc[i], temp_k[i], current_a[i], n_s, n_p, r_extra, soc_ax, temp_ax, ocv_z, r_dis, r_chg
+        )
     return ocv, r
 
 
@@ -84,9 +97,12 @@ def _ocv_r_many(soc, temp_k, current_a, n_s, n_p, r_extra, tab):
 def _current_many(power_w, soc, temp_k, n_s, n_p, r_extra, tab):
     """Discharge-positive current [A] for terminal power [W] over flat arrays: the pack's
     OCV and R (by the sign of the power) and :func:`current_for_power`."""
+    soc_ax, temp_ax, ocv_z, r_dis, r_chg = tab.soc, tab.temperature_k, tab.ocv, tab.r_discharge, tab.r_charge
     out = np.empty(power_w.shape[0])
     for i in range(power_w.shape[0]):
-        ocv, r = pack_ocv_r(soc[i], temp_k[i], power_w[i], n_s, n_p, r_extra, tab)
+        ocv, r = ocv_r_from_tables(
+            soc[i], temp_k[i], power_w[i], n_s, n_p, r_extra, soc_ax, temp_ax, ocv_z, r_dis, r_chg
+        )
         out[i] = current_for_power(power_w[i], ocv, r)
     return out
 

@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from hevsim.components.battery import current_for_power
-from hevsim.components.electric_machine import machine_power, torque_limits
+from hevsim.components.electric_machine import limits_from_curves, machine_power, power_from_map
 
 REGEN_ITERATIONS = 4
 """Fixed-point iterations that scale the machine torque to the battery power limits (exact
@@ -88,6 +88,18 @@ def limit_machine_torque(
 
 
 @njit(cache=True, inline="always")
+def needs_limit(torque_nm, p_el, p_other_w, p_dis_max_w, p_chg_max_w):
+    """True when :func:`limit_machine_torque` would change the torque [N·m] (same tests).
+
+    Hot loops call it first: passing the machine's tables to a function costs reference
+    counting on every array (about 50 ns per call), and the limits rarely bind.
+    """
+    if p_el > p_dis_max_w - p_other_w and torque_nm > 0.0 and p_el > 0.0:
+        return True
+    return p_el < -p_chg_max_w - p_other_w and torque_nm < 0.0 and p_el < 0.0
+
+
+@njit(cache=True, inline="always")
 def bus_current(p_bat_w, ocv_dis_v, r_dis_ohm, ocv_chg_v, r_chg_ohm):
     """Battery current closing the bus at terminal power ``p_bat_w`` [W] (> 0 discharging).
 
@@ -113,13 +125,15 @@ def machine_request_many(
     torque after :func:`regen_torque` [N·m], its electrical power [W] and ``over_torque``
     (a motoring request beyond the machine's limit; motoring torque is not scaled here).
     """
+    lim_x, lim_mot, lim_gen = tab.lim_x, tab.lim_mot, tab.lim_gen  # unpacked once (see
+    eff_x, eff_y, eff_z = tab.eff_x, tab.eff_y, tab.eff_z  # electric_machine.machine_power)
     for i in range(torque_req_nm.shape[0]):
         w = omega_radps[i]
-        t_max, t_min = torque_limits(w, torque_scale, tab)
+        t_max, t_min = limits_from_curves(w, torque_scale, lim_x, lim_mot, lim_gen)
         over_torque[i] = torque_req_nm[i] > t_max * (1.0 + TORQUE_RTOL)
         t = regen_torque(torque_req_nm[i], t_min, regen_ok[i])
         torque_nm[i] = t
-        p_el_w[i] = machine_power(t, w, kind, const_eff, torque_scale, tab)
+        p_el_w[i] = power_from_map(t, w, kind, const_eff, torque_scale, eff_x, eff_y, eff_z)
 
 
 @njit(cache=True)
@@ -137,11 +151,12 @@ def bus_balance_many(
     electrical power [W], battery power [W] and current [A] (:func:`bus_current`).
     """
     for i in range(torque_in_nm.shape[0]):
-        t, p_el, _ = limit_machine_torque(
-            torque_in_nm[i], p_el_in_w[i], omega_radps[i], p_other_w[i], np.inf, p_chg_max_w[i],
-            kind, const_eff, torque_scale, tab,
-        )  # fmt: skip
-        p_bat = p_el + p_other_w[i]
+        t, p_el, p_oth, p_chg = torque_in_nm[i], p_el_in_w[i], p_other_w[i], p_chg_max_w[i]
+        if needs_limit(t, p_el, p_oth, np.inf, p_chg):
+            t, p_el, _ = limit_machine_torque(
+                t, p_el, omega_radps[i], p_oth, np.inf, p_chg, kind, const_eff, torque_scale, tab
+            )
+        p_bat = p_el + p_oth
         ocv = ocv_v[i]
         current_a[i], _, _, over_power[i] = bus_current(p_bat, ocv, r_dis_ohm[i], ocv, r_chg_ohm[i])
         torque_nm[i] = t

@@ -47,63 +47,100 @@ class MachineTables(NamedTuple):
 
 
 @njit(cache=True, inline="always")
-def machine_efficiency(torque_nm, omega_radps, kind, const_eff, torque_scale, tab):
-    """Efficiency [-] (scalar kernel): kind 0 ideal, 1 constant, 2 map over ``|speed|`` x torque.
+def efficiency_from_map(torque_nm, omega_radps, kind, const_eff, torque_scale, eff_x, eff_y, eff_z):
+    """Efficiency [-] (scalar kernel): kind 0 ideal, 1 constant, 2 map over |speed| x torque.
 
     A machine sized by ``torque_scale`` scales the torque axis of its map with it: the map is
     read at ``torque_nm / torque_scale`` (a machine twice as long has twice the torque at the
-    same efficiency, the usual linear scaling of a machine map).
+    same efficiency, the usual linear scaling of a machine map). Arrays as in
+    :class:`MachineTables` (compiled loops unpack the tables once and call this).
     """
     if kind == 0:
         return 1.0
     if kind == 1:
         return const_eff
-    eff = interp2(tab.eff_x, tab.eff_y, tab.eff_z, abs(omega_radps), torque_nm / torque_scale, False)
+    eff = interp2(eff_x, eff_y, eff_z, abs(omega_radps), torque_nm / torque_scale, False)
     return max(eff, MIN_EFFICIENCY)
 
 
 @njit(cache=True, inline="always")
-def machine_power(torque_nm, omega_radps, kind, const_eff, torque_scale, tab):
+def power_from_map(torque_nm, omega_radps, kind, const_eff, torque_scale, eff_x, eff_y, eff_z):
     """Electrical power [W] (> 0 drawn) at torque [N·m] and speed [rad/s] (scalar kernel)."""
-    eta = machine_efficiency(torque_nm, omega_radps, kind, const_eff, torque_scale, tab)
+    eta = efficiency_from_map(torque_nm, omega_radps, kind, const_eff, torque_scale, eff_x, eff_y, eff_z)
     return electrical_power(torque_nm, omega_radps, eta)
 
 
 @njit(cache=True, inline="always")
-def torque_limits(omega_radps, torque_scale, tab):
+def limits_from_curves(omega_radps, torque_scale, lim_x, lim_mot, lim_gen):
     """(max motoring torque >= 0, max generating torque <= 0) [N·m] at speed [rad/s]."""
     w = abs(omega_radps)
     return (
-        torque_scale * interp1(tab.lim_x, tab.lim_mot, w, False),
-        torque_scale * interp1(tab.lim_x, tab.lim_gen, w, False),
+        torque_scale * interp1(lim_x, lim_mot, w, False),
+        torque_scale * interp1(lim_x, lim_gen, w, False),
+    )
+
+
+# The same three kernels reading a :class:`MachineTables` by name. Passing the tuple costs
+# reference counting on each of its arrays per call (about 50 ns): per-step code may use
+# these, loops over many points unpack the tables once and call the kernels above.
+@njit(cache=True, inline="always")
+def machine_efficiency(torque_nm, omega_radps, kind, const_eff, torque_scale, tab):
+    """:func:`efficiency_from_map` with the machine's :class:`MachineTables`."""
+    return efficiency_from_map(
+        torque_nm, omega_radps, kind, const_eff, torque_scale, eff_x=tab.eff_x, eff_y=tab.eff_y,
+        eff_z=tab.eff_z,
+    )  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def machine_power(torque_nm, omega_radps, kind, const_eff, torque_scale, tab):
+    """:func:`power_from_map` with the machine's :class:`MachineTables`."""
+    return power_from_map(
+        torque_nm, omega_radps, kind, const_eff, torque_scale, eff_x=tab.eff_x, eff_y=tab.eff_y,
+        eff_z=tab.eff_z,
+    )  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def torque_limits(omega_radps, torque_scale, tab):
+    """:func:`limits_from_curves` with the machine's :class:`MachineTables`."""
+    return limits_from_curves(
+        omega_radps, torque_scale, lim_x=tab.lim_x, lim_mot=tab.lim_mot, lim_gen=tab.lim_gen
     )
 
 
 @njit(cache=True)
 def _efficiency_many(torque_nm, omega_radps, kind, const_eff, torque_scale, tab):
-    """:func:`machine_efficiency` over flat arrays of torque [N·m] and speed [rad/s]."""
+    """:func:`efficiency_from_map` over flat arrays of torque [N·m] and speed [rad/s]."""
+    eff_x, eff_y, eff_z = tab.eff_x, tab.eff_y, tab.eff_z
     out = np.empty(torque_nm.shape[0])
     for i in range(torque_nm.shape[0]):
-        out[i] = machine_efficiency(torque_nm[i], omega_radps[i], kind, const_eff, torque_scale, tab)
+        out[i] = efficiency_from_map(
+            torque_nm[i], omega_radps[i], kind, const_eff, torque_scale, eff_x, eff_y, eff_z
+        )
     return out
 
 
 @njit(cache=True)
 def _power_many(torque_nm, omega_radps, kind, const_eff, torque_scale, tab):
-    """:func:`machine_power` over flat arrays of torque [N·m] and speed [rad/s] -> [W]."""
+    """:func:`power_from_map` over flat arrays of torque [N·m] and speed [rad/s] -> [W]."""
+    eff_x, eff_y, eff_z = tab.eff_x, tab.eff_y, tab.eff_z
     out = np.empty(torque_nm.shape[0])
     for i in range(torque_nm.shape[0]):
-        out[i] = machine_power(torque_nm[i], omega_radps[i], kind, const_eff, torque_scale, tab)
+        out[i] = power_from_map(
+            torque_nm[i], omega_radps[i], kind, const_eff, torque_scale, eff_x, eff_y, eff_z
+        )
     return out
 
 
 @njit(cache=True)
 def _limits_many(omega_radps, torque_scale, tab):
-    """:func:`torque_limits` over a flat array of speed [rad/s] -> two arrays [N·m]."""
+    """:func:`limits_from_curves` over a flat array of speed [rad/s] -> two arrays [N·m]."""
+    lim_x, lim_mot, lim_gen = tab.lim_x, tab.lim_mot, tab.lim_gen
     t_mot = np.empty(omega_radps.shape[0])
     t_gen = np.empty(omega_radps.shape[0])
     for i in range(omega_radps.shape[0]):
-        t_mot[i], t_gen[i] = torque_limits(omega_radps[i], torque_scale, tab)
+        t_mot[i], t_gen[i] = limits_from_curves(omega_radps[i], torque_scale, lim_x, lim_mot, lim_gen)
     return t_mot, t_gen
 
 

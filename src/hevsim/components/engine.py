@@ -50,35 +50,30 @@ class EngineTables(NamedTuple):
 
 
 @njit(cache=True, inline="always")
-def engine_torque(throttle, omega_radps, use_tmap, stall_radps, redline_radps, torque_scale, tab):
+def torque_from_maps(
+    throttle, omega_radps, use_tmap, stall_radps, redline_radps, torque_scale, tmax_x, tmax_y,
+    tct_x, tct_y, tmap_x, tmap_y, tmap_z,
+):  # fmt: skip
     """Brake torque [N·m] at throttle [0-1] and speed [rad/s] (scalar kernel).
 
     Fired (throttle > 0, stall <= speed <= redline): the torque map at (speed, throttle), or
     throttle x max-torque curve. Unfired: the closed-throttle torque (<= 0) while turning.
+    Arrays as in :class:`EngineTables` (compiled loops unpack the tables once).
     """
     fired = throttle > 0.0 and omega_radps >= stall_radps and omega_radps <= redline_radps
     if fired:
         if use_tmap:
-            return torque_scale * interp2(tab.tmap_x, tab.tmap_y, tab.tmap_z, omega_radps, throttle, False)
-        return torque_scale * throttle * interp1(tab.tmax_x, tab.tmax_y, omega_radps, False)
+            return torque_scale * interp2(tmap_x, tmap_y, tmap_z, omega_radps, throttle, False)
+        return torque_scale * throttle * interp1(tmax_x, tmax_y, omega_radps, False)
     if omega_radps > 0.0:
-        return torque_scale * interp1(tab.tct_x, tab.tct_y, omega_radps, False)
+        return torque_scale * interp1(tct_x, tct_y, omega_radps, False)
     return 0.0
 
 
-@njit(cache=True)
-def _engine_torque_many(throttle, omega_radps, use_tmap, stall_radps, redline_radps, torque_scale, tab):
-    """:func:`engine_torque` over flat arrays of throttle [-] and speed [rad/s] -> [N·m]."""
-    out = np.empty(throttle.shape[0])
-    for i in range(throttle.shape[0]):
-        out[i] = engine_torque(
-            throttle[i], omega_radps[i], use_tmap, stall_radps, redline_radps, torque_scale, tab
-        )
-    return out
-
-
 @njit(cache=True, inline="always")
-def engine_fuel_rate(torque_nm, omega_radps, fired, use_fuel_map, lhv_jpkg, torque_scale, tab):
+def fuel_from_map(
+    torque_nm, omega_radps, fired, use_fuel_map, lhv_jpkg, torque_scale, fuel_x, fuel_y, fuel_z
+):
     """Fuel mass rate [kg/s] at brake torque [N·m] and speed [rad/s] (scalar kernel).
 
     Zero when not fired. With a fuel map the map is read at (speed, torque / torque_scale) and
@@ -88,60 +83,118 @@ def engine_fuel_rate(torque_nm, omega_radps, fired, use_fuel_map, lhv_jpkg, torq
     if not fired or (torque_nm <= 0.0 and not use_fuel_map):
         return 0.0
     if use_fuel_map:
-        rate = torque_scale * interp2(
-            tab.fuel_x, tab.fuel_y, tab.fuel_z, omega_radps, torque_nm / torque_scale, False
-        )
+        rate = torque_scale * interp2(fuel_x, fuel_y, fuel_z, omega_radps, torque_nm / torque_scale, False)
         return max(rate, 0.0)
     return torque_nm * omega_radps / lhv_jpkg
 
 
+@njit(cache=True, inline="always")
+def max_torque_from_curve(omega_radps, torque_scale, tmax_x, tmax_y):
+    """Max brake torque [N·m] of the (scaled) engine at speed [rad/s] (scalar kernel)."""
+    return torque_scale * interp1(tmax_x, tmax_y, omega_radps, False)
+
+
+@njit(cache=True, inline="always")
+def fired_fuel_from_maps(
+    torque_nm, omega_radps, use_fuel_map, lhv_jpkg, stall_radps, redline_radps, torque_scale,
+    tmax_x, tmax_y, fuel_x, fuel_y, fuel_z,
+):  # fmt: skip
+    """:func:`fuel_from_map` of a fired engine [kg/s]; NaN outside stall..redline or above
+    the max-torque curve (an infeasible operating point)."""
+    tmax = max_torque_from_curve(omega_radps, torque_scale, tmax_x, tmax_y)
+    if omega_radps < stall_radps or omega_radps > redline_radps or torque_nm > tmax * (1 + 1e-9):
+        return np.nan
+    return fuel_from_map(
+        torque_nm, omega_radps, True, use_fuel_map, lhv_jpkg, torque_scale, fuel_x, fuel_y, fuel_z
+    )
+
+
+# The same kernels reading an :class:`EngineTables` by name (per-step code); loops over many
+# points unpack the tables once (passing the tuple costs reference counting per call).
+@njit(cache=True, inline="always")
+def engine_torque(throttle, omega_radps, use_tmap, stall_radps, redline_radps, torque_scale, tab):
+    """:func:`torque_from_maps` with the engine's :class:`EngineTables`."""
+    return torque_from_maps(
+        throttle, omega_radps, use_tmap, stall_radps, redline_radps, torque_scale, tmax_x=tab.tmax_x,
+        tmax_y=tab.tmax_y, tct_x=tab.tct_x, tct_y=tab.tct_y, tmap_x=tab.tmap_x, tmap_y=tab.tmap_y,
+        tmap_z=tab.tmap_z,
+    )  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def engine_fuel_rate(torque_nm, omega_radps, fired, use_fuel_map, lhv_jpkg, torque_scale, tab):
+    """:func:`fuel_from_map` with the engine's :class:`EngineTables`."""
+    return fuel_from_map(
+        torque_nm, omega_radps, fired, use_fuel_map, lhv_jpkg, torque_scale, fuel_x=tab.fuel_x,
+        fuel_y=tab.fuel_y, fuel_z=tab.fuel_z,
+    )  # fmt: skip
+
+
 @njit(cache=True)
 def engine_max_torque(omega_radps, torque_scale, tab):
-    """Max brake torque [N·m] of the (scaled) engine at speed [rad/s] (scalar kernel)."""
-    return torque_scale * interp1(tab.tmax_x, tab.tmax_y, omega_radps, False)
+    """:func:`max_torque_from_curve` with the engine's :class:`EngineTables`."""
+    return max_torque_from_curve(omega_radps, torque_scale, tmax_x=tab.tmax_x, tmax_y=tab.tmax_y)
 
 
 @njit(cache=True)
 def fired_fuel_rate(
     torque_nm, omega_radps, use_fuel_map, lhv_jpkg, stall_radps, redline_radps, torque_scale, tab
 ):  # fmt: skip
-    """:func:`engine_fuel_rate` of a fired engine [kg/s]; NaN outside stall..redline or above
-    the max-torque curve (an infeasible operating point)."""
-    tmax = engine_max_torque(omega_radps, torque_scale, tab)
-    if omega_radps < stall_radps or omega_radps > redline_radps or torque_nm > tmax * (1 + 1e-9):
-        return np.nan
-    return engine_fuel_rate(torque_nm, omega_radps, True, use_fuel_map, lhv_jpkg, torque_scale, tab)
+    """:func:`fired_fuel_from_maps` with the engine's :class:`EngineTables`."""
+    return fired_fuel_from_maps(
+        torque_nm, omega_radps, use_fuel_map, lhv_jpkg, stall_radps, redline_radps, torque_scale,
+        tmax_x=tab.tmax_x, tmax_y=tab.tmax_y, fuel_x=tab.fuel_x, fuel_y=tab.fuel_y, fuel_z=tab.fuel_z,
+    )  # fmt: skip
+
+
+@njit(cache=True)
+def _engine_torque_many(throttle, omega_radps, use_tmap, stall_radps, redline_radps, torque_scale, tab):
+    """:func:`torque_from_maps` over flat arrays of throttle [-] and speed [rad/s] -> [N·m]."""
+    tmax_x, tmax_y, tct_x, tct_y = tab.tmax_x, tab.tmax_y, tab.tct_x, tab.tct_y
+    tmap_x, tmap_y, tmap_z = tab.tmap_x, tab.tmap_y, tab.tmap_z
+    out = np.empty(throttle.shape[0])
+    for i in range(throttle.shape[0]):
+        out[i] = torque_from_maps(
+            throttle[i], omega_radps[i], use_tmap, stall_radps, redline_radps, torque_scale, tmax_x,
+            tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z,
+        )  # fmt: skip
+    return out
 
 
 @njit(cache=True)
 def _fired_fuel_rate_many(
     torque_nm, omega_radps, use_fuel_map, lhv_jpkg, stall_radps, redline_radps, torque_scale, tab
 ):  # fmt: skip
-    """:func:`fired_fuel_rate` over flat arrays of torque [N·m] and speed [rad/s] -> [kg/s]."""
+    """:func:`fired_fuel_from_maps` over flat arrays of torque [N·m] and speed [rad/s]."""
+    tmax_x, tmax_y, fuel_x, fuel_y, fuel_z = tab.tmax_x, tab.tmax_y, tab.fuel_x, tab.fuel_y, tab.fuel_z
     out = np.empty(torque_nm.shape[0])
     for i in range(torque_nm.shape[0]):
-        out[i] = fired_fuel_rate(
+        out[i] = fired_fuel_from_maps(
             torque_nm[i], omega_radps[i], use_fuel_map, lhv_jpkg, stall_radps, redline_radps,
-            torque_scale, tab,
+            torque_scale, tmax_x, tmax_y, fuel_x, fuel_y, fuel_z,
         )  # fmt: skip
     return out
 
 
 @njit(cache=True)
 def _fuel_map_rate_many(torque_nm, omega_radps, torque_scale, tab):
-    """:func:`engine_fuel_rate` of a fired engine with a fuel map, no limits -> [kg/s]."""
+    """:func:`fuel_from_map` of a fired engine with a fuel map, no limits -> [kg/s]."""
+    fuel_x, fuel_y, fuel_z = tab.fuel_x, tab.fuel_y, tab.fuel_z
     out = np.empty(torque_nm.shape[0])
     for i in range(torque_nm.shape[0]):
-        out[i] = engine_fuel_rate(torque_nm[i], omega_radps[i], True, True, 1.0, torque_scale, tab)
+        out[i] = fuel_from_map(
+            torque_nm[i], omega_radps[i], True, True, 1.0, torque_scale, fuel_x, fuel_y, fuel_z
+        )
     return out
 
 
 @njit(cache=True)
 def _max_torque_many(omega_radps, torque_scale, tab):
-    """:func:`engine_max_torque` over a flat array of speed [rad/s] -> [N·m]."""
+    """:func:`max_torque_from_curve` over a flat array of speed [rad/s] -> [N·m]."""
+    tmax_x, tmax_y = tab.tmax_x, tab.tmax_y
     out = np.empty(omega_radps.shape[0])
     for i in range(omega_radps.shape[0]):
-        out[i] = engine_max_torque(omega_radps[i], torque_scale, tab)
+        out[i] = max_torque_from_curve(omega_radps[i], torque_scale, tmax_x, tmax_y)
     return out
 
 

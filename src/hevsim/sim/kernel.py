@@ -20,7 +20,13 @@ from numba import njit, prange
 from hevsim.battery.vehicle import battery_ecm, battery_ecm_advance, pack_tables
 from hevsim.components.battery import charge_current, pack_ocv_r
 from hevsim.components.body import aero_force, grade_force, road_load_force, rolling_force
-from hevsim.components.bus import battery_power_limits, bus_current, limit_machine_torque, regen_torque
+from hevsim.components.bus import (
+    battery_power_limits,
+    bus_current,
+    limit_machine_torque,
+    needs_limit,
+    regen_torque,
+)
 from hevsim.components.driveline import gear_output_torque
 from hevsim.components.electric_machine import (
     electrical_power,
@@ -411,10 +417,12 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
         if p_gs_src > 0.0:
             p_other -= ocv * p[GSCUR]
         p_m_el0 = machine_power(t_m, w_m0, p[MKIND], p[MEFF], p[MSCALE], mot)
-        t_m, _, bus_limited = limit_machine_torque(
-            t_m, p_m_el0, w_m0, p_other, p_dis_max, p_chg_max, p[MKIND], p[MEFF], p[MSCALE], mot
-        )
-        limited = 1.0 if bus_limited else 0.0
+        limited = 0.0
+        if needs_limit(t_m, p_m_el0, p_other, p_dis_max, p_chg_max):
+            t_m, _, _ = limit_machine_torque(
+                t_m, p_m_el0, w_m0, p_other, p_dis_max, p_chg_max, p[MKIND], p[MEFF], p[MSCALE], mot
+            )
+            limited = 1.0
         f_motor = gear_output_torque(t_m, ratio, p[GEFF]) / r
         f_fric = max(f_brake_req + min(f_motor, 0.0), 0.0) if u < 0.0 else 0.0
 
