@@ -617,8 +617,9 @@ class RomStepper:
     """Implicit-Euler stepping of one ROM for ``n_modules`` modules at once (states (m, r)).
 
     ``step(cell_heat_w (m, n_cells), fluid_k (m, n_seg), ambient_k (m,))`` advances ``dt_s``
-    with the inputs at the end of the step (as the FEM's implicit Euler). The step matrices are
-    cached per wall film ``h``.
+    with the inputs at the end of the step (as the FEM's implicit Euler). The step is one
+    matrix product ``[z, u] @ [A_d; B_d]^T`` (the step matrices cached per wall film ``h``).
+    :attr:`z` is a view of the state, overwritten by the next step.
     """
 
     def __init__(self, rom: ThermalRom, dt_s: float, wall_h_w_m2k: float, initial_temp_k: float | np.ndarray,
@@ -627,34 +628,43 @@ class RomStepper:
             raise ConfigError(f"thermal ROM: dt_s = {dt_s!r}; expected a positive step [s].")
         self.rom = rom
         self.dt_s = float(dt_s)
+        r, nc, ns = rom.order, rom.n_cells, rom.n_segments
         t0 = np.broadcast_to(np.asarray(initial_temp_k, dtype=float), (n_modules,))
-        self.z = t0[:, None] * rom.unit_state[None, :]
-        self._cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._zu = np.zeros((n_modules, r + nc + ns + 2))  # [z | heat | fluid | ambient | 1]
+        self._zu[:, :r] = t0[:, None] * rom.unit_state[None, :]
+        self._zu[:, -1] = 1.0
+        self._heat = slice(r, r + nc)
+        self._fluid = slice(r + nc, r + nc + ns)
+        self._cache: dict[float, np.ndarray] = {}
         self.set_wall_h(wall_h_w_m2k)
+
+    @property
+    def z(self) -> np.ndarray:
+        """Reduced states (n_modules, r) (a view)."""
+        return self._zu[:, : self.rom.order]
 
     def set_wall_h(self, h: float) -> None:
         h = self.rom.check_wall_h(float(h))
         self.h = h
         if h not in self._cache:
             r = self.rom.order
-            m = np.eye(r) / self.dt_s + self.rom.stiffness(h)
-            inv = np.linalg.inv(m)
-            self._cache[h] = (
-                np.ascontiguousarray((inv / self.dt_s).T),
-                np.ascontiguousarray((inv @ self.rom.inputs(h)).T),
+            inv = np.linalg.inv(np.eye(r) / self.dt_s + self.rom.stiffness(h))
+            self._cache[h] = np.ascontiguousarray(
+                np.vstack([(inv / self.dt_s).T, (inv @ self.rom.inputs(h)).T])
             )
-        self._ad_t, self._bd_t = self._cache[h]
+        self._step_t = self._cache[h]
 
     def step(self, cell_heat_w: np.ndarray, fluid_k: np.ndarray, ambient_k: float | np.ndarray) -> np.ndarray:
-        m = self.z.shape[0]
-        u = np.empty((m, self._bd_t.shape[0]))
-        nc, ns = self.rom.n_cells, self.rom.n_segments
-        u[:, :nc] = cell_heat_w
-        u[:, nc : nc + ns] = fluid_k
-        u[:, nc + ns] = ambient_k
-        u[:, -1] = 1.0
-        self.z = self.z @ self._ad_t + u @ self._bd_t
-        return self.z
+        zu = self._zu
+        zu[:, self._heat] = cell_heat_w
+        zu[:, self._fluid] = fluid_k
+        zu[:, -2] = ambient_k
+        r = self.rom.order
+        if zu.shape[0] == 1:
+            zu[0, :r] = zu[0] @ self._step_t
+        else:
+            zu[:, :r] = zu @ self._step_t
+        return zu[:, :r]
 
 
 def write_rom_fields(rom: ThermalRom, config: str | Path | Any, states: list[tuple[float, np.ndarray]],
