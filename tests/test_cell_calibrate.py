@@ -254,9 +254,10 @@ def test_full_calibration_cli_with_validation(tmp_path: Path, capsys: pytest.Cap
         "drive": (t, cur, val_v, val_t),
     }.items():
         files[name] = tmp_path / f"{name}.csv"
-        pd.DataFrame({"time_s": tt, "current_a": i, "voltage_v": v, "temp_k": temp}).to_csv(
-            files[name], index=False
-        )
+        cols = {"time_s": tt, "current_a": i, "voltage_v": v, "temp_k": temp}
+        if name == "pulse":  # a test without a temperature signal: the ambient stands in
+            del cols["temp_k"]
+        pd.DataFrame(cols).to_csv(files[name], index=False)
     out = tmp_path / "cal"
     args = ["calibrate", "thesis_table_4_1", str(files["pulse"]), "--soc-initial", "0.95"]
     args += ["--capacity-ah", "5", "--ambient-c", "25", "--validate", str(files["drive"])]
@@ -266,6 +267,9 @@ def test_full_calibration_cli_with_validation(tmp_path: Path, capsys: pytest.Cap
     errors = pd.read_csv(out / "validation_errors.csv").set_index("range")
     assert errors.loc["all", "rmse_v"] < 2e-3  # the same cell: noise-level agreement
     assert (out / "validation.png").is_file()
+    fitted = pd.read_csv(out / "parameters.csv")["name"]
+    assert "c_heat_j_per_k" not in set(fitted)  # no temperature, no thermal fit
+    assert '"temperature_measured": false' in (out / "fit.json").read_text()
     run = tmp_path / "run.toml"  # `hevsim cell` runs the written set as it is
     run.write_text(
         f'[cell]\nparameters = "{out / "cell.toml"}"\nsoc_initial = 0.8\ntemp_c = 25.0\n'

@@ -73,7 +73,8 @@ def test_series_and_parallel_share_the_section_classes() -> None:
     for name in shared:
         assert s[name] is p[name], name
     assert s["motor"] is s["generator"] is C.MachineSection
-    assert p["motor_coupling"] is p["final_drive"] is C.GearSection
+    assert p["final_drive"] is C.GearSection
+    assert issubclass(p["motor_coupling"], C.GearSection)  # plus its position (P2 / P3)
     # the parallel module holds no section classes of its own any more
     for old in (
         "BodySection",

@@ -223,3 +223,12 @@ def test_hev_charge_sustaining_exactly() -> None:
     assert soc[-1] == pytest.approx(soc[0], abs=1e-8)
     with pytest.raises(DPInfeasibleError, match=r"soc: 101 nodes.*grid resolution"):
         optimize(EXAMPLES / "series_hev.toml", final_constraint="levelset", **kw)
+
+
+def test_hev_wall_refusal_names_the_grid() -> None:
+    """The wall through the API: the refusal names the SOC grid and says grid resolution."""
+    from hevsim.optimal import optimize
+
+    with pytest.raises(DPInfeasibleError, match=r"soc: 31 nodes, spacing 0\.02.*grid resolution"):
+        cfg = EXAMPLES / "series_hev.toml"
+        optimize(cfg, soc_grid_points=31, input_grid_points=21, final_constraint="wall")

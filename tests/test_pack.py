@@ -110,7 +110,7 @@ off_temp_c = 30.5
 
 def test_energy_balance_with_rom_and_cooling(rom_case: dict[str, Any]) -> None:
     """UDDS-like current (about 3C peaks) on 3 modules of 2s6p with ROMs, chiller on/off control."""
-    cfg = load_pack_config(_rom_pack_toml(rom_case["dir"]))
+    cfg = load_pack_config(_rom_pack_toml(rom_case["dir"], cooling="radiator_bypass = 0\n"))
     pack = Pack(cfg)
     current = 6.0 * 6.0 * cycle_cell_current("udds", duration_s=1369.0)
     res = pack.simulate(current)
@@ -118,7 +118,7 @@ def test_energy_balance_with_rom_and_cooling(rom_case: dict[str, Any]) -> None:
     assert abs(e["residual_relative"]) < 1e-3  # the issue's bound
     assert abs(e["residual_relative"]) < 1e-9  # what the discrete bookkeeping achieves
     assert e["plate_heat_j"] > 0.05 * e["cell_heat_j"] > 0  # the plates take a real share
-    assert e["chiller_j"] > 0 and e["radiator_j"] < 0  # ambient 35 degC heats the radiator's coolant
+    assert e["chiller_j"] > 0 and e["radiator_j"] < 0  # without bypass the 35 degC ambient heats the coolant
     ts = res.timeseries
     assert (ts["chiller_w"] > 0).any() and (ts["chiller_w"] == 0).any()  # on/off control acted
     # the module FEM hot spot (ROM) warms with the cells
@@ -136,6 +136,8 @@ def test_parallel_layout_and_pi_controller(rom_case: dict[str, Any]) -> None:
     res = Pack(load_pack_config(p)).simulate(36.0 * cycle_cell_current("udds", duration_s=600.0))
     assert abs(res.energy["residual_relative"]) < 1e-9
     assert 0 < res.timeseries["chiller_w"].max() <= 3000.0
+    # ambient 35 degC above the coolant: the thermostat bypasses the radiator, the fan is off
+    assert res.timeseries["radiator_w"].min() >= 0.0 and res.timeseries["fan_power_w"].max() == 0.0
 
 
 def test_derating_limits_current(rom_case: dict[str, Any]) -> None:

@@ -280,3 +280,47 @@ def test_series_refuses_a_parallel_controller(tmp_path: Path, capsys: pytest.Cap
         C.load_vehicle_config(bad)
     assert main(["simulate", str(series), "--controller", "ecms", "--out", str(tmp_path / "o")]) == 2
     assert "--controller" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- P2 (machine on the gearbox input)
+@pytest.fixture(scope="module")
+def p2() -> P.ParallelHEV:
+    cfg = P.load_parallel_config(PARALLEL).replace(**{"motor_coupling.position": "p2"})
+    return P.build_parallel_hev(cfg)
+
+
+@pytest.mark.parametrize("cycle", ["udds", "hwfet", "us06"])
+def test_p2_audit_closes_and_the_machine_turns_with_the_gearbox_input(p2: P.ParallelHEV, cycle: str) -> None:
+    r = simulate_parallel(p2, cycle, soc_initial=SOC0, controller="ecms")
+    assert abs(r.energy_audit["residual"]) < 1e-9 * r.value("traction_energy_j")
+    ts = r.timeseries.iloc[:-1]
+    moving = ts["speed_mps"] > 0.5
+    gear = ts["gear"].to_numpy()
+    assert (gear[moving.to_numpy()] >= 1).all()  # P2: a gear in EV mode too
+    ratio = p2.gear_ratios[gear[moving.to_numpy()] - 1]
+    w_fd = (ts["speed_mps"] + 0.5 * ts["accel_mps2"] * r.metadata["dt_s"])[moving] / p2.tire.radius_m
+    w_fd = w_fd.to_numpy() * p2.final_drive.ratio
+    np.testing.assert_allclose(
+        ts["motor_speed_radps"][moving], w_fd * ratio * p2.motor_coupling.ratio, rtol=1e-9
+    )
+    ev = moving & ~ts["engine_on"] & (ts["motor_torque_nm"] > 0)
+    assert ev.any()
+
+
+def test_p2_dp_replay_and_ecms(p2: P.ParallelHEV) -> None:
+    dp = optimize(
+        p2,
+        "udds",
+        soc_grid_points=201,
+        input_grid_points=101,
+        final_soc="sustain",
+        soc_initial=SOC0,
+        progress=False,
+    )
+    assert (dp.timeseries["gear"].iloc[:-1][dp.timeseries["speed_mps"].iloc[:-1] > 1.0] >= 1).all()
+    replay = simulate_parallel(p2, "udds", soc_initial=SOC0, controller=ControlSchedule.from_optimization(dp))
+    assert replay.value("fuel_kg") == pytest.approx(dp.value("fuel_kg"), rel=1e-9)
+    ecms = simulate_parallel(p2, "udds", soc_initial=SOC0, controller="ecms", **ecms_from_dp(dp))
+    lam = -float(np.nanmedian(dp.timeseries["costate_kg_per_soc"]))
+    corrected = ecms.value("fuel_kg") + lam * (dp.value("soc_final") - ecms.value("soc_final"))
+    assert 0.995 * dp.value("fuel_kg") <= corrected <= 1.03 * dp.value("fuel_kg")

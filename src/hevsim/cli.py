@@ -275,14 +275,14 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
     out = Path(args.out) if args.out else Path("results") / f"calibration_{Path(args.test).stem}"
     _prepare(args, out, args.params, args.test, args.validate)
+    if args.fit is not None and args.validate is not None:
+        from hevsim.errors import InputError
+
+        raise InputError("calibrate: --validate needs the full calibration (leave out --fit).")
     no_temp_ok = args.fit is None and args.ambient_c is not None  # full calibration: temp_k optional
     record = CellTestRecord.from_csv(args.test, temperature_k=c_to_k(args.ambient_c) if no_temp_ok else None)
     if args.fit is None:
         return _calibrate_full(args, record, out)
-    if args.validate is not None:
-        from hevsim.errors import InputError
-
-        raise InputError("calibrate: --validate needs the full calibration (leave out --fit).")
     result = calibrate(
         args.params,
         record,

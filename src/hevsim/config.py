@@ -109,6 +109,16 @@ class GearSection:
 
 
 @dataclass(frozen=True)
+class MotorCouplingSection(GearSection):
+    """The parallel HEV's machine coupling: ``position`` "p3" (on the final-drive input, after
+    the gearbox) or "p2" (on the gearbox input, between the clutch and the gearbox), and the
+    fixed gear from the machine: ratio [-] (machine speed / shaft speed) and efficiency [-]."""
+
+    position: str = choice("p3", "p2", "p3")
+    ratio: float = param(1.0, 1e-3, 1e3, "-")
+
+
+@dataclass(frozen=True)
 class GearboxSection:
     """Gearbox ratios [-] (first gear first) and efficiency [-] in the engine path."""
 
@@ -346,7 +356,7 @@ class ParallelHEVConfig(_VehicleConfig):
     gearbox: GearboxSection = field(default_factory=GearboxSection)
     engine: EngineSection = field(default_factory=EngineSection)
     motor: MachineSection = field(default_factory=MachineSection)
-    motor_coupling: GearSection = field(default_factory=lambda: GearSection(ratio=1.0))
+    motor_coupling: MotorCouplingSection = field(default_factory=MotorCouplingSection)
     battery: BatterySection = field(default_factory=BatterySection)
     simulation: SimulationSection = field(default_factory=SimulationSection)
     controller: ControllerSection = field(default_factory=lambda: ControllerSection(kind="electric_assist"))

@@ -3,12 +3,14 @@
 The architecture is the one of the thesis's appendix DP script (Loghavi 2015): an engine
 driving the wheels through a clutch, a multi-speed gearbox and the final drive, and an
 electric machine coupled to the final-drive input through a fixed gear ("EM gear ratio",
-a P3 machine). At a standstill, or when the engine cannot turn at its running speed in the
-chosen gear, the clutch opens and the machine alone drives. The battery sits on the
-machine's DC bus.
+a P3 machine; ``[motor_coupling] position = "p3"``). With ``position = "p2"`` the machine
+sits between the clutch and the gearbox instead (engine - clutch - machine - gearbox): it
+turns with the gearbox input and drives through the gearbox, in EV mode too. At a
+standstill, or when the engine cannot turn at its running speed in the chosen gear, the
+clutch opens and the machine alone drives. The battery sits on the machine's DC bus.
 
 Controls (:data:`CONTROLS`): the gear (1..G) and the engine throttle ``u`` in [0, 1];
-``u = 0`` is engine off with the clutch open (EV mode; the gear is then irrelevant).
+``u = 0`` is engine off with the clutch open (EV mode; the gear is then irrelevant for P3).
 
 :func:`mechanical` and :func:`electrical` are the one vectorised power flow of this
 architecture: (wheel demand, control) -> engine and gearbox operating points, then (state)
@@ -94,6 +96,8 @@ class ParallelHEV:
     motor: ElectricMachine
     motor_coupling: Gear
     battery: BatteryPack
+    machine_position: str = "p3"
+    """``"p3"``: machine on the final-drive input; ``"p2"``: on the gearbox input."""
 
     architecture: typing.ClassVar[str] = ARCHITECTURE
 
@@ -124,6 +128,7 @@ def build_parallel_hev(cfg: ParallelHEVConfig) -> ParallelHEV:
         motor=build_machine(cfg.motor, "motor", base),
         motor_coupling=Gear(ratio=cfg.motor_coupling.ratio, efficiency=cfg.motor_coupling.efficiency),
         battery=build_battery(cfg.battery, base)[0],
+        machine_position=cfg.motor_coupling.position,
     )
 
 
@@ -168,6 +173,7 @@ def mechanical(
     w_fd, t_fd, gi, thr = (
         np.array(a) for a in np.broadcast_arrays(w_fd, t_fd, gi, np.asarray(throttle, dtype=np.float64))
     )
+    p2 = hev.machine_position == "p2"
     w_e = w_fd * hev.gear_ratios[gi]
     fired = thr > 0.0
     can_run = (w_e >= eng.stall_speed_radps) & (w_e <= eng.redline_radps)
@@ -175,22 +181,50 @@ def mechanical(
     t_e = np.zeros(gi.shape)
     fuel = np.zeros(gi.shape)
     t_e_fd = np.zeros(gi.shape)
+    t_in_req = np.zeros(gi.shape)  # P2: gearbox input torque the wheels need
     if on.any():
         t_e[on] = eng.torque(thr[on], w_e[on])
         fuel[on] = eng.fuel_rate(t_e[on], w_e[on])
-        for g, gearbox in enumerate(hev.gears):
-            sel = on & (gi == g)
-            if sel.any():
-                t_e_fd[sel] = gearbox.output_torque(t_e[sel])
+    for g, gearbox in enumerate(hev.gears):
+        sel = gi == g
+        if p2 and sel.any():
+            t_in_req[sel] = gearbox.input_torque(t_fd[sel])
+        sel = sel & on
+        if not p2 and sel.any():
+            t_e_fd[sel] = gearbox.output_torque(t_e[sel])
     bad = (fired & ~can_run) | ~np.isfinite(fuel)
-    if grid_duplicates:
+    if grid_duplicates and not p2:  # P3: with the engine off the gear does not matter
         bad = bad | (~fired & (gi > 0))
+    if p2:  # machine on the gearbox input, after the clutch: it turns with the gearbox input
+        w_em = w_e * hev.motor_coupling.ratio
+        t_em_req = hev.motor_coupling.input_torque(t_in_req - t_e)
+    else:
+        w_em = w_fd * hev.motor_coupling.ratio
+        t_em_req = hev.motor_coupling.input_torque(t_fd - t_e_fd)
     return {
         "gi": gi, "thr": thr, "on": on, "engine_speed": fired & ~can_run, "bad": bad,
         "w_fd": w_fd, "w_e": w_e, "t_e": t_e, "t_e_fd": t_e_fd, "t_fd": t_fd, "fuel": fuel,
-        "w_em": w_fd * hev.motor_coupling.ratio,
-        "t_em_req": hev.motor_coupling.input_torque(t_fd - t_e_fd),
+        "w_em": w_em, "t_em_req": np.asarray(t_em_req, dtype=np.float64),
     }  # fmt: skip
+
+
+def delivered_fd_torque(hev: ParallelHEV, mech: dict[str, Any], t_em: Any) -> tuple[Any, Any]:
+    """(torque the engine and machine deliver at the final-drive input [N·m], gearbox
+    input torque [N·m]) for machine torque ``t_em``: P3 adds the machine after the gearbox,
+    P2 before it (the gearbox carries engine + machine)."""
+    t_em_shaft = np.asarray(hev.motor_coupling.output_torque(t_em), dtype=np.float64)
+    if hev.machine_position != "p2":
+        return mech["t_e_fd"] + t_em_shaft, mech["t_e"]
+    t_in = np.broadcast_to(
+        mech["t_e"] + t_em_shaft, np.broadcast_shapes(np.shape(t_em_shaft), mech["gi"].shape)
+    )
+    gi = np.broadcast_to(mech["gi"], t_in.shape)
+    out = np.zeros(t_in.shape)
+    for g, gearbox in enumerate(hev.gears):
+        sel = gi == g
+        if sel.any():
+            out[sel] = gearbox.output_torque(t_in[sel])
+    return out, t_in
 
 
 def electrical(
@@ -226,10 +260,11 @@ def electrical(
     st.flow = flow
     if detail:
         on, w_e, t_e = m["on"], m["w_e"], m["t_e"]
-        fric = np.minimum(m["t_fd"] - m["t_e_fd"] - hev.motor_coupling.output_torque(flow.torque_nm), 0.0)
+        fric = np.minimum(m["t_fd"] - delivered_fd_torque(hev, m, flow.torque_nm)[0], 0.0)
         shape = np.shape(flow.torque_nm)
+        gear_on = on | (hev.machine_position == "p2")  # P2: the machine drives through the gearbox
         st.details = {
-            "gear": np.where(on, m["gi"] + 1, 0).astype(np.float64),
+            "gear": np.where(gear_on, m["gi"] + 1, 0).astype(np.float64),
             "engine_on": on.astype(np.float64),
             "engine_speed_radps": np.where(on, w_e, 0.0),
             "engine_torque_nm": t_e,
@@ -284,16 +319,20 @@ def loss_powers(hev: ParallelHEV, stage: Any, wheel_speed_radps: Any, wheel_torq
     lhv = hev.engine.fuel_lhv_jpkg
     p_eng = mech["t_e"] * np.where(on, mech["w_e"], 0.0)
     t_em = flow.torque_nm
-    t_em_fd = hev.motor_coupling.output_torque(t_em)
-    fric = np.minimum(mech["t_fd"] - mech["t_e_fd"] - t_em_fd, 0.0)
-    t_fd_total = mech["t_e_fd"] + t_em_fd + fric
+    t_em_shaft = np.asarray(hev.motor_coupling.output_torque(t_em))
+    t_delivered, t_in = delivered_fd_torque(hev, mech, t_em)
+    fric = np.minimum(mech["t_fd"] - t_delivered, 0.0)
+    t_fd_total = t_delivered + fric
     p_wheel = np.asarray(hev.final_drive.output_torque(t_fd_total)) * np.asarray(wheel_speed_radps)
+    w_shaft = mech["w_e"] if hev.machine_position == "p2" else w_fd  # where the coupling delivers
+    p_gearbox_in = t_in * mech["w_e"]
+    p_gearbox_out = (t_delivered if hev.machine_position == "p2" else mech["t_e_fd"]) * w_fd
     return {
         "fuel": mech["fuel"] * lhv,
         "engine_loss": mech["fuel"] * lhv - p_eng,
-        "gearbox_loss": p_eng - mech["t_e_fd"] * w_fd,
+        "gearbox_loss": p_gearbox_in - p_gearbox_out,
         "motor_loss": flow.power_elec_w - t_em * mech["w_em"],
-        "coupling_loss": t_em * mech["w_em"] - t_em_fd * w_fd,
+        "coupling_loss": t_em * mech["w_em"] - t_em_shaft * w_shaft,
         "friction_brakes": -fric * w_fd,
         "final_drive_loss": t_fd_total * w_fd - p_wheel,
         "wheel": p_wheel,
@@ -301,11 +340,16 @@ def loss_powers(hev: ParallelHEV, stage: Any, wheel_speed_radps: Any, wheel_torq
 
 
 def candidate_controls(hev: ParallelHEV, throttle_points: int) -> tuple[np.ndarray, np.ndarray]:
-    """The admissible control grid of one step, flat: engine off once (gear 1, throttle 0)
-    and every gear with ``throttle_points - 1`` throttles in (0, 1]. Returns (gear, throttle)."""
+    """The admissible control grid of one step, flat: P3: engine off once (gear 1, throttle
+    0) and every gear with ``throttle_points - 1`` throttles in (0, 1]; P2: every gear with
+    ``throttle_points`` throttles in [0, 1] (the machine drives through the gearbox, so EV
+    mode has a gear too). Returns (gear, throttle)."""
     n = int(throttle_points)
-    thr = np.linspace(0.0, 1.0, n)[1:]
     G = len(hev.gears)
+    if hev.machine_position == "p2":
+        thr = np.linspace(0.0, 1.0, n)
+        return np.repeat(np.arange(1, G + 1, dtype=np.float64), n), np.tile(thr, G)
+    thr = np.linspace(0.0, 1.0, n)[1:]
     gears = np.repeat(np.arange(1, G + 1, dtype=np.float64), thr.size)
     return np.concatenate([[1.0], gears]), np.concatenate([[0.0], np.tile(thr, G)])
 

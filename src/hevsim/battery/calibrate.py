@@ -54,6 +54,7 @@ class CellTestRecord:
     voltage_v: FloatArray
     temp_k: FloatArray
     source: str = "<in memory>"
+    temperature_measured: bool = True
 
     @property
     def dt_s(self) -> float:
@@ -61,11 +62,25 @@ class CellTestRecord:
         return float(self.time_s[1] - self.time_s[0])
 
     @classmethod
-    def from_csv(cls, path: str | Path) -> CellTestRecord:
-        """Read a test CSV with columns :data:`TEST_COLUMNS`; the step must be uniform (no gaps)."""
-        data = read_csv_columns(path, list(TEST_COLUMNS))
-        cols = [np.ascontiguousarray(data[c]) for c in TEST_COLUMNS]
-        return cls(cols[0], cols[1], cols[2], cols[3], source=str(path))
+    def from_csv(cls, path: str | Path, temperature_k: float | None = None) -> CellTestRecord:
+        """Read a test CSV with columns :data:`TEST_COLUMNS`; the step must be uniform (no gaps).
+
+        Without a ``temp_k`` column the record takes the constant ``temperature_k`` [K] (the
+        ambient) and is marked ``temperature_measured = False``; with ``temperature_k`` None
+        the column is required.
+        """
+        has_temp = True
+        if temperature_k is not None and Path(path).is_file():
+            try:
+                header = pd.read_csv(path, comment="#", skipinitialspace=True, nrows=0).columns
+                has_temp = "temp_k" in [str(c).strip() for c in header]
+            except Exception:  # unreadable: read_csv_columns below reports it
+                has_temp = True
+        names = list(TEST_COLUMNS) if has_temp else list(TEST_COLUMNS[:3])
+        data = read_csv_columns(path, names)
+        cols = [np.ascontiguousarray(data[c]) for c in names]
+        temp = cols[3] if has_temp else np.full(cols[0].shape, float(temperature_k or 0.0))
+        return cls(cols[0], cols[1], cols[2], temp, source=str(path), temperature_measured=has_temp)
 
     def __post_init__(self) -> None:
         t = self.time_s

@@ -9,7 +9,8 @@ ambient air, effectiveness-NTU), the chiller, the modules' cold plates and back.
 * radiator: ``Q_rad = eps C_min (T_loop - T_amb)`` with the counterflow effectiveness
   ``eps(NTU = UA / C_min, C_r = C_min / C_max)`` against the fan's air stream
   (``radiator_air_flow_kg_s``, c_p of air 1006 J/(kg K)); the fan draws ``fan_power_w`` while
-  the pump runs;
+  the radiator cools; with ``radiator_bypass = 1`` (default) a thermostat valve bypasses the
+  radiator when the coolant is colder than the ambient (it would heat the coolant);
 * chiller: removes ``Q_ch`` [W] as the controller asks, at most ``chiller_max_w`` and never
   below the supply temperature ``chiller_min_supply_c``; it draws ``Q_ch / chiller_cop``;
 * supply temperature to the plates ``T_s = T_loop - (Q_rad + Q_ch) / C``; in series the plates
@@ -67,6 +68,7 @@ class CoolingSection:
     radiator_ua_w_k: float = field(default=300.0, metadata={"bounds": (0.0, 1e6), "unit": "W/K"})
     radiator_air_flow_kg_s: float = field(default=0.5, metadata={"bounds": (1e-6, 1e3), "unit": "kg/s"})
     fan_power_w: float = field(default=60.0, metadata={"bounds": (0.0, 1e5), "unit": "W"})
+    radiator_bypass: int = field(default=1, metadata={"bounds": (0, 1)})
     chiller: int = field(default=1, metadata={"bounds": (0, 1)})
     chiller_cop: float = field(default=2.5, metadata={"bounds": (0.1, 20.0), "unit": "-"})
     chiller_max_w: float = field(default=3000.0, metadata={"bounds": (0.0, 1e6), "unit": "W"})
@@ -187,6 +189,8 @@ class CoolingLoop:
             c_min, c_max = min(cap, c_air), max(cap, c_air)
             eps = counterflow_effectiveness(c.radiator_ua_w_k / c_min, c_min / c_max)
             rad = eps * c_min * (self.temp_k - ambient_k)
+            if c.radiator_bypass and rad < 0.0:  # the thermostat valve bypasses a radiator that would heat
+                rad = 0.0
             after = self.temp_k - rad / cap
             ch = self._chiller_demand_w(hottest_k, dt_s)
             ch = min(ch, max(0.0, cap * (after - c_to_k(c.chiller_min_supply_c))))
@@ -200,7 +204,7 @@ class CoolingLoop:
             plates = c.plate_pressure_drop_pa * (qp / q_ref) ** 2
         dp = c.loop_pressure_drop_pa * (q / q_ref) ** 2 + plates
         pump = q * dp / c.pump_efficiency
-        fan = c.fan_power_w if q > 0.0 else 0.0
+        fan = c.fan_power_w if q > 0.0 and rad > 0.0 else 0.0
         loop_amb = c.loop_ua_w_k * (ambient_k - self.temp_k)
         return LoopStep(supply, np.full(self.n, supply), qp, rad, ch, ch / c.chiller_cop, pump, fan, loop_amb)
 

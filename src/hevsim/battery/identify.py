@@ -457,7 +457,7 @@ def identify(
     table = _stats(sol_v, specs, longest)
 
     # thermal: log C_heat, log R_skin with the electrical parameters fixed
-    has_t = bool(np.any(np.abs(t_meas - t_meas[0]) > 1e-9))
+    has_t = record.temperature_measured and bool(np.any(np.abs(t_meas - t_meas[0]) > 1e-9))
     nfev_t = 0
     p_fit = p_el
     if has_t:
@@ -482,6 +482,8 @@ def identify(
         p_fit = with_thermal(sol_t.x)
         table = pd.concat([table, _stats(sol_t, t_specs, np.inf)], ignore_index=True)
     v, t = _simulate(p_fit, record, soc_initial, port_k, port_k)
+    if not record.temperature_measured:
+        t_meas = np.full_like(t, np.nan)
     ts = pd.DataFrame(
         {
             "time_s": record.time_s,
@@ -510,7 +512,8 @@ def identify(
         "port_temp_k": port_k,
         "fitted_soc_range": [float(s_pts.min()), float(s_pts.max())],
         "fitted_current_range_a": [float(record.current_a.min()), float(record.current_a.max())],
-        "fitted_temp_range_k": [float(t_meas.min()), float(t_meas.max())],
+        "fitted_temp_range_k": [float(np.min(record.temp_k)), float(np.max(record.temp_k))],
+        "temperature_measured": record.temperature_measured,
         "rests": len(rests),
         "current_steps": int(r_pts.size),
         "nfev": int(sol_v.nfev) + nfev_t,
@@ -543,6 +546,7 @@ def validate(
         soc_initial = float(np.clip(np.interp(record.voltage_v[0], ocv, p.soc), 0.0, 1.0))
     port_k = float(record.temp_k[0]) if port_temp_k is None else float(port_temp_k)
     v, t = _simulate(p, record, soc_initial, port_k, float(record.temp_k[0]))
+    t_meas = record.temp_k if record.temperature_measured else np.full_like(t, np.nan)
     ts = pd.DataFrame(
         {
             "time_s": record.time_s,
@@ -550,9 +554,9 @@ def validate(
             "voltage_measured_v": record.voltage_v,
             "voltage_fitted_v": v,
             "voltage_error_v": v - record.voltage_v,
-            "temp_measured_k": record.temp_k,
+            "temp_measured_k": t_meas,
             "temp_fitted_k": t,
-            "temp_error_k": t - record.temp_k,
+            "temp_error_k": t - t_meas,
         }
     )
     errors = error_table(ts, p.capacity.c0_c / 3600.0)
@@ -584,7 +588,7 @@ def error_table(ts: pd.DataFrame, capacity_ah: float) -> pd.DataFrame:
                     "mean_v": float(np.mean(err[sel])),
                 }
             )
-    t_err = ts["temp_error_k"].to_numpy()
+    t_err = ts["temp_error_k"].to_numpy()  # NaN without a measured temperature
     rows.append(
         {
             "range": "all",

@@ -280,7 +280,7 @@ class Master:
         """One pass over the participants; returns (end outputs, reject-preferred h, preferred hs)."""
         jacobi = self.opt.algorithm == "jacobi"
         mid = self.opt.max_iterations > 1 and self.opt.hold == "midpoint"
-        cur = {n: dict(v) for n, v in guess.items()}
+        cur = dict(guess)  # entries are replaced, never mutated
         new: dict[str, dict[str, float]] = {}
         prefs: list[float] = []
         for n in self.order:

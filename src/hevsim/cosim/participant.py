@@ -441,10 +441,12 @@ class FMUParticipant(Participant):
                 addLoggerProxy(byref(cb))
                 self._callbacks = cb  # kept alive as long as the instance
                 self.slave.instantiate(callbacks=cb, loggingOn=logging_on)
+                self._raw_do_step = self.slave._functions["fmi2DoStep"]  # FMPy's wrapper costs ~10 µs
                 self.slave.setupExperiment(startTime=t0)
                 self.slave.enterInitializationMode()
                 self._set_params()
                 self.slave.exitInitializationMode()
+        self.vars.bind(self.slave)
 
     # -- the FMI logger: kept for failures, shown from log_level up, all to fmu_log ----------
     def _on_log(self, status: int, category: bytes | str | None, message: bytes | str | None) -> None:
@@ -459,6 +461,11 @@ class FMUParticipant(Participant):
         if status >= self.log_threshold:
             print(f"FMU {self.name!r} {line}", file=sys.stderr, flush=True)
 
+    def _explained(self, exc: Exception, mark: int) -> SimulationError:
+        """``exc`` with the FMU's log messages since message number ``mark``."""
+        lines = [line for n, line in self.log if n > mark]
+        return SimulationError(f"{exc}; FMU log: " + " | ".join(lines))
+
     @contextlib.contextmanager
     def _logged(self) -> Iterator[None]:
         """Re-raise a failure with the FMU's log messages since the call began."""
@@ -466,10 +473,9 @@ class FMUParticipant(Participant):
         try:
             yield
         except Exception as exc:
-            lines = [line for n, line in self.log if n > mark]
-            if not lines:
+            if self._log_count == mark:
                 raise
-            raise SimulationError(f"{exc}; FMU log: " + " | ".join(lines)) from exc
+            raise self._explained(exc, mark) from exc
 
     def _set_params(self) -> None:
         for k, v in self.parameters.items():
@@ -479,11 +485,15 @@ class FMUParticipant(Participant):
                 raise ConfigError(f"participant {self.name!r}: {exc}") from None
 
     def set_inputs(self, values: Mapping[str, Any]) -> None:
+        mark = self._log_count
         try:
-            with self._logged():
-                self.vars.set_inputs(self.slave, values)
+            self.vars.set_inputs(self.slave, values)
         except ConfigError as exc:
             raise ConfigError(f"participant {self.name!r}: {exc}") from None
+        except Exception as exc:
+            if self._log_count != mark:
+                raise self._explained(exc, mark) from exc
+            raise
 
     @property
     def can_save_state(self) -> bool:
@@ -495,13 +505,15 @@ class FMUParticipant(Participant):
         return f'FMU {self.fmu.name} declares canGetAndSet{key}="false" or canSerialize{key}="false"'
 
     def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
+        mark = self._log_count
         try:
-            with self._logged():
-                if self.fmi3:
-                    return self._do_step3(t, h)
-                return self._do_step2(t, h)
-        except Exception:
+            if self.fmi3:
+                return self._do_step3(t, h)
+            return self._do_step2(t, h)
+        except Exception as exc:
             self._failed = True
+            if self._log_count != mark:
+                raise self._explained(exc, mark) from exc
             raise
 
     def _do_step2(self, t: float, h: float) -> tuple[bool, float | None]:
@@ -511,14 +523,12 @@ class FMUParticipant(Participant):
         from fmpy.fmi1 import FMICallException
         from fmpy.fmi2 import fmi2Discard, fmi2LastSuccessfulTime, fmi2Terminated
 
-        try:
-            self.slave.doStep(currentCommunicationPoint=t, communicationStepSize=h)
-        except FMICallException as exc:
-            if exc.status != fmi2Discard:
-                raise
-        else:
+        status = self._raw_do_step(self.slave.component, t, h, 1)  # noSetFMUStatePriorTo.. = true
+        if status <= 1:  # fmi2OK, fmi2Warning
             self.terminate_requested = False
             return True, None
+        if status != fmi2Discard:
+            raise FMICallException(function="fmi2DoStep", status=status)
         try:
             terminated = bool(self.slave.getBooleanStatus(fmi2Terminated))
         except FMICallException:
@@ -580,8 +590,13 @@ class FMUParticipant(Participant):
         return True, None
 
     def get_outputs(self) -> dict[str, Any]:
-        with self._logged():
+        mark = self._log_count
+        try:
             return self.vars.get_outputs(self.slave)
+        except Exception as exc:
+            if self._log_count != mark:
+                raise self._explained(exc, mark) from exc
+            raise
 
     def get_state(self) -> Any:
         if not self.can_state:
@@ -619,11 +634,18 @@ class FMUParticipant(Participant):
             _FAILED_INSTANCES.append(self.slave)
         else:
             self.slave.terminate()
-            self.slave.freeInstance()
+            # Free the instance but keep the shared library loaded: FMPy's freeInstance also
+            # dlcloses it, and unloading a pythonfmu FMU's library while the interpreter keeps
+            # the objects it created (its model module with numba-compiled code) corrupts the
+            # heap at exit ("corrupted double-linked list" in about half the runs).
+            sl = self.slave
+            (sl.fmi3FreeInstance if self.fmi3 else sl.fmi2FreeInstance)(sl.component)
+            _LOADED_LIBRARIES.append(sl)
         self.slave = None
 
 
 _FAILED_INSTANCES: list[Any] = []
+_LOADED_LIBRARIES: list[Any] = []  # freed instances whose FMU libraries stay loaded
 
 LOG_LEVELS = {"all": 0, "warning": 1, "discard": 2, "error": 3, "fatal": 4, "none": 99}
 """``log_level``: FMU log messages of at least this status are printed to stderr."""

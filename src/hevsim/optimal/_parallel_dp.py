@@ -88,13 +88,18 @@ class ParallelFormulation(HEVFormulation):
     def max_wheel_force_n(self, k: int) -> float:
         hev = self.hev
         eng = hev.engine
+        coupling = hev.motor_coupling
+        p2 = hev.machine_position == "p2"
         t_em = float(np.asarray(hev.motor.limits(self.w_em[k])[0]))
-        best = float(hev.motor_coupling.output_torque(t_em))
+        best = 0.0 if p2 else float(coupling.output_torque(t_em))
         for gear in hev.gears:
             w_e = self.w_fd[k] * gear.ratio
+            t_e = 0.0
             if eng.stall_speed_radps <= w_e <= eng.redline_radps:
                 t_e = float(np.asarray(eng.torque(1.0, w_e)))
-                best = max(
-                    best, float(gear.output_torque(t_e)) + float(hev.motor_coupling.output_torque(t_em))
-                )
+            if p2:  # machine on the gearbox input: both through the gearbox
+                t_em_g = float(np.asarray(hev.motor.limits(w_e * coupling.ratio)[0]))
+                best = max(best, float(gear.output_torque(t_e + float(coupling.output_torque(t_em_g)))))
+            elif t_e:
+                best = max(best, float(gear.output_torque(t_e)) + float(coupling.output_torque(t_em)))
         return float(hev.final_drive.output_torque(best)) / hev.tire.radius_m
