@@ -227,6 +227,13 @@ class ThermalRom:
     wall_h_range_w_m2k: tuple[float, float]
     mesh_hash: str
     metadata: dict[str, Any] = field(default_factory=dict)
+    _transposed: dict[str, np.ndarray] = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def _rows_t(self, name: str) -> np.ndarray:
+        """The output rows ``name`` transposed and contiguous (fast products with (m, r) states)."""
+        if name not in self._transposed:
+            self._transposed[name] = np.ascontiguousarray(getattr(self, name).T)
+        return self._transposed[name]
 
     @property
     def order(self) -> int:
@@ -271,18 +278,18 @@ class ThermalRom:
 
     # -- outputs (z may be (r,) or (n_modules, r)) ----------------------------------------------
     def cell_mean_k(self, z: np.ndarray) -> np.ndarray:
-        return np.asarray(z) @ self.out_mean.T
+        return np.asarray(z) @ self._rows_t("out_mean")
 
     def cell_max_k(self, z: np.ndarray) -> np.ndarray:
-        y = np.asarray(z) @ self.out_candidates.T
+        y = np.asarray(z) @ self._rows_t("out_candidates")
         return y.reshape(*y.shape[:-1], self.n_cells, -1).max(axis=-1)
 
     def wall_temp_k(self, z: np.ndarray) -> np.ndarray:
-        return (np.asarray(z) @ self.out_wall.T) / self.wall_area_m2
+        return (np.asarray(z) @ self._rows_t("out_wall")) / self.wall_area_m2
 
     def wall_heat_w(self, z: np.ndarray, fluid_k: np.ndarray, h: float) -> np.ndarray:
         """Heat through each wall segment into the coolant [W]."""
-        return h * (np.asarray(z) @ self.out_wall.T - self.wall_area_m2 * np.asarray(fluid_k))
+        return h * (np.asarray(z) @ self._rows_t("out_wall") - self.wall_area_m2 * np.asarray(fluid_k))
 
     def ambient_heat_w(self, z: np.ndarray, ambient_k: float | np.ndarray) -> np.ndarray:
         """Heat to the ambient (and the fixed [[boundary]] films) [W]."""
