@@ -174,6 +174,10 @@ def test_bad_inputs_exit_2(rom_case: dict[str, Any], tmp_path: Path) -> None:
     )
     with pytest.raises(ConfigError, match="mesh"):
         Pack(load_pack_config(p))
+    from hevsim.cli import main as cli_main
+
+    assert cli_main(["pack", str(p), "--duration", "10", "--out", str(tmp_path / "mismatch")]) == 2
+    assert not (tmp_path / "mismatch").exists()
     # a flow outside the ROM's film range
     fast = _write(d, _rom_pack_toml(d).read_text().replace("flow_l_min = 10.0", "flow_l_min = 40.0"))
     with pytest.raises(ConfigError, match=r"cooling\.flow_l_min"):
@@ -215,3 +219,22 @@ def test_shipped_coolant_example_runs(tmp_path: Path) -> None:
     summary = json.loads((out / "summary.json").read_text())
     assert abs(summary["energy_j"]["residual_relative"]) < 1e-9
     assert load_pack_config(ROOT / "examples" / "pack.toml").module.thermal == "rom"
+
+
+def test_step_interface_equals_simulate() -> None:
+    """One step at a time (the interface a vehicle loop calls) gives the run of simulate(), bit for bit."""
+    d = _pack_dict(
+        module={"n_series": 2, "n_parallel": 3},
+        cells={"capacity_spread": 0.05, "resistance_spread": 0.05, "seed": 4},
+        cooling={"infinite_capacity": 0, "flow_l_min": 5.0, "layout": "parallel"},
+        controller={"kind": "pi", "setpoint_c": 25.2},
+    )
+    current = 18.0 * cycle_cell_current("us06", duration_s=300.0)
+    ref = Pack(pack_config_from_dict(d, "t")).simulate(current)
+    pack = Pack(pack_config_from_dict(d, "t"))
+    start = pack._stored()
+    rows = [pack.step(i)[0] for i in current]
+    for key in ("voltage_v", "loop_temp_k", "chiller_w", "hottest_cell_temp_k", "min_soc"):
+        assert np.array_equal([r[key] for r in rows], ref.timeseries[key].to_numpy())
+    assert pack.energy(start)["residual_j"] == ref.energy["residual_j"]
+    assert ref.timeseries["chiller_w"].max() > 0

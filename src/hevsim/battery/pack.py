@@ -65,6 +65,19 @@ from hevsim.schema import build_config, read_toml
 from hevsim.units import c_to_k
 
 THERMAL_KINDS = ("rom", "coolant")
+#: channels of one pack step (:meth:`Pack.step`), the columns of :attr:`PackResult.timeseries`
+STEP_CHANNELS = (
+    "time_s", "current_request_a", "current_a", "voltage_v", "voltage_avg_v", "power_w", "derating_factor",
+    "hottest_cell_temp_k", "hot_spot_temp_k", "min_soc", "max_soc", "loop_temp_k", "supply_temp_k",
+    "plate_heat_w", "module_ambient_w", "radiator_w", "chiller_w", "chiller_power_w", "pump_power_w",
+    "fan_power_w",
+)  # fmt: skip
+#: energy terms accumulated by :meth:`Pack.step` [J]
+ENERGY_TERMS = (
+    "electrical_out_j", "chemical_change_j", "cell_heat_j", "port_heat_j", "plate_heat_j", "module_ambient_j",
+    "radiator_j", "chiller_j", "loop_ambient_in_j", "pump_work_j", "reservoir_j", "throughput_j",
+    "chiller_electric_j", "fan_electric_j",
+)  # fmt: skip
 _T = {"bounds": (-60.0, 150.0), "unit": "degC"}
 
 
@@ -263,6 +276,9 @@ class Pack:
 
             self.stepper = RomStepper(self.rom, p.dt_s, self.h_plate, t0, n_modules=p.n_modules)
         self.port_k = np.full(self.n_cells, t0)
+        self._tabs = self.params.tables()
+        self._energy_buf = np.zeros(4)
+        self._new_accounts()
 
     # -- construction helpers ----------------------------------------------------------------
     def _check_derating(self, src: str) -> None:
@@ -348,100 +364,88 @@ class Pack:
         }
 
     # -- simulation --------------------------------------------------------------------------------
-    def simulate(self, current_a: Any, *, ambient_temp_c: float | None = None) -> PackResult:
-        """Run the pack over the requested pack current [A] (discharge > 0), one value per
-        ``pack.dt_s`` step; the BMS derates it (module docstring)."""
-        from hevsim.battery.cell import check_cell_domain
+    def _new_accounts(self) -> None:
+        self.acc = dict.fromkeys(ENERGY_TERMS, 0.0)
+        self.time_s = 0.0
+        self._plate_heat = np.zeros(self.cfg.pack.n_modules)
 
-        t_wall0 = time.perf_counter()
-        req = np.asarray(current_a, dtype=float)
-        if req.ndim != 1 or req.size == 0 or not np.all(np.isfinite(req)):
-            raise ConfigError(f"{self.cfg.name}: current profile: expected a non-empty 1-D finite array [A].")
-        if ambient_temp_c is not None:
-            self.ambient_k = c_to_k(ambient_temp_c)
+    def step(
+        self, current_request_a: float, cells_out: np.ndarray | None = None
+    ) -> tuple[dict[str, float], np.ndarray]:
+        """Advance the pack one ``pack.dt_s`` at the requested pack current [A] (discharge > 0),
+        derated by the BMS; returns the step's channels (:data:`STEP_CHANNELS`) and the
+        per-module hot spots [K]. ``cells_out`` (n_cells, 5) receives the per-cell record
+        (current [A], SOC, core temperature [K], port heat [W], voltage [V]). The energy terms
+        accumulate in :attr:`acc` (:meth:`energy` closes the balance)."""
         cfg, m = self.cfg, self.cfg.module
         dt = cfg.pack.dt_s
         n_mod, cpm = cfg.pack.n_modules, self.cells_per_module
-        n_groups = n_mod * m.n_series
-        tabs = self.params.tables()
-        steps = req.size
-        out_cells = np.empty((steps, self.n_cells, 5))
-        energy = np.zeros(4)
-        names = ("time_s", "current_request_a", "current_a", "voltage_v", "voltage_avg_v", "power_w",
-                 "derating_factor", "hottest_cell_temp_k", "hot_spot_temp_k", "min_soc", "max_soc",
-                 "loop_temp_k", "supply_temp_k", "plate_heat_w", "module_ambient_w", "radiator_w",
-                 "chiller_w", "chiller_power_w", "pump_power_w", "fan_power_w")  # fmt: skip
-        rows = {k: np.empty(steps) for k in names}
-        module_hot = np.empty((steps, n_mod))
-        acc = dict.fromkeys(
-            ("electrical_out_j", "chemical_change_j", "cell_heat_j", "port_heat_j", "plate_heat_j",
-             "module_ambient_j", "radiator_j", "chiller_j", "loop_ambient_in_j", "pump_work_j",
-             "reservoir_j", "throughput_j", "chiller_electric_j", "fan_electric_j"), 0.0)  # fmt: skip
-        s0 = self._stored()
-        plate_heat = np.zeros(n_mod)
-        for k in range(steps):
-            hottest = float(self.x[:, STEMP].max())
-            f = self.derating_factor(hottest)
-            lim = f * cfg.pack.max_current_a
-            i_a = float(np.clip(req[k], -lim, lim))
-            loop_step = self.loop.begin_step(hottest, self.ambient_k, dt)
-            inlet = self.loop.series_inlets(loop_step, plate_heat)
-            if self.rom is None:
-                self.port_k = np.repeat(inlet, cpm)
-            v_end, v_avg = pack_step(  # type: ignore[call-arg]
-                self.prm, *tabs, self.x, n_groups, m.n_parallel, i_a, dt, self.port_k, out_cells[k], energy
-            )
-            port_w = out_cells[k, :, 3].reshape(n_mod, cpm)
-            if self.rom is not None:
-                z0 = self.stepper.z
-                fluid = self._fluid_k(inlet, self.rom.wall_temp_k(z0), loop_step.plate_flow_m3_s)
-                z = self.stepper.step(port_w, fluid, self.ambient_k)
-                plate_heat = self.rom.wall_heat_w(z, fluid, self.h_plate).sum(axis=1)
-                mod_amb = self.rom.ambient_heat_w(z, self.ambient_k)
-                self.port_k = self.rom.cell_mean_k(z).ravel()
-                module_hot[k] = self.rom.cell_max_k(z).max(axis=1)
-            else:
-                plate_heat = port_w.sum(axis=1)
-                mod_amb = np.zeros(n_mod)
-                module_hot[k] = out_cells[k, :, 2].reshape(n_mod, cpm).max(axis=1)
-            self.loop.end_step(loop_step, float(plate_heat.sum()), dt)
-            acc["electrical_out_j"] += energy[0]
-            acc["chemical_change_j"] += energy[1]
-            acc["cell_heat_j"] += energy[2]
-            acc["port_heat_j"] += energy[3]
-            acc["plate_heat_j"] += dt * float(plate_heat.sum())
-            acc["module_ambient_j"] += dt * float(np.sum(mod_amb))
-            acc["throughput_j"] += abs(energy[0])
-            if cfg.cooling.infinite_capacity:
-                acc["reservoir_j"] += dt * float(plate_heat.sum())
-            else:
-                acc["radiator_j"] += dt * loop_step.radiator_w
-                acc["chiller_j"] += dt * loop_step.chiller_w
-                acc["loop_ambient_in_j"] += dt * loop_step.loop_ambient_w
-                acc["pump_work_j"] += dt * loop_step.pump_power_w
-                acc["chiller_electric_j"] += dt * loop_step.chiller_power_w
-                acc["fan_electric_j"] += dt * loop_step.fan_power_w
-            soc = out_cells[k, :, 1]
-            for key, val in (
-                ("time_s", (k + 1) * dt), ("current_request_a", req[k]), ("current_a", i_a),
-                ("voltage_v", v_end), ("voltage_avg_v", v_avg), ("power_w", v_avg * i_a),
-                ("derating_factor", f),
-                ("hottest_cell_temp_k", float(out_cells[k, :, 2].max())),
-                ("hot_spot_temp_k", float(module_hot[k].max())), ("min_soc", float(soc.min())),
-                ("max_soc", float(soc.max())), ("loop_temp_k", self.loop.temp_k),
-                ("supply_temp_k", loop_step.supply_k), ("plate_heat_w", float(plate_heat.sum())),
-                ("module_ambient_w", float(np.sum(mod_amb))), ("radiator_w", loop_step.radiator_w),
-                ("chiller_w", loop_step.chiller_w), ("chiller_power_w", loop_step.chiller_power_w),
-                ("pump_power_w", loop_step.pump_power_w), ("fan_power_w", loop_step.fan_power_w),
-            ):  # fmt: skip
-                rows[key][k] = val
-        check_cell_domain(
-            f"pack {cfg.name}", rows["time_s"], rows["current_a"], rows["voltage_v"], out_cells[:, :, 2]
+        out = np.empty((self.n_cells, 5)) if cells_out is None else cells_out
+        energy = self._energy_buf
+        hottest = float(self.x[:, STEMP].max())
+        f = self.derating_factor(hottest)
+        lim = f * cfg.pack.max_current_a
+        i_a = float(np.clip(current_request_a, -lim, lim))
+        loop_step = self.loop.begin_step(hottest, self.ambient_k, dt)
+        inlet = self.loop.series_inlets(loop_step, self._plate_heat)
+        if self.rom is None:
+            self.port_k = np.repeat(inlet, cpm)
+        v_end, v_avg = pack_step(  # type: ignore[call-arg]
+            self.prm, *self._tabs, self.x, n_mod * m.n_series, m.n_parallel, i_a, dt, self.port_k, out, energy
         )
+        port_w = out[:, 3].reshape(n_mod, cpm)
+        if self.rom is not None:
+            fluid = self._fluid_k(inlet, self.rom.wall_temp_k(self.stepper.z), loop_step.plate_flow_m3_s)
+            z = self.stepper.step(port_w, fluid, self.ambient_k)
+            plate_heat = self.rom.wall_heat_w(z, fluid, self.h_plate).sum(axis=1)
+            mod_amb = float(np.sum(self.rom.ambient_heat_w(z, self.ambient_k)))
+            self.port_k = self.rom.cell_mean_k(z).ravel()
+            module_hot = self.rom.cell_max_k(z).max(axis=1)
+        else:
+            plate_heat = port_w.sum(axis=1)
+            mod_amb = 0.0
+            module_hot = out[:, 2].reshape(n_mod, cpm).max(axis=1)
+        self._plate_heat = plate_heat
+        plate_w = float(plate_heat.sum())
+        self.loop.end_step(loop_step, plate_w, dt)
+        acc = self.acc
+        acc["electrical_out_j"] += energy[0]
+        acc["chemical_change_j"] += energy[1]
+        acc["cell_heat_j"] += energy[2]
+        acc["port_heat_j"] += energy[3]
+        acc["plate_heat_j"] += dt * plate_w
+        acc["module_ambient_j"] += dt * mod_amb
+        acc["throughput_j"] += abs(energy[0])
+        if cfg.cooling.infinite_capacity:
+            acc["reservoir_j"] += dt * plate_w
+        else:
+            acc["radiator_j"] += dt * loop_step.radiator_w
+            acc["chiller_j"] += dt * loop_step.chiller_w
+            acc["loop_ambient_in_j"] += dt * loop_step.loop_ambient_w
+            acc["pump_work_j"] += dt * loop_step.pump_power_w
+            acc["chiller_electric_j"] += dt * loop_step.chiller_power_w
+            acc["fan_electric_j"] += dt * loop_step.fan_power_w
+        self.time_s += dt
+        soc = out[:, 1]
+        row = {
+            "time_s": self.time_s, "current_request_a": float(current_request_a), "current_a": i_a,
+            "voltage_v": v_end, "voltage_avg_v": v_avg, "power_w": v_avg * i_a, "derating_factor": f,
+            "hottest_cell_temp_k": float(out[:, 2].max()), "hot_spot_temp_k": float(module_hot.max()),
+            "min_soc": float(soc.min()), "max_soc": float(soc.max()), "loop_temp_k": self.loop.temp_k,
+            "supply_temp_k": loop_step.supply_k, "plate_heat_w": plate_w, "module_ambient_w": mod_amb,
+            "radiator_w": loop_step.radiator_w, "chiller_w": loop_step.chiller_w,
+            "chiller_power_w": loop_step.chiller_power_w, "pump_power_w": loop_step.pump_power_w,
+            "fan_power_w": loop_step.fan_power_w,
+        }  # fmt: skip
+        return row, module_hot
+
+    def energy(self, start: dict[str, float]) -> dict[str, float]:
+        """The energy terms [J] accumulated since the stored energies were ``start``
+        (:meth:`_stored`), with the balance residual (module docstring)."""
         s1 = self._stored()
-        e = dict(acc)
-        for key in s0:
-            e[f"delta_{key}"] = s1[key] - s0[key]
+        e = dict(self.acc)
+        for key in start:
+            e[f"delta_{key}"] = s1[key] - start[key]
         stored = e["delta_cores_j"] + e["delta_modules_j"] + e["delta_loop_j"]
         to_ambient = e["module_ambient_j"] + e["radiator_j"] - e["loop_ambient_in_j"]
         removed = e["chiller_j"] + e["reservoir_j"]
@@ -453,22 +457,50 @@ class Pack:
             - e["pump_work_j"]
         )  # fmt: skip
         e["residual_relative"] = e["residual_j"] / max(e["throughput_j"], 1e-300)
+        return e
+
+    def simulate(self, current_a: Any, *, ambient_temp_c: float | None = None) -> PackResult:
+        """Run the pack over the requested pack current [A] (discharge > 0), one value per
+        ``pack.dt_s`` step (:meth:`step`); the BMS derates it (module docstring)."""
+        from hevsim.battery.cell import check_cell_domain
+
+        t_wall0 = time.perf_counter()
+        req = np.asarray(current_a, dtype=float)
+        if req.ndim != 1 or req.size == 0 or not np.all(np.isfinite(req)):
+            raise ConfigError(f"{self.cfg.name}: current profile: expected a non-empty 1-D finite array [A].")
+        if ambient_temp_c is not None:
+            self.ambient_k = c_to_k(ambient_temp_c)
+        cfg = self.cfg
+        steps, n_mod = req.size, cfg.pack.n_modules
+        out_cells = np.empty((steps, self.n_cells, 5))
+        rows = {k: np.empty(steps) for k in STEP_CHANNELS}
+        module_hot = np.empty((steps, n_mod))
+        self._new_accounts()
+        s0 = self._stored()
+        for k in range(steps):
+            row, module_hot[k] = self.step(req[k], out_cells[k])
+            for key, val in row.items():
+                rows[key][k] = val
+        check_cell_domain(
+            f"pack {cfg.name}", rows["time_s"], rows["current_a"], rows["voltage_v"], out_cells[:, :, 2]
+        )
+        e = self.energy(s0)
         ts = pd.DataFrame(rows)
         for j in range(n_mod):
             ts[f"module{j}_hot_spot_temp_k"] = module_hot[:, j]
         derated = rows["derating_factor"] < 1.0
         metrics = {
-            "duration_s": steps * dt,
+            "duration_s": steps * cfg.pack.dt_s,
             "peak_cell_temp_k": float(out_cells[:, :, 2].max()),
             "peak_hot_spot_temp_k": float(module_hot.max()),
             "final_soc_spread": float(rows["max_soc"][-1] - rows["min_soc"][-1]),
-            "derated_time_s": float(derated.sum() * dt),
+            "derated_time_s": float(derated.sum() * cfg.pack.dt_s),
             "first_derating_s": float(rows["time_s"][derated][0]) if derated.any() else float("nan"),
             "cooling_energy_j": e["pump_work_j"] + e["chiller_electric_j"] + e["fan_electric_j"],
             "energy_balance_relative": e["residual_relative"],
         }
-        meta = {"name": cfg.name, "n_cells": self.n_cells, "thermal": m.thermal, "dt_s": dt,
-                "rom_order": None if self.rom is None else self.rom.order,
+        meta = {"name": cfg.name, "n_cells": self.n_cells, "thermal": cfg.module.thermal,
+                "dt_s": cfg.pack.dt_s, "rom_order": None if self.rom is None else self.rom.order,
                 "elapsed_s": time.perf_counter() - t_wall0}  # fmt: skip
         return PackResult(ts, out_cells, e, metrics, meta)
 
