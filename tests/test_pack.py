@@ -232,7 +232,7 @@ def test_step_interface_equals_simulate() -> None:
     current = 18.0 * cycle_cell_current("us06", duration_s=300.0)
     ref = Pack(pack_config_from_dict(d, "t")).simulate(current)
     pack = Pack(pack_config_from_dict(d, "t"))
-    start = pack._stored()
+    start = pack.stored_energy_j()
     rows = [pack.step(i)[0] for i in current]
     for key in ("voltage_v", "loop_temp_k", "chiller_w", "hottest_cell_temp_k", "min_soc"):
         assert np.array_equal([r[key] for r in rows], ref.timeseries[key].to_numpy())

@@ -353,7 +353,9 @@ class Pack:
         tabs = self.params.tables()
         return float(sum(rc_energy(self.prm[c], tabs[7], tabs[8], self.x[c]) for c in range(self.n_cells)))
 
-    def _stored(self) -> dict[str, float]:
+    def stored_energy_j(self) -> dict[str, float]:
+        """Stored energies [J]: RC capacitors, cell cores (``C_heat T``), module FEMs (ROM ``sum C T``),
+        coolant loop (``M c_p T``); differences of two calls close the balance (:meth:`energy`)."""
         core = float(np.sum(self.prm[:, CHEAT] * self.x[:, STEMP]))
         mod = float(self.rom.stored_j(self.stepper.z).sum()) if self.rom is not None else 0.0
         return {
@@ -441,8 +443,8 @@ class Pack:
 
     def energy(self, start: dict[str, float]) -> dict[str, float]:
         """The energy terms [J] accumulated since the stored energies were ``start``
-        (:meth:`_stored`), with the balance residual (module docstring)."""
-        s1 = self._stored()
+        (:meth:`stored_energy_j`), with the balance residual (module docstring)."""
+        s1 = self.stored_energy_j()
         e = dict(self.acc)
         for key in start:
             e[f"delta_{key}"] = s1[key] - start[key]
@@ -476,7 +478,7 @@ class Pack:
         rows = {k: np.empty(steps) for k in STEP_CHANNELS}
         module_hot = np.empty((steps, n_mod))
         self._new_accounts()
-        s0 = self._stored()
+        s0 = self.stored_energy_j()
         for k in range(steps):
             row, module_hot[k] = self.step(req[k], out_cells[k])
             for key, val in row.items():
