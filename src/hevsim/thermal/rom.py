@@ -342,16 +342,26 @@ def load_rom(
             arrays = {k: np.asarray(data[k]) for k in ThermalRom._ARRAYS}
     except (OSError, ValueError, KeyError) as exc:
         raise InputError(f"{label}: {p} is not a hevsim thermal ROM file ({exc}).") from exc
-    if not isinstance(header, dict) or header.get("format") != ROM_FORMAT:
-        raise InputError(f"{label}: {p} has format {header.get('format')!r}; expected {ROM_FORMAT!r}.")
-    rom = ThermalRom(
-        **arrays,
-        wall_h_range_w_m2k=(float(header["wall_h_range_w_m2k"][0]), float(header["wall_h_range_w_m2k"][1])),
-        b_amb_total=float(header["b_amb_total"]),
-        f_const_total=float(header["f_const_total"]),
-        mesh_hash=str(header["mesh_hash"]),
-        metadata=dict(header.get("metadata", {})),
-    )
+    fmt = header.get("format") if isinstance(header, dict) else None
+    if fmt != ROM_FORMAT:
+        raise InputError(f"{label}: {p} has format {fmt!r}; expected {ROM_FORMAT!r}.")
+    try:
+        rom = ThermalRom(
+            **arrays,
+            wall_h_range_w_m2k=(
+                float(header["wall_h_range_w_m2k"][0]),
+                float(header["wall_h_range_w_m2k"][1]),
+            ),
+            b_amb_total=float(header["b_amb_total"]),
+            f_const_total=float(header["f_const_total"]),
+            mesh_hash=str(header["mesh_hash"]),
+            metadata=dict(header.get("metadata", {})),
+        )
+    except (KeyError, IndexError, TypeError, ValueError) as exc:
+        raise InputError(f"{label}: {p}: the ROM header lacks or mangles {exc}; rebuild the file.") from exc
+    r = rom.order
+    if rom.k_solid.shape != (r, r) or rom.b_heat.shape[0] != r or rom.out_mean.shape[1] != r:
+        raise InputError(f"{label}: {p}: inconsistent ROM arrays (order {r}); rebuild the file.")
     if expected_mesh_hash is not None and rom.mesh_hash != expected_mesh_hash:
         raise ConfigError(
             f"{label}: ROM {p} was built on mesh {rom.mesh_hash[:16]}... "
