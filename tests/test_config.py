@@ -27,6 +27,7 @@ EXAMPLES = {
     "parallel": PARALLEL,
     "conventional": ROOT / "examples" / "conventional_sedan.toml",
     "bev": ROOT / "examples" / "bev.toml",
+    "power_split": ROOT / "examples" / "prius_like_power_split.toml",
 }
 CONFIG_TYPES = {name: spec.config_type for name, spec in C.ARCHITECTURES.items()}
 NUMERIC = (float, int)

@@ -1,9 +1,10 @@
 """Vehicle configuration: one set of section types for every architecture, validated on load.
 
 A vehicle file (TOML) names its topology in ``[powertrain] architecture = "series" |
-"parallel" | "conventional" | "bev"`` and describes its components in shared sections: ``[body]``, ``[tire]``,
-``[final_drive]``, ``[gearbox]``, ``[engine]``, ``[motor]`` / ``[generator]``,
-``[battery]``, ``[simulation]``, ``[controller]``, ... Each section is ONE frozen dataclass
+"parallel" | "conventional" | "bev" | "power_split"`` and describes its components in shared
+sections: ``[body]``, ``[tire]``, ``[final_drive]``, ``[gearbox]``, ``[planetary]``,
+``[engine]``, ``[motor]`` / ``[generator]``, ``[battery]``, ``[simulation]``,
+``[controller]``, ... Each section is ONE frozen dataclass
 below, used by every architecture, with one set of defaults. Every numeric field carries its
 validated range and unit next to it (``field(metadata={"bounds": ..., "unit": ...})``, made
 by :func:`param`); every float must be finite unless the field says ``allow_inf`` (only the
@@ -119,6 +120,16 @@ class MotorCouplingSection(GearSection):
 
 
 @dataclass(frozen=True)
+class PlanetarySection:
+    """One planetary gear set (power split): sun and ring tooth numbers [-]. The planets have
+    ``(ring - sun) / 2`` teeth, so the ring must have more teeth than the sun, by an even
+    number."""
+
+    sun_teeth: int = param(30, 1, 10_000, "-")
+    ring_teeth: int = param(78, 1, 10_000, "-")
+
+
+@dataclass(frozen=True)
 class GearboxSection:
     """Gearbox ratios [-] (first gear first) and efficiency [-] in the engine path."""
 
@@ -210,6 +221,7 @@ class DriverSection:
 
 CONTROLLER_KINDS: tuple[str, ...] = (
     "thermostat", "schedule", "electric_assist", "ecms", "aecms", "shift_schedule", "direct",
+    "power_follower",
 )  # fmt: skip
 """Every ``[controller] kind``; which ones an architecture admits is in
 :data:`hevsim.architectures.ARCHITECTURES` (``controllers``)."""
@@ -232,6 +244,10 @@ class ControllerSection:
     ``downshift_rpm`` schedule, kick-down when the engine cannot give the torque; the engine
     idles, or with ``stop_start = "on"`` stops, when there is no traction demand). BEV:
     ``"direct"`` (the machine gives what the driver asks, within its and the battery's limits).
+    Power split: ``"power_follower"`` (rule-based: EV below ``ev_speed_mps`` and ``ev_power_w``
+    with SOC above ``soc_low``, else the engine gives the demand plus the charging power at its
+    most efficient candidate), ``"ecms"``, ``"aecms"`` (candidates: ``engine_speed_points``
+    engine speeds x ``control_points`` throttles, and engine off).
     """
 
     kind: str = choice("thermostat", *CONTROLLER_KINDS)
@@ -257,6 +273,8 @@ class ControllerSection:
     aecms_ki: float = param(0.2, 0.0, 1e5, "1/s")
     aecms_kinetic_fraction: float = param(0.5, 0.0, 1.0, "-")
     control_points: int = param(101, 2, 100_000, "-")
+    # power split: engine speeds on the candidate grid (with control_points throttles each)
+    engine_speed_points: int = param(12, 2, 10_000, "-")
     # conventional vehicle: engine off instead of idling when there is no traction demand
     stop_start: str = choice("off", "off", "on")
 
@@ -408,6 +426,32 @@ class BEVConfig(_VehicleConfig):
     base_dir: str = "."
 
 
+@dataclass(frozen=True)
+class PowerSplitConfig(_VehicleConfig):
+    """A power-split HEV (Toyota THS style): engine on the planet carrier, generator (MG1) on
+    the sun, motor (MG2, through ``motor_coupling``) and the final drive on the ring."""
+
+    name: str = "power_split"
+    description: str = ""
+    preset: str = ""
+    powertrain: PowertrainSection = field(default_factory=lambda: PowertrainSection("power_split"))
+    body: BodySection = field(default_factory=BodySection)
+    tire: TireSection = field(default_factory=TireSection)
+    final_drive: GearSection = field(default_factory=GearSection)
+    planetary: PlanetarySection = field(default_factory=PlanetarySection)
+    engine: EngineSection = field(default_factory=EngineSection)
+    generator: MachineSection = field(default_factory=MachineSection)
+    motor: MachineSection = field(default_factory=MachineSection)
+    motor_coupling: GearSection = field(default_factory=lambda: GearSection(ratio=1.0))
+    battery: BatterySection = field(default_factory=BatterySection)
+    brakes: BrakesSection = field(default_factory=BrakesSection)
+    simulation: SimulationSection = field(default_factory=SimulationSection)
+    controller: ControllerSection = field(default_factory=lambda: ControllerSection(kind="power_follower"))
+    metrics: MetricsSection = field(default_factory=MetricsSection)
+    fuel: FuelSection = field(default_factory=FuelSection)
+    base_dir: str = "."
+
+
 def _pairs_below(cfg: Any, source: str, pairs: tuple[tuple[str, str], ...]) -> None:
     for lo_key, hi_key in pairs:
         lo, hi = _get(cfg, lo_key), _get(cfg, hi_key)
@@ -496,6 +540,26 @@ def _check_bev(cfg: BEVConfig, source: str) -> None:
         )
 
 
+def _check_power_split(cfg: PowerSplitConfig, source: str) -> None:
+    _check_controller(cfg, source)
+    _pairs_below(cfg, source, (("battery.soc_min", "battery.soc_max"),
+                               ("controller.soc_low", "controller.soc_high"),
+                               ("engine.stall_speed_rpm", "engine.redline_rpm"),
+                               ("planetary.sun_teeth", "planetary.ring_teeth")))  # fmt: skip
+    zs, zr = cfg.planetary.sun_teeth, cfg.planetary.ring_teeth
+    if (zr - zs) % 2:
+        raise ConfigError(
+            f"{source}: keys 'planetary.sun_teeth' = {zs} and 'planetary.ring_teeth' = {zr} do not form a "
+            f"planetary set: the planets would need (ring - sun) / 2 = {(zr - zs) / 2:g} teeth; expected "
+            "tooth numbers whose difference is even."
+        )
+    if cfg.engine.model != "map" or cfg.battery.model == "cell":
+        raise ConfigError(
+            f"{source}: the power split needs 'engine.model' = 'map' (got {cfg.engine.model!r}) and a "
+            f"battery model ideal, rint or table (got {cfg.battery.model!r})."
+        )
+
+
 def _series_required(data: dict[str, Any]) -> tuple[str, ...]:
     genset = data.get("genset", {})
     kind = genset.get("kind", GensetSection.kind) if isinstance(genset, dict) else GensetSection.kind
@@ -556,6 +620,13 @@ register_architecture(ArchitectureSpec(
 register_architecture(ArchitectureSpec(
     "bev", BEVConfig, "hevsim.architectures.bev:build_bev",
     lambda data: ("body", "tire", "final_drive", "motor", "battery"), _check_bev,
+))  # fmt: skip
+
+
+register_architecture(ArchitectureSpec(
+    "power_split", PowerSplitConfig, "hevsim.architectures.power_split:build_power_split",
+    lambda data: ("body", "tire", "final_drive", "planetary", "engine", "generator", "motor", "battery"),
+    _check_power_split,
 ))  # fmt: skip
 
 

@@ -113,6 +113,14 @@ register(Architecture(
 ))  # fmt: skip
 
 
+register(Architecture(
+    name="power_split", module="hevsim.architectures.power_split",
+    controls=("engine_speed_radps", "throttle"),
+    controllers=("power_follower", "ecms", "aecms"), forward="hevsim.sim.forward:simulate_power_split",
+    dp_formulation="hevsim.optimal._power_split_dp:PowerSplitFormulation",
+))  # fmt: skip
+
+
 def architecture(name: str, source: str = "<config>") -> Architecture:
     """The registered architecture ``name``; ConfigError naming the valid ones otherwise."""
     arch = ARCHITECTURES.get(name)

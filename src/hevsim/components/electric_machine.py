@@ -48,7 +48,7 @@ class MachineTables(NamedTuple):
 
 @njit(cache=True, inline="always")
 def efficiency_from_map(torque_nm, omega_radps, kind, const_eff, torque_scale, eff_x, eff_y, eff_z):
-    """Efficiency [-] (scalar kernel): kind 0 ideal, 1 constant, 2 map over |speed| x torque.
+    """Efficiency [-] (scalar kernel): kind 0 ideal, 1 constant, 2 map over ``|speed|`` x torque.
 
     A machine sized by ``torque_scale`` scales the torque axis of its map with it: the map is
     read at ``torque_nm / torque_scale`` (a machine twice as long has twice the torque at the
@@ -255,8 +255,14 @@ class ElectricMachine:
         if rating not in ("cont", "peak"):
             raise InputError(f"{d}: rating {rating!r} is not known; expected 'cont' or 'peak'.")
         lim = d / "torque_limits.csv"
-        mot = Table1D.from_csv(lim, "speed_rad_per_s", f"max_motoring_torque_{rating}_N_m")
-        gen = Table1D.from_csv(lim, "speed_rad_per_s", f"max_generating_torque_{rating}_N_m")
+        header = lim.read_text(encoding="utf-8").split("\n", 1)[0].split(",") if lim.is_file() else []
+        if "max_torque_N_m" in header and f"max_motoring_torque_{rating}_N_m" not in header:
+            # one symmetric curve (ADVISOR generator files, e.g. the Prius MG1): both directions
+            mot = Table1D.from_csv(lim, "speed_rad_per_s", "max_torque_N_m")
+            gen = Table1D(mot.x, -mot.y, source=mot.source)
+        else:
+            mot = Table1D.from_csv(lim, "speed_rad_per_s", f"max_motoring_torque_{rating}_N_m")
+            gen = Table1D.from_csv(lim, "speed_rad_per_s", f"max_generating_torque_{rating}_N_m")
         if mot.x[0] < 0:  # generator tables hold negative speeds: keep the positive half
             keep = mot.x >= 0
             mot = Table1D(mot.x[keep], mot.y[keep], source=mot.source)

@@ -57,6 +57,11 @@ CONTROLLERS: dict[str, ControllerEntry] = {
         "shift_schedule", "hevsim.control.simple:ShiftSchedule", ("upshift_rpm", "downshift_rpm"),
         "conventional: automatic gearbox shift schedule with kick-down",
     ),
+    "power_follower": ControllerEntry(
+        "power_follower", "hevsim.control.parallel:PowerFollower",
+        ("soc_low", "soc_high", "ev_speed_mps", "ev_power_w", "charge_power_w", "control_points"),
+        "power split, rule-based: EV at low load, else the engine's most efficient point at the demand",
+    ),
     "direct": ControllerEntry(
         "direct", "hevsim.control.simple:Direct", (), "BEV: the machine meets the demand"
     ),

@@ -19,8 +19,9 @@ from hevsim.architectures import parallel as P
 from hevsim.errors import ConfigError
 from hevsim.units import rpm_to_radps
 
-Control = tuple[float, float]
-"""(gear [1..G], throttle [-]); throttle 0 is engine off, clutch open."""
+Control = tuple[float, ...]
+"""A control: (gear [1..G], throttle [-]) for the parallel HEV, (engine speed [rad/s],
+throttle [-]) for the power split; throttle 0 is engine off."""
 
 
 def _argmin_feasible(cost: np.ndarray, feasible: np.ndarray) -> int | None:
@@ -31,12 +32,26 @@ def _argmin_feasible(cost: np.ndarray, feasible: np.ndarray) -> int | None:
 
 
 class _GridController:
-    """Shared part: the candidate grid and the ECMS score."""
+    """Shared part: the architecture's candidate grid (``candidate_controls`` of its module)
+    and the ECMS score."""
 
-    def __init__(self, hev: P.ParallelHEV, control_points: int) -> None:
+    def __init__(self, hev: Any, control_points: int) -> None:
+        from hevsim.architectures import architecture
+
         self.hev = hev
-        self.gears, self.throttles = P.candidate_controls(hev, int(control_points))
+        module = architecture(hev.config.architecture).power_module()
+        self.controls: tuple[np.ndarray, ...] = module.candidate_controls(hev, int(control_points))
         self.lhv = hev.engine.fuel_lhv_jpkg
+
+    @property
+    def gears(self) -> np.ndarray:
+        """First control of every candidate (the gear for the parallel HEV)."""
+        return self.controls[0]
+
+    @property
+    def throttles(self) -> np.ndarray:
+        """Last control of every candidate (the throttle)."""
+        return self.controls[-1]
 
     def reset(self, soc_initial: float) -> None:
         """Before a run."""
@@ -50,15 +65,18 @@ class _GridController:
         The battery chemical power is ``-dSOC/dt x Q x OCV`` (the energy the DP's costate
         prices: ``s = -costate x LHV / (Q OCV)``).
         """
-        st, feasible = step.evaluate(self.gears, self.throttles)
+        st, feasible = step.evaluate(*self.controls)
         p_fuel = st.cost_kg / step.dt_s * self.lhv
         p_chem = -st.d_soc / step.dt_s * step.energy_per_soc_j
         return p_fuel + s * p_chem, feasible
 
     def best(self, step: Any, s: float) -> Control | None:
         cost, feasible = self.score(step, s)
-        i = _argmin_feasible(cost, feasible)
-        return None if i is None else (float(self.gears[i]), float(self.throttles[i]))
+        return self.pick(_argmin_feasible(cost, feasible))
+
+    def pick(self, i: int | None) -> Control | None:
+        """Candidate ``i`` as a control tuple (None for None)."""
+        return None if i is None else tuple(float(c[i]) for c in self.controls)
 
 
 class ECMS(_GridController):
@@ -66,7 +84,7 @@ class ECMS(_GridController):
 
     name = "ecms"
 
-    def __init__(self, hev: P.ParallelHEV, equivalence_factor: float, control_points: int) -> None:
+    def __init__(self, hev: Any, equivalence_factor: float, control_points: int) -> None:
         super().__init__(hev, control_points)
         self.s = float(equivalence_factor)
 
@@ -86,7 +104,7 @@ class AdaptiveECMS(_GridController):
 
     name = "aecms"
 
-    def __init__(self, hev: P.ParallelHEV, equivalence_factor: float, aecms_kp: float, aecms_ki: float,
+    def __init__(self, hev: Any, equivalence_factor: float, aecms_kp: float, aecms_ki: float,
                  aecms_kinetic_fraction: float, control_points: int) -> None:  # fmt: skip
         super().__init__(hev, control_points)
         self.s0 = float(equivalence_factor)
@@ -185,14 +203,14 @@ class ElectricAssist(_GridController):
         if feasible[0]:
             return control
         cost, feasible = self.score(step, 0.0)  # fallback: least fuel among the feasible
-        j = _argmin_feasible(cost, feasible)
-        return None if j is None else (float(self.gears[j]), float(self.throttles[j]))
+        return self.pick(_argmin_feasible(cost, feasible))
 
 
 @dataclass
 class ControlSchedule:
-    """Replay a control sequence: ``gear`` [1..G, 0 = engine off] and ``throttle`` [-] per
-    step starting at ``time_s`` [s] (each holds until the next time), e.g. a DP optimum."""
+    """Replay a control sequence: ``gear`` [1..G, 0 = engine off] (the engine speed [rad/s]
+    for the power split) and ``throttle`` [-] per step starting at ``time_s`` [s] (each holds
+    until the next time), e.g. a DP optimum."""
 
     time_s: np.ndarray
     gear: np.ndarray
@@ -210,13 +228,16 @@ class ControlSchedule:
 
     @classmethod
     def from_optimization(cls, result: Any) -> ControlSchedule:
-        """The optimal controls of a parallel-HEV :class:`~hevsim.optimal.OptimizationResult`."""
-        if result.architecture != "parallel":
+        """The optimal controls of a parallel or power-split
+        :class:`~hevsim.optimal.OptimizationResult` (for the power split ``gear`` holds the
+        engine speed [rad/s])."""
+        first = {"parallel": "gear", "power_split": "engine_speed_radps"}.get(result.architecture)
+        if first is None:
             raise ConfigError(
-                f"a control schedule needs a parallel-HEV DP result, got {result.architecture!r}."
+                f"a control schedule needs a parallel or power-split DP result, got {result.architecture!r}."
             )
         ts = result.timeseries
-        return cls(ts["time_s"].to_numpy(), ts["gear"].to_numpy(), ts["engine_throttle"].to_numpy(),
+        return cls(ts["time_s"].to_numpy(), ts[first].to_numpy(), ts["engine_throttle"].to_numpy(),
                    source=f"DP optimum on {result.cycle.name}")  # fmt: skip
 
     def reset(self, soc_initial: float) -> None:
@@ -262,3 +283,53 @@ def ecms_from_costate_csv(path: Any) -> dict[str, float]:
     if s.size == 0:
         raise ConfigError(f"{f}: column 'equivalence_factor' holds no finite value.")
     return {"equivalence_factor": float(np.median(s))}
+
+
+class PowerFollower(_GridController):
+    """Rule-based power follower of the power split (ADVISOR-style).
+
+    EV (engine off) when braking or coasting, or below ``ev_speed_mps`` and ``ev_power_w``
+    with SOC above ``soc_low``. Otherwise the engine gives the wheel power plus a charging
+    power ramping from 0 at ``soc_high`` to ``charge_power_w`` at ``soc_low``: of the feasible
+    candidates within 10 % (at least 1 kW) of that engine power, the one of least fuel; if
+    none, the one of engine power closest to it.
+    """
+
+    name = "power_follower"
+    POWER_BAND = 0.1
+    """Relative band around the target engine power [-]."""
+    POWER_BAND_MIN_W = 1000.0
+    """Smallest band around the target engine power [W]."""
+
+    def __init__(self, hev: Any, soc_low: float, soc_high: float, ev_speed_mps: float, ev_power_w: float,
+                 charge_power_w: float, control_points: int) -> None:  # fmt: skip
+        super().__init__(hev, control_points)
+        self.soc_low, self.soc_high = float(soc_low), float(soc_high)
+        self.ev_speed, self.ev_power, self.charge_power = (
+            float(ev_speed_mps),
+            float(ev_power_w),
+            float(charge_power_w),
+        )
+
+    def choose(self, step: Any) -> Control | None:
+        """EV or the most efficient engine operating point near the target power."""
+        p_dem = step.wheel_torque_nm * step.wheel_speed_radps
+        soc = step.soc
+        low_load = step.v_mid_mps < self.ev_speed and p_dem < self.ev_power
+        st, feasible = step.evaluate(*self.controls)
+        feasible = np.ravel(feasible)
+        ev = np.ravel(np.asarray(self.controls[-1]) == 0.0)
+        if (p_dem <= 0.0 or (soc > self.soc_low and low_load)) and (feasible & ev).any():
+            return self.pick(int(np.flatnonzero(feasible & ev)[0]))
+        frac = float(np.clip((self.soc_high - soc) / (self.soc_high - self.soc_low), 0.0, 1.0))
+        target = max(p_dem, 0.0) + frac * self.charge_power
+        p_eng = np.ravel(st.details["engine_power_w"]) if st.details else None
+        if p_eng is None:
+            st, _ = step.evaluate(*self.controls, detail=True)
+            p_eng = np.ravel(st.details["engine_power_w"])
+        fuel = np.ravel(np.broadcast_to(st.cost_kg, feasible.shape))
+        band = max(self.POWER_BAND * target, self.POWER_BAND_MIN_W)
+        near = feasible & ~ev & (np.abs(p_eng - target) <= band)
+        if near.any():
+            return self.pick(_argmin_feasible(fuel, near))
+        return self.pick(_argmin_feasible(np.abs(p_eng - target), feasible))

@@ -9,7 +9,9 @@ generic solver :func:`hevsim.optimal.solve_dp`. Architectures are looked up by n
 * ``"parallel"``: the thesis appendix's parallel HEV with a multi-speed gearbox
   (:mod:`hevsim.parallel`; inputs gear and engine throttle);
 * ``"series"``: the chapter-2 series HEV (:class:`hevsim.config.SeriesHEVConfig`; input the
-  genset electrical power, engine on its fuel-optimal operating line).
+  genset electrical power, engine on its fuel-optimal operating line);
+* ``"power_split"``: the THS-style power split (:mod:`hevsim.architectures.power_split`;
+  inputs engine speed and throttle; SOC grid 201, charge-sustaining by default).
 
 The result (:class:`OptimizationResult`) holds the optimal time series with operating
 points, powers and the costate (the slope of the cost-to-go with respect to SOC and the
@@ -36,8 +38,9 @@ from hevsim.architectures.parallel import (
     build_parallel_hev,
     load_parallel_config,
 )
+from hevsim.architectures.power_split import PowerSplitHEV
 from hevsim.components.engine import Engine
-from hevsim.config import SeriesHEVConfig, load_config, load_vehicle_config
+from hevsim.config import PowerSplitConfig, SeriesHEVConfig, load_config, load_vehicle_config
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DPInfeasibleError, DPSetupError
 from hevsim.io import atomic_directory, write_json
@@ -143,6 +146,44 @@ def _formulate_series(
     )
 
 
+def _power_split_settings(hev: Any) -> Settings:
+    c = hev.config
+    b = c.battery
+    return Settings(
+        cycle=c.simulation.cycle,
+        soc_min=b.soc_min,
+        soc_max=b.soc_max,
+        soc_points=SERIES_SOC_POINTS,
+        input_points=c.controller.control_points,
+        soc_initial=c.simulation.soc_initial,
+        final_soc="sustain",
+        final_window=(b.soc_min, b.soc_max),
+        soc_tolerance=SERIES_SOC_TOLERANCE,
+        final_constraint="auto",
+    )
+
+
+def _formulate_power_split(
+    hev: Any, cycle: DriveCycle, s: Settings, grid: np.ndarray, target: FinalTarget
+) -> HEVFormulation:
+    from hevsim.optimal._power_split_dp import PowerSplitFormulation
+
+    return PowerSplitFormulation(
+        hev, cycle, soc_grid=grid, throttle_points=s.input_points,
+        speed_points=hev.config.controller.engine_speed_points, soc_initial=s.soc_initial, target=target,
+    )  # fmt: skip
+
+
+def _load_power_split(path: Path) -> Any:
+    return load_vehicle_config(path)
+
+
+def _build_power_split(cfg: Any) -> Any:
+    from hevsim.architectures.power_split import build_power_split
+
+    return build_power_split(cfg)
+
+
 ARCHITECTURES: dict[str, Architecture] = {
     "parallel": Architecture(
         "parallel", ParallelHEVConfig, ParallelHEV, load_parallel_config, build_parallel_hev,
@@ -151,6 +192,10 @@ ARCHITECTURES: dict[str, Architecture] = {
     "series": Architecture(
         "series", SeriesHEVConfig, SeriesHEV, load_config, build_series_hev, _series_settings,
         _formulate_series,
+    ),
+    "power_split": Architecture(
+        "power_split", PowerSplitConfig, PowerSplitHEV, _load_power_split, _build_power_split,
+        _power_split_settings, _formulate_power_split,
     ),
 }  # fmt: skip
 """Architectures with a DP formulation, by the name used in configuration files

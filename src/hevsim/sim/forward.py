@@ -161,6 +161,20 @@ def simulate_bev(
     return simulate_architecture("bev", model, cycle, dt_s, soc_initial, controller, **controller_params)
 
 
+def simulate_power_split(
+    model: Any,
+    cycle: DriveCycle | str | None = None,
+    dt_s: float | None = None,
+    soc_initial: float | None = None,
+    controller: Any = None,
+    **controller_params: Any,
+) -> Any:
+    """Simulate a power-split HEV forward (see :func:`simulate_architecture`)."""
+    return simulate_architecture(
+        "power_split", model, cycle, dt_s, soc_initial, controller, **controller_params
+    )
+
+
 def simulate_architecture(
     name: str,
     model: Any,

@@ -50,6 +50,8 @@ LIMIT_NAMES = {
     "engine_torque": "engine torque",
     "engine_speed": "engine speed (redline)",
     "motor_speed": "machine speed (end of its map)",
+    "generator_torque": "generator (MG1) torque",
+    "generator_speed": "generator (MG1) speed (end of its map)",
     "battery_power": "battery power (OCV^2/4R)",
     "battery_discharge_current": "battery discharge current",
     "battery_charge_current": "battery charge current",
