@@ -7,7 +7,7 @@ Run from the repository root (or anywhere; paths are resolved from this file)::
 What is measured (``time.perf_counter``; loading and the numba cache warm-up excluded):
 
 (a) ``hevsim.optimal.optimize`` on the thesis appendix's parallel HEV
-    (``ParallelHEVConfig()`` = ``examples/parallel_hev.toml``) over the full UDDS at the
+    (``examples/parallel_hev.toml``) over the full UDDS at the
     appendix's resolution: 400 SOC points x 400 throttle points x 5 gears, SOC 0.8 -> final
     window 0.7-0.8, boundary-line final constraint, re-optimising forward pass. End to end:
     stage tables, followability check, backward and forward passes, costate and the
@@ -117,13 +117,14 @@ def main() -> int:
     ap.add_argument("--cycle", default="udds", help="drive cycle (default udds)")
     args = ap.parse_args()
 
+    from hevsim.config import build_vehicle, load_vehicle_config
     from hevsim.optimal import optimize
     from hevsim.optimal._parallel_dp import ParallelFormulation
     from hevsim.optimal.hev import _final_target, _parallel_settings
-    from hevsim.parallel import ParallelHEVConfig, build_parallel_hev
 
     machine_info()
-    hev = build_parallel_hev(ParallelHEVConfig())
+    example = Path(__file__).resolve().parents[1] / "examples" / "parallel_hev.toml"
+    hev = build_vehicle(load_vehicle_config(example))
     o = hev.config.optimization
     print(
         f"\nProblem: appendix parallel HEV on {args.cycle}, {o.soc_grid_points} SOC x "
