@@ -1,0 +1,84 @@
+"""Time one UDDS forward run of every shipped architecture and controller (issue 11).
+
+Run from the repository root (or anywhere; paths are resolved from this file)::
+
+    .venv/bin/python benchmarks/bench_architectures.py [--repeats 3] [--no-fastsim]
+
+For each shipped example (parallel P3 and P2, conventional, BEV, power split) and each
+controller it admits, the median of ``--repeats`` runs of
+``hevsim.sim.forward.simulate_architecture(model, "udds")`` after one warm-up (loading and
+model building excluded), the share of it spent in the architecture's power flow, and the
+ratio to FASTSim 3's ``run_once()`` on its bundled 2016 Prius UDDS when FASTSim is installed
+(issue 11 targets: rule-based <= 1/5, ECMS with >= 50 candidates <= 1/2). The script only
+reports: it always exits 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+from _machine import OtherLoad
+
+REPO = Path(__file__).resolve().parents[1]
+EXAMPLES = {
+    "parallel (P3)": ("examples/parallel_hev.toml", {}),
+    "parallel (P2)": ("examples/parallel_hev.toml", {"motor_coupling.position": "p2"}),
+    "conventional": ("examples/conventional_sedan.toml", {}),
+    "bev": ("examples/bev.toml", {}),
+    "power split": ("examples/prius_like_power_split.toml", {}),
+}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--no-fastsim", action="store_true", help="skip FASTSim even if installed")
+    a = ap.parse_args()
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from hevsim import config as C
+    from hevsim.architectures import architecture
+    from hevsim.control import make_controller
+    from hevsim.cycles import load_cycle
+    from hevsim.sim.forward import simulate_architecture
+
+    fastsim_s = None
+    if not a.no_fastsim:
+        from bench_simulate import bench_fastsim
+
+        f = bench_fastsim(max(a.repeats, 5))
+        if f is not None:
+            fastsim_s = statistics.median(f["run_once"])
+            print(f"FASTSim {f['version']} Prius UDDS run_once(): {fastsim_s * 1e3:.2f} ms")
+        else:
+            print("FASTSim: not importable (pip install 'fastsim>=3'); ratios omitted")
+    cyc = load_cycle("udds")
+    print(f"{'vehicle':<16}{'controller':<17}{'candidates':>11}{'median s':>10}{'ratio':>9}")
+    with OtherLoad() as load:
+        for label, (path, changes) in EXAMPLES.items():
+            cfg = C.load_vehicle_config(REPO / path)
+            if changes:
+                cfg = cfg.replace(**changes)
+            arch = architecture(cfg.architecture)
+            model = arch.build(cfg)
+            for kind in arch.controllers:
+                ctl = make_controller(model, kind)
+                n = len(getattr(ctl, "controls", ((),))[0]) if hasattr(ctl, "controls") else 1
+                simulate_architecture(cfg.architecture, model, cyc, controller=kind)  # warm-up
+                times = []
+                for _ in range(a.repeats):
+                    t0 = time.perf_counter()
+                    simulate_architecture(cfg.architecture, model, cyc, controller=kind)
+                    times.append(time.perf_counter() - t0)
+                med = statistics.median(times)
+                ratio = f"{med / fastsim_s:9.1f}" if fastsim_s else f"{'-':>9}"
+                print(f"{label:<16}{kind:<17}{n:>11}{med:>10.3f}{ratio}")
+    print(load.text())
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
