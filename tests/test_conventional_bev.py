@@ -160,3 +160,21 @@ def test_cli_simulates_both(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert "mpgge" in capsys.readouterr().out
     with pytest.raises(ConfigError, match="no DP formulation"):
         architecture("bev").formulation()
+
+
+def test_simulate_and_simulate_batch_take_every_architecture() -> None:
+    """One entry point: hevsim.sim.simulator.simulate / simulate_batch dispatch by architecture."""
+    from hevsim.sim.simulator import simulate, simulate_batch
+
+    cfg = C.load_vehicle_config(CONVENTIONAL)
+    r = simulate(cfg, "hwfet")
+    assert r.metadata["architecture"] == "conventional" and r.value("fuel_kg") > 0
+    batch = simulate_batch(cfg, {"body.mass_kg": [1200.0, 1500.0, 1800.0]}, "hwfet")
+    fuel = batch.table["fuel_kg"].to_numpy()
+    assert list(batch.table["body.mass_kg"]) == [1200.0, 1500.0, 1800.0]
+    assert np.all(np.diff(fuel) > 0)  # heavier burns more
+    assert fuel[1] == pytest.approx(
+        simulate(cfg.replace(**{"body.mass_kg": 1500.0}), "hwfet").value("fuel_kg")
+    )
+    with pytest.raises(ConfigError, match=r"body\.mass_kg"):
+        simulate_batch(cfg, {"body.mass_kg": [-1.0]}, "hwfet")

@@ -178,6 +178,13 @@ def _plugins(hev: SeriesHEV, grid: DriveCycle, schedule: GensetSchedule | None, 
     return schedule.on_grid(grid.time_s) if schedule is not None else np.zeros((1, 2))
 
 
+def _other_architecture(model: Any) -> str | None:
+    """The architecture name of a non-series configuration or model, else None."""
+    cfg = getattr(model, "config", model)
+    name = getattr(cfg, "architecture", "series")
+    return None if name == "series" or isinstance(model, SeriesHEV) else str(name)
+
+
 def _prepare(
     model: SeriesHEV | VehicleConfig, cycle: DriveCycle | str | None, dt_s: float | None
 ) -> tuple[SeriesHEV, DriveCycle, DriveCycle, float]:
@@ -223,11 +230,25 @@ def simulate(
     configuration's). ``schedule`` replaces the configured supervisory controller by a genset
     schedule (for example a DP optimum). Returns a :class:`SimulationResult`.
 
+    Any other architecture (parallel, conventional, BEV, power split: a configuration or a
+    built model) runs in :func:`hevsim.sim.forward.simulate_architecture` with its configured
+    controller.
+
     Raises :class:`~hevsim.errors.DomainError` when a recorded channel becomes NaN or
     infinite or the SOC leaves [0, 1], and :class:`~hevsim.errors.TrackingError` (holding the
     completed result as ``.result``) when the speed error stays beyond ``tracking``
     (default :data:`~hevsim.sim.checks.TRACKING_BOUND`; None skips that check).
     """
+    other = _other_architecture(model)
+    if other is not None:  # parallel, conventional, BEV, power split: hevsim.sim.forward
+        if schedule is not None:
+            raise ConfigError(
+                f"simulate: a genset schedule is for the series HEV; this is a {other} vehicle (pass a "
+                "controller to hevsim.sim.forward.simulate_architecture instead)."
+            )
+        from hevsim.sim.forward import simulate_architecture
+
+        return simulate_architecture(other, model, cycle, dt_s, soc_initial)
     t_start = time.perf_counter()
     hev, cyc, dt, args = kernel_inputs(model, cycle, dt_s, soc_initial, schedule)
     t_kernel = time.perf_counter()
@@ -375,8 +396,15 @@ def simulate_batch(
 
     ``variants`` maps kernel parameter names (:data:`hevsim.sim.kernel.PARAMS`, e.g.
     ``"mass_kg"``, ``"driver_gain_per_mps"``, ``"soc_initial"``) to arrays of equal length
-    (scalars broadcast). Returns fuel economy and summaries per variant.
+    (scalars broadcast). Returns fuel economy and summaries per variant. For the other
+    architectures the variants are dotted configuration keys (``"body.mass_kg"``) and run one
+    after the other (:func:`hevsim.sim.forward.simulate_batch_architecture`).
     """
+    other = _other_architecture(model)
+    if other is not None:
+        from hevsim.sim.forward import simulate_batch_architecture
+
+        return simulate_batch_architecture(model, variants, cycle, dt_s)
     hev, _cyc, grid, _dt = _prepare(model, cycle, dt_s)
     unknown = [k for k in variants if k not in K.P]
     if unknown:
