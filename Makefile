@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test docs lint refinement bench clean
+.PHONY: setup demo examples test docs lint refinement bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -16,6 +16,11 @@ setup: $(STAMP)
 
 demo: $(STAMP)
 	$(BIN)/hevsim simulate examples/series_hev.toml --cycle udds --out results/series_hev_udds
+
+# the examples' build products (not in git): the native module FMU of examples/cosim_module,
+# rebuilt only if missing or stale (its GUID hashes the generated model data and C sources)
+examples: $(STAMP)
+	$(BIN)/python examples/cosim_module/run_module.py --build-fmu
 
 # test also runs a duplicate-code scan (issue 18): no block of 7+ lines twice in src/hevsim; at
 # 4-6 lines two remain, neither physics: optimal/__init__ vs optimal/dp (__all__), battery/cell

@@ -195,12 +195,10 @@ def test_ssd_bad_input(tmp_path: Path) -> None:
         read_ssp(tmp_path / "corrupt.fmu")
 
 
-def test_cosim_command(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
-    from pathlib import Path
-
+def test_cosim_command(tmp_path, capsys, cosim_module_dir) -> None:  # type: ignore[no-untyped-def]
     from hevsim.cli import main
 
-    ssd = Path(__file__).resolve().parents[1] / "examples" / "cosim_module" / "module.ssd"
+    ssd = cosim_module_dir / "module.ssd"  # the shipped SSD with its FMU built
     assert main(["cosim", str(ssd), "--check"]) == 0
     assert "ok" in capsys.readouterr().out
     bad = tmp_path / "bad.ssd"
@@ -209,16 +207,14 @@ def test_cosim_command(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def
     assert "bad.ssd" in capsys.readouterr().err
 
 
-def test_cosim_command_runs_and_summarises(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+def test_cosim_command_runs_and_summarises(tmp_path, capsys, cosim_module_dir) -> None:  # type: ignore[no-untyped-def]
     """``hevsim cosim CONFIG --out DIR`` on (a 3 s cut of) the shipped module case."""
     import shutil
-    from pathlib import Path
 
     from hevsim.cli import main
 
-    examples = Path(__file__).resolve().parents[1] / "examples"
-    shutil.copytree(examples / "cosim_module", tmp_path / "cosim_module")
-    shutil.copy(examples / "module_thermal.toml", tmp_path / "module_thermal.toml")
+    shutil.copytree(cosim_module_dir, tmp_path / "cosim_module")  # with its FMU built
+    shutil.copy(cosim_module_dir.parent / "module_thermal.toml", tmp_path / "module_thermal.toml")
     ssd = tmp_path / "cosim_module" / "module.ssd"
     ssd.write_text(ssd.read_text().replace('stopTime="300.0"', 'stopTime="3.0"'))
     assert main(["cosim", str(ssd), "--out", str(tmp_path / "out")]) == 0

@@ -17,52 +17,83 @@ from hevsim.cosim.system import run_cosim, run_system
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "cosim_module"
 
 
-def _example():  # type: ignore[no-untyped-def]
-    spec = importlib.util.spec_from_file_location("run_module", EXAMPLE / "run_module.py")
+def _example(folder: Path = EXAMPLE):  # type: ignore[no-untyped-def]
+    """``run_module.py`` of ``folder`` (its systems' relative paths start from ``folder``)."""
+    spec = importlib.util.spec_from_file_location(f"run_module_{abs(hash(folder))}", folder / "run_module.py")
     assert spec is not None and spec.loader is not None
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
 
 
-def test_shipped_ssd_matches_script_and_checks() -> None:
+def test_shipped_ssd_matches_script_and_checks(cosim_module_dir: Path) -> None:
     ex = _example()
     shipped = read_ssd(EXAMPLE / "module.ssd")
     built = ex.module_system()
     assert [c.parameters for c in shipped.components] == [c.parameters for c in built.components]
+    assert [(c.name, c.type, c.source) for c in shipped.components] == [
+        (c.name, c.type, c.source) for c in built.components
+    ]
     assert shipped.connections == built.connections and shipped.master == built.master
-    datacheck(shipped)
+    datacheck(read_ssd(cosim_module_dir / "module.ssd"))  # with the FMU built in the copy
 
 
-def test_shipped_fmu_is_current(tmp_path: Path) -> None:
-    """The shipped module FMU is what ``export_module_fmu`` builds from today's code and data
-    (model script with the embedded cell parameters, variables, units, capabilities)."""
-    import zipfile
+def test_module_fmu_is_built_native_and_rebuilt_only_when_stale(
+    cosim_module_dir: Path, tmp_path: Path
+) -> None:
+    """The FMU is not in git; the example builds the native FMU (no Python inside) when it is
+    missing or stale and leaves a current one alone."""
+    import shutil
+    import subprocess
 
     from fmpy import read_model_description
 
-    ex = _example()
-    fresh = ex.export_module_fmu(tmp_path / "fresh.fmu")
-    shipped = EXAMPLE / ex.FMU
+    from hevsim.battery.native import is_native_fmu
 
-    def script(path: Path) -> str:
-        with zipfile.ZipFile(path) as z:
-            return z.read("resources/HevsimModule2s6p.py").decode()
+    assert "examples/cosim_module/module_2s6p.fmu" in (EXAMPLE.parents[1] / ".gitignore").read_text()
+    tracked = subprocess.run(["git", "ls-files", "examples/cosim_module"], cwd=EXAMPLE.parents[1],
+                             capture_output=True, text=True, check=False)  # fmt: skip
+    if tracked.returncode == 0:  # a git checkout
+        assert not [f for f in tracked.stdout.split() if f.endswith(".fmu")], tracked.stdout
+    ex = _example(cosim_module_dir)
+    fmu = cosim_module_dir / ex.FMU
+    assert is_native_fmu(fmu)
+    md = read_model_description(str(fmu))
+    assert md.coSimulation.modelIdentifier == "HevsimModule2s6p" and md.coSimulation.canGetAndSetFMUstate
+    names = {v.name for v in md.modelVariables}
+    assert {"power_w", "power_input", "per_cell_ports", "cell11_port_temp_k", "cell11_port_heat_w"} <= names
 
-    assert script(shipped) == script(fresh), "re-run examples/cosim_module/run_module.py --write-shipped"
+    shutil.copytree(cosim_module_dir, tmp_path / "ex")
+    ex2 = _example(tmp_path / "ex")
+    before = (tmp_path / "ex" / ex.FMU).read_bytes()
+    assert ex2.build_fmu() == (tmp_path / "ex" / ex.FMU, False)  # current: kept as it is
+    assert (tmp_path / "ex" / ex.FMU).read_bytes() == before
+    (tmp_path / "ex" / ex.FMU).write_bytes(b"PK\x03\x04 not an fmu")  # stale / broken: rebuilt
+    assert ex2.build_fmu()[1] and ex2.fmu_guid(tmp_path / "ex" / ex.FMU) == md.guid
 
-    def variables(path: Path) -> list[tuple[str, str, str | None]]:
-        md = read_model_description(str(path))
-        return [(v.name, v.causality, v.unit) for v in md.modelVariables]
 
-    assert variables(shipped) == variables(fresh)
-    assert read_model_description(str(shipped)).coSimulation.canGetAndSetFMUstate
+def test_cosim_without_the_built_fmu_says_how_to_build_it(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    import shutil
+
+    from hevsim.cli import main
+
+    shutil.copytree(EXAMPLE, tmp_path / "cosim_module", ignore=shutil.ignore_patterns("*.fmu"))
+    shutil.copy(EXAMPLE.parent / "module_thermal.toml", tmp_path / "module_thermal.toml")
+    assert main(["cosim", str(tmp_path / "cosim_module" / "module.ssd"), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "module_2s6p.fmu" in err and "does not exist" in err and "make examples" in err, err
+    assert "run_module.py --build-fmu" in err
+    assert not (tmp_path / "out").exists()
 
 
-def test_fmu_battery_is_a_drop_in_for_the_in_process_module(tmp_path: Path) -> None:
-    ex = _example()
+def test_fmu_battery_is_a_drop_in_for_the_in_process_module(cosim_module_dir: Path) -> None:
+    """The native module FMU (worker process and in process) vs hevsim's in-process module."""
+    ex = _example(cosim_module_dir)
     fmu = run_system(ex.module_system(duration_s=6.0, mesh_size_m=0.008))
     inproc = run_system(ex.module_system(duration_s=6.0, mesh_size_m=0.008, battery="inprocess"))
+    desc = ex.module_system(duration_s=6.0, mesh_size_m=0.008)
+    desc.master["fmu_process"] = "inprocess"  # the C FMU loaded into this process
+    assert np.array_equal(run_system(desc).data, fmu.data)
     for c in range(12):
         np.testing.assert_allclose(fmu[f"fem.cell{c}_temp_k"], inproc[f"fem.cell{c}_temp_k"], rtol=1e-12)
     np.testing.assert_allclose(fmu["battery.voltage_v"], inproc["battery.voltage_v"], rtol=1e-12)
@@ -71,8 +102,8 @@ def test_fmu_battery_is_a_drop_in_for_the_in_process_module(tmp_path: Path) -> N
     )
 
 
-def test_module_cosim_physics_and_resume(tmp_path: Path) -> None:
-    ex = _example()
+def test_module_cosim_physics_and_resume(cosim_module_dir: Path, tmp_path: Path) -> None:
+    ex = _example(cosim_module_dir)
     desc = ex.module_system(duration_s=20.0, mesh_size_m=0.008)
     res = run_cosim(desc, tmp_path / "out")
     t_cell, t_out = res["fem.cell_mean_temp_k"], res["coolant.outlet_temp_k"]
@@ -93,8 +124,8 @@ def test_module_cosim_physics_and_resume(tmp_path: Path) -> None:
     assert np.array_equal(resumed.data, res.data)
 
 
-def test_module_pictures(tmp_path: Path) -> None:
-    ex = _example()
+def test_module_pictures(cosim_module_dir: Path, tmp_path: Path) -> None:
+    ex = _example(cosim_module_dir)
     run_cosim(ex.module_system(duration_s=3.0, mesh_size_m=0.008), tmp_path / "out")
     made = sorted((tmp_path / "out" / "pictures").glob("*.png"))
     names = {p.name for p in made}
@@ -110,14 +141,14 @@ def test_module_pictures(tmp_path: Path) -> None:
     assert fem["plate_min_temp_c"] < fem["plate_max_temp_c"] < spots[0]  # the plate is cooled
 
 
-def test_module_cosim_agrees_with_monolithic_solve(tmp_path: Path) -> None:
+def test_module_cosim_agrees_with_monolithic_solve(cosim_module_dir: Path, tmp_path: Path) -> None:
     """Gauss-Seidel co-simulation vs a strongly coupled in-process solve (per step, the cell
     and FEM models are iterated to a consistent port temperature) of the same module."""
     from hevsim.cosim.fem import FemModuleParticipant
     from hevsim.cosim.library import power_cycle
     from hevsim.cosim.participant import ModuleCellsParticipant
 
-    ex = _example()
+    ex = _example(cosim_module_dir)
     duration, mesh = 20.0, 0.008
     cosim = run_cosim(ex.module_system(duration_s=duration, mesh_size_m=mesh), tmp_path / "out")
 

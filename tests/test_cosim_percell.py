@@ -74,12 +74,12 @@ def test_per_cell_coupling_conserves_energy_and_cells_differ() -> None:
     assert np.ptp(sent) > 0.0
 
 
-def test_shipped_module_case_is_per_cell(tmp_path: Path) -> None:
+def test_shipped_module_case_is_per_cell(cosim_module_dir: Path, tmp_path: Path) -> None:
     import dataclasses
 
     from hevsim.cosim.ssd import read_ssd
 
-    desc = read_ssd(EXAMPLES / "cosim_module" / "module.ssd")
+    desc = read_ssd(cosim_module_dir / "module.ssd")  # the shipped SSD with its FMU built
     pairs = {(c.src, c.src_var, c.dst, c.dst_var) for c in desc.connections}
     for c in range(12):
         assert ("battery", f"cell{c}_port_heat_w", "fem", f"cell{c}_heat_w") in pairs

@@ -149,6 +149,14 @@ def algebraic_loop(
     return []
 
 
+FMU_BUILD_HINT = (
+    "An hevsim battery FMU is exported with `hevsim export-fmu CELL_PARAMS -o FILE.fmu --native`; "
+    "the examples' FMUs are not in git but built on this machine: `make examples` "
+    "(or `python examples/cosim_module/run_module.py --build-fmu` for examples/cosim_module/module_2s6p.fmu)."
+)
+"""Appended to the message for a missing FMU file."""
+
+
 def _fmu_connectors(desc: SystemDescription, c: Component, info: dict[str, Any]) -> dict[str, Connector]:
     """The FMU's variables as connectors; ``info`` receives ``can_state``, ``state_note`` and
     ``feedthrough`` (output -> inputs it depends on directly, from ModelStructure)."""
@@ -156,7 +164,9 @@ def _fmu_connectors(desc: SystemDescription, c: Component, info: dict[str, Any])
 
     f = desc.base_dir / c.source
     if not f.is_file():
-        raise ConfigError(f"{desc.source}: component {c.name!r}: FMU file {str(f)!r} does not exist.")
+        raise ConfigError(
+            f"{desc.source}: component {c.name!r}: FMU file {str(f)!r} does not exist. {FMU_BUILD_HINT}"
+        )
     try:
         md = read_model_description(str(f))
     except Exception as exc:
