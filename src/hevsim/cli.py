@@ -119,7 +119,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             f"controller: {result.metadata['controller']}"
             + (f" (s = {overrides['equivalence_factor']:.4g} from {args.ecms_from})" if overrides else "")
         )
-    result.save(out, plots=not args.no_plots)
+    result.save(out, plots=not args.no_plots, csv=True if args.csv else None)
     m = result.metrics
     print(f"{cfg.name} on {cycle.name}: {m['distance_mi']['value']:.2f} mi")
     for key in ("mpg", "mpgge", "l_per_100km", "co2_g_per_km", "soc_final",
@@ -639,6 +639,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dt", type=float, help="time step [s] (default from the configuration)")
     p.add_argument("--soc-initial", type=float, help="initial SOC [-]")
     p.add_argument("--no-plots", action="store_true", help="skip plots and report")
+    p.add_argument(
+        "--csv",
+        action="store_true",
+        help="also write timeseries.csv for long runs (default: CSV up to 50000 rows, Parquet always)",
+    )
     p.add_argument(
         "--schedule",
         help="replay a genset schedule CSV (time_s, engine_speed_rpm|engine_speed_radps, "
