@@ -56,7 +56,7 @@ from hevsim.battery.fmu import (
 from hevsim.battery.params import CellParameters, load_cell_parameters
 from hevsim.errors import ConfigError, HevsimError
 
-TEMPLATES = ("hevsim_kernel.h", "hevsim_model.h")
+TEMPLATES = ("hevsim_kernel.h", "hevsim_model.h", "hevsim_fmi.h")
 """C sources shared by the FMI 2.0 and 3.0 wrappers (package data under ``templates/``)."""
 WRAPPERS = {2: "fmi2_model.c", 3: "fmi3_model.c"}
 """The FMI interface source per FMI major version."""
@@ -374,7 +374,8 @@ def model_description(
 
 def build_description(model_identifier: str, fmi_version: int) -> bytes:
     """``sources/buildDescription.xml`` (the FMI 3.0 build description format, also used by
-    FMI 2.0.4 FMUs): one C99 source file; link the maths library where it is separate."""
+    FMI 2.0.4 FMUs): one C99 source file (it includes the headers :data:`TEMPLATES`); link the
+    maths library where it is separate."""
     root = ET.Element("fmiBuildDescription", fmiVersion="3.0")
     bc = ET.SubElement(root, "BuildConfiguration", modelIdentifier=model_identifier)
     fs = ET.SubElement(bc, "SourceFileSet", language="C99")

@@ -1,35 +1,24 @@
 /* FMI 2.0 co-simulation interface of a hevsim native cell/module FMU (generated sources:
- * model_data.h; model: hevsim_model.h; kernel: hevsim_kernel.h). Build, for example:
+ * model_data.h; version-independent part: hevsim_fmi.h; model: hevsim_model.h; kernel:
+ * hevsim_kernel.h). Build, for example:
  *   cc -std=c99 -O2 -shared -fPIC -I<FMI 2.0 headers> fmi2_model.c -lm -o <modelIdentifier>.so
  */
-#include <stdarg.h>
-#include <stdlib.h>
 #include <string.h>
 #include "fmi2Functions.h"
-#include "hevsim_model.h"
 
-typedef enum { PH_INSTANTIATED, PH_INITIALIZATION, PH_STEPPING, PH_TERMINATED } hv_phase;
-
-typedef struct {
-    hv_data d;
-    hv_phase phase;
-    char *name;
-    fmi2CallbackFunctions cb;
-    fmi2Boolean logging;
-} hv_instance;
-
+#define HV_STATUS fmi2Status
+#define HV_OK fmi2OK
+#define HV_ERROR fmi2Error
+#define HV_VR fmi2ValueReference
 #define HV_SERIAL_MAGIC "hevsim-fmu-state-1"
+typedef fmi2CallbackFunctions hv_callbacks;
+#include "hevsim_fmi.h"
 
-static void hv_log(hv_instance *m, fmi2Status status, const char *category, const char *fmt, ...)
+static void hv_emit(const hv_instance *m, fmi2Status status, const char *category, const char *text)
 {
-    char text[1024], buf[2048];
+    char buf[2048];
     size_t i, k = 0;
-    va_list ap;
-    if (m == NULL || m->cb.logger == NULL) return;
-    if (status == fmi2OK && !m->logging) return;
-    va_start(ap, fmt);
-    vsnprintf(text, sizeof(text), fmt, ap);
-    va_end(ap);
+    if (m->cb.logger == NULL) return;
     /* the message is the logger's format string: a literal percent sign is doubled */
     for (i = 0; text[i] != '\0' && k + 2 < sizeof(buf); i++) {
         if (text[i] == '%') buf[k++] = '%';
@@ -37,22 +26,6 @@ static void hv_log(hv_instance *m, fmi2Status status, const char *category, cons
     }
     buf[k] = '\0';
     m->cb.logger(m->cb.componentEnvironment, m->name, status, category, buf);
-}
-
-static fmi2Status hv_error(hv_instance *m, const char *fn, const char *msg)
-{
-    hv_log(m, fmi2Error, "logStatusError", "%s: %s", fn, msg);
-    return fmi2Error;
-}
-
-static fmi2Status hv_bad_vr(hv_instance *m, const char *fn, fmi2ValueReference vr, const char *type)
-{
-    char msg[256];
-    if (vr < N_VR)
-        snprintf(msg, sizeof(msg), "value reference %u is '%s', not a %s variable", (unsigned)vr, VAR_NAME[vr], type);
-    else
-        snprintf(msg, sizeof(msg), "value reference %u is not a variable of this FMU (0..%d)", (unsigned)vr, N_VR - 1);
-    return hv_error(m, fn, msg);
 }
 
 FMI2_Export const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -77,42 +50,24 @@ FMI2_Export fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuT
     (void)fmuResourceLocation;
     (void)visible;
     if (functions == NULL) return NULL;
-    m = (hv_instance *)calloc(1, sizeof(hv_instance));
+    m = hv_new(instanceName, *functions, loggingOn);
     if (m == NULL) return NULL;
-    m->cb = *functions;
-    m->logging = loggingOn;
-    m->name = (char *)malloc(strlen(instanceName ? instanceName : "") + 1);
-    if (m->name == NULL) {
-        free(m);
-        return NULL;
-    }
-    strcpy(m->name, instanceName ? instanceName : "");
     if (fmuType != fmi2CoSimulation) {
         hv_error(m, "fmi2Instantiate", "this FMU supports co-simulation only (fmuType fmi2CoSimulation)");
-        free(m->name);
-        free(m);
+        hv_free(m);
         return NULL;
     }
     if (fmuGUID == NULL || strcmp(fmuGUID, MODEL_GUID) != 0) {
         hv_log(m, fmi2Error, "logStatusError", "fmi2Instantiate: GUID '%s' does not match this FMU's '%s'",
                fmuGUID ? fmuGUID : "(null)", MODEL_GUID);
-        free(m->name);
-        free(m);
+        hv_free(m);
         return NULL;
     }
-    hv_start(&m->d);
-    hv_init(&m->d);
-    m->phase = PH_INSTANTIATED;
+    hv_reset(m);
     return m;
 }
 
-FMI2_Export void fmi2FreeInstance(fmi2Component c)
-{
-    hv_instance *m = (hv_instance *)c;
-    if (m == NULL) return;
-    free(m->name);
-    free(m);
-}
+FMI2_Export void fmi2FreeInstance(fmi2Component c) { hv_free((hv_instance *)c); }
 
 FMI2_Export fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
                                            fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
@@ -152,32 +107,21 @@ FMI2_Export fmi2Status fmi2Terminate(fmi2Component c)
 
 FMI2_Export fmi2Status fmi2Reset(fmi2Component c)
 {
-    hv_instance *m = (hv_instance *)c;
-    if (m == NULL) return fmi2Error;
-    hv_start(&m->d);
-    hv_init(&m->d);
-    m->phase = PH_INSTANTIATED;
+    if (c == NULL) return fmi2Error;
+    hv_reset((hv_instance *)c);
     return fmi2OK;
 }
 
 FMI2_Export fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
 {
-    hv_instance *m = (hv_instance *)c;
-    size_t k;
-    if (m == NULL) return fmi2Error;
-    for (k = 0; k < nvr; k++) {
-        if (vr[k] >= N_VR || VAR_KIND[vr[k]] == K_BOOLEAN) return hv_bad_vr(m, "fmi2GetReal", vr[k], "Real");
-        value[k] = m->d.r[vr[k]];
-    }
-    return fmi2OK;
+    return hv_get_reals((hv_instance *)c, "fmi2GetReal", vr, nvr, value, "Real");
 }
 
 FMI2_Export fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                       fmi2Integer value[])
 {
     (void)value;
-    if (c == NULL) return fmi2Error;
-    return nvr == 0 ? fmi2OK : hv_bad_vr((hv_instance *)c, "fmi2GetInteger", vr[0], "Integer");
+    return hv_no_vars((hv_instance *)c, "fmi2GetInteger", vr, nvr, "Integer");
 }
 
 FMI2_Export fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
@@ -186,10 +130,8 @@ FMI2_Export fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference 
     hv_instance *m = (hv_instance *)c;
     size_t k;
     if (m == NULL) return fmi2Error;
-    for (k = 0; k < nvr; k++) {
-        if (vr[k] >= N_VR || VAR_KIND[vr[k]] != K_BOOLEAN) return hv_bad_vr(m, "fmi2GetBoolean", vr[k], "Boolean");
-        value[k] = m->d.r[vr[k]] != 0.0 ? fmi2True : fmi2False;
-    }
+    if (hv_check_booleans(m, "fmi2GetBoolean", vr, nvr) != fmi2OK) return fmi2Error;
+    for (k = 0; k < nvr; k++) value[k] = m->d.r[vr[k]] != 0.0 ? fmi2True : fmi2False;
     return fmi2OK;
 }
 
@@ -197,31 +139,20 @@ FMI2_Export fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference v
                                      fmi2String value[])
 {
     (void)value;
-    if (c == NULL) return fmi2Error;
-    return nvr == 0 ? fmi2OK : hv_bad_vr((hv_instance *)c, "fmi2GetString", vr[0], "String");
+    return hv_no_vars((hv_instance *)c, "fmi2GetString", vr, nvr, "String");
 }
 
 FMI2_Export fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                    const fmi2Real value[])
 {
-    hv_instance *m = (hv_instance *)c;
-    char msg[512];
-    size_t k;
-    if (m == NULL) return fmi2Error;
-    for (k = 0; k < nvr; k++) {
-        if (vr[k] >= N_VR || VAR_KIND[vr[k]] == K_BOOLEAN) return hv_bad_vr(m, "fmi2SetReal", vr[k], "Real");
-        if (hv_check_set((int)vr[k], value[k], msg, sizeof(msg))) return hv_error(m, "fmi2SetReal", msg);
-    }
-    for (k = 0; k < nvr; k++) m->d.r[vr[k]] = value[k];
-    return fmi2OK;
+    return hv_set_reals((hv_instance *)c, "fmi2SetReal", vr, nvr, value, "Real");
 }
 
 FMI2_Export fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                       const fmi2Integer value[])
 {
     (void)value;
-    if (c == NULL) return fmi2Error;
-    return nvr == 0 ? fmi2OK : hv_bad_vr((hv_instance *)c, "fmi2SetInteger", vr[0], "Integer");
+    return hv_no_vars((hv_instance *)c, "fmi2SetInteger", vr, nvr, "Integer");
 }
 
 FMI2_Export fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
@@ -230,8 +161,7 @@ FMI2_Export fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference 
     hv_instance *m = (hv_instance *)c;
     size_t k;
     if (m == NULL) return fmi2Error;
-    for (k = 0; k < nvr; k++)
-        if (vr[k] >= N_VR || VAR_KIND[vr[k]] != K_BOOLEAN) return hv_bad_vr(m, "fmi2SetBoolean", vr[k], "Boolean");
+    if (hv_check_booleans(m, "fmi2SetBoolean", vr, nvr) != fmi2OK) return fmi2Error;
     for (k = 0; k < nvr; k++) m->d.r[vr[k]] = value[k] ? 1.0 : 0.0;
     return fmi2OK;
 }
@@ -240,53 +170,25 @@ FMI2_Export fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference v
                                      const fmi2String value[])
 {
     (void)value;
-    if (c == NULL) return fmi2Error;
-    return nvr == 0 ? fmi2OK : hv_bad_vr((hv_instance *)c, "fmi2SetString", vr[0], "String");
+    return hv_no_vars((hv_instance *)c, "fmi2SetString", vr, nvr, "String");
 }
-
-/* FMU state: a copy of hv_data (and the phase) */
-typedef struct {
-    hv_data d;
-    double phase; /* a hv_phase; a double so that the struct has no padding bytes */
-} hv_saved;
 
 FMI2_Export fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
 {
-    hv_instance *m = (hv_instance *)c;
-    hv_saved *s;
-    if (m == NULL || FMUstate == NULL) return fmi2Error;
-    s = (hv_saved *)*FMUstate;
-    if (s == NULL) {
-        s = (hv_saved *)malloc(sizeof(hv_saved));
-        if (s == NULL) return hv_error(m, "fmi2GetFMUstate", "out of memory");
-        *FMUstate = s;
-    }
-    s->d = m->d;
-    s->phase = (double)m->phase;
-    return fmi2OK;
+    return hv_get_state((hv_instance *)c, "fmi2GetFMUstate", FMUstate);
 }
 
 FMI2_Export fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
 {
-    hv_instance *m = (hv_instance *)c;
-    if (m == NULL) return fmi2Error;
-    if (FMUstate == NULL) return hv_error(m, "fmi2SetFMUstate", "the FMU state is NULL");
-    m->d = ((hv_saved *)FMUstate)->d;
-    m->phase = (hv_phase)((hv_saved *)FMUstate)->phase;
-    return fmi2OK;
+    return hv_set_state((hv_instance *)c, "fmi2SetFMUstate", FMUstate);
 }
 
 FMI2_Export fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
 {
     (void)c;
-    if (FMUstate != NULL) {
-        free(*FMUstate);
-        *FMUstate = NULL;
-    }
+    hv_free_state(FMUstate);
     return fmi2OK;
 }
-
-#define HV_SERIAL_SIZE (sizeof(HV_SERIAL_MAGIC) + sizeof(MODEL_GUID) + sizeof(hv_saved))
 
 FMI2_Export fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
 {
@@ -299,33 +201,13 @@ FMI2_Export fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate 
 FMI2_Export fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
                                              size_t size)
 {
-    hv_instance *m = (hv_instance *)c;
-    if (m == NULL) return fmi2Error;
-    if (FMUstate == NULL || size < HV_SERIAL_SIZE)
-        return hv_error(m, "fmi2SerializeFMUstate", "no FMU state, or the buffer is too small");
-    memcpy(serializedState, HV_SERIAL_MAGIC, sizeof(HV_SERIAL_MAGIC));
-    memcpy(serializedState + sizeof(HV_SERIAL_MAGIC), MODEL_GUID, sizeof(MODEL_GUID));
-    memcpy(serializedState + sizeof(HV_SERIAL_MAGIC) + sizeof(MODEL_GUID), FMUstate, sizeof(hv_saved));
-    return fmi2OK;
+    return hv_serialize((hv_instance *)c, "fmi2SerializeFMUstate", FMUstate, serializedState, size);
 }
 
 FMI2_Export fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                                fmi2FMUstate *FMUstate)
 {
-    hv_instance *m = (hv_instance *)c;
-    hv_saved *s;
-    if (m == NULL || FMUstate == NULL) return fmi2Error;
-    if (size != HV_SERIAL_SIZE || memcmp(serializedState, HV_SERIAL_MAGIC, sizeof(HV_SERIAL_MAGIC)) != 0 ||
-        memcmp(serializedState + sizeof(HV_SERIAL_MAGIC), MODEL_GUID, sizeof(MODEL_GUID)) != 0)
-        return hv_error(m, "fmi2DeSerializeFMUstate", "the serialized state was not made by this FMU");
-    s = (hv_saved *)*FMUstate;
-    if (s == NULL) {
-        s = (hv_saved *)malloc(sizeof(hv_saved));
-        if (s == NULL) return hv_error(m, "fmi2DeSerializeFMUstate", "out of memory");
-        *FMUstate = s;
-    }
-    memcpy(s, serializedState + sizeof(HV_SERIAL_MAGIC) + sizeof(MODEL_GUID), sizeof(hv_saved));
-    return fmi2OK;
+    return hv_deserialize((hv_instance *)c, "fmi2DeSerializeFMUstate", serializedState, size, FMUstate);
 }
 
 FMI2_Export fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[],
@@ -364,14 +246,9 @@ FMI2_Export fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2V
 FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                                   fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
-    hv_instance *m = (hv_instance *)c;
-    char msg[1024];
     (void)noSetFMUStatePriorToCurrentPoint;
-    if (m == NULL) return fmi2Error;
-    if (m->phase != PH_STEPPING) return hv_error(m, "fmi2DoStep", "called outside step mode (exit initialization mode first)");
-    if (hv_do_step(&m->d, currentCommunicationPoint, communicationStepSize, msg, sizeof(msg)))
-        return hv_error(m, "fmi2DoStep", msg);
-    return fmi2OK;
+    if (c == NULL) return fmi2Error;
+    return hv_step((hv_instance *)c, "fmi2DoStep", currentCommunicationPoint, communicationStepSize);
 }
 
 FMI2_Export fmi2Status fmi2CancelStep(fmi2Component c)

@@ -1,61 +1,28 @@
 /* FMI 3.0 co-simulation interface of a hevsim native cell/module FMU (generated sources:
- * model_data.h; model: hevsim_model.h; kernel: hevsim_kernel.h). Build, for example:
+ * model_data.h; version-independent part: hevsim_fmi.h; model: hevsim_model.h; kernel:
+ * hevsim_kernel.h). Build, for example:
  *   cc -std=c99 -O2 -shared -fPIC -I<FMI 3.0 headers> fmi3_model.c -lm -o <modelIdentifier>.so
  * Supported: Float64 and Boolean variables, fixed or variable communication steps, FMU state
  * get/set/serialize. Not supported (refused with fmi3Error): model exchange, scheduled
  * execution, event mode, clocks, other variable types, derivatives, early return.
  */
-#include <stdarg.h>
-#include <stdlib.h>
 #include <string.h>
 #include "fmi3Functions.h"
-#include "hevsim_model.h"
 
-typedef enum { PH_INSTANTIATED, PH_INITIALIZATION, PH_STEPPING, PH_TERMINATED } hv_phase;
-
+#define HV_STATUS fmi3Status
+#define HV_OK fmi3OK
+#define HV_ERROR fmi3Error
+#define HV_VR fmi3ValueReference
+#define HV_SERIAL_MAGIC "hevsim-fmu3-state-1"
 typedef struct {
-    hv_data d;
-    hv_phase phase;
-    char *name;
     fmi3InstanceEnvironment env;
     fmi3LogMessageCallback log;
-    fmi3Boolean logging;
-} hv_instance;
+} hv_callbacks;
+#include "hevsim_fmi.h"
 
-typedef struct {
-    hv_data d;
-    double phase; /* a hv_phase; a double so that the struct has no padding bytes */
-} hv_saved;
-
-#define HV_SERIAL_MAGIC "hevsim-fmu3-state-1"
-#define HV_SERIAL_SIZE (sizeof(HV_SERIAL_MAGIC) + sizeof(MODEL_GUID) + sizeof(hv_saved))
-
-static void hv_log(hv_instance *m, fmi3Status status, const char *category, const char *fmt, ...)
+static void hv_emit(const hv_instance *m, fmi3Status status, const char *category, const char *text)
 {
-    char buf[1024];
-    va_list ap;
-    if (m == NULL || m->log == NULL) return;
-    if (status == fmi3OK && !m->logging) return;
-    va_start(ap, fmt);
-    vsnprintf(buf, sizeof(buf), fmt, ap);
-    va_end(ap);
-    m->log(m->env, status, category, buf);
-}
-
-static fmi3Status hv_error(hv_instance *m, const char *fn, const char *msg)
-{
-    hv_log(m, fmi3Error, "logStatusError", "%s: %s", fn, msg);
-    return fmi3Error;
-}
-
-static fmi3Status hv_bad_vr(hv_instance *m, const char *fn, fmi3ValueReference vr, const char *type)
-{
-    char msg[256];
-    if (vr < N_VR)
-        snprintf(msg, sizeof(msg), "value reference %u is '%s', not a %s variable", (unsigned)vr, VAR_NAME[vr], type);
-    else
-        snprintf(msg, sizeof(msg), "value reference %u is not a variable of this FMU (0..%d)", (unsigned)vr, N_VR - 1);
-    return hv_error(m, fn, msg);
+    if (m->cb.log != NULL) m->cb.log(m->cb.env, status, category, text);
 }
 
 static fmi3Status hv_unsupported(fmi3Instance instance, const char *fn)
@@ -100,39 +67,29 @@ FMI3_Export fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fm
                                                      fmi3IntermediateUpdateCallback intermediateUpdate)
 {
     hv_instance *m;
+    hv_callbacks cb;
     (void)resourcePath;
     (void)visible;
     (void)earlyReturnAllowed;
     (void)requiredIntermediateVariables;
     (void)nRequiredIntermediateVariables;
     (void)intermediateUpdate;
-    m = (hv_instance *)calloc(1, sizeof(hv_instance));
+    cb.env = instanceEnvironment;
+    cb.log = logMessage;
+    m = hv_new(instanceName, cb, loggingOn);
     if (m == NULL) return NULL;
-    m->env = instanceEnvironment;
-    m->log = logMessage;
-    m->logging = loggingOn;
-    m->name = (char *)malloc(strlen(instanceName ? instanceName : "") + 1);
-    if (m->name == NULL) {
-        free(m);
-        return NULL;
-    }
-    strcpy(m->name, instanceName ? instanceName : "");
     if (instantiationToken == NULL || strcmp(instantiationToken, MODEL_GUID) != 0) {
         hv_log(m, fmi3Error, "logStatusError", "fmi3InstantiateCoSimulation: instantiationToken '%s' does not match '%s'",
                instantiationToken ? instantiationToken : "(null)", MODEL_GUID);
-        free(m->name);
-        free(m);
+        hv_free(m);
         return NULL;
     }
     if (eventModeUsed) {
         hv_log(m, fmi3Error, "logStatusError", "fmi3InstantiateCoSimulation: event mode is not supported (hasEventMode=false)");
-        free(m->name);
-        free(m);
+        hv_free(m);
         return NULL;
     }
-    hv_start(&m->d);
-    hv_init(&m->d);
-    m->phase = PH_INSTANTIATED;
+    hv_reset(m);
     return m;
 }
 
@@ -157,13 +114,7 @@ FMI3_Export fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceNa
     return NULL;
 }
 
-FMI3_Export void fmi3FreeInstance(fmi3Instance instance)
-{
-    hv_instance *m = (hv_instance *)instance;
-    if (m == NULL) return;
-    free(m->name);
-    free(m);
-}
+FMI3_Export void fmi3FreeInstance(fmi3Instance instance) { hv_free((hv_instance *)instance); }
 
 FMI3_Export fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined,
                                                    fmi3Float64 tolerance, fmi3Float64 startTime,
@@ -205,11 +156,8 @@ FMI3_Export fmi3Status fmi3Terminate(fmi3Instance instance)
 
 FMI3_Export fmi3Status fmi3Reset(fmi3Instance instance)
 {
-    hv_instance *m = (hv_instance *)instance;
-    if (m == NULL) return fmi3Error;
-    hv_start(&m->d);
-    hv_init(&m->d);
-    m->phase = PH_INSTANTIATED;
+    if (instance == NULL) return fmi3Error;
+    hv_reset((hv_instance *)instance);
     return fmi3OK;
 }
 
@@ -217,32 +165,18 @@ FMI3_Export fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueRefe
                                       size_t nValueReferences, fmi3Float64 values[], size_t nValues)
 {
     hv_instance *m = (hv_instance *)instance;
-    size_t k;
     if (m == NULL) return fmi3Error;
     if (nValues != nValueReferences) return hv_error(m, "fmi3GetFloat64", "nValues differs from nValueReferences (no arrays)");
-    for (k = 0; k < nValueReferences; k++) {
-        fmi3ValueReference vr = valueReferences[k];
-        if (vr >= N_VR || VAR_KIND[vr] == K_BOOLEAN) return hv_bad_vr(m, "fmi3GetFloat64", vr, "Float64");
-        values[k] = m->d.r[vr];
-    }
-    return fmi3OK;
+    return hv_get_reals(m, "fmi3GetFloat64", valueReferences, nValueReferences, values, "Float64");
 }
 
 FMI3_Export fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                       size_t nValueReferences, const fmi3Float64 values[], size_t nValues)
 {
     hv_instance *m = (hv_instance *)instance;
-    char msg[512];
-    size_t k;
     if (m == NULL) return fmi3Error;
     if (nValues != nValueReferences) return hv_error(m, "fmi3SetFloat64", "nValues differs from nValueReferences (no arrays)");
-    for (k = 0; k < nValueReferences; k++) {
-        fmi3ValueReference vr = valueReferences[k];
-        if (vr >= N_VR || VAR_KIND[vr] == K_BOOLEAN) return hv_bad_vr(m, "fmi3SetFloat64", vr, "Float64");
-        if (hv_check_set((int)vr, values[k], msg, sizeof(msg))) return hv_error(m, "fmi3SetFloat64", msg);
-    }
-    for (k = 0; k < nValueReferences; k++) m->d.r[valueReferences[k]] = values[k];
-    return fmi3OK;
+    return hv_set_reals(m, "fmi3SetFloat64", valueReferences, nValueReferences, values, "Float64");
 }
 
 FMI3_Export fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
@@ -252,11 +186,8 @@ FMI3_Export fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueRefe
     size_t k;
     (void)nValues;
     if (m == NULL) return fmi3Error;
-    for (k = 0; k < nValueReferences; k++) {
-        fmi3ValueReference vr = valueReferences[k];
-        if (vr >= N_VR || VAR_KIND[vr] != K_BOOLEAN) return hv_bad_vr(m, "fmi3GetBoolean", vr, "Boolean");
-        values[k] = m->d.r[vr] != 0.0;
-    }
+    if (hv_check_booleans(m, "fmi3GetBoolean", valueReferences, nValueReferences) != fmi3OK) return fmi3Error;
+    for (k = 0; k < nValueReferences; k++) values[k] = m->d.r[valueReferences[k]] != 0.0;
     return fmi3OK;
 }
 
@@ -267,9 +198,7 @@ FMI3_Export fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueRefe
     size_t k;
     (void)nValues;
     if (m == NULL) return fmi3Error;
-    for (k = 0; k < nValueReferences; k++)
-        if (valueReferences[k] >= N_VR || VAR_KIND[valueReferences[k]] != K_BOOLEAN)
-            return hv_bad_vr(m, "fmi3SetBoolean", valueReferences[k], "Boolean");
+    if (hv_check_booleans(m, "fmi3SetBoolean", valueReferences, nValueReferences) != fmi3OK) return fmi3Error;
     for (k = 0; k < nValueReferences; k++) m->d.r[valueReferences[k]] = values[k] ? 1.0 : 0.0;
     return fmi3OK;
 }
@@ -281,8 +210,7 @@ FMI3_Export fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueRefe
     {                                                                                                          \
         (void)values;                                                                                          \
         (void)nValues;                                                                                         \
-        if (instance == NULL) return fmi3Error;                                                                \
-        return nValueReferences == 0 ? fmi3OK : hv_bad_vr((hv_instance *)instance, #fn, valueReferences[0], type); \
+        return hv_no_vars((hv_instance *)instance, #fn, valueReferences, nValueReferences, type);             \
     }
 #define HV_EMPTY
 HV_NO_TYPE(fmi3GetFloat32, "Float32", fmi3Float32, HV_EMPTY)
@@ -312,8 +240,7 @@ FMI3_Export fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueRefer
     (void)valueSizes;
     (void)values;
     (void)nValues;
-    if (instance == NULL) return fmi3Error;
-    return nValueReferences == 0 ? fmi3OK : hv_bad_vr((hv_instance *)instance, "fmi3GetBinary", valueReferences[0], "Binary");
+    return hv_no_vars((hv_instance *)instance, "fmi3GetBinary", valueReferences, nValueReferences, "Binary");
 }
 
 FMI3_Export fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[],
@@ -323,8 +250,7 @@ FMI3_Export fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueRefer
     (void)valueSizes;
     (void)values;
     (void)nValues;
-    if (instance == NULL) return fmi3Error;
-    return nValueReferences == 0 ? fmi3OK : hv_bad_vr((hv_instance *)instance, "fmi3SetBinary", valueReferences[0], "Binary");
+    return hv_no_vars((hv_instance *)instance, "fmi3SetBinary", valueReferences, nValueReferences, "Binary");
 }
 
 FMI3_Export fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[],
@@ -369,37 +295,18 @@ FMI3_Export fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3Va
 
 FMI3_Export fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
 {
-    hv_instance *m = (hv_instance *)instance;
-    hv_saved *s;
-    if (m == NULL || FMUState == NULL) return fmi3Error;
-    s = (hv_saved *)*FMUState;
-    if (s == NULL) {
-        s = (hv_saved *)malloc(sizeof(hv_saved));
-        if (s == NULL) return hv_error(m, "fmi3GetFMUState", "out of memory");
-        *FMUState = s;
-    }
-    s->d = m->d;
-    s->phase = (double)m->phase;
-    return fmi3OK;
+    return hv_get_state((hv_instance *)instance, "fmi3GetFMUState", FMUState);
 }
 
 FMI3_Export fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState)
 {
-    hv_instance *m = (hv_instance *)instance;
-    if (m == NULL) return fmi3Error;
-    if (FMUState == NULL) return hv_error(m, "fmi3SetFMUState", "the FMU state is NULL");
-    m->d = ((hv_saved *)FMUState)->d;
-    m->phase = (hv_phase)((hv_saved *)FMUState)->phase;
-    return fmi3OK;
+    return hv_set_state((hv_instance *)instance, "fmi3SetFMUState", FMUState);
 }
 
 FMI3_Export fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
 {
     (void)instance;
-    if (FMUState != NULL) {
-        free(*FMUState);
-        *FMUState = NULL;
-    }
+    hv_free_state(FMUState);
     return fmi3OK;
 }
 
@@ -414,33 +321,13 @@ FMI3_Export fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMU
 FMI3_Export fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[],
                                              size_t size)
 {
-    hv_instance *m = (hv_instance *)instance;
-    if (m == NULL) return fmi3Error;
-    if (FMUState == NULL || size < HV_SERIAL_SIZE)
-        return hv_error(m, "fmi3SerializeFMUState", "no FMU state, or the buffer is too small");
-    memcpy(serializedState, HV_SERIAL_MAGIC, sizeof(HV_SERIAL_MAGIC));
-    memcpy(serializedState + sizeof(HV_SERIAL_MAGIC), MODEL_GUID, sizeof(MODEL_GUID));
-    memcpy(serializedState + sizeof(HV_SERIAL_MAGIC) + sizeof(MODEL_GUID), FMUState, sizeof(hv_saved));
-    return fmi3OK;
+    return hv_serialize((hv_instance *)instance, "fmi3SerializeFMUState", FMUState, serializedState, size);
 }
 
 FMI3_Export fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[], size_t size,
                                                fmi3FMUState *FMUState)
 {
-    hv_instance *m = (hv_instance *)instance;
-    hv_saved *s;
-    if (m == NULL || FMUState == NULL) return fmi3Error;
-    if (size != HV_SERIAL_SIZE || memcmp(serializedState, HV_SERIAL_MAGIC, sizeof(HV_SERIAL_MAGIC)) != 0 ||
-        memcmp(serializedState + sizeof(HV_SERIAL_MAGIC), MODEL_GUID, sizeof(MODEL_GUID)) != 0)
-        return hv_error(m, "fmi3DeserializeFMUState", "the serialized state was not made by this FMU");
-    s = (hv_saved *)*FMUState;
-    if (s == NULL) {
-        s = (hv_saved *)malloc(sizeof(hv_saved));
-        if (s == NULL) return hv_error(m, "fmi3DeserializeFMUState", "out of memory");
-        *FMUState = s;
-    }
-    memcpy(s, serializedState + sizeof(HV_SERIAL_MAGIC) + sizeof(MODEL_GUID), sizeof(hv_saved));
-    return fmi3OK;
+    return hv_deserialize((hv_instance *)instance, "fmi3DeserializeFMUState", serializedState, size, FMUState);
 }
 
 #define HV_DERIVATIVE(fn)                                                                                      \
@@ -557,17 +444,13 @@ FMI3_Export fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentComm
                                   fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime)
 {
     hv_instance *m = (hv_instance *)instance;
-    char msg[1024];
+    fmi3Status status;
     (void)noSetFMUStatePriorToCurrentPoint;
     if (m == NULL) return fmi3Error;
     if (eventHandlingNeeded) *eventHandlingNeeded = fmi3False;
     if (terminateSimulation) *terminateSimulation = fmi3False;
     if (earlyReturn) *earlyReturn = fmi3False;
-    if (m->phase != PH_STEPPING) return hv_error(m, "fmi3DoStep", "called outside step mode (exit initialization mode first)");
-    if (hv_do_step(&m->d, currentCommunicationPoint, communicationStepSize, msg, sizeof(msg))) {
-        if (lastSuccessfulTime) *lastSuccessfulTime = m->d.time;
-        return hv_error(m, "fmi3DoStep", msg);
-    }
-    if (lastSuccessfulTime) *lastSuccessfulTime = m->d.time;
-    return fmi3OK;
+    status = hv_step(m, "fmi3DoStep", currentCommunicationPoint, communicationStepSize);
+    if (lastSuccessfulTime && m->phase == PH_STEPPING) *lastSuccessfulTime = m->d.time;
+    return status;
 }
