@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from hevsim.architectures._common import NamedModel, battery_details, machine_details, max_machine_speed_radps
 from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
@@ -34,7 +35,7 @@ MODES: tuple[str, ...] = ("standstill", "traction", "regen", "friction_braking")
 
 
 @dataclass(frozen=True, eq=False)
-class BEV:
+class BEV(NamedModel):
     """A battery-electric vehicle: configuration and component objects."""
 
     config: BEVConfig
@@ -46,11 +47,6 @@ class BEV:
     regen_fraction: float
     regen_min_speed_mps: float
     aux_power_w: float
-
-    @property
-    def name(self) -> str:
-        """Configuration name."""
-        return self.config.name
 
 
 def build_bev(cfg: BEVConfig) -> BEV:
@@ -67,14 +63,6 @@ def build_bev(cfg: BEVConfig) -> BEV:
         regen_min_speed_mps=cfg.brakes.regen_min_speed_mps,
         aux_power_w=cfg.controller.aux_power_w,
     )
-
-
-def max_machine_speed_radps(machine: ElectricMachine) -> float:
-    """Highest speed [rad/s] of a map machine's torque-limit curve (no limit for the ideal
-    and constant-efficiency models): the machine cannot turn faster."""
-    if machine.kind != "map":
-        return float("inf")
-    return float(machine.kernel_tables().lim_x[-1])
 
 
 def power_flow(
@@ -108,11 +96,8 @@ def power_flow(
     if detail:
         fric = np.minimum(t_fd - flow.torque_nm, 0.0)
         st.details = {
-            "motor_speed_radps": np.broadcast_to(w_m, shape),
-            "motor_torque_nm": flow.torque_nm,
-            "motor_power_elec_w": flow.power_elec_w,
-            "battery_current_a": flow.current_a,
-            "battery_power_w": flow.battery_power_w,
+            **machine_details(flow, w_m, shape),
+            **battery_details(flow),
             "friction_brake_power_w": -fric * w_m,
         }
     return st

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from hevsim.architectures._common import GearboxModel
 from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
 from hevsim.components.engine import Engine
@@ -42,7 +43,7 @@ braking/coasting (clutch open, idling); engine off (stop-start)."""
 
 
 @dataclass(frozen=True, eq=False)
-class ConventionalVehicle:
+class ConventionalVehicle(GearboxModel):
     """A conventional vehicle: configuration and component objects."""
 
     config: ConventionalConfig
@@ -52,16 +53,6 @@ class ConventionalVehicle:
     gears: tuple[Gear, ...]
     engine: Engine
     stop_start: bool
-
-    @property
-    def name(self) -> str:
-        """Configuration name."""
-        return self.config.name
-
-    @property
-    def gear_ratios(self) -> np.ndarray:
-        """Gearbox ratios [-], first gear first."""
-        return np.array([g.ratio for g in self.gears])
 
     @property
     def idle_speed_radps(self) -> float:

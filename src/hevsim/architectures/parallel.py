@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from hevsim.architectures._common import GearboxModel, battery_details, machine_details
 from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
@@ -79,7 +80,7 @@ def load_parallel_config(path: str | Path) -> ParallelHEVConfig:
 
 
 @dataclass(frozen=True, eq=False)
-class ParallelHEV:
+class ParallelHEV(GearboxModel):
     """A parallel hybrid vehicle: its configuration and component objects.
 
     Attributes:
@@ -100,16 +101,6 @@ class ParallelHEV:
     """``"p3"``: machine on the final-drive input; ``"p2"``: on the gearbox input."""
 
     architecture: typing.ClassVar[str] = ARCHITECTURE
-
-    @property
-    def name(self) -> str:
-        """Configuration name."""
-        return self.config.name
-
-    @property
-    def gear_ratios(self) -> np.ndarray:
-        """Gearbox ratios [-], first gear first."""
-        return np.array([g.ratio for g in self.gears])
 
 
 def build_parallel_hev(cfg: ParallelHEVConfig) -> ParallelHEV:
@@ -271,11 +262,8 @@ def electrical(
             "engine_throttle": np.where(on, m["thr"], 0.0),
             "engine_power_w": t_e * np.where(on, w_e, 0.0),
             "fuel_rate_gps": m["fuel"] * 1e3,
-            "motor_speed_radps": np.broadcast_to(m["w_em"], shape),
-            "motor_torque_nm": flow.torque_nm,
-            "motor_power_elec_w": flow.power_elec_w,
-            "battery_current_a": flow.current_a,
-            "battery_power_w": flow.battery_power_w,
+            **machine_details(flow, m["w_em"], shape),
+            **battery_details(flow),
             "friction_brake_power_w": -fric * m["w_fd"],
         }
     return st

@@ -33,6 +33,8 @@ from typing import Any
 
 import numpy as np
 
+from hevsim.architectures._common import NamedModel, battery_details, machine_details
+from hevsim.architectures._common import max_machine_speed_radps as _max_speed
 from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
@@ -52,7 +54,7 @@ TORQUE_RTOL = 1e-12
 
 
 @dataclass(frozen=True, eq=False)
-class PowerSplitHEV:
+class PowerSplitHEV(NamedModel):
     """A power-split HEV: configuration and component objects."""
 
     config: PowerSplitConfig
@@ -67,11 +69,6 @@ class PowerSplitHEV:
     sun_teeth: int
     ring_teeth: int
     aux_power_w: float
-
-    @property
-    def name(self) -> str:
-        """Configuration name."""
-        return self.config.name
 
     def sun_speed_radps(self, engine_speed_radps: Any, ring_speed_radps: Any) -> Any:
         """MG1 (sun) speed [rad/s] from the Willis equation."""
@@ -96,10 +93,6 @@ def build_power_split(cfg: PowerSplitConfig) -> PowerSplitHEV:
         ring_teeth=cfg.planetary.ring_teeth,
         aux_power_w=cfg.controller.aux_power_w,
     )
-
-
-def _max_speed(machine: ElectricMachine) -> float:
-    return float(machine.kernel_tables().lim_x[-1]) if machine.kind == "map" else float("inf")
 
 
 def mechanical(
@@ -188,12 +181,9 @@ def electrical(
             "generator_speed_radps": np.broadcast_to(m["w_sun"], shape),
             "generator_torque_nm": np.broadcast_to(m["t_gen"], shape),
             "generator_power_elec_w": np.broadcast_to(m["p_gen"], shape),
-            "motor_speed_radps": np.broadcast_to(m["w_em"], shape),
-            "motor_torque_nm": flow.torque_nm,
-            "motor_power_elec_w": flow.power_elec_w,
+            **machine_details(flow, m["w_em"], shape),
             "ring_speed_radps": np.broadcast_to(m["w_ring"], shape),
-            "battery_current_a": flow.current_a,
-            "battery_power_w": flow.battery_power_w,
+            **battery_details(flow),
             "friction_brake_power_w": -fric * m["w_ring"],
         }
     return st

@@ -1,0 +1,57 @@
+"""Pieces shared by the architecture models: the configuration-name and gear-ratio
+properties of the model dataclasses, a machine's speed limit and the bus-balance entries of
+a power flow's ``details``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from hevsim.components.driveline import Gear
+from hevsim.components.electric_machine import ElectricMachine
+
+
+class NamedModel:
+    """Mixin of the architecture models (frozen dataclasses with a ``config`` field)."""
+
+    config: Any
+
+    @property
+    def name(self) -> str:
+        """Configuration name."""
+        return str(self.config.name)
+
+
+class GearboxModel(NamedModel):
+    """Mixin of the models with a multi-speed gearbox (a ``gears`` field)."""
+
+    gears: tuple[Gear, ...]
+
+    @property
+    def gear_ratios(self) -> np.ndarray:
+        """Gearbox ratios [-], first gear first."""
+        return np.array([g.ratio for g in self.gears])
+
+
+def max_machine_speed_radps(machine: ElectricMachine) -> float:
+    """Highest speed [rad/s] of a map machine's torque-limit curve (no limit for the ideal
+    and constant-efficiency models): the machine cannot turn faster."""
+    if machine.kind != "map":
+        return float("inf")
+    return float(machine.kernel_tables().lim_x[-1])
+
+
+def machine_details(flow: Any, speed_radps: Any, shape: tuple[int, ...]) -> dict[str, Any]:
+    """``details`` entries of the machine in the bus balance ``flow``
+    (:class:`~hevsim.optimal._hev_common.ElectricFlow`) turning at ``speed_radps``."""
+    return {
+        "motor_speed_radps": np.broadcast_to(speed_radps, shape),
+        "motor_torque_nm": flow.torque_nm,
+        "motor_power_elec_w": flow.power_elec_w,
+    }
+
+
+def battery_details(flow: Any) -> dict[str, Any]:
+    """``details`` entries of the battery in the bus balance ``flow``."""
+    return {"battery_current_a": flow.current_a, "battery_power_w": flow.battery_power_w}
