@@ -47,6 +47,19 @@ def _write(tmp_path: Path, text: str) -> Path:
     return p
 
 
+def _write_series_study(tmp_path: Path, parameters: str) -> Path:
+    """study.toml: the series example on UDDS, MPGGE, simulate, then the ``parameters`` TOML."""
+    return _write(
+        tmp_path,
+        f"""vehicle = "{SERIES}"
+cycles = ["udds"]
+metrics = ["mpgge"]
+solvers = ["simulate"]
+"""
+        + parameters,
+    )
+
+
 # ------------------------------------------------------------------------------------------
 # Validation
 # ------------------------------------------------------------------------------------------
@@ -94,16 +107,12 @@ def test_bad_study_names_key_value_and_expectation(change: dict, needles: list[s
 
 
 def test_nested_parameter_tables_and_renamed_sections(tmp_path: Path) -> None:
-    p = _write(
+    p = _write_series_study(
         tmp_path,
-        f"""vehicle = "{SERIES}"
-cycles = ["udds"]
-metrics = ["mpgge"]
-solvers = ["simulate"]
-[parameters.motor]
+        """[parameters.motor]
 torque_scale = [0.9, 1.1]
 [parameters.final_drive]
-ratio = {{min = 3.0, max = 4.0, step = 0.5}}
+ratio = {min = 3.0, max = 4.0, step = 0.5}
 """,
     )
     s = load_study(p)
@@ -193,16 +202,8 @@ def test_regression_ranking_recovers_linear_weights() -> None:
 # Bad input on the command line: exit 2, message, no output folder
 # ------------------------------------------------------------------------------------------
 def test_cli_bad_study_exits_2_without_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    p = _write(
-        tmp_path,
-        f"""vehicle = "{SERIES}"
-cycles = ["udds"]
-metrics = ["mpgge"]
-solvers = ["simulate"]
-[parameters]
-"body.mass_kg" = {{min = 1500.0, max = 1200.0, num = 2}}
-""",
-    )
+    inverted = '"body.mass_kg" = {min = 1500.0, max = 1200.0, num = 2}'
+    p = _write_series_study(tmp_path, f"[parameters]\n{inverted}\n")
     out = tmp_path / "out"
     assert main(["study", str(p), "--out", str(out), "--scheduler", "in-process"]) == 2
     err = capsys.readouterr().err
@@ -219,16 +220,7 @@ def _free_port() -> int:
 def test_unreachable_scheduler_is_a_clear_error_within_10_s(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    p = _write(
-        tmp_path,
-        f"""vehicle = "{SERIES}"
-cycles = ["udds"]
-metrics = ["mpgge"]
-solvers = ["simulate"]
-[parameters]
-"body.mass_kg" = [1100.0, 1200.0]
-""",
-    )
+    p = _write_series_study(tmp_path, '[parameters]\n"body.mass_kg" = [1100.0, 1200.0]\n')
     out = tmp_path / "out"
     address = f"tcp://127.0.0.1:{_free_port()}"
     study = load_study(p)

@@ -325,6 +325,14 @@ class ModuleCellsParticipant(StepperParticipant):
         return out
 
 
+def fmu_file(name: str, fmu: str | Path) -> Path:
+    """The FMU file of participant ``name`` (ConfigError if it does not exist)."""
+    path = Path(fmu)
+    if not path.is_file():
+        raise ConfigError(f"participant {name!r}: FMU file {str(path)!r} does not exist.")
+    return path
+
+
 class FMUParticipant(Participant):
     """An FMI 2.0 or 3.0 co-simulation FMU driven through FMPy in this process.
 
@@ -364,9 +372,7 @@ class FMUParticipant(Participant):
         self.fmu_log = Path(fmu_log) if fmu_log else None
         self.log: collections.deque[tuple[int, str]] = collections.deque(maxlen=LOG_KEEP)
         self._log_count = 0
-        self.fmu = Path(fmu)
-        if not self.fmu.is_file():
-            raise ConfigError(f"participant {name!r}: FMU file {str(self.fmu)!r} does not exist.")
+        self.fmu = fmu_file(name, fmu)
         try:
             md = read_model_description(str(self.fmu))
         except Exception as exc:

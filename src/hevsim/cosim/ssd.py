@@ -234,17 +234,21 @@ def read_ssd(path: str | Path, text: bytes | None = None, base_dir: Path | None 
     return desc
 
 
+def _source_file(base: Path, source: str, where: str, what: str) -> Path:
+    """The file a ``source`` attribute names (relative to ``base``); ConfigError if missing."""
+    f = base / source
+    if not f.is_file():
+        raise ConfigError(f"{where}: {what} file {str(f)!r} (source={source!r}) does not exist.")
+    return f
+
+
 def _binding(pb: Any, base: Path, where: str) -> dict[str, Any]:
     """Parameter values of one ``ssd:ParameterBinding``: inline ``ssv:ParameterSet`` or an
     ``.ssv`` file (``source``), names without the binding's ``prefix``, renamed and linearly
     transformed by an inline or ``.ssm`` ``ssd:ParameterMapping``."""
     source = pb.get("source")
     if source:
-        f = base / source
-        if not f.is_file():
-            raise ConfigError(
-                f"{where}: parameter values file {str(f)!r} (source={source!r}) does not exist."
-            )
+        f = _source_file(base, source, where, "parameter values")
         pset = parse_xml(f)
         pwhere = f"{f}"
     else:
@@ -268,11 +272,7 @@ def _binding(pb: Any, base: Path, where: str) -> dict[str, Any]:
     if mapping is not None:
         msrc = mapping.get("source")
         if msrc:
-            mf = base / msrc
-            if not mf.is_file():
-                raise ConfigError(
-                    f"{where}: parameter mapping file {str(mf)!r} (source={msrc!r}) does not exist."
-                )
+            mf = _source_file(base, msrc, where, "parameter mapping")
             mroot, mwhere = parse_xml(mf), str(mf)
         else:
             mroot, mwhere = mapping, where

@@ -12,7 +12,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from hevsim.cosim.participant import Participant
+from hevsim.cosim.participant import Participant, fmu_file
 from hevsim.errors import ConfigError, SimulationError
 
 
@@ -28,9 +28,7 @@ class WorkerFMUParticipant(Participant):
         fmu_log: str | Path | None = None,
     ):
         self.name = name
-        self.fmu = Path(fmu)
-        if not self.fmu.is_file():
-            raise ConfigError(f"participant {name!r}: FMU file {str(self.fmu)!r} does not exist.")
+        self.fmu = fmu_file(name, fmu)
         self.terminate_requested = False
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "hevsim.cosim._worker"],

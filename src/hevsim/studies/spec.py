@@ -276,11 +276,7 @@ def _axis(cfg: Any, key: str, spec: Any, method: str, src: str) -> Axis:
         return Axis(key, values=vals, integer=integer)
     if not isinstance(spec, dict):
         raise StudyError(f"{where} = {spec!r}: expected a list of values or a range {{min, max, ...}}.")
-    unknown = [k for k in spec if k not in RANGE_KEYS]
-    if unknown:
-        raise StudyError(
-            f"{where}: key '{unknown[0]}' is not known; valid keys are: {', '.join(RANGE_KEYS)}."
-        )
+    _reject_unknown(spec, RANGE_KEYS, where)
     for k in ("min", "max"):
         if k not in spec:
             raise StudyError(f"{where}: the range has no '{k}'; expected {{min = .., max = ..}}.")
@@ -372,6 +368,17 @@ def _load_cycles(names: tuple[str, ...], base: Path, src: str) -> tuple[tuple[st
     return tuple(labels), tuple(objs)
 
 
+def _reject_unknown(
+    table: dict[str, Any], valid: tuple[str, ...], where: str, prefix: str = "", label: str = "keys"
+) -> None:
+    """Raise :class:`StudyError` naming the first key of ``table`` that is not in ``valid``."""
+    unknown = [k for k in table if k not in valid]
+    if unknown:
+        raise StudyError(
+            f"{where}: key '{prefix}{unknown[0]}' is not known; valid {label} are: {', '.join(valid)}."
+        )
+
+
 def study_from_dict(data: dict[str, Any], source: str = "<study>", base_dir: Path | None = None) -> Study:
     """Validate a parsed study mapping into a sampled :class:`Study` (see module docstring)."""
     from hevsim.config import load_vehicle_config
@@ -379,11 +386,7 @@ def study_from_dict(data: dict[str, Any], source: str = "<study>", base_dir: Pat
 
     src = source
     base = base_dir or Path(".")
-    unknown = [k for k in data if k not in TOP_KEYS]
-    if unknown:
-        raise StudyError(
-            f"{src}: key '{unknown[0]}' is not known; valid top-level keys are: {', '.join(TOP_KEYS)}."
-        )
+    _reject_unknown(data, TOP_KEYS, src, label="top-level keys")
     for key in ("vehicle", "cycles", "parameters", "solvers", "metrics"):
         if key not in data:
             raise StudyError(f"{src}: key '{key}' is missing; expected it (see docs/studies.md).")
@@ -401,11 +404,7 @@ def study_from_dict(data: dict[str, Any], source: str = "<study>", base_dir: Pat
     smp = data.get("sampling", {})
     if not isinstance(smp, dict):
         raise StudyError(f"{src}: [sampling] = {smp!r}: expected a table.")
-    bad = [k for k in smp if k not in SAMPLING_KEYS]
-    if bad:
-        raise StudyError(
-            f"{src}: key 'sampling.{bad[0]}' is not known; valid keys are: {', '.join(SAMPLING_KEYS)}."
-        )
+    _reject_unknown(smp, SAMPLING_KEYS, src, prefix="sampling.")
     method = smp.get("method", "grid")
     if method not in sampling.METHODS:
         raise StudyError(
@@ -486,11 +485,7 @@ def study_from_dict(data: dict[str, Any], source: str = "<study>", base_dir: Pat
         where = f"{src}: pareto[{i}]"
         if not isinstance(p, dict):
             raise StudyError(f"{where} = {p!r}: expected a table with minimize/maximize lists.")
-        bad = [k for k in p if k not in PARETO_KEYS]
-        if bad:
-            raise StudyError(
-                f"{where}: key '{bad[0]}' is not known; valid keys are: {', '.join(PARETO_KEYS)}."
-            )
+        _reject_unknown(p, PARETO_KEYS, where)
         mn = _str_list(p.get("minimize", []), f"{where}.minimize", allow_empty=True)
         mx = _str_list(p.get("maximize", []), f"{where}.maximize", allow_empty=True)
         if len(mn) + len(mx) < 2:
@@ -528,11 +523,8 @@ def load_study(path: str | Path) -> Study:
     p = Path(path)
     if not p.is_file():
         raise StudyError(f"{p}: study file not found; expected a TOML file.")
-    import tomllib
-
     try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise StudyError(f"{p}: not valid TOML ({exc}).") from exc
-    data.setdefault("name", p.stem)
+        data = schema.read_toml(p)  # parses; ``name`` defaults to the file's stem
+    except ConfigError as exc:  # not valid TOML: the same message, as a StudyError
+        raise StudyError(str(exc)) from exc.__cause__
     return study_from_dict(data, source=str(p), base_dir=p.resolve().parent)
