@@ -12,6 +12,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from tests.dp_replay_helpers import assert_replay_matches_dp
 
 from hevsim.config import VehicleConfig
 from hevsim.cycles import DriveCycle, load_cycle
@@ -76,10 +77,7 @@ def test_replay_reproduces_dp_fuel_and_soc(hev: SeriesHEV, run: OptimizationResu
     w_e = ts["engine_speed_radps"].to_numpy()[:-1]
     t_e = ts["engine_torque_nm"].to_numpy()[:-1]
     fuel, soc, rows = replay(hev, run.cycle, w_e, t_e, float(ts["soc"].iloc[0]))
-    dp_fuel = run.value("fuel_kg")
-    assert abs(fuel - dp_fuel) <= 0.005 * dp_fuel  # issue 3: within 0.5 %
-    assert abs(fuel - run.dp.total_cost) <= 1e-9 * dp_fuel
-    assert np.max(np.abs(soc - ts["soc"].to_numpy())) < 1e-9
+    assert_replay_matches_dp(run, fuel, soc)
     # the genset delivers the scheduled electrical power
     p_sched = ts["genset_power_w"].to_numpy()[:-1]
     assert np.allclose(rows[:, 4], p_sched, rtol=1e-3, atol=1.0)
@@ -98,10 +96,7 @@ def test_replay_with_scaled_machines(hev: SeriesHEV, scale: float) -> None:
     w_e = ts["engine_speed_radps"].to_numpy()[:-1]
     t_e = ts["engine_torque_nm"].to_numpy()[:-1]
     fuel, soc, _ = replay(scaled, run.cycle, w_e, t_e, float(ts["soc"].iloc[0]))
-    dp_fuel = run.value("fuel_kg")
-    assert abs(fuel - dp_fuel) <= 0.005 * dp_fuel
-    assert abs(fuel - run.dp.total_cost) <= 1e-9 * dp_fuel
-    assert np.max(np.abs(soc - ts["soc"].to_numpy())) < 1e-9
+    assert_replay_matches_dp(run, fuel, soc)
     t_m, w_m = ts["motor_torque_nm"].to_numpy(), ts["motor_speed_radps"].to_numpy()
     assert not np.allclose(mot.electrical_power(t_m, w_m), hev.traction_motor.electrical_power(t_m, w_m))
 

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from tests.thermal_helpers import COARSE_TOML
 
 from hevsim.battery.cell import Cell
 from hevsim.battery.cooling import counterflow_effectiveness
@@ -16,12 +17,6 @@ from hevsim.errors import ConfigError
 from hevsim.units import c_to_k
 
 ROOT = Path(__file__).resolve().parents[1]
-COARSE_TOML = (
-    (ROOT / "examples" / "module_thermal.toml")
-    .read_text()
-    .replace("mesh_size_m = 0.005", "mesh_size_m = 0.008")
-    .replace("curvature_elements = 12 ", "curvature_elements = 8 ")
-)
 
 
 def _pack_dict(**sections: dict[str, Any]) -> dict[str, Any]:

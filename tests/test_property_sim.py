@@ -167,6 +167,22 @@ def _check_strict_json(result: SimulationResult) -> dict[str, Any]:
     return metrics
 
 
+def _runs_finite_or_fails_cleanly(overrides: dict[str, Any], plain_numbers: bool = False) -> None:
+    """Simulate the base vehicle with ``overrides``: finite results, or a HevsimError with exit
+    code 2/3 and a one-line message (``plain_numbers``: and no ``np.float64`` reprs in it)."""
+    note(repr(overrides))
+    try:
+        result = simulate(_base().replace(**overrides), _cycle())
+    except HevsimError as exc:
+        assert exc.exit_code in (2, 3), exc
+        message = str(exc)
+        assert message and "\n" not in message
+        if plain_numbers:
+            assert "np.float64" not in message
+        return
+    _check_finite(result)
+
+
 @settings(
     max_examples=30,
     deadline=None,
@@ -175,16 +191,7 @@ def _check_strict_json(result: SimulationResult) -> dict[str, Any]:
 )
 @given(vehicles())
 def test_random_vehicle_runs_finite_or_fails_cleanly(overrides: dict[str, Any]) -> None:
-    note(repr(overrides))
-    try:
-        result = simulate(_base().replace(**overrides), _cycle())
-    except HevsimError as exc:
-        assert exc.exit_code in (2, 3), exc
-        message = str(exc)
-        assert message and "\n" not in message
-        assert "np.float64" not in message
-        return
-    _check_finite(result)
+    _runs_finite_or_fails_cleanly(overrides, plain_numbers=True)
 
 
 @settings(
@@ -195,14 +202,7 @@ def test_random_vehicle_runs_finite_or_fails_cleanly(overrides: dict[str, Any]) 
 )
 @given(passenger_cars())
 def test_random_passenger_car_runs_finite_or_fails_cleanly(overrides: dict[str, Any]) -> None:
-    note(repr(overrides))
-    try:
-        result = simulate(_base().replace(**overrides), _cycle())
-    except HevsimError as exc:
-        assert exc.exit_code in (2, 3), exc
-        assert str(exc) and "\n" not in str(exc)
-        return
-    _check_finite(result)
+    _runs_finite_or_fails_cleanly(overrides)
 
 
 def test_mid_range_vehicle_succeeds() -> None:

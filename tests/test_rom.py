@@ -14,6 +14,8 @@ import pytest
 pytest.importorskip("skfem")
 pytest.importorskip("gmsh")
 
+from tests.thermal_helpers import COARSE_TOML
+
 from hevsim.cli import main
 from hevsim.errors import ConfigError, InputError
 from hevsim.thermal.geometry import build_module_mesh
@@ -28,14 +30,6 @@ from hevsim.thermal.rom import (
 )
 from hevsim.thermal.run import KELVIN, load_thermal_config
 
-ROOT = Path(__file__).resolve().parents[1]
-#: the example module on a coarse mesh (about 4 500 FEM nodes)
-COARSE_TOML = (
-    (ROOT / "examples" / "module_thermal.toml")
-    .read_text()
-    .replace("mesh_size_m = 0.005", "mesh_size_m = 0.008")
-    .replace("curvature_elements = 12 ", "curvature_elements = 8 ")
-)
 #: the acceptance bound of issue 12 on every per-cell mean and hot-spot temperature [K]
 BOUND_K = 0.2
 
