@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.arch_helpers import assert_bad_config_exits_2
 
 from hevsim import config as C
 from hevsim.architectures import architecture
@@ -141,15 +142,7 @@ def test_bad_input_is_exit_2(
 ) -> None:
     text = path.read_text()
     assert old in text
-    bad = tmp_path / "bad.toml"
-    bad.write_text(text.replace(old, new, 1))
-    out = tmp_path / "o"
-    assert main(["simulate", str(bad), "--out", str(out)]) == 2
-    err = capsys.readouterr().err
-    assert "bad.toml" in err
-    for n in needles:
-        assert n in err, (n, err)
-    assert not out.exists()
+    assert_bad_config_exits_2(tmp_path, capsys, text.replace(old, new, 1), needles)
 
 
 def test_cli_simulates_both(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.arch_helpers import assert_bad_config_exits_2
 
 from hevsim import config as C
 from hevsim.architectures import ARCHITECTURES, architecture
@@ -259,15 +260,7 @@ def test_bad_parallel_input_is_exit_2_naming_file_key_value(
     section = changes.split("\n", 1)[0]
     start = text.index("\n" + section) + 1
     end = text.find("\n[", start + 1)
-    bad = tmp_path / "bad.toml"
-    bad.write_text(text[:start] + changes + text[end + 1 :])
-    out = tmp_path / "o"
-    assert main(["simulate", str(bad), "--out", str(out)]) == 2
-    err = capsys.readouterr().err
-    assert "bad.toml" in err
-    for n in needles:
-        assert n in err, (n, err)
-    assert not out.exists()
+    assert_bad_config_exits_2(tmp_path, capsys, text[:start] + changes + text[end + 1 :], needles)
 
 
 def test_series_refuses_a_parallel_controller(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -79,6 +79,29 @@ class _GridController:
         return None if i is None else tuple(float(c[i]) for c in self.controls)
 
 
+class _RuleBased(_GridController):
+    """Shared part of the rule-based baselines: the EV rule (low speed and power) and the
+    charging power that ramps from 0 at ``soc_high`` to ``charge_power_w`` at ``soc_low``."""
+
+    def __init__(self, hev: Any, soc_low: float, soc_high: float, ev_speed_mps: float, ev_power_w: float,
+                 charge_power_w: float, control_points: int) -> None:  # fmt: skip
+        super().__init__(hev, control_points)
+        self.soc_low, self.soc_high = float(soc_low), float(soc_high)
+        self.ev_speed, self.ev_power, self.charge_power = (
+            float(ev_speed_mps),
+            float(ev_power_w),
+            float(charge_power_w),
+        )
+
+    def low_load(self, step: Any, p_dem: float) -> bool:
+        """Below the EV speed and the EV power (wheel power ``p_dem`` [W])."""
+        return bool(step.v_mid_mps < self.ev_speed and p_dem < self.ev_power)
+
+    def charge_fraction(self, soc: float) -> Any:
+        """Share [-] of ``charge_power`` to add at ``soc``: 0 at ``soc_high``, 1 at ``soc_low``."""
+        return np.clip((self.soc_high - soc) / (self.soc_high - self.soc_low), 0.0, 1.0)
+
+
 class ECMS(_GridController):
     """Equivalent consumption minimisation with a constant equivalence factor ``s`` [-]."""
 
@@ -136,7 +159,7 @@ class AdaptiveECMS(_GridController):
         self.integral += self.error(step) * step.dt_s
 
 
-class ElectricAssist(_GridController):
+class ElectricAssist(_RuleBased):
     """ADVISOR-style electric-assist / load-following baseline.
 
     Gear: the shift schedule (up above ``upshift_rpm``, down below ``downshift_rpm`` of
@@ -154,13 +177,7 @@ class ElectricAssist(_GridController):
     def __init__(self, hev: P.ParallelHEV, soc_low: float, soc_high: float, ev_speed_mps: float,
                  ev_power_w: float, charge_power_w: float, upshift_rpm: float, downshift_rpm: float,
                  control_points: int) -> None:  # fmt: skip
-        super().__init__(hev, control_points)
-        self.soc_low, self.soc_high = float(soc_low), float(soc_high)
-        self.ev_speed, self.ev_power, self.charge_power = (
-            float(ev_speed_mps),
-            float(ev_power_w),
-            float(charge_power_w),
-        )
+        super().__init__(hev, soc_low, soc_high, ev_speed_mps, ev_power_w, charge_power_w, control_points)
         self.w_up, self.w_down = rpm_to_radps(upshift_rpm), rpm_to_radps(downshift_rpm)
         self.thr_grid = np.linspace(0.0, 1.0, int(control_points))[1:]
         self.gear = 1
@@ -182,12 +199,12 @@ class ElectricAssist(_GridController):
         g = self.shift(w_fd)
         p_dem = step.wheel_torque_nm * step.wheel_speed_radps
         soc = step.soc
-        low_load = step.v_mid_mps < self.ev_speed and p_dem < self.ev_power
+        low_load = self.low_load(step, p_dem)
         ev = p_dem <= 0.0 or soc > self.soc_high or (soc > self.soc_low and low_load)
         control: Control = (float(g), 0.0)
         if not ev:
             w_e = w_fd * hev.gear_ratios[g - 1]
-            frac = np.clip((self.soc_high - soc) / (self.soc_high - self.soc_low), 0.0, 1.0)
+            frac = self.charge_fraction(soc)
             t_fd = float(hev.final_drive.input_torque(step.wheel_torque_nm))
             t_req = float(hev.gears[g - 1].input_torque(t_fd)) + (
                 frac * self.charge_power / w_e if w_e > 0 else 0.0
@@ -285,7 +302,7 @@ def ecms_from_costate_csv(path: Any) -> dict[str, float]:
     return {"equivalence_factor": float(np.median(s))}
 
 
-class PowerFollower(_GridController):
+class PowerFollower(_RuleBased):
     """Rule-based power follower of the power split (ADVISOR-style).
 
     EV (engine off) when braking or coasting, or below ``ev_speed_mps`` and ``ev_power_w``
@@ -303,25 +320,19 @@ class PowerFollower(_GridController):
 
     def __init__(self, hev: Any, soc_low: float, soc_high: float, ev_speed_mps: float, ev_power_w: float,
                  charge_power_w: float, control_points: int) -> None:  # fmt: skip
-        super().__init__(hev, control_points)
-        self.soc_low, self.soc_high = float(soc_low), float(soc_high)
-        self.ev_speed, self.ev_power, self.charge_power = (
-            float(ev_speed_mps),
-            float(ev_power_w),
-            float(charge_power_w),
-        )
+        super().__init__(hev, soc_low, soc_high, ev_speed_mps, ev_power_w, charge_power_w, control_points)
 
     def choose(self, step: Any) -> Control | None:
         """EV or the most efficient engine operating point near the target power."""
         p_dem = step.wheel_torque_nm * step.wheel_speed_radps
         soc = step.soc
-        low_load = step.v_mid_mps < self.ev_speed and p_dem < self.ev_power
+        low_load = self.low_load(step, p_dem)
         st, feasible = step.evaluate(*self.controls)
         feasible = np.ravel(feasible)
         ev = np.ravel(np.asarray(self.controls[-1]) == 0.0)
         if (p_dem <= 0.0 or (soc > self.soc_low and low_load)) and (feasible & ev).any():
             return self.pick(int(np.flatnonzero(feasible & ev)[0]))
-        frac = float(np.clip((self.soc_high - soc) / (self.soc_high - self.soc_low), 0.0, 1.0))
+        frac = float(self.charge_fraction(soc))
         target = max(p_dem, 0.0) + frac * self.charge_power
         p_eng = np.ravel(st.details["engine_power_w"]) if st.details else None
         if p_eng is None:

@@ -32,6 +32,7 @@ wheel_speed_radps, wheel_torque_nm)`` (W per audit term, with ``fuel`` and ``whe
 from __future__ import annotations
 
 import dataclasses
+import functools
 import platform
 import time
 from dataclasses import dataclass
@@ -123,56 +124,24 @@ def _battery_state(model: Any, soc: float, soc_max: float) -> Any:
     return bs
 
 
-def simulate_parallel(
-    model: Any,
-    cycle: DriveCycle | str | None = None,
-    dt_s: float | None = None,
-    soc_initial: float | None = None,
-    controller: Any = None,
-    **controller_params: Any,
-) -> Any:
-    """Simulate a parallel HEV forward (see :func:`simulate_architecture`)."""
-    return simulate_architecture("parallel", model, cycle, dt_s, soc_initial, controller, **controller_params)
-
-
-def simulate_conventional(
-    model: Any,
-    cycle: DriveCycle | str | None = None,
-    dt_s: float | None = None,
-    soc_initial: float | None = None,
-    controller: Any = None,
-    **controller_params: Any,
-) -> Any:
-    """Simulate a conventional vehicle forward (see :func:`simulate_architecture`)."""
-    return simulate_architecture(
-        "conventional", model, cycle, dt_s, soc_initial, controller, **controller_params
-    )
-
-
-def simulate_bev(
-    model: Any,
-    cycle: DriveCycle | str | None = None,
-    dt_s: float | None = None,
-    soc_initial: float | None = None,
-    controller: Any = None,
-    **controller_params: Any,
-) -> Any:
-    """Simulate a battery-electric vehicle forward (see :func:`simulate_architecture`)."""
-    return simulate_architecture("bev", model, cycle, dt_s, soc_initial, controller, **controller_params)
-
-
-def simulate_power_split(
-    model: Any,
-    cycle: DriveCycle | str | None = None,
-    dt_s: float | None = None,
-    soc_initial: float | None = None,
-    controller: Any = None,
-    **controller_params: Any,
-) -> Any:
-    """Simulate a power-split HEV forward (see :func:`simulate_architecture`)."""
-    return simulate_architecture(
-        "power_split", model, cycle, dt_s, soc_initial, controller, **controller_params
-    )
+def cycle_and_step(
+    cycle: DriveCycle | str | None, dt_s: float | None, simulation: Any
+) -> tuple[DriveCycle, float]:
+    """(drive cycle, time step [s]) of a run: ``cycle`` (a :class:`DriveCycle`, registered
+    name or CSV path) and ``dt_s``, by default the ``[simulation]`` section's; checks the step
+    (0.001 to 10 s) and that the cycle moves."""
+    cyc = cycle if isinstance(cycle, DriveCycle) else load_cycle(cycle or simulation.cycle)
+    dt = float(dt_s if dt_s is not None else simulation.dt_s)
+    if not 1e-3 <= dt <= 10.0:
+        raise ConfigError(f"time step dt_s = {dt:g} is out of range; expected 0.001 to 10 s.")
+    if cyc.distance_m <= 0.0:
+        raise InputError(
+            f"drive cycle '{cyc.name}'"
+            + (f" ({cyc.source})" if cyc.source else "")
+            + ": the vehicle stands still for the whole cycle (distance 0 m); expected a cycle "
+            "with some speed > 0 (fuel economy and per-distance figures are undefined otherwise)."
+        )
+    return cyc, dt
 
 
 def simulate_architecture(
@@ -214,14 +183,7 @@ def simulate_architecture(
         ctl = make_controller(model, controller, **controller_params)
     elif controller_params:
         raise ConfigError("simulate: controller parameters need a controller kind, not a controller object.")
-    cyc = cycle if isinstance(cycle, DriveCycle) else load_cycle(cycle or cfg.simulation.cycle)
-    dt = float(dt_s if dt_s is not None else cfg.simulation.dt_s)
-    if not 1e-3 <= dt <= 10.0:
-        raise ConfigError(f"time step dt_s = {dt:g} is out of range; expected 0.001 to 10 s.")
-    if cyc.distance_m <= 0.0:
-        raise InputError(
-            f"drive cycle '{cyc.name}': the vehicle stands still for the whole cycle (distance 0 m)."
-        )
+    cyc, dt = cycle_and_step(cycle, dt_s, cfg.simulation)
     grid = cyc.resampled(dt)
     battery = getattr(model, "battery", None)
     b = getattr(cfg, "battery", None)
@@ -269,6 +231,17 @@ def simulate_architecture(
     if hasattr(ctl, "s"):
         metadata["equivalence_factor_final"] = float(ctl.s)
     return SimulationResult(ts, metrics, audit, events, metadata, model, cyc)
+
+
+# One entry point per architecture: simulate_architecture with the name fixed.
+simulate_parallel = functools.partial(simulate_architecture, "parallel")
+"""Simulate a parallel HEV forward (see :func:`simulate_architecture`)."""
+simulate_conventional = functools.partial(simulate_architecture, "conventional")
+"""Simulate a conventional vehicle forward (see :func:`simulate_architecture`)."""
+simulate_bev = functools.partial(simulate_architecture, "bev")
+"""Simulate a battery-electric vehicle forward (see :func:`simulate_architecture`)."""
+simulate_power_split = functools.partial(simulate_architecture, "power_split")
+"""Simulate a power-split HEV forward (see :func:`simulate_architecture`)."""
 
 
 def simulate_batch_architecture(

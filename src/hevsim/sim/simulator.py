@@ -15,8 +15,8 @@ import pandas as pd
 import hevsim
 from hevsim.components.engine import Engine
 from hevsim.config import VehicleConfig
-from hevsim.cycles import DriveCycle, load_cycle
-from hevsim.errors import ConfigError, DomainError, InputError, TrackingError
+from hevsim.cycles import DriveCycle
+from hevsim.errors import ConfigError, DomainError, TrackingError
 from hevsim.fuels import config_fuel
 from hevsim.io import atomic_directory, write_json
 from hevsim.sim import kernel as K
@@ -190,17 +190,9 @@ def _prepare(
 ) -> tuple[SeriesHEV, DriveCycle, DriveCycle, float]:
     hev = model if isinstance(model, SeriesHEV) else build_series_hev(model)
     cfg = hev.config
-    cyc = cycle if isinstance(cycle, DriveCycle) else load_cycle(cycle or cfg.simulation.cycle)
-    dt = float(dt_s if dt_s is not None else cfg.simulation.dt_s)
-    if not 1e-3 <= dt <= 10.0:
-        raise ConfigError(f"time step dt_s = {dt:g} is out of range; expected 0.001 to 10 s.")
-    if cyc.distance_m <= 0.0:
-        raise InputError(
-            f"drive cycle '{cyc.name}'"
-            + (f" ({cyc.source})" if cyc.source else "")
-            + ": the vehicle stands still for the whole cycle (distance 0 m); expected a cycle "
-            "with some speed > 0 (fuel economy and per-distance figures are undefined otherwise)."
-        )
+    from hevsim.sim.forward import cycle_and_step
+
+    cyc, dt = cycle_and_step(cycle, dt_s, cfg.simulation)
     res = cyc.resampled(dt)
     grid = DriveCycle(res.name, np.array(res.time_s), np.array(res.speed_mps), np.array(res.grade))
     return hev, cyc, grid, dt
