@@ -82,13 +82,18 @@ def replay(hev: ParallelHEV, cycle: DriveCycle, gear: np.ndarray, throttle: np.n
     return fuel, np.array(soc), np.array(rows)
 
 
-def test_replay_reproduces_dp_fuel_and_soc(hev: ParallelHEV, window_run: OptimizationResult) -> None:
-    ts = window_run.timeseries
+def _assert_replay_reproduces(hev: ParallelHEV, run: OptimizationResult) -> None:
+    """Replaying ``run``'s gears and throttles on ``hev`` gives its (positive) fuel and SOC."""
+    ts = run.timeseries
     gear = ts["gear"].to_numpy()[:-1]
     thr = ts["engine_throttle"].to_numpy()[:-1]
-    fuel, soc, _ = replay(hev, window_run.cycle, gear, thr, float(ts["soc"].iloc[0]))
-    assert window_run.value("fuel_kg") > 0
-    assert_replay_matches_dp(window_run, fuel, soc)
+    fuel, soc, _ = replay(hev, run.cycle, gear, thr, float(ts["soc"].iloc[0]))
+    assert run.value("fuel_kg") > 0
+    assert_replay_matches_dp(run, fuel, soc)
+
+
+def test_replay_reproduces_dp_fuel_and_soc(hev: ParallelHEV, window_run: OptimizationResult) -> None:
+    _assert_replay_reproduces(hev, window_run)
 
 
 @pytest.mark.parametrize("scale", [0.7, 1.4])
@@ -99,12 +104,7 @@ def test_replay_with_a_scaled_map_motor(hev: ParallelHEV, scale: float) -> None:
     motor = ElectricMachine.from_directory(folder, torque_scale=scale)
     scaled = dataclasses.replace(hev, motor=motor)
     run = optimize(scaled, "fu505", soc_grid_points=101, input_grid_points=51)
-    ts = run.timeseries
-    gear = ts["gear"].to_numpy()[:-1]
-    thr = ts["engine_throttle"].to_numpy()[:-1]
-    fuel, soc, _ = replay(scaled, run.cycle, gear, thr, float(ts["soc"].iloc[0]))
-    assert run.value("fuel_kg") > 0
-    assert_replay_matches_dp(run, fuel, soc)
+    _assert_replay_reproduces(scaled, run)
 
 
 def test_final_soc_targets(window_run: OptimizationResult, sustain_run: OptimizationResult) -> None:
