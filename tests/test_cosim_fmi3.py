@@ -196,4 +196,4 @@ def test_fmi3_in_process_participant_matches_worker(fmus: dict[str, Path], tmp_p
     assert out["rejected"] == 9
     assert np.array_equal(np.array(out["resumed"]), full.data)
     assert "participant 'x' failed in do_step at t = 0.3 s: fmi3DoStep failed" in out["fault"]
-    assert "FMU log: [FATAL]" in out["fault"] and "integrator asked to fail" in out["fault"]  # the FMU's reason
+    assert "FMU log: [FATAL]" in out["fault"] and "integrator asked to fail" in out["fault"]
