@@ -484,19 +484,7 @@ def identify(
     v, t = _simulate(p_fit, record, soc_initial, port_k, port_k)
     if not record.temperature_measured:
         t_meas = np.full_like(t, np.nan)
-    ts = pd.DataFrame(
-        {
-            "time_s": record.time_s,
-            "current_a": record.current_a,
-            "soc": soc,
-            "voltage_measured_v": record.voltage_v,
-            "voltage_fitted_v": v,
-            "voltage_error_v": v - record.voltage_v,
-            "temp_measured_k": t_meas,
-            "temp_fitted_k": t,
-            "temp_error_k": t - t_meas,
-        }
-    )
+    ts = _fit_series(record, v, t, t_meas, soc=soc)
     rmse = {
         "voltage_v": float(np.sqrt(np.mean((v - record.voltage_v) ** 2))),
         "voltage_max_v": float(np.max(np.abs(v - record.voltage_v))),
@@ -520,6 +508,26 @@ def identify(
         "success": bool(sol_v.success),
     }
     return Identification(p_fit, table, rmse, ts, metadata=meta)
+
+
+def _fit_series(
+    record: CellTestRecord, v: FloatArray, t: FloatArray, t_meas: FloatArray, **extra: FloatArray
+) -> pd.DataFrame:
+    """The measured and simulated voltage [V] and temperature [K] of ``record`` and their
+    errors per sample (``extra`` columns after the current)."""
+    return pd.DataFrame(
+        {
+            "time_s": record.time_s,
+            "current_a": record.current_a,
+            **extra,
+            "voltage_measured_v": record.voltage_v,
+            "voltage_fitted_v": v,
+            "voltage_error_v": v - record.voltage_v,
+            "temp_measured_k": t_meas,
+            "temp_fitted_k": t,
+            "temp_error_k": t - t_meas,
+        }
+    )
 
 
 def _sha256(path: str) -> str:
@@ -547,18 +555,7 @@ def validate(
     port_k = float(record.temp_k[0]) if port_temp_k is None else float(port_temp_k)
     v, t = _simulate(p, record, soc_initial, port_k, float(record.temp_k[0]))
     t_meas = record.temp_k if record.temperature_measured else np.full_like(t, np.nan)
-    ts = pd.DataFrame(
-        {
-            "time_s": record.time_s,
-            "current_a": record.current_a,
-            "voltage_measured_v": record.voltage_v,
-            "voltage_fitted_v": v,
-            "voltage_error_v": v - record.voltage_v,
-            "temp_measured_k": t_meas,
-            "temp_fitted_k": t,
-            "temp_error_k": t - t_meas,
-        }
-    )
+    ts = _fit_series(record, v, t, t_meas)
     errors = error_table(ts, p.capacity.c0_c / 3600.0)
     meta = {
         **result.metadata,

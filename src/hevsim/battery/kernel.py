@@ -225,6 +225,18 @@ def hysteresis_step(prm, h0, i_a, dt, cap):
     return target + d * e1, target + d * (1.0 - e1) / (k * dt)
 
 
+@njit(cache=True, inline="always")
+def rc_element(j, n, persistent, direction, rc_d, rc_c):
+    """RC state ``j`` (of ``n`` RC elements per set, ``persistent`` = ``rc_persistent`` on):
+    ``(rc, jj, active)`` — its element is row ``jj`` of the set ``rc`` (``rc_d`` or ``rc_c``),
+    connected (``active``) if that set is the one of the current ``direction``."""
+    if persistent:
+        return rc_d if direction > 0.0 else rc_c, j, True
+    if j < n:
+        return rc_d, j, direction > 0.0
+    return rc_c, j - n, direction < 0.0
+
+
 @njit(cache=True)
 def branch_affine(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, dt, direction):
     """Step-average terminal voltage as ``E - Z i`` for a current of the given direction.
@@ -269,14 +281,7 @@ def branch_affine_at(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc
         z = rs
     persistent = prm[RCPERS] > 0.0
     for j in range(n if persistent else 2 * n):
-        if persistent:
-            rc = rc_d if direction > 0.0 else rc_c
-            jj = j
-            active = True
-        else:
-            rc = rc_d if j < n else rc_c
-            jj = j if j < n else j - n
-            active = (j < n and direction > 0.0) or (j >= n and direction < 0.0)
+        rc, jj, active = rc_element(j, n, persistent, direction, rc_d, rc_c)
         tau = rc[jj, 1]
         g = tau * (1.0 - math.exp(-dt / tau)) / dt  # mean of exp(-t/tau) over the step
         if active:
@@ -318,14 +323,7 @@ def cell_step(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, 
     rc_heat_j = 0.0
     persistent = prm[RCPERS] > 0.0
     for j in range(n if persistent else 2 * n):
-        if persistent:
-            rc = rc_d if direction > 0.0 else rc_c
-            jj = j
-            active = True
-        else:
-            rc = rc_d if j < n else rc_c
-            jj = j if j < n else j - n
-            active = (j < n and direction > 0.0) or (j >= n and direction < 0.0)
+        rc, jj, active = rc_element(j, n, persistent, direction, rc_d, rc_c)
         r_j = rc[jj, 0] * prm[RSCALE]
         tau = rc[jj, 1]
         a = r_j * i_a if active else 0.0
@@ -387,12 +385,7 @@ def rc_energy(prm, rc_d, rc_c, x):
     e = 0.0
     persistent = prm[RCPERS] > 0.0
     for j in range(n if persistent else 2 * n):
-        if persistent:
-            rc = rc_d if x[SDIR] > 0.0 else rc_c
-            jj = j
-        else:
-            rc = rc_d if j < n else rc_c
-            jj = j if j < n else j - n
+        rc, jj, _ = rc_element(j, n, persistent, x[SDIR], rc_d, rc_c)
         c = rc[jj, 1] / (rc[jj, 0] * prm[RSCALE])
         v = x[N_FIXED_STATES + j]
         e += 0.5 * c * v * v

@@ -79,6 +79,33 @@ def pack_tables(bat):
     )
 
 
+CellArguments = tuple[
+    FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray,
+    FloatArray, FloatArray, FloatArray, FloatArray, FloatArray,
+]  # fmt: skip
+"""The type of :func:`cell_arguments` (11 arrays)."""
+
+
+@njit(cache=True, inline="always")
+def cell_arguments(bat: EcmTables) -> CellArguments:
+    """The cell arguments ``prm .. x`` of :func:`hevsim.battery.kernel.branch_affine` and
+    :func:`~hevsim.battery.kernel.cell_step` (parameters, tables, state) held in an
+    :class:`EcmTables`."""
+    return (
+        bat.params,
+        bat.soc,
+        bat.temperature_k,
+        bat.ocv_charge_v,
+        bat.ocv_discharge_v,
+        bat.rs_charge_ohm,
+        bat.rs_discharge_ohm,
+        bat.capacity_factor,
+        bat.rc_discharge,
+        bat.rc_charge,
+        bat.state,
+    )
+
+
 def _params(params: CellParameters | str | Path) -> CellParameters:
     return params if isinstance(params, CellParameters) else load_cell_parameters(params)
 
@@ -209,21 +236,7 @@ def battery_ecm(p, bat, soc, current_sign):
     The kernel's ``soc`` and ``p`` are not needed (the cells carry their own charge state).
     """
     aux = bat.aux
-    e, z = K.branch_affine(
-        bat.params,
-        bat.soc,
-        bat.temperature_k,
-        bat.ocv_charge_v,
-        bat.ocv_discharge_v,
-        bat.rs_charge_ohm,
-        bat.rs_discharge_ohm,
-        bat.capacity_factor,
-        bat.rc_discharge,
-        bat.rc_charge,
-        bat.state,
-        aux[A_DT],
-        current_sign,
-    )
+    e, z = K.branch_affine(*cell_arguments(bat), aux[A_DT], current_sign)
     return aux[A_NS] * e, pack_resistance(z, aux[A_NS], aux[A_NP], aux[A_REXT])
 
 
@@ -235,23 +248,7 @@ def battery_ecm_advance(p, bat, i_pack, dt):
     """
     aux = bat.aux
     rec = np.empty(len(K.RECORD))
-    K.cell_step(
-        bat.params,
-        bat.soc,
-        bat.temperature_k,
-        bat.ocv_charge_v,
-        bat.ocv_discharge_v,
-        bat.rs_charge_ohm,
-        bat.rs_discharge_ohm,
-        bat.capacity_factor,
-        bat.rc_discharge,
-        bat.rc_charge,
-        bat.state,
-        i_pack / aux[A_NP],
-        dt,
-        aux[A_TPORT],
-        rec,
-    )
+    K.cell_step(*cell_arguments(bat), i_pack / aux[A_NP], dt, aux[A_TPORT], rec)
     aux[A_HEAT] = rec[K.RHEAT] * aux[A_NS] * aux[A_NP]
     aux[A_TCELL] = rec[K.RTEMP]
     return aux[A_HEAT], aux[A_TCELL]

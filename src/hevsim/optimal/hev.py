@@ -109,7 +109,9 @@ def _parallel_settings(hev: ParallelHEV) -> Settings:
     )
 
 
-def _series_settings(hev: SeriesHEV) -> Settings:
+def _sustaining_settings(hev: Any, input_points: int) -> Settings:
+    """Charge-sustaining settings from the configuration's simulation cycle, initial SOC and
+    battery SOC window (the architectures without an ``[optimization]`` section)."""
     c = hev.config
     b = c.battery
     return Settings(
@@ -117,13 +119,17 @@ def _series_settings(hev: SeriesHEV) -> Settings:
         soc_min=b.soc_min,
         soc_max=b.soc_max,
         soc_points=SERIES_SOC_POINTS,
-        input_points=SERIES_POWER_POINTS,
+        input_points=input_points,
         soc_initial=c.simulation.soc_initial,
         final_soc="sustain",
         final_window=(b.soc_min, b.soc_max),
         soc_tolerance=SERIES_SOC_TOLERANCE,
         final_constraint="auto",
     )
+
+
+def _series_settings(hev: SeriesHEV) -> Settings:
+    return _sustaining_settings(hev, SERIES_POWER_POINTS)
 
 
 def _formulate_parallel(
@@ -147,20 +153,7 @@ def _formulate_series(
 
 
 def _power_split_settings(hev: Any) -> Settings:
-    c = hev.config
-    b = c.battery
-    return Settings(
-        cycle=c.simulation.cycle,
-        soc_min=b.soc_min,
-        soc_max=b.soc_max,
-        soc_points=SERIES_SOC_POINTS,
-        input_points=c.controller.control_points,
-        soc_initial=c.simulation.soc_initial,
-        final_soc="sustain",
-        final_window=(b.soc_min, b.soc_max),
-        soc_tolerance=SERIES_SOC_TOLERANCE,
-        final_constraint="auto",
-    )
+    return _sustaining_settings(hev, hev.config.controller.control_points)
 
 
 def _formulate_power_split(
