@@ -8,7 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from hevsim.components.driveline import Gear
+from hevsim.components.body import VehicleBody
+from hevsim.components.driveline import Gear, Tire
 from hevsim.components.electric_machine import ElectricMachine
 
 
@@ -32,6 +33,23 @@ class GearboxModel(NamedModel):
     def gear_ratios(self) -> np.ndarray:
         """Gearbox ratios [-], first gear first."""
         return np.array([g.ratio for g in self.gears])
+
+
+def fixed_gear(section: Any) -> Gear:
+    """The :class:`Gear` of a configuration section with ``ratio`` and ``efficiency``
+    (final drive, motor coupling)."""
+    return Gear(ratio=section.ratio, efficiency=section.efficiency)
+
+
+def chassis(cfg: Any) -> dict[str, Any]:
+    """The fields every architecture model builds alike from its configuration: ``config``,
+    ``body``, ``tire`` and ``final_drive`` (keyword arguments of the model dataclass)."""
+    return {
+        "config": cfg,
+        "body": VehicleBody.from_section(cfg.body),
+        "tire": Tire(radius_m=cfg.tire.radius_m),
+        "final_drive": fixed_gear(cfg.final_drive),
+    }
 
 
 def max_machine_speed_radps(machine: ElectricMachine) -> float:

@@ -21,7 +21,13 @@ from typing import Any
 
 import numpy as np
 
-from hevsim.architectures._common import NamedModel, battery_details, machine_details, max_machine_speed_radps
+from hevsim.architectures._common import (
+    NamedModel,
+    battery_details,
+    chassis,
+    machine_details,
+    max_machine_speed_radps,
+)
 from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
@@ -53,10 +59,7 @@ def build_bev(cfg: BEVConfig) -> BEV:
     """Build the component objects of a BEV from its configuration."""
     base = Path(cfg.base_dir)
     return BEV(
-        config=cfg,
-        body=VehicleBody.from_section(cfg.body),
-        tire=Tire(radius_m=cfg.tire.radius_m),
-        final_drive=Gear(ratio=cfg.final_drive.ratio, efficiency=cfg.final_drive.efficiency),
+        **chassis(cfg),
         motor=build_machine(cfg.motor, "motor", base),
         battery=build_battery(cfg.battery, base)[0],
         regen_fraction=cfg.brakes.regen_fraction,

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from hevsim.architectures._common import GearboxModel
+from hevsim.architectures._common import GearboxModel, chassis
 from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
 from hevsim.components.engine import Engine
@@ -65,10 +65,7 @@ def build_conventional(cfg: ConventionalConfig) -> ConventionalVehicle:
     engine = build_engine(cfg.engine, Path(cfg.base_dir))
     g = cfg.gearbox
     return ConventionalVehicle(
-        config=cfg,
-        body=VehicleBody.from_section(cfg.body),
-        tire=Tire(radius_m=cfg.tire.radius_m),
-        final_drive=Gear(ratio=cfg.final_drive.ratio, efficiency=cfg.final_drive.efficiency),
+        **chassis(cfg),
         gears=tuple(Gear(ratio=r, efficiency=g.efficiency) for r in g.ratios),
         engine=with_config_fuel(engine, cfg),
         stop_start=cfg.controller.stop_start == "on",

@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from hevsim.architectures._common import GearboxModel, battery_details, machine_details
+from hevsim.architectures._common import GearboxModel, battery_details, chassis, fixed_gear, machine_details
 from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
@@ -106,18 +106,14 @@ class ParallelHEV(GearboxModel):
 def build_parallel_hev(cfg: ParallelHEVConfig) -> ParallelHEV:
     """Build the component objects of a parallel HEV from its configuration."""
     base = Path(cfg.base_dir)
-    body = VehicleBody.from_section(cfg.body)
     engine = build_engine(cfg.engine, base)
     g = cfg.gearbox
     return ParallelHEV(
-        config=cfg,
-        body=body,
-        tire=Tire(radius_m=cfg.tire.radius_m),
-        final_drive=Gear(ratio=cfg.final_drive.ratio, efficiency=cfg.final_drive.efficiency),
+        **chassis(cfg),
         gears=tuple(Gear(ratio=r, efficiency=g.efficiency) for r in g.ratios),
         engine=with_config_fuel(engine, cfg),  # [fuel] section of the configuration
         motor=build_machine(cfg.motor, "motor", base),
-        motor_coupling=Gear(ratio=cfg.motor_coupling.ratio, efficiency=cfg.motor_coupling.efficiency),
+        motor_coupling=fixed_gear(cfg.motor_coupling),
         battery=build_battery(cfg.battery, base)[0],
         machine_position=cfg.motor_coupling.position,
     )

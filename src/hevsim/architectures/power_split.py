@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from hevsim.architectures._common import NamedModel, battery_details, machine_details
+from hevsim.architectures._common import NamedModel, battery_details, chassis, fixed_gear, machine_details
 from hevsim.architectures._common import max_machine_speed_radps as _max_speed
 from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
@@ -80,14 +80,11 @@ def build_power_split(cfg: PowerSplitConfig) -> PowerSplitHEV:
     """Build the component objects of a power-split HEV from its configuration."""
     base = Path(cfg.base_dir)
     return PowerSplitHEV(
-        config=cfg,
-        body=VehicleBody.from_section(cfg.body),
-        tire=Tire(radius_m=cfg.tire.radius_m),
-        final_drive=Gear(ratio=cfg.final_drive.ratio, efficiency=cfg.final_drive.efficiency),
+        **chassis(cfg),
         engine=with_config_fuel(build_engine(cfg.engine, base), cfg),
         generator=build_machine(cfg.generator, "generator", base),
         motor=build_machine(cfg.motor, "motor", base),
-        motor_coupling=Gear(ratio=cfg.motor_coupling.ratio, efficiency=cfg.motor_coupling.efficiency),
+        motor_coupling=fixed_gear(cfg.motor_coupling),
         battery=build_battery(cfg.battery, base)[0],
         sun_teeth=cfg.planetary.sun_teeth,
         ring_teeth=cfg.planetary.ring_teeth,
