@@ -500,6 +500,21 @@ def _cmd_thermal(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_flow(args: argparse.Namespace) -> int:
+    from hevsim.schema import read_toml
+    from hevsim.thermal.flow import flow_config_from_dict, format_flow, run_flow
+
+    out = Path(args.out) if args.out else Path("results") / (Path(args.config).stem + "_flow")
+    _prepare(args, out, args.config)
+    data = read_toml(args.config)
+    if args.flow_l_min is not None:  # the operating point from the command line
+        data["flow"] = {**data.get("flow", {}), "flow_l_min": args.flow_l_min}
+    res = run_flow(flow_config_from_dict(data, str(args.config), Path(args.config).parent), out)
+    print(format_flow(res))
+    print(f"results written to {out}/ ({_written(out)})")
+    return 0
+
+
 def _cmd_pack(args: argparse.Namespace) -> int:
     from hevsim.battery.pack import format_pack, run_pack
 
@@ -779,6 +794,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_force(p, "folder at --out")
     p.set_defaults(func=_cmd_thermal)
+
+    p = sub.add_parser("flow", help="laminar coolant flow in the plate's channel (Navier-Stokes, FEM)")
+    p.add_argument("config", help="module configuration (TOML) with an optional [flow] section")
+    p.add_argument("--flow-l-min", type=float, help="inlet flow rate [L/min] (replaces flow.flow_l_min)")
+    p.add_argument("--out", help="results folder (default results/<config>_flow)")
+    _add_force(p, "folder at --out")
+    p.set_defaults(func=_cmd_flow)
 
     p = sub.add_parser("pack", help="battery pack: cells, module thermal ROMs and cooling loop over a cycle")
     p.add_argument("config", help="pack configuration (TOML), e.g. examples/pack.toml")
