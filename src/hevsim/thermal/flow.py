@@ -207,15 +207,10 @@ class Channel:
 
 def plate_channel(g: ModuleGeometry) -> Channel:
     """The serpentine channel of the plate: the boxes :func:`~hevsim.thermal.geometry.build_module_mesh`
-    cuts out of the plate (same construction from :meth:`ModuleGeometry.channel_path_m`)."""
+    cuts out of the plate (:meth:`ModuleGeometry.channel_boxes_m`)."""
     path = g.channel_path_m()
-    w, hc, lx = g.channel_width_m, g.channel_height_m, g.length_x_m
-    z0 = g.plate_thickness_m / 2 - hc / 2
-    boxes = []
-    for a, b in itertools.pairwise(path):
-        x0, x1 = min(a[0], b[0]) - (0 if a[0] == b[0] == 0 else w / 2), max(a[0], b[0]) + w / 2
-        y0, y1 = min(a[1], b[1]) - w / 2, max(a[1], b[1]) + w / 2
-        boxes.append((float(max(x0, 0.0)), float(min(x1, lx)), float(y0), float(y1), z0, z0 + hc))
+    w = g.channel_width_m
+    boxes = g.channel_boxes_m()
     first, last = path[0], path[-1]
     out_dir = 1 if last[0] > path[-2][0] else -1
     return Channel(

@@ -116,6 +116,19 @@ class ModuleGeometry:
         keep = np.concatenate(([True], np.linalg.norm(np.diff(out, axis=0), axis=1) > 1e-12))
         return out[keep]
 
+    def channel_boxes_m(self) -> list[tuple[float, float, float, float, float, float]]:
+        """The channel as boxes along :meth:`channel_path_m`, one per straight leg, each
+        ``(x0, x1, y0, y1, z0, z1)`` [m]: what the plate loses and the coolant fills."""
+        w, hc, lx = self.channel_width_m, self.channel_height_m, self.length_x_m
+        z0 = self.plate_thickness_m / 2 - hc / 2
+        path = self.channel_path_m()
+        boxes = []
+        for a, b in itertools.pairwise(path):
+            x0, x1 = min(a[0], b[0]) - (0 if a[0] == b[0] == 0 else w / 2), max(a[0], b[0]) + w / 2
+            y0, y1 = min(a[1], b[1]) - w / 2, max(a[1], b[1]) + w / 2
+            boxes.append((float(max(x0, 0.0)), float(min(x1, lx)), float(y0), float(y1), z0, z0 + hc))
+        return boxes
+
 
 def build_module_mesh(geom: ModuleGeometry | None = None, *, source: str = "module geometry") -> ThermalMesh:
     """Build and mesh the module with gmsh (one thread); returns a :class:`ThermalMesh`."""
@@ -145,14 +158,11 @@ def _build(gmsh: object, g: ModuleGeometry, source: str) -> ThermalMesh:
     # cooling plate minus channel
     plate = occ.addBox(0, 0, 0, lx, ly, tp)
     path = g.channel_path_m()
-    w, hc = g.channel_width_m, g.channel_height_m
+    hc = g.channel_height_m
     z0 = tp / 2 - hc / 2
-    boxes = []
-    for a, b in itertools.pairwise(path):
-        x0, x1 = min(a[0], b[0]) - (0 if a[0] == b[0] == 0 else w / 2), max(a[0], b[0]) + w / 2
-        y0, y1 = min(a[1], b[1]) - w / 2, max(a[1], b[1]) + w / 2
-        x0, x1 = max(x0, 0.0), min(x1, lx)
-        boxes.append((3, occ.addBox(x0, y0, z0, x1 - x0, y1 - y0, hc)))
+    boxes = [
+        (3, occ.addBox(x0, y0, z0, x1 - x0, y1 - y0, hc)) for x0, x1, y0, y1, _, _ in g.channel_boxes_m()
+    ]
     plate_cut, _ = occ.cut([(3, plate)], boxes)
     # cells and holder
     cells = []
