@@ -31,6 +31,7 @@ import dataclasses
 import datetime
 import hashlib
 import itertools
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -51,6 +52,7 @@ from hevsim.battery.params import (
 from hevsim.errors import InputError
 from hevsim.io import atomic_directory, write_json
 from hevsim.tables import FloatArray
+from hevsim.threads import choose_threads
 
 FIDELITY_MODEL = ModelSection(rc_mode="persistent", ocv_mode="step_consistent")
 """The model structure :func:`identify` fits by default (issue 14)."""
@@ -452,7 +454,14 @@ def identify(
     lo = np.array([s.lo for s in specs])
     hi = np.array([s.hi for s in specs])
     x0 = np.clip(np.array(theta0), lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
-    sol_v = least_squares(res_v, x0, bounds=(lo, hi), x_scale="jac", ftol=1e-10, xtol=1e-10, max_nfev=100)
+    # the finite-difference Jacobian's columns are independent runs of the (nogil) cell kernel:
+    # map them over threads, as many as cores are free (hevsim.threads); same evaluations, same fit
+    threads = choose_threads().threads
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        workers = pool.map if threads > 1 else map
+        sol_v = least_squares(
+            res_v, x0, bounds=(lo, hi), x_scale="jac", ftol=1e-10, xtol=1e-10, max_nfev=100, workers=workers
+        )
     p_el = build(sol_v.x)
     table = _stats(sol_v, specs, longest)
 
@@ -475,9 +484,14 @@ def identify(
             return (t - t_meas) / sigma_t
 
         t0 = np.log([th.c_heat_j_per_k, th.r_skin_k_per_w])
-        sol_t = least_squares(
-            res_t, t0, bounds=([s.lo for s in t_specs], [s.hi for s in t_specs]), x_scale="jac"
-        )
+        with ThreadPoolExecutor(max_workers=threads) as pool:
+            sol_t = least_squares(
+                res_t,
+                t0,
+                bounds=([s.lo for s in t_specs], [s.hi for s in t_specs]),
+                x_scale="jac",
+                workers=pool.map if threads > 1 else map,
+            )
         nfev_t = int(sol_t.nfev)
         p_fit = with_thermal(sol_t.x)
         table = pd.concat([table, _stats(sol_t, t_specs, np.inf)], ignore_index=True)

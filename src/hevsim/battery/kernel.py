@@ -392,7 +392,7 @@ def rc_energy(prm, rc_d, rc_c, x):
     return e
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def run_cell(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, current, dt, t_port, out):
     """Simulate one cell over ``current[k]`` [A] (step ``dt`` [s]); ``out[k]`` gets the record.
 
