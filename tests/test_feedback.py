@@ -173,6 +173,49 @@ def test_compile_notice_only_for_a_cold_cache() -> None:
     )
 
 
+def _dispatcher(index_path: Path, overloads: dict[str, str]) -> object:
+    """A stand-in with numba's cache layout: an index file path and what loading it gives."""
+
+    class CacheFile:
+        _index_path = str(index_path)
+
+        @staticmethod
+        def _load_index() -> dict[str, str]:
+            return overloads if index_path.exists() else {}
+
+    class Cache:
+        _cache_file = CacheFile
+
+    class Dispatcher:
+        _cache = Cache
+
+    return Dispatcher
+
+
+def test_a_never_compiled_helper_does_not_make_the_cache_cold(tmp_path: Path) -> None:
+    (tmp_path / "warm.nbi").write_text("index")
+    (tmp_path / "stale.nbi").write_text("index")
+    warm = _dispatcher(tmp_path / "warm.nbi", {"sig": "file"})
+    inlined = _dispatcher(tmp_path / "inlined.nbi", {})  # no index file: never compiled alone
+    stale = _dispatcher(tmp_path / "stale.nbi", {})  # an index for another source version
+    assert not cache_is_cold([warm, inlined])
+    assert cache_is_cold([warm, inlined, stale])
+    assert cache_is_cold([inlined])  # nothing compiled yet: a fresh install
+
+
+def test_dp_kernels_are_warm_after_a_solve() -> None:
+    """After a solve the kernels it ran are warm, and the DP modules' inlined helpers (which
+    never get an index of their own) do not make them look cold: the notice stays silent."""
+    from hevsim.optimal import _hull, _kernels, optimize
+    from hevsim.progress import module_dispatchers
+
+    optimize(EXAMPLES / "parallel_hev.toml", "fu505", soc_grid_points=21, input_grid_points=11)
+    ran = module_dispatchers(_hull, ["hull_inputs", "bellman_1d_hull"])
+    inlined = module_dispatchers(_kernels, ["_band_value", "_lerp_inf", "_locate"])
+    assert len(ran) == 2 and len(inlined) == 3
+    assert not cache_is_cold(ran + inlined)
+
+
 def test_real_kernels_have_a_cache_state() -> None:
     from hevsim.progress import module_dispatchers
     from hevsim.sim import kernel

@@ -155,20 +155,29 @@ def timed_stage(label: str, stream: IO[str] | None = None) -> Iterator[None]:
 
 
 def cache_is_cold(dispatchers: Sequence[Any]) -> bool:
-    """True when any numba dispatcher (``cache=True``) has no usable on-disk cache: no index
-    file, or one written for another version of its source. Its first call will then compile
-    rather than load. Unknown cases (no cache, a numba without this layout) count as warm."""
+    """True when the next calls of these numba dispatchers (``cache=True``) will compile
+    rather than load: an on-disk index written for another version of its source (or
+    damaged), or no index at all for any of them (a fresh install). A dispatcher that alone
+    has no index file was never compiled on its own (an ``inline="always"`` helper, or a
+    kernel no run has needed yet) and says nothing about the others. Unknown cases (no
+    cache, a numba without this layout) count as warm."""
+    known = usable = 0
     for d in dispatchers:
         cache_file = getattr(getattr(d, "_cache", None), "_cache_file", None)
         load_index = getattr(cache_file, "_load_index", None)
         if load_index is None:
+            continue
+        known += 1
+        index_path = getattr(cache_file, "_index_path", None)
+        if index_path is not None and not os.path.exists(index_path):
             continue
         try:
             if not load_index():
                 return True
         except Exception:  # a damaged index: numba recompiles too
             return True
-    return False
+        usable += 1
+    return known > 0 and usable == 0
 
 
 def compile_notice(
