@@ -27,12 +27,36 @@ wheel_torque_nm, *controls, soc, dt_s, regen_ok, battery_state, detail=False)`` 
 :class:`~hevsim.optimal._hev_common.Stage` with ``details``), ``loss_powers(model, stage,
 wheel_speed_radps, wheel_torque_nm)`` (W per audit term, with ``fuel`` and ``wheel``),
 ``MODES`` and ``power_mode(details, wheel_force_n, v_mid_mps)``.
+
+**Compiled runs (optional hooks).** The Python loop above is the reference. An architecture
+module may also define
+
+``simulate_compiled(model, grid, controller, *, soc_initial, soc_min, soc_max)``
+    one run on ``grid`` (the cycle resampled to the time step: ``time_s`` [s],
+    ``speed_mps`` [m/s], ``grade`` [-], ``n + 1`` points) with the controller object
+    ``controller`` (from :func:`hevsim.control.make_controller`), starting at
+    ``soc_initial`` [-] in the window ``soc_min..soc_max`` [-]. It returns a
+    :class:`ForwardRecord` equal (to round-off) to what the Python loop records, or None
+    when this controller or option has no compiled form (the Python loop then runs). It
+    leaves the controller as the loop would (``reset`` then its per-step state, e.g. the
+    final equivalence factor ``s`` of an adaptive ECMS).
+
+``simulate_batch_compiled(model, variants, grid, controller, *, soc_initial, soc_min, soc_max)``
+    the same for ``n`` parameter variants at once: ``variants`` maps dotted configuration
+    keys (``"body.mass_kg"``) to float arrays of length ``n`` (already validated).
+    Returns a :class:`BatchRecord`, or None when a key, the controller or an option has no
+    compiled form (the variants then run one by one through :func:`simulate_architecture`).
+
+:func:`simulate_architecture` turns either record into the same result (channels, audit,
+metrics, events) as the Python loop; ``compiled=False`` (or the environment variable
+``HEVSIM_FORWARD=python``) forces the Python loop.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
+import os
 import platform
 import time
 from dataclasses import dataclass
@@ -64,6 +88,56 @@ SOURCES = ("fuel", "genset_source", "battery_chemical")
 """Energy sources of the audit; every other term is a sink."""
 INT_COLUMNS = ("gear", "power_mode", "traction_limited")
 BOOL_COLUMNS = ("engine_on", "clutch_closed", "clutch_slipping")
+
+
+FORWARD_ENV = "HEVSIM_FORWARD"
+"""Environment variable: ``python`` makes :func:`simulate_architecture` default to the Python
+loop even where the architecture has a compiled run (tests compare the two)."""
+
+
+@dataclass
+class ForwardRecord:
+    """Raw output of one forward run (Python loop or ``simulate_compiled``), before the
+    time-series frame is built.
+
+    Attributes:
+        columns: name -> float64 array of ``n + 1`` rows, row ``k`` the step from ``t_k`` to
+            ``t_k + dt`` (row ``n`` is overwritten by :func:`finish_record`), in this order:
+            ``speed_desired_mps``, ``speed_mps`` (at ``t_k``) [m/s], ``accel_mps2`` [m/s²],
+            ``wheel_force_n`` [N], ``wheel_power_w`` [W] (the audit's ``wheel`` term),
+            ``road_load_force_n`` [N] (wheel force - m_eff a), ``fuel_kg`` (cumulative at
+            ``t_k``) [kg], ``soc`` (at ``t_k``) [-], then the power flow's ``details``
+            in their order, ``power_mode`` (index in ``MODES``), ``traction_limited``
+            (0/1), ``clutch_closed`` (0/1, parallel only: engine on), and with a battery
+            ``battery_ocv_v``, ``battery_voltage_v`` [V]. Integer and boolean channels are
+            floats here (:data:`INT_COLUMNS`, :data:`BOOL_COLUMNS`).
+        audit: energy [J] per audit term over the run: the sources of :data:`SOURCES` and the
+            sinks (``aero``, ``rolling``, ``grade``, ``kinetic_vehicle``, ``battery_loss``,
+            the ``loss_powers`` terms x dt), without ``residual``.
+        summary: float64 array indexed by :data:`hevsim.sim.kernel.SUMMARY` (distance [m],
+            fuel [kg], final SOC, RMS and max speed error [m/s], engine-on time [s], engine
+            starts, traction-limited time [s], duration [s]).
+        speed_final_mps: speed at the end of the run [m/s].
+    """
+
+    columns: dict[str, np.ndarray]
+    audit: dict[str, float]
+    summary: np.ndarray
+    speed_final_mps: float
+
+
+@dataclass
+class BatchRecord:
+    """Raw output of ``simulate_batch_compiled`` for ``n`` variants.
+
+    Attributes: audits: one :attr:`ForwardRecord.audit` dict per variant [J]; summary:
+    ``(n, len(SUMMARY))`` float64 array as :attr:`ForwardRecord.summary`; traction_j: (n,)
+    positive wheel energy [J] (sum over steps of ``max(wheel_power_w, 0) dt``).
+    """
+
+    audits: list[dict[str, float]]
+    summary: np.ndarray
+    traction_j: np.ndarray
 
 
 @dataclass
@@ -151,6 +225,7 @@ def simulate_architecture(
     dt_s: float | None = None,
     soc_initial: float | None = None,
     controller: Any = None,
+    compiled: bool | None = None,
     **controller_params: Any,
 ) -> Any:
     """Simulate a vehicle of architecture ``name`` (file path, configuration or built model)
@@ -160,7 +235,9 @@ def simulate_architecture(
     :class:`~hevsim.control.parallel.ControlSchedule`), a ``[controller] kind`` name, or
     None for the configuration's; ``controller_params`` override ``[controller]`` values
     (``equivalence_factor=2.6``). ``dt_s`` [s] defaults to the configuration's; the cycle is
-    resampled to it. Returns a :class:`~hevsim.sim.simulator.SimulationResult`.
+    resampled to it. ``compiled``: use the architecture's compiled run where it has one for
+    this controller (default: yes, unless ``HEVSIM_FORWARD=python``); False forces the
+    Python loop. Returns a :class:`~hevsim.sim.simulator.SimulationResult`.
     """
     from hevsim.architectures import architecture
     from hevsim.config import load_vehicle_config
@@ -185,7 +262,6 @@ def simulate_architecture(
         raise ConfigError("simulate: controller parameters need a controller kind, not a controller object.")
     cyc, dt = cycle_and_step(cycle, dt_s, cfg.simulation)
     grid = cyc.resampled(dt)
-    battery = getattr(model, "battery", None)
     b = getattr(cfg, "battery", None)
     soc0 = float(cfg.simulation.soc_initial if soc_initial is None else soc_initial)
     if b is not None and not b.soc_min <= soc0 <= b.soc_max:
@@ -195,27 +271,16 @@ def simulate_architecture(
         )
     t_k0 = time.perf_counter()
     window = (b.soc_min, b.soc_max) if b is not None else (0.0, 1.0)
-    ts, audit, summary, events = _run(mod, model, ctl, grid, soc0, *window)
+    hook = getattr(mod, "simulate_compiled", None) if use_compiled(compiled) else None
+    rec = hook(model, grid, ctl, soc_initial=soc0, soc_min=window[0], soc_max=window[1]) if hook else None
+    ran_compiled = rec is not None
+    if rec is None:
+        rec = _run(mod, model, ctl, grid, soc0, *window)
+    ts, audit, summary, events = finish_record(rec, grid, mod.MODES)
     t_done = time.perf_counter()
-    engine = getattr(model, "engine", None)
-    f = config_fuel(cfg, engine)
-    socf = summary[K.S_SOCF]
-    capacity = battery.capacity_ah if battery is not None else 0.0
-    ocv_mean = float(battery.ocv(0.5 * (soc0 + socf))) if battery is not None else 0.0
-    metrics = compute_metrics(summary, audit, soc0, capacity, ocv_mean, f.density_kg_per_m3,
-                              f.heating_value_btu_per_us_gal, f.co2_kg_per_kg,
-                              cfg.metrics.conversion_efficiency)  # fmt: skip
-    metrics["engine_starts"]["description"] = "engine starts (off -> fired)"
     traction = float(np.sum(np.clip(ts["wheel_power_w"].to_numpy()[:-1], 0.0, None)) * dt)
-    metrics["traction_energy_j"] = {"value": traction, "unit": "J", "description": "positive wheel energy"}
-    metrics["energy_audit_residual_traction_pct"] = {
-        "value": 100.0 * abs(audit["residual"]) / traction if traction > 0 else 0.0, "unit": "%",
-        "description": "energy audit residual / positive traction energy at the wheels",
-    }  # fmt: skip
-    metrics["traction_limited_s"] = {
-        "value": float(summary[K.S_BLIM]), "unit": "s",
-        "description": "time the powertrain could not follow the trace",
-    }  # fmt: skip
+    metrics = run_metrics(model, summary, audit, traction, soc0)
+    f = config_fuel(cfg, getattr(model, "engine", None))
     bad = [k for k, m in metrics.items() if np.isnan(float(m["value"]))]
     if bad or not np.all(np.isfinite(ts.select_dtypes("number").to_numpy(dtype=float))):
         raise DomainError(
@@ -226,7 +291,7 @@ def simulate_architecture(
         "cycle_source": cyc.source, "dt_s": dt, "controller": getattr(ctl, "name", type(ctl).__name__),
         "fuel": f.metadata(), "hevsim_version": hevsim.__version__, "python": platform.python_version(),
         "numpy": np.__version__, "created_unix_s": time.time(), "kernel_time_s": t_done - t_k0,
-        "total_time_s": time.perf_counter() - t_start,
+        "total_time_s": time.perf_counter() - t_start, "compiled": ran_compiled,
     }  # fmt: skip
     if hasattr(ctl, "s"):
         metadata["equivalence_factor_final"] = float(ctl.s)
@@ -244,18 +309,94 @@ simulate_power_split = functools.partial(simulate_architecture, "power_split")
 """Simulate a power-split HEV forward (see :func:`simulate_architecture`)."""
 
 
+def use_compiled(compiled: bool | None) -> bool:
+    """Whether a run uses an architecture's compiled hooks: ``compiled`` if given, else
+    unless the environment variable :data:`FORWARD_ENV` is ``python``."""
+    if compiled is not None:
+        return bool(compiled)
+    return os.environ.get(FORWARD_ENV, "").strip().lower() != "python"
+
+
+def run_metrics(
+    model: Any,
+    summary: np.ndarray,
+    audit: dict[str, float],
+    traction_j: float,
+    soc0: float,
+    cfg: Any = None,
+) -> dict[str, dict[str, Any]]:
+    """Metrics of one run from its summary, closed audit [J] and positive wheel energy
+    ``traction_j`` [J], starting at SOC ``soc0`` [-] (single runs and batches alike);
+    ``cfg``: the variant's configuration (default the model's)."""
+    cfg = model.config if cfg is None else cfg
+    battery = getattr(model, "battery", None)
+    f = config_fuel(cfg, getattr(model, "engine", None))
+    socf = summary[K.S_SOCF]
+    capacity = battery.capacity_ah if battery is not None else 0.0
+    ocv_mean = float(battery.ocv(0.5 * (soc0 + socf))) if battery is not None else 0.0
+    metrics = compute_metrics(summary, audit, soc0, capacity, ocv_mean, f.density_kg_per_m3,
+                              f.heating_value_btu_per_us_gal, f.co2_kg_per_kg,
+                              cfg.metrics.conversion_efficiency)  # fmt: skip
+    metrics["engine_starts"]["description"] = "engine starts (off -> fired)"
+    metrics["traction_energy_j"] = {"value": traction_j, "unit": "J", "description": "positive wheel energy"}
+    metrics["energy_audit_residual_traction_pct"] = {
+        "value": 100.0 * abs(audit["residual"]) / traction_j if traction_j > 0 else 0.0, "unit": "%",
+        "description": "energy audit residual / positive traction energy at the wheels",
+    }  # fmt: skip
+    metrics["traction_limited_s"] = {
+        "value": float(summary[K.S_BLIM]), "unit": "s",
+        "description": "time the powertrain could not follow the trace",
+    }  # fmt: skip
+    return metrics
+
+
+def close_audit(audit: dict[str, float]) -> dict[str, float]:
+    """``audit`` [J] with its ``residual``: sources (:data:`SOURCES`) minus every sink."""
+    out = dict(audit)
+    out.pop("residual", None)
+    out["residual"] = sum(out.get(s, 0.0) for s in SOURCES) - sum(
+        val for key, val in out.items() if key not in SOURCES and key != "residual"
+    )
+    return out
+
+
+def finish_record(rec: ForwardRecord, grid: Any, modes: tuple[str, ...]) -> tuple[Any, ...]:
+    """(time series, closed audit, summary, events) of a :class:`ForwardRecord`: the last row
+    repeats the last step's operating point at the end speed, SOC and fuel."""
+    t = np.asarray(grid.time_s, dtype=np.float64)
+    n = t.size - 1
+    cols = rec.columns
+    for key in cols:
+        cols[key][n] = cols[key][n - 1] if n > 0 else 0.0
+    cols["speed_desired_mps"][n] = float(grid.speed_mps[n])
+    cols["speed_mps"][n] = rec.speed_final_mps
+    cols["soc"][n] = rec.summary[K.S_SOCF]
+    cols["fuel_kg"][n] = rec.summary[K.S_FUEL]
+    ts = _frame(t, cols, modes)
+    return ts, close_audit(rec.audit), rec.summary, _events(ts, modes)
+
+
 def simulate_batch_architecture(
-    model: Any, variants: dict[str, Any], cycle: DriveCycle | str | None = None, dt_s: float | None = None
+    model: Any,
+    variants: dict[str, Any],
+    cycle: DriveCycle | str | None = None,
+    dt_s: float | None = None,
+    compiled: bool | None = None,
 ) -> Any:
     """Run parameter variants of a parallel, conventional, BEV or power-split vehicle.
 
     ``variants`` maps dotted configuration keys (``"body.mass_kg"``, ``"controller.equivalence_factor"``)
     to arrays of equal length (scalars broadcast); each variant is validated like a file
-    (:meth:`~hevsim.config._VehicleConfig.replace`) and simulated in turn. Returns a
+    (:meth:`~hevsim.config._VehicleConfig.replace`). The architecture's compiled batch
+    (``simulate_batch_compiled``, see the module docstring) runs them all at once where it
+    covers the keys and the controller (``compiled`` as in :func:`simulate_architecture`);
+    otherwise they are simulated in turn. Returns a
     :class:`~hevsim.sim.simulator.BatchResult` (one row per variant: the variant's values and
     every metric).
     """
+    from hevsim.architectures import architecture
     from hevsim.config import load_vehicle_config
+    from hevsim.control import make_controller
     from hevsim.sim.simulator import BatchResult
 
     cfg = load_vehicle_config(model) if isinstance(model, str | Path) else getattr(model, "config", model)
@@ -266,18 +407,43 @@ def simulate_batch_architecture(
         shapes = {k: a.shape for k, a in arrays.items()}
         raise ConfigError(f"batch variants: arrays must have equal lengths, got {shapes}.") from exc
     cyc = cycle if isinstance(cycle, DriveCycle) else load_cycle(cycle or cfg.simulation.cycle)
-    rows = []
     t0 = time.perf_counter()
-    for i in range(n):
-        values = {k: np.broadcast_to(a, (n,))[i].item() for k, a in arrays.items()}
-        res = simulate_architecture(cfg.architecture, cfg.replace(**values) if values else cfg, cyc, dt_s)
-        rows.append({**values, **{name: m["value"] for name, m in res.metrics.items()}})
+    values = [{k: np.broadcast_to(a, (n,))[i].item() for k, a in arrays.items()} for i in range(n)]
+    cfgs = [cfg.replace(**v) if v else cfg for v in values]  # validated like a file
+    arch = architecture(cfg.architecture, cfg.name)
+    mod = arch.power_module()
+    hook = getattr(mod, "simulate_batch_compiled", None) if use_compiled(compiled) else None
+    rec = None
+    if hook is not None and all(np.issubdtype(a.dtype, np.number) for a in arrays.values()):
+        base = model if getattr(model, "config", None) is cfg else arch.build(cfg)
+        b = getattr(cfg, "battery", None)
+        cyc_run, dt = cycle_and_step(cyc, dt_s, cfg.simulation)
+        grid = cyc_run.resampled(dt)
+        flat = {k: np.ascontiguousarray(np.broadcast_to(a, (n,)), np.float64) for k, a in arrays.items()}
+        soc0 = np.array([c.simulation.soc_initial for c in cfgs], dtype=np.float64)
+        window = (b.soc_min, b.soc_max) if b is not None else (0.0, 1.0)
+        rec = hook(base, flat, grid, make_controller(base), soc_initial=soc0, soc_min=window[0],
+                   soc_max=window[1])  # fmt: skip
+    rows = []
+    if rec is None:
+        for v, c in zip(values, cfgs, strict=True):
+            res = simulate_architecture(cfg.architecture, c, cyc, dt_s, compiled=compiled)
+            rows.append({**v, **{name: m["value"] for name, m in res.metrics.items()}})
+    else:
+        for i, (v, c) in enumerate(zip(values, cfgs, strict=True)):
+            audit = close_audit(rec.audits[i])
+            soc_i = c.simulation.soc_initial
+            m = run_metrics(base, rec.summary[i], audit, float(rec.traction_j[i]), soc_i, cfg=c)
+            rows.append({**v, **{name: x["value"] for name, x in m.items()}})
+            if not np.all(np.isfinite([float(x["value"]) for x in m.values()])):
+                raise DomainError(f"batch: variant {i} ({v}) produced non-finite results.")
     return BatchResult(pd.DataFrame(rows), time.perf_counter() - t0)
 
 
 def _run(
     mod: Any, model: Any, ctl: Any, grid: Any, soc0: float, soc_min: float, soc_max: float
-) -> tuple[Any, ...]:
+) -> ForwardRecord:
+    """The Python loop (the reference of every compiled run)."""
     body, r = model.body, model.tire.radius_m
     t, v_des, gr = (np.asarray(a, dtype=np.float64) for a in (grid.time_s, grid.speed_mps, grid.grade))
     n = t.size - 1
@@ -392,22 +558,10 @@ def _run(
     err = v_des[n] - v
     err_sq += err * err
     err_max = max(err_max, abs(err))
-    for key in cols:
-        cols[key][n] = cols[key][n - 1] if n > 0 else 0.0
-    cols["speed_desired_mps"][n], cols["speed_mps"][n], cols["soc"][n], cols["fuel_kg"][n] = (
-        v_des[n],
-        v,
-        soc,
-        fuel,
-    )
-    audit["residual"] = sum(audit[s] for s in SOURCES) - sum(
-        val for key, val in audit.items() if key not in SOURCES
-    )
     summary = np.zeros(len(K.SUMMARY))
     summary[[K.S_DIST, K.S_FUEL, K.S_SOCF, K.S_RMS, K.S_MAXERR, K.S_EON, K.S_STARTS, K.S_BLIM, K.S_DUR]] = (
         dist, fuel, soc, np.sqrt(err_sq / (n + 1)), err_max, eon, starts, lim_s, t[n] - t[0])  # fmt: skip
-    ts = _frame(t, cols, mod.MODES)
-    return ts, audit, summary, _events(ts, mod.MODES)
+    return ForwardRecord(cols, audit, summary, v)
 
 
 def _frame(t: np.ndarray, cols: dict[str, np.ndarray], modes: tuple[str, ...]) -> pd.DataFrame:
