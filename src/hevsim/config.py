@@ -92,9 +92,18 @@ class BodySection:
 
 @dataclass(frozen=True)
 class TireSection:
-    """Tire rolling radius [m] (no slip)."""
+    """Tire rolling radius [m] (no slip) and the adhesion limit of the performance tests.
+
+    ``friction_coefficient`` [-]: peak tire-road friction coefficient; the default 0.9 is the
+    upper end of the peak values for dry asphalt and concrete, 0.8-0.9, in Wong, *Theory of
+    Ground Vehicles*, 4th ed. (2008), Table 1.3. ``driven_axle``: the axle whose normal load
+    (static share plus load transfer, :func:`hevsim.components.body.axle_normal_loads`)
+    limits the tractive force, ``"front"``, ``"rear"`` or ``"all"`` (all-wheel drive).
+    """
 
     radius_m: float = param(0.3, 0.01, 5.0, "m")
+    friction_coefficient: float = param(0.9, 0.05, 2.0, "-")
+    driven_axle: str = choice("front", "front", "rear", "all")
 
 
 @dataclass(frozen=True)
