@@ -13,10 +13,22 @@ Everything runs through the architecture's one power flow (``power_flow`` of its
   :data:`TOP_SPEED_ACCEL_MPS2`) on the level, and **gradeability** the largest grade at
   which some candidate holds the given speed (bisection on speed or grade).
 
+**Tire adhesion** caps the tractive force at the wheels: ``F <= mu N`` with ``mu`` the
+peak friction coefficient (``[tire] friction_coefficient``) and ``N`` the normal load on the
+driven axle(s) (``[tire] driven_axle``): the static share of the weight plus the load transfer
+of the acceleration, grade and drag at the CG height, eqs (4)-(5)
+(:func:`hevsim.components.body.axle_normal_loads`, ``[body] cg_height_m``,
+``front_axle_to_cg_m``, ``rear_axle_to_cg_m``). The rotating-mass share of the inertia
+(``mass_factor`` - 1) is taken by the wheels' and shafts' own inertia and shifts no load. On
+a level road without drag or rolling resistance a traction-limited launch has the constant
+acceleration ``a = mu g (l / L) / (delta -/+ mu h / L)`` (rear- / front-wheel drive; ``l`` the
+distance from the CG to the other axle, ``L`` the wheelbase, ``h`` the CG height) and
+``a = mu g / delta`` with all wheels driven.
+
 The **binding limit** of a test is the component limit that stops the candidates feasible
-just below the limit when asked for a little more (machine torque, engine torque, engine
-speed, battery power or current); for an acceleration, the most frequent one over its steps.
-Tire adhesion is not modelled (no traction limit).
+just below the limit when asked for a little more (tire adhesion, machine torque, engine
+torque, engine speed, battery power or current); for an acceleration, the most frequent one
+over its steps.
 """
 
 from __future__ import annotations
@@ -29,6 +41,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from hevsim.components.body import VehicleBody
 from hevsim.cycles import DriveCycle
 from hevsim.errors import ConfigError
 from hevsim.sim.forward import Step, _battery_state, simulate_architecture
@@ -46,6 +59,7 @@ without road load has a top speed: the redline or the machine's last speed)."""
 BISECTION_STEPS = 50
 """Bisection steps of the top-speed and gradeability searches [-]."""
 LIMIT_NAMES = {
+    "traction": "traction (tire adhesion)",
     "motor_torque": "machine torque",
     "engine_torque": "engine torque",
     "engine_speed": "engine speed (redline)",
@@ -121,13 +135,64 @@ def plot_speed_power(runs: dict[str, pd.DataFrame], path: Path) -> Path:
     return path
 
 
+@dataclass(frozen=True)
+class Adhesion:
+    """Tire-road adhesion limit of the tractive force.
+
+    ``friction_coefficient`` [-] (peak), ``driven_axle`` ("front" | "rear" | "all"), the body
+    (mass, CG height and axle distances) and the tire radius [m].
+    """
+
+    friction_coefficient: float
+    driven_axle: str
+    body: VehicleBody
+    radius_m: float
+
+    @classmethod
+    def of(cls, cfg: Any, body: VehicleBody, radius_m: float) -> Adhesion:
+        """The limit of a vehicle configuration; a rear-wheel-drive car whose front wheels
+        would lift before its rear tires slip (``mu h >= front_axle_to_cg_m + rear_axle_to_cg_m``,
+        no adhesion limit left) raises ConfigError."""
+        mu, axle = float(cfg.tire.friction_coefficient), str(cfg.tire.driven_axle)
+        wheelbase = body.front_axle_to_cg_m + body.rear_axle_to_cg_m
+        if wheelbase <= 0.0 or (axle == "rear" and mu * body.cg_height_m >= wheelbase):
+            raise ConfigError(
+                f"{cfg.name}: keys 'tire.friction_coefficient' = {mu:g}, 'body.cg_height_m' = "
+                f"{body.cg_height_m:g}, wheelbase 'body.front_axle_to_cg_m' + 'body.rear_axle_to_cg_m'"
+                f" = {wheelbase:g} m: expected a wheelbase > 0 and, for driven_axle = 'rear', "
+                "friction_coefficient x cg_height_m < wheelbase (else the car wheelies)."
+            )
+        return cls(mu, axle, body, radius_m)
+
+    def max_force_n(self, v_mps: float, accel_mps2: float, grade: float) -> float:
+        """Largest tractive force [N] the driven tires carry at speed [m/s], acceleration
+        [m/s^2] and grade [-]."""
+        b = self.body
+        fzf, fzr = (float(x) * b.wheels_per_axle for x in b.axle_normal_loads(accel_mps2, v_mps, grade))
+        normal = {"front": fzf, "rear": fzr, "all": fzf + fzr}[self.driven_axle]
+        return self.friction_coefficient * max(normal, 0.0)
+
+    def allows(self, step: Any, grade: float) -> bool:
+        """Whether the tires carry the wheel force of ``step`` (a :class:`Step`) on ``grade``."""
+        force = step.wheel_torque_nm / self.radius_m
+        if force <= 0.0:
+            return True
+        b = self.body
+        accel = (force - float(b.road_load_force(step.v_mid_mps, 0.0, grade))) / (b.mass_kg * b.mass_factor)
+        return force <= self.max_force_n(step.v_mid_mps, accel, grade) * (1.0 + 1e-12)
+
+
 class _Capability:
-    """Chooses any candidate that can give the demand (the powertrain's envelope)."""
+    """Chooses any candidate that can give the demand (the powertrain's envelope) within the
+    tire adhesion limit (``adhesion``, on ``grade`` [-]; None: no limit)."""
 
     name = "capability"
 
-    def __init__(self, controls: tuple[np.ndarray, ...]) -> None:
+    def __init__(self, controls: tuple[np.ndarray, ...], adhesion: Adhesion | None = None,
+                 grade: float = 0.0) -> None:  # fmt: skip
         self.controls = controls
+        self.adhesion = adhesion
+        self.grade = grade
 
     def reset(self, soc_initial: float) -> None:
         """Nothing to reset."""
@@ -136,7 +201,9 @@ class _Capability:
         """Nothing to remember."""
 
     def choose(self, step: Any) -> tuple[float, ...] | None:
-        """The first feasible candidate (None if none)."""
+        """The first feasible candidate (None if none, or beyond the tires' adhesion)."""
+        if self.adhesion is not None and not self.adhesion.allows(step, self.grade):
+            return None
         _, feasible = step.evaluate(*self.controls)
         ok = np.flatnonzero(np.ravel(feasible))
         if ok.size == 0:
@@ -156,8 +223,12 @@ def _step(model: Any, mod: Any, v0: float, v1: float, grade: float, dt: float, s
     return Step(model, mod.power_flow, 0, 0.0, dt, v_mid, v_mid / r, f * r, soc, e_soc, bs, 0.0)
 
 
-def _binding(model: Any, mod: Any, controls: tuple[np.ndarray, ...], lo: Step, hi: Step) -> str:
-    """The limit flags that stop, at ``hi``, the candidates feasible at ``lo``."""
+def _binding(lo_ctl: _Capability, lo: Step, hi_ctl: _Capability, hi: Step) -> str:
+    """The limit flags that stop, at ``hi`` (grade of ``hi_ctl``), the candidates feasible at
+    ``lo`` (grade of ``lo_ctl``); tire adhesion first, as it stops them all."""
+    adhesion, controls = hi_ctl.adhesion, hi_ctl.controls
+    if adhesion is not None and adhesion.allows(lo, lo_ctl.grade) and not adhesion.allows(hi, hi_ctl.grade):
+        return LIMIT_NAMES["traction"]
     _, ok_lo = lo.evaluate(*controls)
     st, _ = hi.evaluate(*controls)
     was = np.ravel(ok_lo)
@@ -171,10 +242,12 @@ def _binding(model: Any, mod: Any, controls: tuple[np.ndarray, ...], lo: Step, h
     return ", ".join(LIMIT_NAMES.get(n, n) for n, _ in hits.most_common(2))
 
 
-def _steady_limit(model: Any, mod: Any, controls: tuple[np.ndarray, ...], what: str, speed: float,
-                  soc: float, dt: float) -> tuple[float, str]:  # fmt: skip
+def _steady_limit(model: Any, mod: Any, cap: _Capability, what: str, speed: float, soc: float,
+                  dt: float) -> tuple[float, str]:  # fmt: skip
     """Largest speed [m/s] (``what = "speed"``) or grade [-] (``"grade"``) held steady."""
-    ctl = _Capability(controls)
+
+    def ctl(x: float) -> _Capability:
+        return _Capability(cap.controls, cap.adhesion, x if what == "grade" else 0.0)
 
     def mk(x: float) -> Step:
         if what == "speed":  # still able to accelerate a little: the top speed is a powertrain limit
@@ -182,7 +255,7 @@ def _steady_limit(model: Any, mod: Any, controls: tuple[np.ndarray, ...], what: 
         return _step(model, mod, speed, speed, x, dt, soc)
 
     def ok(x: float) -> bool:
-        return ctl.choose(mk(x)) is not None
+        return ctl(x).choose(mk(x)) is not None
 
     lo, hi = 0.0, (WALL_SPEED_MPS if what == "speed" else 1.0)
     if ok(hi):
@@ -190,7 +263,8 @@ def _steady_limit(model: Any, mod: Any, controls: tuple[np.ndarray, ...], what: 
     for _ in range(BISECTION_STEPS):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if ok(mid) else (lo, mid)
-    return lo, _binding(model, mod, controls, mk(lo), mk(hi + max(1e-6, 1e-3 * hi)))
+    x_hi = hi + max(1e-6, 1e-3 * hi)
+    return lo, _binding(ctl(lo), mk(lo), ctl(x_hi), mk(x_hi))
 
 
 def _time_to(ts: pd.DataFrame, column: str, target: float) -> float:
@@ -204,14 +278,14 @@ def _time_to(ts: pd.DataFrame, column: str, target: float) -> float:
     return float(t[j - 1] + (target - x[j - 1]) / (x[j] - x[j - 1]) * (t[j] - t[j - 1]))
 
 
-def _run_binding(model: Any, mod: Any, controls: tuple[np.ndarray, ...], ts: pd.DataFrame, dt: float,
-                 soc: float, t_from: float, t_to: float) -> str:  # fmt: skip
+def _run_binding(model: Any, mod: Any, ctl: _Capability, ts: pd.DataFrame, dt: float, soc: float,
+                 t_from: float, t_to: float) -> str:  # fmt: skip
     t, v, socs = (ts[c].to_numpy() for c in ("time_s", "speed_mps", "soc"))
     names: Counter[str] = Counter()
     for k in np.flatnonzero((t[:-1] >= t_from - 1e-9) & (t[:-1] < t_to)).tolist():
         lo = _step(model, mod, v[k], v[k + 1], 0.0, dt, socs[k])
         hi = _step(model, mod, v[k], v[k + 1] + 1e-3, 0.0, dt, socs[k])
-        names[_binding(model, mod, controls, lo, hi)] += 1
+        names[_binding(ctl, lo, ctl, hi)] += 1
     return names.most_common(1)[0][0] if names else "none found"
 
 
@@ -244,7 +318,7 @@ def performance(
     if model is cfg:
         model = arch.build(cfg)
     mod = arch.power_module()
-    controls = mod.capability_controls(model)
+    cap = _Capability(mod.capability_controls(model), Adhesion.of(cfg, model.body, model.tire.radius_m))
     soc0 = float(cfg.simulation.soc_initial if soc is None else soc)
     n = round(duration_s / dt_s)
     t = np.arange(n + 1, dtype=np.float64) * dt_s
@@ -256,7 +330,7 @@ def performance(
         tt = t[: m + 1]
         cyc = DriveCycle(name, tt, np.where(tt > 0, WALL_SPEED_MPS, v_start).astype(np.float64))
         res = simulate_architecture(cfg.architecture, model, cyc, dt_s=dt_s, soc_initial=soc0,
-                                    controller=_Capability(controls))  # fmt: skip
+                                    controller=cap)  # fmt: skip
         ts = res.timeseries
         v = ts["speed_mps"].to_numpy()
         ts["distance_m"] = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt_s)])
@@ -273,14 +347,14 @@ def performance(
             test,
             tt,
             "s",
-            _run_binding(model, mod, controls, ts, dt_s, soc0, 0.0, tt) if np.isfinite(tt) else "not reached",
+            _run_binding(model, mod, cap, ts, dt_s, soc0, 0.0, tt) if np.isfinite(tt) else "not reached",
         )
     tq = _time_to(ts, "distance_m", QUARTER_MILE_M)
     add(
         "quarter mile",
         tq,
         "s",
-        _run_binding(model, mod, controls, ts, dt_s, soc0, 0.0, tq) if np.isfinite(tq) else "not reached",
+        _run_binding(model, mod, cap, ts, dt_s, soc0, 0.0, tq) if np.isfinite(tq) else "not reached",
     )
     v_q = (
         float(np.interp(tq, ts["time_s"], ts["speed_mps"])) / MPS_PER_MPH if np.isfinite(tq) else float("nan")
@@ -292,11 +366,11 @@ def performance(
         "50-80 mph",
         tp,
         "s",
-        _run_binding(model, mod, controls, ts2, dt_s, soc0, 0.0, tp) if np.isfinite(tp) else "not reached",
+        _run_binding(model, mod, cap, ts2, dt_s, soc0, 0.0, tp) if np.isfinite(tp) else "not reached",
     )
-    v_top, why = _steady_limit(model, mod, controls, "speed", 0.0, soc0, dt_s)
+    v_top, why = _steady_limit(model, mod, cap, "speed", 0.0, soc0, dt_s)
     add("top speed", v_top / MPS_PER_MPH, "mph", why)
-    g_max, why = _steady_limit(model, mod, controls, "grade", grade_speed_mps, soc0, dt_s)
+    g_max, why = _steady_limit(model, mod, cap, "grade", grade_speed_mps, soc0, dt_s)
     add(f"gradeability at {grade_speed_mps / MPS_PER_MPH:.0f} mph", 100.0 * g_max, "%", why)
     meta = {"config": cfg.name, "architecture": cfg.architecture, "dt_s": dt_s, "soc": soc0,
             "grade_speed_mps": grade_speed_mps}  # fmt: skip
