@@ -31,16 +31,24 @@ from __future__ import annotations
 import typing
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
+from numba import njit
 
-from hevsim.architectures._common import GearboxModel, battery_details, chassis, fixed_gear, machine_details
+from hevsim.architectures._common import (
+    GearboxModel,
+    battery_details,
+    chassis,
+    fixed_gear,
+    machine_details,
+    max_machine_speed_radps,
+)
 from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
-from hevsim.components.driveline import Gear, Tire
+from hevsim.components.driveline import Gear, Tire, gear_input_torque, gear_output_torque
 from hevsim.components.electric_machine import ElectricMachine
-from hevsim.components.engine import Engine
+from hevsim.components.engine import Engine, fired_fuel_from_maps, torque_from_maps
 from hevsim.config import ParallelHEVConfig, config_from_dict, load_vehicle_config
 from hevsim.errors import ConfigError
 from hevsim.fuels import with_config_fuel
@@ -128,6 +136,104 @@ throttle [-] (0 = engine off, clutch open)."""
 CONTROL_UNITS: tuple[str, ...] = ("-", "-")
 
 
+class ParallelTables(NamedTuple):
+    """The parallel HEV's driveline constants for compiled code, by name (a swapped value is a
+    name error): gearbox ratios and efficiencies per gear [-], final drive and machine
+    coupling ratio and efficiency [-], ``p2`` (machine on the gearbox input), the engine's
+    running window [rad/s], ``torque_scale`` [-], torque-map / fuel-map switches, fuel LHV
+    [J/kg], and the machine's highest speed [rad/s] (inf without a map)."""
+
+    gear_ratio: np.ndarray
+    gear_efficiency: np.ndarray
+    final_drive_ratio: float
+    final_drive_efficiency: float
+    coupling_ratio: float
+    coupling_efficiency: float
+    p2: bool
+    stall_radps: float
+    redline_radps: float
+    engine_torque_scale: float
+    use_torque_map: bool
+    use_fuel_map: bool
+    lhv_jpkg: float
+    motor_max_speed_radps: float
+
+
+def kernel_tables(hev: ParallelHEV) -> ParallelTables:
+    """The :class:`ParallelTables` of a model (the engine's and machine's tables are their
+    own ``kernel_tables()``)."""
+    eng, fd, cpl = hev.engine, hev.final_drive, hev.motor_coupling
+    return ParallelTables(
+        gear_ratio=hev.gear_ratios, gear_efficiency=np.array([g.efficiency for g in hev.gears]),
+        final_drive_ratio=float(fd.ratio), final_drive_efficiency=float(fd.efficiency),
+        coupling_ratio=float(cpl.ratio), coupling_efficiency=float(cpl.efficiency),
+        p2=hev.machine_position == "p2", stall_radps=float(eng.stall_speed_radps),
+        redline_radps=float(eng.redline_radps), engine_torque_scale=float(eng.torque_scale),
+        use_torque_map=eng.torque_map is not None, use_fuel_map=eng.fuel_map is not None,
+        lhv_jpkg=float(eng.fuel_lhv_jpkg), motor_max_speed_radps=max_machine_speed_radps(hev.motor),
+    )  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def mechanical_point(wheel_speed_radps, wheel_torque_nm, gear, throttle, grid_duplicates, d, etab):
+    """The state-independent half of the power flow at one point (THE scalar kernel; see
+    :func:`mechanical`). ``d``: :class:`ParallelTables`; ``etab``: the engine's
+    :class:`~hevsim.components.engine.EngineTables`.
+
+    Returns (gi, on, engine_speed, motor_speed, bad, w_fd, w_e, t_e, t_e_fd, t_fd, fuel,
+    w_em, t_em_req).
+    """
+    gi = int(np.rint(gear)) - 1
+    w_fd = wheel_speed_radps * d.final_drive_ratio
+    t_fd = gear_input_torque(wheel_torque_nm, d.final_drive_ratio, d.final_drive_efficiency)
+    ratio, eff = d.gear_ratio[gi], d.gear_efficiency[gi]
+    w_e = w_fd * ratio
+    fired = throttle > 0.0
+    can_run = w_e >= d.stall_radps and w_e <= d.redline_radps
+    on = fired and can_run
+    t_e = fuel = t_e_fd = t_in_req = 0.0
+    if on:
+        t_e = torque_from_maps(
+            throttle, w_e, d.use_torque_map, d.stall_radps, d.redline_radps, d.engine_torque_scale,
+            etab.tmax_x, etab.tmax_y, etab.tct_x, etab.tct_y, etab.tmap_x, etab.tmap_y, etab.tmap_z,
+        )  # fmt: skip
+        fuel = fired_fuel_from_maps(
+            t_e, w_e, d.use_fuel_map, d.lhv_jpkg, d.stall_radps, d.redline_radps, d.engine_torque_scale,
+            etab.tmax_x, etab.tmax_y, etab.fuel_x, etab.fuel_y, etab.fuel_z,
+        )  # fmt: skip
+    if d.p2:  # machine on the gearbox input, after the clutch: it turns with the gearbox input
+        t_in_req = gear_input_torque(t_fd, ratio, eff)
+        w_em = w_e * d.coupling_ratio
+        t_em_req = gear_input_torque(t_in_req - t_e, d.coupling_ratio, d.coupling_efficiency)
+    else:  # P3: on the final-drive input in every gear (it cannot be declutched)
+        if on:
+            t_e_fd = gear_output_torque(t_e, ratio, eff)
+        w_em = w_fd * d.coupling_ratio
+        t_em_req = gear_input_torque(t_fd - t_e_fd, d.coupling_ratio, d.coupling_efficiency)
+    engine_speed = fired and not can_run
+    motor_speed = abs(w_em) > d.motor_max_speed_radps
+    bad = engine_speed or not np.isfinite(fuel) or motor_speed
+    if grid_duplicates and not d.p2:  # P3: with the engine off the gear does not matter
+        bad = bad or (not fired and gi > 0)
+    return gi, on, engine_speed, motor_speed, bad, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, w_em, t_em_req
+
+
+MECH_FLOATS: tuple[str, ...] = ("w_fd", "w_e", "t_e", "t_e_fd", "t_fd", "fuel", "w_em", "t_em_req")
+"""Float outputs of :func:`mechanical_point`, in order (keys of :func:`mechanical`)."""
+MECH_FLAGS: tuple[str, ...] = ("on", "engine_speed", "motor_speed", "bad")
+"""Boolean outputs of :func:`mechanical_point`, in order."""
+
+
+@njit(cache=True)
+def _mechanical_many(w_wheel, t_wheel, gear, throttle, grid_duplicates, d, etab, gi, flags, floats):
+    """:func:`mechanical_point` over flat arrays; fills ``gi``, ``flags`` (4, n) and ``floats`` (8, n)."""
+    for i in range(w_wheel.shape[0]):
+        r = mechanical_point(w_wheel[i], t_wheel[i], gear[i], throttle[i], grid_duplicates, d, etab)
+        gi[i] = r[0]
+        flags[0, i], flags[1, i], flags[2, i], flags[3, i] = r[1], r[2], r[3], r[4]
+        floats[:, i] = r[5:]
+
+
 def mechanical(
     hev: ParallelHEV,
     wheel_speed_radps: Any,
@@ -146,72 +252,88 @@ def mechanical(
     running window (stall..redline, eq 29), gives ``T_e = Engine.torque(u, w_e)`` and burns
     ``Engine.fuel_rate(T_e, w_e)`` [kg/s]; the gearbox passes ``Gear.output_torque(T_e)``.
     ``u = 0``: engine off and declutched. The machine (coupling gear on the final-drive
-    input) must give the rest: ``t_em_req``. ``grid_duplicates`` marks every gear but the
-    first with the engine off (duplicates on a DP grid) as infeasible.
+    input) must give the rest: ``t_em_req``. The machine turns with the final-drive input
+    (P3, in every gear and in EV mode: it cannot be declutched) or the gearbox input (P2);
+    above its highest speed the point is infeasible (``motor_speed``), never extrapolated.
+    ``grid_duplicates`` marks every gear but the first with the engine off (duplicates on a
+    DP grid) as infeasible. Every point is :func:`mechanical_point` (one compiled loop).
 
     Returns a dict of arrays: gi (gear index 0..G-1), thr, on, engine_speed (fired but
-    outside the running window), bad, w_fd, w_e, t_e, t_e_fd, t_fd, fuel [kg/s], w_em,
-    t_em_req.
+    outside the running window), motor_speed, bad, w_fd, w_e, t_e, t_e_fd, t_fd, fuel
+    [kg/s], w_em, t_em_req.
     """
-    eng = hev.engine
-    gi = np.rint(np.asarray(gear, dtype=np.float64)).astype(np.int64) - 1
-    w_fd = np.asarray(wheel_speed_radps, dtype=np.float64) * hev.final_drive.ratio
-    t_fd = np.asarray(hev.final_drive.input_torque(np.asarray(wheel_torque_nm, np.float64)), dtype=np.float64)
-    w_fd, t_fd, gi, thr = (
-        np.array(a) for a in np.broadcast_arrays(w_fd, t_fd, gi, np.asarray(throttle, dtype=np.float64))
-    )
-    p2 = hev.machine_position == "p2"
-    w_e = w_fd * hev.gear_ratios[gi]
-    fired = thr > 0.0
-    can_run = (w_e >= eng.stall_speed_radps) & (w_e <= eng.redline_radps)
-    on = fired & can_run
-    t_e = np.zeros(gi.shape)
-    fuel = np.zeros(gi.shape)
-    t_e_fd = np.zeros(gi.shape)
-    t_in_req = np.zeros(gi.shape)  # P2: gearbox input torque the wheels need
-    if on.any():
-        t_e[on] = eng.torque(thr[on], w_e[on])
-        fuel[on] = eng.fuel_rate(t_e[on], w_e[on])
-    for g, gearbox in enumerate(hev.gears):
-        sel = gi == g
-        if p2 and sel.any():
-            t_in_req[sel] = gearbox.input_torque(t_fd[sel])
-        sel = sel & on
-        if not p2 and sel.any():
-            t_e_fd[sel] = gearbox.output_torque(t_e[sel])
-    bad = (fired & ~can_run) | ~np.isfinite(fuel)
-    if grid_duplicates and not p2:  # P3: with the engine off the gear does not matter
-        bad = bad | (~fired & (gi > 0))
-    if p2:  # machine on the gearbox input, after the clutch: it turns with the gearbox input
-        w_em = w_e * hev.motor_coupling.ratio
-        t_em_req = hev.motor_coupling.input_torque(t_in_req - t_e)
+    b = np.broadcast_arrays(*(np.asarray(a, np.float64) for a in (wheel_speed_radps, wheel_torque_nm, gear,
+                                                                  throttle)))  # fmt: skip
+    shape = b[0].shape
+    w, t, g, thr = (np.array(a.ravel()) for a in b)
+    gi = np.empty(w.size, np.int64)
+    flags = np.empty((4, w.size), np.bool_)
+    floats = np.empty((8, w.size))
+    _mechanical_many(w, t, g, thr, bool(grid_duplicates), kernel_tables(hev), hev.engine.kernel_tables(), gi,
+                     flags, floats)  # fmt: skip
+    out: dict[str, Any] = {"gi": gi.reshape(shape), "thr": thr.reshape(shape)}
+    out.update({k: flags[j].reshape(shape) for j, k in enumerate(MECH_FLAGS)})
+    out.update({k: floats[j].reshape(shape) for j, k in enumerate(MECH_FLOATS)})
+    return out
+
+
+LOSS_TERMS: tuple[str, ...] = ("fuel", "engine_loss", "gearbox_loss", "motor_loss", "coupling_loss",
+                                "friction_brakes", "final_drive_loss", "wheel")  # fmt: skip
+"""Energy-audit terms of :func:`loss_powers` / :func:`losses_point`, in order."""
+
+
+@njit(cache=True, inline="always")
+def losses_point(wheel_speed_radps, gi, on, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, w_em, t_em, p_el, d):
+    """Power [W] of every audit term at one point (scalar kernel of :func:`loss_powers`, in the
+    order of :data:`LOSS_TERMS`), from :func:`mechanical_point`'s operating point, the
+    machine torque [N·m] and electrical power [W] of the bus balance and ``d``
+    (:class:`ParallelTables`).
+
+    The engine and the machine deliver at the final-drive input: P3 adds the machine after
+    the gearbox, P2 before it (the gearbox carries engine + machine); the friction brakes
+    take, at the final-drive input, whatever braking torque they leave.
+    """
+    t_em_shaft = gear_output_torque(t_em, d.coupling_ratio, d.coupling_efficiency)
+    if d.p2:
+        t_in = t_e + t_em_shaft
+        t_delivered = gear_output_torque(t_in, d.gear_ratio[gi], d.gear_efficiency[gi])
+        w_shaft, t_gearbox_out = w_e, t_delivered  # the coupling delivers on the gearbox input
     else:
-        w_em = w_fd * hev.motor_coupling.ratio
-        t_em_req = hev.motor_coupling.input_torque(t_fd - t_e_fd)
-    return {
-        "gi": gi, "thr": thr, "on": on, "engine_speed": fired & ~can_run, "bad": bad,
-        "w_fd": w_fd, "w_e": w_e, "t_e": t_e, "t_e_fd": t_e_fd, "t_fd": t_fd, "fuel": fuel,
-        "w_em": w_em, "t_em_req": np.asarray(t_em_req, dtype=np.float64),
-    }  # fmt: skip
-
-
-def delivered_fd_torque(hev: ParallelHEV, mech: dict[str, Any], t_em: Any) -> tuple[Any, Any]:
-    """(torque the engine and machine deliver at the final-drive input [N·m], gearbox
-    input torque [N·m]) for machine torque ``t_em``: P3 adds the machine after the gearbox,
-    P2 before it (the gearbox carries engine + machine)."""
-    t_em_shaft = np.asarray(hev.motor_coupling.output_torque(t_em), dtype=np.float64)
-    if hev.machine_position != "p2":
-        return mech["t_e_fd"] + t_em_shaft, mech["t_e"]
-    t_in = np.broadcast_to(
-        mech["t_e"] + t_em_shaft, np.broadcast_shapes(np.shape(t_em_shaft), mech["gi"].shape)
+        t_in = t_e
+        t_delivered = t_e_fd + t_em_shaft
+        w_shaft, t_gearbox_out = w_fd, t_e_fd
+    fric = min(t_fd - t_delivered, 0.0)
+    t_fd_total = t_delivered + fric
+    p_wheel = (
+        gear_output_torque(t_fd_total, d.final_drive_ratio, d.final_drive_efficiency) * wheel_speed_radps
     )
-    gi = np.broadcast_to(mech["gi"], t_in.shape)
-    out = np.zeros(t_in.shape)
-    for g, gearbox in enumerate(hev.gears):
-        sel = gi == g
-        if sel.any():
-            out[sel] = gearbox.output_torque(t_in[sel])
-    return out, t_in
+    p_fuel = fuel * d.lhv_jpkg
+    p_eng = t_e * (w_e if on else 0.0)
+    p_motor = t_em * w_em
+    return (p_fuel, p_fuel - p_eng, t_in * w_e - t_gearbox_out * w_fd, p_el - p_motor,
+            p_motor - t_em_shaft * w_shaft, -fric * w_fd, t_fd_total * w_fd - p_wheel, p_wheel)  # fmt: skip
+
+
+@njit(cache=True)
+def _losses_many(w_wheel, gi, on, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, w_em, t_em, p_el, d, out):
+    """:func:`losses_point` over flat arrays; fills ``out`` (8, n)."""
+    for i in range(w_wheel.shape[0]):
+        r = losses_point(w_wheel[i], gi[i], on[i], w_fd[i], w_e[i], t_e[i], t_e_fd[i], t_fd[i], fuel[i],
+                         w_em[i], t_em[i], p_el[i], d)  # fmt: skip
+        out[:, i] = r
+
+
+def _losses(hev: ParallelHEV, mech: dict[str, Any], flow: Any, wheel_speed_radps: Any) -> dict[str, Any]:
+    """:func:`losses_point` broadcast over a :func:`mechanical` result and its bus balance."""
+    names = ("gi", "on", "w_fd", "w_e", "t_e", "t_e_fd", "t_fd", "fuel", "w_em")
+    args = [wheel_speed_radps, *(mech[n] for n in names), flow.torque_nm, flow.power_elec_w]
+    b = np.broadcast_arrays(*(np.asarray(a) for a in args))
+    shape = b[0].shape
+    flat = [np.array(a.ravel()) for a in b]
+    flat[0] = flat[0].astype(np.float64)
+    out = np.empty((8, flat[0].size))
+    _losses_many(*flat, kernel_tables(hev), out)  # type: ignore[call-arg]
+    return {k: out[j].reshape(shape) for j, k in enumerate(LOSS_TERMS)}
 
 
 def electrical(
@@ -242,12 +364,12 @@ def electrical(
     m = mech
     flow = electric_flow(hev.motor, hev.battery, m["t_em_req"], m["w_em"], 0.0, soc, dt_s, regen_ok,
                          battery_state)  # fmt: skip
-    flags = {"engine_speed": m["engine_speed"], **flow.flags}
+    flags = {"engine_speed": m["engine_speed"], "motor_speed": m["motor_speed"], **flow.flags}
     st = Stage(d_soc=flow.d_soc, cost_kg=m["fuel"] * dt_s, infeasible=flow.infeasible | m["bad"], flags=flags)
     st.flow = flow
     if detail:
         on, w_e, t_e = m["on"], m["w_e"], m["t_e"]
-        fric = np.minimum(m["t_fd"] - delivered_fd_torque(hev, m, flow.torque_nm)[0], 0.0)
+        brakes = _losses(hev, m, flow, 0.0)["friction_brakes"]
         shape = np.shape(flow.torque_nm)
         gear_on = on | (hev.machine_position == "p2")  # P2: the machine drives through the gearbox
         st.details = {
@@ -260,7 +382,7 @@ def electrical(
             "fuel_rate_gps": m["fuel"] * 1e3,
             **machine_details(flow, m["w_em"], shape),
             **battery_details(flow),
-            "friction_brake_power_w": -fric * m["w_fd"],
+            "friction_brake_power_w": brakes,
         }
     return st
 
@@ -297,30 +419,7 @@ def loss_powers(hev: ParallelHEV, stage: Any, wheel_speed_radps: Any, wheel_torq
     simulator). Every term is a product of the flow's own torques and speeds, so the balance
     ``fuel + battery terminal = losses + wheel`` closes to round-off.
     """
-    flow, mech = stage.flow, stage.mech
-    w_fd = mech["w_fd"]
-    on = mech["on"]
-    lhv = hev.engine.fuel_lhv_jpkg
-    p_eng = mech["t_e"] * np.where(on, mech["w_e"], 0.0)
-    t_em = flow.torque_nm
-    t_em_shaft = np.asarray(hev.motor_coupling.output_torque(t_em))
-    t_delivered, t_in = delivered_fd_torque(hev, mech, t_em)
-    fric = np.minimum(mech["t_fd"] - t_delivered, 0.0)
-    t_fd_total = t_delivered + fric
-    p_wheel = np.asarray(hev.final_drive.output_torque(t_fd_total)) * np.asarray(wheel_speed_radps)
-    w_shaft = mech["w_e"] if hev.machine_position == "p2" else w_fd  # where the coupling delivers
-    p_gearbox_in = t_in * mech["w_e"]
-    p_gearbox_out = (t_delivered if hev.machine_position == "p2" else mech["t_e_fd"]) * w_fd
-    return {
-        "fuel": mech["fuel"] * lhv,
-        "engine_loss": mech["fuel"] * lhv - p_eng,
-        "gearbox_loss": p_gearbox_in - p_gearbox_out,
-        "motor_loss": flow.power_elec_w - t_em * mech["w_em"],
-        "coupling_loss": t_em * mech["w_em"] - t_em_shaft * w_shaft,
-        "friction_brakes": -fric * w_fd,
-        "final_drive_loss": t_fd_total * w_fd - p_wheel,
-        "wheel": p_wheel,
-    }
+    return _losses(hev, stage.mech, stage.flow, wheel_speed_radps)
 
 
 def candidate_controls(hev: ParallelHEV, throttle_points: int) -> tuple[np.ndarray, np.ndarray]:

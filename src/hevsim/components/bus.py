@@ -12,8 +12,9 @@ the bus (thesis eqs 13, 21-22). Three steps, each one function:
 3. :func:`bus_current`: the battery current that closes the balance, on the resistance of
    the current's direction, and whether the power is beyond ``OCV^2 / 4R``.
 
-:func:`machine_request_many` (once per input) and :func:`bus_balance_many` (per state and
-input) run steps 2-3 over flat arrays for the DP grid.
+:func:`machine_request` (once per input) and :func:`bus_balance` (per state and input) are
+steps 2-3 at one point (the compiled forward loops call them); :func:`machine_request_many`
+and :func:`bus_balance_many` run them over flat arrays for the DP grid.
 """
 
 from __future__ import annotations
@@ -114,26 +115,63 @@ def bus_current(p_bat_w, ocv_dis_v, r_dis_ohm, ocv_chg_v, r_chg_ohm):
     return current, ocv, r, p_bat_w > 0.0 and ocv * ocv < 4.0 * r * p_bat_w
 
 
+@njit(cache=True, inline="always")
+def machine_request(
+    torque_req_nm, omega_radps, regen_ok, kind, const_eff, torque_scale, lim_x, lim_mot, lim_gen, eff_x,
+    eff_y, eff_z,
+):  # fmt: skip
+    """The state-independent half of the bus balance at one point (scalar kernel).
+
+    Required machine torque [N·m], speed [rad/s], regeneration allowed; machine as in
+    :func:`~hevsim.components.electric_machine.limits_from_curves` and
+    :func:`~hevsim.components.electric_machine.power_from_map`. Returns (the torque after
+    :func:`regen_torque` [N·m], its electrical power [W], a motoring request beyond the
+    machine's limit); motoring torque is not scaled here.
+    """
+    t_max, t_min = limits_from_curves(omega_radps, torque_scale, lim_x, lim_mot, lim_gen)
+    over_torque = torque_req_nm > t_max * (1.0 + TORQUE_RTOL)
+    t = regen_torque(torque_req_nm, t_min, regen_ok)
+    return t, power_from_map(t, omega_radps, kind, const_eff, torque_scale, eff_x, eff_y, eff_z), over_torque
+
+
 @njit(cache=True)
 def machine_request_many(
     torque_req_nm, omega_radps, regen_ok, kind, const_eff, torque_scale, tab, torque_nm, p_el_w,
     over_torque,
 ):  # fmt: skip
-    """The state-independent half of the bus balance over flat arrays (the DP grid).
-
-    Per pair: required machine torque [N·m], speed [rad/s], regeneration allowed. Fills the
-    torque after :func:`regen_torque` [N·m], its electrical power [W] and ``over_torque``
-    (a motoring request beyond the machine's limit; motoring torque is not scaled here).
-    """
+    """:func:`machine_request` over flat arrays (the DP grid): fills the torque [N·m], its
+    electrical power [W] and ``over_torque``."""
     lim_x, lim_mot, lim_gen = tab.lim_x, tab.lim_mot, tab.lim_gen  # unpacked once (see
     eff_x, eff_y, eff_z = tab.eff_x, tab.eff_y, tab.eff_z  # electric_machine.machine_power)
     for i in range(torque_req_nm.shape[0]):
-        w = omega_radps[i]
-        t_max, t_min = limits_from_curves(w, torque_scale, lim_x, lim_mot, lim_gen)
-        over_torque[i] = torque_req_nm[i] > t_max * (1.0 + TORQUE_RTOL)
-        t = regen_torque(torque_req_nm[i], t_min, regen_ok[i])
-        torque_nm[i] = t
-        p_el_w[i] = power_from_map(t, w, kind, const_eff, torque_scale, eff_x, eff_y, eff_z)
+        torque_nm[i], p_el_w[i], over_torque[i] = machine_request(
+            torque_req_nm[i], omega_radps[i], regen_ok[i], kind, const_eff, torque_scale, lim_x, lim_mot,
+            lim_gen, eff_x, eff_y, eff_z,
+        )  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def bus_balance(
+    torque_nm, p_el_w, omega_radps, p_other_w, ocv_v, r_dis_ohm, r_chg_ohm, p_chg_max_w, kind, const_eff,
+    torque_scale, tab,
+):  # fmt: skip
+    """The battery half of the bus balance at one point (scalar kernel).
+
+    Machine torque [N·m] and electrical power [W] from :func:`machine_request`, speed
+    [rad/s], other bus power [W], battery OCV [V], discharge and charge resistance [ohm] and
+    largest charge power [W]. Regeneration is scaled to the charge limit
+    (:func:`limit_machine_torque`; discharge is not limited: callers flag ``over_power`` and
+    the current limits instead). Returns (torque [N·m], machine electrical power [W], battery
+    power [W], current [A] (:func:`bus_current`), beyond ``OCV^2 / 4R``).
+    """
+    t, p_el = torque_nm, p_el_w
+    if needs_limit(t, p_el, p_other_w, np.inf, p_chg_max_w):
+        t, p_el, _ = limit_machine_torque(
+            t, p_el, omega_radps, p_other_w, np.inf, p_chg_max_w, kind, const_eff, torque_scale, tab
+        )
+    p_bat = p_el + p_other_w
+    current, _, _, over_power = bus_current(p_bat, ocv_v, r_dis_ohm, ocv_v, r_chg_ohm)
+    return t, p_el, p_bat, current, over_power
 
 
 @njit(cache=True)
@@ -141,27 +179,13 @@ def bus_balance_many(
     torque_in_nm, p_el_in_w, omega_radps, p_other_w, ocv_v, r_dis_ohm, r_chg_ohm, p_chg_max_w,
     kind, const_eff, torque_scale, tab, torque_nm, p_el_w, p_bat_w, current_a, over_power,
 ):  # fmt: skip
-    """The battery half of the bus balance over flat arrays (the DP grid).
-
-    Per pair: machine torque [N·m] and electrical power [W] from
-    :func:`machine_request_many`, speed [rad/s], other bus power [W], battery OCV [V],
-    discharge and charge resistance [ohm] and largest charge power [W]. Regeneration is
-    scaled to the charge limit (:func:`limit_machine_torque`; discharge is not limited: the
-    DP flags ``over_power`` and the current limits instead). Fills the torque [N·m], machine
-    electrical power [W], battery power [W] and current [A] (:func:`bus_current`).
-    """
+    """:func:`bus_balance` over flat arrays (the DP grid): fills the torque [N·m], machine
+    electrical power [W], battery power [W], current [A] and ``over_power``."""
     for i in range(torque_in_nm.shape[0]):
-        t, p_el, p_oth, p_chg = torque_in_nm[i], p_el_in_w[i], p_other_w[i], p_chg_max_w[i]
-        if needs_limit(t, p_el, p_oth, np.inf, p_chg):
-            t, p_el, _ = limit_machine_torque(
-                t, p_el, omega_radps[i], p_oth, np.inf, p_chg, kind, const_eff, torque_scale, tab
-            )
-        p_bat = p_el + p_oth
-        ocv = ocv_v[i]
-        current_a[i], _, _, over_power[i] = bus_current(p_bat, ocv, r_dis_ohm[i], ocv, r_chg_ohm[i])
-        torque_nm[i] = t
-        p_el_w[i] = p_el
-        p_bat_w[i] = p_bat
+        torque_nm[i], p_el_w[i], p_bat_w[i], current_a[i], over_power[i] = bus_balance(
+            torque_in_nm[i], p_el_in_w[i], omega_radps[i], p_other_w[i], ocv_v[i], r_dis_ohm[i], r_chg_ohm[i],
+            p_chg_max_w[i], kind, const_eff, torque_scale, tab,
+        )  # fmt: skip
 
 
 @njit(cache=True)

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from hevsim.architectures import parallel as parallel_flow
+from hevsim.architectures._common import max_machine_speed_radps as P_max_speed
 from hevsim.architectures.parallel import ParallelHEV
 from hevsim.cycles import DriveCycle
 from hevsim.optimal._hev_common import CycleSteps, FloatArray, HEVFormulation, Stage
@@ -62,6 +63,10 @@ class ParallelFormulation(HEVFormulation):
             ),
             "motor_torque": (
                 f"electric machine torque above its motoring limit ({t_max:.0f} N·m at low speed)"
+            ),
+            "motor_speed": (
+                f"electric machine speed above its map's {radps_to_rpm(P_max_speed(hev.motor)):.0f} rpm "
+                "(P3: it turns with the final-drive input in every gear)"
             ),
             "battery_power": "battery power beyond the maximum OCV^2/(4R)",
             "battery_discharge_current": f"battery discharge current above {bat.max_discharge_current_a:g} A",
