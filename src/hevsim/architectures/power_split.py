@@ -29,17 +29,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
+from numba import njit
 
 from hevsim.architectures._common import NamedModel, battery_details, chassis, fixed_gear, machine_details
 from hevsim.architectures._common import max_machine_speed_radps as _max_speed
 from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
-from hevsim.components.driveline import Gear, Tire
-from hevsim.components.electric_machine import ElectricMachine
-from hevsim.components.engine import Engine
+from hevsim.components.driveline import Gear, Tire, gear_input_torque, gear_output_torque
+from hevsim.components.electric_machine import ElectricMachine, limits_from_curves, power_from_map
+from hevsim.components.engine import Engine, fired_fuel_from_maps, torque_from_maps
 from hevsim.config import PowerSplitConfig
 from hevsim.fuels import with_config_fuel
 from hevsim.sim.model import build_battery, build_engine, build_machine
@@ -71,9 +72,12 @@ class PowerSplitHEV(NamedModel):
     aux_power_w: float
 
     def sun_speed_radps(self, engine_speed_radps: Any, ring_speed_radps: Any) -> Any:
-        """MG1 (sun) speed [rad/s] from the Willis equation."""
-        zs, zr = self.sun_teeth, self.ring_teeth
-        return ((zs + zr) * np.asarray(engine_speed_radps) - zr * np.asarray(ring_speed_radps)) / zs
+        """MG1 (sun) speed [rad/s] from the Willis equation (:func:`sun_speed`, broadcast)."""
+        b = np.broadcast_arrays(
+            np.asarray(engine_speed_radps, np.float64), np.asarray(ring_speed_radps, np.float64)
+        )
+        w_e, w_r = (np.array(x.ravel()) for x in b)
+        return _sun_speed_many(w_e, w_r, float(self.sun_teeth), float(self.ring_teeth)).reshape(b[0].shape)
 
 
 def build_power_split(cfg: PowerSplitConfig) -> PowerSplitHEV:
@@ -92,6 +96,146 @@ def build_power_split(cfg: PowerSplitConfig) -> PowerSplitHEV:
     )
 
 
+class PowerSplitTables(NamedTuple):
+    """The power split's constants for compiled code, by name: final drive and MG2 coupling
+    ratio and efficiency [-], sun and ring tooth numbers [-], the engine's running window
+    [rad/s], ``torque_scale`` [-], torque-map / fuel-map switches and fuel LHV [J/kg], MG1's
+    model (kind code, constant efficiency, torque scale) and the highest speeds of MG1 and
+    MG2 [rad/s] (inf without a map)."""
+
+    final_drive_ratio: float
+    final_drive_efficiency: float
+    coupling_ratio: float
+    coupling_efficiency: float
+    sun_teeth: float
+    ring_teeth: float
+    stall_radps: float
+    redline_radps: float
+    engine_torque_scale: float
+    use_torque_map: bool
+    use_fuel_map: bool
+    lhv_jpkg: float
+    generator_kind: int
+    generator_efficiency: float
+    generator_torque_scale: float
+    generator_max_speed_radps: float
+    motor_max_speed_radps: float
+
+
+def kernel_tables(hev: PowerSplitHEV) -> PowerSplitTables:
+    """The :class:`PowerSplitTables` of a model (the engine's and machines' tables are their
+    own ``kernel_tables()``)."""
+    eng, fd, cpl, mg1 = hev.engine, hev.final_drive, hev.motor_coupling, hev.generator
+    return PowerSplitTables(
+        final_drive_ratio=float(fd.ratio), final_drive_efficiency=float(fd.efficiency),
+        coupling_ratio=float(cpl.ratio), coupling_efficiency=float(cpl.efficiency),
+        sun_teeth=float(hev.sun_teeth), ring_teeth=float(hev.ring_teeth),
+        stall_radps=float(eng.stall_speed_radps), redline_radps=float(eng.redline_radps),
+        engine_torque_scale=float(eng.torque_scale), use_torque_map=eng.torque_map is not None,
+        use_fuel_map=eng.fuel_map is not None, lhv_jpkg=float(eng.fuel_lhv_jpkg),
+        generator_kind=int(mg1.kind_code), generator_efficiency=float(mg1.efficiency),
+        generator_torque_scale=float(mg1.torque_scale), generator_max_speed_radps=_max_speed(mg1),
+        motor_max_speed_radps=_max_speed(hev.motor),
+    )  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def sun_speed(engine_speed_radps, ring_speed_radps, sun_teeth, ring_teeth):
+    """MG1 (sun) speed [rad/s] from the Willis equation (scalar kernel)."""
+    return ((sun_teeth + ring_teeth) * engine_speed_radps - ring_teeth * ring_speed_radps) / sun_teeth
+
+
+@njit(cache=True)
+def _sun_speed_many(w_e, w_r, sun_teeth, ring_teeth):
+    out = np.empty(w_e.shape[0])
+    for i in range(w_e.shape[0]):
+        out[i] = sun_speed(w_e[i], w_r[i], sun_teeth, ring_teeth)
+    return out
+
+
+@njit(cache=True, inline="always")
+def mechanical_point(
+    wheel_speed_radps,
+    wheel_torque_nm,
+    engine_speed_radps,
+    throttle,
+    w_cmd_min,
+    grid_duplicates,
+    d,
+    etab,
+    gtab,
+):
+    """The state-independent half at one point (THE scalar kernel; see :func:`mechanical`).
+
+    ``w_cmd_min`` [rad/s]: the smallest commanded engine speed of the grid (with
+    ``grid_duplicates``); ``d``: :class:`PowerSplitTables`; ``etab``, ``gtab``: the engine's
+    and MG1's tables. Returns (on, engine_speed, generator_torque, generator_speed,
+    motor_speed, bad, w_ring, t_ring, w_e, t_e, fuel, w_sun, t_gen, p_gen, t_e_ring, w_em,
+    t_em_req).
+    """
+    zs, zr = d.sun_teeth, d.ring_teeth
+    w_r = wheel_speed_radps * d.final_drive_ratio
+    t_ring = gear_input_torque(wheel_torque_nm, d.final_drive_ratio, d.final_drive_efficiency)
+    fired = throttle > 0.0
+    w_e = engine_speed_radps if fired else 0.0
+    can_run = w_e >= d.stall_radps and w_e <= d.redline_radps
+    on = fired and can_run
+    t_e = fuel = 0.0
+    if on:
+        t_e = torque_from_maps(
+            throttle, w_e, d.use_torque_map, d.stall_radps, d.redline_radps, d.engine_torque_scale,
+            etab.tmax_x, etab.tmax_y, etab.tct_x, etab.tct_y, etab.tmap_x, etab.tmap_y, etab.tmap_z,
+        )  # fmt: skip
+        fuel = fired_fuel_from_maps(
+            t_e, w_e, d.use_fuel_map, d.lhv_jpkg, d.stall_radps, d.redline_radps, d.engine_torque_scale,
+            etab.tmax_x, etab.tmax_y, etab.fuel_x, etab.fuel_y, etab.fuel_z,
+        )  # fmt: skip
+    w_s = sun_speed(w_e, w_r, zs, zr)
+    t_g = -t_e * zs / (zs + zr)
+    t_e_ring = t_e * zr / (zs + zr)
+    g_max = limits_from_curves(abs(w_s), d.generator_torque_scale, gtab.lim_x, gtab.lim_mot, gtab.lim_gen)[0]
+    gen_torque = abs(t_g) > g_max * (1.0 + TORQUE_RTOL)
+    gen_speed = abs(w_s) > d.generator_max_speed_radps
+    p_g = power_from_map(t_g, w_s, d.generator_kind, d.generator_efficiency, d.generator_torque_scale,
+                         gtab.eff_x, gtab.eff_y, gtab.eff_z)  # fmt: skip
+    w_em = w_r * d.coupling_ratio
+    motor_speed = abs(w_em) > d.motor_max_speed_radps
+    engine_speed = fired and not can_run
+    bad = engine_speed or not np.isfinite(fuel) or gen_torque or gen_speed or motor_speed
+    if grid_duplicates:
+        bad = bad or (not fired and engine_speed_radps > w_cmd_min)
+    t_em_req = gear_input_torque(t_ring - t_e_ring, d.coupling_ratio, d.coupling_efficiency)
+    return (on, engine_speed, gen_torque, gen_speed, motor_speed, bad,
+            w_r, t_ring, w_e, t_e, fuel, w_s, t_g, p_g, t_e_ring, w_em, t_em_req)  # fmt: skip
+
+
+MECH_FLAGS: tuple[str, ...] = (
+    "on",
+    "engine_speed",
+    "generator_torque",
+    "generator_speed",
+    "motor_speed",
+    "bad",
+)
+"""Boolean outputs of :func:`mechanical_point`, in order (keys of :func:`mechanical`)."""
+MECH_FLOATS: tuple[str, ...] = ("w_ring", "t_ring", "w_e", "t_e", "fuel", "w_sun", "t_gen", "p_gen",
+                                "t_e_ring", "w_em", "t_em_req")  # fmt: skip
+"""Float outputs of :func:`mechanical_point`, in order."""
+
+
+@njit(cache=True)
+def _mechanical_many(
+    w_wheel, t_wheel, w_cmd, throttle, w_cmd_min, grid_duplicates, d, etab, gtab, flags, floats
+):
+    """:func:`mechanical_point` over flat arrays; fills ``flags`` (6, n) and ``floats`` (11, n)."""
+    for i in range(w_wheel.shape[0]):
+        r = mechanical_point(
+            w_wheel[i], t_wheel[i], w_cmd[i], throttle[i], w_cmd_min, grid_duplicates, d, etab, gtab
+        )
+        flags[0, i], flags[1, i], flags[2, i], flags[3, i], flags[4, i], flags[5, i] = r[:6]
+        floats[:, i] = r[6:]
+
+
 def mechanical(
     hev: PowerSplitHEV,
     wheel_speed_radps: Any,
@@ -102,46 +246,22 @@ def mechanical(
     grid_duplicates: bool = False,
 ) -> dict[str, Any]:
     """The state-independent half: engine, planetary set, MG1 (power and limits), the
-    torque MG2 must give. ``grid_duplicates`` marks every engine speed but the first with the
-    engine off as infeasible (duplicates on a DP grid)."""
-    eng, mg1 = hev.engine, hev.generator
-    zs, zr = hev.sun_teeth, hev.ring_teeth
-    w_r = np.asarray(wheel_speed_radps, dtype=np.float64) * hev.final_drive.ratio
-    t_ring = np.asarray(
-        hev.final_drive.input_torque(np.asarray(wheel_torque_nm, np.float64)), dtype=np.float64
-    )
-    w_r, t_ring, w_cmd, thr = (
-        np.array(a) for a in np.broadcast_arrays(w_r, t_ring, np.asarray(engine_speed_radps, np.float64),
-                                                 np.asarray(throttle, np.float64))
-    )  # fmt: skip
-    fired = thr > 0.0
-    w_e = np.where(fired, w_cmd, 0.0)
-    can_run = (w_e >= eng.stall_speed_radps) & (w_e <= eng.redline_radps)
-    on = fired & can_run
-    t_e = np.zeros(w_e.shape)
-    fuel = np.zeros(w_e.shape)
-    if on.any():
-        t_e[on] = eng.torque(thr[on], w_e[on])
-        fuel[on] = eng.fuel_rate(t_e[on], w_e[on])
-    w_s = hev.sun_speed_radps(w_e, w_r)
-    t_g = -t_e * zs / (zs + zr)
-    t_e_ring = t_e * zr / (zs + zr)
-    g_max = np.asarray(mg1.limits(np.abs(w_s))[0], dtype=np.float64)
-    gen_torque = np.abs(t_g) > g_max * (1.0 + TORQUE_RTOL)
-    gen_speed = np.abs(w_s) > _max_speed(mg1)
-    p_g = np.asarray(mg1.electrical_power(t_g, w_s), dtype=np.float64)
-    w_em = w_r * hev.motor_coupling.ratio
-    motor_speed = np.abs(w_em) > _max_speed(hev.motor)
-    bad = (fired & ~can_run) | ~np.isfinite(fuel) | gen_torque | gen_speed | motor_speed
-    if grid_duplicates:
-        bad = bad | (~fired & (w_cmd > np.min(w_cmd)))
-    return {
-        "on": on, "thr": thr, "w_ring": w_r, "t_ring": t_ring, "w_e": w_e, "t_e": t_e, "fuel": fuel,
-        "w_sun": w_s, "t_gen": t_g, "p_gen": p_g, "t_e_ring": t_e_ring, "bad": bad,
-        "engine_speed": fired & ~can_run, "generator_torque": gen_torque, "generator_speed": gen_speed,
-        "motor_speed": motor_speed, "w_em": w_em,
-        "t_em_req": np.asarray(hev.motor_coupling.input_torque(t_ring - t_e_ring), dtype=np.float64),
-    }  # fmt: skip
+    torque MG2 must give, broadcast over every argument (each point is
+    :func:`mechanical_point`, one compiled loop). ``grid_duplicates`` marks every engine
+    speed but the first with the engine off as infeasible (duplicates on a DP grid)."""
+    b = np.broadcast_arrays(*(np.asarray(a, np.float64) for a in (wheel_speed_radps, wheel_torque_nm,
+                                                                  engine_speed_radps, throttle)))  # fmt: skip
+    shape = b[0].shape
+    w, t, w_cmd, thr = (np.array(a.ravel()) for a in b)
+    flags = np.empty((len(MECH_FLAGS), w.size), np.bool_)
+    floats = np.empty((len(MECH_FLOATS), w.size))
+    w_min = float(np.min(w_cmd)) if w_cmd.size else 0.0
+    _mechanical_many(w, t, w_cmd, thr, w_min, bool(grid_duplicates), kernel_tables(hev),
+                     hev.engine.kernel_tables(), hev.generator.kernel_tables(), flags, floats)  # fmt: skip
+    out: dict[str, Any] = {"thr": thr.reshape(shape)}
+    out.update({k: flags[j].reshape(shape) for j, k in enumerate(MECH_FLAGS)})
+    out.update({k: floats[j].reshape(shape) for j, k in enumerate(MECH_FLOATS)})
+    return out
 
 
 def electrical(
@@ -167,7 +287,7 @@ def electrical(
                flow=flow, mech=m)  # fmt: skip
     if detail:
         shape = np.shape(flow.torque_nm)
-        fric = np.minimum(m["t_ring"] - m["t_e_ring"] - hev.motor_coupling.output_torque(flow.torque_nm), 0.0)
+        brakes = _losses(hev, m, flow, 0.0)["friction_brakes"]
         st.details = {
             "engine_on": m["on"].astype(np.float64),
             "engine_speed_radps": m["w_e"],
@@ -181,7 +301,7 @@ def electrical(
             **machine_details(flow, m["w_em"], shape),
             "ring_speed_radps": np.broadcast_to(m["w_ring"], shape),
             **battery_details(flow),
-            "friction_brake_power_w": -fric * m["w_ring"],
+            "friction_brake_power_w": brakes,
         }
     return st
 
@@ -205,32 +325,60 @@ def power_flow(
     return electrical(hev, mech, soc, dt_s, regen_ok, battery_state, detail=detail)
 
 
+LOSS_TERMS: tuple[str, ...] = ("fuel", "engine_loss", "generator_loss", "motor_loss", "coupling_loss",
+                                "friction_brakes", "final_drive_loss", "aux", "wheel")  # fmt: skip
+"""Energy-audit terms of :func:`loss_powers` / :func:`losses_point`, in order."""
+
+
+@njit(cache=True, inline="always")
+def losses_point(wheel_speed_radps, w_ring, t_ring, w_e, t_e, fuel, w_sun, t_gen, p_gen, t_e_ring, w_em, t_m2,
+                 p_m2, aux_power_w, d):  # fmt: skip
+    """Power [W] of every audit term at one point (scalar kernel of :func:`loss_powers`, in
+    the order of :data:`LOSS_TERMS`) from :func:`mechanical_point`'s operating point, MG2's
+    torque [N·m] and electrical power [W] of the bus balance, the auxiliary load [W] and
+    ``d`` (:class:`PowerSplitTables`). The planetary set is lossless; the friction brakes
+    take, at the ring, the braking torque the engine and MG2 leave."""
+    t_m2_ring = gear_output_torque(t_m2, d.coupling_ratio, d.coupling_efficiency)
+    fric = min(t_ring - t_e_ring - t_m2_ring, 0.0)
+    t_total = t_e_ring + t_m2_ring + fric
+    p_wheel = gear_output_torque(t_total, d.final_drive_ratio, d.final_drive_efficiency) * wheel_speed_radps
+    p_fuel = fuel * d.lhv_jpkg
+    p_m2_mech = t_m2 * w_em
+    return (p_fuel, p_fuel - t_e * w_e, p_gen - t_gen * w_sun, p_m2 - p_m2_mech,
+            p_m2_mech - t_m2_ring * w_ring, -fric * w_ring, t_total * w_ring - p_wheel, aux_power_w,
+            p_wheel)  # fmt: skip
+
+
+@njit(cache=True)
+def _losses_many(w_wheel, floats, t_m2, p_m2, aux_power_w, d, out):
+    """:func:`losses_point` over flat arrays (``floats``: (11, n) of :data:`MECH_FLOATS`)."""
+    for i in range(w_wheel.shape[0]):
+        f = floats[:, i]
+        out[:, i] = losses_point(w_wheel[i], f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8], f[9],
+                                 t_m2[i], p_m2[i], aux_power_w, d)  # fmt: skip
+
+
+def _losses(hev: PowerSplitHEV, m: dict[str, Any], flow: Any, wheel_speed_radps: Any) -> dict[str, Any]:
+    """:func:`losses_point` broadcast over a :func:`mechanical` result and its bus balance."""
+    args = [wheel_speed_radps, flow.torque_nm, flow.power_elec_w, *(m[n] for n in MECH_FLOATS[:10])]
+    b = np.broadcast_arrays(*(np.asarray(a, np.float64) for a in args))
+    shape = b[0].shape
+    flat = [np.array(a.ravel()) for a in b]
+    out = np.empty((len(LOSS_TERMS), flat[0].size))
+    _losses_many(
+        flat[0], np.array(flat[3:]), flat[1], flat[2], float(hev.aux_power_w), kernel_tables(hev), out
+    )
+    return {k: out[j].reshape(shape) for j, k in enumerate(LOSS_TERMS)}
+
+
 def loss_powers(
     hev: PowerSplitHEV, stage: Any, wheel_speed_radps: Any, wheel_torque_nm: Any
 ) -> dict[str, Any]:
     """Power [W] of every audit term: ``fuel``, ``engine_loss``, ``generator_loss`` (MG1
     electrical - mechanical), ``motor_loss`` (MG2), ``coupling_loss``, ``friction_brakes``,
     ``final_drive_loss``, ``aux``, ``wheel``. The planetary set is lossless, so engine shaft
-    power = MG1 shaft power + ring power from the engine."""
-    flow, m = stage.flow, stage.mech
-    lhv = hev.engine.fuel_lhv_jpkg
-    p_eng = m["t_e"] * m["w_e"]
-    t_m2 = flow.torque_nm
-    t_m2_ring = np.asarray(hev.motor_coupling.output_torque(t_m2))
-    fric = np.minimum(m["t_ring"] - m["t_e_ring"] - t_m2_ring, 0.0)
-    t_total = m["t_e_ring"] + t_m2_ring + fric
-    p_wheel = np.asarray(hev.final_drive.output_torque(t_total)) * np.asarray(wheel_speed_radps)
-    return {
-        "fuel": m["fuel"] * lhv,
-        "engine_loss": m["fuel"] * lhv - p_eng,
-        "generator_loss": m["p_gen"] - m["t_gen"] * m["w_sun"],
-        "motor_loss": flow.power_elec_w - t_m2 * m["w_em"],
-        "coupling_loss": t_m2 * m["w_em"] - t_m2_ring * m["w_ring"],
-        "friction_brakes": -fric * m["w_ring"],
-        "final_drive_loss": t_total * m["w_ring"] - p_wheel,
-        "aux": np.full(np.shape(p_wheel), hev.aux_power_w),
-        "wheel": p_wheel,
-    }
+    power = MG1 shaft power + ring power from the engine (:func:`losses_point`)."""
+    return _losses(hev, stage.mech, stage.flow, wheel_speed_radps)
 
 
 def candidate_controls(
