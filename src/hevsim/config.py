@@ -196,15 +196,24 @@ class GensetSection:
 
 @dataclass(frozen=True)
 class BatterySection:
-    """Battery: model "ideal" | "rint" | "table" (cell tables in ``data``) | "cell".
+    """Battery: model "ideal" | "rint" | "table" (cell tables in ``data``) | "cell" | "pack".
 
     ``"cell"`` (series only): an ``n_series`` x ``n_parallel`` pack of the electro-thermal
     cell model of :mod:`hevsim.battery` (``data`` names a shipped cell parameter set or a TOML
     path), with its RC and thermal dynamics; ``temperature_c`` is its initial and heat-port
     temperature. The current limits accept ``inf`` (the default): no limit.
+
+    ``"pack"`` (series and parallel): the pack file ``pack`` (a pack TOML as
+    ``examples/pack.toml``, relative to this file) with every cell, its module thermal model,
+    cooling loop and BMS (:mod:`hevsim.sim.pack_vehicle`); the pack file's arrangement, limits
+    and temperatures replace this section's, except ``soc_min`` / ``soc_max``.
     """
 
-    model: str = choice("ideal", "ideal", "rint", "table", "cell")
+    model: str = choice("ideal", "ideal", "rint", "table", "cell", "pack")
+    pack: str = ""
+    # the DC bus window the motor inverter accepts [V] (a "pack" must lie inside it)
+    bus_min_v: float = param(0.0, 0.0, 1e5, "V")
+    bus_max_v: float = param(INF, 1e-3, INF, "V", allow_inf=True)
     ocv_v: float = param(336.0, 1e-3, 1e5, "V")
     resistance_ohm: float = param(0.0, 0.0, 1e3, "ohm")
     capacity_ah: float = param(8.5, 1e-6, 1e6, "A·h")
@@ -542,10 +551,10 @@ def _check_conventional(cfg: ConventionalConfig, source: str) -> None:
 def _check_bev(cfg: BEVConfig, source: str) -> None:
     _check_controller(cfg, source)
     _pairs_below(cfg, source, (("battery.soc_min", "battery.soc_max"),))
-    if cfg.battery.model == "cell":
+    if cfg.battery.model in ("cell", "pack"):
         raise ConfigError(
-            f"{source}: key 'battery.model' = 'cell' is not supported by the bev architecture; "
-            "expected one of ideal, rint, table."
+            f"{source}: key 'battery.model' = {cfg.battery.model!r} is not supported by the bev "
+            "architecture; expected one of ideal, rint, table."
         )
 
 
@@ -562,7 +571,7 @@ def _check_power_split(cfg: PowerSplitConfig, source: str) -> None:
             f"planetary set: the planets would need (ring - sun) / 2 = {(zr - zs) / 2:g} teeth; expected "
             "tooth numbers whose difference is even."
         )
-    if cfg.engine.model != "map" or cfg.battery.model == "cell":
+    if cfg.engine.model != "map" or cfg.battery.model in ("cell", "pack"):
         raise ConfigError(
             f"{source}: the power split needs 'engine.model' = 'map' (got {cfg.engine.model!r}) and a "
             f"battery model ideal, rint or table (got {cfg.battery.model!r})."

@@ -107,6 +107,8 @@ class ParallelHEV(GearboxModel):
     battery: BatteryPack
     machine_position: str = "p3"
     """``"p3"``: machine on the final-drive input; ``"p2"``: on the gearbox input."""
+    aux_power_w: float = 0.0
+    """Electrical auxiliary load on the bus [W] (a pack's cooling, :mod:`hevsim.sim.pack_vehicle`)."""
 
     architecture: typing.ClassVar[str] = ARCHITECTURE
 
@@ -362,8 +364,8 @@ def electrical(
     from hevsim.optimal._hev_common import Stage, electric_flow
 
     m = mech
-    flow = electric_flow(hev.motor, hev.battery, m["t_em_req"], m["w_em"], 0.0, soc, dt_s, regen_ok,
-                         battery_state)  # fmt: skip
+    flow = electric_flow(hev.motor, hev.battery, m["t_em_req"], m["w_em"], hev.aux_power_w, soc, dt_s,
+                         regen_ok, battery_state)  # fmt: skip
     flags = {"engine_speed": m["engine_speed"], "motor_speed": m["motor_speed"], **flow.flags}
     st = Stage(d_soc=flow.d_soc, cost_kg=m["fuel"] * dt_s, infeasible=flow.infeasible | m["bad"], flags=flags)
     st.flow = flow

@@ -42,8 +42,9 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-from hevsim.battery.cooling import ControllerSection, CoolingLoop, CoolingSection, check_cooling
+from hevsim.battery.cooling import ControllerSection, CoolingLoop, CoolingSection, LoopStep, check_cooling
 from hevsim.battery.kernel import (
+    C0,
     CHEAT,
     RECH,
     RECORD,
@@ -51,11 +52,13 @@ from hevsim.battery.kernel import (
     REHEAT,
     REPORT,
     RPORT,
+    RSCALE,
     RSOC,
     RTEMP,
     RV,
     RVAVG,
     STEMP,
+    branch_affine,
     cell_step,
     rc_energy,
     share_current,
@@ -120,10 +123,15 @@ class PackSection:
 @dataclass(frozen=True)
 class DeratingSection:
     """``[derating]``: current factor [-] over the hottest cell temperature [degC] (increasing,
-    linear interpolation; must cover the cell parameter set's temperature range)."""
+    linear interpolation; must cover the cell parameter set's temperature range), and in the
+    vehicle (:mod:`hevsim.battery.bms`) the discharge factor over the lowest cell SOC and the
+    charge factor over the highest (``soc`` increasing from 0 to 1)."""
 
     temp_c: tuple[float, ...] = (-40.0, 0.0, 45.0, 55.0, 60.0, 100.0)
     current_factor: tuple[float, ...] = (0.2, 1.0, 1.0, 0.5, 0.0, 0.0)
+    soc: tuple[float, ...] = (0.0, 0.05, 0.15, 0.85, 0.95, 1.0)
+    discharge_soc_factor: tuple[float, ...] = (0.0, 0.2, 1.0, 1.0, 1.0, 1.0)
+    charge_soc_factor: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 0.2, 0.0)
 
 
 @dataclass(frozen=True)
@@ -160,6 +168,7 @@ def pack_config_from_dict(
         raise ConfigError(
             f"{source}: key 'derating.current_factor' = {list(d.current_factor)}; expected 0..1."
         )
+    _check_soc_tables(d, source)
     m = cfg.module
     if m.thermal == "rom" and not (m.rom_file and m.thermal_config):
         raise ConfigError(
@@ -167,6 +176,21 @@ def pack_config_from_dict(
             "'module.thermal_config' (the module thermal TOML it was built from)."
         )
     return cfg
+
+
+def _check_soc_tables(d: DeratingSection, source: str) -> None:
+    soc = np.asarray(d.soc, float)
+    if soc.size < 2 or np.any(np.diff(soc) <= 0) or soc[0] > 0.0 or soc[-1] < 1.0:
+        raise ConfigError(
+            f"{source}: key 'derating.soc' = {list(d.soc)}; expected increasing values from 0 to 1 (>= 2)."
+        )
+    for key in ("discharge_soc_factor", "charge_soc_factor"):
+        f = np.asarray(getattr(d, key), float)
+        if f.size != soc.size or np.any((f < 0) | (f > 1)):
+            raise ConfigError(
+                f"{source}: key 'derating.{key}' = {list(f)}; expected {soc.size} values in 0..1 (one per "
+                "'derating.soc')."
+            )
 
 
 def load_pack_config(path: str | Path) -> PackConfig:
@@ -208,6 +232,44 @@ def pack_step(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, 
             energy[2] += rec[REHEAT]
             energy[3] += rec[REPORT]
     return v_end, v_avg
+
+
+@njit(cache=True)
+def pack_thevenin(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, n_groups, n_p, dt,
+                  direction, e_group, z_group):  # fmt: skip
+    """The pack's step-average voltage ``E - Z I`` over the next step ``dt`` [s] for a pack
+    current of ``direction`` (+1 discharge, -1 charge): each cell's exact affine branch
+    (:func:`hevsim.battery.kernel.branch_affine`), the parallel cells of a group as one branch
+    (``1/Z_g = sum 1/z``, ``E_g = Z_g sum e/z``: the shared voltage :func:`share_current`
+    solves), the groups in series. Exact while every cell carries the pack's direction (the
+    thesis cell's linear options). Fills ``e_group``/``z_group`` [V, ohm]; returns (E [V], Z [ohm])."""
+    e_tot = 0.0
+    z_tot = 0.0
+    for g in range(n_groups):
+        s_g = 0.0
+        s_eg = 0.0
+        for b in range(n_p):
+            c = g * n_p + b
+            e, z = branch_affine(prm[c], soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x[c], dt,
+                                 direction)  # fmt: skip
+            s_g += 1.0 / z
+            s_eg += e / z
+        e_group[g] = s_eg / s_g
+        z_group[g] = 1.0 / s_g
+        e_tot += e_group[g]
+        z_tot += z_group[g]
+    return e_tot, z_tot
+
+
+@dataclass(frozen=True)
+class PackStepStart:
+    """What :meth:`Pack.begin_step` decided for a step: hottest cell core [K] at its start, the
+    temperature derating factor [-], the cooling loop's step and the plates' inlets [K]."""
+
+    hottest_k: float
+    factor: float
+    loop_step: LoopStep
+    inlet_k: np.ndarray
 
 
 @dataclass
@@ -278,6 +340,10 @@ class Pack:
         self.port_k = np.full(self.n_cells, t0)
         self._tabs = self.params.tables()
         self._energy_buf = np.zeros(4)
+        self._c0_new = self.prm[:, C0].copy()
+        self._rscale_new = self.prm[:, RSCALE].copy()
+        self.stress: Any = None
+        """Per-cell ageing stress accumulator (:class:`hevsim.battery.life.CellStress`) or None."""
         self._new_accounts()
 
     # -- construction helpers ----------------------------------------------------------------
@@ -371,27 +437,42 @@ class Pack:
         self.time_s = 0.0
         self._plate_heat = np.zeros(self.cfg.pack.n_modules)
 
-    def step(
-        self, current_request_a: float, cells_out: np.ndarray | None = None
-    ) -> tuple[dict[str, float], np.ndarray]:
-        """Advance the pack one ``pack.dt_s`` at the requested pack current [A] (discharge > 0),
-        derated by the BMS; returns the step's channels (:data:`STEP_CHANNELS`) and the
-        per-module hot spots [K]. ``cells_out`` (n_cells, 5) receives the per-cell record
-        (current [A], SOC, core temperature [K], port heat [W], voltage [V]). The energy terms
-        accumulate in :attr:`acc` (:meth:`energy` closes the balance)."""
+    def begin_step(self) -> PackStepStart:
+        """The first half of a step: the BMS's temperature derating factor (hottest cell core at
+        the start of the step) and the cooling loop's decision (pump, fan, chiller power [W],
+        known before the cells' current: an auxiliary load the vehicle puts on its bus)."""
+        hottest = float(self.x[:, STEMP].max())
+        f = self.derating_factor(hottest)
+        loop_step = self.loop.begin_step(hottest, self.ambient_k, self.cfg.pack.dt_s)
+        inlet = self.loop.series_inlets(loop_step, self._plate_heat)
+        if self.rom is None:
+            self.port_k = np.repeat(inlet, self.cells_per_module)
+        return PackStepStart(hottest, f, loop_step, inlet)
+
+    def thevenin(self, direction: float, e_group: np.ndarray, z_group: np.ndarray) -> tuple[float, float]:
+        """The pack's step-average terminal voltage as ``E - Z I`` [V, ohm] for a pack current
+        of ``direction`` (+1 discharge, -1 charge) over the next step, from the cells' present
+        state (:func:`pack_thevenin`); ``e_group``/``z_group`` (n_groups,) receive each series
+        group's own pair (its cells' voltage)."""
+        m = self.cfg.module
+        return pack_thevenin(  # type: ignore[call-arg]
+            self.prm, *self._tabs, self.x, self.cfg.pack.n_modules * m.n_series, m.n_parallel,
+            self.cfg.pack.dt_s, direction, e_group, z_group,
+        )  # fmt: skip
+
+    def finish_step(
+        self, start: PackStepStart, current_a: float, current_request_a: float | None = None,
+        cells_out: np.ndarray | None = None,
+    ) -> tuple[dict[str, float], np.ndarray]:  # fmt: skip
+        """The second half of a step at pack current ``current_a`` [A] (discharge > 0, already
+        within the BMS limits): cells, module thermal model, cooling loop, energy terms."""
         cfg, m = self.cfg, self.cfg.module
         dt = cfg.pack.dt_s
         n_mod, cpm = cfg.pack.n_modules, self.cells_per_module
         out = np.empty((self.n_cells, 5)) if cells_out is None else cells_out
         energy = self._energy_buf
-        hottest = float(self.x[:, STEMP].max())
-        f = self.derating_factor(hottest)
-        lim = f * cfg.pack.max_current_a
-        i_a = float(np.clip(current_request_a, -lim, lim))
-        loop_step = self.loop.begin_step(hottest, self.ambient_k, dt)
-        inlet = self.loop.series_inlets(loop_step, self._plate_heat)
-        if self.rom is None:
-            self.port_k = np.repeat(inlet, cpm)
+        loop_step, inlet = start.loop_step, start.inlet_k
+        i_a = float(current_a)
         v_end, v_avg = pack_step(  # type: ignore[call-arg]
             self.prm, *self._tabs, self.x, n_mod * m.n_series, m.n_parallel, i_a, dt, self.port_k, out, energy
         )
@@ -429,9 +510,13 @@ class Pack:
             acc["fan_electric_j"] += dt * loop_step.fan_power_w
         self.time_s += dt
         soc = out[:, 1]
+        if self.stress is not None:
+            self.stress.add(out, dt)
+        req = i_a if current_request_a is None else float(current_request_a)
         row = {
-            "time_s": self.time_s, "current_request_a": float(current_request_a), "current_a": i_a,
-            "voltage_v": v_end, "voltage_avg_v": v_avg, "power_w": v_avg * i_a, "derating_factor": f,
+            "time_s": self.time_s, "current_request_a": req, "current_a": i_a,
+            "voltage_v": v_end, "voltage_avg_v": v_avg, "power_w": v_avg * i_a,
+            "derating_factor": start.factor,
             "hottest_cell_temp_k": float(out[:, 2].max()), "hot_spot_temp_k": float(module_hot.max()),
             "min_soc": float(soc.min()), "max_soc": float(soc.max()), "loop_temp_k": self.loop.temp_k,
             "supply_temp_k": loop_step.supply_k, "plate_heat_w": plate_w, "module_ambient_w": mod_amb,
@@ -440,6 +525,31 @@ class Pack:
             "fan_power_w": loop_step.fan_power_w,
         }  # fmt: skip
         return row, module_hot
+
+    def step(
+        self, current_request_a: float, cells_out: np.ndarray | None = None
+    ) -> tuple[dict[str, float], np.ndarray]:
+        """Advance the pack one ``pack.dt_s`` at the requested pack current [A] (discharge > 0),
+        derated by the BMS; returns the step's channels (:data:`STEP_CHANNELS`) and the
+        per-module hot spots [K]. ``cells_out`` (n_cells, 5) receives the per-cell record
+        (current [A], SOC, core temperature [K], port heat [W], voltage [V]). The energy terms
+        accumulate in :attr:`acc` (:meth:`energy` closes the balance). The same as
+        :meth:`begin_step` then :meth:`finish_step` at the derated current."""
+        start = self.begin_step()
+        lim = start.factor * self.cfg.pack.max_current_a
+        i_a = float(np.clip(current_request_a, -lim, lim))
+        return self.finish_step(start, i_a, current_request_a, cells_out)
+
+    def apply_ageing(self, capacity_fraction: np.ndarray, resistance_fraction: np.ndarray) -> None:
+        """Scale every cell's capacity C0 and resistances by its ageing state's fractions [-]
+        (``C/C0``, ``R/R0``; arrays of ``n_cells``), from the new cells' (spread) values."""
+        cf, rf = np.asarray(capacity_fraction, float), np.asarray(resistance_fraction, float)
+        if cf.shape != (self.n_cells,) or rf.shape != (self.n_cells,):
+            raise ConfigError(
+                f"{self.cfg.name}: ageing state for {cf.size} cells; the pack has {self.n_cells} cells."
+            )
+        self.prm[:, C0] = self._c0_new * cf
+        self.prm[:, RSCALE] = self._rscale_new * rf
 
     def energy(self, start: dict[str, float]) -> dict[str, float]:
         """The energy terms [J] accumulated since the stored energies were ``start``
@@ -511,9 +621,11 @@ __all__ = [
     "Pack",
     "PackConfig",
     "PackResult",
+    "PackStepStart",
     "load_pack_config",
     "pack_config_from_dict",
     "pack_step",
+    "pack_thevenin",
 ]
 
 

@@ -1,6 +1,6 @@
 """Integration point with the forward vehicle simulator (:mod:`hevsim.sim.kernel`).
 
-Two ways to put an n_s x n_p pack of identical cells into the vehicle:
+Three ways to put a pack into the vehicle (the first two: n_s x n_p identical cells):
 
 1. :func:`quasi_static_pack` — a :class:`hevsim.components.battery.BatteryPack` (kind
    ``"table"``) whose OCV and charge/discharge resistances are the cell's OCV and its DC
@@ -14,6 +14,16 @@ Two ways to put an n_s x n_p pack of identical cells into the vehicle:
    the kernel's existing ``OCV - R I`` power solution stays exact. The kernel needs a new
    battery kind and one call after the battery current is solved (see ``docs/battery.md``).
 
+3. The pack kind (``[battery] model = "pack"``, :mod:`hevsim.sim.pack_vehicle`): a whole
+   :class:`~hevsim.battery.pack.Pack` (cells with spread, module thermal ROM, cooling loop,
+   BMS) run by a :class:`hevsim.battery.bms.PackRun`. The compiled kernel calls
+   :func:`battery_pack_begin` at the start of each step's bus balance (the run writes the
+   step's Thevenin pairs into the aux vector, the BMS current limits and the cooling load into
+   the kernel's parameter vector ``p``), :func:`battery_pack` as its battery role, and
+   :func:`battery_pack_advance` once the current is solved (the run steps the pack and returns
+   its SOC). The pack is Python (ROM, cooling loop), so these two are callbacks through numba's
+   object mode, found by the run number in the aux vector (:func:`pack_run_registered`).
+
 The kernel's battery tables are an :class:`EcmTables` named tuple (read by name in compiled
 code); :func:`pad_tables_kind` extends a ``"tables"`` kind's
 :class:`~hevsim.components.battery.PackTables` to the same types so one compiled dispatcher
@@ -22,20 +32,25 @@ serves both kinds.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, objmode
 
 from hevsim.battery import kernel as K
 from hevsim.battery.params import CellParameters, load_cell_parameters
 from hevsim.components.battery import BatteryPack, PackTables, pack_resistance
 from hevsim.tables import FloatArray, Table2D
 
-# aux vector of the ECM tuple (entry 11)
-AUX = ("n_series", "n_parallel", "dt_s", "port_temp_k", "r_extra_ohm", "heat_w", "cell_temp_k")
-A_NS, A_NP, A_DT, A_TPORT, A_REXT, A_HEAT, A_TCELL = range(len(AUX))
+# aux vector of the ECM tuple (entry 11); the last five serve the pack kind (section 3 below)
+AUX = (
+    "n_series", "n_parallel", "dt_s", "port_temp_k", "r_extra_ohm", "heat_w", "cell_temp_k",
+    "pack_run", "e_discharge_v", "z_discharge_ohm", "e_charge_v", "z_charge_ohm",
+)  # fmt: skip
+A_NS, A_NP, A_DT, A_TPORT, A_REXT, A_HEAT, A_TCELL, A_RUN, A_EDIS, A_ZDIS, A_ECHG, A_ZCHG = range(len(AUX))
 
 
 class EcmTables(NamedTuple):
@@ -252,3 +267,70 @@ def battery_ecm_advance(p, bat, i_pack, dt):
     aux[A_HEAT] = rec[K.RHEAT] * aux[A_NS] * aux[A_NP]
     aux[A_TCELL] = rec[K.RTEMP]
     return aux[A_HEAT], aux[A_TCELL]
+
+
+# -- 3. the pack kind: callbacks into a hevsim.battery.bms.PackRun ---------------------------------
+_PACK_RUNS: dict[int, Any] = {}
+"""The pack runs in progress, by run number (only while :func:`pack_run_registered` is open)."""
+
+
+@contextmanager
+def pack_run_registered(run: Any, p: FloatArray, bat: EcmTables) -> Iterator[None]:
+    """Make ``run`` (:class:`hevsim.battery.bms.PackRun`) the pack of the kernel arguments ``p``
+    (parameter vector) and ``bat`` for the duration of one kernel call. An exception raised in
+    a callback is kept by the run (``run.error``) and raised again here after the kernel."""
+    key = max(_PACK_RUNS, default=0) + 1
+    bat.aux[A_RUN] = key
+    run.kernel_arrays = (p, bat.aux)
+    _PACK_RUNS[key] = run
+    try:
+        yield
+    finally:
+        del _PACK_RUNS[key]
+    if run.error is not None:
+        raise run.error
+
+
+def _pack_begin(key: int) -> None:
+    run = _PACK_RUNS[key]
+    if run.error is None:
+        try:
+            run.kernel_begin()
+        except Exception as exc:  # raised again after the kernel
+            run.error = exc
+
+
+def _pack_advance(key: int, current_a: float) -> float:
+    run = _PACK_RUNS[key]
+    if run.error is None:
+        try:
+            return float(run.finish_current(current_a))
+        except Exception as exc:  # raised again after the kernel
+            run.error = exc
+    return float(run.soc)
+
+
+@njit(cache=True)
+def battery_pack_begin(p, bat):
+    """Pack kind: the run sets this step's Thevenin pairs, BMS limits and cooling load."""
+    key = int(bat.aux[A_RUN])
+    with objmode():
+        _pack_begin(key)
+
+
+@njit(cache=True)
+def battery_pack(p, bat, soc, current_sign):
+    """Battery role of the pack kind: the step's ``(E [V], Z [ohm])`` for a direction."""
+    aux = bat.aux
+    if current_sign >= 0.0:
+        return aux[A_EDIS], aux[A_ZDIS]
+    return aux[A_ECHG], aux[A_ZCHG]
+
+
+@njit(cache=True)
+def battery_pack_advance(p, bat, i_pack, dt):
+    """Pack kind: step the pack at the solved current ``i_pack`` [A]; returns its SOC [-]."""
+    key = int(bat.aux[A_RUN])
+    with objmode(soc="float64"):
+        soc = _pack_advance(key, i_pack)
+    return soc

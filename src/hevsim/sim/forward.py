@@ -226,6 +226,7 @@ def simulate_architecture(
     soc_initial: float | None = None,
     controller: Any = None,
     compiled: bool | None = None,
+    pack_run: Any = None,
     **controller_params: Any,
 ) -> Any:
     """Simulate a vehicle of architecture ``name`` (file path, configuration or built model)
@@ -237,7 +238,10 @@ def simulate_architecture(
     (``equivalence_factor=2.6``). ``dt_s`` [s] defaults to the configuration's; the cycle is
     resampled to it. ``compiled``: use the architecture's compiled run where it has one for
     this controller (default: yes, unless ``HEVSIM_FORWARD=python``); False forces the
-    Python loop. Returns a :class:`~hevsim.sim.simulator.SimulationResult`.
+    Python loop. ``pack_run``: the :class:`~hevsim.battery.bms.PackRun` of a ``[battery]
+    model = "pack"`` vehicle (Python loop; without one such a vehicle goes to
+    :func:`hevsim.sim.pack_vehicle.simulate_pack_vehicle`, which makes it). Returns a
+    :class:`~hevsim.sim.simulator.SimulationResult`.
     """
     from hevsim.architectures import architecture
     from hevsim.config import load_vehicle_config
@@ -269,13 +273,18 @@ def simulate_architecture(
             f"soc_initial = {soc0:g} lies outside [battery.soc_min, battery.soc_max] = "
             f"[{b.soc_min:g}, {b.soc_max:g}]."
         )
+    if b is not None and b.model == "pack" and pack_run is None:  # hevsim.sim.pack_vehicle
+        from hevsim.sim.pack_vehicle import simulate_pack_vehicle
+
+        return simulate_pack_vehicle(model, cyc, dt, soc0, controller=ctl)
     t_k0 = time.perf_counter()
     window = (b.soc_min, b.soc_max) if b is not None else (0.0, 1.0)
-    hook = getattr(mod, "simulate_compiled", None) if use_compiled(compiled) else None
+    compiled_ok = use_compiled(compiled) and pack_run is None  # a pack runs in the Python loop
+    hook = getattr(mod, "simulate_compiled", None) if compiled_ok else None
     rec = hook(model, grid, ctl, soc_initial=soc0, soc_min=window[0], soc_max=window[1]) if hook else None
     ran_compiled = rec is not None
     if rec is None:
-        rec = _run(mod, model, ctl, grid, soc0, *window)
+        rec = _run(mod, model, ctl, grid, soc0, window[0], window[1], pack=pack_run)
     ts, audit, summary, events = finish_record(rec, grid, mod.MODES)
     t_done = time.perf_counter()
     traction = float(np.sum(np.clip(ts["wheel_power_w"].to_numpy()[:-1], 0.0, None)) * dt)
@@ -441,7 +450,7 @@ def simulate_batch_architecture(
 
 
 def _run(
-    mod: Any, model: Any, ctl: Any, grid: Any, soc0: float, soc_min: float, soc_max: float
+    mod: Any, model: Any, ctl: Any, grid: Any, soc0: float, soc_min: float, soc_max: float, pack: Any = None
 ) -> ForwardRecord:
     """The Python loop (the reference of every compiled run)."""
     body, r = model.body, model.tire.radius_m
@@ -467,16 +476,20 @@ def _run(
         f = float(body.road_load_force(v_mid, a, g)) if v_mid > 0.0 else 0.0
         return v_mid, a, g, f
 
+    model_k = model
     for k in range(n):
-        bs = _battery_state(model, soc, soc_max) if battery is not None else None
+        if pack is not None:  # the pack's BMS limits, (E, Z) and cooling load for this step
+            model_k, bs = pack.vehicle_step(model, soc, soc_max)
+        else:
+            bs = _battery_state(model, soc, soc_max) if battery is not None else None
         ocv = float(np.asarray(bs.ocv_v)) if bs is not None else 0.0
         e_soc = q_as * ocv if bs is not None else 1.0
 
         def step_at(v1: float, k: int = k, v0: float = v, soc: float = soc, bs: Any = bs,
-                    e_soc: float = e_soc) -> tuple[Step, float, float, float]:  # fmt: skip
+                    e_soc: float = e_soc, mk: Any = model_k) -> tuple[Step, float, float, float]:  # fmt: skip
             v_mid, a, g, f = demand(v0, v1, k)
             st = Step(
-                model, mod.power_flow, k, float(t[k]), dt, v_mid, v_mid / r, f * r, soc, e_soc, bs, soc_min
+                mk, mod.power_flow, k, float(t[k]), dt, v_mid, v_mid / r, f * r, soc, e_soc, bs, soc_min
             )
             return st, a, g, f
 
@@ -507,8 +520,10 @@ def _run(
         det = {key: float(np.ravel(val)[0]) for key, val in st.details.items()}
         loss = {
             key: float(np.ravel(val)[0])
-            for key, val in mod.loss_powers(model, st, step.wheel_speed_radps, step.wheel_torque_nm).items()
+            for key, val in mod.loss_powers(model_k, st, step.wheel_speed_radps, step.wheel_torque_nm).items()
         }
+        if pack is not None and "aux" not in loss:  # the cooling load on the bus
+            loss["aux"] = model_k.aux_power_w
         d_soc = float(np.ravel(st.d_soc)[0])
         v_mid = step.v_mid_mps
         # ---- energy audit [J] (all powers at the mid-step speed)
@@ -555,6 +570,8 @@ def _run(
         for key, val in row.items():
             cols.setdefault(key, np.zeros(n + 1))[k] = val
         v, soc = v1, soc + d_soc
+        if pack is not None:  # the pack steps at the bus's terminal power: its own SOC
+            soc = pack.finish_power(det["battery_power_w"])
     err = v_des[n] - v
     err_sq += err * err
     err_max = max(err_max, abs(err))

@@ -242,6 +242,10 @@ def build_battery(bs: BatterySection, base: Path) -> tuple[BatteryPack, Any]:
     if bs.model == "table":
         folder = resolve_component(bs.data, "battery", base, "battery.data")
         return BatteryPack.from_directory(folder, **limits), None
+    if bs.model == "pack":  # the vehicle's view of it; the pack itself: hevsim.sim.pack_vehicle
+        from hevsim.sim.pack_vehicle import nominal_battery
+
+        return nominal_battery(bs, base), None
     if bs.model == "cell":
         from hevsim.battery import load_cell_parameters
         from hevsim.battery.vehicle import quasi_static_pack

@@ -241,6 +241,10 @@ def simulate(
         from hevsim.sim.forward import simulate_architecture
 
         return simulate_architecture(other, model, cycle, dt_s, soc_initial)
+    if getattr(getattr(getattr(model, "config", model), "battery", None), "model", "") == "pack":
+        from hevsim.sim.pack_vehicle import simulate_pack_vehicle
+
+        return simulate_pack_vehicle(model, cycle, dt_s, soc_initial, schedule=schedule)
     t_start = time.perf_counter()
     hev, cyc, dt, args = kernel_inputs(model, cycle, dt_s, soc_initial, schedule)
     t_kernel = time.perf_counter()

@@ -1,0 +1,316 @@
+"""A vehicle with a whole battery pack (``[battery] model = "pack"``): cells, module thermal
+model, cooling loop and BMS inside the forward simulation (issue 12 item 3).
+
+The vehicle file names a pack file (``[battery] pack = "vehicle_pack.toml"``, a pack TOML as
+``examples/pack.toml``). Every vehicle step the pack's :class:`~hevsim.battery.bms.PackRun`
+gives the bus its exact step Thevenin pair, the BMS's current limits (hot, empty, full or
+voltage-limited cells lower them, so the supervisory controller sees the available power) and
+the cooling loop's electrical load; after the step the pack advances with the actual current
+and the ambient temperature.
+
+* **Series HEV**: the compiled kernel (:func:`hevsim.sim.kernel.run_series`) with the battery
+  kind ``"pack"``: two object-mode callbacks per step (:mod:`hevsim.battery.vehicle`, section
+  3). The series keeps its one integrator (genset shaft, driver, thermostat) and the pack
+  costs two ~1 us calls plus its own work per step; a second, Python, series step would have
+  to repeat the kernel's equations.
+* **Parallel HEV** (and the other forward architectures): the Python loop of
+  :mod:`hevsim.sim.forward` (the compiled fast paths do not take a pack), which asks the run
+  for the step's model (battery limits, bus load) and battery state and hands back the
+  terminal power; the pack solves its current with the direction's own pair.
+
+The result is the vehicle's :class:`~hevsim.sim.simulator.SimulationResult` with the pack's
+channels (:data:`hevsim.battery.bms.CHANNELS`, one ``module<j>_hottest_cell_temp_k`` per
+module) added to its time series, pack metrics (peak cell temperature, derated time, cooling
+energy, the pack's energy-balance residual, SOC spread) and ``derating`` / ``bms_limit``
+events saying when and why the BMS limited the car. The pack step is the vehicle step (the
+pack file's ``pack.dt_s`` is replaced by it).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from hevsim.battery.bms import LIMIT_NAMES, PackRun
+from hevsim.battery.pack import Pack, PackConfig, load_pack_config
+from hevsim.cycles import DriveCycle
+from hevsim.errors import ConfigError
+from hevsim.sim.metrics import metric
+
+LOG = logging.getLogger("hevsim")
+
+
+def pack_file(bs: Any, base: Path) -> Path:
+    """The pack file of a ``[battery] model = "pack"`` section (ConfigError when missing)."""
+    if not bs.pack:
+        raise ConfigError("key 'battery.pack' is empty; expected a pack TOML file for model = 'pack'.")
+    path = Path(bs.pack) if Path(bs.pack).is_absolute() else base / bs.pack
+    if not path.is_file():
+        raise ConfigError(f"key 'battery.pack' = {bs.pack!r}: no such file {path}; expected a pack TOML.")
+    return path
+
+
+def nominal_battery(bs: Any, base: Path) -> Any:
+    """The vehicle's nominal view of the pack (a quasi-static :class:`BatteryPack` of its cells,
+    all modules' series groups in series): capacity and OCV for the SOC correction of the
+    fuel economy; the run itself uses the pack (:class:`~hevsim.battery.bms.PackRun`)."""
+    from hevsim.battery.params import load_cell_parameters
+    from hevsim.battery.vehicle import quasi_static_pack
+    from hevsim.units import c_to_k
+
+    path = pack_file(bs, base)
+    cfg = load_pack_config(path)
+    par = cfg.cells.parameters
+    params = load_cell_parameters(str(path.parent / par) if (path.parent / par).is_file() else par)
+    n_s = cfg.pack.n_modules * cfg.module.n_series
+    i_max = cfg.pack.max_current_a
+    t0 = c_to_k(cfg.pack.initial_temp_c)
+    qs = quasi_static_pack(
+        params, n_s, cfg.module.n_parallel, t0, max_discharge_current_a=i_max, max_charge_current_a=i_max
+    )
+    return replace(qs, name=f"pack {cfg.name} ({path.name})")
+
+
+def vehicle_pack_config(
+    cfg: Any, dt_s: float, ambient_temp_c: float | None = None, soak: bool = False
+) -> tuple[PackConfig, Path]:
+    """The pack configuration of a vehicle configuration for a run at step ``dt_s`` [s]:
+    ``ambient_temp_c`` [degC] replaces the pack file's ambient; ``soak`` also starts the cells
+    and the coolant at it (a car parked long enough). Checks the pack's voltage window against
+    the motor's (``[motor] min_voltage_v`` .. ``max_voltage_v`` where the model has them)."""
+    path = pack_file(cfg.battery, Path(cfg.base_dir))
+    pc = load_pack_config(path)
+    pk = replace(pc.pack, dt_s=float(dt_s))
+    cooling = pc.cooling
+    if ambient_temp_c is not None:
+        pk = replace(pk, ambient_temp_c=float(ambient_temp_c))
+        if soak:
+            pk = replace(pk, initial_temp_c=float(ambient_temp_c))
+            cooling = replace(cooling, supply_temp_c=float(ambient_temp_c))
+    return replace(pc, pack=pk, cooling=cooling), path
+
+
+def check_voltage_window(pack: Pack, cfg: Any, path: Path) -> None:
+    """ConfigError when the pack's voltage window (all series cells between the cells'
+    ``[limits] v_min_v`` and ``v_max_v``) is not inside the motor inverter's DC window
+    (``[battery] bus_min_v`` .. ``bus_max_v`` of the vehicle file)."""
+    lim = pack.params.limits
+    n_s = pack.cfg.pack.n_modules * pack.cfg.module.n_series
+    lo, hi = n_s * lim.v_min_v, n_s * lim.v_max_v
+    b = cfg.battery
+    if lo < b.bus_min_v or hi > b.bus_max_v:
+        raise ConfigError(
+            f"{path}: keys 'pack.n_modules' = {pack.cfg.pack.n_modules} x 'module.n_series' = "
+            f"{pack.cfg.module.n_series} cells in series give a pack window of {lo:g} to {hi:g} V "
+            f"({lim.v_min_v:g} to {lim.v_max_v:g} V per cell, '{pack.params.name}'); the motor inverter of "
+            f"{cfg.name} accepts [battery] bus_min_v = {b.bus_min_v:g} to bus_max_v = {b.bus_max_v:g} V; "
+            "expected the pack's window inside the inverter's."
+        )
+
+
+def make_pack_run(
+    cfg: Any,
+    dt_s: float,
+    soc_initial: float,
+    *,
+    ambient_temp_c: float | None = None,
+    soak: bool = False,
+    age_state: Any = None,
+) -> PackRun:
+    """A fresh :class:`~hevsim.battery.bms.PackRun` for one vehicle run (``age_state``: a
+    :class:`hevsim.battery.life.PackAgeState` applied to the cells and tracked over the run)."""
+    pcfg, path = vehicle_pack_config(cfg, dt_s, ambient_temp_c, soak)
+    pack = Pack(pcfg)
+    check_voltage_window(pack, cfg, path)
+    if age_state is not None:
+        age_state.apply(pack)
+    return PackRun(pack, soc_initial)
+
+
+def simulate_pack_vehicle(
+    model: Any,
+    cycle: DriveCycle | str | None = None,
+    dt_s: float | None = None,
+    soc_initial: float | None = None,
+    *,
+    controller: Any = None,
+    ambient_temp_c: float | None = None,
+    soak: bool = False,
+    age_state: Any = None,
+    schedule: Any = None,
+) -> Any:
+    """Simulate a ``[battery] model = "pack"`` vehicle (a file, configuration or built model)
+    over ``cycle`` (module docstring). ``ambient_temp_c``/``soak``: see
+    :func:`vehicle_pack_config`; ``age_state``: a :class:`hevsim.battery.life.PackAgeState`
+    (applied to the cells, advanced by the run in place); ``controller`` (non-series) and
+    ``schedule`` (series) as in the architecture's own simulate. Returns the vehicle's
+    :class:`~hevsim.sim.simulator.SimulationResult` with the pack's channels, metrics and
+    events; ``result.pack_energy`` holds the pack's energy terms [J]."""
+    from hevsim.config import load_vehicle_config
+    from hevsim.sim.forward import cycle_and_step
+
+    if isinstance(model, str | Path):
+        model = load_vehicle_config(model)
+    cfg = getattr(model, "config", model)
+    if cfg.battery.model != "pack":
+        raise ConfigError(f"{cfg.name}: key 'battery.model' = {cfg.battery.model!r}; expected 'pack' here.")
+    cyc, dt = cycle_and_step(cycle, dt_s, cfg.simulation)
+    soc0 = float(cfg.simulation.soc_initial if soc_initial is None else soc_initial)
+    run = make_pack_run(cfg, dt, soc0, ambient_temp_c=ambient_temp_c, soak=soak, age_state=age_state)
+    if age_state is not None:
+        age_state.begin(run.pack)
+    if cfg.architecture == "series":
+        res = _simulate_series(model, cyc, dt, soc0, run, schedule)
+    else:
+        from hevsim.sim.forward import simulate_architecture
+
+        res = simulate_architecture(cfg.architecture, model, cyc, dt, soc0, controller, pack_run=run)
+    _attach(res, run, cfg)
+    if age_state is not None:
+        age_state.end(run.pack, res)
+    return res
+
+
+def _simulate_series(model: Any, cyc: DriveCycle, dt: float, soc0: float, run: PackRun, schedule: Any) -> Any:
+    import time
+
+    from hevsim.battery.vehicle import ecm_kernel_tables, pack_run_registered
+    from hevsim.sim import kernel as K
+    from hevsim.sim.checks import check_domain, check_metrics
+    from hevsim.sim.simulator import _assemble, kernel_inputs
+
+    t0 = time.perf_counter()
+    hev, cyc, dt, args = kernel_inputs(model, cyc, dt, soc0, schedule)
+    pack = run.pack
+    m = pack.cfg.module
+    bat = ecm_kernel_tables(pack.params, pack.cfg.pack.n_modules * m.n_series, m.n_parallel, soc0,
+                            float(pack.x[0, 2]), dt)  # fmt: skip
+    p = args[0]
+    p[K.BATKIND] = K.BATTERY_KINDS.index("pack")
+    args = (*args[:4], bat, *args[5:])
+    t1 = time.perf_counter()
+    with pack_run_registered(run, p, bat):  # type: ignore[arg-type]
+        K.run_series(*args)
+    t2 = time.perf_counter()
+    out, energy, summary = args[-3], args[-2], args[-1]
+    label = f"{hev.name} on {cyc.name}"
+    check_domain(label, args[6], out, energy, summary, p)
+    res = _assemble(hev, cyc, dt, p, out, energy, summary, t2 - t1, t2 - t0)
+    check_metrics(label, res.metrics)
+    return res
+
+
+def _limited_column(ts: pd.DataFrame) -> np.ndarray:
+    """Steps where the car was held back by its battery (series: ``battery_limited``; forward
+    architectures: ``traction_limited``)."""
+    for col in ("battery_limited", "traction_limited"):
+        if col in ts:
+            return ts[col].to_numpy() > 0
+    return np.zeros(len(ts), dtype=bool)
+
+
+def _attach(res: Any, run: PackRun, cfg: Any) -> None:
+    """Add the pack's channels, metrics, events and energy terms to a vehicle result."""
+    ts = res.timeseries
+    pf = run.frame(len(ts))
+    for col in pf.columns:
+        ts[col] = pf[col].to_numpy()
+    e = run.energy()
+    res.pack_energy = e
+    t = ts["time_s"].to_numpy()
+    dt = float(t[1] - t[0])
+    steps = len(run.rows["derating_factor"])
+    factor = np.asarray(run.rows["derating_factor"])
+    derated = factor < 1.0
+    lim_d = np.asarray(run.rows["bms_discharge_limit_a"])
+    lim_c = np.asarray(run.rows["bms_charge_limit_a"])
+    i_max = run.pack.cfg.pack.max_current_a
+    bms_low = (lim_d < i_max * (1 - 1e-9)) | (lim_c < i_max * (1 - 1e-9))
+    held = _limited_column(ts)[:steps] & bms_low
+    hot = np.asarray(run.rows["hottest_cell_temp_k"])
+    cooling_j = e["pump_work_j"] + e["chiller_electric_j"] + e["fan_electric_j"]
+    first = float(t[:steps][derated][0]) if derated.any() else math.nan
+    new = {
+        "pack_peak_cell_temp_c": metric(hot.max() - 273.15, "degC", "hottest cell core temperature"),
+        "pack_peak_hot_spot_temp_c": metric(
+            max(run.rows["hot_spot_temp_k"]) - 273.15, "degC", "hottest point of any module (thermal model)"
+        ),
+        "pack_derated_s": metric(derated.sum() * dt, "s", "time the BMS derated the pack for temperature"),
+        "pack_first_derating_s": metric(first, "s", "first time the BMS derated the pack (NaN: never)"),
+        "pack_bms_limited_s": metric(
+            held.sum() * dt, "s", "time the car could not follow the trace while the BMS limited the pack"
+        ),
+        "pack_cooling_energy_j": metric(cooling_j, "J", "electrical energy of pump, fan and chiller"),
+        "pack_final_soc_spread": metric(run.rows["cell_soc_spread"][-1], "-", "final cell SOC max - min"),
+        "pack_energy_balance_relative": metric(
+            e["residual_relative"], "-", "pack energy-balance residual / electrical throughput"
+        ),
+    }
+    res.metrics.update(new)
+    pc = run.pack.cfg
+    res.metadata["pack"] = {
+        "name": pc.name, "n_cells": run.pack.n_cells, "thermal": pc.module.thermal,
+        "ambient_temp_c": pc.pack.ambient_temp_c, "initial_temp_c": pc.pack.initial_temp_c,
+        "cooling_controller": pc.controller.kind,
+    }  # fmt: skip
+    ev = _pack_events(t[:steps], factor, hot, lim_d, lim_c, run, held)
+    if len(ev):
+        res.events = (
+            pd.concat([res.events, ev], ignore_index=True)
+            .sort_values(["time_s", "kind"], kind="stable")
+            .reset_index(drop=True)
+        )
+    if held.any() or derated.any():
+        LOG.warning(
+            "%s on %s: pack derated for %.0f s (first at t = %.0f s, hottest cell %.1f degC); the car could "
+            "not follow the trace for %.0f s while the BMS limited the pack",
+            cfg.name, res.metadata.get("cycle"), derated.sum() * dt, first, hot.max() - 273.15,
+            held.sum() * dt,
+        )  # fmt: skip
+
+
+def _pack_events(
+    t: np.ndarray, factor: np.ndarray, hot: np.ndarray, lim_d: np.ndarray, lim_c: np.ndarray, run: PackRun,
+    held: np.ndarray,
+) -> pd.DataFrame:  # fmt: skip
+    """``derating`` on/off events (temperature factor < 1) and ``bms_limit`` events (the car
+    held back while the BMS limited the pack), each with its reason."""
+    rows: list[dict[str, Any]] = []
+    reasons = np.asarray(run.rows["bms_discharge_reason"], dtype=int)
+    for flag, kind in ((factor < 1.0, "derating"), (held, "bms_limit")):
+        edges = np.flatnonzero(np.diff(np.r_[False, flag, False].astype(np.int8)))
+        for j, k in enumerate(edges):
+            if k >= t.size:
+                break
+            on = j % 2 == 0
+            if kind == "derating":
+                why = (
+                    f"hottest cell {hot[k] - 273.15:.1f} degC: BMS current factor {factor[k]:.2f} "
+                    f"(discharge limit {lim_d[k]:.1f} A, charge limit {lim_c[k]:.1f} A)"
+                    if on else f"hottest cell {hot[k] - 273.15:.1f} degC: full current again"
+                )  # fmt: skip
+            else:
+                why = (
+                    f"the car cannot follow the trace: BMS discharge limit {lim_d[k]:.1f} A "
+                    f"({LIMIT_NAMES[reasons[k]]}), charge limit {lim_c[k]:.1f} A"
+                    if on else "the car follows the trace again"
+                )  # fmt: skip
+            rows.append({"time_s": float(t[k]), "kind": kind, "from_state": "off" if on else "on",
+                         "to_state": "on" if on else "off", "reason": why})  # fmt: skip
+    return pd.DataFrame(rows, columns=["time_s", "kind", "from_state", "to_state", "reason"])
+
+
+__all__ = [
+    "check_voltage_window",
+    "make_pack_run",
+    "nominal_battery",
+    "pack_file",
+    "simulate_pack_vehicle",
+    "vehicle_pack_config",
+]
