@@ -260,7 +260,9 @@ class ControllerSection:
     ``aecms_kinetic_fraction`` of the kinetic energy, gains ``aecms_kp`` [-] and ``aecms_ki``
     [1/s]). Conventional: ``"shift_schedule"`` (the gear of the ``upshift_rpm`` /
     ``downshift_rpm`` schedule, kick-down when the engine cannot give the torque; the engine
-    idles, or with ``stop_start = "on"`` stops, when there is no traction demand). BEV:
+    idles, or with ``stop_start = "on"`` stops, when there is no traction demand; braking
+    with the gearbox input above ``fuel_cut_speed_rpm`` cuts the fuel and lets the engine
+    drag). BEV:
     ``"direct"`` (the machine gives what the driver asks, within its and the battery's limits).
     Power split: ``"power_follower"`` (rule-based: EV below ``ev_speed_mps`` and ``ev_power_w``
     with SOC above ``soc_low``, else the engine gives the demand plus the charging power at its
@@ -295,6 +297,11 @@ class ControllerSection:
     engine_speed_points: int = param(12, 2, 10_000, "-")
     # conventional vehicle: engine off instead of idling when there is no traction demand
     stop_start: str = choice("off", "off", "on")
+    # conventional vehicle: deceleration fuel cut above this engine speed [rpm] (clutch closed,
+    # the engine drags with its closed-throttle torque). Default: fuel injection resumes below
+    # 1,200 rpm in the 2007 Pontiac Vibe (Toyota 1ZZ-FE) service manual, "Fuel System
+    # Description - Fuel Cutoff"; a value above the redline turns the fuel cut off.
+    fuel_cut_speed_rpm: float = param(1200.0, 0.0, 1e5, "rpm")
 
 
 @dataclass(frozen=True)

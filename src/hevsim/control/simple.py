@@ -5,10 +5,12 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from hevsim.units import rpm_to_radps
 
 
+@njit(cache=True)
 def shift_gear(
     gear: int, w_fd_radps: float, ratios: np.ndarray, w_up_radps: float, w_down_radps: float
 ) -> int:
@@ -23,6 +25,22 @@ def shift_gear(
     while g > 1 and w_fd_radps * ratios[g - 1] < w_down_radps:
         g -= 1
     return g
+
+
+@njit(cache=True)
+def kickdown_order(gear, n_gears):
+    """Gears (1..``n_gears``) a shift schedule tries, as floats: the scheduled ``gear``, then
+    each lower gear down to first (kick-down), then the higher gears."""
+    order = np.empty(n_gears)
+    order[0] = gear
+    j = 1
+    for g in range(gear - 1, 0, -1):
+        order[j] = g
+        j += 1
+    for g in range(gear + 1, n_gears + 1):
+        order[j] = g
+        j += 1
+    return order
 
 
 class ShiftSchedule:
@@ -50,8 +68,7 @@ class ShiftSchedule:
         """The scheduled gear, or a kick-down."""
         w_fd = step.wheel_speed_radps * self.model.final_drive.ratio
         g = shift_gear(self.gear, w_fd, self.ratios, self.w_up, self.w_down)
-        order = [g, *range(g - 1, 0, -1), *range(g + 1, self.ratios.size + 1)]
-        gears = np.array(order, dtype=np.float64)
+        gears = kickdown_order(g, self.ratios.size)
         _, feasible = step.evaluate(gears)
         ok = np.flatnonzero(feasible)
         return None if ok.size == 0 else (float(gears[ok[0]]),)

@@ -87,7 +87,7 @@ make "brake a little" infeasible while "brake hard" is not."""
 SOURCES = ("fuel", "genset_source", "battery_chemical")
 """Energy sources of the audit; every other term is a sink."""
 INT_COLUMNS = ("gear", "power_mode", "traction_limited")
-BOOL_COLUMNS = ("engine_on", "clutch_closed", "clutch_slipping")
+BOOL_COLUMNS = ("engine_on", "clutch_closed", "clutch_slipping", "fuel_cut")
 
 
 FORWARD_ENV = "HEVSIM_FORWARD"
@@ -105,8 +105,8 @@ class ForwardRecord:
             ``t_k + dt`` (row ``n`` is overwritten by :func:`finish_record`), in this order:
             ``speed_desired_mps``, ``speed_mps`` (at ``t_k``) [m/s], ``accel_mps2`` [m/s²],
             ``wheel_force_n`` [N], ``wheel_power_w`` [W] (the audit's ``wheel`` term),
-            ``road_load_force_n`` [N] (wheel force - m_eff a), ``fuel_kg`` (cumulative at
-            ``t_k``) [kg], ``soc`` (at ``t_k``) [-], then the power flow's ``details``
+            ``road_load_force_n`` [N] (wheel force - m_eff a), ``fuel_kg`` (cumulative to
+            ``t_k + dt``) [kg], ``soc`` (at ``t_k``) [-], then the power flow's ``details``
             in their order, ``power_mode`` (index in ``MODES``), ``traction_limited``
             (0/1), ``clutch_closed`` (0/1, parallel only: engine on), and with a battery
             ``battery_ocv_v``, ``battery_voltage_v`` [V]. Integer and boolean channels are

@@ -387,20 +387,23 @@ def simulate_batch(
     variants: dict[str, Any],
     cycle: DriveCycle | str | None = None,
     dt_s: float | None = None,
+    compiled: bool | None = None,
 ) -> BatchResult:
     """Run many parameter variants of one vehicle in one parallel call.
 
     ``variants`` maps kernel parameter names (:data:`hevsim.sim.kernel.PARAMS`, e.g.
     ``"mass_kg"``, ``"driver_gain_per_mps"``, ``"soc_initial"``) to arrays of equal length
     (scalars broadcast). Returns fuel economy and summaries per variant. For the other
-    architectures the variants are dotted configuration keys (``"body.mass_kg"``) and run one
-    after the other (:func:`hevsim.sim.forward.simulate_batch_architecture`).
+    architectures the variants are dotted configuration keys (``"body.mass_kg"``), run by the
+    architecture's compiled batch where it has one, else one after the other
+    (:func:`hevsim.sim.forward.simulate_batch_architecture`; ``compiled=False`` forces the
+    latter).
     """
     other = _other_architecture(model)
     if other is not None:
         from hevsim.sim.forward import simulate_batch_architecture
 
-        return simulate_batch_architecture(model, variants, cycle, dt_s)
+        return simulate_batch_architecture(model, variants, cycle, dt_s, compiled=compiled)
     hev, _cyc, grid, _dt = _prepare(model, cycle, dt_s)
     unknown = [k for k in variants if k not in K.P]
     if unknown:
