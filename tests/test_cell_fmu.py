@@ -1,4 +1,5 @@
-"""FMU export (issue 4, item 6): FMPy validates it and it reproduces the in-process cell."""
+"""pythonfmu FMU export (issue 4, item 6; ``--pythonfmu``): FMPy validates it and it reproduces the
+in-process cell."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.fixture(scope="module")
 def fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("fmu") / "cell.fmu"
-    assert main(["export-fmu", str(ROOT / "examples" / "cell.toml"), "-o", str(out)]) == 0
+    assert main(["export-fmu", str(ROOT / "examples" / "cell.toml"), "-o", str(out), "--pythonfmu"]) == 0
     return out
 
 
@@ -52,7 +53,7 @@ def test_module_fmu_reproduces_module(tmp_path: Path) -> None:
     from hevsim.battery import Module
 
     out = tmp_path / "module.fmu"
-    assert main(["export-fmu", str(ROOT / "examples" / "module.toml"), "-o", str(out)]) == 0
+    assert main(["export-fmu", str(ROOT / "examples" / "module.toml"), "-o", str(out), "--pythonfmu"]) == 0
     from fmpy.validation import validate_fmu
 
     assert validate_fmu(str(out)) == []

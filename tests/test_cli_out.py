@@ -69,7 +69,7 @@ COMMANDS: dict[str, tuple[list[str], str, str, str]] = {
         "dir",
         "hevsim.cosim.system:run_cosim",
     ),
-    "export-fmu": (["export-fmu", str(CELL)], "-o", "file", "hevsim.battery.fmu:export_fmu"),
+    "export-fmu": (["export-fmu", str(CELL)], "-o", "file", "hevsim.battery.native:export_native_fmu"),
     "refinement": (["refinement", "--cycle", "fu505"], "--out", "file", "hevsim.refinement:run_refinement"),
 }
 
@@ -298,9 +298,9 @@ def test_export_fmu_to_another_file_system_and_rerun(tmp_path: Path) -> None:
         run = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
         assert run.returncode == 0, run.stderr
         assert "Traceback" not in run.stderr
-    from hevsim.battery.fmu import is_hevsim_fmu
+    from hevsim.battery.native import is_native_fmu
 
-    assert is_hevsim_fmu(out)
+    assert is_native_fmu(out)  # the default export
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cell.fmu"]
 
 

@@ -154,7 +154,7 @@ def _cli_export(folder: Path, example: str) -> dict[int, Path]:
     out = {}
     for v in VERSIONS:
         out[v] = folder / f"{example}_{v}.fmu"
-        args = ["export-fmu", str(ROOT / "examples" / f"{example}.toml"), "-o", str(out[v]), "--native"]
+        args = ["export-fmu", str(ROOT / "examples" / f"{example}.toml"), "-o", str(out[v])]
         assert main([*args, "--fmi-version", str(v)]) == 0
     return out
 
@@ -201,11 +201,14 @@ def assert_close(got: np.ndarray, ref: np.ndarray, what: str) -> None:
 def test_fmus_pass_fmpy_validation(
     cell_fmus: dict[tuple[str, int], Path], module_fmus: dict[int, Path], cli_cell_fmus: dict[int, Path]
 ) -> None:
+    from fmpy import read_model_description
     from fmpy.model_description import read_build_description
     from fmpy.validation import validate_fmu
 
     for fmu in [*cell_fmus.values(), *module_fmus.values(), *cli_cell_fmus.values()]:
         assert validate_fmu(str(fmu)) == [], fmu
+        cs = read_model_description(str(fmu)).coSimulation  # FMI 3.0: canGetAndSetFMUState (capital S)
+        assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate, fmu
         (config,) = read_build_description(str(fmu), validate=True)
         version = 3 if fmu.stem.endswith("_3") else 2
         assert config.sourceFileSets[0].sourceFiles == [f"fmi{version}_model.c"]
@@ -393,35 +396,45 @@ def test_state_round_trip_is_bit_identical(
         r2.close()
 
 
-@pytest.mark.parametrize("version", VERSIONS)
-def test_sources_compile_with_strict_warnings(
-    cli_cell_fmus: dict[int, Path], module_fmus: dict[int, Path], tmp_path: Path, version: int
-) -> None:
+COMPILERS = [c for c in dict.fromkeys([CC, shutil.which("clang") or ""]) if c]
+"""The system compiler and, if installed, clang (a second C99 compiler)."""
+
+
+def compile_strict(fmu: Path, version: int, tmp_path: Path, cc: str = CC) -> None:
+    """Compile the FMU's sources with ``cc -std=c99 -Wall -Wextra -Werror -pedantic``."""
     import fmpy
 
     headers = Path(fmpy.__file__).parent / "c-code"
+    src = tmp_path / f"{fmu.stem}_{Path(cc).name}"
+    with zipfile.ZipFile(fmu) as z:
+        z.extractall(src, [n for n in z.namelist() if n.startswith("sources/")])
+    cmd = [
+        cc,
+        "-std=c99",
+        "-Wall",
+        "-Wextra",
+        "-Werror",
+        "-pedantic",
+        "-fPIC",
+        "-shared",
+        f"-I{headers}",
+        f"-I{src / 'sources'}",
+        str(src / "sources" / f"fmi{version}_model.c"),
+        "-o",
+        str(src / "m.so"),
+        "-lm",
+    ]
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stderr
+
+
+@pytest.mark.parametrize("cc", COMPILERS)
+@pytest.mark.parametrize("version", VERSIONS)
+def test_sources_compile_with_strict_warnings(
+    cli_cell_fmus: dict[int, Path], module_fmus: dict[int, Path], tmp_path: Path, version: int, cc: str
+) -> None:
     for fmu in (cli_cell_fmus[version], module_fmus[version]):
-        src = tmp_path / fmu.stem
-        with zipfile.ZipFile(fmu) as z:
-            z.extractall(src, [n for n in z.namelist() if n.startswith("sources/")])
-        cmd = [
-            CC,
-            "-std=c99",
-            "-Wall",
-            "-Wextra",
-            "-Werror",
-            "-pedantic",
-            "-fPIC",
-            "-shared",
-            f"-I{headers}",
-            f"-I{src / 'sources'}",
-            str(src / "sources" / f"fmi{version}_model.c"),
-            "-o",
-            str(src / "m.so"),
-            "-lm",
-        ]
-        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
-        assert proc.returncode == 0, proc.stderr
+        compile_strict(fmu, version, tmp_path, cc)
 
 
 @pytest.mark.parametrize("version", VERSIONS)
@@ -627,9 +640,12 @@ def test_missing_compiler_is_a_clear_error(tmp_path: Path, monkeypatch: pytest.M
     assert not (tmp_path / "x.fmu").exists()
 
 
-def test_fmi3_needs_native(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_fmi3_is_native_only(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "x.fmu"
-    assert (
-        main(["export-fmu", str(ROOT / "examples" / "cell.toml"), "-o", str(out), "--fmi-version", "3"]) == 2
-    )
-    assert "--native" in capsys.readouterr().err
+    cmd = ["export-fmu", str(ROOT / "examples" / "cell.toml"), "-o", str(out), "--fmi-version", "3"]
+    assert main([*cmd, "--pythonfmu"]) == 2
+    assert "drop --pythonfmu" in capsys.readouterr().err and not out.exists()
+    assert main(cmd) == 0  # native is the default
+    from hevsim.battery.native import is_native_fmu
+
+    assert is_native_fmu(out)

@@ -342,22 +342,32 @@ def _cmd_export_fmu(args: argparse.Namespace) -> int:
     from hevsim.battery.config import load_config as load_cell_config
     from hevsim.battery.fmu import export_fmu, is_hevsim_fmu
     from hevsim.battery.native import export_native_fmu, is_native_fmu
+    from hevsim.battery.native.rom import export_rom_fmu, is_rom_file
     from hevsim.errors import ConfigError
 
-    if args.fmi_version == 3 and not args.native:
-        raise ConfigError("--fmi-version 3: FMI 3.0 FMUs are native only; add --native.")
+    if args.fmi_version == 3 and args.pythonfmu:
+        raise ConfigError("--fmi-version 3: FMI 3.0 FMUs are native only; drop --pythonfmu.")
 
     def ours(path: Path) -> bool:
         return is_hevsim_fmu(path) or is_native_fmu(path)
 
     _prepare(args, args.output, args.config, kind="file", option="-o", ours=ours)
+    if is_rom_file(args.config):
+        if args.pythonfmu:
+            raise ConfigError(f"{args.config}: the thermal ROM FMU is native only; drop --pythonfmu.")
+        out = export_rom_fmu(args.config, args.output, fmi_version=args.fmi_version)
+        print(
+            f"FMU of the thermal ROM {args.config} written to {out} (native C99, FMI {args.fmi_version}.0 "
+            "co-simulation; inputs cell<c>_heat_w, segment<s>_fluid_temp_k, ambient_temp_k)"
+        )
+        return 0
     cfg = load_cell_config(args.config)
     m = cfg.module
     params = cfg.cell.parameters
     if (Path(cfg.base_dir) / params).is_file():
         params = str(Path(cfg.base_dir) / params)
-    extra = {"fmi_version": args.fmi_version} if args.native else {}
-    out = (export_native_fmu if args.native else export_fmu)(
+    extra = {} if args.pythonfmu else {"fmi_version": args.fmi_version}
+    out = (export_fmu if args.pythonfmu else export_native_fmu)(
         params,
         args.output,
         soc_initial=cfg.cell.soc_initial,
@@ -370,7 +380,7 @@ def _cmd_export_fmu(args: argparse.Namespace) -> int:
         **extra,
     )
     what = "cell" if m.n_series * m.n_parallel == 1 else f"{m.n_series}s{m.n_parallel}p module"
-    kind = f"native C99, FMI {args.fmi_version}.0" if args.native else "pythonfmu, FMI 2.0"
+    kind = "pythonfmu, FMI 2.0" if args.pythonfmu else f"native C99, FMI {args.fmi_version}.0"
     print(f"FMU of the {what} written to {out} ({kind} co-simulation; inputs current_a, port_temp_k)")
     return 0
 
@@ -756,16 +766,30 @@ def build_parser() -> argparse.ArgumentParser:
     _add_force(p, "folder at --out")
     p.set_defaults(func=_cmd_age)
 
-    p = sub.add_parser("export-fmu", help="FMI 2.0 co-simulation FMU of a cell or module configuration")
-    p.add_argument("config", help="cell configuration (TOML), e.g. examples/cell.toml")
-    p.add_argument("-o", "--output", required=True, help="FMU file to write")
-    p.add_argument(
-        "--native",
-        action="store_true",
-        help="compiled C99 FMU that needs no Python (built with the system C compiler)",
+    p = sub.add_parser(
+        "export-fmu",
+        help="FMI co-simulation FMU of a cell or module configuration, or of a module thermal ROM",
+        description="Native FMUs (the default) are compiled C99: building one needs a C compiler (cc, gcc "
+        "or clang; or set CC), running one needs nothing (no Python). --pythonfmu FMUs need no compiler but "
+        "a host process with CPython and hevsim installed.",
     )
     p.add_argument(
-        "--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version (3 needs --native; default 2)"
+        "config", help="cell configuration (TOML, e.g. examples/cell.toml) or thermal ROM (.rom.npz)"
+    )
+    p.add_argument("-o", "--output", required=True, help="FMU file to write")
+    kind = p.add_mutually_exclusive_group()
+    kind.add_argument(
+        "--native",
+        action="store_true",
+        help="compiled C99 FMU that needs no Python (the default; built with the system C compiler)",
+    )
+    kind.add_argument(
+        "--pythonfmu",
+        action="store_true",
+        help="pythonfmu FMU (FMI 2.0; no compiler needed, but the host must run CPython with hevsim)",
+    )
+    p.add_argument(
+        "--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version (3: native only; default 2)"
     )
     _add_force(p, "file at -o")
     p.set_defaults(func=_cmd_export_fmu)

@@ -87,6 +87,7 @@ class Variable:
     hi: float = np.inf
     lo_open: bool = False
     range_text: str = ""
+    unit: str | None = None  # None: from the name's suffix (hevsim.battery.fmu.unit_of)
 
     @property
     def causality(self) -> str:
@@ -95,6 +96,15 @@ class Variable:
     @property
     def settable(self) -> bool:
         return self.kind in ("input", "parameter", "boolean")
+
+    @property
+    def declared_unit(self) -> str | None:
+        """The unit declared in the model description (none for a Boolean)."""
+        if self.kind == "boolean":
+            return None
+        if self.kind == "independent":
+            return "s"
+        return self.unit or unit_of(self.name)
 
 
 def unsupported_options(p: CellParameters) -> list[str]:
@@ -117,7 +127,7 @@ def check_supported(p: CellParameters) -> None:
     if bad:
         raise NativeFMUError(
             f"cell parameters {p.source}: the native FMU does not implement the model option(s) "
-            f"{'; '.join(bad)}. Export without --native (pythonfmu FMU) or switch the option off."
+            f"{'; '.join(bad)}. Export with --pythonfmu or switch the option off."
         )
 
 
@@ -250,19 +260,31 @@ def model_data(
         f"static const double R_SCALE[N_CELLS] = {_c_array(r_scale)};",
         f"#define HV_T_MIN_K {_num(CELL_TEMP_DOMAIN_K[0])}",
         f"#define HV_T_MAX_K {_num(CELL_TEMP_DOMAIN_K[1])}",
+    ]
+    return "\n".join(lines + variable_table(vars_)) + "\n"
+
+
+def variable_table(vars_: list[Variable]) -> list[str]:
+    """Lines of ``model_data.h`` that describe the variables: a ``VR_<NAME>`` macro per value
+    reference (``VR_CELL_<QUANTITY>0`` / ``VR_SEGMENT_<QUANTITY>0`` for the first of a numbered
+    series ``cell<c>_...`` / ``segment<s>_...``, whose members follow it) and the tables of kinds,
+    names, start values and ranges."""
+    lines = [
         "/* variables by value reference */",
         "enum { K_INPUT, K_PARAMETER, K_BOOLEAN, K_OUTPUT, K_CONSTANT, K_INDEPENDENT };",
         f"#define N_VR {len(vars_)}",
     ]
-    seen_cell = set()
+    first: dict[str, int] = {}
     for vr, v in enumerate(vars_):
-        m = re.fullmatch(r"cell(\d+)_(.*)", v.name)
+        m = re.fullmatch(r"(cell|segment)(\d+)_(.*)", v.name)
         if m:
-            if m.group(2) not in seen_cell:
-                seen_cell.add(m.group(2))
-                lines.append(
-                    f"#define VR_CELL_{m.group(2).upper().removesuffix('_K').removesuffix('_W')}0 {vr}"
-                )
+            quantity = m.group(3).upper().removesuffix("_K").removesuffix("_W")
+            macro = f"VR_{m.group(1).upper()}_{quantity}0"
+            if macro not in first:
+                first[macro] = vr
+                lines.append(f"#define {macro} {vr}")
+            if vr != first[macro] + int(m.group(2)):
+                raise NativeFMUError(f"internal: variable {v.name} is not at {macro} + {m.group(2)}")
             continue
         lines.append(f"#define {_macro(v.name)} {vr}")
     lines += [
@@ -274,17 +296,22 @@ def model_data(
         "static const int VAR_MIN_OPEN[N_VR] = {" + ", ".join(str(int(v.lo_open)) for v in vars_) + "};",
         "static const char *const VAR_RANGE[N_VR] = {" + ", ".join(f'"{v.range_text}"' for v in vars_) + "};",
     ]
-    return "\n".join(lines) + "\n"
+    return lines
 
 
-_EXPONENTS = {**UNIT_EXPONENTS, "s": {"s": 1}}
+_EXPONENTS = {
+    **UNIT_EXPONENTS,
+    "s": {"s": 1},
+    "J": {"kg": 1, "m": 2, "s": -2},
+    "W/(m2.K)": {"kg": 1, "s": -3, "K": -1},
+}
 
 
 def _units_used(vars_: list[Variable]) -> list[str]:
     used: list[str] = []
     for v in vars_:
-        u = "s" if v.kind == "independent" else unit_of(v.name)
-        if v.kind != "boolean" and u is not None and u not in used:
+        u = v.declared_unit
+        if u is not None and u not in used:
             used.append(u)
     return used
 
@@ -315,6 +342,9 @@ def model_description(
         head = {"fmiVersion": "3.0", **common, "instantiationToken": guid, "generationTool": tool}
         root = ET.Element("fmiModelDescription", head)
         root.set("variableNamingConvention", "structured")
+        # FMI 3.0 spells the state capabilities with a capital S
+        del caps["canGetAndSetFMUstate"], caps["canSerializeFMUstate"]
+        caps.update(canGetAndSetFMUState="true", canSerializeFMUState="true")
         caps.update(providesIntermediateUpdate="false", hasEventMode="false")
     ET.SubElement(root, "CoSimulation", caps)
     used = _units_used(vars_)
@@ -344,7 +374,7 @@ def model_description(
             attrs["initial"] = "exact"
         if v.kind == "output":
             outputs.append(vr)
-        unit = None if v.kind == "boolean" else unit_of(v.name)
+        unit = v.declared_unit
         start = ("true" if v.start else "false") if v.kind == "boolean" else _num(v.start)
         if v.kind == "independent":
             el = ET.SubElement(mv, "Float64", attrs)
@@ -374,7 +404,7 @@ def model_description(
 
 def build_description(model_identifier: str, fmi_version: int) -> bytes:
     """``sources/buildDescription.xml`` (the FMI 3.0 build description format, also used by
-    FMI 2.0.4 FMUs): one C99 source file (it includes the headers :data:`TEMPLATES`); link the
+    FMI 2.0.4 FMUs): one C99 source file (it includes the other sources, headers); link the
     maths library where it is separate."""
     root = ET.Element("fmiBuildDescription", fmiVersion="3.0")
     bc = ET.SubElement(root, "BuildConfiguration", modelIdentifier=model_identifier)
@@ -410,7 +440,8 @@ def find_compiler() -> str:
     raise NativeFMUError(
         f"no C compiler found (looked for {', '.join(candidates)} on the PATH) to build the native FMU; "
         "install one (Debian/Ubuntu: apt-get install gcc; Fedora: dnf install gcc; macOS: "
-        "xcode-select --install) or set CC, or export without --native (pythonfmu FMU)."
+        "xcode-select --install) or set CC; or export with --pythonfmu (an FMU that needs no compiler "
+        "but a host with Python and hevsim installed)."
     )
 
 
@@ -474,7 +505,6 @@ def export_native_fmu(
     Returns the FMU path; the file is written atomically.
     """
     from hevsim.battery.fmu import CellStepper, ModuleStepper
-    from hevsim.io import copy_file_atomic
 
     if fmi_version not in FMI_VERSIONS:
         raise ConfigError(f"--fmi-version {fmi_version!r} is not supported; expected one of 2, 3.")
@@ -499,14 +529,32 @@ def export_native_fmu(
         c0_scale, r_scale = stepper.m.c0_scale, stepper.m.r_scale
     vars_ = variables(p, n_cells, float(soc_initial), float(temp_initial_k), stepper.outputs, fmi_version)
     data = model_data(p, name, vars_, int(n_series), int(n_parallel), c0_scale, r_scale)
-    wrapper = _template(WRAPPERS[fmi_version])
-    digest = hashlib.sha256((data + wrapper + "".join(_template(t) for t in TEMPLATES)).encode()).hexdigest()
-    guid = "{" + str(uuid.UUID(digest[:32])) + "}"
-    data = data.replace("#define NSOC", f'#define MODEL_GUID "{guid}"\n#define NSOC', 1)
-    data += "#endif\n"
     what = "cell" if n_cells == 1 else f"{n_series}s{n_parallel}p module"
     desc = f"hevsim electro-thermal {what} '{p.name}' (thesis eqs 33-44), native C99"
-    xml = model_description(fmi_version, name, guid, desc, vars_)
+    return build_fmu(out_fmu, fmi_version, name, desc, vars_, data, TEMPLATES)
+
+
+def build_fmu(
+    out_fmu: str | Path,
+    fmi_version: int,
+    name: str,
+    description: str,
+    vars_: list[Variable],
+    data: str,
+    templates: tuple[str, ...],
+) -> Path:
+    """Compile and pack a native FMU: ``data`` is the text of ``model_data.h`` (starting with
+    its include guard ``#define HEVSIM_MODEL_DATA_H``, without the GUID, which hashes the
+    sources, and without the closing ``#endif``), ``templates`` the other sources (besides the
+    FMI wrapper). Writes ``out_fmu`` atomically and returns its path."""
+    from hevsim.io import copy_file_atomic
+
+    wrapper = _template(WRAPPERS[fmi_version])
+    digest = hashlib.sha256((data + wrapper + "".join(_template(t) for t in templates)).encode()).hexdigest()
+    guid = "{" + str(uuid.UUID(digest[:32])) + "}"
+    guard = "#define HEVSIM_MODEL_DATA_H\n"
+    data = data.replace(guard, f'{guard}#define MODEL_GUID "{guid}"\n', 1) + "#endif\n"
+    xml = model_description(fmi_version, name, guid, description, vars_)
     lib_name = platform_binary(fmi_version, name)
     cc = find_compiler()
     out = Path(out_fmu)
@@ -515,7 +563,7 @@ def export_native_fmu(
         src = Path(tmp) / "sources"
         src.mkdir()
         files = {"model_data.h": data, WRAPPERS[fmi_version]: wrapper}
-        files.update({t: _template(t) for t in TEMPLATES})
+        files.update({t: _template(t) for t in templates})
         for fname, text in files.items():
             (src / fname).write_text(text)
         (src / "buildDescription.xml").write_bytes(build_description(name, fmi_version))

@@ -14,12 +14,18 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
-#include "hevsim_model.h"
+#include "model_data.h"
+#ifdef HV_THERMAL_ROM
+#include "hevsim_rom.h" /* the module thermal ROM */
+#else
+#include "hevsim_model.h" /* the cell or module */
+#endif
 
 typedef enum { PH_INSTANTIATED, PH_INITIALIZATION, PH_STEPPING, PH_TERMINATED } hv_phase;
 
 typedef struct {
     hv_data d;
+    hv_cache cache; /* data the model derives from d (not part of the FMU state) */
     hv_phase phase;
     char *name;
     hv_callbacks cb;
@@ -118,6 +124,30 @@ static HV_STATUS hv_get_reals(hv_instance *m, const char *fn, const HV_VR vr[], 
     return HV_OK;
 }
 
+/* 0 if `value` may be given to variable vr (not an output, constant or the independent variable;
+ * finite; a parameter or input inside its range), else 1 with a message */
+static int hv_check_set(int vr, double value, char *msg, size_t n)
+{
+    int kind = VAR_KIND[vr];
+    if (kind == K_OUTPUT || kind == K_CONSTANT || kind == K_INDEPENDENT) {
+        snprintf(msg, n, "variable '%s' (value reference %d) is %s and cannot be set (value %.17g refused)",
+                 VAR_NAME[vr], vr,
+                 kind == K_OUTPUT ? "an output" : kind == K_CONSTANT ? "a constant" : "the independent variable",
+                 value);
+        return 1;
+    }
+    if (!isfinite(value)) {
+        snprintf(msg, n, "%s = %g is not a finite number", VAR_NAME[vr], value);
+        return 1;
+    }
+    if ((kind == K_PARAMETER || kind == K_INPUT) &&
+        (value < VAR_MIN[vr] || value > VAR_MAX[vr] || (VAR_MIN_OPEN[vr] && value <= VAR_MIN[vr]))) {
+        snprintf(msg, n, "%s = %.17g is outside its range %s", VAR_NAME[vr], value, VAR_RANGE[vr]);
+        return 1;
+    }
+    return 0;
+}
+
 /* all values are checked (hv_check_set) before any is set */
 static HV_STATUS hv_set_reals(hv_instance *m, const char *fn, const HV_VR vr[], size_t nvr, const double value[],
                               const char *type)
@@ -145,7 +175,7 @@ static HV_STATUS hv_step(hv_instance *m, const char *fn, double t, double dt)
 {
     char msg[1024];
     if (m->phase != PH_STEPPING) return hv_error(m, fn, "called outside step mode (exit initialization mode first)");
-    if (hv_do_step(&m->d, t, dt, msg, sizeof(msg))) return hv_error(m, fn, msg);
+    if (hv_do_step(&m->d, &m->cache, t, dt, msg, sizeof(msg))) return hv_error(m, fn, msg);
     return HV_OK;
 }
 

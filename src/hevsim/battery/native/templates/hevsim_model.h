@@ -18,6 +18,11 @@ typedef struct {
     double time;
 } hv_data;
 
+/* derived data kept by an instance besides its state: none for the cell model */
+typedef struct {
+    int unused;
+} hv_cache;
+
 /* HV_T_MIN_K, HV_T_MAX_K (model_data.h): temperature domain of the lumped cell model [K] */
 
 static double hv_soh(const double *p, const double *x)
@@ -67,28 +72,6 @@ static void hv_init(hv_data *d)
         d->r[VR_CELL_TEMP0 + c] = temp0;
     }
 #endif
-}
-
-/* 0 if `value` may be given to variable vr, else 1 with a message */
-static int hv_check_set(int vr, double value, char *msg, size_t n)
-{
-    int kind = VAR_KIND[vr];
-    if (kind == K_OUTPUT || kind == K_CONSTANT || kind == K_INDEPENDENT) {
-        snprintf(msg, n, "variable '%s' (value reference %d) is %s and cannot be set (value %.17g refused)",
-                 VAR_NAME[vr], vr,
-                 kind == K_OUTPUT ? "an output" : kind == K_CONSTANT ? "a constant" : "the independent variable",
-                 value);
-        return 1;
-    }
-    if (!isfinite(value)) {
-        snprintf(msg, n, "%s = %g is not a finite number", VAR_NAME[vr], value);
-        return 1;
-    }
-    if (kind == K_PARAMETER && (value < VAR_MIN[vr] || value > VAR_MAX[vr] || (VAR_MIN_OPEN[vr] && value <= VAR_MIN[vr]))) {
-        snprintf(msg, n, "%s = %.17g is outside its range %s", VAR_NAME[vr], value, VAR_RANGE[vr]);
-        return 1;
-    }
-    return 0;
 }
 
 #if N_CELLS > 1
@@ -165,10 +148,11 @@ static int hv_check_temp(const char *name, double t_k, char *msg, size_t n)
 }
 
 /* one communication step of dt [s] from time t [s]; 0 on success, 1 with a message (state unchanged) */
-static int hv_do_step(hv_data *d, double t, double dt, char *msg, size_t n)
+static int hv_do_step(hv_data *d, hv_cache *cache, double t, double dt, char *msg, size_t n)
 {
     double t_port[N_CELLS], current;
     int c;
+    (void)cache;
     if (!(dt > 0.0) || !isfinite(dt)) {
         snprintf(msg, n, "communication step size %g s: expected a positive number of seconds", dt);
         return 1;

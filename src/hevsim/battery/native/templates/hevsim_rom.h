@@ -1,0 +1,195 @@
+/* The FMU model of hevsim's native module thermal ROM FMU: a C translation of
+ * hevsim.thermal.rom.RomStepper (implicit Euler of the reduced linear system
+ *   dz/dt + (K_s + h K_w) z = B_q q + h B_w T_f + b_a T_amb + b_0
+ * with the inputs at the end of the step) and of the ThermalRom output rows. The reduced
+ * matrices come from model_data.h, generated from a ROM file (.rom.npz). SI units.
+ *
+ * Step: z_1 = (inv/dt) z_0 + inv B(h) u_1 with inv = (I/dt + K_s + h K_w)^-1, one product of
+ * the row-stacked step matrix ST = [inv/dt | inv B(h)] with [z_0, u_1]. For the export's step
+ * DT_DESIGN and wall film H_DESIGN, ST_DESIGN is RomStepper's own matrix (computed by numpy at
+ * export), so the FMU equals the Python ROM to the rounding of the product; for another step
+ * or film the instance computes ST itself (LU with partial pivoting, hv_step_matrices) and keeps
+ * it (hv_cache) until dt or h changes. The state of an instance is z and the variables; the step
+ * matrices are derived data.
+ */
+#ifndef HEVSIM_ROM_H
+#define HEVSIM_ROM_H
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include "model_data.h"
+
+#define NU (NCELL + NSEG + 2)  /* inputs of a step: heat, fluid per segment, ambient, 1 */
+#define NZU (NZ + NU)
+
+/* the complete state of an instance: plain data, copied and serialised byte for byte */
+typedef struct {
+    double r[N_VR]; /* Real variables, by value reference */
+    double z[NZ];   /* reduced state */
+    double time;
+} hv_data;
+
+/* the step matrices of the last (dt, h): st[j] = row j of [inv/dt | inv B(h)] */
+typedef struct {
+    int valid;
+    double dt, h;
+    double st[NZ][NZU];
+    double lu[NZ][NZ];
+    double inv[NZ][NZ];
+    int piv[NZ];
+} hv_cache;
+
+static void hv_start(hv_data *d)
+{
+    int k;
+    memset(d, 0, sizeof(*d));
+    for (k = 0; k < N_VR; k++) d->r[k] = VAR_START[k];
+}
+
+static double hv_dot(const double *a, const double *b, int n)
+{
+    int i;
+    double s = 0.0;
+    for (i = 0; i < n; i++) s += a[i] * b[i];
+    return s;
+}
+
+/* the outputs of state z with the fluid temperatures fluid_k[NSEG] and ambient_k */
+static void hv_outputs(hv_data *d, const double *fluid_k, double ambient_k)
+{
+    int c, s, k;
+    double h = d->r[VR_WALL_H_W_M2K];
+    for (c = 0; c < NCELL; c++) {
+        double hot = hv_dot(OUT_CAND[c * NCAND], d->z, NZ);
+        for (k = 1; k < NCAND; k++) {
+            double y = hv_dot(OUT_CAND[c * NCAND + k], d->z, NZ);
+            if (y > hot) hot = y;
+        }
+        d->r[VR_CELL_MEAN_TEMP0 + c] = hv_dot(OUT_MEAN[c], d->z, NZ);
+        d->r[VR_CELL_MAX_TEMP0 + c] = hot;
+    }
+    for (s = 0; s < NSEG; s++) {
+        double w = hv_dot(OUT_WALL[s], d->z, NZ);
+        d->r[VR_SEGMENT_WALL_TEMP0 + s] = w / WALL_AREA[s];
+        d->r[VR_SEGMENT_WALL_HEAT0 + s] = h * (w - WALL_AREA[s] * fluid_k[s]);
+    }
+    d->r[VR_AMBIENT_HEAT_W] = hv_dot(d->z, FILM_ROW, NZ) - B_AMB_TOTAL * ambient_k - F_CONST_TOTAL;
+    d->r[VR_STORED_HEAT_J] = hv_dot(d->z, ENERGY, NZ);
+}
+
+/* the initial state: the uniform field initial_temp_k (exact: the constant is in the basis) */
+static void hv_init(hv_data *d)
+{
+    int j;
+    double t0 = d->r[VR_INITIAL_TEMP_K];
+    for (j = 0; j < NZ; j++) d->z[j] = t0 * UNIT_STATE[j];
+    hv_outputs(d, &d->r[VR_SEGMENT_FLUID_TEMP0], d->r[VR_AMBIENT_TEMP_K]);
+}
+
+/* cache->st for (dt, h), as RomStepper.set_wall_h: inv = (I/dt + (K_s + h K_w))^-1, st = [inv/dt | inv B(h)];
+ * 0 on success, 1 if the matrix is singular */
+static int hv_step_matrices(hv_cache *cache, double dt, double h)
+{
+    int i, j, k, p;
+    double (*a)[NZ] = cache->lu;
+    for (i = 0; i < NZ; i++)
+        for (j = 0; j < NZ; j++) a[i][j] = (i == j ? 1.0 / dt : 0.0) + (K_SOLID[i][j] + h * K_WALL[i][j]);
+    /* LU factorisation with partial pivoting (row swaps recorded in piv) */
+    for (k = 0; k < NZ; k++) {
+        double big = fabs(a[k][k]);
+        p = k;
+        for (i = k + 1; i < NZ; i++)
+            if (fabs(a[i][k]) > big) {
+                big = fabs(a[i][k]);
+                p = i;
+            }
+        if (big == 0.0) return 1;
+        cache->piv[k] = p;
+        if (p != k)
+            for (j = 0; j < NZ; j++) {
+                double t = a[k][j];
+                a[k][j] = a[p][j];
+                a[p][j] = t;
+            }
+        for (i = k + 1; i < NZ; i++) {
+            double f = a[i][k] / a[k][k];
+            a[i][k] = f;
+            for (j = k + 1; j < NZ; j++) a[i][j] -= f * a[k][j];
+        }
+    }
+    /* inverse: solve A X = I column by column */
+    for (j = 0; j < NZ; j++) {
+        double col[NZ];
+        for (i = 0; i < NZ; i++) col[i] = i == j ? 1.0 : 0.0;
+        for (k = 0; k < NZ; k++)
+            if (cache->piv[k] != k) {
+                double t = col[k];
+                col[k] = col[cache->piv[k]];
+                col[cache->piv[k]] = t;
+            }
+        for (i = 0; i < NZ; i++)
+            for (k = 0; k < i; k++) col[i] -= a[i][k] * col[k];
+        for (i = NZ - 1; i >= 0; i--) {
+            for (k = i + 1; k < NZ; k++) col[i] -= a[i][k] * col[k];
+            col[i] /= a[i][i];
+        }
+        for (i = 0; i < NZ; i++) cache->inv[i][j] = col[i];
+    }
+    for (j = 0; j < NZ; j++) {
+        for (i = 0; i < NZ; i++) cache->st[j][i] = cache->inv[j][i] / dt;
+        for (k = 0; k < NU; k++) {
+            double s = 0.0;
+            for (i = 0; i < NZ; i++) {
+                double b = k < NCELL ? B_HEAT[i][k]
+                           : k < NCELL + NSEG ? h * B_WALL[i][k - NCELL]
+                           : k == NCELL + NSEG ? B_AMB[i] : B_CONST[i];
+                s += cache->inv[j][i] * b;
+            }
+            cache->st[j][NZ + k] = s;
+        }
+    }
+    cache->dt = dt;
+    cache->h = h;
+    cache->valid = 1;
+    return 0;
+}
+
+/* one communication step of dt [s] from time t [s]; 0 on success, 1 with a message (state unchanged) */
+static int hv_do_step(hv_data *d, hv_cache *cache, double t, double dt, char *msg, size_t n)
+{
+    double zu[NZU];
+    double h = d->r[VR_WALL_H_W_M2K];
+    const double(*st)[NZU];
+    int j;
+    if (!(dt > 0.0) || !isfinite(dt)) {
+        snprintf(msg, n, "communication step size %g s: expected a positive number of seconds", dt);
+        return 1;
+    }
+    if (dt == DT_DESIGN && h == H_DESIGN) {
+        st = ST_DESIGN;
+    } else {
+        if (!cache->valid || cache->dt != dt || cache->h != h) {
+            if (hv_step_matrices(cache, dt, h)) {
+                cache->valid = 0;
+                snprintf(msg, n, "the step matrix I/dt + K(h) is singular for dt = %g s, h = %g W/(m^2 K)", dt, h);
+                return 1;
+            }
+        }
+        st = (const double(*)[NZU])cache->st;
+    }
+    memcpy(zu, d->z, sizeof(d->z));
+    memcpy(zu + NZ, &d->r[VR_CELL_HEAT0], NCELL * sizeof(double));
+    memcpy(zu + NZ + NCELL, &d->r[VR_SEGMENT_FLUID_TEMP0], NSEG * sizeof(double));
+    zu[NZ + NCELL + NSEG] = d->r[VR_AMBIENT_TEMP_K];
+    zu[NZ + NCELL + NSEG + 1] = 1.0;
+    for (j = 0; j < NZ; j++) d->z[j] = hv_dot(st[j], zu, NZU);
+    hv_outputs(d, &d->r[VR_SEGMENT_FLUID_TEMP0], d->r[VR_AMBIENT_TEMP_K]);
+    d->time = t + dt;
+#ifdef VR_TIME
+    d->r[VR_TIME] = d->time;
+#endif
+    return 0;
+}
+
+#endif
