@@ -33,6 +33,7 @@ TOML_KEYS = {
     "wltc3a": "wltc_class3a",
     "nedc": "nedc_approx",
     "manhattan_bus": "manhattan_bus",
+    "hotlap_0_200": "hotlap_0_200",
 }
 DERIVED = {"fu505", "fu505x10"}
 MAX_SPEED_TOL_MPS = 1e-4  # cycles.toml rounds speeds to 4 decimals [m/s]

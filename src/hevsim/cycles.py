@@ -528,6 +528,7 @@ _REGISTRY: dict[str, _ShippedCycle | _DerivedCycle] = {
     "wltc3a": _ShippedCycle("wltc_class3a"),
     "nedc": _ShippedCycle("nedc_approx"),
     "manhattan_bus": _ShippedCycle("manhattan_bus"),
+    "hotlap_0_200": _ShippedCycle("hotlap_0_200"),
     "fu505": _DerivedCycle(
         "udds",
         lambda udds: udds.truncated(FU505_END_S),
