@@ -599,17 +599,37 @@ def _frame(t: np.ndarray, cols: dict[str, np.ndarray], modes: tuple[str, ...]) -
 
 
 def _events(ts: pd.DataFrame, modes: tuple[str, ...]) -> pd.DataFrame:
-    rows: list[dict[str, Any]] = []
     t = ts["time_s"].to_numpy()
+    parts: list[tuple[np.ndarray, str, list[str], list[str]]] = []
     for col, kind, names in (("power_mode", "power_mode", modes), ("gear", "gear", None),
                              ("traction_limited", "traction_limit", ("off", "on"))):  # fmt: skip
         if col not in ts:
             continue
         vals = ts[col].to_numpy()
-        for i in (np.flatnonzero(np.diff(vals) != 0) + 1).tolist():
-            a, b = int(vals[i - 1]), int(vals[i])
-            old, new = (names[a], names[b]) if names else (str(a), str(b))
-            rows.append({"time_s": float(t[i]), "kind": kind, "from_state": old, "to_state": new,
-                         "reason": f"controller chose {kind} {new}"})  # fmt: skip
-    ev = pd.DataFrame(rows, columns=["time_s", "kind", "from_state", "to_state", "reason"])
-    return ev.sort_values(["time_s", "kind"], kind="stable").reset_index(drop=True)
+        idx = np.flatnonzero(np.diff(vals) != 0) + 1
+        a, b = vals[idx - 1].astype(np.int64).tolist(), vals[idx].astype(np.int64).tolist()
+        old, new = (
+            ([names[i] for i in a], [names[i] for i in b])
+            if names
+            else (list(map(str, a)), list(map(str, b)))
+        )
+        parts.append((t[idx], kind, old, new))
+    times = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0)
+    kinds = [p[1] for p in parts for _ in range(p[0].size)]
+    olds = [x for p in parts for x in p[2]]
+    news = [x for p in parts for x in p[3]]
+    columns = ["time_s", "kind", "from_state", "to_state", "reason"]
+    if times.size == 0:
+        return pd.DataFrame([], columns=columns)
+    order = sorted(range(times.size), key=lambda i: (times[i], kinds[i]))  # stable, as before
+    ev = pd.DataFrame(
+        {
+            "time_s": times[order].astype(float),
+            "kind": [kinds[i] for i in order],
+            "from_state": [olds[i] for i in order],
+            "to_state": [news[i] for i in order],
+            "reason": [f"controller chose {kinds[i]} {news[i]}" for i in order],
+        },
+        columns=columns,
+    )
+    return ev
