@@ -616,20 +616,68 @@ def test_libcosim_runs_the_fmu(cli_cell_fmu: Path) -> None:
         assert_close(got[:, j], ts[name].to_numpy(), f"libcosim {name}")
 
 
-def test_unsupported_model_option_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+MODEL_OPTIONS = {
+    "rc_persistent": '[model]\nrc_mode = "persistent"',
+    "ocv_step_consistent": '[model]\nocv_mode = "step_consistent"',
+    "charge_transfer": "[charge_transfer]\ni0_a = 0.8\nscale = 1.3\nea_j_per_mol = 30000.0",
+    "hysteresis": "[hysteresis]\nmax_v = 0.012\ngamma = 40.0",
+}
+MODEL_OPTIONS["all"] = (
+    '[model]\nrc_mode = "persistent"\nocv_mode = "step_consistent"\n'
+    + MODEL_OPTIONS["charge_transfer"]
+    + "\n"
+    + MODEL_OPTIONS["hysteresis"]
+)
+
+
+@pytest.fixture(scope="module")
+def option_params(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The thesis cell with each issue-14 model option on (and all of them), as TOML files."""
+    folder = tmp_path_factory.mktemp("options")
     src = Path(load_cell_parameters("thesis_table_4_1").source).read_text()
-    for section, text, option in (
-        ("[model]", 'rc_mode = "persistent"', "rc_mode"),
-        ("[hysteresis]", "max_v = 0.01\ngamma = 5.0", "max_v"),
-    ):
-        params = tmp_path / f"{option}.toml"
-        params.write_text(src + f"\n{section}\n{text}\n")
-        cfg = tmp_path / f"{option}_cell.toml"
-        cfg.write_text(f'[cell]\nparameters = "{params.name}"\n')
-        assert main(["export-fmu", str(cfg), "-o", str(tmp_path / "x.fmu"), "--native"]) == 2
-        err = capsys.readouterr().err
-        assert option in err and "native FMU does not implement" in err, err
-        assert not (tmp_path / "x.fmu").exists()
+    out = {}
+    for name, text in MODEL_OPTIONS.items():
+        out[name] = folder / f"{name}.toml"
+        out[name].write_text(src + f"\n{text}\n")
+    return out
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("option", sorted(MODEL_OPTIONS))
+def test_model_options_equal_in_process_model(
+    option_params: dict[str, Path], option: str, version: int, tmp_path: Path
+) -> None:
+    """Each cell model option of issue 14 in the C kernel: the cell FMU equals Cell.simulate and
+    the 2s3p module FMU (with spread) Module.simulate, 1e-12 per output and step, over a
+    UDDS-like current with reversals and rests (which exercise the RC switch, the hysteresis
+    and the relinearised current sharing)."""
+    p = load_cell_parameters(option_params[option])
+    assert (
+        p.model.rc_mode != "switched"
+        or p.model.ocv_mode != "step_start"
+        or (p.charge_transfer.i0_a > 0 or p.hysteresis.max_v > 0)
+    )
+    current = 2.5 * cycle_cell_current("udds", 600.0, 1.0)
+    port = 298.15 + 3.0 * np.sin(np.arange(current.size) / 90.0)
+    fmu = export_native_fmu(p, tmp_path / "cell.fmu", 0.7, 298.15, fmi_version=version)
+    r = Runner(fmu)
+    got = r.run({"current_a": current, "port_temp_k": port}, 1.0, CELL_OUTPUTS[:4])
+    r.close()
+    ts = Cell(p, soc_initial=0.7, temp_k=298.15).simulate(current, 1.0, port).timeseries
+    for j, out in enumerate(CELL_OUTPUTS[:4]):
+        assert_close(got[:, j], ts[out].to_numpy(), f"{option} cell {out}")
+    mod_fmu = export_native_fmu(
+        p, tmp_path / "m.fmu", 0.7, 298.15, None, 2, 3, 0.03, 0.05, 7, fmi_version=version
+    )
+    mod = Module(p, 2, 3, 0.7, 298.15, 0.03, 0.05, seed=7)
+    res = mod.simulate(3.0 * current, 1.0, port)
+    r = Runner(mod_fmu)
+    cells = [f"cell{c}_temp_k" for c in range(6)]
+    got = r.run({"current_a": 3.0 * current, "port_temp_k": port}, 1.0, ["voltage_v", "port_heat_w", *cells])
+    r.close()
+    assert_close(got[:, 0], res.timeseries["voltage_v"].to_numpy(), f"{option} module voltage_v")
+    assert_close(got[:, 1], res.timeseries["port_heat_w"].to_numpy(), f"{option} module port_heat_w")
+    assert_close(got[:, 2:], res.cells[:, :, 2], f"{option} module cell temperatures")
 
 
 def test_missing_compiler_is_a_clear_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -1,10 +1,10 @@
 /* Electro-thermal cell and module kernel of hevsim (thesis section 4.1.1, eqs 33-41), C99.
  *
- * A line-by-line translation of hevsim.battery.kernel (cell_step, branch_affine,
- * share_current, run_module) and hevsim.tables (interp1, interp2 with clamping) for the
- * kernel's default options (switched RC sets, start-of-step OCV, no charge-transfer term, no
- * hysteresis); the operations are kept in the same order so that the results equal the
- * Python kernel's to rounding. The model data (tables, RC sets, sizes) come from
+ * A line-by-line translation of hevsim.battery.kernel (cell_step, branch_affine_at,
+ * share_current, run_module, with the model options rc_persistent, ocv_in_step, the
+ * charge-transfer overpotential and the one-state hysteresis) and hevsim.tables (interp1,
+ * interp2 with clamping); the operations are kept in the same order so that the results equal
+ * the Python kernel's to rounding. The model data (tables, RC sets, sizes) come from
  * model_data.h, generated from the parameter set. Sign convention: current > 0 discharges.
  */
 #ifndef HEVSIM_KERNEL_H
@@ -13,9 +13,12 @@
 #include <math.h>
 #include <string.h>
 
-/* parameter vector of one cell (hevsim.battery.kernel.PARAMS, default options) */
+/* parameter vector of one cell (hevsim.battery.kernel.PARAMS without n_rc, a compile-time NRC) */
 enum { P_C0, P_KCQ, P_ALPHAC, P_TREF, P_ALPHARS, P_CHEAT, P_RSKIN, P_VMIN, P_VMAX, P_SOCINI,
-       P_RSCALE, P_BAND, N_PRM };
+       P_RSCALE, P_BAND, P_RCPERS, P_OCVSTEP, P_CTI0, P_CTM, P_CTEA, P_HMAX, P_HGAMMA, N_PRM };
+
+#define HV_R_GAS 8.314462618   /* molar gas constant [J/(mol K)], CODATA 2018 (kernel.R_GAS_J_PER_MOL_K) */
+#define HV_FARADAY 96485.33212 /* Faraday constant [C/mol], CODATA 2018 (kernel.FARADAY_C_PER_MOL) */
 /* state vector (hevsim.battery.kernel.STATES), then NRC discharge and NRC charge RC voltages */
 enum { S_Q, S_QABS, S_TEMP, S_DIR, S_CYC, S_ILAST, S_HYST, N_FIXED };
 #define NX (N_FIXED + 2 * NRC)
@@ -91,6 +94,74 @@ static void hv_ocv_rs(const double *p, double soc, double temp_k, double directi
     *rs = r * p[P_RSCALE] * (1.0 + p[P_ALPHARS] * (temp_k - p[P_TREF]));
 }
 
+/* OCV [V] of a direction at (soc, temp_k), clamped to the voltage limits (kernel.cell_ocv) */
+static double hv_cell_ocv(const double *p, double soc, double temp_k, double direction)
+{
+    double o = direction >= 0.0 ? hv_interp2(OCV_D, soc, temp_k) : hv_interp2(OCV_C, soc, temp_k);
+    return hv_min(hv_max(o, p[P_VMIN]), p[P_VMAX]);
+}
+
+/* mean OCV [V] over the linear SOC path soc0 -> soc1 with end OCVs f0, f1 (kernel.ocv_step_mean) */
+static double hv_ocv_step_mean(const double *p, double soc0, double soc1, double f0, double f1, double temp_k,
+                               double direction)
+{
+    double lo, hi, f, f_prev, f_hi, acc = 0.0, s_prev;
+    int k;
+    if (soc1 == soc0) return f0;
+    if (soc0 < soc1) {
+        lo = soc0; f_prev = f0; hi = soc1; f = f1;
+    } else {
+        lo = soc1; f_prev = f1; hi = soc0; f = f0;
+    }
+    f_hi = f;
+    s_prev = lo;
+    for (k = 0; k < NSOC; k++) {
+        double s = SOC_AX[k];
+        if (lo < s && s < hi) {
+            f = hv_cell_ocv(p, s, temp_k, direction);
+            acc += 0.5 * (f + f_prev) * (s - s_prev);
+            s_prev = s;
+            f_prev = f;
+        }
+    }
+    acc += 0.5 * (f_hi + f_prev) * (hi - s_prev);
+    return acc / (hi - lo);
+}
+
+/* charge-transfer overpotential eta [V] and d eta / d i [ohm] (kernel.ct_overpotential) */
+static void hv_ct_overpotential(const double *p, double i_a, double temp_k, double *eta, double *d_eta)
+{
+    double i0, b, u;
+    if (p[P_CTI0] <= 0.0) {
+        *eta = 0.0;
+        *d_eta = 0.0;
+        return;
+    }
+    i0 = p[P_CTI0] / p[P_RSCALE];
+    if (p[P_CTEA] != 0.0) i0 *= exp(-p[P_CTEA] / HV_R_GAS * (1.0 / temp_k - 1.0 / p[P_TREF]));
+    b = p[P_CTM] * 2.0 * HV_R_GAS * temp_k / HV_FARADAY;
+    u = i_a / (2.0 * i0);
+    *eta = b * asinh(u);
+    *d_eta = b / (2.0 * i0 * sqrt(1.0 + u * u));
+}
+
+/* one-state hysteresis over a step at constant i_a: end value and step mean [V] (kernel.hysteresis_step) */
+static void hv_hysteresis_step(const double *p, double h0, double i_a, double dt, double cap, double *h1,
+                               double *h_avg)
+{
+    double target, k, e1, d;
+    *h1 = h0;
+    *h_avg = h0;
+    if (p[P_HMAX] <= 0.0 || i_a == 0.0) return;
+    target = i_a > 0.0 ? -p[P_HMAX] : p[P_HMAX];
+    k = p[P_HGAMMA] * fabs(i_a) / cap;
+    if (k <= 0.0) return;
+    e1 = exp(-k * dt);
+    d = h0 - target;
+    *h1 = target + d * e1;
+    *h_avg = target + d * (1.0 - e1) / (k * dt);
+}
+
 /* +1 discharge, -1 charge; inside the dead band the last direction is kept */
 static double hv_direction(double i_a, double last, double band)
 {
@@ -99,10 +170,18 @@ static double hv_direction(double i_a, double last, double band)
     return last;
 }
 
-/* RC element j of the switched sets: resistance [ohm, unscaled], time constant [s], connected? */
-static void hv_rc(int j, double direction, double *r, double *tau, int *active)
+/* number of RC states in use: NRC with a persistent set, else 2 NRC (switched sets) */
+#define HV_N_RC_STATES(p) ((p)[P_RCPERS] > 0.0 ? NRC : 2 * NRC)
+
+/* RC state j: resistance [ohm, unscaled], time constant [s], connected? (kernel.rc_element) */
+static void hv_rc(const double *p, int j, double direction, double *r, double *tau, int *active)
 {
-    if (j < NRC) {
+    if (p[P_RCPERS] > 0.0) {
+        const double *row = direction > 0.0 ? RC_D[j] : RC_C[j];
+        *r = row[0];
+        *tau = row[1];
+        *active = 1;
+    } else if (j < NRC) {
         *r = RC_D[j][0];
         *tau = RC_D[j][1];
         *active = direction > 0.0;
@@ -121,14 +200,22 @@ static void hv_cell_step(const double *p, double *x, double i_a, double dt, doub
     double temp0 = x[S_TEMP];
     double cap = hv_capacity(p, x[S_QABS], temp0);
     double soc = p[P_SOCINI] - x[S_Q] / cap;
-    double ocv, rs, ocv_avg;
+    double ocv, rs, ocv_avg, eta, d_eta, h1, h_avg;
     double v_sum_end = 0.0, v_sum_avg = 0.0, rc_heat_j = 0.0;
     double heat_j, q_heat, tau_th, t_inf, temp1, port_j, v_avg, v_end;
-    hv_ocv_rs(p, soc, temp0, direction, &ocv, &rs);
-    ocv_avg = ocv;
-    for (j = 0; j < 2 * NRC; j++) {
+    if (p[P_OCVSTEP] > 0.0) { /* OCV consistent within the step */
+        double soc1 = soc - i_a * dt / cap, f0, unused;
+        f0 = hv_cell_ocv(p, soc, temp0, direction);
+        ocv = hv_cell_ocv(p, soc1, temp0, direction);
+        ocv_avg = hv_ocv_step_mean(p, soc, soc1, f0, ocv, temp0, direction);
+        hv_ocv_rs(p, 0.5 * (soc + soc1), temp0, direction, &unused, &rs);
+    } else {
+        hv_ocv_rs(p, soc, temp0, direction, &ocv, &rs);
+        ocv_avg = ocv;
+    }
+    for (j = 0; j < HV_N_RC_STATES(p); j++) {
         double r0, tau, r_j, a, v0, e1, d, v1, int_v, int_v2;
-        hv_rc(j, direction, &r0, &tau, &active);
+        hv_rc(p, j, direction, &r0, &tau, &active);
         r_j = r0 * p[P_RSCALE];
         a = active ? r_j * i_a : 0.0;
         v0 = x[N_FIXED + j];
@@ -144,7 +231,10 @@ static void hv_cell_step(const double *p, double *x, double i_a, double dt, doub
         }
         x[N_FIXED + j] = v1;
     }
+    hv_ct_overpotential(p, i_a, temp0, &eta, &d_eta);
+    hv_hysteresis_step(p, x[S_HYST], i_a, dt, cap, &h1, &h_avg);
     heat_j = rs * i_a * i_a * dt + rc_heat_j;
+    if (p[P_CTI0] > 0.0 || p[P_HMAX] > 0.0) heat_j += (eta - h_avg) * i_a * dt;
     q_heat = heat_j / dt;
     /* lumped temperature, eq (41) with a skin resistance to the port: exact exponential */
     tau_th = p[P_CHEAT] * p[P_RSKIN];
@@ -158,8 +248,13 @@ static void hv_cell_step(const double *p, double *x, double i_a, double dt, doub
     x[S_TEMP] = temp1;
     x[S_DIR] = direction;
     x[S_ILAST] = i_a;
+    x[S_HYST] = h1;
     v_avg = ocv_avg - rs * i_a - v_sum_avg;
     v_end = ocv - rs * i_a - v_sum_end;
+    if (p[P_CTI0] > 0.0 || p[P_HMAX] > 0.0) {
+        v_avg += h_avg - eta;
+        v_end += h1 - eta;
+    }
     rec[R_V] = v_end;
     rec[R_VAVG] = v_avg;
     rec[R_OCV] = ocv;
@@ -172,59 +267,94 @@ static void hv_cell_step(const double *p, double *x, double i_a, double dt, doub
 }
 
 #if N_CELLS > 1
-/* step-average terminal voltage of a branch as E - Z i for a current of direction `direction` */
-static void hv_branch_affine(const double *p, const double *x, double dt, double direction, double *e, double *z)
+/* step-average terminal voltage of a branch as E - Z i for a current of direction `direction`,
+ * linearised at the current i_lin [A] (kernel.branch_affine_at; exact for the affine parts) */
+static void hv_branch_affine(const double *p, const double *x, double dt, double direction, double i_lin, double *e,
+                             double *z)
 {
     int j, active;
     double temp = x[S_TEMP];
     double cap = hv_capacity(p, x[S_QABS], temp);
     double soc = p[P_SOCINI] - x[S_Q] / cap;
     double ocv, rs;
-    hv_ocv_rs(p, soc, temp, direction, &ocv, &rs);
-    *e = ocv;
-    *z = rs;
-    for (j = 0; j < 2 * NRC; j++) {
+    if (p[P_OCVSTEP] > 0.0) {
+        double soc1 = soc - i_lin * dt / cap, f0, f1, ocv_avg, z_ocv, unused;
+        f0 = hv_cell_ocv(p, soc, temp, direction);
+        f1 = hv_cell_ocv(p, soc1, temp, direction);
+        ocv_avg = hv_ocv_step_mean(p, soc, soc1, f0, f1, temp, direction);
+        hv_ocv_rs(p, 0.5 * (soc + soc1), temp, direction, &unused, &rs);
+        if (fabs(soc1 - soc) > 1e-9) {
+            z_ocv = dt / cap * (f1 - ocv_avg) / (soc1 - soc);
+        } else { /* half the local slope on the side the SOC moves to */
+            double ds = -1e-6 * direction;
+            f1 = hv_cell_ocv(p, soc + ds, temp, direction);
+            z_ocv = 0.5 * dt / cap * (f1 - ocv_avg) / ds;
+        }
+        *e = ocv_avg + z_ocv * i_lin;
+        *z = rs + z_ocv;
+    } else {
+        hv_ocv_rs(p, soc, temp, direction, &ocv, &rs);
+        *e = ocv;
+        *z = rs;
+    }
+    for (j = 0; j < HV_N_RC_STATES(p); j++) {
         double r0, tau, g;
-        hv_rc(j, direction, &r0, &tau, &active);
+        hv_rc(p, j, direction, &r0, &tau, &active);
         g = tau * (1.0 - exp(-dt / tau)) / dt;
         if (active) {
             *e -= x[N_FIXED + j] * g;
             *z += r0 * p[P_RSCALE] * (1.0 - g);
         }
     }
+    if (p[P_CTI0] > 0.0) {
+        double eta, d_eta;
+        hv_ct_overpotential(p, i_lin, temp, &eta, &d_eta);
+        *e -= eta - d_eta * i_lin;
+        *z += d_eta;
+    }
+    if (p[P_HMAX] > 0.0) {
+        double h1, h_avg;
+        hv_hysteresis_step(p, x[S_HYST], i_lin, dt, cap, &h1, &h_avg);
+        *e += h_avg;
+    }
 }
 
-/* branch currents i_out[b] of the N_PAR parallel cells first..first+N_PAR-1 carrying i_total */
+/* branch currents i_out[b] of the N_PAR parallel cells first..first+N_PAR-1 carrying i_total
+ * (kernel.share_current: exact for the affine model; relinearised with the nonlinear options) */
 static void hv_share_current(const double p[][N_PRM], const double x[][NX], int first, double i_total, double dt,
                              double *i_out)
 {
-    int b, it;
+    int b, it, nonlinear = 0;
     double dirs[N_PAR], e[N_PAR], z[N_PAR];
     double v, s_g, s_eg;
     for (b = 0; b < N_PAR; b++) {
-        dirs[b] = hv_direction(i_total, x[first + b][S_DIR], p[first + b][P_BAND]);
+        const double *pb = p[first + b];
+        dirs[b] = hv_direction(i_total, x[first + b][S_DIR], pb[P_BAND]);
         i_out[b] = i_total / N_PAR;
+        if (pb[P_OCVSTEP] > 0.0 || pb[P_CTI0] > 0.0 || pb[P_HMAX] > 0.0) nonlinear = 1;
     }
-    for (it = 0; it < N_PAR + 2; it++) {
+    for (it = 0; it < N_PAR + 2 + (nonlinear ? 50 : 0); it++) {
         int flipped = 0;
+        double change = 0.0;
         s_g = 0.0;
         s_eg = 0.0;
         for (b = 0; b < N_PAR; b++) {
-            hv_branch_affine(p[first + b], x[first + b], dt, dirs[b], &e[b], &z[b]);
+            hv_branch_affine(p[first + b], x[first + b], dt, dirs[b], i_out[b], &e[b], &z[b]);
             s_g += 1.0 / z[b];
             s_eg += e[b] / z[b];
         }
         v = (s_eg - i_total) / s_g;
         for (b = 0; b < N_PAR; b++) {
-            double d_new;
-            i_out[b] = (e[b] - v) / z[b];
+            double d_new, i_new = (e[b] - v) / z[b];
+            change = hv_max(change, fabs(i_new - i_out[b]));
+            i_out[b] = i_new;
             d_new = hv_direction(i_out[b], x[first + b][S_DIR], p[first + b][P_BAND]);
             if (d_new != dirs[b]) {
                 dirs[b] = d_new;
                 flipped = 1;
             }
         }
-        if (!flipped) break;
+        if (!flipped && (!nonlinear || change < 1e-9 * (1.0 + fabs(i_total)))) break;
     }
 }
 
