@@ -106,7 +106,13 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from hevsim.guards import simulation_preflight
 
     simulation_preflight(cfg, cycle, args.dt)  # memory refusal, long-run line, compile notice
-    if series:
+    age = _age_state_option(cfg, args.age_state, bool(overrides))
+    if age is not None:  # a pack that ages over the run (hevsim.battery.life)
+        from hevsim.sim.pack_vehicle import simulate_pack_vehicle
+
+        result = simulate_pack_vehicle(cfg, cycle, args.dt, args.soc_initial, controller=kind,
+                                       schedule=schedule, age_state=age)  # fmt: skip
+    elif series:
         result = simulate(cfg, cycle, dt_s=args.dt, soc_initial=args.soc_initial, schedule=schedule)
     else:
         from hevsim.architectures import architecture
@@ -125,6 +131,67 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     for key in ("mpg", "mpgge", "l_per_100km", "co2_g_per_km", "soc_final",
                 "speed_error_rms_mph", "energy_audit_residual_pct"):  # fmt: skip
         print(f"  {key:<28}{m[key]['value']:>12.4g} {m[key]['unit']}")
+    if age is not None:
+        age.save(args.age_state)
+        soh = age.soh(*_eol(cfg))
+        print(f"age state written to {args.age_state} (weakest cell SOH {soh.min():.5f})")
+    print(f"results written to {out}/ ({_written(out)})")
+    return 0
+
+
+def _age_state_option(cfg: Any, path: str | None, ecms_overrides: bool) -> Any:
+    """The pack age state of ``--age-state FILE`` (new cells when the file does not exist yet)."""
+    if not path:
+        return None
+    from hevsim.battery.life import _pack_config, load_or_new_age_state
+    from hevsim.errors import ConfigError
+
+    if cfg.battery.model != "pack" or ecms_overrides:
+        raise ConfigError(
+            f"--age-state {path}: ageing during the drive needs [battery] model = 'pack' (got "
+            f"{cfg.battery.model!r}) and no --ecms-from."
+        )
+    return load_or_new_age_state(path, _pack_config(cfg).n_cells)
+
+
+def _eol(cfg: Any) -> tuple[float, float]:
+    from hevsim.battery.life import _eol_fractions
+
+    return _eol_fractions(cfg)
+
+
+def _cmd_life(args: argparse.Namespace) -> int:
+    from hevsim.battery.ageing import SOH_DEFINITION
+    from hevsim.battery.life import PackAgeState, plot_life, run_life
+    from hevsim.config import load_vehicle_config
+    from hevsim.io import atomic_directory, write_json
+
+    cfg = load_vehicle_config(args.config)
+    cycle = args.cycle or cfg.simulation.cycle
+    out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_{Path(str(cycle)).stem}_life"
+    _prepare(args, out, args.config, args.cycle)
+    checkpoint = Path(f"{out}.checkpoint.json")
+    start = _age_state_option(cfg, args.age_state, False) if args.age_state else None
+    res = run_life(cfg, cycle, args.until_soh, soh_step=args.soh_step, max_blocks=args.max_blocks,
+                   checkpoint=checkpoint, resume=args.resume, ambient_temp_c=args.ambient_c,
+                   age_state=start)  # fmt: skip
+    state: PackAgeState = res.state
+    with atomic_directory(out) as tmp:
+        res.table.to_csv(tmp / "life.csv", index=False, float_format="%.6g")
+        state.save(tmp / "age_state.json")
+        write_json(tmp / "summary.json", {"reached": res.reached, "metadata": res.metadata,
+                                          "soh_definition": SOH_DEFINITION})  # fmt: skip
+        if not args.no_plots:
+            plot_life(res, tmp / "life.png")
+    if args.age_state:
+        state.save(args.age_state)
+    checkpoint.unlink(missing_ok=True)
+    last = res.table.iloc[-1]
+    verb = "reached" if res.reached else "not reached"
+    print(f"{cfg.name} on {cycle}: SOH {args.until_soh:g} {verb} after {last['distance_km']:.0f} km "
+          f"({int(last['repetitions'])} cycles, {len(res.table)} simulated): weakest cell SOH "
+          f"{last['soh_min']:.4f}, peak cell {last['peak_cell_temp_c']:.1f} degC, "
+          f"{last['mpgge']:.1f} MPGGE")  # fmt: skip
     print(f"results written to {out}/ ({_written(out)})")
     return 0
 
@@ -685,7 +752,29 @@ def build_parser() -> argparse.ArgumentParser:
         "equivalence factor (median of -costate*LHV/(Q*OCV)); the controller becomes ecms unless "
         "--controller says aecms",
     )
+    p.add_argument(
+        "--age-state",
+        metavar="FILE",
+        help="[battery] model = 'pack': the cells' ageing state, read (new cells when FILE does not exist), "
+        "advanced by the run's stress and written back atomically",
+    )
     p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser(
+        "life", help="drive a cycle again and again with the pack ageing: SOH, temperature, fuel economy"
+    )
+    p.add_argument("config", help="vehicle configuration with [battery] model = 'pack'")
+    p.add_argument("--cycle", help="cycle name or CSV (default from the configuration)")
+    p.add_argument("--until-soh", type=float, default=0.8, help="stop at this weakest-cell SOH (default 0.8)")
+    p.add_argument("--soh-step", type=float, default=0.01, help="SOH lost per simulated block (default 0.01)")
+    p.add_argument("--max-blocks", type=int, default=200, help="most simulated runs (default 200)")
+    p.add_argument("--ambient-c", type=float, help="ambient temperature [degC] (default the pack file's)")
+    p.add_argument("--age-state", metavar="FILE", help="start from this age state and write the final one")
+    p.add_argument("--resume", action="store_true", help="continue from <out>.checkpoint.json")
+    p.add_argument("--no-plots", action="store_true", help="skip life.png")
+    p.add_argument("--out", help="results folder (default results/<config>_<cycle>_life)")
+    _add_force(p, "folder at --out")
+    p.set_defaults(func=_cmd_life)
 
     p = sub.add_parser(
         "performance",

@@ -78,16 +78,19 @@ def nominal_battery(bs: Any, base: Path) -> Any:
 
 
 def vehicle_pack_config(
-    cfg: Any, dt_s: float, ambient_temp_c: float | None = None, soak: bool = False
+    cfg: Any, dt_s: float, ambient_temp_c: float | None = None, soak: bool = False, cooling_off: bool = False
 ) -> tuple[PackConfig, Path]:
     """The pack configuration of a vehicle configuration for a run at step ``dt_s`` [s]:
     ``ambient_temp_c`` [degC] replaces the pack file's ambient; ``soak`` also starts the cells
-    and the coolant at it (a car parked long enough). Checks the pack's voltage window against
-    the motor's (``[motor] min_voltage_v`` .. ``max_voltage_v`` where the model has them)."""
+    and the coolant at it (a car parked long enough); ``cooling_off`` stops the pump, the
+    radiator fan and the chiller (the stagnant coolant still takes heat)."""
     path = pack_file(cfg.battery, Path(cfg.base_dir))
     pc = load_pack_config(path)
     pk = replace(pc.pack, dt_s=float(dt_s))
     cooling = pc.cooling
+    if cooling_off:
+        cooling = replace(cooling, flow_l_min=0.0, chiller=0, fan_power_w=0.0)
+        pc = replace(pc, controller=replace(pc.controller, kind="off"))
     if ambient_temp_c is not None:
         pk = replace(pk, ambient_temp_c=float(ambient_temp_c))
         if soak:
@@ -121,12 +124,16 @@ def make_pack_run(
     *,
     ambient_temp_c: float | None = None,
     soak: bool = False,
+    cooling_off: bool = False,
     age_state: Any = None,
 ) -> PackRun:
     """A fresh :class:`~hevsim.battery.bms.PackRun` for one vehicle run (``age_state``: a
     :class:`hevsim.battery.life.PackAgeState` applied to the cells and tracked over the run)."""
-    pcfg, path = vehicle_pack_config(cfg, dt_s, ambient_temp_c, soak)
-    pack = Pack(pcfg)
+    pcfg, path = vehicle_pack_config(cfg, dt_s, ambient_temp_c, soak, cooling_off)
+    try:
+        pack = Pack(pcfg)
+    except ConfigError as exc:  # name the pack file (Pack names the pack)
+        raise ConfigError(f"{path}: {exc}") from exc
     check_voltage_window(pack, cfg, path)
     if age_state is not None:
         age_state.apply(pack)
@@ -142,11 +149,12 @@ def simulate_pack_vehicle(
     controller: Any = None,
     ambient_temp_c: float | None = None,
     soak: bool = False,
+    cooling_off: bool = False,
     age_state: Any = None,
     schedule: Any = None,
 ) -> Any:
     """Simulate a ``[battery] model = "pack"`` vehicle (a file, configuration or built model)
-    over ``cycle`` (module docstring). ``ambient_temp_c``/``soak``: see
+    over ``cycle`` (module docstring). ``ambient_temp_c``/``soak``/``cooling_off``: see
     :func:`vehicle_pack_config`; ``age_state``: a :class:`hevsim.battery.life.PackAgeState`
     (applied to the cells, advanced by the run in place); ``controller`` (non-series) and
     ``schedule`` (series) as in the architecture's own simulate. Returns the vehicle's
@@ -162,7 +170,9 @@ def simulate_pack_vehicle(
         raise ConfigError(f"{cfg.name}: key 'battery.model' = {cfg.battery.model!r}; expected 'pack' here.")
     cyc, dt = cycle_and_step(cycle, dt_s, cfg.simulation)
     soc0 = float(cfg.simulation.soc_initial if soc_initial is None else soc_initial)
-    run = make_pack_run(cfg, dt, soc0, ambient_temp_c=ambient_temp_c, soak=soak, age_state=age_state)
+    run = make_pack_run(
+        cfg, dt, soc0, ambient_temp_c=ambient_temp_c, soak=soak, cooling_off=cooling_off, age_state=age_state
+    )
     if age_state is not None:
         age_state.begin(run.pack)
     if cfg.architecture == "series":

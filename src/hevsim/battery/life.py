@@ -1,0 +1,395 @@
+"""Ageing during the drive (issue 12 item 4): every cell of a vehicle's pack ages with the
+shipped ageing model (:mod:`hevsim.battery.ageing`: Wang 2011 cycle fade, Schmalstieg 2014
+calendar fade and resistance growth) from the stress it saw in the run, and the state carries
+from one run to the next.
+
+* :class:`CellStress` accumulates, per cell and per step, the discharged charge, the mean
+  absolute current while current flows, the Arrhenius weight of the core temperature, the SOC
+  range and the mean SOC and temperature (the stress of :func:`hevsim.battery.ageing.stress_of`,
+  vectorised over the cells; the mean OCV is the OCV table at the mean SOC and temperature).
+* :class:`PackAgeState` holds one :class:`~hevsim.battery.ageing.AgeingState` per cell, applies
+  it to a pack (capacity ``C0 x C/C0``, resistances ``x R/R0``) and advances it after a run
+  by ``repetitions`` repetitions of that run's stress (the virtual time/throughput method, exact
+  for a repeated stress); :meth:`PackAgeState.save` / :meth:`PackAgeState.load` carry it
+  between runs (``--age-state FILE``, written atomically).
+* :func:`run_life` (``hevsim life``): drive a cycle again and again until the weakest cell's
+  SOH reaches ``until_soh``; each simulated run stands for a block of repetitions, chosen so a
+  block lowers the SOH by about ``soh_step``; checkpoint after every block, resume, a table and
+  a plot of SOH, peak cell temperature and fuel economy against distance.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from hevsim.battery.ageing import (
+    SECONDS_PER_HOUR,
+    AgeingModel,
+    AgeingState,
+    Stress,
+    advance,
+    load_ageing_model,
+    soh_capacity,
+    soh_impedance,
+)
+from hevsim.errors import ConfigError, InputError
+
+ACTIVATION_TEMPERATURE_K = 31700.0 / 8.314
+"""Ea / R of the Arrhenius-effective temperature [K] (Wang 2011's 31.7 kJ/mol, as
+:func:`hevsim.battery.ageing.stress_of`)."""
+STATE_FORMAT = "hevsim-pack-age-state-1"
+
+
+class CellStress:
+    """Per-cell stress accumulated over the steps of a run (module docstring)."""
+
+    def __init__(self, n_cells: int) -> None:
+        z = np.zeros(n_cells)
+        self.steps = 0
+        self.duration_s = 0.0
+        self.discharged_as = z.copy()
+        self.abs_current_sum = z.copy()
+        self.moving = z.copy()
+        self.arrhenius_sum = z.copy()
+        self.soc_sum = z.copy()
+        self.temp_sum = z.copy()
+        self.soc_min = np.full(n_cells, np.inf)
+        self.soc_max = np.full(n_cells, -np.inf)
+
+    def add(self, cells: np.ndarray, dt_s: float) -> None:
+        """One step's per-cell record ``cells`` (n_cells, 5: current [A], SOC, core temperature
+        [K], port heat [W], voltage [V]) of length ``dt_s`` [s]."""
+        i, soc, temp = cells[:, 0], cells[:, 1], cells[:, 2]
+        self.steps += 1
+        self.duration_s += dt_s
+        self.discharged_as += np.clip(i, 0.0, None) * dt_s
+        a = np.abs(i)
+        self.abs_current_sum += a
+        self.moving += a > 0.0
+        self.arrhenius_sum += np.exp(-ACTIVATION_TEMPERATURE_K / temp)
+        self.soc_sum += soc
+        self.temp_sum += temp
+        np.minimum(self.soc_min, soc, out=self.soc_min)
+        np.maximum(self.soc_max, soc, out=self.soc_max)
+
+    def stresses(self, pack: Any, soc_initial: np.ndarray, capacity_ah: np.ndarray) -> list[Stress]:
+        """One :class:`~hevsim.battery.ageing.Stress` per cell: ``soc_initial`` [-] and the
+        cells' present capacities ``capacity_ah`` [A h] (for the C-rate)."""
+        if self.steps == 0:
+            raise InputError("ageing: the run has no steps; expected at least one.")
+        p = pack.params
+        mean_soc = self.soc_sum / self.steps
+        mean_t = self.temp_sum / self.steps
+        ocv = 0.5 * (p.ocv_charge_v + p.ocv_discharge_v)
+        col = np.abs(p.temperature_k[None, :] - mean_t[:, None]).argmin(axis=1)
+        ocv_mean = np.array([np.interp(s, p.soc, ocv[:, j]) for s, j in zip(mean_soc, col, strict=True)])
+        t_eff = -ACTIVATION_TEMPERATURE_K / np.log(self.arrhenius_sum / self.steps)
+        c_rate = np.where(
+            self.moving > 0, self.abs_current_sum / np.maximum(self.moving, 1) / capacity_ah, 0.0
+        )
+        lo = np.minimum(self.soc_min, soc_initial)
+        hi = np.maximum(self.soc_max, soc_initial)
+        return [
+            Stress(self.duration_s, float(q / SECONDS_PER_HOUR), float(c), float(t), float(v), float(d))
+            for q, c, t, v, d in zip(self.discharged_as, c_rate, t_eff, ocv_mean, hi - lo, strict=True)
+        ]
+
+
+@dataclass
+class PackAgeState:
+    """Ageing state of every cell of a pack (module docstring), plus the life so far: runs,
+    repetitions, distance [m] and time [s] driven."""
+
+    n_cells: int
+    model: str = "wang2011_schmalstieg2014"
+    cells: list[AgeingState] = field(default_factory=list)
+    repetitions: int = 0
+    distance_m: float = 0.0
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.cells:
+            self.cells = [AgeingState() for _ in range(self.n_cells)]
+        self._model: AgeingModel | None = None
+        self._soc0: np.ndarray | None = None
+        self.next_repetitions = 1
+        """Repetitions of the next run's stress :meth:`end` adds (:func:`run_life` sets it)."""
+
+    @property
+    def ageing_model(self) -> AgeingModel:
+        if self._model is None:
+            self._model = load_ageing_model(self.model)
+        return self._model
+
+    def capacity_fraction(self) -> np.ndarray:
+        """C / C0 per cell [-]."""
+        return np.array([s.capacity_fraction for s in self.cells])
+
+    def resistance_fraction(self) -> np.ndarray:
+        """R / R0 per cell [-]."""
+        return np.array([s.resistance_fraction for s in self.cells])
+
+    def soh(self, x_c: float, x_z: float) -> np.ndarray:
+        """SOH per cell, eqs 42-44 (SOH_C x SOH_Z) with the cell set's end-of-life fractions."""
+        return np.asarray(soh_capacity(self.capacity_fraction(), 1.0, x_c)) * np.asarray(
+            soh_impedance(self.resistance_fraction(), 1.0, x_z)
+        )
+
+    def _check(self, pack: Any) -> None:
+        if pack.n_cells != self.n_cells:
+            raise ConfigError(
+                f"age state {self.source or '(new)'}: {self.n_cells} cells; the pack {pack.cfg.name} has "
+                f"{pack.n_cells} cells; expected the age state of this pack."
+            )
+
+    def apply(self, pack: Any) -> None:
+        """Age the cells of a fresh pack (its capacities and resistances)."""
+        self._check(pack)
+        pack.apply_ageing(self.capacity_fraction(), self.resistance_fraction())
+
+    def begin(self, pack: Any) -> None:
+        """Start tracking a run's stress (the pack's cells at their initial SOC)."""
+        from hevsim.battery.kernel import SOCINI
+
+        self._check(pack)
+        self._soc0 = pack.prm[:, SOCINI].copy()
+        pack.stress = CellStress(pack.n_cells)
+
+    def end(self, pack: Any, result: Any = None) -> list[Stress]:
+        """Advance every cell by :attr:`next_repetitions` repetitions of the run's stress;
+        returns the stresses."""
+        from hevsim.battery.kernel import SOCINI
+
+        soc0 = self._soc0 if self._soc0 is not None else pack.prm[:, SOCINI]
+        nominal = pack.params.nominal_capacity_ah
+        cap = nominal * self.capacity_fraction() * pack._c0_new / pack.params.capacity.c0_c
+        stresses = pack.stress.stresses(pack, soc0, cap)
+        reps = int(self.next_repetitions)
+        for state, s in zip(self.cells, stresses, strict=True):
+            advance(self.ageing_model, state, s, nominal, reps)
+        self.repetitions += reps
+        if result is not None:
+            self.distance_m += reps * float(result.metrics["distance_m"]["value"])
+        pack.stress = None
+        return stresses
+
+    # -- files ---------------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "format": STATE_FORMAT,
+            "n_cells": self.n_cells,
+            "model": self.model,
+            "repetitions": self.repetitions,
+            "distance_m": self.distance_m,
+            "cells": {k: [getattr(s, k) for s in self.cells] for k in asdict(AgeingState())},
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], source: str = "<dict>") -> PackAgeState:
+        if not isinstance(data, dict) or data.get("format") != STATE_FORMAT:
+            raise InputError(f"{source}: not a pack age state (expected format {STATE_FORMAT!r}).")
+        n = int(data["n_cells"])
+        cols = data.get("cells", {})
+        keys = list(asdict(AgeingState()))
+        if sorted(cols) != sorted(keys) or any(len(cols[k]) != n for k in keys):
+            raise InputError(f"{source}: key 'cells' must hold {keys} with {n} values each.")
+        cells = [AgeingState(**{k: float(cols[k][c]) for k in keys}) for c in range(n)]
+        return cls(n, str(data["model"]), cells, int(data["repetitions"]), float(data["distance_m"]), source)
+
+    def save(self, path: str | Path) -> None:
+        """Write the state as JSON, atomically."""
+        from hevsim.io import write_json
+
+        write_json(path, self.to_dict())
+
+    @classmethod
+    def load(cls, path: str | Path) -> PackAgeState:
+        """Read a state written by :meth:`save`."""
+        p = Path(path)
+        try:
+            data = json.loads(p.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise InputError(f"{p}: cannot read the age state ({exc}).") from exc
+        return cls.from_dict(data, str(p))
+
+
+def load_or_new_age_state(path: str | Path | None, n_cells: int) -> PackAgeState:
+    """The age state in ``path`` when the file exists, else a new one (all cells new)."""
+    if path is not None and Path(path).is_file():
+        return PackAgeState.load(path)
+    return PackAgeState(n_cells, source=str(path or ""))
+
+
+# -- hevsim life -------------------------------------------------------------------------------
+LIFE_COLUMNS = (
+    "block", "repetitions", "distance_km", "soh_min", "soh_mean", "capacity_fraction_min",
+    "resistance_fraction_max", "peak_cell_temp_c", "mpgge", "fuel_economy_l_per_100km", "cooling_energy_wh",
+    "derated_s",
+)  # fmt: skip
+
+
+@dataclass
+class LifeResult:
+    """The life study: one row per simulated block (:data:`LIFE_COLUMNS`) and the final state."""
+
+    table: pd.DataFrame
+    state: PackAgeState
+    reached: bool
+    metadata: dict[str, Any]
+
+
+def _row(block: int, state: PackAgeState, res: Any, x_c: float, x_z: float) -> dict[str, float]:
+    soh = state.soh(x_c, x_z)
+    m = res.metrics
+    dist_km = float(m["distance_m"]["value"]) / 1e3
+    fuel_l = float(m["fuel_l"]["value"]) if "fuel_l" in m else math.nan
+    return {
+        "block": block,
+        "repetitions": state.repetitions,
+        "distance_km": state.distance_m / 1e3,
+        "soh_min": float(soh.min()),
+        "soh_mean": float(soh.mean()),
+        "capacity_fraction_min": float(state.capacity_fraction().min()),
+        "resistance_fraction_max": float(state.resistance_fraction().max()),
+        "peak_cell_temp_c": float(m["pack_peak_cell_temp_c"]["value"]),
+        "mpgge": float(m["mpgge"]["value"]) if "mpgge" in m else math.nan,
+        "fuel_economy_l_per_100km": 100.0 * fuel_l / dist_km if dist_km > 0 else math.nan,
+        "cooling_energy_wh": float(m["pack_cooling_energy_j"]["value"]) / 3600.0,
+        "derated_s": float(m["pack_derated_s"]["value"]),
+    }
+
+
+def run_life(
+    config: Any,
+    cycle: str,
+    until_soh: float,
+    *,
+    soh_step: float = 0.01,
+    max_blocks: int = 200,
+    checkpoint: str | Path | None = None,
+    resume: bool = False,
+    ambient_temp_c: float | None = None,
+    age_state: PackAgeState | None = None,
+) -> LifeResult:
+    """Drive ``cycle`` again and again (module docstring) until the weakest cell's SOH <=
+    ``until_soh`` or ``max_blocks`` simulated runs. Each block: simulate one run with the aged
+    cells, then age every cell by ``n`` repetitions of that run's stress, ``n`` chosen from the
+    previous block's SOH loss per repetition so one block costs about ``soh_step`` of SOH
+    (the first block: one repetition). ``checkpoint``: a JSON file written atomically after
+    every block (state + table), read back with ``resume``."""
+    from hevsim.config import load_vehicle_config
+    from hevsim.io import write_json
+    from hevsim.progress import task
+    from hevsim.sim.pack_vehicle import simulate_pack_vehicle
+
+    if not 0.0 < until_soh < 1.0:
+        raise ConfigError(f"--until-soh = {until_soh!r}; expected a value between 0 and 1.")
+    if not 0.0 < soh_step < 0.5:
+        raise ConfigError(f"--soh-step = {soh_step!r}; expected a value between 0 and 0.5.")
+    cfg = load_vehicle_config(config) if isinstance(config, str | Path) else config
+    rows: list[dict[str, float]] = []
+    state = age_state
+    if resume and checkpoint is not None and Path(checkpoint).is_file():
+        data = json.loads(Path(checkpoint).read_text(encoding="utf-8"))
+        state = PackAgeState.from_dict(data["state"], str(checkpoint))
+        rows = list(data["table"])
+    t0 = time.perf_counter()
+    x_c = x_z = math.nan
+    reached = False
+    with task("life", max_blocks, "block") as bar:
+        bar.update(len(rows))
+        while len(rows) < max_blocks:
+            if state is not None and rows and rows[-1]["soh_min"] <= until_soh:
+                reached = True
+                break
+            per_rep = None
+            if len(rows) >= 2:
+                d_soh = rows[-2]["soh_min"] - rows[-1]["soh_min"]
+                d_rep = rows[-1]["repetitions"] - rows[-2]["repetitions"]
+                per_rep = d_soh / d_rep if d_rep > 0 and d_soh > 0 else None
+            elif len(rows) == 1 and rows[0]["soh_min"] < 1.0:
+                per_rep = (1.0 - rows[0]["soh_min"]) / rows[0]["repetitions"]
+            if state is None:
+                state = PackAgeState(_pack_config(cfg).n_cells)
+            res_state = state
+            left = rows[-1]["soh_min"] - until_soh if rows else 1.0 - until_soh
+            reps = 1 if per_rep is None else max(1, int(min(soh_step, left) / per_rep))
+            res_state.next_repetitions = reps
+            res = simulate_pack_vehicle(cfg, cycle, ambient_temp_c=ambient_temp_c, age_state=res_state)
+            x_c, x_z = _eol_fractions(cfg)
+            rows.append(_row(len(rows) + 1, res_state, res, x_c, x_z))
+            if checkpoint is not None:
+                write_json(checkpoint, {"state": res_state.to_dict(), "table": rows})
+            bar.update(1)
+        else:
+            reached = bool(rows and rows[-1]["soh_min"] <= until_soh)
+    assert state is not None
+    meta = {"config": cfg.name, "cycle": cycle, "until_soh": until_soh, "soh_step": soh_step,
+            "ageing_model": state.model, "elapsed_s": time.perf_counter() - t0}  # fmt: skip
+    return LifeResult(pd.DataFrame(rows, columns=list(LIFE_COLUMNS)), state, reached, meta)
+
+
+@dataclass(frozen=True)
+class _PackSize:
+    n_cells: int
+    params: Any
+
+
+def _pack_config(cfg: Any) -> _PackSize:
+    """Cell count and cell parameters of a pack vehicle's pack file."""
+    from hevsim.battery.pack import load_pack_config
+    from hevsim.battery.params import load_cell_parameters
+    from hevsim.sim.pack_vehicle import pack_file
+
+    path = pack_file(cfg.battery, Path(cfg.base_dir))
+    pc = load_pack_config(path)
+    par = pc.cells.parameters
+    params = load_cell_parameters(str(path.parent / par) if (path.parent / par).is_file() else par)
+    return _PackSize(pc.pack.n_modules * pc.module.n_series * pc.module.n_parallel, params)
+
+
+def _eol_fractions(cfg: Any) -> tuple[float, float]:
+    """The cell set's end-of-life fractions (x_C, x_Z) of eqs 43-44."""
+    a = _pack_config(cfg).params.ageing
+    return float(a.x_c), float(a.x_z)
+
+
+def plot_life(res: LifeResult, path: str | Path) -> None:
+    """SOH (weakest and mean cell), peak cell temperature and fuel economy against distance."""
+    from hevsim.report.plots import _figure, _grid, _save
+
+    t = res.table
+    fig, axes = _figure(3, 1, figsize=(9.0, 8.0), sharex=True)
+    x = t["distance_km"]
+    axes[0].plot(x, t["soh_min"], "o-", label="weakest cell")
+    axes[0].plot(x, t["soh_mean"], "s--", label="mean of the cells")
+    axes[0].axhline(res.metadata["until_soh"], color="k", lw=0.8, ls=":")
+    axes[0].set_ylabel("SOH [-]")
+    axes[0].legend()
+    axes[1].plot(x, t["peak_cell_temp_c"], "o-", color="tab:red")
+    axes[1].set_ylabel("peak cell temp. [degC]")
+    axes[2].plot(x, t["mpgge"], "o-", color="tab:green")
+    axes[2].set_ylabel("fuel economy [MPGGE]")
+    axes[2].set_xlabel("distance driven [km]")
+    for ax in axes:
+        _grid(ax)
+    axes[0].set_title(f"{res.metadata['config']} on {res.metadata['cycle']}: life of the pack")
+    _save(fig, path)
+
+
+__all__ = [
+    "CellStress",
+    "LifeResult",
+    "PackAgeState",
+    "load_or_new_age_state",
+    "plot_life",
+    "run_life",
+]
