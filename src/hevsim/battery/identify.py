@@ -239,6 +239,88 @@ def _simulate(p: CellParameters, rec: CellTestRecord, soc_initial: float, port_k
     return out[:, K.RV], out[:, K.RTEMP]
 
 
+def _sensitivities(
+    p: CellParameters, rec: CellTestRecord, soc_initial: float, port_k: float
+) -> tuple[FloatArray, FloatArray]:
+    """d voltage / d p [V per unit] and d temperature / d p [K per unit] per row for the
+    parameters of :func:`hevsim.battery.kernel.sensitivity_columns` (the structure
+    :func:`identify` fits: persistent RC, one temperature column, equal directions)."""
+    n = rec.time_s.size
+    cols = K.sensitivity_columns(p.soc.size, p.n_rc)
+    dv = np.empty((n, int(cols["n"])))
+    dtemp = np.empty_like(dv)
+    out = np.empty((n, len(K.RECORD)))
+    rc = p.rc_discharge if p.n_rc else np.ones((1, 2))
+    K.run_cell_sensitivity(
+        p.vector(soc_initial),
+        p.soc,
+        p.temperature_k,
+        p.ocv_discharge_v,
+        p.rs_discharge_ohm,
+        p.capacity_factor,
+        rc,
+        p.initial_state(port_k),
+        rec.current_a,
+        rec.dt_s,
+        np.full(n, port_k),
+        out,
+        dv,
+        dtemp,
+    )
+    return dv, dtemp
+
+
+class _OcvMap:
+    """The OCV table [V] on ``axis`` from the fitted values at the tested breakpoints ``idx``,
+    and its Jacobian (piecewise linear): the tested values replace the initial guess, the
+    ends outside the tested range follow the end segments (``extrapolate``), the table is
+    clipped to the voltage limits and made non-decreasing."""
+
+    def __init__(
+        self,
+        init: FloatArray,
+        idx: np.ndarray,
+        axis: FloatArray,
+        v_min: float,
+        v_max: float,
+        extrapolate: bool,
+    ) -> None:
+        self.init, self.idx, self.axis = init, idx, axis
+        self.v_min, self.v_max, self.extrapolate = v_min, v_max, extrapolate
+
+    def _clip_rise(self, v: FloatArray, g: FloatArray) -> tuple[FloatArray, FloatArray]:
+        c = np.clip(v, self.v_min, self.v_max)
+        g = np.where((c != v)[:, None], 0.0, g)
+        best = 0
+        for k in range(c.size):  # running maximum: a row takes the gradient of its maximum
+            if c[k] >= c[best]:
+                best = k
+            g[k] = g[best]
+        return np.maximum.accumulate(c), g
+
+    def __call__(self, theta: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """(table [V], d table / d theta [-])."""
+        idx, ax = self.idx, self.axis
+        v = self.init.copy()
+        v[idx] = theta
+        g = np.zeros((v.size, idx.size))
+        g[idx, np.arange(idx.size)] = 1.0
+        v, g = self._clip_rise(v, g)
+        lo_i, hi_i = idx[0], idx[-1]
+        if self.extrapolate and lo_i + 1 <= hi_i:  # keep the extrapolated ends on the end segments
+            for end, nxt, sel in (
+                (lo_i, lo_i + 1, slice(None, lo_i)),
+                (hi_i, hi_i - 1, slice(hi_i + 1, None)),
+            ):
+                d_ax = ax[nxt] - ax[end]
+                slope, g_slope = (v[nxt] - v[end]) / d_ax, (g[nxt] - g[end]) / d_ax
+                off = ax[sel] - ax[end]
+                v[sel] = v[end] + slope * off
+                g[sel] = g[end] + off[:, None] * g_slope
+            v, g = self._clip_rise(v, g)
+        return v, g
+
+
 def _longest_segment_s(rec: CellTestRecord) -> float:
     """Longest run of (nearly) constant current [s]."""
     i = rec.current_a
@@ -255,8 +337,14 @@ def _stats(sol: Any, specs: list[_Param], longest_s: float) -> pd.DataFrame:
     ssr = float(sol.fun @ sol.fun)
     jac = sol.jac
     with np.errstate(all="ignore"):
+        # covariance from the SVD of the Jacobian itself, not a pseudo-inverse of J^T J: that
+        # squares the condition number and drops directions J barely sees (two nearly equal
+        # time constants), which would report an unidentifiable pair with small errors; a
+        # singular value below the rounding level counts as that level (a huge variance)
         try:
-            cov = np.linalg.pinv(jac.T @ jac) * ssr / max(m - n, 1)
+            _, sv, vt = np.linalg.svd(jac, full_matrices=False)
+            floor = max(float(sv[0]), 1e-300) * max(m, n) * np.finfo(float).eps
+            cov = (vt.T / np.maximum(sv, floor) ** 2) @ vt * ssr / max(m - n, 1)
         except np.linalg.LinAlgError:
             cov = np.full((n, n), np.nan)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
@@ -306,6 +394,18 @@ def _stats(sol: Any, specs: list[_Param], longest_s: float) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def _least_squares(*args: Any, **kw: Any) -> Any:
+    """``scipy.optimize.least_squares`` with one BLAS thread: its trust-region steps take SVDs
+    of the tall (rows x parameters) Jacobian, on which a multi-threaded BLAS is slower than one
+    thread, and on a loaded machine several times slower (0.4 s against 0.08 s for
+    43 200 x 26 with one other process busy)."""
+    from scipy.optimize import least_squares
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(1, user_api="blas"):
+        return least_squares(*args, **kw)
+
+
 def _with(p: CellParameters, **kw: Any) -> CellParameters:
     return dataclasses.replace(p, **kw)
 
@@ -323,6 +423,7 @@ def identify(
     sigma_v: float = 0.001,
     sigma_t: float = 0.1,
     model: ModelSection = FIDELITY_MODEL,
+    jacobian: str = "auto",
 ) -> Identification:
     """Identify a complete parameter set from ``record`` (module docstring).
 
@@ -331,10 +432,23 @@ def identify(
     is the SOC one step before the first row; ``port_temp_k`` (ambient) defaults to the first
     temperature sample. The record must hold rests for the OCV. ``model`` is the structure to
     fit; with ``rc_mode = "switched"`` (the thesis's) the charge and discharge RC sets are
-    fitted separately (``rc_dis[j]``, ``rc_chg[j]``).
+    fitted separately (``rc_dis[j]``, ``rc_chg[j]``). ``jacobian``: ``"analytic"`` (forward
+    sensitivities of the kernel, :func:`hevsim.battery.kernel.run_cell_sensitivity`: one
+    extended run per Jacobian), ``"finite_difference"`` (one run per parameter, mapped over
+    threads) or ``"auto"`` (analytic unless ``rc_mode = "switched"``).
     """
-    from scipy.optimize import least_squares
-
+    switched = model.rc_mode == "switched"
+    if jacobian not in ("auto", "analytic", "finite_difference"):
+        raise InputError(
+            f"calibrate: jacobian {jacobian!r}: expected one of 'auto', 'analytic', 'finite_difference'."
+        )
+    if jacobian == "analytic" and switched:
+        raise InputError(
+            "calibrate: the analytic Jacobian needs rc_mode = 'persistent'; "
+            "use jacobian='finite_difference' for the switched RC sets."
+        )
+    if jacobian == "auto":
+        jacobian = "finite_difference" if switched else "analytic"
     p0 = base if isinstance(base, CellParameters) else load_cell_parameters(base)
     src = record.source
     if capacity_ah is not None:
@@ -393,7 +507,6 @@ def identify(
         specs.append(_Param(f"rs_ohm[soc={axis[k]:.3f}]", "ohm", True, np.log(1e-5), np.log(10.0)))
         theta0.append(float(np.log(rs_init[k])))
     taus = np.geomspace(10.0, max(0.5 * longest, 20.0), n_rc) if n_rc > 1 else np.array([60.0])
-    switched = model.rc_mode == "switched"
     for label in ("rc_dis", "rc_chg") if switched else ("rc",):
         for j in range(n_rc):
             specs.append(_Param(f"{label}[{j}].r_ohm", "ohm", True, np.log(1e-6), np.log(1.0)))
@@ -407,18 +520,11 @@ def identify(
         theta0.append(float(np.log(m_init)))
     n_ocv = idx.size
 
+    ocv_map = _OcvMap(ocv_init, idx, axis, lim.v_min_v, lim.v_max_v, extrapolate=s_pts.size >= 2)
+    rs_weights = np.stack([np.interp(axis, axis[idx], e) for e in np.eye(n_ocv)], axis=1)
+
     def build(theta: FloatArray) -> CellParameters:
-        ocv = ocv_init.copy()
-        ocv[idx] = theta[:n_ocv]
-        ocv = np.maximum.accumulate(np.clip(ocv, lim.v_min_v, lim.v_max_v))
-        if s_pts.size >= 2:  # keep the extrapolated ends on the fitted end segments
-            lo_i, hi_i = idx[0], idx[-1]
-            if lo_i + 1 <= hi_i:
-                sl = (ocv[lo_i + 1] - ocv[lo_i]) / (axis[lo_i + 1] - axis[lo_i])
-                ocv[:lo_i] = ocv[lo_i] + sl * (axis[:lo_i] - axis[lo_i])
-                sh = (ocv[hi_i] - ocv[hi_i - 1]) / (axis[hi_i] - axis[hi_i - 1])
-                ocv[hi_i + 1 :] = ocv[hi_i] + sh * (axis[hi_i + 1 :] - axis[hi_i])
-            ocv = np.maximum.accumulate(np.clip(ocv, lim.v_min_v, lim.v_max_v))
+        ocv, _ = ocv_map(theta[:n_ocv])
         rs = np.interp(axis, axis[idx], np.exp(theta[n_ocv : 2 * n_ocv]))
         k0 = 2 * n_ocv
         rc = np.exp(theta[k0 : k0 + 2 * n_rc]).reshape(n_rc, 2) if n_rc else np.zeros((0, 2))
@@ -451,17 +557,46 @@ def identify(
         v, _ = _simulate(build(theta), record, soc_initial, port_k, port_k)
         return (v - record.voltage_v) / sigma_v
 
+    def jac_v(theta: FloatArray) -> FloatArray:
+        """d res_v / d theta from the forward sensitivities (one extended run of the kernel)."""
+        p = build(theta)
+        dv = _sensitivities(p, record, soc_initial, port_k)[0]
+        cols = K.sensitivity_columns(axis.size, n_rc)
+        jac = np.empty((dv.shape[0], len(specs)))
+        jac[:, :n_ocv] = dv[:, cols["ocv"]] @ ocv_map(theta[:n_ocv])[1]
+        jac[:, n_ocv : 2 * n_ocv] = dv[:, cols["rs"]] @ (rs_weights * np.exp(theta[n_ocv : 2 * n_ocv]))
+        k0 = 2 * n_ocv
+        for j in range(n_rc):  # log R_j, log tau_j
+            jac[:, k0 + 2 * j] = dv[:, cols["rc_r"]][:, j] * p.rc_discharge[j, 0]
+            jac[:, k0 + 2 * j + 1] = dv[:, cols["rc_tau"]][:, j] * p.rc_discharge[j, 1]
+        if charge_transfer:
+            jac[:, -2] = dv[:, cols["ct_i0_a"]] * p.charge_transfer.i0_a
+            jac[:, -1] = dv[:, cols["ct_scale"]] * p.charge_transfer.scale
+        return jac / sigma_v
+
     lo = np.array([s.lo for s in specs])
     hi = np.array([s.hi for s in specs])
     x0 = np.clip(np.array(theta0), lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
-    # the finite-difference Jacobian's columns are independent runs of the (nogil) cell kernel:
-    # map them over threads, as many as cores are free (hevsim.threads); same evaluations, same fit
     threads = choose_threads().threads
-    with ThreadPoolExecutor(max_workers=threads) as pool:
-        workers = pool.map if threads > 1 else map
-        sol_v = least_squares(
-            res_v, x0, bounds=(lo, hi), x_scale="jac", ftol=1e-10, xtol=1e-10, max_nfev=100, workers=workers
+    if jacobian == "analytic":
+        sol_v = _least_squares(
+            res_v, x0, jac=jac_v, bounds=(lo, hi), x_scale="jac", ftol=1e-10, xtol=1e-10, max_nfev=100
         )
+    elif jacobian == "finite_difference":
+        # the finite-difference Jacobian's columns are independent runs of the (nogil) cell
+        # kernel: map them over threads, as many as cores are free (hevsim.threads)
+        with ThreadPoolExecutor(max_workers=threads) as pool:
+            workers = pool.map if threads > 1 else map
+            sol_v = _least_squares(
+                res_v,
+                x0,
+                bounds=(lo, hi),
+                x_scale="jac",
+                ftol=1e-10,
+                xtol=1e-10,
+                max_nfev=100,
+                workers=workers,
+            )
     p_el = build(sol_v.x)
     table = _stats(sol_v, specs, longest)
 
@@ -485,7 +620,7 @@ def identify(
 
         t0 = np.log([th.c_heat_j_per_k, th.r_skin_k_per_w])
         with ThreadPoolExecutor(max_workers=threads) as pool:
-            sol_t = least_squares(
+            sol_t = _least_squares(
                 res_t,
                 t0,
                 bounds=([s.lo for s in t_specs], [s.hi for s in t_specs]),
@@ -519,6 +654,8 @@ def identify(
         "rests": len(rests),
         "current_steps": int(r_pts.size),
         "nfev": int(sol_v.nfev) + nfev_t,
+        "njev": int(sol_v.njev or 0),
+        "jacobian": jacobian,
         "success": bool(sol_v.success),
     }
     return Identification(p_fit, table, rmse, ts, metadata=meta)

@@ -49,6 +49,7 @@ bit for bit — see ``docs/battery.md``, "Cell model options"):
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit, prange
@@ -592,3 +593,164 @@ def run_module(
         out_module[k, 1] = v_avg
         out_module[k, 2] = heat
         out_module[k, 3] = port
+
+
+# --- forward sensitivities for identification (issue 14) ------------------------------------
+# Columns of the sensitivity arrays of :func:`run_cell_sensitivity` for ``n_soc`` SOC
+# breakpoints and ``n_rc`` RC pairs: OCV table, R_s table, RC resistances, RC time constants,
+# then the four scalars below (offsets from ``2 n_soc + 2 n_rc``).
+SENS_I0, SENS_SCALE, SENS_CHEAT, SENS_RSKIN = range(4)
+
+
+def sensitivity_columns(n_soc: int, n_rc: int) -> dict[str, Any]:
+    """Column of each parameter group in :func:`run_cell_sensitivity`'s arrays:
+    ``ocv``, ``rs`` (slices over the SOC breakpoints), ``rc_r``, ``rc_tau`` (slices over the
+    RC pairs), ``ct_i0_a``, ``ct_scale``, ``c_heat_j_per_k``, ``r_skin_k_per_w`` (indices)."""
+    k = 2 * n_soc + 2 * n_rc
+    return {
+        "ocv": slice(0, n_soc),
+        "rs": slice(n_soc, 2 * n_soc),
+        "rc_r": slice(2 * n_soc, 2 * n_soc + n_rc),
+        "rc_tau": slice(2 * n_soc + n_rc, k),
+        "ct_i0_a": k + SENS_I0,
+        "ct_scale": k + SENS_SCALE,
+        "c_heat_j_per_k": k + SENS_CHEAT,
+        "r_skin_k_per_w": k + SENS_RSKIN,
+        "n": k + 4,
+    }
+
+
+@njit(cache=True, inline="always")
+def _hat_weights(soc_ax, s, scale, w):
+    """Add ``scale`` times the weights of the piecewise-linear (edge-clamped) interpolation at
+    ``s`` of a table on ``soc_ax`` to ``w[i]``."""
+    n = soc_ax.shape[0]
+    if n == 1 or s <= soc_ax[0]:
+        w[0] += scale
+        return
+    if s >= soc_ax[n - 1]:
+        w[n - 1] += scale
+        return
+    i = 0
+    while soc_ax[i + 1] <= s:
+        i += 1
+    a = (s - soc_ax[i]) / (soc_ax[i + 1] - soc_ax[i])
+    w[i] += scale * (1.0 - a)
+    w[i + 1] += scale * a
+
+
+@njit(cache=True)
+def _ocv_weight(prm, soc_ax, ocv, s, scale, w):
+    """``scale`` times d OCV(s) / d table (zero where the OCV is clamped to the limits) into ``w``."""
+    raw = interp1(soc_ax, ocv, s, False)
+    if prm[VMIN] < raw < prm[VMAX]:
+        _hat_weights(soc_ax, s, scale, w)
+
+
+@njit(cache=True)
+def _sensitivity_step(prm, soc_ax, ocv, rc, x0, i_a, dt, t_port, rec, s_rc, s_t, w_heat, dv, dt_out):
+    """Sensitivities of one step of :func:`cell_step` (pre-step state ``x0``, its record
+    ``rec``; ``w_heat`` is work space); updates the RC sensitivities ``s_rc``
+    (``[j, 0]`` d v_j / d R_j, ``[j, 1]`` d v_j / d tau_j) and the temperature's ``s_t`` in
+    place and writes d v_end / d p into ``dv`` and d T_end / d p into ``dt_out``."""
+    n_soc = soc_ax.shape[0]
+    n = int(prm[NRC])
+    k0 = 2 * n_soc + 2 * n
+    temp0 = x0[STEMP]
+    cap = rec[RCAP]  # independent of the parameters (alpha_c = 0, one temperature column)
+    soc = prm[SOCINI] - x0[SQ] / cap
+    q_heat = rec[RHEAT]
+    w_heat[:] = 0.0  # d heat_j / d p, before the temperature term
+    dv[:] = 0.0
+    if prm[OCVSTEP] > 0.0:
+        soc1 = soc - i_a * dt / cap
+        _ocv_weight(prm, soc_ax, ocv, soc1, 1.0, dv)
+        s_r = 0.5 * (soc + soc1)
+    else:
+        _ocv_weight(prm, soc_ax, ocv, soc, 1.0, dv)
+        s_r = soc
+    _hat_weights(soc_ax, s_r, prm[RSCALE] * i_a * i_a * dt, w_heat[n_soc : 2 * n_soc])
+    _hat_weights(soc_ax, s_r, -prm[RSCALE] * i_a, dv[n_soc : 2 * n_soc])
+    for j in range(n):
+        r_j = rc[j, 0] * prm[RSCALE]
+        tau = rc[j, 1]
+        e1 = math.exp(-dt / tau)
+        de1 = e1 * dt / (tau * tau)  # d e1 / d tau
+        a = r_j * i_a
+        v0 = x0[N_FIXED_STATES + j]
+        d = v0 - a
+        g1 = tau * (1.0 - e1)
+        g2 = 0.5 * tau * (1.0 - e1 * e1)
+        int_v2 = a * a * dt + 2.0 * a * d * g1 + d * d * g2
+        # d / d R_j (table value; r_j = R_j r_scale)
+        da = prm[RSCALE] * i_a
+        dd = s_rc[j, 0] - da
+        d_int = 2.0 * a * da * dt + 2.0 * (da * d + a * dd) * g1 + 2.0 * d * dd * g2
+        w_heat[2 * n_soc + j] += d_int / r_j - int_v2 / (r_j * rc[j, 0])
+        s_new_r = da * (1.0 - e1) + s_rc[j, 0] * e1
+        # d / d tau_j
+        dd = s_rc[j, 1]
+        dg1 = (1.0 - e1) - tau * de1
+        dg2 = 0.5 * (1.0 - e1 * e1) - tau * e1 * de1
+        d_int = 2.0 * a * dd * g1 + 2.0 * a * d * dg1 + 2.0 * d * dd * g2 + d * d * dg2
+        w_heat[2 * n_soc + n + j] += d_int / r_j
+        s_new_t = s_rc[j, 1] * e1 + d * de1
+        s_rc[j, 0] = s_new_r
+        s_rc[j, 1] = s_new_t
+        dv[2 * n_soc + j] -= s_new_r
+        dv[2 * n_soc + n + j] -= s_new_t
+    if prm[CTI0] > 0.0:
+        eta, _ = ct_overpotential(prm, i_a, temp0)
+        i0 = prm[CTI0] / prm[RSCALE]
+        if prm[CTEA] != 0.0:
+            i0 *= math.exp(-prm[CTEA] / R_GAS_J_PER_MOL_K * (1.0 / temp0 - 1.0 / prm[TREF]))
+        b = prm[CTM] * 2.0 * R_GAS_J_PER_MOL_K * temp0 / FARADAY_C_PER_MOL
+        u = i_a / (2.0 * i0)
+        bu = b * u / math.sqrt(1.0 + u * u)
+        d_i0 = -bu / prm[CTI0]
+        d_m = eta / prm[CTM]
+        d_temp = eta / temp0 - bu * prm[CTEA] / (R_GAS_J_PER_MOL_K * temp0 * temp0)
+        dv[k0 + SENS_I0] -= d_i0
+        dv[k0 + SENS_SCALE] -= d_m
+        w_heat[k0 + SENS_I0] += d_i0 * i_a * dt
+        w_heat[k0 + SENS_SCALE] += d_m * i_a * dt
+        for m in range(dv.shape[0]):  # the temperature path (dense)
+            dv[m] -= d_temp * s_t[m]
+            w_heat[m] += d_temp * i_a * dt * s_t[m]
+    # lumped temperature: temp1 = t_inf + (temp0 - t_inf) E
+    c_h = prm[CHEAT]
+    r_sk = prm[RSKIN]
+    big_e = math.exp(-dt / (c_h * r_sk))
+    t_inf = t_port + q_heat * r_sk
+    for m in range(dv.shape[0]):
+        s_t[m] = (1.0 - big_e) * r_sk * w_heat[m] / dt + big_e * s_t[m]
+    s_t[k0 + SENS_CHEAT] += (temp0 - t_inf) * big_e * dt / (c_h * c_h * r_sk)
+    s_t[k0 + SENS_RSKIN] += (1.0 - big_e) * q_heat + (temp0 - t_inf) * big_e * dt / (c_h * r_sk * r_sk)
+    dt_out[:] = s_t
+
+
+@njit(cache=True, nogil=True)
+def run_cell_sensitivity(prm, soc_ax, t_ax, ocv, rs, capf, rc, x, current, dt, t_port, out, dv, dtemp):
+    """:func:`run_cell` and its forward sensitivities in one pass.
+
+    For the structure identification fits (:mod:`hevsim.battery.identify`): one temperature
+    column, the same OCV, R_s and RC tables in both directions, ``rc_persistent`` on,
+    ``alpha_c = alpha_Rs = 0``, no hysteresis (the caller checks). ``dv[k, p]``
+    and ``dtemp[k, p]`` receive d voltage_end / d p [V per unit of p] and d temperature / d p
+    [K per unit of p] for the parameters p of :func:`sensitivity_columns`. Exact for the
+    discrete model: every step is differentiated as it is computed (the RC and thermal
+    exponentials, the OCV and R_s interpolation, the Butler-Volmer term and its temperature
+    path, the heat). The values (``out``, ``x``) are :func:`cell_step`'s, bit for bit.
+    """
+    n = int(prm[NRC])
+    s_rc = np.zeros((max(n, 1), 2))
+    s_t = np.zeros(dv.shape[1])
+    w_heat = np.empty(dv.shape[1])
+    x0 = np.empty_like(x)
+    for k in range(current.shape[0]):
+        x0[:] = x
+        cell_step(prm, soc_ax, t_ax, ocv, ocv, rs, rs, capf, rc, rc, x, current[k], dt, t_port[k], out[k])
+        _sensitivity_step(
+            prm, soc_ax, ocv[:, 0], rc, x0, current[k], dt, t_port[k], out[k], s_rc, s_t, w_heat,
+            dv[k], dtemp[k],
+        )  # fmt: skip
