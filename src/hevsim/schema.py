@@ -15,6 +15,7 @@ command-line option, so options and files share one validation.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import tomllib
 import typing
@@ -102,7 +103,7 @@ def field_of(cls: type, key: str) -> tuple[Any, Mapping[str, Any]]:
             raise KeyError(key)
         f = fields[name]
         meta = f.metadata
-        tp = typing.get_type_hints(tp)[name]
+        tp = type_hints(tp)[name]
     return tp, meta
 
 
@@ -118,11 +119,21 @@ def check_option(option: str, value: Any, cls: type, key: str) -> Any:
     return check_value(value, tp, "", key, {}, {}, meta, where=option)
 
 
+def type_hints(cls: Any) -> dict[str, Any]:
+    """``typing.get_type_hints(cls)``, once per class (batches validate thousands of variants)."""
+    return _type_hints(cls)
+
+
+@functools.cache
+def _type_hints(cls: Any) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
 def build_section(cls: type[T], data: Any, source: str, section: str, choices: Choices, bounds: Bounds) -> T:
     """Validate the table ``[section]`` into the dataclass ``cls``."""
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: [{section}]: expected a table of keys, got {data!r}.")
-    hints = typing.get_type_hints(cls)
+    hints = type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
     kwargs: dict[str, Any] = {}
     for key, value in data.items():
@@ -142,7 +153,7 @@ def build_config(
     bounds: Bounds,
 ) -> T:  # fmt: skip
     """Validate a parsed configuration mapping into ``cls`` (which has a ``base_dir`` field)."""
-    hints = typing.get_type_hints(cls)
+    hints = type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
     valid = [n for n in fields if n != "base_dir"]
     kwargs: dict[str, Any] = {"base_dir": str(base_dir or Path("."))}
