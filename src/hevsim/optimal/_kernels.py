@@ -12,6 +12,13 @@ corner with zero weight (a point on a grid line) is ignored. Weights within ``WS
 or 1 are snapped, so that rounding in ``(x - x0) / dx`` cannot make an on-node point touch
 its infeasible neighbour.
 
+A block in which each state moves on its own (next state ``j`` a function of state ``j`` and
+the inputs, cost and mask of the inputs only: ``_problem.Separable``) is not flattened: its
+per-state tables of cell index, weight and distance outside the grid (:func:`sep_table`) are
+read per pair by :func:`bellman_sep2_par` (two states, finite cost-to-go, cache-ordered loop)
+or :func:`bellman_sep_par` (any number of states), with the same floating-point operations in
+the same order as :func:`bellman_nd_par`, so with the same result bit for bit.
+
 Modes (how the final-state constraint is enforced, see ``dp.py``):
 
 * ``MODE_PLAIN`` (0): plain cost-to-go (hard wall or linear penalty); at the last step the
@@ -684,3 +691,303 @@ def _bellman_nd(
 
 
 bellman_nd_par, bellman_nd_ser = _par_and_ser(_bellman_nd, SIG_ND)
+
+
+# ------------------------------------------------------------------ separable blocks
+_OI2 = types.Array(types.int64, 2, "A")
+_OF2 = types.Array(types.float64, 2, "A")
+SIG_TAB = types.void(_F2, _F1, _BOOL, _F, _OI2, _OF2, _OF2)
+
+
+@njit(SIG_TAB, cache=True)
+def sep_table(x, gflat_j, uniform, inv_dx, out_i, out_w, out_d):
+    """Interpolation table of one state of a separable block (``_problem.Separable``).
+
+    ``x``: (n_j, M) next values of state ``j``. Outputs, per (node, input): the cell index
+    (-1 for a non-finite value), the weight and the span-normalised distance outside the
+    grid (0 inside the bounds tolerance), computed exactly as :func:`_row_nd` does per pair.
+    """
+    n = gflat_j.shape[0]
+    lo = gflat_j[0]
+    hi = gflat_j[n - 1]
+    sp = hi - lo
+    for i in range(x.shape[0]):
+        for m in range(x.shape[1]):
+            xv = x[i, m]
+            if not np.isfinite(xv):
+                out_i[i, m] = -1
+                out_w[i, m] = 0.0
+                out_d[i, m] = 0.0
+                continue
+            dout = 0.0
+            if xv < lo - BTOL * sp:
+                dout = (lo - xv) / sp
+                xv = lo
+            elif xv > hi + BTOL * sp:
+                dout = (xv - hi) / sp
+                xv = hi
+            else:
+                xv = min(max(xv, lo), hi)
+            ij, wj = _locate(gflat_j, uniform, inv_dx, xv)
+            out_i[i, m] = ij
+            out_w[i, m] = wj
+            out_d[i, m] = dout
+
+
+_I3 = types.Array(types.int64, 3, "A", readonly=True)
+_F3 = types.Array(types.float64, 3, "A", readonly=True)
+SIG_SEP = types.void(
+    _I3, _F3, _F3, _I1, _I, _F1, _B1, _BOOL, _I1, _F1, _F1, _I, _OF, _OI, _OS, _OF, _OI,
+)  # fmt: skip
+
+
+@njit(cache=True)
+def _row_sep(s, ti, tw, td, dims, d, g, mask, has_mask, gstride, J, V, mode, out_J, out_arg,
+             out_status, out_V, out_argV):  # fmt: skip
+    """Bellman step of row ``s`` of a separable block (level-set or plain mode, no target
+    box): :func:`_row_nd` with the cell indices, weights and bound distances read from the
+    per-state tables of :func:`sep_table` instead of computed per pair; the same
+    floating-point operations in the same order, so the same result bit for bit."""
+    M = g.shape[0]
+    ncorner = 1 << d
+    track = mode != MODE_PLAIN
+    node = np.empty(4, np.int64)
+    rem = s
+    for j in range(d - 1, -1, -1):
+        node[j] = rem % dims[j]
+        rem //= dims[j]
+    best = np.inf
+    arg = -1
+    best_v = np.inf
+    arg_v = -1
+    cost_v = np.inf
+    v_in = np.inf
+    n_ok = 0
+    n_inb = 0
+    bad = False
+    for m in range(M):
+        if has_mask and mask[m]:
+            continue
+        c = g[m]
+        finite = True
+        for j in range(d):
+            if ti[j, node[j], m] < 0:
+                finite = False
+        if not finite or np.isnan(c) or c == -np.inf:
+            bad = True
+            continue
+        if c == np.inf:
+            continue
+        n_ok += 1
+        dout = 0.0
+        for j in range(d):
+            dout += td[j, node[j], m]
+        inb = dout == 0.0
+        if not inb and not track:
+            continue
+        jacc = 0.0
+        vacc = 0.0
+        jinf = False
+        for cidx in range(ncorner):
+            wt = 1.0
+            flat = 0
+            for j in range(d):
+                wj = tw[j, node[j], m]
+                ij = ti[j, node[j], m]
+                if (cidx >> j) & 1:
+                    wt *= wj
+                    flat += (ij + 1) * gstride[j]
+                else:
+                    wt *= 1.0 - wj
+                    flat += ij * gstride[j]
+            if wt == 0.0:
+                continue
+            jc = J[flat]
+            if jc == np.inf:
+                jinf = True
+            else:
+                jacc += wt * jc
+            if mode == MODE_LEVELSET:
+                vacc += wt * V[flat]
+        if mode == MODE_LEVELSET:
+            v = vacc if inb else max(vacc, 0.0) + dout
+        else:
+            v = 0.0
+        if inb:
+            n_inb += 1
+        tot = np.inf if jinf else c + jacc
+        if v > VTOL or not inb:
+            if v < best_v - VTIE or (v <= best_v + VTIE and tot < cost_v):
+                best_v = min(best_v, v)
+                arg_v = m
+                cost_v = tot
+            continue
+        v_in = min(v_in, v)
+        if tot < best:
+            best = tot
+            arg = m
+    if bad:
+        status = ST_BAD
+    elif n_ok == 0:
+        status = ST_MASKED
+    elif n_inb == 0:
+        status = ST_BOUNDS
+    elif best == np.inf:
+        status = ST_UNREACHABLE
+    else:
+        status = ST_FEASIBLE
+    out_status[s] = status
+    if status == ST_FEASIBLE:
+        out_J[s] = best
+        out_arg[s] = arg
+    else:
+        out_J[s] = cost_v if mode == MODE_LEVELSET else np.inf
+        out_arg[s] = arg_v
+    out_V[s] = min(best_v, v_in) if n_ok > 0 else V_CAP
+    out_argV[s] = arg_v
+
+
+def _bellman_sep(
+    ti, tw, td, dims, d, g, mask, has_mask, gstride, J, V, mode, out_J, out_arg, out_status,
+    out_V, out_argV,
+):  # fmt: skip
+    """One Bellman step over the rows of a separable block (see :func:`_row_sep`).
+
+    ``ti``, ``tw``, ``td``: (d, max n_j, M) tables of :func:`sep_table`; ``dims``: nodes
+    per state; ``g``, ``mask``: (M,) stage cost and mask. Outputs as :func:`_bellman_nd`.
+    """
+    S = out_J.shape[0]
+    for s in prange(S):
+        _row_sep(
+            s, ti, tw, td, dims, d, g, mask, has_mask, gstride, J, V, mode, out_J, out_arg,
+            out_status, out_V, out_argV,
+        )  # fmt: skip
+
+
+bellman_sep_par, bellman_sep_ser = _par_and_ser(_bellman_sep, SIG_SEP)
+
+
+_I2 = types.Array(types.int64, 2, "A", readonly=True)
+SIG_SEP2 = types.void(
+    _I2, _F2, _F2, _I2, _F2, _F2, _F1, _B1, _BOOL, _F1, _F1, _BOOL, _OF, _OI, _OS, _OF, _OI,
+)  # fmt: skip
+
+
+def _bellman_sep2(
+    i0t, w0t, d0t, i1t, w1t, d1t, g, mask, has_mask, J, V, is_ls, out_J, out_arg, out_status,
+    out_V, out_argV,
+):  # fmt: skip
+    """:func:`_bellman_sep` for two states and a cost-to-go and level-set function without
+    infinite nodes, ordered for the cache: rows of state 1 outermost, then the inputs, then
+    the nodes of state 2 (whose table rows ``i1t[m]``, ``w1t[m]``, ``d1t[m]``, (M, n2), are
+    contiguous). The same floating-point operations per pair as :func:`_row_nd` (a zero
+    corner weight adds an exact zero instead of being skipped, which is the same sum with
+    finite values), and the inputs are visited in the same order for every node, so the
+    result is the same bit for bit. Tables: ``i0t``, ``w0t``, ``d0t`` (n1, M).
+    """
+    n0 = i0t.shape[0]
+    M = g.shape[0]
+    n1 = i1t.shape[1]
+    for r in prange(n0):
+        best = np.full(n1, np.inf)
+        arg = np.full(n1, -1, np.int64)
+        best_v = np.full(n1, np.inf)
+        arg_v = np.full(n1, -1, np.int64)
+        cost_v = np.full(n1, np.inf)
+        v_in = np.full(n1, np.inf)
+        n_ok = np.zeros(n1, np.int64)
+        n_inb = np.zeros(n1, np.int64)
+        bad = np.zeros(n1, np.bool_)
+        for m in range(M):
+            if has_mask and mask[m]:
+                continue
+            c = g[m]
+            ia = i0t[r, m]
+            ib_row = i1t[m]
+            if ia < 0 or np.isnan(c) or c == -np.inf:
+                bad[:] = True
+                continue
+            if c == np.inf:
+                for i1 in range(n1):
+                    if ib_row[i1] < 0:
+                        bad[i1] = True
+                continue
+            w0 = w0t[r, m]
+            a0 = 1.0 - w0
+            d0 = d0t[r, m]
+            f0 = ia * n1
+            f1 = f0 + n1
+            w1_row = w1t[m]
+            d1_row = d1t[m]
+            for i1 in range(n1):
+                ib = ib_row[i1]
+                if ib < 0:
+                    bad[i1] = True
+                    continue
+                n_ok[i1] += 1
+                dout = 0.0
+                dout += d0
+                dout += d1_row[i1]
+                inb = dout == 0.0
+                if not inb and not is_ls:
+                    continue
+                w1 = w1_row[i1]
+                a1 = 1.0 - w1
+                wt00 = a0 * a1
+                wt10 = w0 * a1
+                wt01 = a0 * w1
+                wt11 = w0 * w1
+                if is_ls:
+                    vacc = 0.0
+                    vacc += wt00 * V[f0 + ib]
+                    vacc += wt10 * V[f1 + ib]
+                    vacc += wt01 * V[f0 + ib + 1]
+                    vacc += wt11 * V[f1 + ib + 1]
+                    v = vacc if inb else max(vacc, 0.0) + dout
+                else:
+                    v = 0.0
+                if inb:
+                    n_inb[i1] += 1
+                outside = v > VTOL or not inb
+                if outside and v > best_v[i1] + VTIE:
+                    continue  # cannot be the closest approach: the cost is not needed
+                jacc = 0.0
+                jacc += wt00 * J[f0 + ib]
+                jacc += wt10 * J[f1 + ib]
+                jacc += wt01 * J[f0 + ib + 1]
+                jacc += wt11 * J[f1 + ib + 1]
+                tot = c + jacc
+                if outside:
+                    if v < best_v[i1] - VTIE or tot < cost_v[i1]:
+                        best_v[i1] = min(best_v[i1], v)
+                        arg_v[i1] = m
+                        cost_v[i1] = tot
+                    continue
+                v_in[i1] = min(v_in[i1], v)
+                if tot < best[i1]:
+                    best[i1] = tot
+                    arg[i1] = m
+        for i1 in range(n1):
+            s = r * n1 + i1
+            if bad[i1]:
+                status = ST_BAD
+            elif n_ok[i1] == 0:
+                status = ST_MASKED
+            elif n_inb[i1] == 0:
+                status = ST_BOUNDS
+            elif best[i1] == np.inf:
+                status = ST_UNREACHABLE
+            else:
+                status = ST_FEASIBLE
+            out_status[s] = status
+            if status == ST_FEASIBLE:
+                out_J[s] = best[i1]
+                out_arg[s] = arg[i1]
+            else:
+                out_J[s] = cost_v[i1] if is_ls else np.inf
+                out_arg[s] = arg_v[i1]
+            out_V[s] = min(best_v[i1], v_in[i1]) if n_ok[i1] > 0 else V_CAP
+            out_argV[s] = arg_v[i1]
+
+
+bellman_sep2_par, bellman_sep2_ser = _par_and_ser(_bellman_sep2, SIG_SEP2)

@@ -334,21 +334,80 @@ class Increment:
     delta: Any
 
 
-@dataclass
+@dataclass(frozen=True)
+class Separable:
+    """Compact model outputs of a block in which each state moves on its own.
+
+    Next state ``j`` depends on state ``j`` and the inputs only, the stage cost and the
+    infeasibility mask on the inputs only (e.g. ``x_j' = a_j x_j + b_j(u)`` with a cost in
+    ``u``): the ``(S, M)`` block is then fully described by one ``(n_j, M)`` table per state,
+    ``S = n_1 ... n_d`` times smaller than the flattened block, and the Bellman kernel
+    interpolates from per-state tables instead of streaming the block from memory.
+    """
+
+    x: tuple[FloatArray, ...]  # (n_j, M) next state of component j at node i_j of state j
+    g: FloatArray  # (M,) stage cost
+    mask: BoolArray | None  # (M,) infeasibility mask
+
+
 class Block:
     """Model outputs for one step, flattened to ``(S, M)``.
 
     The next state of component ``j`` is ``base[j][:, None] + xn[j]`` (``base`` is zero
-    unless the model returned an :class:`Increment`).
+    unless the model returned an :class:`Increment`). The flattened arrays are built on first
+    access when the block was made with ``build`` (its :class:`Separable` tables, ``sep``,
+    are what the Bellman kernel then reads).
     """
 
-    xn: list[FloatArray]
-    base: list[FloatArray]
-    g: FloatArray
-    mask: BoolArray | None
-    shape: tuple[int, ...]
-    states: tuple[np.ndarray, ...]
-    inputs: tuple[np.ndarray, ...]
+    def __init__(
+        self,
+        shape: tuple[int, ...],
+        states: tuple[np.ndarray, ...],
+        inputs: tuple[np.ndarray, ...],
+        parts: tuple[list[FloatArray], list[FloatArray], FloatArray, BoolArray | None] | None = None,
+        build: Callable[[], tuple[list[FloatArray], list[FloatArray], FloatArray, BoolArray | None]]
+        | None = None,
+        sep: Separable | None = None,
+    ) -> None:
+        if (parts is None) == (build is None):
+            raise ValueError("Block needs exactly one of parts and build")
+        self.shape = shape
+        self.states = states
+        self.inputs = inputs
+        self.sep = sep
+        self._parts = parts
+        self._build = build
+
+    def _get(self) -> tuple[list[FloatArray], list[FloatArray], FloatArray, BoolArray | None]:
+        if self._parts is None:
+            assert self._build is not None
+            self._parts = self._build()
+            self._build = None
+        return self._parts
+
+    @property
+    def xn(self) -> list[FloatArray]:
+        """Next state (increment when ``base`` is not zero) per component, (S, M) each."""
+        return self._get()[0]
+
+    @property
+    def base(self) -> list[FloatArray]:
+        """State the increment ``xn`` is added to, (S,) per component."""
+        return self._get()[1]
+
+    @property
+    def g(self) -> FloatArray:
+        """Stage cost, (S, M)."""
+        return self._get()[2]
+
+    @property
+    def mask(self) -> BoolArray | None:
+        """Infeasibility mask, (S, M), or None."""
+        return self._get()[3]
+
+    def with_cost(self, g: FloatArray) -> Block:
+        """The same block with the stage cost ``g`` (S, M)."""
+        return Block(self.shape, self.states, self.inputs, parts=(self.xn, self.base, g, self.mask))
 
     def next_state(self, j: int) -> FloatArray:
         """Materialised next state of component ``j``, shape (S, M)."""
@@ -408,7 +467,7 @@ class Evaluator:
                 f"{d} arrays (one per state variable)."
             )
 
-        def flat(a: Any, name: str, dtype: type) -> np.ndarray:
+        def check(a: Any, name: str, dtype: type) -> np.ndarray:
             arr: np.ndarray = np.asarray(a, dtype=dtype)
             if not _broadcasts_to(arr.shape, shape):
                 raise DPModelError(
@@ -416,21 +475,37 @@ class Evaluator:
                     f"broadcast to the block shape {shape} (states {shape[:d]} x inputs "
                     f"{shape[d:]}); expected an array broadcastable to {shape}."
                 )
+            return arr
+
+        def flat(arr: np.ndarray) -> np.ndarray:
             return np.broadcast_to(arr, shape).reshape(S, M)
 
-        xn = []
-        base = []
-        for j, a in enumerate(nxt):
-            if isinstance(a, Increment):
-                xn.append(flat(a.delta, f"next_states[{j}] (Increment)", np.float64))
-                sj = np.broadcast_to(np.asarray(states[j], dtype=np.float64), shape[:d] + (1,) * sp.q)
-                base.append(np.ascontiguousarray(sj.reshape(S)))
-            else:
-                xn.append(flat(a, f"next_states[{j}]", np.float64))
-                base.append(np.zeros(S))
-        g = flat(cost, "stage_cost", np.float64)
-        m = None if mask is None else flat(mask, "infeasible_mask", np.bool_)
-        return Block(xn=xn, base=base, g=g, mask=m, shape=shape, states=states, inputs=ins)
+        incr = [isinstance(a, Increment) for a in nxt]
+        xraw = [
+            check(a.delta, f"next_states[{j}] (Increment)", np.float64)
+            if incr[j]
+            else check(a, f"next_states[{j}]", np.float64)
+            for j, a in enumerate(nxt)
+        ]
+        graw = check(cost, "stage_cost", np.float64)
+        mraw = None if mask is None else check(mask, "infeasible_mask", np.bool_)
+
+        def build() -> tuple[list[FloatArray], list[FloatArray], FloatArray, BoolArray | None]:
+            base = []
+            for j in range(d):
+                if incr[j]:
+                    sj = np.broadcast_to(np.asarray(states[j], dtype=np.float64), shape[:d] + (1,) * sp.q)
+                    base.append(np.ascontiguousarray(sj.reshape(S)))
+                else:
+                    base.append(np.zeros(S))
+            return [flat(x) for x in xraw], base, flat(graw), None if mraw is None else flat(mraw)
+
+        sep = None
+        if d >= 2 and states is sp.states_b and inputs is None:
+            sep = _separable(sp, shape, xraw, incr, graw, mraw)
+        if sep is None:
+            return Block(shape, states, ins, parts=build())
+        return Block(shape, states, ins, build=build, sep=sep)
 
     def bad_output_error(self, k: int, blk: Block, s: int) -> DPModelError:
         """Describe the first NaN / infinite output of an unmasked pair in row ``s``."""
@@ -489,6 +564,42 @@ class Evaluator:
         if np.isnan(out).any() or (out == -np.inf).any():
             raise DPModelError("terminal_cost returned NaN or -inf; expected finite values or +inf.")
         return out
+
+
+def _separable(
+    sp: Space,
+    shape: tuple[int, ...],
+    xraw: list[np.ndarray],
+    incr: list[bool],
+    graw: np.ndarray,
+    mraw: np.ndarray | None,
+) -> Separable | None:
+    """The :class:`Separable` tables of a block on the state grid, or None when next state
+    ``j`` depends on another state or the cost or mask on a state (read from the broadcast
+    shapes of the model outputs, so only what the model wrote matters, not its values)."""
+    d = sp.d
+    nd = len(shape)
+
+    def state_dims(a: np.ndarray) -> set[int]:
+        full = (1,) * (nd - a.ndim) + a.shape
+        return {i for i in range(d) if full[i] != 1}
+
+    if state_dims(graw) or (mraw is not None and state_dims(mraw)):
+        return None
+    if any(state_dims(x) - {j} for j, x in enumerate(xraw)):
+        return None
+    M = int(np.prod(shape[d:]))
+    tabs = []
+    for j, x in enumerate(xraw):
+        tshape = tuple(shape[i] if i == j else 1 for i in range(d)) + shape[d:]
+        tab = np.broadcast_to(x, tshape).reshape(shape[j], M)
+        if incr[j]:  # the same sum as Block.next_state: base + increment
+            tab = sp.grids[j][:, None] + tab
+        tabs.append(np.ascontiguousarray(tab, dtype=np.float64))
+    ishape = (1,) * d + shape[d:]
+    g = np.ascontiguousarray(np.broadcast_to(graw, ishape).reshape(M))
+    m = None if mraw is None else np.ascontiguousarray(np.broadcast_to(mraw, ishape).reshape(M))
+    return Separable(x=tuple(tabs), g=g, mask=m)
 
 
 def _broadcasts_to(arr_shape: tuple[int, ...], shape: tuple[int, ...]) -> bool:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import itertools
 import sys
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -28,6 +28,7 @@ _DUMMY_X = np.zeros((1, 1))
 
 
 USE_HULL = True  # exact convex-hull input pruning for state-independent 1-D blocks (_hull.py)
+USE_SEPARABLE = True  # per-state interpolation tables for separable blocks (_problem.Separable)
 
 
 def _hull() -> Any:
@@ -119,23 +120,32 @@ class DPSolver:
         """One Bellman step on a flattened block (any number of rows)."""
         sp = self.space
         mode = self.mode if mode is None else mode
-        S, M = blk.g.shape
+        S = int(np.prod(blk.shape[: sp.d]))
+        M = int(np.prod(blk.shape[sp.d :]))
         out_J = np.empty(S)
         out_arg = np.empty(S, dtype=np.int64)
         out_status = np.empty(S, dtype=np.int8)
         out_V = np.empty(S)
         out_argv = np.empty(S, dtype=np.int64)
-        has_mask = blk.mask is not None
-        mask = blk.mask if blk.mask is not None else _DUMMY_MASK
         J = np.asarray(J, dtype=np.float64)  # stored float32 rows are widened
         Vk = J if V is None else np.asarray(V, dtype=np.float64)
         big = S >= 2 and S * M >= PARALLEL_MIN_PAIRS
         # the thread policy (hevsim.threads): one thread -> the serial Bellman kernels
         parallel = big and _numba_threads() > 1
+        if (
+            USE_SEPARABLE
+            and blk.sep is not None
+            and not use_box
+            and mode in (kn.MODE_PLAIN, kn.MODE_LEVELSET)
+        ):
+            self._sep_step(blk, J, Vk, mode, parallel, out_J, out_arg, out_status, out_V, out_argv)
+            return StepOut(out_J, out_arg, out_status, out_V, out_argv, out_V, out_V)
         if sp.d == 1 and USE_HULL and big and not use_box:
             hull = self._hull_step(blk, J, Vk, band, band_i, mode)
             if hull is not None:
                 return hull
+        has_mask = blk.mask is not None
+        mask = blk.mask if blk.mask is not None else _DUMMY_MASK
         if sp.d == 1:
             fmax = np.empty(S)
             fmin = np.empty(S)
@@ -200,6 +210,54 @@ class DPSolver:
                 out_argv,
             )
         return StepOut(out_J, out_arg, out_status, out_V, out_argv, fmax, fmin)
+
+    def _sep_step(
+        self,
+        blk: Block,
+        J: FloatArray,
+        V: FloatArray,
+        mode: int,
+        parallel: bool,
+        *outs: np.ndarray,
+    ) -> None:
+        """Bellman step of a separable block (:class:`~hevsim.optimal._problem.Separable`):
+        per-state interpolation tables, then the row kernel reads them (same result as the
+        flattened block, without forming it)."""
+        sp = self.space
+        sep = blk.sep
+        assert sep is not None
+        kern = _kernels()
+        M = sep.g.shape[0]
+        nmax = max(sp.shape)
+        ti = np.zeros((sp.d, nmax, M), dtype=np.int64)
+        tw = np.zeros((sp.d, nmax, M))
+        td = np.zeros((sp.d, nmax, M))
+        for j in range(sp.d):
+            n = sp.grids[j].size
+            kern.sep_table(
+                sep.x[j],
+                sp.grids[j],
+                bool(sp.uniform[j]),
+                float(sp.inv_dx[j]),
+                ti[j, :n],
+                tw[j, :n],
+                td[j, :n],
+            )
+        has_mask = sep.mask is not None
+        mask = sep.mask if sep.mask is not None else _DUMMY_MASK[0]
+        if sp.d == 2 and np.isfinite(J).all() and (mode != kn.MODE_LEVELSET or np.isfinite(V).all()):
+            n0, n1 = sp.shape
+            kernel2 = kern.bellman_sep2_par if parallel else kern.bellman_sep2_ser
+            kernel2(
+                ti[0, :n0], tw[0, :n0], td[0, :n0],
+                np.ascontiguousarray(ti[1, :n1].T), np.ascontiguousarray(tw[1, :n1].T),
+                np.ascontiguousarray(td[1, :n1].T),
+                sep.g, mask, has_mask, J, V, mode == kn.MODE_LEVELSET, *outs,
+            )  # fmt: skip
+            return
+        dims = np.array(sp.shape, dtype=np.int64)
+        kernel = kern.bellman_sep_par if parallel else kern.bellman_sep_ser
+        kernel(ti, tw, td, dims, sp.d, sep.g, mask, has_mask, sp.gstride, J, V, mode, *outs)
 
     def _hull_step(
         self, blk: Block, J: FloatArray, V: FloatArray, band: FloatArray, band_i: IntArray, mode: int
@@ -303,6 +361,23 @@ class DPSolver:
             xs.append(x.reshape(ishape))
         g = g.reshape(ishape)
         valid = valid.reshape(ishape)
+        # only rows whose valid next states reach both sides of every face of the box can
+        # hold a segment that meets it (the rest is most of the grid, and costs most)
+        near = np.ones(R, dtype=bool)
+        with np.errstate(invalid="ignore"):
+            for j in range(sp.d):
+                tol = kn.VTOL * sp.span[j]
+                vx = valid & (xs[j] <= hi[j] + tol)
+                near &= vx.reshape(R, -1).any(axis=1)
+                vx = valid & (xs[j] >= lo[j] - tol)
+                near &= vx.reshape(R, -1).any(axis=1)
+        if not near.all():
+            rows, g, valid = rows[near], g[near], valid[near]
+            xs = [x[near] for x in xs]
+            R = rows.size
+            ishape = (R, *ishape[1:])
+            if R == 0:
+                return {}
         flat_idx = np.arange(int(np.prod(ishape[1:]))).reshape(ishape[1:])
         best = np.full(R, np.inf)
         info: dict[int, tuple] = {}
@@ -385,7 +460,7 @@ class DPSolver:
             lo, hi = self.box
             for j, x in enumerate(xn):
                 add += self.penalty_weight[j] * np.maximum(np.maximum(lo[j] - x, x - hi[j]), 0.0)
-        return replace(blk, g=blk.g + add)
+        return blk.with_cost(blk.g + add)
 
     def point_blocks(self, points: FloatArray, cost: FloatArray | None = None) -> Block:
         """A block whose rows are the given next states (one input each)."""
@@ -393,7 +468,7 @@ class DPSolver:
         g = np.zeros((P, 1)) if cost is None else cost.reshape(P, 1)
         xn = [np.ascontiguousarray(points[:, j].reshape(P, 1)) for j in range(self.space.d)]
         base = [np.zeros(P) for _ in range(self.space.d)]
-        return Block(xn=xn, base=base, g=g, mask=None, shape=(P, 1), states=(), inputs=())
+        return Block((P, 1), (), (), parts=(xn, base, g, None))
 
     # ------------------------------------------------------------------ terminal
     def box_distance(self, box_lo: FloatArray, box_hi: FloatArray) -> FloatArray:
