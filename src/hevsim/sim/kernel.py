@@ -17,7 +17,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from hevsim.battery.vehicle import battery_ecm, battery_ecm_advance, pack_tables
+from hevsim.battery.vehicle import (
+    battery_ecm,
+    battery_ecm_advance,
+    battery_pack,
+    battery_pack_advance,
+    battery_pack_begin,
+    pack_tables,
+)
 from hevsim.components.battery import charge_current, pack_ocv_r
 from hevsim.components.body import aero_force, grade_force, road_load_force, rolling_force
 from hevsim.components.bus import (
@@ -263,7 +270,7 @@ def battery_tables(p, bat, soc, current_sign):
 
 DRIVER_KINDS = ("proportional",)
 SUPERVISOR_KINDS = ("thermostat", "schedule")
-BATTERY_KINDS = ("tables", "ecm")
+BATTERY_KINDS = ("tables", "ecm", "pack")
 
 
 @njit(cache=True)
@@ -289,6 +296,8 @@ def battery_state(kind, p, bat, soc, current_sign):
     """
     if kind == 1:
         return battery_ecm(p, bat, soc, current_sign)
+    if kind == 2:
+        return battery_pack(p, bat, soc, current_sign)
     return battery_tables(p, bat, soc, current_sign)
 
 
@@ -406,6 +415,8 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
             t_regen_req = -f_brake_req * r / ratio * p[GEFF]  # motor torque for the full request
             t_m = regen_torque(t_regen_req, m_min, v > p[REGENV])
         # the bus balance (components.bus): battery power limits bound the motor's torque
+        if bat_kind == 2:  # a pack: its BMS sets p[BIDIS], p[BICHG] and the cooling load p[PAUX]
+            battery_pack_begin(p, bat)
         ocv, r_b = battery_state(bat_kind, p, bat, soc, 1.0)
         ocv_c, r_c = battery_state(bat_kind, p, bat, soc, -1.0)
         p_dis_max, p_chg_max = battery_power_limits(ocv, r_b, ocv_c, r_c, p[BIDIS], p[BICHG])
@@ -469,6 +480,8 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
             battery_ecm_advance(p, bat, i_bat, dt)
         i_soc = charge_current(i_bat, p[BCEFF])
         soc1 = soc - i_soc * dt / cap_as
+        if bat_kind == 2:  # a pack steps its cells, thermal model and cooling loop: its SOC
+            soc1 = battery_pack_advance(p, bat, i_bat, dt)
 
         # ---------------- energy audit ------------------------------------------------------
         e_chem = ocv_b * i_soc * dt
