@@ -11,7 +11,14 @@ Per step = set the inputs + ``doStep`` + get the outputs:
 
 Targets: native cell <= 2 us per step, native 12-cell module <= 10 us, export <= 5 s.
 
-Run: ``.venv/bin/python benchmarks/bench_native_fmu.py [--steps 20000]``
+The module thermal ROM FMU (issue 16 item 3; the ROM of ``examples/module_thermal.toml`` on its
+default mesh, built first unless ``--rom FILE`` is given): per step = set its 43 inputs (heat
+per cell, fluid per segment, ambient) + ``doStep`` + get the 24 cell temperatures (mean, hot
+spot), through FMPy's C-level calls, against one step of the Python ROM
+(:class:`hevsim.thermal.rom.RomStepper`, one module, plus its cell mean and hot-spot outputs)
+measured in the same run; and its export time.
+
+Run: ``.venv/bin/python benchmarks/bench_native_fmu.py [--steps 20000] [--rom module.rom.npz]``
 """
 
 from __future__ import annotations
@@ -153,6 +160,83 @@ def host_loop_us(fmu: Path, steps: int, current_a: float, tmp: Path) -> float:
     return float(out.stdout.split()[0])
 
 
+def rom_fmu_step_us(fmu: Path, steps: int) -> float:
+    """Per-step time [us] of the ROM FMU: set all inputs + doStep + get the cell temperatures."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    md = read_model_description(str(fmu))
+    ins = [v.valueReference for v in md.modelVariables if v.causality == "input"]
+    outs = [v.valueReference for v in md.modelVariables if v.name.endswith(("_mean_temp_k", "_max_temp_k"))]
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu)),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bench")  # fmt: skip
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    n_cells = sum(1 for v in md.modelVariables if v.name.endswith("_heat_w") and v.causality == "input")
+    vin, vout = (ctypes.c_uint * len(ins))(*ins), (ctypes.c_uint * len(outs))(*outs)
+    start = [float(v.start) for v in md.modelVariables if v.causality == "input"]
+    u, y = (ctypes.c_double * len(ins))(*start), (ctypes.c_double * len(outs))()
+    set_real, do_step, get_real, comp = (
+        slave.fmi2SetReal,
+        slave.fmi2DoStep,
+        slave.fmi2GetReal,
+        slave.component,
+    )
+    t0 = time.perf_counter()
+    for k in range(steps):
+        heat = 2.0 if k % 10 < 5 else 0.8
+        for c in range(n_cells):
+            u[c] = heat
+        set_real(comp, vin, len(ins), u)
+        do_step(comp, float(k), 1.0, 1)
+        get_real(comp, vout, len(outs), y)
+    elapsed = time.perf_counter() - t0
+    slave.terminate()
+    slave.freeInstance()
+    return elapsed / steps * 1e6
+
+
+def python_rom_step_us(rom: Any, steps: int) -> float:
+    """Per-step time [us] of the Python ROM (RomStepper, one module) with its cell outputs."""
+    import numpy as np
+
+    from hevsim.thermal.rom import RomStepper
+
+    meta = rom.metadata
+    st = RomStepper(rom, float(meta["dt_s"]), rom.wall_h_range_w_m2k[1], float(meta["initial_temp_k"]))
+    fluid = np.full((1, rom.n_segments), float(meta["inlet_temp_k"]))
+    hot, cold = np.full((1, rom.n_cells), 2.0), np.full((1, rom.n_cells), 0.8)
+    amb = float(meta["ambient_k"])
+    t0 = time.perf_counter()
+    for k in range(steps):
+        z = st.step(hot if k % 10 < 5 else cold, fluid, amb)
+        rom.cell_mean_k(z)
+        rom.cell_max_k(z)
+    return (time.perf_counter() - t0) / steps * 1e6
+
+
+def rom_case(rom_file: str | None, steps: int, tmp: Path) -> None:
+    """Export the ROM FMU and compare its step with the Python ROM's (same run)."""
+    from hevsim.battery.native.rom import export_rom_fmu
+    from hevsim.thermal.rom import build_rom_from_config, load_rom
+
+    if rom_file:
+        rom = load_rom(rom_file)
+    else:
+        rom, _ = build_rom_from_config(ROOT / "examples" / "module_thermal.toml")
+    fmu, t_export = timed(export_rom_fmu, rom, tmp / "rom.fmu")
+    fmu_us = rom_fmu_step_us(fmu, steps)
+    py_us = python_rom_step_us(rom, steps)
+    print(
+        f"\nthermal ROM (order {rom.order}, {rom.n_cells} cells, {rom.n_segments} segments): "
+        f"export {t_export:.2f} s"
+    )
+    print(f"{'per step':<13}{'native FMPy us':>16}{'Python ROM us':>15}{'ratio':>8}")
+    print(f"{'ROM':<13}{fmu_us:>16.2f}{py_us:>15.2f}{py_us / fmu_us:>7.1f}x")
+
+
 def timed(fn: Any, *args: Any, **kw: Any) -> tuple[Any, float]:
     t0 = time.perf_counter()
     r = fn(*args, **kw)
@@ -164,6 +248,7 @@ def main() -> None:
     ap.add_argument(
         "--steps", type=int, default=20000, help="steps of the native runs (pythonfmu: steps / 10)"
     )
+    ap.add_argument("--rom", help="thermal ROM file (default: build the example module's ROM first)")
     a = ap.parse_args()
     from hevsim.battery.fmu import export_fmu
     from hevsim.battery.native import export_native_fmu
@@ -205,6 +290,7 @@ def main() -> None:
                 f"{label:<13}{host:>17.3f}{nat:>16.3f}{py:>19.2f}{py / nat:>7.0f}x"
                 f"   (target {target} us: {flag})"
             )
+        rom_case(a.rom, a.steps, tmp)
     print(load.text())
 
 

@@ -36,6 +36,7 @@ from hevsim.thermal.rom import RomStepper, ThermalRom, load_rom
 from hevsim.thermal.run import KELVIN, load_thermal_config, module_model
 
 pytestmark = pytest.mark.skipif(not CC, reason="no C compiler")
+ROOT = Path(__file__).resolve().parents[1]
 VERSIONS = (2, 3)
 
 
@@ -309,3 +310,34 @@ def test_libcosim_runs_the_rom_fmu(case: dict[str, Any]) -> None:
     ref = np.array([rom_outputs(rom, st.step(np.array(q)[None, :], fluid[None, :], amb)[0], fluid, amb, h)
                     for q in heat])  # fmt: skip
     assert_per_output(got, ref, TOL, "libcosim")
+
+
+HOST_SCRIPT = """
+import sys
+from fmpy import simulate_fmu
+
+for path in sys.argv[1:]:
+    res = simulate_fmu(path, stop_time=5.0, output_interval=1.0, fmi_type="CoSimulation")
+    print(path, len(res), res[res.dtype.names[1]][-1])
+"""
+
+
+def test_default_exported_fmus_survive_fresh_fmpy_hosts(case: dict[str, Any], tmp_path: Path) -> None:
+    """Issue 13 item 8 for the default export: the cell, module and ROM FMUs (``hevsim
+    export-fmu`` without options: native FMI 2.0) each loaded, run, freed and unloaded by FMPy
+    (``simulate_fmu``: ``freeInstance`` and ``dlclose``) in 20 fresh host processes: no aborts."""
+    from hevsim.battery.native import is_native_fmu
+
+    fmus = []
+    for example in ("cell", "module"):
+        out = tmp_path / f"{example}.fmu"
+        assert main(["export-fmu", str(ROOT / "examples" / f"{example}.toml"), "-o", str(out)]) == 0
+        fmus.append(str(out))
+    fmus.append(str(case["fmus"][2]))
+    assert all(is_native_fmu(f) for f in fmus)
+    for k in range(20):
+        proc = subprocess.run([sys.executable, "-c", HOST_SCRIPT, *fmus], capture_output=True, text=True,
+                              timeout=120, check=False)  # fmt: skip
+        assert proc.returncode == 0, (k, proc.returncode, proc.stderr[-2000:])
+        assert len(proc.stdout.splitlines()) == 3, proc.stdout
+        assert "corrupted" not in proc.stderr and "Abort" not in proc.stderr, proc.stderr

@@ -448,11 +448,12 @@ def platform_binary(fmi_version: int, model_identifier: str) -> str:
     return f"binaries/{folder}/{model_identifier}.{ext}"
 
 
-def compile_command(cc: str, src_dir: Path, fmi_version: int, out_lib: Path) -> list[str]:
-    """The compiler call that builds the FMU's shared library from its sources."""
+def compile_command(cc: str, src_dir: Path, fmi_version: int, out_lib: Path, opt: str = "-O2") -> list[str]:
+    """The compiler call that builds the FMU's shared library from its sources (``opt``: the
+    optimisation flag; IEEE semantics are kept: no fast-math, no contraction into FMA)."""
     shared = "-dynamiclib" if sys.platform == "darwin" else "-shared"
     return [
-        cc, "-std=c99", "-O2", "-ffp-contract=off", "-fPIC", shared, "-Wall", "-Wextra",
+        cc, "-std=c99", opt, "-ffp-contract=off", "-fPIC", shared, "-Wall", "-Wextra",
         f"-I{fmi_headers(fmi_version)}", f"-I{src_dir}", str(src_dir / WRAPPERS[fmi_version]),
         "-o", str(out_lib), "-lm",
     ]  # fmt: skip
@@ -518,6 +519,7 @@ def build_fmu(
     vars_: list[Variable],
     data: str,
     templates: tuple[str, ...],
+    opt: str = "-O2",
 ) -> Path:
     """Compile and pack a native FMU: ``data`` is the text of ``model_data.h`` (starting with
     its include guard ``#define HEVSIM_MODEL_DATA_H``, without the GUID, which hashes the
@@ -544,7 +546,7 @@ def build_fmu(
             (src / fname).write_text(text)
         (src / "buildDescription.xml").write_bytes(build_description(name, fmi_version))
         lib = Path(tmp) / Path(lib_name).name
-        cmd = compile_command(cc, src, fmi_version, lib)
+        cmd = compile_command(cc, src, fmi_version, lib, opt)
         proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
         if proc.returncode != 0 or not lib.is_file():
             raise NativeFMUError(

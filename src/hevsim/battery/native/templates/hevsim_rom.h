@@ -4,10 +4,11 @@
  * with the inputs at the end of the step) and of the ThermalRom output rows. The reduced
  * matrices come from model_data.h, generated from a ROM file (.rom.npz). SI units.
  *
- * Step: z_1 = (inv/dt) z_0 + inv B(h) u_1 with inv = (I/dt + K_s + h K_w)^-1, one product of
- * the row-stacked step matrix ST = [inv/dt | inv B(h)] with [z_0, u_1]. For the export's step
- * DT_DESIGN and wall film H_DESIGN, ST_DESIGN is RomStepper's own matrix (computed by numpy at
- * export), so the FMU equals the Python ROM to the rounding of the product; for another step
+ * Step: z_1 = (inv/dt) z_0 + inv B(h) u_1 with inv = (I/dt + K_s + h K_w)^-1, one product
+ * [z_0, u_1] ST of the step matrix ST = [inv/dt | inv B(h)]^T (NZU x NZ, as RomStepper). For the
+ * export's step DT_DESIGN and wall film H_DESIGN, ST_DESIGN is RomStepper's own matrix (computed
+ * by numpy at export), so the FMU equals the Python ROM to the rounding of the product (a
+ * vector-matrix product accumulated row by row, as BLAS's dgemv does); for another step
  * or film the instance computes ST itself (LU with partial pivoting, hv_step_matrices) and keeps
  * it (hv_cache) until dt or h changes. The state of an instance is z and the variables; the step
  * matrices are derived data.
@@ -30,11 +31,11 @@ typedef struct {
     double time;
 } hv_data;
 
-/* the step matrices of the last (dt, h): st[j] = row j of [inv/dt | inv B(h)] */
+/* the step matrix of the last (dt, h): st = [inv/dt | inv B(h)]^T */
 typedef struct {
     int valid;
     double dt, h;
-    double st[NZ][NZU];
+    double st[NZU][NZ];
     double lu[NZ][NZ];
     double inv[NZ][NZ];
     int piv[NZ];
@@ -55,24 +56,36 @@ static double hv_dot(const double *a, const double *b, int n)
     return s;
 }
 
+/* y[0..m-1] = x[0..n-1] a, a an n x m row-major matrix (accumulated row by row, so each y[j]
+ * sums in the same order whatever the vector width the compiler uses) */
+static void hv_vecmat(const double *x, int n, const double *a, int m, double *y)
+{
+    int i, j;
+    for (j = 0; j < m; j++) y[j] = 0.0;
+    for (i = 0; i < n; i++) {
+        const double xi = x[i], *row = a + (size_t)i * (size_t)m;
+        for (j = 0; j < m; j++) y[j] += xi * row[j];
+    }
+}
+
 /* the outputs of state z with the fluid temperatures fluid_k[NSEG] and ambient_k */
 static void hv_outputs(hv_data *d, const double *fluid_k, double ambient_k)
 {
     int c, s, k;
     double h = d->r[VR_WALL_H_W_M2K];
+    double cand[NCELL * NCAND], wall[NSEG];
+    hv_vecmat(d->z, NZ, &OUT_MEAN_T[0][0], NCELL, &d->r[VR_CELL_MEAN_TEMP0]);
+    hv_vecmat(d->z, NZ, &OUT_CAND_T[0][0], NCELL * NCAND, cand);
+    hv_vecmat(d->z, NZ, &OUT_WALL_T[0][0], NSEG, wall);
     for (c = 0; c < NCELL; c++) {
-        double hot = hv_dot(OUT_CAND[c * NCAND], d->z, NZ);
-        for (k = 1; k < NCAND; k++) {
-            double y = hv_dot(OUT_CAND[c * NCAND + k], d->z, NZ);
-            if (y > hot) hot = y;
-        }
-        d->r[VR_CELL_MEAN_TEMP0 + c] = hv_dot(OUT_MEAN[c], d->z, NZ);
+        double hot = cand[c * NCAND];
+        for (k = 1; k < NCAND; k++)
+            if (cand[c * NCAND + k] > hot) hot = cand[c * NCAND + k];
         d->r[VR_CELL_MAX_TEMP0 + c] = hot;
     }
     for (s = 0; s < NSEG; s++) {
-        double w = hv_dot(OUT_WALL[s], d->z, NZ);
-        d->r[VR_SEGMENT_WALL_TEMP0 + s] = w / WALL_AREA[s];
-        d->r[VR_SEGMENT_WALL_HEAT0 + s] = h * (w - WALL_AREA[s] * fluid_k[s]);
+        d->r[VR_SEGMENT_WALL_TEMP0 + s] = wall[s] / WALL_AREA[s];
+        d->r[VR_SEGMENT_WALL_HEAT0 + s] = h * (wall[s] - WALL_AREA[s] * fluid_k[s]);
     }
     d->r[VR_AMBIENT_HEAT_W] = hv_dot(d->z, FILM_ROW, NZ) - B_AMB_TOTAL * ambient_k - F_CONST_TOTAL;
     d->r[VR_STORED_HEAT_J] = hv_dot(d->z, ENERGY, NZ);
@@ -137,7 +150,7 @@ static int hv_step_matrices(hv_cache *cache, double dt, double h)
         for (i = 0; i < NZ; i++) cache->inv[i][j] = col[i];
     }
     for (j = 0; j < NZ; j++) {
-        for (i = 0; i < NZ; i++) cache->st[j][i] = cache->inv[j][i] / dt;
+        for (i = 0; i < NZ; i++) cache->st[i][j] = cache->inv[j][i] / dt;
         for (k = 0; k < NU; k++) {
             double s = 0.0;
             for (i = 0; i < NZ; i++) {
@@ -146,7 +159,7 @@ static int hv_step_matrices(hv_cache *cache, double dt, double h)
                            : k == NCELL + NSEG ? B_AMB[i] : B_CONST[i];
                 s += cache->inv[j][i] * b;
             }
-            cache->st[j][NZ + k] = s;
+            cache->st[NZ + k][j] = s;
         }
     }
     cache->dt = dt;
@@ -160,8 +173,7 @@ static int hv_do_step(hv_data *d, hv_cache *cache, double t, double dt, char *ms
 {
     double zu[NZU];
     double h = d->r[VR_WALL_H_W_M2K];
-    const double(*st)[NZU];
-    int j;
+    const double(*st)[NZ];
     if (!(dt > 0.0) || !isfinite(dt)) {
         snprintf(msg, n, "communication step size %g s: expected a positive number of seconds", dt);
         return 1;
@@ -176,14 +188,14 @@ static int hv_do_step(hv_data *d, hv_cache *cache, double t, double dt, char *ms
                 return 1;
             }
         }
-        st = (const double(*)[NZU])cache->st;
+        st = (const double(*)[NZ])cache->st;
     }
     memcpy(zu, d->z, sizeof(d->z));
     memcpy(zu + NZ, &d->r[VR_CELL_HEAT0], NCELL * sizeof(double));
     memcpy(zu + NZ + NCELL, &d->r[VR_SEGMENT_FLUID_TEMP0], NSEG * sizeof(double));
     zu[NZ + NCELL + NSEG] = d->r[VR_AMBIENT_TEMP_K];
     zu[NZ + NCELL + NSEG + 1] = 1.0;
-    for (j = 0; j < NZ; j++) d->z[j] = hv_dot(st[j], zu, NZU);
+    hv_vecmat(zu, NZU, &st[0][0], NZ, d->z);
     hv_outputs(d, &d->r[VR_SEGMENT_FLUID_TEMP0], d->r[VR_AMBIENT_TEMP_K]);
     d->time = t + dt;
 #ifdef VR_TIME
