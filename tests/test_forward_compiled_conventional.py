@@ -129,3 +129,28 @@ def test_fuel_cut_burns_no_fuel_and_the_engine_drags_with_its_closed_throttle_to
 def test_fuel_cut_speed_is_validated(cfg: Any) -> None:
     with pytest.raises(ConfigError, match="fuel_cut_speed_rpm"):
         cfg.replace(**{"controller.fuel_cut_speed_rpm": -5.0})
+
+
+@pytest.mark.parametrize("path", ["conventional_sedan.toml", "parallel_hev.toml", "bev.toml"])
+def test_batch_variants_are_validated_like_a_file(path: str) -> None:
+    """The batch's fast variant validation gives the configuration cfg.replace gives, and
+    the same errors (a bound, a cross-key check)."""
+    from hevsim.architectures import architecture
+    from hevsim.sim.forward import variant_config
+
+    cfg = C.load_vehicle_config(ROOT / "examples" / path)
+    spec, cache = architecture(cfg.architecture).spec, {}
+    for changes in (
+        {"body.mass_kg": 1500.0},
+        {"body.mass_kg": 1400.0, "final_drive.ratio": 3.0, "tire.radius_m": 0.3},
+    ):
+        assert variant_config(cfg, changes, spec, cache) == cfg.replace(**changes)
+    bads: list[dict[str, float]] = [{"body.mass_kg": -1.0}, {"battery.soc_min": 0.99}]
+    if cfg.architecture != "bev":  # a shift schedule that hunts
+        bads.append({"controller.upshift_rpm": 1.0, "controller.downshift_rpm": 5000.0})
+    for bad in bads:
+        with pytest.raises(ConfigError) as fast:
+            variant_config(cfg, bad, spec, cache)
+        with pytest.raises(ConfigError) as ref:
+            cfg.replace(**bad)
+        assert str(fast.value) == str(ref.value)

@@ -418,8 +418,9 @@ def simulate_batch_architecture(
     cyc = cycle if isinstance(cycle, DriveCycle) else load_cycle(cycle or cfg.simulation.cycle)
     t0 = time.perf_counter()
     values = [{k: np.broadcast_to(a, (n,))[i].item() for k, a in arrays.items()} for i in range(n)]
-    cfgs = [cfg.replace(**v) if v else cfg for v in values]  # validated like a file
     arch = architecture(cfg.architecture, cfg.name)
+    sections: dict[str, dict[str, Any]] = {}
+    cfgs = [variant_config(cfg, v, arch.spec, sections) for v in values]
     mod = arch.power_module()
     hook = getattr(mod, "simulate_batch_compiled", None) if use_compiled(compiled) else None
     rec = None
@@ -447,6 +448,35 @@ def simulate_batch_architecture(
             if not np.all(np.isfinite([float(x["value"]) for x in m.values()])):
                 raise DomainError(f"batch: variant {i} ({v}) produced non-finite results.")
     return BatchResult(pd.DataFrame(rows), time.perf_counter() - t0)
+
+
+def variant_config(cfg: Any, changes: dict[str, Any], spec: Any, sections: dict[str, dict[str, Any]]) -> Any:
+    """``cfg.replace(**changes)`` validated as a file would be, faster for a batch: only the
+    sections ``changes`` touch are validated again (every key of them, with the same checks),
+    then the architecture's cross-key checks (``spec.check``) run on the result. ``sections``
+    caches the sections' values as plain dicts across the variants of a batch."""
+    from hevsim import schema
+
+    by_section: dict[str, dict[str, Any]] = {}
+    for key, value in changes.items():
+        section, _, name = key.partition(".")
+        current = getattr(cfg, section, None)
+        if not name or not dataclasses.is_dataclass(current):
+            return cfg.replace(**changes) if changes else cfg  # a top-level key: the full path
+        by_section.setdefault(section, {})[name] = value
+    if not by_section:
+        return cfg
+    source = f"{cfg.name} (modified)"
+    new = {}
+    for section, vals in by_section.items():
+        current = getattr(cfg, section)
+        if section not in sections:
+            sections[section] = schema.to_dict(current)
+        data = {**sections[section], **vals}
+        new[section] = schema.build_section(type(current), data, source, section, {}, {})
+    out = dataclasses.replace(cfg, **new)
+    spec.check(out, source)
+    return out
 
 
 def _run(
