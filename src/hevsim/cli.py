@@ -341,11 +341,11 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     check_option("--ambient-c", args.ambient_c, CellSection, "temp_c")
 
     out = Path(args.out) if args.out else Path("results") / f"calibration_{Path(args.test).stem}"
-    _prepare(args, out, args.params, args.test, args.validate)
-    if args.fit is not None and args.validate is not None:
+    _prepare(args, out, args.params, args.test, args.validate, *(args.data or []))
+    if args.fit is not None and (args.validate is not None or args.data):
         from hevsim.errors import InputError
 
-        raise InputError("calibrate: --validate needs the full calibration (leave out --fit).")
+        raise InputError("calibrate: --validate and --data need the full calibration (leave out --fit).")
     no_temp_ok = args.fit is None and args.ambient_c is not None  # full calibration: temp_k optional
     record = CellTestRecord.from_csv(args.test, temperature_k=c_to_k(args.ambient_c) if no_temp_ok else None)
     if args.fit is None:
@@ -382,6 +382,10 @@ def _calibrate_full(args: argparse.Namespace, record: Any, out: Path) -> int:
         n_rc=args.n_rc,
         charge_transfer=not args.no_charge_transfer,
     )
+    if args.data:  # tests at other ambients: R0(SOC, T) and the activation energy
+        from hevsim.battery.identify import fit_temperature
+
+        result = fit_temperature(result, [CellTestRecord.from_csv(f) for f in args.data])
     if args.validate is not None:
         ambient_k = c_to_k(args.ambient_c) if args.ambient_c is not None else None
         val = CellTestRecord.from_csv(args.validate, temperature_k=ambient_k)
@@ -839,6 +843,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--no-charge-transfer", action="store_true", help="full calibration: no Butler-Volmer term"
     )
     p.add_argument("--validate", metavar="FILE", help="full calibration: validation test CSV (drive cycle)")
+    p.add_argument(
+        "--data",
+        action="append",
+        metavar="FILE",
+        help="full calibration: a pulse test at another ambient (repeatable; temp_k column required, "
+        "first row at rest at the ambient): R0(SOC, T) tables and an Arrhenius activation energy",
+    )
     p.add_argument(
         "--validate-soc", type=float, help="SOC at the start of --validate (default: from its first voltage)"
     )

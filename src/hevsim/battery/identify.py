@@ -76,6 +76,8 @@ class Identification:
     validation: pd.DataFrame | None = None
     validation_errors: pd.DataFrame | None = None
     metadata: dict[str, Any] = field(default_factory=dict)
+    r0_temperature: pd.DataFrame | None = None
+    """R0 per (SOC, ambient) from the instantaneous steps (:func:`fit_temperature`)."""
 
     def flagged(self) -> pd.DataFrame:
         """Rows of the parameter table the test cannot identify."""
@@ -83,7 +85,7 @@ class Identification:
 
     def save(self, out_dir: str | Path, force: bool = False) -> Path:
         """Write cell.toml, tables.csv, parameters.csv, fit.json, timeseries.csv, fit.png (and
-        validation.csv, validation_errors.csv, validation.png) atomically."""
+        validation.csv, validation_errors.csv, validation.png; r0_temperature.csv) atomically."""
         with atomic_directory(out_dir, force=force) as tmp:
             (tmp / "cell.toml").write_text(parameter_toml(self.params, self.metadata))
             table_frame(self.params).to_csv(tmp / "tables.csv", index=False)
@@ -102,6 +104,8 @@ class Identification:
                 self.validation.to_csv(tmp / "validation.csv", index=False)
                 self.validation_errors.to_csv(tmp / "validation_errors.csv", index=False)
                 plot_fit(self.validation, tmp / "validation.png", "validation")
+            if self.r0_temperature is not None:
+                self.r0_temperature.to_csv(tmp / "r0_temperature.csv", index=False)
         return Path(out_dir)
 
 
@@ -167,17 +171,24 @@ def ocv_points(
     return np.array(s_out), np.array([float(np.mean(v)) for v in v_out])
 
 
-def step_resistances(
-    rec: CellTestRecord, soc: FloatArray, min_step_a: float
-) -> tuple[FloatArray, FloatArray]:
-    """(SOC [-], resistance [ohm]) of every current step larger than ``min_step_a``: ``-dV/dI``
-    over one sample."""
+def _steps(rec: CellTestRecord, min_step_a: float) -> tuple[np.ndarray, FloatArray]:
+    """Rows ``k`` (the last row before the step) and resistances [ohm] ``-dV/dI`` over one
+    sample of every current step larger than ``min_step_a`` [A] (positive ones only)."""
     di = np.diff(rec.current_a)
     dv = np.diff(rec.voltage_v)
     k = np.flatnonzero(np.abs(di) >= min_step_a)
     r = -dv[k] / di[k]
     ok = r > 0
-    return soc[k[ok]], r[ok]
+    return k[ok], r[ok]
+
+
+def step_resistances(
+    rec: CellTestRecord, soc: FloatArray, min_step_a: float
+) -> tuple[FloatArray, FloatArray]:
+    """(SOC [-], resistance [ohm]) of every current step larger than ``min_step_a``: ``-dV/dI``
+    over one sample."""
+    k, r = _steps(rec, min_step_a)
+    return soc[k], r
 
 
 def step_charge_transfer(
@@ -717,6 +728,157 @@ def validate(
     return dataclasses.replace(result, validation=ts, validation_errors=errors, metadata=meta)
 
 
+def fit_temperature(
+    result: Identification,
+    records: list[CellTestRecord],
+    min_step_fraction: float = 0.1,
+) -> Identification:
+    """R0(SOC, T) and an Arrhenius activation energy from pulse tests at other ambients.
+
+    ``result`` is the identification at the reference ambient (its test's steps count too);
+    each of ``records`` is a pulse test at one ambient (the temperature of its first row,
+    which should be at rest; the column ``temp_k`` is required), starting at rest (its SOC is
+    the fitted OCV's inverse of the first voltage). From every current step larger than
+    ``min_step_fraction`` times the record's largest current: ``R0 = -dV/dI`` over one
+    sample, the SOC and the cell temperature ``T`` [K] before the step. Then
+
+    * the activation energy ``Ea`` [J/mol] by linear least squares on
+      ``ln R0 = a(SOC bin) + Ea / R_gas (1/T - 1/T_ref)`` over all steps (one intercept per
+      SOC breakpoint, ``T_ref`` the reference ambient), with its standard error;
+    * R0 per (SOC breakpoint, ambient): the median of the steps nearest that breakpoint, with
+      the standard error of the median (1.25 sigma / sqrt(n));
+    * the parameter set's R_s tables over the ambients: the reference column (the least-squares
+      R_s) times the measured ratio R0(SOC, T) / R0(SOC, T_ref) (the Arrhenius factor where a
+      breakpoint has no step at that ambient), the OCV copied to every column (its temperature
+      dependence is not fitted); the charge-transfer exchange current takes ``Ea`` (so its
+      resistance follows the same law) and ``t_ref_k`` becomes the reference ambient. The RC
+      resistances keep their reference values (the cell model has no temperature law for them).
+    """
+    p = result.params
+    if p.temperature_k.size != 1:
+        raise InputError("calibrate --data: the identification already has several temperature columns.")
+    if not records:
+        raise InputError("calibrate --data: no tests at other temperatures given.")
+    ts = result.timeseries
+    t_ref_amb = float(result.metadata.get("port_temp_k", p.capacity.t_ref_k))
+    t_ref_meas = ts["temp_measured_k"].to_numpy(dtype=float)
+    ref = CellTestRecord(
+        ts["time_s"].to_numpy(dtype=float),
+        ts["current_a"].to_numpy(dtype=float),
+        ts["voltage_measured_v"].to_numpy(dtype=float),
+        np.where(np.isfinite(t_ref_meas), t_ref_meas, t_ref_amb),
+        source=str(result.metadata.get("source_file", "<reference>")),
+    )
+    ocv = p.ocv_discharge_v[:, 0]
+    cap_c = p.capacity.c0_c
+    axis = p.soc
+    rows: list[tuple[int, float, float, float]] = []  # (file, soc, temperature [K], R0 [ohm])
+    ambients = [t_ref_amb]
+    for j, rec in enumerate([ref, *records]):
+        if j == 0:
+            soc = ts["soc"].to_numpy(dtype=float)
+        else:
+            if not rec.temperature_measured:
+                raise InputError(f"{rec.source}: column 'temp_k' is required for a test at another ambient.")
+            if np.any(np.diff(ocv) <= 0):
+                raise InputError("calibrate --data: the fitted OCV is not strictly increasing.")
+            soc0 = float(np.clip(np.interp(rec.voltage_v[0], ocv, axis), 0.0, 1.0))
+            soc = coulomb_soc(rec, soc0, cap_c)
+            ambients.append(float(rec.temp_k[0]))
+        i_max = float(np.max(np.abs(rec.current_a)))
+        k, r = _steps(rec, min_step_fraction * i_max) if i_max > 0 else (np.zeros(0, int), np.zeros(0))
+        if k.size == 0:
+            raise InputError(f"{rec.source}: no current steps: R0 cannot be fitted at this temperature.")
+        rows += [(j, float(soc[kk]), float(rec.temp_k[kk]), float(rr)) for kk, rr in zip(k, r, strict=True)]
+    f_idx = np.array([r[0] for r in rows])
+    s_st = np.array([r[1] for r in rows])
+    t_st = np.array([r[2] for r in rows])
+    r_st = np.array([r[3] for r in rows])
+    amb = np.array(ambients)
+    t_axis = np.unique(np.round(amb, 2))
+    if t_axis.size < 2:
+        raise InputError(
+            f"calibrate --data: every test is at the ambient {amb[0]:.2f} K (its first temperature "
+            "sample): R0(SOC, T) and the activation energy need tests at two ambients or more."
+        )
+    near = np.argmin(np.abs(s_st[:, None] - axis[None, :]), axis=1)
+    bins = np.unique(near)
+    a = np.zeros((r_st.size, bins.size + 1))
+    a[np.arange(r_st.size), np.searchsorted(bins, near)] = 1.0
+    a[:, -1] = 1.0 / t_st - 1.0 / t_ref_amb
+    coef, *_ = np.linalg.lstsq(a, np.log(r_st), rcond=None)
+    dof = max(r_st.size - a.shape[1], 1)
+    s2 = float(np.sum((a @ coef - np.log(r_st)) ** 2)) / dof
+    cov = np.linalg.pinv(a.T @ a) * s2
+    ea = float(coef[-1]) * K.R_GAS_J_PER_MOL_K
+    ea_se = float(np.sqrt(max(cov[-1, -1], 0.0))) * K.R_GAS_J_PER_MOL_K
+    # R0 per (SOC breakpoint, ambient)
+    col_of_file = np.searchsorted(t_axis, np.round(amb, 2))
+    r0_rows = []
+    med = np.full((axis.size, t_axis.size), np.nan)
+    for c, t_c in enumerate(t_axis):
+        for b in bins:
+            sel = np.isin(f_idx, np.flatnonzero(col_of_file == c)) & (near == b)
+            if not sel.any():
+                continue
+            vals = r_st[sel]
+            med[b, c] = float(np.median(vals))
+            se = 1.2533 * float(np.std(vals, ddof=1)) / np.sqrt(vals.size) if vals.size > 1 else float("nan")
+            r0_rows.append(
+                {"soc": float(axis[b]), "temp_k": float(t_c), "r0_ohm": med[b, c], "std_error_ohm": se,
+                 "steps": int(vals.size)}
+            )  # fmt: skip
+    c_ref = int(col_of_file[0])
+    arrhenius = np.exp(ea / K.R_GAS_J_PER_MOL_K * (1.0 / t_axis - 1.0 / t_ref_amb))
+    ratio = med / med[:, [c_ref]]
+    ratio = np.where(np.isfinite(ratio), ratio, arrhenius[None, :])
+    rs_c = p.rs_charge_ohm[:, :1] * ratio
+    rs_d = p.rs_discharge_ohm[:, :1] * ratio
+    ct = p.charge_transfer
+    if ct.i0_a > 0:
+        ct = dataclasses.replace(ct, ea_j_per_mol=float(np.clip(ea, 0.0, 2e5)))
+    n_t = t_axis.size
+    params = _with(
+        p,
+        temperature_k=t_axis,
+        ocv_charge_v=np.repeat(p.ocv_charge_v[:, :1], n_t, axis=1),
+        ocv_discharge_v=np.repeat(p.ocv_discharge_v[:, :1], n_t, axis=1),
+        rs_charge_ohm=rs_c,
+        rs_discharge_ohm=rs_d,
+        capacity_factor=np.ones(n_t),
+        capacity=dataclasses.replace(p.capacity, t_ref_k=t_ref_amb),
+        charge_transfer=ct,
+    )
+    flags = []
+    if not ea > 0:
+        flags.append("not positive: the resistance does not fall with temperature in these tests")
+    if not ea_se < abs(ea):
+        flags.append("standard error larger than the value")
+    ea_row = {
+        "name": "r0_ea_j_per_mol",
+        "value": ea,
+        "unit": "J/mol",
+        "std_error": ea_se,
+        "ci95_low": ea - 1.96 * ea_se,
+        "ci95_high": ea + 1.96 * ea_se,
+        "flag": "; ".join(flags),
+        "note": f"Arrhenius fit of {r_st.size} step resistances at {n_t} ambients",
+    }
+    table = pd.concat([result.parameters, pd.DataFrame([ea_row])], ignore_index=True)
+    meta = {
+        **result.metadata,
+        "temperature_files": [rec.source for rec in records],
+        "temperature_sha256": [_sha256(rec.source) for rec in records],
+        "ambient_temperatures_k": [float(t) for t in t_axis],
+        "r0_activation_energy_j_per_mol": ea,
+        "r0_activation_energy_std_j_per_mol": ea_se,
+        "fitted_temp_range_k": [float(t_st.min()), float(t_st.max())],
+    }
+    return dataclasses.replace(
+        result, params=params, parameters=table, metadata=meta, r0_temperature=pd.DataFrame(r0_rows)
+    )
+
+
 def error_table(ts: pd.DataFrame, capacity_ah: float) -> pd.DataFrame:
     """Voltage RMSE / max error [V] per |current| range [C-rate] (:data:`CURRENT_BINS_C`) and
     overall, and the temperature RMSE [K] overall."""
@@ -845,6 +1007,7 @@ __all__ = [
     "CapacitySection",
     "Identification",
     "error_table",
+    "fit_temperature",
     "identify",
     "parameter_toml",
     "validate",
