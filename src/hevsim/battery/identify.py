@@ -11,9 +11,14 @@ Order of the steps (each feeds the next as its initial guess):
 3. **Least squares** on the voltage (``scipy.optimize.least_squares``): the OCV and R_s
    values at the tested SOC breakpoints, ``n_rc`` persistent RC pairs (same in both
    directions), and the Butler-Volmer charge-transfer term (``i0``, ``scale``); the model
-   options are ``rc_mode = "persistent"`` and ``ocv_mode = "step_consistent"``.
+   options are ``rc_mode = "persistent"`` and ``ocv_mode = "step_consistent"``. The Jacobian
+   is analytic: the kernel's forward sensitivities
+   (:func:`hevsim.battery.kernel.run_cell_sensitivity`, one extended run instead of one run
+   per parameter) mapped through the table construction by the chain rule.
 4. **Thermal**: the heat capacity and skin resistance on the temperature, with the electrical
    parameters fixed.
+5. Optionally (:func:`fit_temperature`, ``hevsim calibrate --data``): R0(SOC, T) and an
+   Arrhenius activation energy from tests at other ambients.
 
 Every fitted parameter is reported with its standard error and 95 % interval (from the
 Jacobian at the optimum; log-parameters give asymmetric intervals) and flagged when the test
