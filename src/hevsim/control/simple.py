@@ -27,19 +27,22 @@ def shift_gear(
     return g
 
 
+@njit(cache=True, inline="always")
+def kickdown_gear(j, gear):
+    """The ``j``-th gear (``j`` = 0, 1, ...) a shift schedule tries from the scheduled
+    ``gear``: ``gear`` itself, then each lower gear down to first (kick-down), then the higher
+    gears."""
+    if j == 0:
+        return gear
+    return gear - j if j < gear else j + 1
+
+
 @njit(cache=True)
 def kickdown_order(gear, n_gears):
-    """Gears (1..``n_gears``) a shift schedule tries, as floats: the scheduled ``gear``, then
-    each lower gear down to first (kick-down), then the higher gears."""
+    """The gears (1..``n_gears``) of :func:`kickdown_gear` in order, as floats."""
     order = np.empty(n_gears)
-    order[0] = gear
-    j = 1
-    for g in range(gear - 1, 0, -1):
-        order[j] = g
-        j += 1
-    for g in range(gear + 1, n_gears + 1):
-        order[j] = g
-        j += 1
+    for j in range(n_gears):
+        order[j] = kickdown_gear(j, gear)
     return order
 
 

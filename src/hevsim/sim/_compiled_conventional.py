@@ -6,7 +6,7 @@ compiled: one run is one call of :func:`_run_variant`, a batch of variants one p
 over it (:func:`_run_batch`). The power flow is the architecture's own scalar kernel
 (:func:`hevsim.architectures.conventional.operating_point`, :func:`point_details`,
 :func:`point_losses`, :func:`power_mode_code`), the road load :func:`road_load_force`, the
-schedule :func:`hevsim.control.simple.shift_gear` and :func:`kickdown_order`: nothing is
+schedule :func:`hevsim.control.simple.shift_gear` and :func:`kickdown_gear`: nothing is
 restated here. Parameters cross into compiled code by name (:class:`RunScalars`,
 :class:`~hevsim.architectures.conventional.DrivelineData`,
 :class:`~hevsim.components.engine.EngineTables`).
@@ -29,7 +29,7 @@ from hevsim.architectures.conventional import (
     power_mode_code,
 )
 from hevsim.components.body import grade_force, road_load_force, rolling_force
-from hevsim.control.simple import ShiftSchedule, kickdown_order, shift_gear
+from hevsim.control.simple import ShiftSchedule, kickdown_gear, shift_gear
 from hevsim.errors import DomainError
 from hevsim.sim import kernel as K
 from hevsim.sim.forward import BISECTION_STEPS, BatchRecord, ForwardRecord
@@ -128,14 +128,14 @@ def _try_speed(
     f = road_load_force(v_mid, a, g, m, mf, cd, area, rho, wind, crr) if v_mid > 0.0 else 0.0
     w_wheel, t_wheel = v_mid / r, f * r
     sched = shift_gear(gear_prev, w_wheel * fd, ratios, w_up, w_down)
-    order = kickdown_order(sched, ratios.shape[0])
-    for j in range(order.shape[0]):
+    for j in range(ratios.shape[0]):
+        gear = kickdown_gear(j, sched)
         p = operating_point(
-            w_wheel, t_wheel, order[j], ratios, effs, fd, fd_eff, idle, w_cut, redline, stop_start, use_map,
-            lhv, scale, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
+            w_wheel, t_wheel, float(gear), ratios, effs, fd, fd_eff, idle, w_cut, redline, stop_start,
+            use_map, lhv, scale, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
         )  # fmt: skip
         if not p[15]:
-            return int(order[j]), v_mid, a, g, f
+            return gear, v_mid, a, g, f
     return 0, v_mid, a, g, f
 
 
