@@ -59,7 +59,7 @@ def _speed_torque_grid(
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Engine speeds (S,), torques (S, T) and generator electrical output (S, T) [W]."""
     w = np.linspace(engine.stall_speed_radps, engine.redline_radps, OPLINE_SPEED_POINTS)
-    t_eng_max = engine.torque_scale * engine.max_torque(w)
+    t_eng_max = engine.max_torque_nm(w)
     t_gen_min = np.asarray(generator.limits(w)[1], dtype=np.float64)  # most negative torque
     t_cap = np.minimum(t_eng_max, -t_gen_min)
     torque = t_cap[:, None] * np.linspace(0.0, 1.0, OPLINE_TORQUE_POINTS)[None, :]
@@ -103,7 +103,7 @@ def genset_operating_points(engine: Engine, generator: ElectricMachine, power_w:
     torque = np.where(feasible, t_at[best, cols], 0.0)
     if feasible.any():  # Newton on the torque at the chosen speed: the generator delivers p exactly
         ws, ts, ps = speed[feasible], torque[feasible], p[feasible]
-        cap = np.minimum(engine.torque_scale * engine.max_torque(ws), -np.asarray(generator.limits(ws)[1]))
+        cap = np.minimum(engine.max_torque_nm(ws), -np.asarray(generator.limits(ws)[1]))
         for _ in range(GENSET_NEWTON_STEPS):
             p_act = -np.asarray(generator.electrical_power(-ts, ws), dtype=np.float64)
             h = GENSET_NEWTON_DT_NM
@@ -229,7 +229,7 @@ class SeriesFormulation(HEVFormulation):
             on = (p > 0.0) & gs.feasible
             eng = hev.engine
             assert eng is not None
-            t_max = eng.torque_scale * eng.max_torque(np.where(on, gs.speed_radps, eng.stall_speed_radps))
+            t_max = eng.max_torque_nm(np.where(on, gs.speed_radps, eng.stall_speed_radps))
             wheel_motor = hev.gear.output_torque(flow.torque_nm - self.t_inertia[kk])
             fric = np.minimum(self.steps.wheel_torque_nm[kk] - wheel_motor, 0.0)
             st.details = {
