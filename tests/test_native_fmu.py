@@ -437,6 +437,26 @@ def test_sources_compile_with_strict_warnings(
         compile_strict(fmu, version, tmp_path, cc)
 
 
+@pytest.mark.skipif(not shutil.which("clang"), reason="clang is not installed")
+@pytest.mark.parametrize("version", VERSIONS)
+def test_fmu_built_by_clang_equals_in_process_model(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, version: int
+) -> None:
+    """A second compiler ($CC = clang) builds FMUs that give the same results (1e-12)."""
+    monkeypatch.setenv("CC", shutil.which("clang") or "")
+    p = load_cell_parameters(option_source("all", tmp_path))
+    current = 2.5 * cycle_cell_current("udds", 600.0, 1.0)
+    fmu = export_native_fmu(p, tmp_path / "clang.fmu", 0.7, 298.15, fmi_version=version)
+    with zipfile.ZipFile(fmu) as z:
+        assert "clang" in z.read(next(n for n in z.namelist() if n.startswith("binaries/"))).decode("latin-1")
+    r = Runner(fmu)
+    got = r.run({"current_a": current}, 1.0, CELL_OUTPUTS[:4])
+    r.close()
+    ts = Cell(p, soc_initial=0.7, temp_k=298.15).simulate(current, 1.0, 298.15).timeseries
+    for j, out in enumerate(CELL_OUTPUTS[:4]):
+        assert_close(got[:, j], ts[out].to_numpy(), f"clang {out}")
+
+
 @pytest.mark.parametrize("version", VERSIONS)
 def test_set_real_on_a_constant_or_output_is_refused(cli_cell_fmus: dict[int, Path], version: int) -> None:
     from fmpy.fmi1 import FMICallException
@@ -630,16 +650,19 @@ MODEL_OPTIONS["all"] = (
 )
 
 
+def option_source(name: str, folder: Path) -> Path:
+    """A TOML file in ``folder`` of the thesis cell with the model option(s) ``name`` on."""
+    src = Path(load_cell_parameters("thesis_table_4_1").source).read_text()
+    out = folder / f"{name}.toml"
+    out.write_text(src + f"\n{MODEL_OPTIONS[name]}\n")
+    return out
+
+
 @pytest.fixture(scope="module")
 def option_params(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """The thesis cell with each issue-14 model option on (and all of them), as TOML files."""
     folder = tmp_path_factory.mktemp("options")
-    src = Path(load_cell_parameters("thesis_table_4_1").source).read_text()
-    out = {}
-    for name, text in MODEL_OPTIONS.items():
-        out[name] = folder / f"{name}.toml"
-        out[name].write_text(src + f"\n{text}\n")
-    return out
+    return {name: option_source(name, folder) for name in MODEL_OPTIONS}
 
 
 @pytest.mark.parametrize("version", VERSIONS)
