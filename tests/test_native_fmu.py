@@ -703,11 +703,18 @@ def test_model_options_equal_in_process_model(
     assert_close(got[:, 2:], res.cells[:, :, 2], f"{option} module cell temperatures")
 
 
-def test_missing_compiler_is_a_clear_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_missing_compiler_is_a_clear_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     monkeypatch.setenv("PATH", str(tmp_path))
     monkeypatch.delenv("CC", raising=False)
     with pytest.raises(NativeFMUError, match=r"no C compiler found.*apt-get install gcc"):
         export_native_fmu("thesis_table_4_1", tmp_path / "x.fmu")
+    assert not (tmp_path / "x.fmu").exists()
+    # the default export of the command line: exit 2, what to install and the --pythonfmu way
+    assert main(["export-fmu", str(ROOT / "examples" / "cell.toml"), "-o", str(tmp_path / "x.fmu")]) == 2
+    err = capsys.readouterr().err
+    assert "no C compiler found" in err and "apt-get install gcc" in err and "--pythonfmu" in err, err
     assert not (tmp_path / "x.fmu").exists()
 
 
