@@ -9,8 +9,10 @@ controller it admits, the median of ``--repeats`` runs of
 ``hevsim.sim.forward.simulate_architecture(model, "udds")`` after one warm-up (loading and
 model building excluded), the share of it spent in the architecture's power flow, and the
 ratio to FASTSim 3's ``run_once()`` on its bundled 2016 Prius UDDS when FASTSim is installed
-(issue 11 targets: rule-based <= 1/5, ECMS with >= 50 candidates <= 1/2). The script only
-reports: it always exits 0.
+(issue 11 targets: rule-based <= 1/5, ECMS with >= 50 candidates <= 1/2). Rows ``(py)``
+time the Python reference loop (``compiled=False``) of the architectures that have a
+compiled run, as the same-run baseline of its speed-up. The script only reports: it always
+exits 0.
 """
 
 from __future__ import annotations
@@ -76,6 +78,19 @@ def main() -> int:
                 med = statistics.median(times)
                 ratio = f"{med / fastsim_s:9.1f}" if fastsim_s else f"{'-':>9}"
                 print(f"{label:<16}{kind:<17}{n:>11}{med:>10.3f}{ratio}")
+        # the Python reference loop of the architectures with a compiled run (same-run baseline)
+        for label in ("conventional", "bev"):
+            cfg = C.load_vehicle_config(REPO / EXAMPLES[label][0])
+            model = architecture(cfg.architecture).build(cfg)
+            simulate_architecture(cfg.architecture, model, cyc, compiled=False)  # warm-up
+            times = []
+            for _ in range(a.repeats):
+                t0 = time.perf_counter()
+                simulate_architecture(cfg.architecture, model, cyc, compiled=False)
+                times.append(time.perf_counter() - t0)
+            med = statistics.median(times)
+            ratio = f"{med / fastsim_s:9.1f}" if fastsim_s else f"{'-':>9}"
+            print(f"{label + ' (py)':<16}{cfg.controller.kind:<17}{1:>11}{med:>10.3f}{ratio}")
     print(load.text())
     return 0
 

@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+
 from _machine import OtherLoad
 
 REPO = Path(__file__).resolve().parents[1]
@@ -52,8 +53,10 @@ def main() -> int:
     from hevsim import config as C
     from hevsim.architectures import architecture
 
-    print(f"cores available: {len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count()}")
-    print(f"{'vehicle':<16}{'compiled':>9}{'variants':>9}{'per wall s':>12}{'per CPU s':>11}{'python loop/s':>15}{'ratio':>8}")
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    print(f"cores available: {cores}")
+    head = ("vehicle", "compiled", "variants", "per wall s", "per CPU s", "python loop/s", "ratio")
+    print("{:<16}{:>9}{:>9}{:>12}{:>11}{:>15}{:>8}".format(*head))
     with OtherLoad() as load:
         for label, path in VEHICLES.items():
             cfg = C.load_vehicle_config(REPO / path)
@@ -61,7 +64,8 @@ def main() -> int:
             _rate(cfg, 4, None)  # warm-up (compilation)
             wall, cpu = _rate(cfg, a.variants, None)
             base, _ = _rate(cfg, a.baseline, False)
-            print(f"{label:<16}{compiled!s:>9}{a.variants:>9}{wall:>12.0f}{cpu:>11.0f}{base:>15.1f}{wall / base:>8.1f}")
+            row = (label, str(compiled), a.variants, wall, cpu, base, wall / base)
+            print("{:<16}{:>9}{:>9}{:>12.0f}{:>11.0f}{:>15.1f}{:>8.1f}".format(*row))
     print(load.text())
     return 0
 
