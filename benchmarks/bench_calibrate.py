@@ -12,8 +12,12 @@ discharge of 0.1 SOC between levels) with the rests stretched so the test lasts 
 ``hevsim.battery.identify.identify`` then fits OCV, R0, two RC pairs, the charge-transfer
 term and the thermal pair, as ``hevsim calibrate PARAMS TEST.csv`` without ``--fit`` does.
 
-``--record`` times a test file instead (e.g. the 12 h DFN HPPC of
-``examples/validation/make_dfn_data.py hppc12``, which writes ``/tmp/dfn_hppc_12h.csv``).
+``--record`` times a test file instead, e.g. the 12 h DFN HPPC (the pulse pattern of the shipped
+``dfn_pulse.csv`` with 4665 s rests; PyBaMM, a few minutes)::
+
+    .venv/bin/python examples/validation/make_dfn_data.py hppc12   # writes ./dfn_hppc_12h.csv
+    .venv/bin/python benchmarks/bench_calibrate.py --record dfn_hppc_12h.csv \
+        --soc-initial 0.95 --capacity-ah 5
 
 Timed, on the same data in the same run, all with one thread (so the figures hold on a loaded
 machine; numba cache warmed on a short record first): the identification with the

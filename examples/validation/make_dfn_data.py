@@ -77,15 +77,16 @@ def _sim(initial_soc: float) -> pybamm.Simulation:
     return pybamm.Simulation(model, parameter_values=pv, solver=solver)
 
 
-def pulse_segments() -> list[tuple[float, int]]:
+def pulse_segments(rest_s: int = 900) -> list[tuple[float, int]]:
     """HPPC-like test from SOC 0.95: at each level 10 s pulses (1C, 2C, 3C; discharge then
-    charge, 40 s rests), a 1C discharge of 0.1 SOC (360 s) and a 900 s rest."""
+    charge, 40 s rests), a 1C discharge of 0.1 SOC (360 s) and a ``rest_s`` rest (900 s: the
+    shipped test, 13080 s; 4665 s: the 12 h test of ``benchmarks/bench_calibrate.py``)."""
     c1 = CAPACITY_AH
     seg: list[tuple[float, int]] = [(0.0, 600)]
     for _level in range(8):
         for rate in (1.0, 2.0, 3.0):
             seg += [(rate * c1, 10), (0.0, 40), (-rate * c1, 10), (0.0, 40)]
-        seg += [(c1, 360), (0.0, 900)]
+        seg += [(c1, 360), (0.0, rest_s)]
     return seg
 
 
@@ -173,13 +174,20 @@ def _write(path: Path, rows: np.ndarray) -> str:
 
 
 def main(parts: list[str]) -> None:
-    """Generate ``parts`` (pulse, udds, thevenin; all by default) and the provenance file."""
+    """Generate ``parts`` (pulse, udds, thevenin; all by default) and the provenance file;
+    ``hppc12`` writes the 12 h benchmark test ``dfn_hppc_12h.csv`` (not shipped) to the current
+    directory."""
     parts = parts or ["pulse", "udds", "thevenin"]
     if "pulse" in parts:
         _write(HERE / "dfn_pulse.csv", run_segments(_sim(0.95), pulse_segments()))
     if "udds" in parts:
         i = udds_current()
         _write(HERE / "dfn_udds.csv", run_segments(_sim(0.8), [(0.0, 60)] + [(float(x), 1) for x in i]))
+    if "hppc12" in parts:  # benchmark input, not shipped: written to the current directory
+        _write(Path("dfn_hppc_12h.csv"), run_segments(_sim(0.95), pulse_segments(rest_s=4665)))
+        parts = [p for p in parts if p != "hppc12"]
+        if not parts:
+            return
     if "thevenin" in parts:
         _write(HERE / "thevenin_pulse.csv", thevenin_rows(thevenin_segments(), THEVENIN))
     names = ("dfn_pulse.csv", "dfn_udds.csv", "thevenin_pulse.csv")
