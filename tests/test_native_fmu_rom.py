@@ -341,3 +341,16 @@ def test_default_exported_fmus_survive_fresh_fmpy_hosts(case: dict[str, Any], tm
         assert proc.returncode == 0, (k, proc.returncode, proc.stderr[-2000:])
         assert len(proc.stdout.splitlines()) == 3, proc.stdout
         assert "corrupted" not in proc.stderr and "Abort" not in proc.stderr, proc.stderr
+
+
+def test_bad_rom_file_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A missing or foreign ``.npz`` is refused before any compilation, naming the file."""
+    missing = tmp_path / "missing.rom.npz"
+    assert main(["export-fmu", str(missing), "-o", str(tmp_path / "a.fmu")]) == 2
+    assert "missing.rom.npz" in capsys.readouterr().err
+    foreign = tmp_path / "foreign.npz"
+    np.savez(foreign, x=np.ones(3))
+    assert main(["export-fmu", str(foreign), "-o", str(tmp_path / "b.fmu")]) == 2
+    err = capsys.readouterr().err
+    assert "foreign.npz" in err and "not a hevsim thermal ROM" in err, err
+    assert not (tmp_path / "a.fmu").exists() and not (tmp_path / "b.fmu").exists()
