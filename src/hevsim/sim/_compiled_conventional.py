@@ -28,10 +28,11 @@ from hevsim.architectures.conventional import (
     point_losses,
     power_mode_code,
 )
-from hevsim.components.body import grade_force, road_load_force, rolling_force
+from hevsim.components.body import road_load_force
 from hevsim.control.simple import ShiftSchedule, kickdown_gear, shift_gear
 from hevsim.errors import DomainError
 from hevsim.sim import kernel as K
+from hevsim.sim._compiled_common import add_road_audit
 from hevsim.sim.forward import BISECTION_STEPS, BatchRecord, ForwardRecord
 from hevsim.units import RADPS_PER_RPM
 
@@ -220,14 +221,7 @@ def _run_variant(
         audit[10] += q[4] * dt
         audit[11] += q[5] * dt
         p_wheel = q[6]
-        if v_mid > 0.0:
-            f_grade = grade_force(m, g)
-            f_roll = rolling_force(m, g, crr)
-            f_aero = f - m_eff * a - f_roll - f_grade
-            audit[3] += f_aero * v_mid * dt
-            audit[4] += f_roll * v_mid * dt
-            audit[5] += f_grade * v_mid * dt
-            audit[6] += 0.5 * m_eff * (v1 * v1 - v * v)
+        add_road_audit(audit, v, v1, v_mid, a, g, f, m, m_eff, crr, dt)
         if on and not was_on:
             starts += 1.0
         was_on = on
