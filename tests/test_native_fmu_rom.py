@@ -354,3 +354,18 @@ def test_bad_rom_file_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     err = capsys.readouterr().err
     assert "foreign.npz" in err and "not a hevsim thermal ROM" in err, err
     assert not (tmp_path / "a.fmu").exists() and not (tmp_path / "b.fmu").exists()
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_initial_temperature_parameter_sets_a_uniform_field(case: dict[str, Any], version: int) -> None:
+    rom: ThermalRom = case["rom"]
+    n = names(rom)
+    r = Runner(case["fmus"][version], params={"initial_temp_k": 310.0})
+    got = np.array(r.get(n["out"]))
+    r.close()
+    z0 = rom.state_of_uniform(310.0)
+    amb = float(rom.metadata["ambient_k"])
+    fluid = np.full(rom.n_segments, float(rom.metadata["inlet_temp_k"]))
+    ref = rom_outputs(rom, z0, fluid, amb, rom.wall_h_range_w_m2k[1])
+    assert_per_output(got[None, :], ref[None, :], TOL, "initial state")
+    np.testing.assert_allclose(got[: 2 * rom.n_cells], 310.0, rtol=1e-12)
