@@ -16,7 +16,8 @@ default mesh, built first unless ``--rom FILE`` is given): per step = set its 43
 per cell, fluid per segment, ambient) + ``doStep`` + get the 24 cell temperatures (mean, hot
 spot), through FMPy's C-level calls, against one step of the Python ROM
 (:class:`hevsim.thermal.rom.RomStepper`, one module, plus its cell mean and hot-spot outputs)
-measured in the same run; and its export time.
+measured in the same run; its export time; and its agreement with RomStepper (largest relative
+difference per output over every step of the 1-hour US06-like heat of ``bench_rom.py``).
 
 Run: ``.venv/bin/python benchmarks/bench_native_fmu.py [--steps 20000] [--rom module.rom.npz]``
 """
@@ -217,6 +218,45 @@ def python_rom_step_us(rom: Any, steps: int) -> float:
     return (time.perf_counter() - t0) / steps * 1e6
 
 
+def rom_agreement(fmu: Path, rom: Any) -> float:
+    """Largest relative difference FMU vs RomStepper over all cell temperatures and wall heats,
+    every step of a 1-hour US06-like per-cell heat (the bench_rom.py load (c)) at the inlet."""
+    import numpy as np
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    from bench_rom import us06_cell_heat_w
+    from hevsim.thermal.rom import RomStepper
+
+    heat = us06_cell_heat_w(1.0)
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    names = [f"cell{c}_{q}_temp_k" for q in ("mean", "max") for c in range(rom.n_cells)]
+    names += [f"segment{s}_wall_heat_w" for s in range(rom.n_segments)]
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu)),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="agree")  # fmt: skip
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    meta = rom.metadata
+    h, amb = rom.wall_h_range_w_m2k[1], float(meta["ambient_k"])
+    fluid = np.full(rom.n_segments, float(meta["inlet_temp_k"]))
+    st = RomStepper(rom, float(meta["dt_s"]), h, float(meta["initial_temp_k"]))
+    heat_vr = [vr[f"cell{c}_heat_w"] for c in range(rom.n_cells)]
+    out_vr = [vr[n] for n in names]
+    got, ref = np.empty((len(heat), len(names))), np.empty((len(heat), len(names)))
+    for k, q in enumerate(heat):
+        slave.setReal(heat_vr, q.tolist())
+        slave.doStep(k * float(meta["dt_s"]), float(meta["dt_s"]))
+        got[k] = slave.getReal(out_vr)
+        z = st.step(q[None, :], fluid[None, :], amb)[0]
+        ref[k] = np.concatenate([rom.cell_mean_k(z), rom.cell_max_k(z), rom.wall_heat_w(z, fluid, h)])
+    slave.terminate()
+    slave.freeInstance()
+    return float((np.abs(got - ref) / np.maximum(1.0, np.abs(ref).max(axis=0))).max())
+
+
 def rom_case(rom_file: str | None, steps: int, tmp: Path) -> None:
     """Export the ROM FMU and compare its step with the Python ROM's (same run)."""
     from hevsim.battery.native.rom import export_rom_fmu
@@ -235,6 +275,8 @@ def rom_case(rom_file: str | None, steps: int, tmp: Path) -> None:
     )
     print(f"{'per step':<13}{'native FMPy us':>16}{'Python ROM us':>15}{'ratio':>8}")
     print(f"{'ROM':<13}{fmu_us:>16.2f}{py_us:>15.2f}{py_us / fmu_us:>7.1f}x")
+    agree = rom_agreement(fmu, rom)
+    print(f"agreement over a 1 h US06-like heat: max relative difference {agree:.2e} (bound 1e-12)")
 
 
 def timed(fn: Any, *args: Any, **kw: Any) -> tuple[Any, float]:
