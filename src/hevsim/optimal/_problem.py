@@ -45,7 +45,11 @@ class DPProblem:
             arrays (a bare array is accepted when ``d == 1``), an array and a boolean array
             (or ``None``), each broadcastable to the block shape ``(n1..nd, m1..mq)``.
             ``stage_cost = +inf`` also marks a pair infeasible. NaN is allowed only where the
-            mask is True.
+            mask is True. With several states, a model whose next state ``j`` has a size-1 axis
+            for every other state, and whose cost and mask have size-1 axes for all states
+            (each state moves on its own, e.g. ``x_j' = a_j x_j + b_j(u)``), is solved from
+            per-state tables without forming the ``(states x inputs)`` block (same result,
+            several times faster): keep such outputs unbroadcast.
         state_grids: one strictly increasing grid (>= 2 points) per state, 1 to 4 states.
         input_grids: one grid per input: strictly increasing for continuous inputs, or any
             set of distinct values for the inputs listed in ``discrete_inputs`` (gears).
