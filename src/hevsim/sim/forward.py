@@ -291,7 +291,7 @@ def simulate_architecture(
     metrics = run_metrics(model, summary, audit, traction, soc0)
     f = config_fuel(cfg, getattr(model, "engine", None))
     bad = [k for k, m in metrics.items() if np.isnan(float(m["value"]))]
-    if bad or not np.all(np.isfinite(ts.select_dtypes("number").to_numpy(dtype=float))):
+    if bad or not all(np.isfinite(c).all() for c in rec.columns.values()):
         raise DomainError(
             f"{model.name} on {cyc.name}: non-finite results ({', '.join(bad) or 'time series'})."
         )
@@ -382,7 +382,7 @@ def finish_record(rec: ForwardRecord, grid: Any, modes: tuple[str, ...]) -> tupl
     cols["soc"][n] = rec.summary[K.S_SOCF]
     cols["fuel_kg"][n] = rec.summary[K.S_FUEL]
     ts = _frame(t, cols, modes)
-    return ts, close_audit(rec.audit), rec.summary, _events(ts, modes)
+    return ts, close_audit(rec.audit), rec.summary, _events(t, cols, modes)
 
 
 def simulate_batch_architecture(
@@ -628,14 +628,15 @@ def _frame(t: np.ndarray, cols: dict[str, np.ndarray], modes: tuple[str, ...]) -
     return pd.DataFrame(out)
 
 
-def _events(ts: pd.DataFrame, modes: tuple[str, ...]) -> pd.DataFrame:
-    t = ts["time_s"].to_numpy()
+def _events(t: np.ndarray, ts: dict[str, np.ndarray], modes: tuple[str, ...]) -> pd.DataFrame:
+    """Event log of a run's channels ``ts`` at times ``t`` [s]: power-mode, gear and
+    traction-limit changes."""
     parts: list[tuple[np.ndarray, str, list[str], list[str]]] = []
     for col, kind, names in (("power_mode", "power_mode", modes), ("gear", "gear", None),
                              ("traction_limited", "traction_limit", ("off", "on"))):  # fmt: skip
         if col not in ts:
             continue
-        vals = ts[col].to_numpy()
+        vals = np.asarray(ts[col])
         idx = np.flatnonzero(np.diff(vals) != 0) + 1
         a, b = vals[idx - 1].astype(np.int64).tolist(), vals[idx].astype(np.int64).tolist()
         old, new = (
