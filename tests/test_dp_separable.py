@@ -33,6 +33,7 @@ def tanks(
     masked: bool = False,
     target: float = 0.2,
     dt: float = DT,
+    irregular: bool = False,
 ) -> DPProblem:
     """Two (or three) tanks of Elbert et al. (2013), shorter horizon: ``x_i' = a x_i +
     dt v_i(u)``, cost ``dt (u1 + 0.1 |u2 - 0.5|)``, optionally an input-only mask."""
@@ -50,7 +51,7 @@ def tanks(
         mask = (u1 > 0.85) & (u2 < 0.15) if masked else None
         return tuple(nxt), dt * (u1 + 0.1 * np.abs(u2 - 0.5)), mask
 
-    grid = np.linspace(0.0, 1.0, n_x)
+    grid = np.linspace(0.0, 1.0, n_x) ** (1.3 if irregular else 1.0)
     return DPProblem(model, [grid] * d, [u, u], n_steps, target=FinalTarget([target] * d, None))
 
 
@@ -83,13 +84,17 @@ def assert_same(ref: Any, new: Any) -> None:
 
 
 @pytest.mark.parametrize(
-    ("increment", "masked"), [(False, False), (True, False), (False, True)], ids=["full", "increment", "mask"]
+    ("increment", "masked", "irregular"),
+    [(False, False, False), (True, False, False), (False, True, False), (False, False, True)],
+    ids=["full", "increment", "mask", "irregular-grid"],
 )
 def test_two_tank_separable_equals_flattened(
-    monkeypatch: pytest.MonkeyPatch, increment: bool, masked: bool
+    monkeypatch: pytest.MonkeyPatch, increment: bool, masked: bool, irregular: bool
 ) -> None:
     """Level set, 2 states (the fast two-state kernel): identical to the generic kernel."""
-    ref, new, n_sep = solve_both(tanks(26, increment=increment, masked=masked), monkeypatch)
+    problem = tanks(26, increment=increment, masked=masked, irregular=irregular)
+    assert not irregular or not problem.space.uniform.any()
+    ref, new, n_sep = solve_both(problem, monkeypatch)
     assert n_sep >= 59  # every step but the last (the target box is checked exactly there)
     assert_same(ref, new)
     assert np.all(new.states[-1] >= 0.2 - 1e-9)
