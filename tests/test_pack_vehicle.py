@@ -270,3 +270,24 @@ def test_bms_limits_are_exact_at_the_voltage_window() -> None:
     assert row["voltage_avg_v"] == pytest.approx(run.e_dis - run.z_dis * i_v, rel=1e-9)
     assert ed[g] - zd[g] * i_v == pytest.approx(v_min, rel=1e-12)
     assert math.isfinite(i_v) and i_v > 0
+
+
+def test_life_checkpoint_resume(tmp_path: Path) -> None:
+    """hevsim life's blocks: a run stopped after two blocks resumes from its checkpoint and
+    continues the same table (the first blocks unchanged, the repetitions growing)."""
+    from hevsim.battery.life import run_life
+
+    cfg = load_vehicle_config(EX / "series_hev_pack.toml")
+    cyc = tmp_path / "short.csv"
+    c = _short("us06", 100.0)
+    rows = "".join(f"{t},{v}\n" for t, v in zip(c.time_s, c.speed_mps, strict=True))
+    cyc.write_text("time_s,speed_mps\n" + rows)
+    ck = tmp_path / "life.checkpoint.json"
+    first = run_life(cfg, str(cyc), 0.5, max_blocks=2, checkpoint=ck)
+    assert ck.is_file() and len(first.table) == 2 and not first.reached
+    more = run_life(cfg, str(cyc), 0.5, max_blocks=3, checkpoint=ck, resume=True)
+    assert len(more.table) == 3
+    np.testing.assert_allclose(more.table.iloc[:2].to_numpy(), first.table.to_numpy())
+    assert more.table["repetitions"].is_monotonic_increasing
+    assert more.table["soh_min"].iloc[2] < more.table["soh_min"].iloc[1] < 1.0
+    assert more.state.repetitions == int(more.table["repetitions"].iloc[-1])
