@@ -190,7 +190,7 @@ def plot_pareto(table: pd.DataFrame, path: Path, objectives: tuple[str, ...] = O
         lw=1,
         label=f"Pareto set ({', '.join(objectives)})",
     )
-    for row in front.itertuples():
+    for row in front.drop_duplicates("setpoint_c").itertuples():  # the cheapest front design per set-point
         xy = (row.cooling_energy_wh, row.peak_cell_temp_c)
         ax.annotate(f"{row.flow_l_min:g} L/min, {row.setpoint_c:g} C", xy, fontsize=6, xytext=(3, 3),
                     textcoords="offset points")  # fmt: skip
