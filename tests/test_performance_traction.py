@@ -12,7 +12,8 @@ from hevsim.sim.performance import performance
 from hevsim.units import MPS_PER_MPH, STANDARD_GRAVITY
 
 ROOT = Path(__file__).resolve().parents[1]
-MU, H, A_F, B_R, DELTA = 1.0, 0.5, 1.4, 1.6, 1.1  # friction, CG height, CG to front / rear axle [m], mass factor
+# friction coefficient, CG height [m], CG to front / rear axle [m], rotating-mass factor
+MU, H, A_F, B_R, DELTA = 1.0, 0.5, 1.4, 1.6, 1.1
 TRACTION = "traction (tire adhesion)"
 
 
@@ -65,7 +66,7 @@ def test_gradeability_all_wheel_drive_is_mu() -> None:
 
 def test_rear_drive_that_would_wheelie_is_refused() -> None:
     cfg = _powerful("rear").replace(**{"tire.friction_coefficient": 2.0, "body.cg_height_m": 1.6})
-    with pytest.raises(ConfigError, match="tire.friction_coefficient"):
+    with pytest.raises(ConfigError, match=r"tire\.friction_coefficient"):
         performance(cfg)
 
 
