@@ -73,3 +73,14 @@ def machine_details(flow: Any, speed_radps: Any, shape: tuple[int, ...]) -> dict
 def battery_details(flow: Any) -> dict[str, Any]:
     """``details`` entries of the battery in the bus balance ``flow``."""
     return {"battery_current_a": flow.current_a, "battery_power_w": flow.battery_power_w}
+
+
+def broadcast_loop(kernel: Any, names: tuple[str, ...], arrays: list[Any], *constants: Any) -> dict[str, Any]:
+    """Call a compiled loop over the broadcast of ``arrays``: ``kernel(*flat arrays,
+    *constants, out)`` fills ``out`` (len(names), n); returns ``{name: array}`` in the
+    broadcast shape (how the numpy methods of an architecture call its scalar kernels)."""
+    b = np.broadcast_arrays(*(np.asarray(a) for a in arrays))
+    flat = [np.array(a.ravel()) for a in b]
+    out = np.empty((len(names), flat[0].size))
+    kernel(*flat, *constants, out)
+    return {k: out[j].reshape(b[0].shape) for j, k in enumerate(names)}

@@ -38,10 +38,9 @@ from numba import njit
 
 from hevsim.architectures._common import (
     GearboxModel,
-    battery_details,
+    broadcast_loop,
     chassis,
     fixed_gear,
-    machine_details,
     max_machine_speed_radps,
 )
 from hevsim.components.battery import BatteryPack
@@ -320,22 +319,49 @@ def losses_point(wheel_speed_radps, gi, on, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, 
 def _losses_many(w_wheel, gi, on, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, w_em, t_em, p_el, d, out):
     """:func:`losses_point` over flat arrays; fills ``out`` (8, n)."""
     for i in range(w_wheel.shape[0]):
-        r = losses_point(w_wheel[i], gi[i], on[i], w_fd[i], w_e[i], t_e[i], t_e_fd[i], t_fd[i], fuel[i],
-                         w_em[i], t_em[i], p_el[i], d)  # fmt: skip
-        out[:, i] = r
+        out[:, i] = losses_point(w_wheel[i], gi[i], on[i], w_fd[i], w_e[i], t_e[i], t_e_fd[i], t_fd[i],
+                                 fuel[i], w_em[i], t_em[i], p_el[i], d)  # fmt: skip
 
 
 def _losses(hev: ParallelHEV, mech: dict[str, Any], flow: Any, wheel_speed_radps: Any) -> dict[str, Any]:
     """:func:`losses_point` broadcast over a :func:`mechanical` result and its bus balance."""
     names = ("gi", "on", "w_fd", "w_e", "t_e", "t_e_fd", "t_fd", "fuel", "w_em")
-    args = [wheel_speed_radps, *(mech[n] for n in names), flow.torque_nm, flow.power_elec_w]
-    b = np.broadcast_arrays(*(np.asarray(a) for a in args))
-    shape = b[0].shape
-    flat = [np.array(a.ravel()) for a in b]
-    flat[0] = flat[0].astype(np.float64)
-    out = np.empty((8, flat[0].size))
-    _losses_many(*flat, kernel_tables(hev), out)  # type: ignore[call-arg]
-    return {k: out[j].reshape(shape) for j, k in enumerate(LOSS_TERMS)}
+    args = [np.asarray(wheel_speed_radps, np.float64), *(mech[n] for n in names), flow.torque_nm,
+            flow.power_elec_w]  # fmt: skip
+    return broadcast_loop(_losses_many, LOSS_TERMS, args, kernel_tables(hev))
+
+
+DETAILS: tuple[str, ...] = ("gear", "engine_on", "engine_speed_radps", "engine_torque_nm", "engine_throttle",
+                            "engine_power_w", "fuel_rate_gps", "motor_speed_radps", "motor_torque_nm",
+                            "motor_power_elec_w", "battery_current_a", "battery_power_w",
+                            "friction_brake_power_w")  # fmt: skip
+"""Operating-point channels of :func:`electrical` (``details``) / :func:`details_point`, in order."""
+
+
+@njit(cache=True, inline="always")
+def details_point(gi, on, w_e, t_e, throttle, fuel, w_em, t_em, p_el, current_a, p_bat, brakes_w, p2, out):
+    """Fill ``out`` with the :data:`DETAILS` of one point (scalar kernel): the gear shown
+    (0 when neither the engine nor, for P2, the machine drives through the gearbox), engine
+    on, speed [rad/s], torque [N·m], throttle [-], power [W], fuel rate [g/s], machine speed
+    [rad/s], torque [N·m], electrical power [W], battery current [A] and power [W], friction
+    brake power [W]."""
+    w_on = w_e if on else 0.0
+    out[0] = gi + 1.0 if (on or p2) else 0.0
+    out[1] = 1.0 if on else 0.0
+    out[2] = w_on
+    out[3] = t_e
+    out[4] = throttle if on else 0.0
+    out[5] = t_e * w_on
+    out[6] = fuel * 1e3
+    out[7], out[8], out[9], out[10], out[11], out[12] = w_em, t_em, p_el, current_a, p_bat, brakes_w
+
+
+@njit(cache=True)
+def _details_many(gi, on, w_e, t_e, thr, fuel, w_em, t_em, p_el, current_a, p_bat, brakes_w, p2, out):
+    """:func:`details_point` over flat arrays; fills ``out`` (13, n)."""
+    for i in range(gi.shape[0]):
+        details_point(gi[i], on[i], w_e[i], t_e[i], thr[i], fuel[i], w_em[i], t_em[i], p_el[i], current_a[i],
+                      p_bat[i], brakes_w[i], p2, out[:, i])  # fmt: skip
 
 
 def electrical(
@@ -370,22 +396,10 @@ def electrical(
     st = Stage(d_soc=flow.d_soc, cost_kg=m["fuel"] * dt_s, infeasible=flow.infeasible | m["bad"], flags=flags)
     st.flow = flow
     if detail:
-        on, w_e, t_e = m["on"], m["w_e"], m["t_e"]
         brakes = _losses(hev, m, flow, 0.0)["friction_brakes"]
-        shape = np.shape(flow.torque_nm)
-        gear_on = on | (hev.machine_position == "p2")  # P2: the machine drives through the gearbox
-        st.details = {
-            "gear": np.where(gear_on, m["gi"] + 1, 0).astype(np.float64),
-            "engine_on": on.astype(np.float64),
-            "engine_speed_radps": np.where(on, w_e, 0.0),
-            "engine_torque_nm": t_e,
-            "engine_throttle": np.where(on, m["thr"], 0.0),
-            "engine_power_w": t_e * np.where(on, w_e, 0.0),
-            "fuel_rate_gps": m["fuel"] * 1e3,
-            **machine_details(flow, m["w_em"], shape),
-            **battery_details(flow),
-            "friction_brake_power_w": brakes,
-        }
+        args = [m["gi"], m["on"], *(m[n] for n in ("w_e", "t_e", "thr", "fuel", "w_em")), flow.torque_nm,
+                flow.power_elec_w, flow.current_a, flow.battery_power_w, brakes]  # fmt: skip
+        st.details = broadcast_loop(_details_many, DETAILS, args, hev.machine_position == "p2")
     return st
 
 
@@ -446,8 +460,17 @@ engine with machine assist; engine charging the battery; braking with regenerati
 
 def power_mode(details: dict[str, float], wheel_force_n: float, v_mid_mps: float) -> int:
     """Index in :data:`MODES` of one step's operating point (``details`` of :func:`electrical`)."""
-    on = details["engine_on"] > 0.0
-    p_m = details["motor_power_elec_w"]
+    return int(
+        power_mode_point(details["engine_on"], details["motor_power_elec_w"], wheel_force_n, v_mid_mps)
+    )
+
+
+@njit(cache=True)
+def power_mode_point(engine_on, motor_power_elec_w, wheel_force_n, v_mid_mps):
+    """Index in :data:`MODES` (scalar kernel) from engine on (> 0), the machine's electrical
+    power [W], the wheel force [N] and the mid-step speed [m/s]."""
+    on = engine_on > 0.0
+    p_m = motor_power_elec_w
     if v_mid_mps <= 0.0:
         return 0
     if wheel_force_n < 0.0 or (not on and p_m < 0.0):
@@ -473,3 +496,12 @@ is on the grid: the envelope needs only the extremes)."""
 def capability_controls(hev: ParallelHEV) -> tuple[np.ndarray, ...]:
     """Candidate controls that span the powertrain's capability (performance tests)."""
     return candidate_controls(hev, CAPABILITY_THROTTLE_POINTS)
+
+
+def simulate_compiled(model: ParallelHEV, grid: Any, controller: Any, *, soc_initial: float, soc_min: float,
+                      soc_max: float) -> Any:  # fmt: skip
+    """The compiled forward run (hook of :mod:`hevsim.sim.forward`; electric assist, ECMS and
+    A-ECMS): :func:`hevsim.sim._compiled_hev.simulate`."""
+    from hevsim.sim._compiled_hev import simulate
+
+    return simulate(model, grid, controller, soc_initial=soc_initial, soc_min=soc_min, soc_max=soc_max)

@@ -34,7 +34,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from hevsim.architectures._common import NamedModel, battery_details, chassis, fixed_gear, machine_details
+from hevsim.architectures._common import NamedModel, broadcast_loop, chassis, fixed_gear
 from hevsim.architectures._common import max_machine_speed_radps as _max_speed
 from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
@@ -286,23 +286,18 @@ def electrical(
     st = Stage(d_soc=flow.d_soc, cost_kg=m["fuel"] * dt_s, infeasible=flow.infeasible | m["bad"], flags=flags,
                flow=flow, mech=m)  # fmt: skip
     if detail:
-        shape = np.shape(flow.torque_nm)
         brakes = _losses(hev, m, flow, 0.0)["friction_brakes"]
-        st.details = {
-            "engine_on": m["on"].astype(np.float64),
-            "engine_speed_radps": m["w_e"],
-            "engine_torque_nm": m["t_e"],
-            "engine_throttle": np.where(m["on"], m["thr"], 0.0),
-            "engine_power_w": m["t_e"] * m["w_e"],
-            "fuel_rate_gps": m["fuel"] * 1e3,
-            "generator_speed_radps": np.broadcast_to(m["w_sun"], shape),
-            "generator_torque_nm": np.broadcast_to(m["t_gen"], shape),
-            "generator_power_elec_w": np.broadcast_to(m["p_gen"], shape),
-            **machine_details(flow, m["w_em"], shape),
-            "ring_speed_radps": np.broadcast_to(m["w_ring"], shape),
-            **battery_details(flow),
-            "friction_brake_power_w": brakes,
-        }
+        args = [
+            m["on"],
+            *(m[n] for n in ("w_e", "t_e", "thr", "fuel", "w_sun", "t_gen", "p_gen", "w_em")),
+            flow.torque_nm,
+            flow.power_elec_w,
+            m["w_ring"],
+            flow.current_a,
+            flow.battery_power_w,
+            brakes,
+        ]
+        st.details = broadcast_loop(_details_many, DETAILS, args)
     return st
 
 
@@ -350,25 +345,97 @@ def losses_point(wheel_speed_radps, w_ring, t_ring, w_e, t_e, fuel, w_sun, t_gen
 
 
 @njit(cache=True)
-def _losses_many(w_wheel, floats, t_m2, p_m2, aux_power_w, d, out):
-    """:func:`losses_point` over flat arrays (``floats``: (11, n) of :data:`MECH_FLOATS`)."""
+def _losses_many(w_wheel, w_ring, t_ring, w_e, t_e, fuel, w_sun, t_gen, p_gen, t_e_ring, w_em, t_m2, p_m2,
+                 aux_power_w, d, out):  # fmt: skip
+    """:func:`losses_point` over flat arrays; fills ``out`` (9, n)."""
     for i in range(w_wheel.shape[0]):
-        f = floats[:, i]
-        out[:, i] = losses_point(w_wheel[i], f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8], f[9],
-                                 t_m2[i], p_m2[i], aux_power_w, d)  # fmt: skip
+        out[:, i] = losses_point(
+            w_wheel[i],
+            w_ring[i],
+            t_ring[i],
+            w_e[i],
+            t_e[i],
+            fuel[i],
+            w_sun[i],
+            t_gen[i],
+            p_gen[i],
+            t_e_ring[i],
+            w_em[i],
+            t_m2[i],
+            p_m2[i],
+            aux_power_w,
+            d,
+        )
 
 
 def _losses(hev: PowerSplitHEV, m: dict[str, Any], flow: Any, wheel_speed_radps: Any) -> dict[str, Any]:
     """:func:`losses_point` broadcast over a :func:`mechanical` result and its bus balance."""
-    args = [wheel_speed_radps, flow.torque_nm, flow.power_elec_w, *(m[n] for n in MECH_FLOATS[:10])]
-    b = np.broadcast_arrays(*(np.asarray(a, np.float64) for a in args))
-    shape = b[0].shape
-    flat = [np.array(a.ravel()) for a in b]
-    out = np.empty((len(LOSS_TERMS), flat[0].size))
-    _losses_many(
-        flat[0], np.array(flat[3:]), flat[1], flat[2], float(hev.aux_power_w), kernel_tables(hev), out
-    )
-    return {k: out[j].reshape(shape) for j, k in enumerate(LOSS_TERMS)}
+    args = [np.asarray(wheel_speed_radps, np.float64), *(m[n] for n in MECH_FLOATS[:10]), flow.torque_nm,
+            flow.power_elec_w]  # fmt: skip
+    return broadcast_loop(_losses_many, LOSS_TERMS, args, float(hev.aux_power_w), kernel_tables(hev))
+
+
+DETAILS: tuple[str, ...] = (
+    "engine_on",
+    "engine_speed_radps",
+    "engine_torque_nm",
+    "engine_throttle",
+    "engine_power_w",
+    "fuel_rate_gps",
+    "generator_speed_radps",
+    "generator_torque_nm",
+    "generator_power_elec_w",
+    "motor_speed_radps",
+    "motor_torque_nm",
+    "motor_power_elec_w",
+    "ring_speed_radps",
+    "battery_current_a",
+    "battery_power_w",
+    "friction_brake_power_w",
+)
+"""Operating-point channels of :func:`electrical` (``details``) / :func:`details_point`, in order."""
+
+
+@njit(cache=True, inline="always")
+def details_point(
+    on,
+    w_e,
+    t_e,
+    throttle,
+    fuel,
+    w_sun,
+    t_gen,
+    p_gen,
+    w_em,
+    t_m2,
+    p_m2,
+    w_ring,
+    current_a,
+    p_bat,
+    brakes_w,
+    out,
+):
+    """Fill ``out`` with the :data:`DETAILS` of one point (scalar kernel): engine on, speed
+    [rad/s], torque [N·m], throttle [-], power [W], fuel rate [g/s]; MG1 speed [rad/s],
+    torque [N·m], electrical power [W]; MG2 the same; ring speed [rad/s]; battery current [A]
+    and power [W]; friction brake power [W]."""
+    out[0] = 1.0 if on else 0.0
+    out[1], out[2] = w_e, t_e
+    out[3] = throttle if on else 0.0
+    out[4] = t_e * w_e
+    out[5] = fuel * 1e3
+    out[6], out[7], out[8], out[9], out[10], out[11] = w_sun, t_gen, p_gen, w_em, t_m2, p_m2
+    out[12], out[13], out[14], out[15] = w_ring, current_a, p_bat, brakes_w
+
+
+@njit(cache=True)
+def _details_many(
+    on, w_e, t_e, thr, fuel, w_sun, t_gen, p_gen, w_em, t_m2, p_m2, w_ring, current_a, p_bat, brakes_w, out
+):
+    """:func:`details_point` over flat arrays; fills ``out`` (16, n)."""
+    for i in range(on.shape[0]):
+        details_point(on[i], w_e[i], t_e[i], thr[i], fuel[i], w_sun[i], t_gen[i], p_gen[i], w_em[i], t_m2[i],
+                      p_m2[i], w_ring[i], current_a[i], p_bat[i], brakes_w[i], out[:, i])  # fmt: skip
 
 
 def loss_powers(
@@ -404,8 +471,24 @@ def capability_controls(hev: PowerSplitHEV) -> tuple[np.ndarray, ...]:
 
 def power_mode(details: dict[str, float], wheel_force_n: float, v_mid_mps: float) -> int:
     """Index in :data:`MODES` of one step's operating point."""
+    return int(power_mode_point(details["engine_on"], details["battery_power_w"], wheel_force_n, v_mid_mps))
+
+
+@njit(cache=True)
+def power_mode_point(engine_on, battery_power_w, wheel_force_n, v_mid_mps):
+    """Index in :data:`MODES` (scalar kernel) from engine on (> 0), the battery power [W],
+    the wheel force [N] and the mid-step speed [m/s]."""
     if v_mid_mps <= 0.0:
         return 0
-    if details["engine_on"] <= 0.0:
+    if engine_on <= 0.0:
         return 4 if wheel_force_n < 0.0 else 1
-    return 3 if details["battery_power_w"] < 0.0 else 2
+    return 3 if battery_power_w < 0.0 else 2
+
+
+def simulate_compiled(model: PowerSplitHEV, grid: Any, controller: Any, *, soc_initial: float, soc_min: float,
+                      soc_max: float) -> Any:  # fmt: skip
+    """The compiled forward run (hook of :mod:`hevsim.sim.forward`; power follower, ECMS and
+    A-ECMS): :func:`hevsim.sim._compiled_hev.simulate`."""
+    from hevsim.sim._compiled_hev import simulate
+
+    return simulate(model, grid, controller, soc_initial=soc_initial, soc_min=soc_min, soc_max=soc_max)

@@ -1,0 +1,598 @@
+"""Compiled forward runs of the parallel (P2/P3) and power-split HEVs (issue 11).
+
+One numba loop reproduces the Python reference loop of :mod:`hevsim.sim.forward` (driver with
+the bisection on the end speed when the powertrain cannot follow, supervisory controller,
+power flow, energy audit) step for step, for the controllers ``electric_assist`` (parallel),
+``power_follower`` (power split), ``ecms`` and ``aecms`` (both). Nothing physical is written
+here: every operating point is the architecture's scalar kernel
+(:func:`hevsim.architectures.parallel.mechanical_point`,
+:func:`hevsim.architectures.power_split.mechanical_point`, their ``losses_point``,
+``details_point`` and ``power_mode_point``), the shared bus balance
+(:func:`hevsim.components.bus.machine_request`, :func:`~hevsim.components.bus.bus_balance`),
+the pack's kernels and the road load of :mod:`hevsim.components.body`. The controllers'
+rules are those of :mod:`hevsim.control.parallel`, whose objects hand over their parameters
+and candidate grids (:func:`controller_code`).
+
+Data cross the numba boundary as named tuples (:class:`HEVConstants`,
+:class:`ControllerConstants`, the architectures' ``kernel_tables`` and the components'
+tables), unpacked by name.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+from numba import njit
+
+from hevsim.architectures import parallel as P
+from hevsim.architectures import power_split as PS
+from hevsim.components.battery import pack_ocv_r, soc_rate
+from hevsim.components.body import grade_force, road_load_force, rolling_force
+from hevsim.components.bus import battery_power_limits, bus_balance, machine_request
+from hevsim.components.driveline import gear_input_torque
+from hevsim.control.parallel import PowerFollower
+from hevsim.control.simple import shift_gear
+from hevsim.optimal._hev_common import LIMIT_RTOL
+from hevsim.sim import kernel as K
+from hevsim.sim.forward import BISECTION_STEPS, REGEN_CURRENT_RTOL, ForwardRecord
+
+PARALLEL, POWER_SPLIT = 0, 1
+"""Architecture codes of the compiled loop."""
+ELECTRIC_ASSIST, ECMS, AECMS, POWER_FOLLOWER = 0, 1, 2, 3
+"""Controller codes of the compiled loop (:func:`controller_code`)."""
+BASE_COLUMNS = (
+    "speed_desired_mps",
+    "speed_mps",
+    "accel_mps2",
+    "wheel_force_n",
+    "wheel_power_w",
+    "road_load_force_n",
+    "fuel_kg",
+    "soc",
+)
+"""First channels of a :class:`~hevsim.sim.forward.ForwardRecord`, in order."""
+TAIL_COLUMNS = ("power_mode", "traction_limited", "clutch_closed", "battery_ocv_v", "battery_voltage_v")
+"""Last channels, after the architecture's details."""
+AUDIT_BASE = ("fuel", "genset_source", "battery_chemical", "aero", "rolling", "grade", "kinetic_vehicle")
+"""Audit terms the reference loop starts with (then the loss terms, then ``battery_loss``)."""
+PS_POWER_BAND, PS_POWER_BAND_MIN_W = PowerFollower.POWER_BAND, PowerFollower.POWER_BAND_MIN_W
+"""The power follower's band around its target engine power [-], [W]."""
+ERR_NONE, ERR_STUCK = 0, 1
+"""Status codes of the compiled loop: fine; no feasible control even when stopping."""
+
+
+class HEVConstants(NamedTuple):
+    """Body, wheel, traction machine, pack and run constants of a compiled run (SI): the
+    machine's kind code, constant efficiency and torque scale; the pack's cells in series and
+    parallel, wiring resistance [ohm], temperature [K], current limits [A], coulombic
+    efficiency, capacity [A·s]; the SOC window; the other bus load [W]; the body's mass [kg],
+    rotating-mass factor, drag coefficient, frontal area [m²], air density [kg/m³], headwind
+    [m/s], rolling coefficient; the tire radius [m]; the fuel's LHV [J/kg]."""
+
+    motor_kind: int
+    motor_efficiency: float
+    motor_torque_scale: float
+    n_series: float
+    n_parallel: float
+    r_extra_ohm: float
+    temperature_k: float
+    i_discharge_max_a: float
+    i_charge_max_a: float
+    coulombic_efficiency: float
+    capacity_as: float
+    soc_min: float
+    soc_max: float
+    aux_power_w: float
+    mass_kg: float
+    mass_factor: float
+    drag_coefficient: float
+    frontal_area_m2: float
+    air_density_kgpm3: float
+    headwind_mps: float
+    rolling_resistance: float
+    radius_m: float
+    lhv_jpkg: float
+
+
+class ControllerConstants(NamedTuple):
+    """A controller's parameters (unused ones 0): code, equivalence factor and the A-ECMS PI
+    gains and kinetic-energy term, the rule-based SOC band, EV speed [m/s] and power [W],
+    charging power [W], shift speeds [rad/s]."""
+
+    code: int
+    s0: float
+    kp: float
+    ki: float
+    kin: float
+    soc_low: float
+    soc_high: float
+    ev_speed_mps: float
+    ev_power_w: float
+    charge_power_w: float
+    w_up_radps: float
+    w_down_radps: float
+
+
+def controller_code(ctl: Any) -> ControllerConstants | None:
+    """The :class:`ControllerConstants` of a controller object of :mod:`hevsim.control.parallel`,
+    or None when it has no compiled form (e.g. a control schedule)."""
+    from hevsim.control import parallel as C
+
+    code = {
+        C.ElectricAssist: ELECTRIC_ASSIST,
+        C.ECMS: ECMS,
+        C.AdaptiveECMS: AECMS,
+        C.PowerFollower: POWER_FOLLOWER,
+    }.get(type(ctl))
+    if code is None:
+        return None
+    g = lambda name: float(getattr(ctl, name, 0.0))  # noqa: E731
+    return ControllerConstants(
+        code=code,
+        s0=g("s0") if code == AECMS else g("s"),
+        kp=g("kp"),
+        ki=g("ki"),
+        kin=g("kin"),
+        soc_low=g("soc_low"),
+        soc_high=g("soc_high"),
+        ev_speed_mps=g("ev_speed"),
+        ev_power_w=g("ev_power"),
+        charge_power_w=g("charge_power"),
+        w_up_radps=g("w_up"),
+        w_down_radps=g("w_down"),
+    )
+
+
+def constants(model: Any, soc_min: float, soc_max: float) -> HEVConstants:
+    """The :class:`HEVConstants` of a parallel or power-split model."""
+    m, b, body = model.motor, model.battery, model.body
+    return HEVConstants(
+        motor_kind=int(m.kind_code),
+        motor_efficiency=float(m.efficiency),
+        motor_torque_scale=float(m.torque_scale),
+        n_series=float(b.n_series),
+        n_parallel=float(b.n_parallel),
+        r_extra_ohm=float(b.r_extra_ohm),
+        temperature_k=float(b.temperature_k),
+        i_discharge_max_a=float(b.max_discharge_current_a),
+        i_charge_max_a=float(b.max_charge_current_a),
+        coulombic_efficiency=float(b.coulombic_efficiency),
+        capacity_as=3600.0 * b.capacity_ah,
+        soc_min=float(soc_min),
+        soc_max=float(soc_max),
+        aux_power_w=float(getattr(model, "aux_power_w", 0.0)),
+        mass_kg=float(body.mass_kg),
+        mass_factor=float(body.mass_factor),
+        drag_coefficient=float(body.drag_coefficient),
+        frontal_area_m2=float(body.frontal_area_m2),
+        air_density_kgpm3=float(body.air_density_kgpm3),
+        headwind_mps=float(body.headwind_mps),
+        rolling_resistance=float(body.rolling_resistance),
+        radius_m=float(model.tire.radius_m),
+        lhv_jpkg=float(model.engine.fuel_lhv_jpkg),
+    )
+
+
+# ------------------------------------------------------------------------- one point
+@njit(cache=True, inline="always", error_model="numpy")
+def _electric(t_req, w_em, p_other, regen_ok, soc, dt, ocv, r_dis, r_chg, p_chg, h, mtab):
+    """The bus balance of one point and the forward driver's feasibility (as
+    :meth:`hevsim.sim.forward.Step.evaluate`). Returns (infeasible by a bus limit other than
+    the charge current, infeasible, machine torque [N·m], electrical power [W], battery power
+    [W], current [A], SOC change [-])."""
+    kind, eff, scale = h.motor_kind, h.motor_efficiency, h.motor_torque_scale
+    t0, p0, over_t = machine_request(
+        t_req,
+        w_em,
+        regen_ok,
+        kind,
+        eff,
+        scale,
+        mtab.lim_x,
+        mtab.lim_mot,
+        mtab.lim_gen,
+        mtab.eff_x,
+        mtab.eff_y,
+        mtab.eff_z,
+    )
+    t, p_el, p_bat, cur, over_p = bus_balance(
+        t0, p0, w_em, p_other, ocv, r_dis, r_chg, p_chg, kind, eff, scale, mtab
+    )
+    dis = cur > h.i_discharge_max_a * (1.0 + LIMIT_RTOL)
+    chg = cur < -h.i_charge_max_a * (1.0 + LIMIT_RTOL)
+    d_soc = soc_rate(cur, h.coulombic_efficiency, h.capacity_as) * dt
+    return over_t or over_p or dis, over_t or over_p or dis or chg, t, p_el, p_bat, cur, d_soc
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _feasible(infeasible, others, cur, t_em, p_bat, soc, h):
+    """The forward driver's feasibility of a point (see :data:`hevsim.sim.forward.REGEN_CURRENT_RTOL`)."""
+    ok = not infeasible
+    if not others and cur >= -h.i_charge_max_a * (1.0 + REGEN_CURRENT_RTOL) and t_em < 0.0:
+        ok = True
+    if soc <= h.soc_min:  # empty: no discharge
+        ok = ok and p_bat <= 0.0
+    return ok
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _point(arch, c0, c1, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want, det, loss):
+    """The power flow of one candidate control (``c0``, ``c1``) at one step: (feasible, fuel
+    [kg] over the step, SOC change [-], engine power [W]). ``bat``: :func:`_battery` at
+    ``soc``; ``md``: (:class:`HEVConstants`, parallel and power-split tables, engine, motor
+    and generator tables). With ``want``, fills the architecture's details (``det``) and
+    audit terms (``loss``, [W])."""
+    ocv, r_dis, r_chg, p_chg = bat
+    h, dpar, dps, etab, mtab, gtab = md
+    if arch == PARALLEL:
+        gi, on, es, ms, bad, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, w_em, t_req = P.mechanical_point(
+            w_wheel, t_wheel, c0, c1, False, dpar, etab
+        )
+        oth, inf, t, p_el, p_bat, cur, d_soc = _electric(
+            t_req, w_em, h.aux_power_w, regen_ok, soc, dt, ocv, r_dis, r_chg, p_chg, h, mtab
+        )
+        ok = _feasible(inf or bad, oth or es or ms, cur, t, p_bat, soc, h)
+        if want:
+            lo = P.losses_point(w_wheel, gi, on, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, w_em, t, p_el, dpar)
+            for j in range(len(lo)):
+                loss[j] = lo[j]
+            P.details_point(gi, on, w_e, t_e, c1, fuel, w_em, t, p_el, cur, p_bat, lo[5], dpar.p2, det)
+        return ok, fuel * dt, d_soc, t_e * (w_e if on else 0.0)
+    on, es, gt, gs, ms, bad, w_r, t_r, w_e, t_e, fuel, w_s, t_g, p_g, t_er, w_em, t_req = PS.mechanical_point(
+        w_wheel, t_wheel, c0, c1, 0.0, False, dps, etab, gtab
+    )
+    oth, inf, t, p_el, p_bat, cur, d_soc = _electric(
+        t_req, w_em, p_g + h.aux_power_w, regen_ok, soc, dt, ocv, r_dis, r_chg, p_chg, h, mtab
+    )
+    ok = _feasible(inf or bad, oth or es or gt or gs or ms, cur, t, p_bat, soc, h)
+    if want:
+        lo = PS.losses_point(
+            w_wheel, w_r, t_r, w_e, t_e, fuel, w_s, t_g, p_g, t_er, w_em, t, p_el, h.aux_power_w, dps
+        )
+        for j in range(len(lo)):
+            loss[j] = lo[j]
+        PS.details_point(on, w_e, t_e, c1, fuel, w_s, t_g, p_g, w_em, t, p_el, w_r, cur, p_bat, lo[5], det)
+    return ok, fuel * dt, d_soc, t_e * w_e
+
+
+# ------------------------------------------------------------------------- controllers
+@njit(cache=True, inline="always", error_model="numpy")
+def _argmin(cost, feasible, n):
+    """:func:`hevsim.control.parallel._argmin_feasible` (-1 for None): the first minimum of the
+    cost with the infeasible ones at inf (NaN wins, as numpy's argmin)."""
+    any_ok = False
+    for i in range(n):
+        any_ok = any_ok or feasible[i]
+    if not any_ok:
+        return -1
+    best, bv = 0, cost[0] if feasible[0] else np.inf
+    for i in range(1, n):
+        if np.isnan(bv):
+            break
+        c = cost[i] if feasible[i] else np.inf
+        if np.isnan(c) or c < bv:
+            best, bv = i, c
+    return best
+
+
+@njit(cache=True, error_model="numpy")
+def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md, buf):
+    """The controller's choice at one step (:mod:`hevsim.control.parallel`): (found, c0, c1).
+    ``state``: [gear of the shift schedule, equivalence factor s, SOC integral, SOC reference]
+    (updated as the controller objects update themselves); ``cands``: (first and second
+    control of every candidate, the electric assist's throttle grid); ``buf``: work arrays."""
+    cand0, cand1, thr_grid = cands
+    h, dpar, _, etab, _, _ = md
+    cost, fuel, p_eng, feas, det, loss = buf
+    regen_ok = v_mid > 0.0
+    n = cand0.shape[0]
+    p_dem = t_wheel * w_wheel
+    low_load = v_mid < cc.ev_speed_mps and p_dem < cc.ev_power_w
+    frac = min(max((cc.soc_high - soc) / (cc.soc_high - cc.soc_low), 0.0), 1.0)  # charge_fraction
+    s = 0.0
+    if cc.code == ELECTRIC_ASSIST:
+        w_fd = w_wheel * dpar.final_drive_ratio
+        g = shift_gear(int(state[0]), w_fd, dpar.gear_ratio, cc.w_up_radps, cc.w_down_radps)
+        state[0] = g
+        ev = p_dem <= 0.0 or soc > cc.soc_high or (soc > cc.soc_low and low_load)
+        c0, c1 = float(g), 0.0
+        if not ev:
+            w_e = w_fd * dpar.gear_ratio[g - 1]
+            t_fd = gear_input_torque(t_wheel, dpar.final_drive_ratio, dpar.final_drive_efficiency)
+            t_req = gear_input_torque(t_fd, dpar.gear_ratio[g - 1], dpar.gear_efficiency[g - 1]) + (
+                frac * cc.charge_power_w / w_e if w_e > 0 else 0.0
+            )
+            first_above, i_max, t_max, any_ok = -1, -1, -np.inf, False
+            for i in range(thr_grid.shape[0]):
+                r = P.mechanical_point(w_wheel, 0.0, float(g), thr_grid[i], False, dpar, etab)
+                te = r[7] if not r[4] else -np.inf
+                any_ok = any_ok or not r[4]
+                if te >= t_req:  # the first throttle that gives the torque (the rest cannot change it)
+                    first_above = i
+                    break
+                if i_max < 0 or te > t_max:
+                    i_max, t_max = i, te
+            if any_ok:
+                c1 = thr_grid[first_above if first_above >= 0 else i_max]
+        ok = _point(arch, c0, c1, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss)[0]
+        if ok:
+            return True, c0, c1
+    elif cc.code == AECMS:
+        err = state[3] - cc.kin * v_mid**2 / e_soc - soc
+        s = max(0.0, cc.s0 + cc.kp * err + cc.ki * state[2])
+        state[1] = s
+    elif cc.code == ECMS:
+        s = cc.s0
+    elif p_dem <= 0.0 or (soc > cc.soc_low and low_load):  # power follower: the first feasible EV candidate
+        for i in range(n):
+            if (
+                cand1[i] == 0.0
+                and _point(
+                    arch, cand0[i], cand1[i], w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
+                )[0]
+            ):
+                return True, cand0[i], cand1[i]
+    for i in range(n):  # every candidate: ECMS score, fuel, engine power
+        feas[i], fuel[i], d_soc, p_eng[i] = _point(
+            arch, cand0[i], cand1[i], w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
+        )
+        cost[i] = fuel[i] / dt * h.lhv_jpkg + s * (-d_soc / dt * e_soc)
+    if cc.code == POWER_FOLLOWER:
+        target = max(p_dem, 0.0) + frac * cc.charge_power_w
+        band = max(PS_POWER_BAND * target, PS_POWER_BAND_MIN_W)
+        near = np.empty(n, np.bool_)
+        any_near = False
+        for i in range(n):
+            near[i] = feas[i] and cand1[i] != 0.0 and abs(p_eng[i] - target) <= band
+            any_near = any_near or near[i]
+        if any_near:
+            i = _argmin(fuel, near, n)
+        else:
+            for i in range(n):
+                cost[i] = abs(p_eng[i] - target)
+            i = _argmin(cost, feas, n)
+    else:
+        i = _argmin(cost, feas, n)
+    if i < 0:
+        return False, 0.0, 0.0
+    return True, cand0[i], cand1[i]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _battery(soc, h, ptab):
+    """(OCV [V], discharge and charge resistance [ohm], largest charge power [W]) at ``soc``
+    (the forward loop's battery state: no charging when full)."""
+    ocv, r_dis = pack_ocv_r(soc, h.temperature_k, 1.0, h.n_series, h.n_parallel, h.r_extra_ohm, ptab)
+    _, r_chg = pack_ocv_r(soc, h.temperature_k, -1.0, h.n_series, h.n_parallel, h.r_extra_ohm, ptab)
+    p_chg = battery_power_limits(ocv, r_dis, ocv, r_chg, h.i_discharge_max_a, h.i_charge_max_a)[1]
+    if soc >= h.soc_max:  # full: no charging (regeneration goes to the friction brakes)
+        p_chg = 0.0
+    return ocv, r_dis, r_chg, p_chg
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _demand(v0, v1, k, dt, gr, h):
+    """(mid-step speed [m/s], acceleration [m/s²], grade [-], wheel force [N]) of a step."""
+    v_mid = 0.5 * (v0 + v1)
+    a = (v1 - v0) / dt
+    g = 0.5 * (gr[k] + gr[k + 1])
+    f = 0.0
+    if v_mid > 0.0:
+        f = road_load_force(
+            v_mid,
+            a,
+            g,
+            h.mass_kg,
+            h.mass_factor,
+            h.drag_coefficient,
+            h.frontal_area_m2,
+            h.air_density_kgpm3,
+            h.headwind_mps,
+            h.rolling_resistance,
+        )
+    return v_mid, a, g, f
+
+
+# ------------------------------------------------------------------------- the run
+@njit(cache=True, error_model="numpy")
+def run_hev(
+    arch,
+    cc,
+    soc0,
+    t,
+    v_des,
+    gr,
+    cand0,
+    cand1,
+    thr_grid,
+    h,
+    dpar,
+    dps,
+    etab,
+    mtab,
+    gtab,
+    ptab,
+    cols,
+    audit,
+    summary,
+    state,
+):
+    """One forward run (the compiled :func:`hevsim.sim.forward._run`). Fills ``cols``
+    (channels x ``n + 1``: :data:`BASE_COLUMNS`, the details, :data:`TAIL_COLUMNS`),
+    ``audit`` (:data:`AUDIT_BASE`, the loss terms but ``fuel`` and ``wheel``, battery loss;
+    [J]) and ``summary`` (:data:`hevsim.sim.kernel.SUMMARY`). Returns (status, step index,
+    final speed [m/s])."""
+    n = t.shape[0] - 1
+    dt = t[1] - t[0]
+    nc = cand0.shape[0]
+    cands = (cand0, cand1, thr_grid)
+    md = (h, dpar, dps, etab, mtab, gtab)
+    nd = cols.shape[0] - len(BASE_COLUMNS) - len(TAIL_COLUMNS)
+    det = np.zeros(nd)
+    loss = np.zeros(len(P.LOSS_TERMS) if arch == PARALLEL else len(PS.LOSS_TERMS))
+    buf = (np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc, np.bool_), det, loss)
+    nl = loss.shape[0]
+    m_eff = h.mass_kg * h.mass_factor
+    r = h.radius_m
+    q_as = h.capacity_as
+    state[0] = 1.0
+    state[1] = cc.s0
+    state[2] = 0.0
+    state[3] = soc0
+    v, soc, fuel = v_des[0], soc0, 0.0
+    err_sq = err_max = dist = eon = starts = lim_s = 0.0
+    was_on = False
+    for k in range(n):
+        bat = _battery(soc, h, ptab)
+        ocv = bat[0]
+        e_soc = q_as * ocv
+        v1 = v_des[k + 1]
+        v_mid, a, g, f = _demand(v, v1, k, dt, gr, h)
+        found, c0, c1 = _choose(arch, cc, state, cands, v_mid / r, f * r, v_mid, soc, dt, e_soc, bat, md, buf)
+        limited = 0.0
+        if not found:  # beyond the powertrain: lower the end speed until a control exists
+            limited = 1.0
+            lo, hi, have = 0.0, v1, False
+            bv = ba = bg = bf = bc0 = bc1 = 0.0
+            for _ in range(BISECTION_STEPS):
+                mid = 0.5 * (lo + hi)
+                tv, ta, tg, tf = _demand(v, mid, k, dt, gr, h)
+                ok, x0, x1 = _choose(arch, cc, state, cands, tv / r, tf * r, tv, soc, dt, e_soc, bat, md, buf)
+                if not ok:
+                    hi = mid
+                else:
+                    lo, have = mid, True
+                    bv, ba, bg, bf, bc0, bc1 = tv, ta, tg, tf, x0, x1
+            if not have:
+                bv, ba, bg, bf = _demand(v, 0.0, k, dt, gr, h)
+                ok, bc0, bc1 = _choose(
+                    arch, cc, state, cands, bv / r, bf * r, bv, soc, dt, e_soc, bat, md, buf
+                )
+                if not ok:
+                    return ERR_STUCK, k, v
+            v_mid, a, g, f, c0, c1 = bv, ba, bg, bf, bc0, bc1
+            v1 = v_mid * 2.0 - v
+        w_wheel, t_wheel = v_mid / r, f * r
+        _, fuel_kg, d_soc, _ = _point(
+            arch, c0, c1, w_wheel, t_wheel, v_mid > 0.0, soc, dt, bat, md, True, det, loss
+        )
+        if cc.code == AECMS:  # update: integrate the SOC error of the step taken
+            state[2] += (state[3] - cc.kin * v_mid**2 / e_soc - soc) * dt
+        # ---- energy audit [J]
+        audit[0] += loss[0] * dt
+        for j in range(1, nl - 1):
+            audit[len(AUDIT_BASE) + j - 1] += loss[j] * dt
+        e_chem = -d_soc * q_as * ocv
+        p_bat = det[nd - 2]
+        audit[2] += e_chem
+        audit[len(AUDIT_BASE) + nl - 2] += e_chem - p_bat * dt
+        if v_mid > 0.0:
+            f_grade = grade_force(h.mass_kg, g)
+            f_roll = rolling_force(h.mass_kg, g, h.rolling_resistance)
+            f_aero = f - m_eff * a - f_roll - f_grade
+            audit[3] += f_aero * v_mid * dt
+            audit[4] += f_roll * v_mid * dt
+            audit[5] += f_grade * v_mid * dt
+            audit[6] += 0.5 * m_eff * (v1 * v1 - v * v)
+        # ---- mode and bookkeeping
+        i_on = 1 if arch == PARALLEL else 0
+        on = det[i_on] > 0.0
+        if on and not was_on:
+            starts += 1.0
+        was_on = on
+        fuel += fuel_kg
+        eon += dt if on else 0.0
+        err = v_des[k] - v
+        err_sq += err * err
+        err_max = max(err_max, abs(err))
+        dist += v_mid * dt
+        lim_s += limited * dt
+        row = (v_des[k], v, a, f, loss[nl - 1], f - m_eff * a, fuel, soc)
+        for j in range(len(row)):
+            cols[j, k] = row[j]
+        for j in range(nd):
+            cols[len(BASE_COLUMNS) + j, k] = det[j]
+        b = len(BASE_COLUMNS) + nd
+        if arch == PARALLEL:
+            cols[b, k] = P.power_mode_point(det[1], det[9], f, v_mid)
+        else:
+            cols[b, k] = PS.power_mode_point(det[0], det[14], f, v_mid)
+        cols[b + 1, k] = limited
+        cols[b + 2, k] = det[i_on]
+        cols[b + 3, k] = ocv
+        i_bat = det[nd - 3]
+        cols[b + 4, k] = p_bat / i_bat if i_bat != 0.0 else ocv
+        v, soc = v1, soc + d_soc
+    err = v_des[n] - v
+    err_sq += err * err
+    err_max = max(err_max, abs(err))
+    summary[K.S_DIST], summary[K.S_FUEL], summary[K.S_SOCF] = dist, fuel, soc
+    summary[K.S_RMS], summary[K.S_MAXERR], summary[K.S_EON] = np.sqrt(err_sq / (n + 1)), err_max, eon
+    summary[K.S_STARTS], summary[K.S_BLIM], summary[K.S_DUR] = starts, lim_s, t[n] - t[0]
+    return ERR_NONE, n, v
+
+
+# ------------------------------------------------------------------------- Python side
+def _dummy_tables() -> tuple[P.ParallelTables, PS.PowerSplitTables]:
+    """Tables of the architecture a run does not use (the compiled loop types both)."""
+    one = np.ones(1)
+    dpar = P.ParallelTables(one, one, 1.0, 1.0, 1.0, 1.0, False, 0.0, 1.0, 1.0, False, False, 1.0,
+                            np.inf)  # fmt: skip
+    dps = PS.PowerSplitTables(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, 1.0, 1.0, False, False, 1.0, 0, 1.0, 1.0,
+                              np.inf, np.inf)  # fmt: skip
+    return dpar, dps
+
+
+def simulate(
+    model: Any, grid: Any, ctl: Any, *, soc_initial: float, soc_min: float, soc_max: float
+) -> ForwardRecord | None:
+    """The compiled forward run of a parallel or power-split ``model`` (the
+    ``simulate_compiled`` hook of :mod:`hevsim.sim.forward`, same arguments and
+    :class:`~hevsim.sim.forward.ForwardRecord`); None for a controller without a compiled
+    form. Leaves the controller as the Python loop does (shift-schedule gear, A-ECMS factor
+    and integral)."""
+    from hevsim.errors import DomainError
+
+    cc = controller_code(ctl)
+    if cc is None:
+        return None
+    parallel = isinstance(model, P.ParallelHEV)
+    arch, mod = (PARALLEL, P) if parallel else (POWER_SPLIT, PS)
+    dpar, dps = _dummy_tables()
+    if parallel:
+        dpar = P.kernel_tables(model)
+        gtab = model.motor.kernel_tables()
+    else:
+        dps = PS.kernel_tables(model)
+        gtab = model.generator.kernel_tables()
+    ctl.reset(float(soc_initial))
+    t, v_des, gr = (
+        np.ascontiguousarray(a, dtype=np.float64) for a in (grid.time_s, grid.speed_mps, grid.grade)
+    )
+    n = t.size - 1
+    names = (*BASE_COLUMNS, *mod.DETAILS, *TAIL_COLUMNS)
+    cols = np.zeros((len(names), n + 1))
+    audit_names = (*AUDIT_BASE, *mod.LOSS_TERMS[1:-1], "battery_loss")
+    audit = np.zeros(len(audit_names))
+    summary = np.zeros(len(K.SUMMARY))
+    state = np.zeros(4)
+    cand0, cand1 = (np.ascontiguousarray(c, dtype=np.float64) for c in (ctl.controls[0], ctl.controls[-1]))
+    thr = np.ascontiguousarray(getattr(ctl, "thr_grid", np.zeros(0)), dtype=np.float64)
+    h = constants(model, soc_min, soc_max)
+    etab, mtab, ptab = (
+        model.engine.kernel_tables(),
+        model.motor.kernel_tables(),
+        model.battery.kernel_tables(),
+    )
+    status, k, v_end = run_hev(arch, cc, float(soc_initial), t, v_des, gr, cand0, cand1, thr, h, dpar, dps,
+                               etab,
+                               mtab, gtab, ptab, cols, audit, summary, state)  # fmt: skip
+    if status == ERR_STUCK:
+        raise DomainError(f"{model.name}: no feasible control at t = {t[k]:g} s even when stopping.")
+    if cc.code == ELECTRIC_ASSIST:
+        ctl.gear = int(state[0])
+    elif cc.code == AECMS:
+        ctl.s, ctl.integral = float(state[1]), float(state[2])
+    columns = {name: cols[j] for j, name in enumerate(names)}
+    return ForwardRecord(columns, dict(zip(audit_names, audit.tolist(), strict=True)), summary, float(v_end))

@@ -1,0 +1,128 @@
+"""Compiled forward runs of the parallel (P3, P2) and power-split HEVs equal the Python loop
+(every channel, event, audit term and metric to 1e-9) with every online controller, and the
+P3 machine's over-speed is infeasible, never extrapolated (issue 11)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hevsim import config as C
+from hevsim.architectures import architecture
+from hevsim.architectures import parallel as P
+from hevsim.architectures._common import max_machine_speed_radps
+from hevsim.cycles import load_cycle
+from hevsim.sim.forward import simulate_architecture
+
+ROOT = Path(__file__).resolve().parents[1]
+RTOL = 1e-9
+ROUND_OFF = ("energy_audit_residual_pct", "energy_audit_residual_traction_pct")
+"""Metrics that are round-off (residual / energy): compared in absolute terms [%]."""
+VEHICLES = {
+    "p3": ("examples/parallel_hev.toml", {}),
+    "p2": ("examples/parallel_hev.toml", {"motor_coupling.position": "p2"}),
+    "power_split": ("examples/prius_like_power_split.toml", {}),
+}
+
+
+def _config(name: str, **changes: Any) -> Any:
+    path, base = VEHICLES[name]
+    return C.load_vehicle_config(ROOT / path).replace(**{**base, **changes})
+
+
+def assert_same_run(a: Any, b: Any) -> None:
+    """Two results have the same channels, events, audit terms [J] and metrics (to 1e-9)."""
+    assert list(a.timeseries.columns) == list(b.timeseries.columns)
+    for col in a.timeseries.columns:
+        x, y = a.timeseries[col].to_numpy(), b.timeseries[col].to_numpy()
+        if x.dtype.kind in "fc":
+            assert np.allclose(x, y, rtol=RTOL, atol=RTOL * max(float(np.max(np.abs(y))), 1e-30)), col
+        else:
+            assert (x == y).all(), col
+    pd.testing.assert_frame_equal(a.events, b.events)
+    assert a.energy_audit.keys() == b.energy_audit.keys()
+    scale = b.value("traction_energy_j")
+    for key, val in b.energy_audit.items():
+        assert a.energy_audit[key] == pytest.approx(val, rel=RTOL, abs=RTOL * scale), key
+    assert a.metrics.keys() == b.metrics.keys()
+    for key, m in b.metrics.items():
+        assert a.value(key) == pytest.approx(m["value"], rel=RTOL, abs=1e-6 if key in ROUND_OFF else 0.0), key
+
+
+def _both(cfg: Any, cycle: str, kind: str) -> tuple[Any, Any]:
+    arch = architecture(cfg.architecture)
+    model = arch.build(cfg)
+    fast = simulate_architecture(cfg.architecture, model, cycle, controller=kind)
+    ref = simulate_architecture(cfg.architecture, model, cycle, controller=kind, compiled=False)
+    assert fast.metadata["compiled"] and not ref.metadata["compiled"]
+    return fast, ref
+
+
+@pytest.mark.parametrize("cycle", ["udds", "hwfet", "us06"])
+@pytest.mark.parametrize(
+    ("vehicle", "kind"),
+    [("p3", "electric_assist"), ("p3", "ecms"), ("p3", "aecms"), ("p2", "electric_assist"), ("p2", "ecms"),
+     ("p2", "aecms"), ("power_split", "power_follower"), ("power_split", "ecms"), ("power_split", "aecms")],
+)  # fmt: skip
+def test_compiled_run_equals_the_python_loop(vehicle: str, kind: str, cycle: str) -> None:
+    fast, ref = _both(_config(vehicle), cycle, kind)
+    assert_same_run(fast, ref)
+    s_fast, s_ref = (r.metadata.get("equivalence_factor_final", 0.0) for r in (fast, ref))
+    assert s_fast == pytest.approx(s_ref, rel=1e-9)
+    assert abs(fast.energy_audit["residual"]) < 1e-6 * fast.value("traction_energy_j")
+
+
+@pytest.mark.parametrize(
+    ("vehicle", "kind", "changes"),
+    [("p3", "electric_assist", {"engine.torque_scale": 0.3, "motor.max_torque_nm": 150.0}),
+     ("p2", "aecms", {"engine.torque_scale": 0.3, "motor.max_torque_nm": 150.0}),
+     ("power_split", "power_follower", {"engine.torque_scale": 0.4, "motor.torque_scale": 0.4})],
+)  # fmt: skip
+def test_compiled_run_equals_the_python_loop_when_the_car_cannot_follow(
+    vehicle: str, kind: str, changes: dict[str, float]
+) -> None:
+    fast, ref = _both(_config(vehicle, **changes), "us06", kind)
+    assert ref.value("traction_limited_s") > 10.0  # the driver's bisection ran
+    assert_same_run(fast, ref)
+
+
+# ------------------------------------------------------------------ P3 machine over-speed
+def _map_machine_p3(coupling_ratio: float) -> P.ParallelHEV:
+    """The example with the shipped Honda map machine on the final-drive input, geared up so
+    that it would exceed its highest map speed near the US06 top speed."""
+    cfg = _config(
+        "p3", **{"motor.model": "map", "motor.rating": "peak", "motor_coupling.ratio": coupling_ratio}
+    )
+    return P.build_parallel_hev(cfg)
+
+
+def test_p3_machine_over_speed_is_infeasible_in_every_gear() -> None:
+    hev = _map_machine_p3(2.0)
+    w_max = max_machine_speed_radps(hev.motor)
+    assert np.isfinite(w_max)
+    w_wheel = 1.2 * w_max / (hev.final_drive.ratio * hev.motor_coupling.ratio)  # machine at 1.2 x its max
+    gears, thr = P.candidate_controls(hev, 11)
+    mech = P.mechanical(hev, w_wheel, 100.0, gears, thr)
+    assert mech["motor_speed"].all() and mech["bad"].all()  # engine on or off, any gear: no way out
+    below = P.mechanical(hev, 0.9 * w_wheel / 1.2, 100.0, gears, thr)
+    assert not below["motor_speed"].any()
+    st = P.power_flow(hev, w_wheel, 100.0, gears, thr, 0.6, 1.0, True)
+    assert st.infeasible.all() and st.flags["motor_speed"].all()
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_p3_machine_never_turns_beyond_its_map_in_a_forward_run(compiled: bool) -> None:
+    hev = _map_machine_p3(2.0)
+    w_max = max_machine_speed_radps(hev.motor)
+    cyc = load_cycle("us06")
+    w_trace = np.max(cyc.speed_mps) / hev.tire.radius_m * hev.final_drive.ratio * hev.motor_coupling.ratio
+    assert w_trace > 1.05 * w_max  # following the trace would over-speed the machine
+    res = simulate_architecture("parallel", hev, cyc, controller="electric_assist", compiled=compiled)
+    ts = res.timeseries
+    assert np.max(np.abs(ts["motor_speed_radps"])) <= w_max * (1.0 + 1e-12)
+    assert res.value("traction_limited_s") > 0.0  # the car falls behind the trace instead
+    assert res.value("energy_audit_residual_traction_pct") < 1e-6
