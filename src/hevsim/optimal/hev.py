@@ -291,10 +291,16 @@ class OptimizationResult:
         """Times of the rows of :attr:`cost_to_go` [s] (the cycle's samples)."""
         return self.timeseries["time_s"].to_numpy()
 
-    def genset_schedule(self) -> Any:
+    def genset_schedule(self, quasi_static: bool = True) -> Any:
         """The optimal genset commands as a :class:`hevsim.sim.simulator.GensetSchedule`
-        (engine speed target and throttle per step, 0 = off), to replay the optimum in the
-        forward simulator. Series HEV only."""
+        (engine speed, throttle and torque per step, speed 0 = off), to replay the optimum in
+        the forward simulator. Series HEV only.
+
+        ``quasi_static`` True: the forward simulator applies the DP's decisions exactly (the
+        engine at the optimal point from its first step, no cranking or speed dynamics, which
+        the DP does not model); False: the generator cranks the engine and its speed loop
+        follows the schedule, with the genset's inertia.
+        """
         if self.architecture != "series":
             raise DPSetupError(
                 f"genset_schedule: the {self.architecture} HEV has no genset; a schedule needs a "
@@ -308,6 +314,8 @@ class OptimizationResult:
             ts["engine_speed_radps"].to_numpy(),
             ts["engine_throttle"].to_numpy(),
             source=f"DP optimum of {self.metadata.get('config', '')} on {self.cycle.name}",
+            engine_torque_nm=ts["engine_torque_nm"].to_numpy(),
+            quasi_static=quasi_static,
         )
 
     @property

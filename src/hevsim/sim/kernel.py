@@ -30,6 +30,7 @@ from hevsim.battery.vehicle import (
 from hevsim.components.battery import charge_current, pack_ocv_r
 from hevsim.components.body import aero_force, grade_force, road_load_force, rolling_force
 from hevsim.components.bus import (
+    REGEN_ITERATIONS,
     battery_power_limits,
     bus_current,
     limit_machine_torque,
@@ -264,6 +265,26 @@ def supervisor_schedule(p, sched, k, soc, w_gs, gs_state):
     return gs_state, thr, w_target, reason
 
 
+@njit(cache=True)
+def supervisor_replay(p, sched, k, soc, w_gs, gs_state):
+    """Replay a DP optimum quasi-statically: ``sched[k] = (engine speed [rad/s], throttle [-],
+    engine torque [N·m])``, speed 0 = off.
+
+    The genset is running or off exactly as scheduled: no cranking, no speed loop (the
+    genset step puts the engine at the scheduled point at once, as the DP's model does).
+    """
+    reason = -1
+    if sched[k, 0] > 0.0:
+        if gs_state != GS_RUNNING:
+            gs_state = GS_RUNNING
+            reason = R_SCHED_ON
+    elif gs_state != GS_OFF:
+        gs_state = GS_OFF
+        reason = R_SCHED_OFF
+    thr = sched[k, 1] if gs_state == GS_RUNNING else 0.0
+    return gs_state, thr, sched[k, 0], reason
+
+
 @njit(cache=True, inline="always")
 def battery_tables(p, bat, soc, current_sign):
     """OCV(SOC, T) and R(SOC, T, sign) of the pack (ideal and Rint packs are 1-point tables)."""
@@ -271,7 +292,9 @@ def battery_tables(p, bat, soc, current_sign):
 
 
 DRIVER_KINDS = ("proportional",)
-SUPERVISOR_KINDS = ("thermostat", "schedule")
+SUPERVISOR_KINDS = ("thermostat", "schedule", "replay")
+SUPERVISOR_REPLAY = 2
+"""Code of the quasi-static replay supervisor (its genset has no shaft dynamics)."""
 BATTERY_KINDS = ("tables", "ecm", "pack")
 
 
@@ -286,6 +309,8 @@ def supervise(kind, p, sched, k, soc, w_gs, gs_state):
     """Supervisory-controller dispatcher (codes: :data:`SUPERVISOR_KINDS`)."""
     if kind == 1:
         return supervisor_schedule(p, sched, k, soc, w_gs, gs_state)
+    if kind == SUPERVISOR_REPLAY:
+        return supervisor_replay(p, sched, k, soc, w_gs, gs_state)
     return supervisor_thermostat(p, sched, k, soc, w_gs, gs_state)
 
 
@@ -332,12 +357,40 @@ def driver_step(p, mot, drv_kind, v, v_target, v_target_prev, grade_k, dt, m_eff
 
 
 @njit(**STEP_JIT)
-def genset_step(p, eng, gen, gs_state, thr_cmd, w_target, w_gs, dt, j_shaft, energy, record, out, k):
+def bus_limits(p, soc, ocv, r_b, ocv_c, r_c, dt, cap_as):
+    """The battery's largest discharge and charge powers at its terminals this step [W].
+
+    The discharge current is bounded by the pack's limit and by the current that takes the SOC
+    to ``soc_min`` within the step (eq 13), so no bus load (traction, genset cranking,
+    auxiliaries) draws the pack below its floor; no charging at or above ``soc_max``.
+    Returns (discharge power [W], charge power [W], the SOC floor binds).
+    """
+    i_dis = p[BIDIS]
+    i_floor = (soc - p[SOCMIN]) * cap_as / dt
+    # the floor binds below the current limit and the maximum-power current OCV / 2R
+    at_floor = i_floor < i_dis and i_floor < ocv / (2.0 * r_b + 1e-300)
+    if at_floor:
+        i_dis = max(i_floor, 0.0)
+    p_dis_max, p_chg_max = battery_power_limits(ocv, r_b, ocv_c, r_c, i_dis, p[BICHG])
+    if soc >= p[SOCMAX]:
+        p_chg_max = 0.0
+    return p_dis_max, p_chg_max, at_floor
+
+
+@njit(**STEP_JIT)
+def genset_step(
+    p, eng, gen, gs_state, thr_cmd, w_target, t_target, quasi_static, w_gs, dt, j_shaft, p_motoring_max,
+    energy, record, out, k,
+):  # fmt: skip
     """Advance the genset shaft (engine + generator, 1:1) over one step of ``dt`` [s].
 
     An engine genset: the engine gives its torque at the commanded throttle; the generator
     holds the shaft speed on ``w_target`` [rad/s] with its proportional loop, treated
-    implicitly (stable at any step), within its torque limits; a stopped genset coasts down.
+    implicitly (stable at any step), within its torque limits and, while it motors the shaft
+    (cranking), within ``p_motoring_max`` [W], what the battery can give it; a stopped genset
+    coasts down. ``quasi_static`` (the replay of a DP optimum): the running engine sits at
+    ``w_target`` [rad/s] and ``t_target`` [N·m] (NaN: the torque at the throttle) for the whole
+    step and the generator takes its torque, as in the DP's model (no shaft dynamics).
     Adds the fuel, engine, generator and shaft kinetic terms to ``energy`` [J].
     Returns (fuel rate [kg/s], end speed [rad/s], generator electrical power [W] (> 0 drawn
     from the bus), current source on, engine fired).
@@ -350,7 +403,25 @@ def genset_step(p, eng, gen, gs_state, thr_cmd, w_target, w_gs, dt, j_shaft, ene
     p_gen_el = 0.0
     source_on = False
     fired = False
-    if p[GSKIND] == GENSET_ENGINE:
+    if p[GSKIND] == GENSET_ENGINE and quasi_static:
+        thr = thr_cmd
+        if gs_state == GS_RUNNING:
+            w_gs = w_target
+            fired = w_gs >= p[ESTALL] and w_gs <= p[ERED]
+            t_eng = t_target
+            if np.isnan(t_eng):
+                t_eng = engine_torque(thr, w_gs, p[ETMAP] > 0, p[ESTALL], p[ERED], p[ESCALE], eng)
+            t_gen = -t_eng
+        else:
+            w_gs = 0.0
+        w1 = w_gs
+        fuel_rate = engine_fuel_rate(t_eng, w_gs, fired, p[EFMAP] > 0, p[ELHV], p[ESCALE], eng)
+        eta_g = machine_efficiency(t_gen, w_gs, p[GKIND], p[GEFFM], p[GSCALE], gen)
+        p_gen_el = electrical_power(t_gen, w_gs, eta_g)
+        energy[E_FUEL] += fuel_rate * p[ELHV] * dt
+        energy[E_ENG] += (fuel_rate * p[ELHV] - t_eng * w_gs) * dt
+        energy[E_GEN] += (p_gen_el - t_gen * w_gs) * dt
+    elif p[GSKIND] == GENSET_ENGINE:
         thr = thr_cmd
         fired = thr > 0.0 and w_gs >= p[ESTALL] and w_gs <= p[ERED]
         t_eng = engine_torque(thr, w_gs, p[ETMAP] > 0, p[ESTALL], p[ERED], p[ESCALE], eng)
@@ -376,6 +447,16 @@ def genset_step(p, eng, gen, gs_state, thr_cmd, w_target, w_gs, dt, j_shaft, ene
             if w1 < 0.0:
                 w1 = 0.0
                 t_gen = -w_gs * j_shaft / dt - t_eng
+            elif t_gen > 0.0:  # motoring: no more than the battery can give (its SOC floor)
+                for _ in range(REGEN_ITERATIONS):
+                    p_el = machine_power(t_gen, 0.5 * (w_gs + w1), p[GKIND], p[GEFFM], p[GSCALE], gen)
+                    if p_el <= p_motoring_max or p_el <= 0.0:
+                        break
+                    t_gen *= max(p_motoring_max, 0.0) / p_el
+                    w1 = w_gs + dt / j_shaft * (t_eng + t_gen)
+                    if w1 < 0.0:  # the shaft stops: engine friction does exactly the remaining work
+                        w1 = 0.0
+                        t_eng = -w_gs * j_shaft / dt - t_gen
         w_mid_gs = 0.5 * (w_gs + w1)
         fuel_rate = engine_fuel_rate(t_eng, w_gs, fired, p[EFMAP] > 0, p[ELHV], p[ESCALE], eng)
         eta_g = machine_efficiency(t_gen, w_mid_gs, p[GKIND], p[GEFFM], p[GSCALE], gen)
@@ -399,12 +480,13 @@ def genset_step(p, eng, gen, gs_state, thr_cmd, w_target, w_gs, dt, j_shaft, ene
 
 
 @njit(**STEP_JIT)
-def traction_step(p, mot, u, v, soc, w_m0, m_max, m_min, p_gen_el, source_on, ocv, r_b, ocv_c, r_c):
+def traction_step(p, mot, u, v, w_m0, m_max, m_min, p_gen_el, source_on, ocv, p_dis_max, p_chg_max):
     """Motor torque for the driver request ``u`` within the battery's limits (the bus balance
     of :mod:`hevsim.components.bus`), and the forces it puts on the wheels.
 
+    ``p_dis_max``, ``p_chg_max``: the battery's power limits of :func:`bus_limits` [W].
     Returns (motor torque [N·m], motor force at the wheels [N], friction brake force [N],
-    discharge OCV [V] and resistance [ohm], charge OCV [V] and resistance [ohm], limited).
+    limited, the rest of the bus load [W] (> 0 drawn)).
     """
     r = p[RTIRE]
     ratio = p[RATIO]
@@ -416,11 +498,6 @@ def traction_step(p, mot, u, v, soc, w_m0, m_max, m_min, p_gen_el, source_on, oc
         t_regen_req = -f_brake_req * r / ratio * p[GEFF]  # motor torque for the full request
         t_m = regen_torque(t_regen_req, m_min, v > p[REGENV])
     # the bus balance (components.bus): battery power limits bound the motor's torque
-    p_dis_max, p_chg_max = battery_power_limits(ocv, r_b, ocv_c, r_c, p[BIDIS], p[BICHG])
-    if soc <= p[SOCMIN]:
-        p_dis_max = 0.0
-    if soc >= p[SOCMAX]:
-        p_chg_max = 0.0
     p_other = p_gen_el + p[PAUX]
     if source_on:
         p_other -= ocv * p[GSCUR]
@@ -433,7 +510,7 @@ def traction_step(p, mot, u, v, soc, w_m0, m_max, m_min, p_gen_el, source_on, oc
         limited = 1.0
     f_motor = gear_output_torque(t_m, ratio, p[GEFF]) / r
     f_fric = max(f_brake_req + min(f_motor, 0.0), 0.0) if u < 0.0 else 0.0
-    return t_m, f_motor, f_fric, limited
+    return t_m, f_motor, f_fric, limited, p_other
 
 
 @njit(**STEP_JIT)
@@ -472,22 +549,56 @@ def vehicle_step(p, v, f_motor, f_fric, grade_k, m_eff, dt):
 
 
 @njit(**STEP_JIT)
-def bus_step(p, mot, t_m, v_mid, p_gen_el, source_on, ocv, r_b, ocv_c, r_c, soc, dt, cap_as,
-             energy, record, out, k):  # fmt: skip
+def floor_traction_step(p, mot, t_m, v, v1, p_other, p_dis_max, grade_k, m_eff, dt):
+    """At the SOC floor: the motoring torque ``t_m`` [N·m] scaled so that the motor's power at
+    the mid-step speed (not only at the start speed ``v`` [m/s], where a car at rest draws
+    nothing) stays within what the battery can give, ``p_dis_max - p_other`` [W].
+
+    Returns (torque [N·m], wheel force [N], then :func:`vehicle_step`'s values, limited) for
+    the torque finally applied.
+    """
+    r = p[RTIRE]
+    ratio = p[RATIO]
+    hi = p_dis_max - p_other
+    f_motor = gear_output_torque(t_m, ratio, p[GEFF]) / r
+    a, v1, f_aero, f_roll, f_grade, f_fric = vehicle_step(p, v, f_motor, 0.0, grade_k, m_eff, dt)
+    limited = False
+    for _ in range(REGEN_ITERATIONS):
+        p_el = machine_power(t_m, 0.5 * (v + v1) / r * ratio, p[MKIND], p[MEFF], p[MSCALE], mot)
+        if p_el <= hi or p_el <= 0.0:
+            break
+        t_m *= max(hi, 0.0) / p_el
+        limited = True
+        f_motor = gear_output_torque(t_m, ratio, p[GEFF]) / r
+        a, v1, f_aero, f_roll, f_grade, f_fric = vehicle_step(p, v, f_motor, 0.0, grade_k, m_eff, dt)
+    return t_m, f_motor, a, v1, f_aero, f_roll, f_grade, f_fric, limited
+
+
+@njit(**STEP_JIT)
+def bus_step(p, mot, t_m, v_mid, p_gen_el, source_on, ocv, r_b, ocv_c, r_c, p_dis_max, at_floor,
+             soc, dt, cap_as, energy, record, out, k):  # fmt: skip
     """Close the DC bus at the mid-step speed ``v_mid`` [m/s]: motor electrical power, battery
-    current (eqs 21-22), the cells' dynamic state and SOC (eq 13); adds the battery, source,
-    motor and auxiliary terms to ``energy`` [J].
+    current (eqs 21-22) and SOC (eq 13); adds the battery, source, motor and auxiliary terms to
+    ``energy`` [J]. Where the SOC floor binds (``at_floor``, :func:`bus_limits`) the
+    auxiliaries get only what the battery can still give within ``p_dis_max`` [W] (shed).
 
     Returns (motor mechanical and electrical power [W], current-source power [W], SOC at the
-    end of the step [-], battery current [A], beyond the deliverable power).
+    end of the step [-], battery current [A], battery-limited: beyond the deliverable power or
+    auxiliaries shed).
     """
     w_m = v_mid / p[RTIRE] * p[RATIO]
     eta_m = machine_efficiency(t_m, w_m, p[MKIND], p[MEFF], p[MSCALE], mot)
     p_m_mech = t_m * w_m
     p_m_el = electrical_power(t_m, w_m, eta_m)
     p_src = ocv * p[GSCUR] if source_on else 0.0
-    p_bat = p_m_el + p_gen_el + p[PAUX] - p_src
-    # the discharge and charge states were evaluated by traction_step for the limits
+    p_aux = p[PAUX]
+    p_bat = p_m_el + p_gen_el + p_aux - p_src
+    shed = 0.0
+    if at_floor and p_bat > p_dis_max and p_aux > 0.0:  # at the SOC floor: auxiliaries shed
+        shed = min(p_aux, p_bat - p_dis_max)
+        p_aux -= shed
+        p_bat -= shed
+    # the discharge and charge states were evaluated at the start of the step (bus_limits)
     i_bat, ocv_b, r_bat, over_power = bus_current(p_bat, ocv, r_b, ocv_c, r_c)
     v_bat = ocv_b - r_bat * i_bat
     i_soc = charge_current(i_bat, p[BCEFF])
@@ -497,7 +608,7 @@ def bus_step(p, mot, t_m, v_mid, p_gen_el, source_on, ocv, r_b, ocv_c, r_c, soc,
     energy[E_BLOSS] += e_chem - v_bat * i_bat * dt
     energy[E_GSRC] += p_src * dt
     energy[E_MOT] += (p_m_el - p_m_mech) * dt
-    energy[E_AUX] += p[PAUX] * dt
+    energy[E_AUX] += p_aux * dt
     # the battery terminal energy not matched by bus loads is numerical slack (sagging bus)
     energy[E_BLOSS] += (v_bat * i_bat - p_bat) * dt
     if record:
@@ -512,7 +623,7 @@ def bus_step(p, mot, t_m, v_mid, p_gen_el, source_on, ocv, r_b, ocv_c, r_c, soc,
         out[k, CH_BATTERY_OCV_V] = ocv_b
         out[k, CH_BATTERY_RESISTANCE_OHM] = r_bat
         out[k, CH_BATTERY_POWER_W] = p_bat
-    return p_m_mech, p_m_el, p_src, soc1, i_bat, over_power
+    return p_m_mech, p_m_el, p_src, soc1, i_bat, over_power or shed > 0.0
 
 
 @njit(**STEP_JIT)
@@ -563,6 +674,7 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
     cap_as = p[BCAP] * p[BNP] * 3600.0
     drv_kind = int(p[DRVKIND])
     sup_kind = int(p[SUPKIND])
+    quasi_static = sup_kind == SUPERVISOR_REPLAY
     bat_kind = int(p[BATKIND])
 
     v = v_des[0]
@@ -587,31 +699,41 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
         gs_state, thr_cmd, w_target, new_reason = supervise(sup_kind, p, sched, k, soc, w_gs, gs_state)
         if prev_state == GS_OFF and gs_state != GS_OFF:
             starts += 1.0
-        fuel_rate, w1, p_gen_el, source_on, fired = genset_step(
-            p, eng, gen, gs_state, thr_cmd, w_target, w_gs, dt, j_shaft, energy, record, out, k
-        )
-        if fired:
-            eon += dt
-        # the battery's discharge and charge states at the start of the step
+        # the battery's discharge and charge states and power limits at the start of the step
         if bat_kind == 2:  # a pack: its BMS sets p[BIDIS], p[BICHG] and the cooling load p[PAUX]
             battery_pack_begin(p, bat)
         ocv, r_b = battery_state(bat_kind, p, bat, soc, 1.0)
         ocv_c, r_c = battery_state(bat_kind, p, bat, soc, -1.0)
-        t_m, f_motor, f_fric, limited = traction_step(
-            p, mot, u, v, soc, w_m0, m_max, m_min, p_gen_el, source_on, ocv, r_b, ocv_c, r_c
+        p_dis_max, p_chg_max, at_floor = bus_limits(p, soc, ocv, r_b, ocv_c, r_c, dt, cap_as)
+        t_target = sched[k, 2] if quasi_static else 0.0
+        fuel_rate, w1, p_gen_el, source_on, fired = genset_step(
+            p, eng, gen, gs_state, thr_cmd, w_target, t_target, quasi_static, w_gs, dt, j_shaft,
+            p_dis_max - p[PAUX], energy, record, out, k,
+        )  # fmt: skip
+        if fired:
+            eon += dt
+        t_m, f_motor, f_fric, limited, p_other = traction_step(
+            p, mot, u, v, w_m0, m_max, m_min, p_gen_el, source_on, ocv, p_dis_max, p_chg_max
         )
-        a, v1, f_aero, f_roll, f_grade, f_fric = vehicle_step(p, v, f_motor, f_fric, grade[k], m_eff, dt)
+        if at_floor and t_m > 0.0:
+            t_m, f_motor, a, v1, f_aero, f_roll, f_grade, f_fric, floor_limited = floor_traction_step(
+                p, mot, t_m, v, v, p_other, p_dis_max, grade[k], m_eff, dt
+            )
+            if floor_limited:
+                limited = 1.0
+        else:
+            a, v1, f_aero, f_roll, f_grade, f_fric = vehicle_step(p, v, f_motor, f_fric, grade[k], m_eff, dt)
         v_mid = 0.5 * (v + v1)
         p_m_mech, p_m_el, p_src, soc1, i_bat, over_power = bus_step(
-            p, mot, t_m, v_mid, p_gen_el, source_on, ocv, r_b, ocv_c, r_c, soc, dt, cap_as, energy,
-            record, out, k,
+            p, mot, t_m, v_mid, p_gen_el, source_on, ocv, r_b, ocv_c, r_c, p_dis_max, at_floor, soc, dt,
+            cap_as, energy, record, out, k,
         )  # fmt: skip
         if bat_kind == 1:  # dynamic cells: advance their RC, charge and thermal states
             battery_ecm_advance(p, bat, i_bat, dt)
         elif bat_kind == 2:  # a pack steps its cells, thermal model and cooling loop: its SOC
             soc1 = battery_pack_advance(p, bat, i_bat, dt)
         if over_power:
-            limited = 1.0  # beyond the deliverable power: the bus sags (reported)
+            limited = 1.0  # beyond the deliverable power (the bus sags) or auxiliaries shed
         # traction energy audit [J]
         energy[E_GEAR] += (p_m_mech - f_motor * v_mid) * dt
         energy[E_AERO] += f_aero * v_mid * dt

@@ -106,12 +106,23 @@ class GensetSchedule:
 
     ``engine_speed_radps`` [rad/s] is the speed target (0 = genset off) and
     ``engine_throttle`` [-] the throttle once running; each value holds until the next time.
+    ``engine_torque_nm`` [N·m] (optional): the engine torque of each point (default: the
+    torque at the throttle).
+
+    ``quasi_static`` False (the ``schedule`` supervisor): the generator cranks the engine to
+    90 % of the target speed and its speed loop then holds it, with the shaft's inertia.
+    True (the ``replay`` supervisor): the decisions apply exactly as the DP's quasi-static
+    model takes them: the engine runs at the scheduled speed and torque from the step it is
+    scheduled on, no cranking, no speed dynamics (:meth:`OptimizationResult.genset_schedule
+    <hevsim.optimal.OptimizationResult.genset_schedule>`).
     """
 
     time_s: np.ndarray
     engine_speed_radps: np.ndarray
     engine_throttle: np.ndarray
     source: str = "schedule"
+    engine_torque_nm: np.ndarray | None = None
+    quasi_static: bool = False
 
     def __post_init__(self) -> None:
         t = np.asarray(self.time_s, float)
@@ -136,10 +147,19 @@ class GensetSchedule:
         object.__setattr__(self, "time_s", t)
         object.__setattr__(self, "engine_speed_radps", w)
         object.__setattr__(self, "engine_throttle", thr)
+        if self.engine_torque_nm is not None:
+            tq = np.asarray(self.engine_torque_nm, float)
+            if tq.shape != t.shape or not np.all(np.isfinite(tq)):
+                raise ConfigError(
+                    f"{self.source}: engine_torque_nm must be a finite 1-D array of the length of time_s "
+                    f"({t.size}), got shape {tq.shape}."
+                )
+            object.__setattr__(self, "engine_torque_nm", tq)
 
     @classmethod
-    def from_csv(cls, path: str | Path) -> GensetSchedule:
-        """Read ``time_s``, ``engine_speed_rpm`` (or ``engine_speed_radps``), ``engine_throttle``."""
+    def from_csv(cls, path: str | Path, quasi_static: bool = False) -> GensetSchedule:
+        """Read ``time_s``, ``engine_speed_rpm`` (or ``engine_speed_radps``), ``engine_throttle``
+        and, when present, ``engine_torque_nm`` (a DP result's ``timeseries.csv`` has them all)."""
         frame = pd.read_csv(path) if Path(path).is_file() else None
         if frame is None:
             raise ConfigError(f"{path}: schedule file not found; expected a CSV file.")
@@ -154,28 +174,67 @@ class GensetSchedule:
         for col in ("time_s", "engine_throttle"):
             if col not in frame:
                 raise ConfigError(f"{path}: missing column '{col}'; found {list(frame.columns)}.")
-        return cls(frame["time_s"].to_numpy(float), w, frame["engine_throttle"].to_numpy(float), str(path))
+        torque = frame["engine_torque_nm"].to_numpy(float) if "engine_torque_nm" in frame else None
+        return cls(frame["time_s"].to_numpy(float), w, frame["engine_throttle"].to_numpy(float), str(path),
+                   torque, quasi_static)  # fmt: skip
 
     def on_grid(self, t_s: np.ndarray) -> np.ndarray:
-        """(n, 2) array of (speed target, throttle) held from the latest schedule time."""
+        """(n, 3) array of (speed target [rad/s], throttle [-], engine torque [N·m], NaN when
+        not given) held from the latest schedule time."""
         idx = np.clip(np.searchsorted(self.time_s, t_s + 1e-9, side="right") - 1, 0, None)
-        return np.ascontiguousarray(np.stack([self.engine_speed_radps[idx], self.engine_throttle[idx]], 1))
+        torque = (
+            self.engine_torque_nm[idx] if self.engine_torque_nm is not None else np.full(idx.size, np.nan)
+        )
+        return np.ascontiguousarray(
+            np.stack([self.engine_speed_radps[idx], self.engine_throttle[idx], torque], 1)
+        )
+
+
+def _check_series_run(hev: SeriesHEV, kind: str, soc_lo: float, soc_hi: float) -> None:
+    """ConfigError for a run the series kernel cannot make sense of: an initial SOC outside
+    the battery's window, or a thermostat that could never start its genset (the pack never
+    goes below ``soc_min``, and cranking ends only at ``start_speed_rpm``)."""
+    c = hev.config
+    b = c.battery
+    if soc_lo < b.soc_min or soc_hi > b.soc_max:
+        bad = soc_lo if soc_lo < b.soc_min else soc_hi
+        raise ConfigError(
+            f"{c.name}: soc_initial = {bad:g} lies outside [battery.soc_min, battery.soc_max] = "
+            f"[{b.soc_min:g}, {b.soc_max:g}]."
+        )
+    if kind != "thermostat" or c.genset.kind == "none":
+        return
+    ctl = c.controller
+    if ctl.soc_low <= b.soc_min:
+        raise ConfigError(
+            f"{c.name}: key 'controller.soc_low' = {ctl.soc_low:g} must be above 'battery.soc_min' = "
+            f"{b.soc_min:g}: the pack never goes below its floor, so the genset would never start."
+        )
+    if c.genset.kind == "engine" and ctl.start_speed_rpm >= ctl.engine_speed_rpm:
+        raise ConfigError(
+            f"{c.name}: key 'controller.start_speed_rpm' = {ctl.start_speed_rpm:g} must be below "
+            f"'controller.engine_speed_rpm' = {ctl.engine_speed_rpm:g}: the speed loop holds the genset "
+            "at engine_speed_rpm, so it would crank forever."
+        )
 
 
 def _plugins(hev: SeriesHEV, grid: DriveCycle, schedule: GensetSchedule | None, p: np.ndarray) -> np.ndarray:
     """Set the role codes in ``p``; return the supervisor's per-step data (a schedule)."""
     cfg = hev.config
-    kind = "schedule" if schedule is not None else cfg.controller.kind
+    kind = cfg.controller.kind
+    if schedule is not None:
+        kind = "replay" if schedule.quasi_static else "schedule"
     if kind == "schedule" and schedule is None:
         if not cfg.controller.schedule:
             raise ConfigError(
                 f"{cfg.name}: controller.kind = 'schedule' needs controller.schedule (a CSV file)."
             )
         schedule = GensetSchedule.from_csv(Path(cfg.base_dir) / cfg.controller.schedule)
+    _check_series_run(hev, kind, float(np.min(p[..., K.SOC0])), float(np.max(p[..., K.SOC0])))
     p[..., K.DRVKIND] = K.DRIVER_KINDS.index(cfg.driver.kind)
     p[..., K.SUPKIND] = K.SUPERVISOR_KINDS.index(kind)
     p[..., K.BATKIND] = K.BATTERY_KINDS.index("ecm" if hev.cell is not None else "tables")
-    return schedule.on_grid(grid.time_s) if schedule is not None else np.zeros((1, 2))
+    return schedule.on_grid(grid.time_s) if schedule is not None else np.zeros((1, 3))
 
 
 def _other_architecture(model: Any) -> str | None:
