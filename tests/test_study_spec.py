@@ -81,7 +81,12 @@ solvers = ["simulate"]
         ({"sampling": {"method": "lhs", "samples": 0}}, ["sampling.samples", "0", ">= 1"]),
         ({"sampling": {"method": "sobol", "samples": 6}}, ["sampling.samples", "power of 2", "4 or 8"]),
         ({"sampling": {"method": "random"}}, ["sampling.method", "random", "lhs", "saltelli"]),
-        ({"solvers": [{"name": "performance"}]}, ["performance", "optimize", "simulate"]),
+        ({"solvers": [{"name": "fuzzy_logic"}]}, ["fuzzy_logic", "optimize", "performance", "simulate"]),
+        ({"solvers": [{"name": "performance"}]}, ["performance", "parallel", "'series'"]),
+        (
+            {"solvers": [{"name": "simulate", "controller": "ecms"}]},
+            ["controller", "'ecms'", "series", "rule_based"],
+        ),
         ({"solvers": [{"name": "simulate", "controller": "fuzzy"}]}, ["controller", "fuzzy", "thermostat"]),
         ({"solvers": [{"name": "optimize", "soc_grid_points": 1}]}, ["soc_grid_points", ">= 2"]),
         ({"metrics": ["mpg_typo"]}, ["mpg_typo", "mpgge", "simulate"]),
@@ -92,8 +97,25 @@ solvers = ["simulate"]
         ({"pareto": [{"minimize": ["mpgge"]}]}, ["two objectives"]),
         ({"pareto": [{"minimize": ["mpgge", "co2"]}]}, ["co2", "neither"]),
         (
-            {"vehicle": PARALLEL, "parameters": {"motor.torque_scale": [1.0]}},
-            ["simulate", "series", "parallel"],
+            {
+                "vehicle": PARALLEL,
+                "parameters": {"motor.torque_scale": [1.0]},
+                "solvers": [{"name": "simulate", "controller": "thermostat"}],
+            },
+            [
+                "key 'controller'",
+                "'thermostat'",
+                "parallel",
+                "rule_based, electric_assist, ecms, aecms, ecms_dp",
+            ],
+        ),
+        (  # ECMS tuned from the case's DP needs the study's DP
+            {
+                "vehicle": PARALLEL,
+                "parameters": {"motor.torque_scale": [1.0]},
+                "solvers": [{"name": "simulate", "controller": "ecms_dp"}],
+            },
+            ["solvers[0]", "'ecms_dp'", "optimize"],
         ),
     ],
 )

@@ -75,18 +75,44 @@ def sensitivity(info: dict[str, Any], results: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def _with_objectives(ok: pd.DataFrame, grp: pd.DataFrame, cycle: Any, solver: Any,
+                     metric_objs: list[str]) -> pd.DataFrame | None:  # fmt: skip
+    """``grp``'s rows with the objectives it lacks taken from the one other solver that gives
+    them (same sample and cycle); None when an objective has no single source."""
+    out = grp
+    for o in metric_objs:
+        if grp[o].notna().any():
+            continue
+        givers = sorted(set(ok.loc[ok[o].notna(), "solver"]) - {solver})
+        if len(givers) != 1:
+            return None
+        other = ok[(ok["solver"] == givers[0]) & (ok["cycle"] == cycle)].set_index("sample_id")[o]
+        out = out.assign(**{o: out["sample_id"].map(other).to_numpy(np.float64)})
+    return out
+
+
 def fronts(info: dict[str, Any], results: pd.DataFrame) -> dict[str, pd.DataFrame]:
-    """Each ``[[pareto]]`` front: its non-dominated ok cases per (cycle, solver)."""
+    """Each ``[[pareto]]`` front: its non-dominated ok cases per (cycle, solver).
+
+    An objective a solver does not give (e.g. ``time_0_100_kmh_s`` in the ``simulate`` rows)
+    is taken from the one solver that gives it, for the same sample and cycle (the
+    ``performance`` rows); a (cycle, solver) group lacking an objective that no single other
+    solver gives has no front.
+    """
     keys = [p["key"] for p in info["parameters"]]
     out: dict[str, pd.DataFrame] = {}
     ok = results[results["status"] == "ok"]
     for p in info.get("pareto", []):
         objs = list(p["minimize"]) + list(p["maximize"])
         sense = np.array([False] * len(p["minimize"]) + [True] * len(p["maximize"]))
+        metric_objs = [o for o in objs if o not in keys]
         parts = []
-        for _, grp in ok.groupby(["cycle", "solver"], sort=True):
-            mask = pareto_mask(grp[objs].to_numpy(np.float64), sense)
-            parts.append(grp[mask])
+        for (cycle, solver), grp in ok.groupby(["cycle", "solver"], sort=True):
+            full = _with_objectives(ok, grp, cycle, solver, metric_objs)
+            if full is None:
+                continue
+            mask = pareto_mask(full[objs].to_numpy(np.float64), sense)
+            parts.append(full[mask])
         cols = ["case_id", "cycle", "solver", *dict.fromkeys([*keys, *objs])]
         front = pd.concat(parts) if parts else ok.iloc[:0]
         out[p["name"]] = (

@@ -100,8 +100,10 @@ def plan_batches(study: Study, contexts: tuple[Any, ...], todo: np.ndarray, work
     batches: list[Batch] = []
     for v, sc in enumerate(study.solvers):
         spec = SOLVERS[sc.name]
-        for c in range(len(study.cycles)):
-            ids = todo[(solvers[todo] == v) & (cycles[todo] == c)]
+        n_cyc = len(study.cycles)  # a cycle-free solver: a vehicle's cases of every cycle in one task
+        for cs in [list(range(n_cyc))] if spec.cycle_free else [[c] for c in range(n_cyc)]:
+            c = cs[0]
+            ids = todo[(solvers[todo] == v) & np.isin(cycles[todo], cs)]
             groups: dict[Any, list[int]] = {}
             for cid in ids.tolist():
                 groups.setdefault(spec.group(contexts[v], study.values[samples[cid]]), []).append(cid)
@@ -111,6 +113,7 @@ def plan_batches(study: Study, contexts: tuple[Any, ...], todo: np.ndarray, work
                     size = min(
                         MAX_BATCH, max(1, math.ceil(len(members) / (TASKS_PER_WORKER * max(1, workers))))
                     )
+                size *= len(cs)  # ids are sample-major: a sample's cycles stay together
                 for k in range(0, len(members), size):
                     chunk = np.asarray(members[k : k + size], dtype=np.int64)
                     batches.append(Batch(v, c, chunk, study.values[samples[chunk]]))

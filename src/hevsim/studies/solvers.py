@@ -8,15 +8,23 @@ case. A case that fails (invalid combination of values, infeasible cycle, solver
 
 Registered here:
 
-- ``simulate``: forward simulation (series HEV) through :func:`hevsim.sim.simulator.simulate_batch`:
-  the cases of a batch that share the vehicle's component data run as parameter variants in
-  one compiled parallel call. Options: ``controller`` (a supervisory-controller kind of the
-  configuration), ``dt_s``.
+- ``simulate``: forward simulation of any architecture through
+  :func:`hevsim.sim.simulator.simulate_batch`: the cases of a task run as parameter variants
+  in one compiled call (series HEV: kernel parameters of one built model; other architectures:
+  dotted configuration keys, :func:`hevsim.sim.forward.simulate_batch_architecture`).
+  Options: ``controller`` (:func:`controller_choices`: ``"rule_based"`` = the architecture's
+  rule-based controller, any ``[controller] kind`` it admits such as ``"ecms"`` or
+  ``"aecms"``, and ``"ecms_dp"``: ECMS with the equivalence factor of the same case's DP,
+  which needs an ``optimize`` solver in the study and uses its grids), ``dt_s``.
 - ``optimize``: fuel-optimal energy management by dynamic programming
-  (:func:`hevsim.optimal.optimize`, series and parallel). Options: ``soc_grid_points``,
-  ``input_grid_points``, ``final_constraint``.
+  (:func:`hevsim.optimal.optimize`). Options: ``soc_grid_points``, ``input_grid_points``,
+  ``final_constraint``.
+- ``performance``: the performance tests of :func:`hevsim.sim.performance.performance`
+  (0-60 mph, 0-100 km/h, quarter mile, 50-80 mph, top speed, gradeability), one run per
+  vehicle whatever the cycle (the rows of every cycle carry the same values). Options:
+  ``dt_s``, ``soc``, ``grade_speed_mph``.
 
-``performance`` and ``ecms`` are not implemented yet; :func:`register_solver` adds a solver.
+:func:`register_solver` adds a solver.
 """
 
 from __future__ import annotations
@@ -60,6 +68,10 @@ class Solver:
         group: ``(context, values row) -> key``; cases with equal keys may share one task.
         run: ``(context, cycle, keys, values (m, d), metrics, threads) -> [Outcome] * m``.
         default_batch: cases per task when the study does not say (0: automatic).
+        cycle_free: its results do not depend on the cycle: a task holds the cases of every
+            cycle of its vehicles and runs each vehicle once.
+        link: ``(options, every solver of the study, where) -> options``, run once the study's
+            solvers are known (e.g. to take another solver's options); None: nothing to link.
     """
 
     name: str
@@ -71,6 +83,8 @@ class Solver:
     run: Callable[..., list[Outcome]]
     default_batch: int = 0
     description: str = ""
+    cycle_free: bool = False
+    link: Callable[[dict[str, Any], tuple[Any, ...], str], dict[str, Any]] | None = None
 
     def check_architecture(self, cfg: Any, where: str) -> None:
         """Raise ConfigError if the solver does not support ``cfg``'s architecture."""
@@ -148,35 +162,82 @@ def _overrides(keys: tuple[str, ...], row: np.ndarray, integer: tuple[bool, ...]
 # ------------------------------------------------------------------------------------------
 # simulate: forward simulation through simulate_batch
 # ------------------------------------------------------------------------------------------
+RULE_BASED = "rule_based"
+"""``controller`` value of the ``simulate`` solver: the architecture's rule-based controller
+(the first kind it admits, :attr:`hevsim.architectures.Architecture.controllers`)."""
+ECMS_FROM_DP = "ecms_dp"
+"""``controller`` value of the ``simulate`` solver: ECMS whose equivalence factor is the median
+``-costate x LHV / (Q OCV)`` of the same case's DP (:func:`hevsim.control.parallel.ecms_from_dp`)."""
+DP_OPTIONS = "dp_options"
+"""Option the ``simulate`` solver receives from the study's ``optimize`` solver (``ecms_dp``)."""
+
+
+def controller_choices(cfg: Any) -> tuple[str, ...]:
+    """The ``controller`` values the ``simulate`` solver admits for ``cfg``'s architecture."""
+    from hevsim.architectures import architecture
+
+    arch = architecture(cfg.architecture, cfg.name)
+    dp = (ECMS_FROM_DP,) if ("ecms" in arch.controllers and arch.dp_formulation) else ()
+    return (RULE_BASED, *arch.controllers, *dp)
+
+
+def controller_kind(cfg: Any, name: str) -> str:
+    """The ``[controller] kind`` a ``controller`` value of the ``simulate`` solver runs."""
+    from hevsim.architectures import architecture
+
+    if name == RULE_BASED:
+        return architecture(cfg.architecture, cfg.name).controllers[0]
+    return "ecms" if name == ECMS_FROM_DP else name
+
+
 def _simulate_options(cfg: Any, options: dict[str, Any], where: str) -> dict[str, Any]:
     from hevsim import schema
 
     _unknown_options(options, ("controller", "dt_s"), "simulate", where)
     out: dict[str, Any] = {}
     if "controller" in options:
-        _, meta = schema.field_of(type(cfg.controller), "kind")
-        kinds = tuple(meta.get("choices", ()))
-        if options["controller"] not in kinds:
+        valid = controller_choices(cfg)
+        if options["controller"] not in valid:
             raise ConfigError(
-                f"{where}: controller = {options['controller']!r} is not known; expected one of "
-                f"{', '.join(kinds)}."
+                f"{where}: key 'controller' = {options['controller']!r} is not admitted by the "
+                f"{cfg.architecture} architecture; expected one of {', '.join(valid)}."
             )
         from hevsim.studies.spec import with_overrides
 
-        with_overrides(cfg, {"controller.kind": options["controller"]}, where)  # the architecture's rules
+        kind = controller_kind(cfg, options["controller"])
+        with_overrides(cfg, {"controller.kind": kind}, where)  # the architecture's rules
         out["controller"] = options["controller"]
     if "dt_s" in options:
         out["dt_s"] = schema.check_option(f"{where}: dt_s", options["dt_s"], type(cfg.simulation), "dt_s")
     return out
 
 
+def _simulate_link(options: dict[str, Any], solvers: tuple[Any, ...], where: str) -> dict[str, Any]:
+    """``ecms_dp`` takes the grids of the study's ``optimize`` solver (ConfigError without one)."""
+    if options.get("controller") != ECMS_FROM_DP:
+        return options
+    dp = [s for s in solvers if s.name == "optimize"]
+    if not dp:
+        raise ConfigError(
+            f"{where}: key 'controller' = {ECMS_FROM_DP!r} tunes ECMS from the same case's DP; expected "
+            'an [[solvers]] table with name = "optimize" in the study (its grids are used).'
+        )
+    return {**options, DP_OPTIONS: dp[0].options}
+
+
 def _simulate_metrics(cfg: Any) -> tuple[str, ...]:
     from hevsim.sim import kernel as K
     from hevsim.sim.metrics import compute_metrics, energy_audit
 
+    ones = (np.ones(len(K.SUMMARY)), energy_audit(np.ones(len(K.ENERGY_TERMS))))
     with np.errstate(all="ignore"):
-        m = compute_metrics(np.ones(len(K.SUMMARY)), energy_audit(np.ones(len(K.ENERGY_TERMS))),
-                            0.5, 1.0, 1.0, 1.0, 1.0, 1.0, 0.5)  # fmt: skip
+        if cfg.architecture == "series":
+            m = compute_metrics(*ones, 0.5, 1.0, 1.0, 1.0, 1.0, 1.0, 0.5)
+        else:
+            from hevsim.architectures import architecture
+            from hevsim.sim.forward import run_metrics
+
+            m = run_metrics(architecture(cfg.architecture).build(cfg), *ones, 1.0, 0.5)
     return tuple(m)
 
 
@@ -203,6 +264,8 @@ class SimulateContext:
     structural: tuple[int, ...]
     token: str
     notes: tuple[str, ...] = field(default_factory=tuple)
+    dp_options: tuple[tuple[str, Any], ...] | None = None
+    study_token: str = ""
 
 
 def _model_fingerprint(hev: Any) -> bytes:
@@ -305,13 +368,18 @@ def classify_keys(base: Any, keys: tuple[str, ...], integer: tuple[bool, ...], v
 def _simulate_prepare(study: Any, solver: Any) -> SimulateContext:
     base = study.vehicle
     if solver.option("controller"):
-        base = dataclasses.replace(
-            base, controller=dataclasses.replace(base.controller, kind=solver.option("controller"))
-        )
+        kind = controller_kind(base, solver.option("controller"))
+        base = dataclasses.replace(base, controller=dataclasses.replace(base.controller, kind=kind))
     integer = tuple(a.integer for a in study.parameters)
+    fingerprint = study.fingerprint()
+    token = f"{fingerprint}:{solver.label}"
+    dp = solver.option(DP_OPTIONS)
+    if base.architecture != "series":  # configuration keys, validated per variant by the batch
+        return SimulateContext(base, study.keys, integer, solver.option("dt_s"), (), (), token, (), dp,
+                               fingerprint)  # fmt: skip
     kernel, structural, notes = classify_keys(base, study.keys, integer, study.values)
-    return SimulateContext(base, study.keys, integer, solver.option("dt_s"), kernel, structural,
-                           f"{study.fingerprint()}:{solver.label}", notes)  # fmt: skip
+    return SimulateContext(base, study.keys, integer, solver.option("dt_s"), kernel, structural, token, notes,
+                           dp, fingerprint)  # fmt: skip
 
 
 def _simulate_group(ctx: SimulateContext, row: np.ndarray) -> Hashable:
@@ -335,6 +403,8 @@ def _simulate_run(
     from hevsim.sim.simulator import simulate_batch
     from hevsim.studies.spec import with_overrides
 
+    if ctx.base.architecture != "series":
+        return _architecture_run(ctx, cycle, values, metrics, threads)
     t0 = time.perf_counter()
     m = values.shape[0]
     outcomes: list[Outcome | None] = [None] * m
@@ -367,6 +437,13 @@ def _simulate_run(
         table = simulate_batch(hev, variants, cycle=cycle, dt_s=ctx.dt_s).table
         return [Outcome(OK, "", {k: float(table[k].iloc[r]) for k in metrics}, 0.0) for r in range(len(idx))]
 
+    return _finish(outcomes, good, run, t0)
+
+
+def _finish(outcomes: list[Outcome | None], good: list[int], run: Callable[[list[int]], list[Outcome]],
+            t0: float) -> list[Outcome]:  # fmt: skip
+    """Run the cases ``good`` as one batch (each alone when the batch fails, to know which
+    fails), fill ``outcomes`` and give every case the batch's mean wall time."""
     if good:
         try:
             done = run(good)
@@ -379,8 +456,78 @@ def _simulate_run(
                     done.append(_fail(_message(exc)))
         for i, o in zip(good, done, strict=True):
             outcomes[i] = o
-    wall = (time.perf_counter() - t0) / m
+    wall = (time.perf_counter() - t0) / max(1, len(outcomes))
     return [dataclasses.replace(o, wall_time_s=wall) for o in outcomes if o is not None]
+
+
+_DP_FACTORS: OrderedDict[Hashable, float] = OrderedDict()
+DP_FACTOR_CACHE_SIZE = 100_000
+"""DP equivalence factors a worker remembers (so ``ecms_dp`` reuses an ``optimize`` case run
+in the same process) [-]."""
+
+
+def _dp_key(study_token: str, cycle: Any, row: np.ndarray, options: Any) -> Hashable:
+    return (study_token, getattr(cycle, "name", ""), np.asarray(row, np.float64).tobytes(), tuple(options))
+
+
+def _remember_factor(key: Hashable, s: float) -> None:
+    _DP_FACTORS[key] = s
+    while len(_DP_FACTORS) > DP_FACTOR_CACHE_SIZE:
+        _DP_FACTORS.popitem(last=False)
+
+
+def _dp_factor(ctx: SimulateContext, cfg: Any, cycle: Any, row: np.ndarray, threads: int | None) -> float:
+    """The ECMS equivalence factor of the case's DP (run here unless this process has it)."""
+    from hevsim.control.parallel import ecms_from_dp
+    from hevsim.optimal import optimize
+
+    opts = ctx.dp_options or ()
+    key = _dp_key(ctx.study_token, cycle, row, opts)
+    if key not in _DP_FACTORS:
+        res = optimize(cfg, cycle, progress=False, threads=threads, **dict(opts))
+        _remember_factor(key, ecms_from_dp(res)["equivalence_factor"])
+    return _DP_FACTORS[key]
+
+
+def _architecture_run(
+    ctx: SimulateContext, cycle: Any, values: np.ndarray, metrics: tuple[str, ...], threads: int | None
+) -> list[Outcome]:
+    """``simulate`` for the architectures other than the series HEV: the batch's cases as
+    configuration-key variants of one :func:`~hevsim.sim.simulator.simulate_batch` call."""
+    from hevsim.architectures import architecture
+    from hevsim.sim.simulator import simulate_batch
+    from hevsim.studies.spec import with_overrides
+
+    t0 = time.perf_counter()
+    m = values.shape[0]
+    outcomes: list[Outcome | None] = [None] * m
+    if threads:
+        import numba
+
+        numba.set_num_threads(threads)
+    model = cached_model((ctx.token,), lambda: architecture(ctx.base.architecture).build(ctx.base))
+    good: list[int] = []
+    factor = np.full(m, np.nan)
+    for i in range(m):  # each case's values checked alone first (a bad one fails only itself)
+        try:
+            cfg = with_overrides(ctx.base, _overrides(ctx.keys, values[i], ctx.integer))
+            if ctx.dp_options is not None:
+                factor[i] = _dp_factor(ctx, cfg, cycle, values[i], threads)
+            good.append(i)
+        except Exception as exc:  # recorded for the case; the study goes on
+            outcomes[i] = _fail(_message(exc))
+
+    def run(idx: list[int]) -> list[Outcome]:
+        variants: dict[str, np.ndarray] = {
+            k: values[idx, j].astype(np.int64 if integer else np.float64)
+            for j, (k, integer) in enumerate(zip(ctx.keys, ctx.integer, strict=True))
+        }
+        if ctx.dp_options is not None:
+            variants["controller.equivalence_factor"] = factor[idx]
+        table = simulate_batch(model, variants, cycle=cycle, dt_s=ctx.dt_s).table
+        return [Outcome(OK, "", {k: float(table[k].iloc[r]) for k in metrics}, 0.0) for r in range(len(idx))]
+
+    return _finish(outcomes, good, run, t0)
 
 
 # ------------------------------------------------------------------------------------------
@@ -435,11 +582,16 @@ class OptimizeContext:
     keys: tuple[str, ...]
     integer: tuple[bool, ...]
     options: tuple[tuple[str, Any], ...]
+    study_token: str = ""
 
 
 def _optimize_prepare(study: Any, solver: Any) -> OptimizeContext:
     return OptimizeContext(
-        study.vehicle, study.keys, tuple(a.integer for a in study.parameters), solver.options
+        study.vehicle,
+        study.keys,
+        tuple(a.integer for a in study.parameters),
+        solver.options,
+        study.fingerprint(),
     )
 
 
@@ -455,6 +607,9 @@ def _optimize_run(
         try:
             cfg = with_overrides(ctx.base, _overrides(ctx.keys, row, ctx.integer))
             res = optimize(cfg, cycle, progress=False, threads=threads, **dict(ctx.options))
+            s = float(res.metrics.get("equivalence_factor_median", {}).get("value", np.nan))
+            if np.isfinite(s) and s >= 0:  # for an ecms_dp case of the same sample in this process
+                _remember_factor(_dp_key(ctx.study_token, cycle, row, ctx.options), s)
             out.append(Outcome(OK, "", {k: float(res.metrics[k]["value"]) for k in metrics},
                                time.perf_counter() - t0))  # fmt: skip
         except Exception as exc:  # recorded for the case; the study goes on
@@ -462,13 +617,98 @@ def _optimize_run(
     return out
 
 
+# ------------------------------------------------------------------------------------------
+# performance: acceleration, top speed, gradeability
+# ------------------------------------------------------------------------------------------
+PERFORMANCE_METRICS: dict[str, tuple[str, str]] = {
+    "0-60 mph": ("time_0_60_mph_s", "s"),
+    "0-100 km/h": ("time_0_100_kmh_s", "s"),
+    "quarter mile": ("quarter_mile_s", "s"),
+    "quarter mile trap speed": ("quarter_mile_trap_speed_mph", "mph"),
+    "50-80 mph": ("time_50_80_mph_s", "s"),
+    "top speed": ("top_speed_mph", "mph"),
+    "gradeability": ("gradeability_pct", "%"),
+}
+"""Test of :func:`hevsim.sim.performance.performance` (the gradeability test's name starts
+with ``gradeability``) -> (study metric, its unit)."""
+PERFORMANCE_OPTIONS = ("dt_s", "soc", "grade_speed_mph")
+
+
+def _performance_options(cfg: Any, options: dict[str, Any], where: str) -> dict[str, Any]:
+    from hevsim.architectures import architecture
+
+    _unknown_options(options, PERFORMANCE_OPTIONS, "performance", where)
+    if not hasattr(architecture(cfg.architecture, cfg.name).power_module(), "capability_controls"):
+        raise ConfigError(
+            f"{where}: solver 'performance' needs the architecture's capability controls; the "
+            f"{cfg.architecture} architecture has none."
+        )
+    bounds = {"dt_s": (0.0, 10.0), "soc": (0.0, 1.0), "grade_speed_mph": (0.0, 200.0)}  # (lo, hi]
+    out: dict[str, Any] = {}
+    for k, v in options.items():
+        lo, hi = bounds[k]
+        number = isinstance(v, int | float) and not isinstance(v, bool)
+        if not number or not lo < v <= hi:
+            raise ConfigError(f"{where}: {k} = {v!r}: expected a number in ({lo:g}, {hi:g}].")
+        out[k] = float(v)
+    return out
+
+
+def _performance_metrics(cfg: Any) -> tuple[str, ...]:
+    return tuple(name for name, _ in PERFORMANCE_METRICS.values())
+
+
+def performance_metrics(result: Any) -> dict[str, float]:
+    """The study metrics of a :class:`~hevsim.sim.performance.PerformanceResult` (units as in
+    :data:`PERFORMANCE_METRICS`; RuntimeError if a test or a unit is not the expected one)."""
+    out: dict[str, float] = {}
+    for test, value, unit in result.table[["test", "value", "unit"]].itertuples(index=False):
+        key = "gradeability" if str(test).startswith("gradeability") else str(test)
+        if key not in PERFORMANCE_METRICS or PERFORMANCE_METRICS[key][1] != unit:
+            raise RuntimeError(f"performance test {test!r} [{unit}]: expected {list(PERFORMANCE_METRICS)}")
+        out[PERFORMANCE_METRICS[key][0]] = float(value)
+    return out
+
+
+def _performance_run(
+    ctx: OptimizeContext, cycle: Any, values: np.ndarray, metrics: tuple[str, ...], threads: int | None
+) -> list[Outcome]:
+    from hevsim.sim.performance import performance
+    from hevsim.studies.spec import with_overrides
+    from hevsim.units import MPS_PER_MPH
+
+    opts = dict(ctx.options)
+    kwargs: dict[str, Any] = {k: opts[k] for k in ("dt_s", "soc") if k in opts}
+    if "grade_speed_mph" in opts:
+        kwargs["grade_speed_mps"] = opts["grade_speed_mph"] * MPS_PER_MPH
+    done: dict[bytes, Outcome] = {}  # a task holds a vehicle's cases of every cycle: run it once
+    out: list[Outcome] = []
+    for row in values:
+        key = np.asarray(row, np.float64).tobytes()
+        if key not in done:
+            t0 = time.perf_counter()
+            try:
+                cfg = with_overrides(ctx.base, _overrides(ctx.keys, row, ctx.integer))
+                got = performance_metrics(performance(cfg, **kwargs))
+                done[key] = Outcome(OK, "", {k: got[k] for k in metrics}, time.perf_counter() - t0)
+            except Exception as exc:  # recorded for the case; the study goes on
+                done[key] = _fail(_message(exc), time.perf_counter() - t0)
+        out.append(done[key])
+    return out
+
+
 register_solver(Solver(
-    "simulate", ("series",), _simulate_options, _simulate_metrics, _simulate_prepare, _simulate_group,
-    _simulate_run, default_batch=0,
-    description="forward simulation (rule-based controller) via simulate_batch",
+    "simulate", ("series", "parallel", "conventional", "bev", "power_split"), _simulate_options,
+    _simulate_metrics, _simulate_prepare, _simulate_group, _simulate_run, default_batch=0,
+    description="forward simulation (a named controller) via simulate_batch", link=_simulate_link,
 ))  # fmt: skip
 register_solver(Solver(
-    "optimize", ("series", "parallel"), _optimize_options, _optimize_metrics, _optimize_prepare,
-    lambda ctx, row: (), _optimize_run, default_batch=1,
+    "optimize", ("series", "parallel", "power_split"), _optimize_options, _optimize_metrics,
+    _optimize_prepare, lambda ctx, row: (), _optimize_run, default_batch=1,
     description="fuel-optimal energy management by dynamic programming",
+))  # fmt: skip
+register_solver(Solver(
+    "performance", ("parallel", "conventional", "bev", "power_split"), _performance_options,
+    _performance_metrics, _optimize_prepare, lambda ctx, row: (), _performance_run, default_batch=1,
+    description="0-60 mph, 0-100 km/h, quarter mile, 50-80 mph, top speed, gradeability", cycle_free=True,
 ))  # fmt: skip

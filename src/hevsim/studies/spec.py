@@ -460,6 +460,11 @@ def study_from_dict(data: dict[str, Any], source: str = "<study>", base_dir: Pat
         spec.check_architecture(vehicle, where)
         opts = {k: v for k, v in s.items() if k != "name"}
         solvers.append(SolverCase(spec.name, tuple(sorted(spec.check(vehicle, opts, where).items()))))
+    for i, sc in enumerate(solvers):  # options a solver takes from the others (e.g. ecms_dp's grids)
+        link = solver_spec(sc.name, src).link
+        if link is not None:
+            solvers[i] = SolverCase(sc.name, tuple(sorted(link(dict(sc.options), tuple(solvers),
+                                                               f"{src}: solvers[{i}]").items())))  # fmt: skip
     labels = [s.label for s in solvers]
     if len(set(labels)) != len(labels):
         raise StudyError(f"{src}: solvers {labels}: two solvers are the same; expected distinct solvers.")
