@@ -589,10 +589,13 @@ class Pack:
         module_hot = np.empty((steps, n_mod))
         self._new_accounts()
         s0 = self.stored_energy_j()
-        for k in range(steps):
-            row, module_hot[k] = self.step(req[k], out_cells[k])
-            for key, val in row.items():
-                rows[key][k] = val
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(1, user_api="blas"):  # small per-step ROM products (see pack_vehicle)
+            for k in range(steps):
+                row, module_hot[k] = self.step(req[k], out_cells[k])
+                for key, val in row.items():
+                    rows[key][k] = val
         check_cell_domain(
             f"pack {cfg.name}", rows["time_s"], rows["current_a"], rows["voltage_v"], out_cells[:, :, 2]
         )
