@@ -122,7 +122,8 @@ def _try_speed(
     tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
 ):  # fmt: skip
     """The driver's demand for end speed ``v1`` and the shift schedule's choice (0: none):
-    (gear, mid-step speed, acceleration, grade, wheel force)."""
+    (gear, mid-step speed, acceleration, grade, wheel force, :func:`operating_point` of the
+    last gear tried: the chosen one)."""
     v_mid = 0.5 * (v0 + v1)
     a = (v1 - v0) / dt
     g = 0.5 * (grade[k] + grade[k + 1])
@@ -136,8 +137,8 @@ def _try_speed(
             use_map, lhv, scale, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
         )  # fmt: skip
         if not p[15]:
-            return gear, v_mid, a, g, f
-    return 0, v_mid, a, g, f
+            return gear, v_mid, a, g, f, p
+    return 0, v_mid, a, g, f, p
 
 
 @njit(cache=True)
@@ -172,7 +173,7 @@ def _run_variant(
     gear = 1
     for k in range(n):
         v1 = v_des[k + 1]
-        c, v_mid, a, g, f = _try_speed(
+        c, v_mid, a, g, f, p = _try_speed(
             v, v1, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, r, ratios, effs, fd, fd_eff, idle,
             w_cut, redline, stop_start, use_map, lhv, scale, w_up, w_down, tmax_x, tmax_y, tct_x, tct_y,
             tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
@@ -194,21 +195,15 @@ def _run_variant(
                     lo, best_v, best_c = mid, mid, cm
             if best_c == 0:
                 best_v = 0.0
-            c, v_mid, a, g, f = _try_speed(
+            c, v_mid, a, g, f, p = _try_speed(
                 v, best_v, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, r, ratios, effs, fd, fd_eff,
                 idle, w_cut, redline, stop_start, use_map, lhv, scale, w_up, w_down, tmax_x, tmax_y, tct_x,
                 tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
             )  # fmt: skip
-            if best_c != 0:
-                c = best_c
-            v1 = v_mid * 2.0 - v
+            v1 = v_mid * 2.0 - v  # (at best_v the schedule chooses best_c again: same inputs)
             if c == 0:
                 return v, traction * dt, gear, k
-        w_wheel, t_wheel = v_mid / r, f * r
-        p = operating_point(
-            w_wheel, t_wheel, float(c), ratios, effs, fd, fd_eff, idle, w_cut, redline, stop_start, use_map,
-            lhv, scale, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
-        )  # fmt: skip
+        w_wheel = v_mid / r
         gi, w_fd, t_fd, w_in, t_in, w_e, t_e, on, slip, trac, cut, rate, t_fd_eng, _, _, _, t_max = p
         gear = gi + 1
         det = point_details(gi, w_fd, t_fd, w_in, t_e, w_e, on, slip, trac, cut, rate, t_fd_eng, t_max)
