@@ -131,6 +131,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     for key in ("mpg", "mpgge", "l_per_100km", "co2_g_per_km", "soc_final",
                 "speed_error_rms_mph", "energy_audit_residual_pct"):  # fmt: skip
         print(f"  {key:<28}{m[key]['value']:>12.4g} {m[key]['unit']}")
+    if "pack_peak_cell_temp_c" in m:  # [battery] model = "pack"
+        print(f"  pack: peak cell {m['pack_peak_cell_temp_c']['value']:.1f} degC, derated "
+              f"{m['pack_derated_s']['value']:.0f} s, held back by the BMS "
+              f"{m['pack_bms_limited_s']['value']:.0f} s, "
+              f"cooling {m['pack_cooling_energy_j']['value'] / 3600:.1f} Wh, energy balance "
+              f"{m['pack_energy_balance_relative']['value']:.1e}")  # fmt: skip
     if age is not None:
         age.save(args.age_state)
         soh = age.soh(*_eol(cfg))
