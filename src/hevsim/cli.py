@@ -351,7 +351,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     if args.fit is not None and (args.validate is not None or args.data):
         from hevsim.errors import InputError
 
-        raise InputError("calibrate: --validate and --data need the full calibration (leave out --fit).")
+        opt = "--validate" if args.validate is not None else "--data"
+        raise InputError(f"calibrate: {opt} needs the full calibration (leave out --fit).")
     no_temp_ok = args.fit is None and args.ambient_c is not None  # full calibration: temp_k optional
     record = CellTestRecord.from_csv(args.test, temperature_k=c_to_k(args.ambient_c) if no_temp_ok else None)
     if args.fit is None:
