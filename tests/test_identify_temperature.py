@@ -106,3 +106,10 @@ def test_shipped_data_match_their_provenance() -> None:
     assert len(prov) == 3
     for name, digest in prov.items():
         assert "sha256:" + hashlib.sha256((DATA / name).read_bytes()).hexdigest() == digest, name
+
+
+def test_cli_data_needs_the_full_calibration(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    args = ["calibrate", "thesis_table_4_1", str(DATA / "arrhenius_25c.csv"), "--out", str(tmp_path / "x")]
+    args += ["--fit", "c_heat_j_per_k=60,10,500", "--data", str(DATA / "arrhenius_10c.csv")]
+    assert main(args) == 2
+    assert "--data needs the full calibration" in capsys.readouterr().err
