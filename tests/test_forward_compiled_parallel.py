@@ -126,3 +126,32 @@ def test_p3_machine_never_turns_beyond_its_map_in_a_forward_run(compiled: bool) 
     assert np.max(np.abs(ts["motor_speed_radps"])) <= w_max * (1.0 + 1e-12)
     assert res.value("traction_limited_s") > 0.0  # the car falls behind the trace instead
     assert res.value("energy_audit_residual_traction_pct") < 1e-6
+
+
+# ------------------------------------------------------------------ compiled batch
+@pytest.mark.parametrize(
+    ("vehicle", "changes", "variants"),
+    [("p3", {}, {"body.mass_kg": [1100.0, 1250.0, 1400.0], "controller.soc_low": [0.45, 0.5, 0.55],
+                 "controller.equivalence_factor": 2.5, "simulation.soc_initial": [0.55, 0.6, 0.65]}),
+     ("p2", {"controller.kind": "aecms"}, {"engine.torque_scale": [0.8, 1.0, 1.2],
+                                           "tire.radius_m": [0.3, 0.32, 0.34],
+                                           "controller.equivalence_factor": [2.0, 2.5, 3.0]}),
+     ("power_split", {"controller.kind": "ecms"}, {"body.drag_coefficient": [0.25, 0.3, 0.35],
+                                                   "controller.equivalence_factor": [2.0, 2.5, 3.0]}),
+     ("p3", {}, {"final_drive.ratio": [3.0, 3.5, 4.0]})],  # not compiled: runs one by one
+)  # fmt: skip
+def test_compiled_batch_equals_the_python_runs(
+    vehicle: str, changes: dict[str, Any], variants: dict[str, Any]
+) -> None:
+    from hevsim.sim.simulator import simulate_batch
+
+    cfg = _config(vehicle, **changes)
+    fast = simulate_batch(cfg, variants, "udds")
+    ref = simulate_batch(cfg, variants, "udds", compiled=False)
+    assert list(fast.table.columns) == list(ref.table.columns)
+    for col in ref.table.columns:
+        tol = 1e-6 if col in ROUND_OFF else 0.0
+        assert np.allclose(
+            fast.table[col].to_numpy(float), ref.table[col].to_numpy(float), rtol=RTOL, atol=tol
+        ), col
+    assert fast.table["fuel_kg"].nunique() == len(fast.table)  # the variants differ

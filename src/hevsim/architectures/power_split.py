@@ -492,3 +492,12 @@ def simulate_compiled(model: PowerSplitHEV, grid: Any, controller: Any, *, soc_i
     from hevsim.sim._compiled_hev import simulate
 
     return simulate(model, grid, controller, soc_initial=soc_initial, soc_min=soc_min, soc_max=soc_max)
+
+
+def simulate_batch_compiled(model: PowerSplitHEV, variants: dict[str, Any], grid: Any, controller: Any,
+                            **options: Any) -> Any:  # fmt: skip
+    """The compiled batch (hook of :mod:`hevsim.sim.forward`):
+    :func:`hevsim.sim._compiled_hev.simulate_batch`."""
+    from hevsim.sim._compiled_hev import simulate_batch
+
+    return simulate_batch(model, variants, grid, controller, **options)

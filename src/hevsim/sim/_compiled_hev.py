@@ -35,7 +35,7 @@ from hevsim.control.parallel import PowerFollower
 from hevsim.control.simple import shift_gear
 from hevsim.optimal._hev_common import LIMIT_RTOL
 from hevsim.sim import kernel as K
-from hevsim.sim.forward import BISECTION_STEPS, REGEN_CURRENT_RTOL, ForwardRecord
+from hevsim.sim.forward import BISECTION_STEPS, REGEN_CURRENT_RTOL, BatchRecord, ForwardRecord
 
 PARALLEL, POWER_SPLIT = 0, 1
 """Architecture codes of the compiled loop."""
@@ -395,7 +395,7 @@ def _demand(v0, v1, k, dt, gr, h):
 
 
 # ------------------------------------------------------------------------- the run
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def run_hev(
     arch,
     cc,
@@ -544,19 +544,13 @@ def _dummy_tables() -> tuple[P.ParallelTables, PS.PowerSplitTables]:
     return dpar, dps
 
 
-def simulate(
-    model: Any, grid: Any, ctl: Any, *, soc_initial: float, soc_min: float, soc_max: float
-) -> ForwardRecord | None:
-    """The compiled forward run of a parallel or power-split ``model`` (the
-    ``simulate_compiled`` hook of :mod:`hevsim.sim.forward`, same arguments and
-    :class:`~hevsim.sim.forward.ForwardRecord`); None for a controller without a compiled
-    form. Leaves the controller as the Python loop does (shift-schedule gear, A-ECMS factor
-    and integral)."""
+def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_max: float) -> tuple[Any, ...]:
+    """One compiled run: (channel names, channels (names x n + 1), audit names, audit [J],
+    summary, final speed [m/s]); the controller left as the Python loop leaves it."""
     from hevsim.errors import DomainError
 
     cc = controller_code(ctl)
-    if cc is None:
-        return None
+    assert cc is not None
     parallel = isinstance(model, P.ParallelHEV)
     arch, mod = (PARALLEL, P) if parallel else (POWER_SPLIT, PS)
     dpar, dps = _dummy_tables()
@@ -566,13 +560,12 @@ def simulate(
     else:
         dps = PS.kernel_tables(model)
         gtab = model.generator.kernel_tables()
-    ctl.reset(float(soc_initial))
+    ctl.reset(float(soc0))
     t, v_des, gr = (
         np.ascontiguousarray(a, dtype=np.float64) for a in (grid.time_s, grid.speed_mps, grid.grade)
     )
-    n = t.size - 1
     names = (*BASE_COLUMNS, *mod.DETAILS, *TAIL_COLUMNS)
-    cols = np.zeros((len(names), n + 1))
+    cols = np.zeros((len(names), t.size))
     audit_names = (*AUDIT_BASE, *mod.LOSS_TERMS[1:-1], "battery_loss")
     audit = np.zeros(len(audit_names))
     summary = np.zeros(len(K.SUMMARY))
@@ -585,8 +578,7 @@ def simulate(
         model.motor.kernel_tables(),
         model.battery.kernel_tables(),
     )
-    status, k, v_end = run_hev(arch, cc, float(soc_initial), t, v_des, gr, cand0, cand1, thr, h, dpar, dps,
-                               etab,
+    status, k, v_end = run_hev(arch, cc, float(soc0), t, v_des, gr, cand0, cand1, thr, h, dpar, dps, etab,
                                mtab, gtab, ptab, cols, audit, summary, state)  # fmt: skip
     if status == ERR_STUCK:
         raise DomainError(f"{model.name}: no feasible control at t = {t[k]:g} s even when stopping.")
@@ -594,5 +586,103 @@ def simulate(
         ctl.gear = int(state[0])
     elif cc.code == AECMS:
         ctl.s, ctl.integral = float(state[1]), float(state[2])
+    return names, cols, audit_names, audit, summary, float(v_end)
+
+
+def simulate(
+    model: Any, grid: Any, ctl: Any, *, soc_initial: float, soc_min: float, soc_max: float
+) -> ForwardRecord | None:
+    """The compiled forward run of a parallel or power-split ``model`` (the
+    ``simulate_compiled`` hook of :mod:`hevsim.sim.forward`, same arguments and
+    :class:`~hevsim.sim.forward.ForwardRecord`); None for a controller without a compiled
+    form. Leaves the controller as the Python loop does (shift-schedule gear, A-ECMS factor
+    and integral)."""
+    if controller_code(ctl) is None:
+        return None
+    names, cols, audit_names, audit, summary, v_end = _run_one(
+        model, grid, ctl, soc_initial, soc_min, soc_max
+    )
     columns = {name: cols[j] for j, name in enumerate(names)}
-    return ForwardRecord(columns, dict(zip(audit_names, audit.tolist(), strict=True)), summary, float(v_end))
+    return ForwardRecord(columns, dict(zip(audit_names, audit.tolist(), strict=True)), summary, v_end)
+
+
+MODEL_KEYS = ("body.mass_kg", "body.mass_factor", "body.drag_coefficient", "body.frontal_area_m2",
+              "body.rolling_resistance", "tire.radius_m", "engine.torque_scale")  # fmt: skip
+"""Configuration keys a compiled batch varies on the built model (others: the Python path)."""
+
+
+def _variant(model: Any, kind: str, values: dict[str, float]) -> tuple[Any, Any] | None:
+    """(model, controller) of one variant: the built ``model`` with the :data:`MODEL_KEYS` of
+    ``values`` replaced and the controller ``kind`` made for it with the ``controller.*``
+    values it reads; None when a key cannot be varied this way."""
+    import dataclasses
+
+    from hevsim.components.driveline import Tire
+    from hevsim.control import CONTROLLERS, make_controller
+
+    reads = CONTROLLERS[kind].parameters
+    params: dict[str, float] = {}
+    for key, val in values.items():
+        section, _, name = key.partition(".")
+        if section == "controller" and name in reads:
+            params[name] = val
+        elif section == "controller" and name != "kind" and not hasattr(model, name):
+            continue  # a parameter this controller does not read: the Python path ignores it too
+        elif key not in MODEL_KEYS and key != "simulation.soc_initial":
+            return None
+    changes: dict[str, Any] = {}
+    body = {k.split(".")[1]: v for k, v in values.items() if k.startswith("body.")}
+    if body:
+        changes["body"] = dataclasses.replace(model.body, **body)
+    if "tire.radius_m" in values:
+        changes["tire"] = Tire(radius_m=values["tire.radius_m"])
+    if "engine.torque_scale" in values:
+        changes["engine"] = dataclasses.replace(model.engine, torque_scale=values["engine.torque_scale"])
+    vm = dataclasses.replace(model, **changes) if changes else model
+    return vm, make_controller(vm, kind, **params)
+
+
+def simulate_batch(
+    model: Any,
+    variants: dict[str, np.ndarray],
+    grid: Any,
+    controller: Any,
+    *,
+    soc_initial: np.ndarray,
+    soc_min: float,
+    soc_max: float,
+) -> BatchRecord | None:
+    """The compiled batch (the ``simulate_batch_compiled`` hook of :mod:`hevsim.sim.forward`):
+    every variant a compiled run on its own thread of a pool (the loop releases the GIL);
+    None for a controller without a compiled form or a key outside :data:`MODEL_KEYS`,
+    ``simulation.soc_initial`` and the ``controller.*`` keys the controller reads."""
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    if controller_code(controller) is None:
+        return None
+    n = int(np.size(soc_initial))
+    runs = []
+    for i in range(n):
+        pair = _variant(model, controller.name, {k: float(v[i]) for k, v in variants.items()})
+        if pair is None:
+            return None
+        runs.append(pair)
+    dt = float(grid.time_s[1] - grid.time_s[0])
+
+    def one(i: int) -> tuple[Any, ...]:
+        vm, ctl = runs[i]
+        names, cols, audit_names, audit, summary, _ = _run_one(
+            vm, grid, ctl, float(soc_initial[i]), soc_min, soc_max
+        )
+        wheel = cols[names.index("wheel_power_w")][:-1]
+        return (
+            dict(zip(audit_names, audit.tolist(), strict=True)),
+            summary,
+            float(np.sum(np.clip(wheel, 0.0, None)) * dt),
+        )
+
+    with ThreadPoolExecutor(max_workers=min(n, os.cpu_count() or 1) or 1) as pool:
+        out = list(pool.map(one, range(n)))
+    return BatchRecord([o[0] for o in out], np.array([o[1] for o in out]).reshape(n, len(K.SUMMARY)),
+                       np.array([o[2] for o in out]))  # fmt: skip
