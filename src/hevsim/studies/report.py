@@ -76,14 +76,15 @@ def sensitivity(info: dict[str, Any], results: pd.DataFrame) -> pd.DataFrame:
 
 
 def _with_objectives(ok: pd.DataFrame, grp: pd.DataFrame, cycle: Any, solver: Any,
-                     metric_objs: list[str]) -> pd.DataFrame | None:  # fmt: skip
-    """``grp``'s rows with the objectives it lacks taken from the one other solver that gives
-    them (same sample and cycle); None when an objective has no single source."""
+                     metric_objs: list[str], vehicle_solvers: set[str]) -> pd.DataFrame | None:  # fmt: skip
+    """``grp``'s rows with the objectives it lacks taken from the one cycle-free solver
+    (``vehicle_solvers``: labels) that gives them, same sample; None when an objective has no
+    single such source."""
     out = grp
     for o in metric_objs:
         if grp[o].notna().any():
             continue
-        givers = sorted(set(ok.loc[ok[o].notna(), "solver"]) - {solver})
+        givers = sorted((set(ok.loc[ok[o].notna(), "solver"]) & vehicle_solvers) - {solver})
         if len(givers) != 1:
             return None
         other = ok[(ok["solver"] == givers[0]) & (ok["cycle"] == cycle)].set_index("sample_id")[o]
@@ -95,11 +96,16 @@ def fronts(info: dict[str, Any], results: pd.DataFrame) -> dict[str, pd.DataFram
     """Each ``[[pareto]]`` front: its non-dominated ok cases per (cycle, solver).
 
     An objective a solver does not give (e.g. ``time_0_100_kmh_s`` in the ``simulate`` rows)
-    is taken from the one solver that gives it, for the same sample and cycle (the
-    ``performance`` rows); a (cycle, solver) group lacking an objective that no single other
-    solver gives has no front.
+    is taken from the one cycle-free solver that gives it (a property of the vehicle: the
+    ``performance`` rows of the same sample); a (cycle, solver) group lacking an objective
+    that no single cycle-free solver gives has no front.
     """
+    from hevsim.studies.solvers import SOLVERS
+
     keys = [p["key"] for p in info["parameters"]]
+    vehicle_solvers = {
+        s["label"] for s in info.get("solvers", []) if s["name"] in SOLVERS and SOLVERS[s["name"]].cycle_free
+    }
     out: dict[str, pd.DataFrame] = {}
     ok = results[results["status"] == "ok"]
     for p in info.get("pareto", []):
@@ -108,7 +114,7 @@ def fronts(info: dict[str, Any], results: pd.DataFrame) -> dict[str, pd.DataFram
         metric_objs = [o for o in objs if o not in keys]
         parts = []
         for (cycle, solver), grp in ok.groupby(["cycle", "solver"], sort=True):
-            full = _with_objectives(ok, grp, cycle, solver, metric_objs)
+            full = _with_objectives(ok, grp, cycle, solver, metric_objs, vehicle_solvers)
             if full is None:
                 continue
             mask = pareto_mask(full[objs].to_numpy(np.float64), sense)
