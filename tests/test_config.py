@@ -71,8 +71,10 @@ def test_series_and_parallel_share_the_section_classes() -> None:
     s, p = _section_types(C.SeriesHEVConfig), _section_types(C.ParallelHEVConfig)
     shared = set(s) & set(p)
     assert shared >= {"powertrain", "body", "tire", "final_drive", "engine", "motor", "battery", "metrics"}
-    for name in shared:
+    for name in shared - {"optimization"}:
         assert s[name] is p[name], name
+    # one [optimization] section type; the series' defaults are the charge-sustaining ones
+    assert issubclass(s["optimization"], p["optimization"]) and p["optimization"] is C.OptimizationSection
     assert s["motor"] is s["generator"] is C.MachineSection
     assert p["final_drive"] is C.GearSection
     assert issubclass(p["motor_coupling"], C.GearSection)  # plus its position (P2 / P3)

@@ -306,7 +306,18 @@ class ControllerSection:
 
 @dataclass(frozen=True)
 class OptimizationSection:
-    """Dynamic-programming settings of the parallel HEV (the appendix's problem by default)."""
+    """Dynamic-programming settings (``hevsim optimize``), one section for every architecture
+    with a DP formulation; these defaults are the parallel HEV's (the appendix's problem), the
+    series and power split take :class:`SustainingOptimizationSection`'s.
+
+    ``cycle`` (empty: the ``[simulation]`` cycle); ``soc_initial`` [-]; ``final_soc``
+    ``"window"`` (``final_soc_min``..``final_soc_max`` [-]) or ``"sustain"`` (within
+    ``soc_tolerance`` [-] of the initial SOC); ``soc_grid_points`` over the battery's SOC
+    window; ``input_grid_points``: the control grid (parallel: throttles, series: genset
+    electrical powers, power split: throttles per engine speed), 0 = the architecture's
+    default (parallel: ``throttle_grid_points``, series: 101, power split:
+    ``controller.control_points``); ``final_constraint``: the solver's final-state method.
+    """
 
     cycle: str = "udds"
     soc_initial: float = param(0.8, 0.0, 1.0, "-")
@@ -315,8 +326,29 @@ class OptimizationSection:
     final_soc_max: float = param(0.8, 0.0, 1.0, "-")
     soc_tolerance: float = param(0.005, 0.0, 1.0, "-")
     soc_grid_points: int = param(400, 2, 100_000, "-")
+    input_grid_points: int = param(0, 0, 100_000, "-")
     throttle_grid_points: int = param(400, 2, 100_000, "-")
     final_constraint: str = choice("auto", "auto", "boundary_line", "levelset", "wall", "penalty")
+
+
+SOC_INITIAL_FROM_SIMULATION = -1.0
+"""``optimization.soc_initial`` default of :class:`SustainingOptimizationSection`: the
+``[simulation]`` initial SOC (any other value must lie in the battery's SOC window)."""
+
+
+@dataclass(frozen=True)
+class SustainingOptimizationSection(OptimizationSection):
+    """The ``[optimization]`` defaults of the series and power-split HEV: charge sustaining on
+    the ``[simulation]`` cycle from its initial SOC (``soc_initial`` default
+    :data:`SOC_INITIAL_FROM_SIMULATION`), 201 SOC points; a ``"window"`` final SOC defaults
+    to the battery's SOC window (``final_soc_min``/``max`` clipped to it)."""
+
+    cycle: str = ""
+    soc_initial: float = param(SOC_INITIAL_FROM_SIMULATION, SOC_INITIAL_FROM_SIMULATION, 1.0, "-")
+    final_soc: str = choice("sustain", "window", "sustain")
+    final_soc_min: float = param(0.0, 0.0, 1.0, "-")
+    final_soc_max: float = param(1.0, 0.0, 1.0, "-")
+    soc_grid_points: int = param(201, 2, 100_000, "-")
 
 
 @dataclass(frozen=True)
@@ -376,6 +408,7 @@ class SeriesHEVConfig(_VehicleConfig):
     battery: BatterySection = field(default_factory=BatterySection)
     driver: DriverSection = field(default_factory=DriverSection)
     controller: ControllerSection = field(default_factory=ControllerSection)
+    optimization: SustainingOptimizationSection = field(default_factory=SustainingOptimizationSection)
     metrics: MetricsSection = field(default_factory=MetricsSection)
     fuel: FuelSection = field(default_factory=FuelSection)  # hevsim.fuels: choose/override the fuel
     base_dir: str = "."
@@ -472,6 +505,7 @@ class PowerSplitConfig(_VehicleConfig):
     brakes: BrakesSection = field(default_factory=BrakesSection)
     simulation: SimulationSection = field(default_factory=SimulationSection)
     controller: ControllerSection = field(default_factory=lambda: ControllerSection(kind="power_follower"))
+    optimization: SustainingOptimizationSection = field(default_factory=SustainingOptimizationSection)
     metrics: MetricsSection = field(default_factory=MetricsSection)
     fuel: FuelSection = field(default_factory=FuelSection)
     base_dir: str = "."
@@ -495,11 +529,34 @@ def _check_controller(cfg: Any, source: str) -> None:
     check_controller(cfg, source)
 
 
+def _check_optimization(cfg: Any, source: str) -> None:
+    """The ``[optimization]`` section against the battery's SOC window (every DP architecture).
+
+    A sustaining section's default window (0..1) is clipped to the battery's window when used
+    (``hevsim.optimal.hev``), so only the parallel HEV's explicit window must lie inside it.
+    """
+    _pairs_below(cfg, source, (("optimization.final_soc_min", "optimization.final_soc_max"),))
+    b, o = cfg.battery, cfg.optimization
+    inherits = isinstance(o, SustainingOptimizationSection) and o.soc_initial == SOC_INITIAL_FROM_SIMULATION
+    if not inherits and not b.soc_min <= o.soc_initial <= b.soc_max:
+        raise ConfigError(
+            f"{source}: key 'optimization.soc_initial' = {o.soc_initial} lies outside the SOC window "
+            f"[battery.soc_min, battery.soc_max] = [{b.soc_min}, {b.soc_max}]."
+        )
+    window_inside = o.final_soc_min >= b.soc_min and o.final_soc_max <= b.soc_max
+    if o.final_soc == "window" and not window_inside and not isinstance(o, SustainingOptimizationSection):
+        raise ConfigError(
+            f"{source}: keys 'optimization.final_soc_min'/'final_soc_max' = [{o.final_soc_min}, "
+            f"{o.final_soc_max}] must lie inside the SOC window [{b.soc_min}, {b.soc_max}]."
+        )
+
+
 def _check_series(cfg: SeriesHEVConfig, source: str) -> None:
     _check_controller(cfg, source)
     _pairs_below(cfg, source, (("controller.soc_low", "controller.soc_high"),
                                ("battery.soc_min", "battery.soc_max"),
                                ("engine.stall_speed_rpm", "engine.redline_rpm")))  # fmt: skip
+    _check_optimization(cfg, source)
 
 
 def _check_parallel(cfg: ParallelHEVConfig, source: str) -> None:
@@ -507,20 +564,9 @@ def _check_parallel(cfg: ParallelHEVConfig, source: str) -> None:
     _pairs_below(cfg, source, (("battery.soc_min", "battery.soc_max"),
                                ("controller.soc_low", "controller.soc_high"),
                                ("controller.downshift_rpm", "controller.upshift_rpm"),
-                               ("engine.stall_speed_rpm", "engine.redline_rpm"),
-                               ("optimization.final_soc_min", "optimization.final_soc_max")))  # fmt: skip
+                               ("engine.stall_speed_rpm", "engine.redline_rpm")))  # fmt: skip
     _check_shift_schedule(cfg, source)
-    b, o = cfg.battery, cfg.optimization
-    if not b.soc_min <= o.soc_initial <= b.soc_max:
-        raise ConfigError(
-            f"{source}: key 'optimization.soc_initial' = {o.soc_initial} lies outside the SOC window "
-            f"[battery.soc_min, battery.soc_max] = [{b.soc_min}, {b.soc_max}]."
-        )
-    if o.final_soc == "window" and (o.final_soc_min < b.soc_min or o.final_soc_max > b.soc_max):
-        raise ConfigError(
-            f"{source}: keys 'optimization.final_soc_min'/'final_soc_max' = [{o.final_soc_min}, "
-            f"{o.final_soc_max}] must lie inside the SOC window [{b.soc_min}, {b.soc_max}]."
-        )
+    _check_optimization(cfg, source)
     if cfg.battery.model == "cell":
         raise ConfigError(
             f"{source}: key 'battery.model' = 'cell' is not supported by the parallel HEV; "
@@ -571,6 +617,7 @@ def _check_power_split(cfg: PowerSplitConfig, source: str) -> None:
                                ("controller.soc_low", "controller.soc_high"),
                                ("engine.stall_speed_rpm", "engine.redline_rpm"),
                                ("planetary.sun_teeth", "planetary.ring_teeth")))  # fmt: skip
+    _check_optimization(cfg, source)
     zs, zr = cfg.planetary.sun_teeth, cfg.planetary.ring_teeth
     if (zr - zs) % 2:
         raise ConfigError(

@@ -40,7 +40,13 @@ from hevsim.architectures.parallel import (
 )
 from hevsim.architectures.power_split import PowerSplitHEV
 from hevsim.components.engine import Engine
-from hevsim.config import PowerSplitConfig, SeriesHEVConfig, load_config, load_vehicle_config
+from hevsim.config import (
+    SOC_INITIAL_FROM_SIMULATION,
+    PowerSplitConfig,
+    SeriesHEVConfig,
+    load_config,
+    load_vehicle_config,
+)
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DPInfeasibleError, DPSetupError
 from hevsim.io import atomic_directory, write_json
@@ -52,12 +58,10 @@ from hevsim.sim.model import SeriesHEV, build_series_hev
 
 FINAL_SOC_MODES: tuple[str, ...] = ("sustain", "window")
 """``final_soc`` choices: within ``soc_tolerance`` of the initial SOC, or a window."""
-SERIES_SOC_POINTS = 201
-"""Default SOC grid size of the series formulation [-]."""
 SERIES_POWER_POINTS = 101
-"""Default genset-power grid size of the series formulation [-]."""
-SERIES_SOC_TOLERANCE = 0.005
-"""Default charge-sustaining tolerance of the series formulation on the final SOC [-]."""
+"""Default genset-power grid size of the series formulation [-] (``optimization.input_grid_points``
+= 0); the other defaults are the ``[optimization]`` section's
+(:class:`hevsim.config.SustainingOptimizationSection`)."""
 PENALTY_EQUIVALENCE_FACTOR = 100.0
 """Equivalence factor [-] of the default final-SOC penalty weight (``final_constraint=
 "penalty"``): far above the optimum's 2-4, so the penalty is exact (the target is met)."""
@@ -92,44 +96,35 @@ class Architecture:
     formulate: Callable[[Any, DriveCycle, Settings, np.ndarray, FinalTarget], HEVFormulation]
 
 
-def _parallel_settings(hev: ParallelHEV) -> Settings:
+def _section_settings(hev: Any, default_input_points: int) -> Settings:
+    """Settings from the configuration's ``[optimization]`` section (every architecture): an
+    empty cycle or the sustaining default initial SOC take the ``[simulation]`` values, the
+    final window is clipped to the battery's SOC window, ``input_grid_points`` = 0 takes the
+    architecture's ``default_input_points``."""
     c = hev.config
+    b = c.battery
     o = c.optimization
+    inherit = o.soc_initial == SOC_INITIAL_FROM_SIMULATION
     return Settings(
-        cycle=o.cycle,
-        soc_min=c.battery.soc_min,
-        soc_max=c.battery.soc_max,
+        cycle=o.cycle or c.simulation.cycle,
+        soc_min=b.soc_min,
+        soc_max=b.soc_max,
         soc_points=o.soc_grid_points,
-        input_points=o.throttle_grid_points,
-        soc_initial=o.soc_initial,
+        input_points=o.input_grid_points or default_input_points,
+        soc_initial=c.simulation.soc_initial if inherit else o.soc_initial,
         final_soc=o.final_soc,
-        final_window=(o.final_soc_min, o.final_soc_max),
+        final_window=(max(o.final_soc_min, b.soc_min), min(o.final_soc_max, b.soc_max)),
         soc_tolerance=o.soc_tolerance,
         final_constraint=o.final_constraint,
     )
 
 
-def _sustaining_settings(hev: Any, input_points: int) -> Settings:
-    """Charge-sustaining settings from the configuration's simulation cycle, initial SOC and
-    battery SOC window (the architectures without an ``[optimization]`` section)."""
-    c = hev.config
-    b = c.battery
-    return Settings(
-        cycle=c.simulation.cycle,
-        soc_min=b.soc_min,
-        soc_max=b.soc_max,
-        soc_points=SERIES_SOC_POINTS,
-        input_points=input_points,
-        soc_initial=c.simulation.soc_initial,
-        final_soc="sustain",
-        final_window=(b.soc_min, b.soc_max),
-        soc_tolerance=SERIES_SOC_TOLERANCE,
-        final_constraint="auto",
-    )
+def _parallel_settings(hev: ParallelHEV) -> Settings:
+    return _section_settings(hev, hev.config.optimization.throttle_grid_points)
 
 
 def _series_settings(hev: SeriesHEV) -> Settings:
-    return _sustaining_settings(hev, SERIES_POWER_POINTS)
+    return _section_settings(hev, SERIES_POWER_POINTS)
 
 
 def _formulate_parallel(
@@ -153,7 +148,7 @@ def _formulate_series(
 
 
 def _power_split_settings(hev: Any) -> Settings:
-    return _sustaining_settings(hev, hev.config.controller.control_points)
+    return _section_settings(hev, hev.config.controller.control_points)
 
 
 def _formulate_power_split(
