@@ -63,16 +63,16 @@ def run_fastsim() -> dict[str, Any]:
 
 
 def run_hevsim() -> dict[str, dict[str, float]]:
-    """hevsim's mpg, SOC-corrected MPGGE and audit residual [%] on each cycle."""
+    """hevsim's mpg, SOC-corrected MPGGE, audit residual [%], final SOC and time behind the
+    trace [s] on each cycle."""
     from hevsim.sim.forward import simulate_architecture
 
     out = {}
     for cycle in CYCLES:
         res = simulate_architecture("power_split", str(CONFIG), cycle)
         m = res.metrics
-        out[cycle] = {
-            k: float(m[k]["value"]) for k in ("mpg", "mpgge", "energy_audit_residual_pct", "soc_final")
-        }
+        keys = ("mpg", "mpgge", "energy_audit_residual_pct", "soc_final", "traction_limited_s")
+        out[cycle] = {k: float(m[k]["value"]) for k in keys}
     return out
 
 
