@@ -67,11 +67,11 @@ import numpy as np
 import pandas as pd
 
 import hevsim
-from hevsim.components.body import grade_force, rolling_force
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DomainError, InputError
 from hevsim.fuels import config_fuel
 from hevsim.sim import kernel as K
+from hevsim.sim._compiled_common import AUDIT_ROAD, add_road_audit
 from hevsim.sim.metrics import compute_metrics
 from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
 
@@ -495,6 +495,7 @@ def _run(
         ("fuel", "genset_source", "battery_chemical", "aero", "rolling", "grade", "kinetic_vehicle"), 0.0
     )
     ctl.reset(soc0)
+    road = np.zeros(3 + len(AUDIT_ROAD))
     v, soc, fuel = float(v_des[0]), soc0, 0.0
     err_sq = err_max = dist = eon = starts = lim_s = 0.0
     was_on = False
@@ -566,14 +567,10 @@ def _run(
             e_chem = -d_soc * q_as * ocv
             audit["battery_chemical"] += e_chem
             audit["battery_loss"] = audit.get("battery_loss", 0.0) + e_chem - det["battery_power_w"] * dt
-        if v_mid > 0.0:
-            f_grade = float(grade_force(body.mass_kg, g))
-            f_roll = float(rolling_force(body.mass_kg, g, body.rolling_resistance))
-            f_aero = f - m_eff * a - f_roll - f_grade  # eq (32): the rest of the road load
-            audit["aero"] += f_aero * v_mid * dt
-            audit["rolling"] += f_roll * v_mid * dt
-            audit["grade"] += f_grade * v_mid * dt
-            audit["kinetic_vehicle"] += 0.5 * m_eff * (v1 * v1 - v * v)
+        road[:] = 0.0  # aero (the rest of the road load, eq 32), rolling, grade, kinetic
+        add_road_audit(road, v, v1, v_mid, a, g, f, body.mass_kg, m_eff, body.rolling_resistance, dt)
+        for j, term in enumerate(AUDIT_ROAD, start=3):
+            audit[term] += float(road[j])
         # ---- mode and bookkeeping
         on = det.get("engine_on", 0.0) > 0.0
         if on and not was_on:
