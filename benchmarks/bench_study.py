@@ -1,9 +1,12 @@
 """Study throughput on Dask against ``simulate_batch`` in one process (issue 17).
 
-Run from the repository root::
+Run from the repository root; the full-size benchmarks of issue 17 are::
 
-    .venv/bin/python benchmarks/bench_study.py [--cases 100000] [--workers 2]
-        [--dp-cases 8 --dp-grid 101]
+    .venv/bin/python benchmarks/bench_study.py --cases 100000 --workers 2
+    .venv/bin/python benchmarks/bench_study.py --cases 0 --dp-cases 200 --dp-grid 400
+
+(on a loaded 2-core machine the 200-case DP study at 400 x 400 takes hours: ``--dp-cases 4``
+runs 4 cases and prints the 200-case figures EXTRAPOLATED from them, marked as such).
 
 What is timed (``time.perf_counter``; the numba cache is warmed first):
 
@@ -15,9 +18,12 @@ What is timed (``time.perf_counter``; the numba cache is warmed first):
     batches, writing. Reported: throughput ratio (b)/(a) (target >= 0.8), and the overhead
     per case ``(t_b - t_a) / cases`` (target <= 1 ms at 100 000 cases);
 (b0) the fixed cost of (b): a 4-case study on the same cluster (start, worker imports, stop);
-(c) the same study in process (no Dask), to separate Dask's cost from the study's own;
+(c) the same study in process (no Dask), to separate Dask's cost from the study's own
+    (``--no-in-process`` skips it);
 (d) optional DP scaling: ``--dp-cases`` DP cases (parallel HEV, UDDS, ``--dp-grid`` SOC and
-    throttle points) on 1 and on 2 workers: the speed-up.
+    throttle points, the issue's study is 200 cases at 400 x 400) on 1 and on 2 workers: the
+    speed-up, and the time per case; with fewer cases than ``--dp-full-cases`` the full
+    study's time is extrapolated (cases x time per case) and printed as EXTRAPOLATED.
 
 The 1-minute load average before and after, and the other processes' load during each
 timing, are printed: on a shared machine the ratios, not the absolute figures, are the result.
@@ -59,7 +65,7 @@ def _study(cases: int) -> object:
     })  # fmt: skip
 
 
-def bench_simulate(cases: int, workers: int) -> None:
+def bench_simulate(cases: int, workers: int, in_process: bool = True) -> None:
     from hevsim.config import load_vehicle_config
     from hevsim.sim.model import build_series_hev
     from hevsim.sim.simulator import simulate_batch
@@ -96,12 +102,14 @@ def bench_simulate(cases: int, workers: int) -> None:
             rows = run_study(study, Path(tmp) / "dask", workers=workers, progress=False)  # type: ignore[arg-type]
             t_b = time.perf_counter() - t0
         print(f"    {t_b:.2f} s, {cases / t_b:,.0f} cases/s ({lb.text()})")
-        print("(c) run_study in process (no Dask) ...", flush=True)
-        with OtherLoad() as lc:
-            t0 = time.perf_counter()
-            run_study(study, Path(tmp) / "inproc", scheduler="in-process", progress=False)  # type: ignore[arg-type]
-            t_c = time.perf_counter() - t0
-        print(f"    {t_c:.2f} s, {cases / t_c:,.0f} cases/s ({lc.text()})")
+        t_c = float("nan")
+        if in_process:
+            print("(c) run_study in process (no Dask) ...", flush=True)
+            with OtherLoad() as lc:
+                t0 = time.perf_counter()
+                run_study(study, Path(tmp) / "inproc", scheduler="in-process", progress=False)  # type: ignore[arg-type]
+                t_c = time.perf_counter() - t0
+            print(f"    {t_c:.2f} s, {cases / t_c:,.0f} cases/s ({lc.text()})")
     same = np.array_equal(rows["mpgge"].to_numpy(), base.table["mpgge"].to_numpy())
     print(f"    study rows equal simulate_batch's: {same}")
     print(f"throughput ratio (b)/(a) = {t_a / t_b:.2f}  (target >= 0.80)")
@@ -111,10 +119,11 @@ def bench_simulate(cases: int, workers: int) -> None:
     print(
         f"overhead per case without the fixed cost (b)-(b0)-(a) = {(t_b - t_b0 - t_a) / cases * 1e3:.3f} ms"
     )
-    print(f"in-process study (c)/(a) = {t_a / t_c:.2f}")
+    if in_process:
+        print(f"in-process study (c)/(a) = {t_a / t_c:.2f}")
 
 
-def bench_dp(cases: int, grid: int) -> None:
+def bench_dp(cases: int, grid: int, full_cases: int = 200) -> None:
     from hevsim.studies.runner import run_study
     from hevsim.studies.spec import study_from_dict
 
@@ -132,8 +141,15 @@ def bench_dp(cases: int, grid: int) -> None:
             t0 = time.perf_counter()
             rows = run_study(study, workers=w, progress=False)
             times[w] = time.perf_counter() - t0
-        print(f"    {times[w]:.1f} s, {int((rows['status'] == 'ok').sum())} ok ({ld.text()})")
-    print(f"DP speed-up 1 -> 2 workers: {times[1] / times[2]:.2f}x")
+        print(f"    {times[w]:.1f} s ({times[w] / cases:.1f} s per case), "
+              f"{int((rows['status'] == 'ok').sum())} ok ({ld.text()})")  # fmt: skip
+    print(f"DP speed-up 1 -> 2 workers: {times[1] / times[2]:.2f}x ({cases} cases)")
+    if cases < full_cases:
+        print(f"EXTRAPOLATED (not measured) to the {full_cases}-case study at {grid} x {grid}: "
+              f"{times[1] / cases * full_cases / 3600:.1f} h on 1 worker, "
+              f"{times[2] / cases * full_cases / 3600:.1f} h on 2 workers (time per case x cases; "
+              "the fixed cluster start-up is counted once per measured case here, so this is an upper "
+              "bound)")  # fmt: skip
 
 
 def main() -> int:
@@ -141,12 +157,15 @@ def main() -> int:
     ap.add_argument("--cases", type=int, default=100_000)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--dp-cases", type=int, default=0, help="DP cases for the scaling run (0: skip)")
-    ap.add_argument("--dp-grid", type=int, default=101)
+    ap.add_argument("--dp-grid", type=int, default=400)
+    ap.add_argument("--dp-full-cases", type=int, default=200, help="DP study size to extrapolate to")
+    ap.add_argument("--no-in-process", action="store_true", help="skip the in-process study (c)")
     a = ap.parse_args()
     print(f"python {sys.version.split()[0]}; {_load()}")
-    bench_simulate(a.cases, a.workers)
+    if a.cases:
+        bench_simulate(a.cases, a.workers, not a.no_in_process)
     if a.dp_cases:
-        bench_dp(a.dp_cases, a.dp_grid)
+        bench_dp(a.dp_cases, a.dp_grid, a.dp_full_cases)
     print(f"after: {_load()}")
     return 0
 

@@ -240,7 +240,10 @@ def test_sigint_then_resume_gives_every_case_once(tmp_path: Path) -> None:
 
 
 def test_examples_load() -> None:
-    for name in ("study_series_sizing.toml", "study_parallel_sizing.toml", "study_series_controllers.toml"):
+    for name in ("study_series_sizing.toml", "study_parallel_sizing.toml", "study_series_controllers.toml",
+                 "study_parallel_controllers.toml"):  # fmt: skip
         s = load_study(ROOT / "examples" / name)
         assert s.n_cases > 0 and s.pareto, name
+    sizing = load_study(ROOT / "examples" / "study_parallel_sizing.toml")
+    assert [s.label for s in sizing.solvers] == ["simulate[controller=rule_based]", "optimize", "performance"]
     assert os.path.isfile(ROOT / "docs" / "studies.md")
