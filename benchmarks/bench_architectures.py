@@ -90,7 +90,7 @@ def main() -> int:
                 times.append(time.perf_counter() - t0)
             med = statistics.median(times)
             ratio = f"{med / fastsim_s:9.1f}" if fastsim_s else f"{'-':>9}"
-            print(f"{label + ' (py)':<16}{cfg.controller.kind:<17}{1:>11}{med:>10.3f}{ratio}")
+            print(f"{label + '/py':<16}{cfg.controller.kind:<17}{1:>11}{med:>10.3f}{ratio}")
     print(load.text())
     return 0
 
