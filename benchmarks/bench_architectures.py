@@ -91,8 +91,48 @@ def main() -> int:
             med = statistics.median(times)
             ratio = f"{med / fastsim_s:9.1f}" if fastsim_s else f"{'-':>9}"
             print(f"{label + '/py':<16}{cfg.controller.kind:<17}{1:>11}{med:>10.3f}{ratio}")
+        _hev_rows(REPO, cyc, a.repeats, fastsim_s)
     print(load.text())
     return 0
+
+
+HEV_ROWS = (
+    ("parallel (P3)", "examples/parallel_hev.toml", "electric_assist", {}),
+    ("parallel (P3)", "examples/parallel_hev.toml", "ecms", {"control_points": 11}),
+    ("power split", "examples/prius_like_power_split.toml", "power_follower", {}),
+    ("power split", "examples/prius_like_power_split.toml", "ecms", {"control_points": 5}),
+)
+"""Parallel and power-split rows: the rule-based controller and ECMS over a grid of at least 50
+candidates (P3: engine off + 5 gears x 10 throttles = 51; power split: engine off + 13 speeds x
+4 throttles = 53), compiled and through the Python loop (``py``), wall and CPU time."""
+
+
+def _hev_rows(repo: Path, cyc: object, repeats: int, fastsim_s: float | None) -> None:
+    """Print the :data:`HEV_ROWS` (median wall and CPU seconds of ``repeats`` UDDS runs)."""
+    from hevsim import config as C
+    from hevsim.architectures import architecture
+    from hevsim.control import make_controller
+    from hevsim.sim.forward import simulate_architecture
+
+    print(f"{'vehicle':<16}{'controller':<17}{'candidates':>11}{'median s':>10}{'CPU s':>9}{'ratio':>9}")
+    for label, path, kind, params in HEV_ROWS:
+        cfg = C.load_vehicle_config(repo / path)
+        model = architecture(cfg.architecture).build(cfg)
+        n = len(make_controller(model, kind, **params).controls[0])
+        for compiled in (True, False):
+            simulate_architecture(cfg.architecture, model, cyc, controller=kind, compiled=compiled, **params)
+            wall, cpu = [], []
+            for _ in range(repeats):
+                c0, t0 = time.process_time(), time.perf_counter()
+                simulate_architecture(
+                    cfg.architecture, model, cyc, controller=kind, compiled=compiled, **params
+                )
+                wall.append(time.perf_counter() - t0)
+                cpu.append(time.process_time() - c0)
+            med = statistics.median(wall)
+            ratio = f"{med / fastsim_s:9.2f}" if fastsim_s else f"{'-':>9}"
+            name = kind if compiled else f"{kind} (py)"
+            print(f"{label:<16}{name:<17}{n:>11}{med:>10.3f}{statistics.median(cpu):>9.3f}{ratio}")
 
 
 if __name__ == "__main__":

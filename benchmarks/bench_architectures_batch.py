@@ -31,6 +31,7 @@ REPO = Path(__file__).resolve().parents[1]
 VEHICLES = {
     "conventional": "examples/conventional_sedan.toml",
     "parallel (P3)": "examples/parallel_hev.toml",
+    "power split": "examples/prius_like_power_split.toml",
 }
 
 

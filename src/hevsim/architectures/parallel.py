@@ -232,7 +232,8 @@ def _mechanical_many(w_wheel, t_wheel, gear, throttle, grid_duplicates, d, etab,
         r = mechanical_point(w_wheel[i], t_wheel[i], gear[i], throttle[i], grid_duplicates, d, etab)
         gi[i] = r[0]
         flags[0, i], flags[1, i], flags[2, i], flags[3, i] = r[1], r[2], r[3], r[4]
-        floats[:, i] = r[5:]
+        floats[0, i], floats[1, i], floats[2, i], floats[3, i] = r[5], r[6], r[7], r[8]
+        floats[4, i], floats[5, i], floats[6, i], floats[7, i] = r[9], r[10], r[11], r[12]
 
 
 def mechanical(

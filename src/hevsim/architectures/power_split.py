@@ -233,7 +233,8 @@ def _mechanical_many(
             w_wheel[i], t_wheel[i], w_cmd[i], throttle[i], w_cmd_min, grid_duplicates, d, etab, gtab
         )
         flags[0, i], flags[1, i], flags[2, i], flags[3, i], flags[4, i], flags[5, i] = r[:6]
-        floats[:, i] = r[6:]
+        for j in range(11):  # the float outputs (a homogeneous slice of the tuple)
+            floats[j, i] = r[6:][j]
 
 
 def mechanical(
