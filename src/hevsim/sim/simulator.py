@@ -479,10 +479,10 @@ def simulate_batch(
     pmat = np.repeat(base[None, :], n, axis=0)
     for k, a in arrays.items():
         pmat[:, K.P[k]] = np.broadcast_to(a, (n,))
-    if hev.cell is not None:
+    if hev.cell is not None or hev.config.battery.model == "pack":
         raise ConfigError(
-            f"{hev.name}: batch runs with battery.model = 'cell' are not supported (the cells' "
-            "dynamic state would be shared by the variants); use simulate() per variant."
+            f"{hev.name}: batch runs with battery.model = {hev.config.battery.model!r} are not supported "
+            "(the cells' dynamic state would be shared by the variants); use simulate() per variant."
         )
     eng, mot, gen, bat = hev.kernel_tables()
     energy = np.zeros((n, len(K.ENERGY_TERMS)))
