@@ -211,9 +211,10 @@ class BatterySection:
 
     model: str = choice("ideal", "ideal", "rint", "table", "cell", "pack")
     pack: str = ""
-    # the DC bus window the motor inverter accepts [V] (a "pack" must lie inside it)
+    # the DC bus window the motor inverter accepts [V] (a "pack" must lie inside it; the
+    # defaults accept any pack)
     bus_min_v: float = param(0.0, 0.0, 1e5, "V")
-    bus_max_v: float = param(INF, 1e-3, INF, "V", allow_inf=True)
+    bus_max_v: float = param(1e5, 1e-3, 1e5, "V")
     ocv_v: float = param(336.0, 1e-3, 1e5, "V")
     resistance_ohm: float = param(0.0, 0.0, 1e3, "ohm")
     capacity_ah: float = param(8.5, 1e-6, 1e6, "A·h")
