@@ -178,15 +178,28 @@ def kernel_tables(hev: ParallelHEV) -> ParallelTables:
 @njit(cache=True, inline="always")
 def mechanical_point(wheel_speed_radps, wheel_torque_nm, gear, throttle, grid_duplicates, d, etab):
     """The state-independent half of the power flow at one point (THE scalar kernel; see
-    :func:`mechanical`). ``d``: :class:`ParallelTables`; ``etab``: the engine's
-    :class:`~hevsim.components.engine.EngineTables`.
+    :func:`mechanical`): the final drive, then :func:`driveline_point`. ``d``:
+    :class:`ParallelTables`; ``etab``: the engine's :class:`~hevsim.components.engine.EngineTables`.
 
     Returns (gi, on, engine_speed, motor_speed, bad, w_fd, w_e, t_e, t_e_fd, t_fd, fuel,
     w_em, t_em_req).
     """
+    w_fd, t_fd = final_drive_point(wheel_speed_radps, wheel_torque_nm, d)
+    return driveline_point(w_fd, t_fd, gear, throttle, grid_duplicates, d, etab)
+
+
+@njit(cache=True, inline="always")
+def final_drive_point(wheel_speed_radps, wheel_torque_nm, d):
+    """(speed [rad/s], required torque [N·m]) at the final-drive input for a wheel demand."""
+    return (wheel_speed_radps * d.final_drive_ratio,
+            gear_input_torque(wheel_torque_nm, d.final_drive_ratio, d.final_drive_efficiency))  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def driveline_point(w_fd, t_fd, gear, throttle, grid_duplicates, d, etab):
+    """:func:`mechanical_point` from the final-drive input's speed [rad/s] and required torque
+    [N·m] (loops over many controls at one wheel demand compute those once)."""
     gi = int(np.rint(gear)) - 1
-    w_fd = wheel_speed_radps * d.final_drive_ratio
-    t_fd = gear_input_torque(wheel_torque_nm, d.final_drive_ratio, d.final_drive_efficiency)
     ratio, eff = d.gear_ratio[gi], d.gear_efficiency[gi]
     w_e = w_fd * ratio
     fired = throttle > 0.0
@@ -228,8 +241,12 @@ MECH_FLAGS: tuple[str, ...] = ("on", "engine_speed", "motor_speed", "bad")
 @njit(cache=True)
 def _mechanical_many(w_wheel, t_wheel, gear, throttle, grid_duplicates, d, etab, gi, flags, floats):
     """:func:`mechanical_point` over flat arrays; fills ``gi``, ``flags`` (4, n) and ``floats`` (8, n)."""
+    w_last, t_last, w_fd, t_fd = np.nan, np.nan, 0.0, 0.0
     for i in range(w_wheel.shape[0]):
-        r = mechanical_point(w_wheel[i], t_wheel[i], gear[i], throttle[i], grid_duplicates, d, etab)
+        if w_wheel[i] != w_last or t_wheel[i] != t_last:  # the final drive once per wheel demand
+            w_last, t_last = w_wheel[i], t_wheel[i]
+            w_fd, t_fd = final_drive_point(w_last, t_last, d)
+        r = driveline_point(w_fd, t_fd, gear[i], throttle[i], grid_duplicates, d, etab)
         gi[i] = r[0]
         flags[0, i], flags[1, i], flags[2, i], flags[3, i] = r[1], r[2], r[3], r[4]
         floats[0, i], floats[1, i], floats[2, i], floats[3, i] = r[5], r[6], r[7], r[8]
