@@ -346,6 +346,22 @@ class HEVFormulation(ABC):
         self.battery_at = BatteryCache(battery)
         self._grid_seen: Any = None
 
+    # ----------------------------------------------------------------- construction
+    @classmethod
+    @abstractmethod
+    def default_input_points(cls, model: Any) -> int:
+        """The input grid size of ``model``'s problem when ``optimization.input_grid_points``
+        is 0 (the configuration's own default) [-]."""
+
+    @classmethod
+    @abstractmethod
+    def from_settings(
+        cls, model: Any, cycle: DriveCycle, settings: Any, soc_grid: FloatArray, target: FinalTarget
+    ) -> HEVFormulation:
+        """The problem of ``model`` on ``cycle`` with resolved settings
+        (:class:`hevsim.optimal.hev.Settings`: ``input_points``, ``soc_initial``), SOC grid
+        ``soc_grid`` [-] and final target ``target``."""
+
     # ----------------------------------------------------------------- model
     @abstractmethod
     def mechanical(self, k: Any, inputs: tuple[Any, ...], *, grid_duplicates: bool = False) -> Any:

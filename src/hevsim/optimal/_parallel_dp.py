@@ -32,6 +32,17 @@ class ParallelFormulation(HEVFormulation):
     input_units = ("-", "-")
     discrete_inputs = (0,)
 
+    @classmethod
+    def default_input_points(cls, model: Any) -> int:
+        return int(model.config.optimization.throttle_grid_points)
+
+    @classmethod
+    def from_settings(
+        cls, model: Any, cycle: DriveCycle, settings: Any, soc_grid: FloatArray, target: FinalTarget
+    ) -> ParallelFormulation:
+        return cls(model, cycle, soc_grid=soc_grid, throttle_points=settings.input_points,
+                   soc_initial=settings.soc_initial, target=target)  # fmt: skip
+
     def __init__(
         self,
         hev: ParallelHEV,

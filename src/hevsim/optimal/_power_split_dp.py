@@ -26,6 +26,18 @@ class PowerSplitFormulation(HEVFormulation):
     input_names = ("engine_speed_radps", "throttle")
     input_units = ("rad/s", "-")
 
+    @classmethod
+    def default_input_points(cls, model: Any) -> int:
+        return int(model.config.controller.control_points)
+
+    @classmethod
+    def from_settings(
+        cls, model: Any, cycle: DriveCycle, settings: Any, soc_grid: FloatArray, target: FinalTarget
+    ) -> PowerSplitFormulation:
+        return cls(model, cycle, soc_grid=soc_grid, throttle_points=settings.input_points,
+                   speed_points=model.config.controller.engine_speed_points,
+                   soc_initial=settings.soc_initial, target=target)  # fmt: skip
+
     def __init__(
         self,
         hev: ps.PowerSplitHEV,

@@ -35,6 +35,8 @@ GENSET_NEWTON_STEPS = 4
 """Newton steps refining the torque so the generator delivers the requested power [-]."""
 GENSET_NEWTON_DT_NM = 1e-3
 """Torque step of the finite-difference slope in those Newton steps [N·m]."""
+SERIES_POWER_POINTS = 101
+"""Default genset-power grid size [-] (``optimization.input_grid_points`` = 0)."""
 
 
 @dataclass(frozen=True)
@@ -174,6 +176,17 @@ class SeriesFormulation(HEVFormulation):
             "battery_discharge_current": f"battery discharge current above {bat.max_discharge_current_a:g} A",
             "battery_charge_current": f"battery charge current above {bat.max_charge_current_a:g} A",
         }
+
+    @classmethod
+    def default_input_points(cls, model: Any) -> int:
+        return SERIES_POWER_POINTS
+
+    @classmethod
+    def from_settings(
+        cls, model: Any, cycle: DriveCycle, settings: Any, soc_grid: FloatArray, target: FinalTarget
+    ) -> SeriesFormulation:
+        return cls(model, cycle, soc_grid=soc_grid, power_points=settings.input_points,
+                   soc_initial=settings.soc_initial, target=target)  # fmt: skip
 
     def _genset(self, p: np.ndarray) -> GensetPoints:
         """Operating points at powers ``p`` (grid values looked up, others computed)."""

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import platform
 import time
-from collections.abc import Callable
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,21 +32,8 @@ import numpy as np
 import pandas as pd
 
 import hevsim
-from hevsim.architectures.parallel import (
-    ParallelHEV,
-    ParallelHEVConfig,
-    build_parallel_hev,
-    load_parallel_config,
-)
-from hevsim.architectures.power_split import PowerSplitHEV
 from hevsim.components.engine import Engine
-from hevsim.config import (
-    SOC_INITIAL_FROM_SIMULATION,
-    PowerSplitConfig,
-    SeriesHEVConfig,
-    load_config,
-    load_vehicle_config,
-)
+from hevsim.config import SOC_INITIAL_FROM_SIMULATION, load_vehicle_config
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DPInfeasibleError, DPSetupError
 from hevsim.io import atomic_directory, write_json
@@ -54,14 +41,9 @@ from hevsim.optimal._feedback import dp_feedback
 from hevsim.optimal._hev_common import DETAIL_COLUMNS, HEVFormulation, hev_metrics
 from hevsim.optimal._problem import FinalTarget
 from hevsim.optimal.dp import FINAL_CONSTRAINTS, DPResult, solve_dp
-from hevsim.sim.model import SeriesHEV, build_series_hev
 
 FINAL_SOC_MODES: tuple[str, ...] = ("sustain", "window")
 """``final_soc`` choices: within ``soc_tolerance`` of the initial SOC, or a window."""
-SERIES_POWER_POINTS = 101
-"""Default genset-power grid size of the series formulation [-] (``optimization.input_grid_points``
-= 0); the other defaults are the ``[optimization]`` section's
-(:class:`hevsim.config.SustainingOptimizationSection`)."""
 PENALTY_EQUIVALENCE_FACTOR = 100.0
 """Equivalence factor [-] of the default final-SOC penalty weight (``final_constraint=
 "penalty"``): far above the optimum's 2-4, so the penalty is exact (the target is met)."""
@@ -83,24 +65,11 @@ class Settings:
     final_constraint: str
 
 
-@dataclass(frozen=True)
-class Architecture:
-    """How one architecture is loaded, built, configured and formulated as a DP problem."""
-
-    name: str
-    config_type: type
-    model_type: type
-    load: Callable[[Path], Any]
-    build: Callable[[Any], Any]
-    settings: Callable[[Any], Settings]
-    formulate: Callable[[Any, DriveCycle, Settings, np.ndarray, FinalTarget], HEVFormulation]
-
-
 def _section_settings(hev: Any, default_input_points: int) -> Settings:
     """Settings from the configuration's ``[optimization]`` section (every architecture): an
     empty cycle or the sustaining default initial SOC take the ``[simulation]`` values, the
     final window is clipped to the battery's SOC window, ``input_grid_points`` = 0 takes the
-    architecture's ``default_input_points``."""
+    formulation's ``default_input_points``."""
     c = hev.config
     b = c.battery
     o = c.optimization
@@ -119,110 +88,91 @@ def _section_settings(hev: Any, default_input_points: int) -> Settings:
     )
 
 
-def _parallel_settings(hev: ParallelHEV) -> Settings:
-    return _section_settings(hev, hev.config.optimization.throttle_grid_points)
+@dataclass(frozen=True)
+class Architecture:
+    """An architecture of the registry :data:`hevsim.architectures.ARCHITECTURES` that has a DP
+    formulation, as :func:`optimize` uses it: the registry ``entry`` (configuration type,
+    builder) and the :class:`~hevsim.optimal._hev_common.HEVFormulation` it names, which
+    declares its default input grid and how it is built from :class:`Settings`."""
+
+    entry: Any
+
+    @property
+    def name(self) -> str:
+        """The architecture's name (``[powertrain] architecture``)."""
+        return str(self.entry.name)
+
+    @property
+    def formulation(self) -> type[HEVFormulation]:
+        """Its DP formulation class."""
+        cls: type[HEVFormulation] = self.entry.formulation()
+        return cls
+
+    def build(self, cfg: Any) -> Any:
+        """The vehicle model of a configuration."""
+        return self.entry.build(cfg)
+
+    def settings(self, hev: Any) -> Settings:
+        """The settings of ``hev``'s ``[optimization]`` section."""
+        return _section_settings(hev, self.formulation.default_input_points(hev))
+
+    def formulate(
+        self, hev: Any, cycle: DriveCycle, s: Settings, grid: np.ndarray, target: FinalTarget
+    ) -> HEVFormulation:
+        """The formulation of ``hev`` on ``cycle`` (SOC grid ``grid`` [-], final ``target``)."""
+        return self.formulation.from_settings(hev, cycle, s, grid, target)
 
 
-def _series_settings(hev: SeriesHEV) -> Settings:
-    return _section_settings(hev, SERIES_POWER_POINTS)
+class _DPArchitectures(Mapping[str, Architecture]):
+    """The entries of :data:`hevsim.architectures.ARCHITECTURES` with a DP formulation, read
+    from that registry on every access (an architecture registered later is found too)."""
+
+    def _table(self) -> dict[str, Architecture]:
+        from hevsim.architectures import ARCHITECTURES as REGISTRY
+
+        return {name: Architecture(a) for name, a in REGISTRY.items() if a.dp_formulation}
+
+    def __getitem__(self, name: str) -> Architecture:
+        return self._table()[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._table())
+
+    def __len__(self) -> int:
+        return len(self._table())
 
 
-def _formulate_parallel(
-    hev: ParallelHEV, cycle: DriveCycle, s: Settings, grid: np.ndarray, target: FinalTarget
-) -> HEVFormulation:
-    from hevsim.optimal._parallel_dp import ParallelFormulation
-
-    return ParallelFormulation(
-        hev, cycle, soc_grid=grid, throttle_points=s.input_points, soc_initial=s.soc_initial, target=target
-    )
-
-
-def _formulate_series(
-    hev: SeriesHEV, cycle: DriveCycle, s: Settings, grid: np.ndarray, target: FinalTarget
-) -> HEVFormulation:
-    from hevsim.optimal._series_dp import SeriesFormulation
-
-    return SeriesFormulation(
-        hev, cycle, soc_grid=grid, power_points=s.input_points, soc_initial=s.soc_initial, target=target
-    )
-
-
-def _power_split_settings(hev: Any) -> Settings:
-    return _section_settings(hev, hev.config.controller.control_points)
-
-
-def _formulate_power_split(
-    hev: Any, cycle: DriveCycle, s: Settings, grid: np.ndarray, target: FinalTarget
-) -> HEVFormulation:
-    from hevsim.optimal._power_split_dp import PowerSplitFormulation
-
-    return PowerSplitFormulation(
-        hev, cycle, soc_grid=grid, throttle_points=s.input_points,
-        speed_points=hev.config.controller.engine_speed_points, soc_initial=s.soc_initial, target=target,
-    )  # fmt: skip
-
-
-def _load_power_split(path: Path) -> Any:
-    return load_vehicle_config(path)
-
-
-def _build_power_split(cfg: Any) -> Any:
-    from hevsim.architectures.power_split import build_power_split
-
-    return build_power_split(cfg)
-
-
-ARCHITECTURES: dict[str, Architecture] = {
-    "parallel": Architecture(
-        "parallel", ParallelHEVConfig, ParallelHEV, load_parallel_config, build_parallel_hev,
-        _parallel_settings, _formulate_parallel,
-    ),
-    "series": Architecture(
-        "series", SeriesHEVConfig, SeriesHEV, load_config, build_series_hev, _series_settings,
-        _formulate_series,
-    ),
-    "power_split": Architecture(
-        "power_split", PowerSplitConfig, PowerSplitHEV, _load_power_split, _build_power_split,
-        _power_split_settings, _formulate_power_split,
-    ),
-}  # fmt: skip
+ARCHITECTURES: Mapping[str, Architecture] = _DPArchitectures()
 """Architectures with a DP formulation, by the name used in configuration files
-(``[powertrain] architecture = ...``; the configuration types are :data:`hevsim.config.ARCHITECTURES`)."""
+(``[powertrain] architecture = ...``): a view of :data:`hevsim.architectures.ARCHITECTURES`
+(one registry: each entry declares its ``dp_formulation``)."""
 
 
-def _by_type() -> dict[type, tuple[Architecture, bool]]:
-    out: dict[type, tuple[Architecture, bool]] = {}
-    for arch in ARCHITECTURES.values():
-        out[arch.config_type] = (arch, False)
-        out[arch.model_type] = (arch, True)
-    return out
-
-
-def _load_file(path: Path) -> Any:
-    cfg = load_vehicle_config(path)
-    if cfg.architecture not in ARCHITECTURES:
-        raise ConfigError(
-            f"{path}: key 'powertrain.architecture' = {cfg.architecture!r} has no DP formulation; "
-            f"expected one of {', '.join(ARCHITECTURES)}."
-        )
-    return cfg
+def _parallel_settings(hev: Any) -> Settings:
+    """The parallel HEV's settings (used by ``benchmarks/bench_dp.py``)."""
+    return ARCHITECTURES["parallel"].settings(hev)
 
 
 def resolve_model(config_or_model: Any) -> tuple[Architecture, Any]:
     """The architecture and built vehicle model for a config file path, config or model."""
     obj = config_or_model
-    if isinstance(obj, str | Path):
-        obj = _load_file(Path(obj))
-    table = _by_type()
-    for cls in type(obj).__mro__:
-        if cls in table:
-            arch, built = table[cls]
-            return arch, (obj if built else arch.build(obj))
-    kinds = ", ".join(f"{a.config_type.__name__} / {a.model_type.__name__}" for a in ARCHITECTURES.values())
-    raise ConfigError(
-        f"optimize: cannot tell the architecture of {type(config_or_model).__name__}; expected a "
-        f"configuration file path or one of {kinds}."
-    )
+    source = str(obj) if isinstance(obj, str | Path) else None
+    if source is not None:
+        obj = load_vehicle_config(Path(obj))
+    cfg = getattr(obj, "config", obj)  # a built model holds its configuration
+    name = getattr(cfg, "architecture", None) if hasattr(cfg, "powertrain") else None
+    if not isinstance(name, str):
+        raise ConfigError(
+            f"optimize: cannot tell the architecture of {type(config_or_model).__name__}; expected a "
+            "configuration file path, a vehicle configuration (hevsim.config) or a built vehicle model."
+        )
+    arch = ARCHITECTURES.get(name)
+    if arch is None:
+        raise ConfigError(
+            f"{source or cfg.name}: key 'powertrain.architecture' = {name!r} has no DP formulation; "
+            f"expected one of {', '.join(ARCHITECTURES)}."
+        )
+    return arch, (obj if cfg is not obj else arch.build(cfg))
 
 
 def _final_target(s: Settings, soc_initial: float) -> tuple[FinalTarget, tuple[float, float]]:
