@@ -1,0 +1,174 @@
+"""The coolant as a 3-D laminar conjugate-heat-transfer participant (frozen flow).
+
+Same interface as :class:`hevsim.cosim.coolant.CoolantChannelParticipant` (the 1-D channel),
+so the module co-simulation runs with either coolant model: inputs per segment
+``wall<i>_temp_k`` [K] and ``wall<i>_area_m2`` [m^2, the segment's wetted area on the plate's
+mesh], optionally ``inlet_temp_k`` [K]; outputs per segment ``wall<i>_heat_flux_w_m2``
+[W/m^2, from the wall into the coolant], ``wall<i>_film_w_m2k`` [W/(m^2 K)] and
+``wall<i>_fluid_temp_k`` [K], and ``outlet_temp_k`` [K], ``cooling_power_w`` [W].
+
+Inside: the laminar flow in the plate's channel (:func:`hevsim.thermal.flow.solve_flow`,
+solved once at construction and frozen: the coolant properties are constant, so the flow does
+not depend on the temperatures) and heat advection-diffusion in it
+(:class:`hevsim.thermal.cht.CoolantThermal`) with the plate's wall temperature per segment
+imposed on the channel wall. The heat per segment [W] is divided by the plate mesh's segment
+area, so the plate receives exactly the heat the coolant takes. The film is the segment's own
+sensitivity ``d(heat_i)/d(T_wall,i) / A_i`` and the fluid temperature the sink
+``T_wall - flux / film``, so the plate's film condition reproduces the coolant's heat at the
+current wall temperature and linearises it around it.
+
+Quasi-steady by default, like the 1-D channel (the outputs follow the current inputs through
+the precomputed linear response: one small matrix product per exchange); ``transient=True``
+keeps the coolant's temperature field as a state and advances it by implicit Euler over each
+co-simulation step.
+
+The flow rate must be laminar (the flow solver refuses Re above the laminar limit); the
+shipped module's 10 L/min is turbulent, so the example ``module_cht.ssd`` runs at a laminar
+flow rate (docs/flow.md).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hevsim.cosim.participant import Participant, store_inputs
+from hevsim.errors import ConfigError
+from hevsim.units import KELVIN_OFFSET
+
+
+class CoolantCHTParticipant(Participant):
+    """See the module docstring. ``config``: a module TOML (``hevsim thermal`` / ``hevsim
+    flow``: ``[geometry]``, ``[coolant]``, optional ``[flow]`` for the mesh); keywords override
+    ``segments``, ``inlet_temp_k`` [K], ``flow_l_min`` [L/min]; ``transient``: implicit Euler
+    coolant instead of quasi-steady."""
+
+    def __init__(
+        self,
+        name: str,
+        config: str | Path,
+        segments: int | None = None,
+        inlet_temp_k: float | None = None,
+        flow_l_min: float | None = None,
+        transient: bool = False,
+    ):
+        from hevsim.schema import read_toml
+        from hevsim.thermal.cht import CoolantThermal
+        from hevsim.thermal.flow import flow_config_from_dict, plate_channel, solve_flow
+        from hevsim.thermal.run import load_thermal_config
+
+        self.name = name
+        path = Path(config)
+        data = read_toml(path)
+        if flow_l_min is not None:
+            data["flow"] = {**data.get("flow", {}), "flow_l_min": float(flow_l_min)}
+        cfg = flow_config_from_dict(data, str(path), path.parent)
+        cool = load_thermal_config(path).coolant
+        n = int(segments if segments is not None else cool.segments)
+        if n < 1:
+            raise ConfigError(f"participant {name!r}: segments = {n}; expected at least 1.")
+        self.n_segments = n
+        t_in = float(inlet_temp_k) if inlet_temp_k is not None else cool.inlet_temp_c + KELVIN_OFFSET
+        self.config = cfg
+        channel = plate_channel(cfg.geometry)
+        self.flow = solve_flow(
+            channel, cfg.coolant, cfg.flow_m3_s, section=cfg.flow, where=f"participant {name!r}"
+        )
+        where = f"participant {name!r}"
+        self.model = CoolantThermal(self.flow, channel, cfg.coolant, cfg.geometry.channel_path_m(), n, where)
+        path_m = cfg.geometry.channel_path_m()
+        length_m = float(np.linalg.norm(np.diff(path_m, axis=0), axis=1).sum())
+        self.resolution = self.model.check_resolution(length_m / n)
+        self.transient = bool(transient)
+        self.inputs = {
+            "inlet_temp_k": "K",
+            **{f"wall{i}_temp_k": "K" for i in range(n)},
+            **{f"wall{i}_area_m2": "m2" for i in range(n)},
+        }
+        self.outputs = {
+            **{f"wall{i}_heat_flux_w_m2": "W/m2" for i in range(n)},
+            **{f"wall{i}_film_w_m2k": "W/(m2.K)" for i in range(n)},
+            **{f"wall{i}_fluid_temp_k": "K" for i in range(n)},
+            "outlet_temp_k": "K",
+            "cooling_power_w": "W",
+        }
+        self.u: dict[str, float] = {k: t_in if k.endswith("_k") else 0.0 for k in self.inputs}
+        self.temp_k = np.full(self.model.basis.N, t_in)  # coolant field (transient state)
+        self.heat_w = np.zeros(n)
+        self._stepped, self._dt_s = False, math.inf
+
+    def _inputs(self) -> tuple[np.ndarray, np.ndarray, float]:
+        n, u = self.n_segments, self.u
+        wall = np.array([u[f"wall{i}_temp_k"] for i in range(n)])
+        area = np.array([u[f"wall{i}_area_m2"] for i in range(n)])
+        if not (np.all(np.isfinite(wall)) and np.all(wall > 0.0) and np.all(area >= 0.0)):
+            raise ConfigError(
+                f"participant {self.name!r}: wall temperatures {wall.tolist()} K / areas {area.tolist()} m^2 "
+                "are not physical; expected temperatures > 0 K and areas >= 0."
+            )
+        return wall, area, u["inlet_temp_k"]
+
+    def set_inputs(self, values: Mapping[str, float]) -> None:
+        store_inputs(self, self.u, values)
+
+    def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
+        if self.transient:
+            wall, _, t_in = self._inputs()
+            self.temp_k, self.heat_w = self.model.solve(wall, t_in, dt_s=h, previous_k=self.temp_k)
+            self._stepped, self._dt_s = True, h
+        return True, None
+
+    def get_outputs(self) -> dict[str, float]:
+        m = self.model
+        wall, area, t_in = self._inputs()
+        if self.transient:
+            if not self._stepped:  # before the first step: the steady field at these inputs
+                self.temp_k, self.heat_w = m.solve(wall, t_in)
+            heat, sens = self.heat_w, np.diag(m.response(self._dt_s)[:, :-1])
+            outlet = m.outlet_temp_k(self.temp_k)
+        else:
+            g = m.response()
+            heat = g @ np.concatenate((wall, [t_in]))
+            sens = np.diag(g[:, :-1])
+            outlet = t_in + float(np.sum(heat)) / m.capacity_rate_w_k
+        a = np.where(area > 0.0, area, m.wall_area_m2)  # no plate area yet: the coolant mesh's
+        flux = heat / a
+        film = sens / a
+        fluid = wall - flux / film
+        out = {f"wall{i}_heat_flux_w_m2": float(flux[i]) for i in range(self.n_segments)}
+        out.update({f"wall{i}_film_w_m2k": float(film[i]) for i in range(self.n_segments)})
+        out.update({f"wall{i}_fluid_temp_k": float(fluid[i]) for i in range(self.n_segments)})
+        out.update(outlet_temp_k=float(outlet), cooling_power_w=float(np.sum(heat)))
+        return out
+
+    def get_state(self) -> Any:
+        return {
+            "u": dict(self.u),
+            "temp_k": self.temp_k.copy(),
+            "heat_w": self.heat_w.copy(),
+            "dt_s": self._dt_s,
+        }
+
+    def set_state(self, state: Any) -> None:
+        self.u = dict(state["u"])
+        self.temp_k, self.heat_w = state["temp_k"].copy(), state["heat_w"].copy()
+        self._dt_s = state["dt_s"]
+        self._stepped = math.isfinite(self._dt_s)
+
+    def write_fields(self, out_dir: Path) -> dict[str, Any]:
+        """The coolant's temperature (at the last inputs) and velocity fields as
+        ``<out_dir>/coolant_cht.vtu``; returns the flow's figures."""
+        from hevsim.thermal.cht import write_cht_vtu
+
+        wall, _, t_in = self._inputs()
+        temp = self.temp_k if self.transient else self.model.solve(wall, t_in)[0]
+        out_dir.mkdir(parents=True, exist_ok=True)
+        write_cht_vtu(self.model, temp, out_dir / "coolant_cht.vtu")
+        keys = ("flow_l_min", "reynolds", "pressure_drop_pa", "pump_power_w", "elements")
+        return {k: self.flow.metrics[k] for k in keys} | {
+            "thermal_boundary_layer_m": self.resolution["boundary_layer_m"]
+        }

@@ -1,0 +1,99 @@
+"""Coolant heat transfer on the frozen laminar flow (hevsim.thermal.cht) and the 3-D coolant
+co-simulation participant: thermally developed Nusselt number against Shah & London, energy
+balance of the conjugate problem, transient vs steady, bad input."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from hevsim.errors import ConfigError
+from hevsim.thermal.cht import CoolantThermal, ThermalMeshWarning, shah_london_nu_t
+from hevsim.thermal.coolant import Coolant
+from hevsim.thermal.flow import FlowSection, duct_channel, solve_flow
+
+WIDTH_M, HEIGHT_M, LENGTH_M = 0.008, 0.004, 0.06
+DH_M = 2 * WIDTH_M * HEIGHT_M / (WIDTH_M + HEIGHT_M)
+N_SEG = 30
+#: Shah & London (1978), Table 45 (rectangular ducts, Nu_T, four walls heated), aspect 1/2.
+NU_T_ASPECT_HALF = 3.391
+
+
+def _duct(re: float, cells: tuple[int, int]) -> CoolantThermal:
+    c = Coolant()
+    ch = duct_channel(LENGTH_M, WIDTH_M, HEIGHT_M)
+    q = re * c.viscosity_pa_s / (c.density_kg_m3 * DH_M) * WIDTH_M * HEIGHT_M
+    sec = FlowSection(
+        channel="duct", cells_across_width=cells[0], cells_across_height=cells[1], cell_length_m=0.002
+    )
+    flow = solve_flow(ch, c, q, section=sec)
+    path = np.array([[0.0, WIDTH_M / 2, HEIGHT_M / 2], [LENGTH_M, WIDTH_M / 2, HEIGHT_M / 2]])
+    return CoolantThermal(flow, ch, c, path, N_SEG)
+
+
+@pytest.fixture(scope="module")
+def duct() -> CoolantThermal:
+    # Re 1, Pe 65: thermally developed after ~3 D_h; axial conduction raises Nu by < 0.1 %
+    return _duct(1.0, (8, 4))
+
+
+def test_shah_london_fit_matches_table() -> None:
+    for aspect, nu in ((1.0, 2.976), (0.5, 3.391), (0.25, 4.439), (0.125, 5.597)):
+        assert shah_london_nu_t(aspect) == pytest.approx(nu, rel=2e-3)
+
+
+def test_developed_nusselt_against_shah_london(duct: CoolantThermal) -> None:
+    tw, t_in = np.full(N_SEG, 300.0), 290.0
+    _, heat = duct.solve(tw, t_in)
+    tb = t_in + np.concatenate(([0.0], np.cumsum(heat))) / duct.capacity_rate_w_k
+    i0, i1 = 18, 25  # x = 36 .. 50 mm: developed, away from the outlet
+    area = duct.wall_area_m2[i0:i1].sum()
+    h = duct.capacity_rate_w_k / area * math.log((300.0 - tb[i0]) / (300.0 - tb[i1]))
+    nu = h * DH_M / duct.coolant.conductivity_w_mk
+    assert nu == pytest.approx(NU_T_ASPECT_HALF, rel=0.03)
+    local = duct.local_film(tw, t_in, heat)["nusselt"]
+    assert local[2] > local[10] > local[i1 - 1]  # entry region: falls towards the developed value
+    assert np.all(np.abs(local[i0:i1] / NU_T_ASPECT_HALF - 1) < 0.03)
+
+
+def test_energy_balance_wall_heat_equals_enthalpy_rise(duct: CoolantThermal) -> None:
+    tw = np.linspace(310.0, 295.0, N_SEG)  # the coolant heats then cools: heat both ways
+    t, heat = duct.solve(tw, 290.0)
+    rise = duct.capacity_rate_w_k * (duct.outlet_temp_k(t) - 290.0)
+    assert abs(rise) > 0.1
+    assert heat.sum() == pytest.approx(rise, rel=1e-6)
+    g = duct.response()  # the linear response gives the same heats
+    np.testing.assert_allclose(g @ np.concatenate((tw, [290.0])), heat, rtol=1e-8, atol=1e-10)
+
+
+def test_transient_reaches_steady_and_stores_heat(duct: CoolantThermal) -> None:
+    tw = np.full(N_SEG, 300.0)
+    steady, heat_ss = duct.solve(tw, 290.0)
+    t = np.full(duct.basis.N, 290.0)
+    t, first = duct.solve(tw, 290.0, dt_s=1.0, previous_k=t)
+    assert first.sum() > heat_ss.sum()  # the first step also warms the coolant in the duct
+    for _ in range(30):  # transit time L/u = 40 s
+        t, heat = duct.solve(tw, 290.0, dt_s=10.0, previous_k=t)
+    np.testing.assert_allclose(heat.sum(), heat_ss.sum(), rtol=1e-4)
+    assert np.max(np.abs(t - steady)) < 1e-3
+
+
+def test_coarse_mesh_warns_with_cells_across() -> None:
+    with pytest.warns(
+        ThermalMeshWarning, match=r"2 cells across the channel height.*cells_across_height >= \d+"
+    ):
+        _duct(60.0, (4, 2)).check_resolution(LENGTH_M / N_SEG)
+
+
+def test_resolved_mesh_does_not_warn(duct: CoolantThermal) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        duct.check_resolution(LENGTH_M / N_SEG)
+
+
+def test_zero_flow_rate_is_refused() -> None:
+    with pytest.raises(ConfigError, match="positive flow rate"):
+        solve_flow(duct_channel(LENGTH_M, WIDTH_M, HEIGHT_M), Coolant(), 0.0)
