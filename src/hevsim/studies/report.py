@@ -44,6 +44,8 @@ def sensitivity(info: dict[str, Any], results: pd.DataFrame) -> pd.DataFrame:
     ok = results[results["status"] == "ok"]
     for (cycle, solver), grp in results.groupby(["cycle", "solver"], sort=True):
         for metric in info["metrics"]:
+            if grp[metric].isna().all():  # a metric this solver does not give
+                continue
             if info["method"] == "saltelli":
                 n, d = int(info["samples"]), len(keys)
                 y = np.full(n * (d + 2), np.nan)
