@@ -597,8 +597,12 @@ def _cmd_flow(args: argparse.Namespace) -> int:
     data = read_toml(args.config)
     if args.flow_l_min is not None:  # the operating point from the command line
         data["flow"] = {**data.get("flow", {}), "flow_l_min": args.flow_l_min}
-    res = run_flow(flow_config_from_dict(data, str(args.config), Path(args.config).parent), out)
+    res = run_flow(flow_config_from_dict(data, str(args.config), Path(args.config).parent), out, args.thermal)
     print(format_flow(res))
+    if res.cht is not None:
+        from hevsim.thermal.cht import format_cht
+
+        print(format_cht(res.cht))
     print(f"results written to {out}/ ({_written(out)})")
     return 0
 
@@ -929,6 +933,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("flow", help="laminar coolant flow in the plate's channel (Navier-Stokes, FEM)")
     p.add_argument("config", help="module configuration (TOML) with an optional [flow] section")
     p.add_argument("--flow-l-min", type=float, help="inlet flow rate [L/min] (replaces flow.flow_l_min)")
+    p.add_argument("--thermal", action="store_true",
+                   help="also the coolant's heat transfer on the frozen flow (docs/flow.md)")  # fmt: skip
     p.add_argument("--out", help="results folder (default results/<config>_flow)")
     _add_force(p, "folder at --out")
     p.set_defaults(func=_cmd_flow)
