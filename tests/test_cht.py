@@ -4,8 +4,10 @@ balance of the conjugate problem, transient vs steady, bad input."""
 
 from __future__ import annotations
 
+import json
 import math
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +17,7 @@ from hevsim.thermal.cht import CoolantThermal, ThermalMeshWarning, shah_london_n
 from hevsim.thermal.coolant import Coolant
 from hevsim.thermal.flow import FlowSection, duct_channel, solve_flow
 
+MODULE_TOML = Path(__file__).resolve().parents[1] / "examples" / "module_thermal.toml"
 WIDTH_M, HEIGHT_M, LENGTH_M = 0.008, 0.004, 0.06
 DH_M = 2 * WIDTH_M * HEIGHT_M / (WIDTH_M + HEIGHT_M)
 N_SEG = 30
@@ -97,3 +100,35 @@ def test_resolved_mesh_does_not_warn(duct: CoolantThermal) -> None:
 def test_zero_flow_rate_is_refused() -> None:
     with pytest.raises(ConfigError, match="positive flow rate"):
         solve_flow(duct_channel(LENGTH_M, WIDTH_M, HEIGHT_M), Coolant(), 0.0)
+
+
+def test_cli_flow_thermal_writes_outputs_and_refuses_zero_flow(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import meshio
+
+    from hevsim.cli import main
+
+    cfg = tmp_path / "duct.toml"
+    cfg.write_text(
+        MODULE_TOML.read_text()
+        + '\n[flow]\nchannel = "duct"\nduct_length_m = 0.02\ncells_across_width = 4\ncell_length_m = 0.002\n'
+        + "wall_temp_c = 35.0\n"
+    )
+    out = tmp_path / "res"
+    assert main(["flow", str(cfg), "--flow-l-min", "0", "--thermal", "--out", str(out)]) == 2
+    assert "'flow.flow_l_min' = 0.0; expected a positive" in capsys.readouterr().err and not out.exists()
+    assert main(["flow", str(cfg), "--flow-l-min", "0.01", "--thermal", "--out", str(out)]) == 0
+    assert "energy balance: wall heat" in capsys.readouterr().out
+    m = json.loads((out / "cht_summary.json").read_text())["metrics"]
+    assert m["energy_imbalance_rel"] < 1e-6
+    assert 15.0 < m["outlet_temp_k"] - 273.15 < 35.0
+    seg = np.genfromtxt(out / "cht_segments.csv", delimiter=",", names=True)
+    assert seg["heat_w"].sum() == pytest.approx(m["heat_w"], rel=1e-9)
+    assert np.all(seg["nusselt_1d"] == pytest.approx(3.66))
+    vtu = meshio.read(out / "temperature.vtu")
+    t = vtu.point_data["temperature_k"] - 273.15
+    # maximum principle up to the P2/SUPG over- and undershoots at the inlet's wall corner, where
+    # the inlet (15 degC) meets the wall (35 degC) on this coarse 4 x 2 mesh
+    assert t.min() > 15.0 - 0.1 * 20.0 and t.max() < 35.0 + 0.1 * 20.0
+    assert (out / "nusselt.png").stat().st_size > 1000

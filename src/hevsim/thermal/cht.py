@@ -13,7 +13,9 @@ stabilisation ``int tau (u . grad v) rho c_p (dT/dt + u . grad T)`` (tau = h'/(2
 - 1/Pe_h) with the nodal spacing h' = h/2 and Pe_h = |u| h' / (2 alpha); the diffusive part of the
 element residual, zero for P1 and small for P2 at the cell Peclet numbers where tau matters, is
 left out). Boundaries: the wall (all channel faces but inlet and outlet) takes the plate's
-wall temperature (Dirichlet, one value per coolant segment along the channel path); the
+wall temperature (Dirichlet: one value per coolant segment along the channel path,
+interpolated linearly between the segment centres so that the wall temperature is
+continuous, :func:`segment_weights`); the
 inlet takes the inflow enthalpy weakly (``int rho c_p (u . n) (T - T_in) v``, a Danckwerts
 condition); the outlet carries its enthalpy out (no diffusive flux). Steady or implicit Euler.
 
@@ -54,7 +56,7 @@ from hevsim.thermal.flow import Channel, FlowResult
 CELLS_PER_BOUNDARY_LAYER = 0.5
 
 
-#: Bins per segment in which a point counts as on a segment boundary (1e-6 of its length).
+#: Bins per segment that locate a point along the channel path (1e-6 of a segment) [-].
 SUBDIVISIONS = 1_000_000
 
 
@@ -89,21 +91,22 @@ def thermal_boundary_layer_m(x_m: float, hydraulic_diameter_m: float, peclet: fl
 
 
 def segment_weights(points_m: np.ndarray, path_m: np.ndarray, n_segments: int) -> Any:
-    """Sparse (points, n_segments) weights [-]: 1 for the segment along ``path_m`` a point lies
-    in, 1/2 and 1/2 for a point on the boundary of two segments (within 1e-6 of a segment's
-    length). Rows sum to 1, so heat summed over the segments is the total heat."""
+    """Sparse (points, n_segments) weights [-] of the continuous, piecewise-linear profile along
+    ``path_m`` through one value per segment at the segment centres (constant before the first
+    centre and after the last). Rows sum to 1: a value per segment becomes a continuous wall
+    temperature, and the transpose gathers heat per point into heat per segment, conserving
+    the total."""
     from scipy.sparse import coo_matrix
 
     fine = segments_along_path(points_m, path_m, n_segments * SUBDIVISIONS)
-    seg, pos = np.divmod(fine, SUBDIVISIONS)
-    low = (pos == 0) & (seg > 0)  # just after a boundary: share with the segment before
-    high = (pos == SUBDIVISIONS - 1) & (seg < n_segments - 1)  # just before one: share with the next
-    other = np.where(low, seg - 1, np.where(high, seg + 1, seg))
-    w = np.where(low | high, 0.5, 1.0)
-    rows = np.arange(len(seg))
+    pos = np.clip((fine + 0.5) / SUBDIVISIONS - 0.5, 0.0, n_segments - 1.0)  # in segment centres
+    left = np.minimum(np.floor(pos).astype(np.int64), n_segments - 1)
+    right = np.minimum(left + 1, n_segments - 1)
+    w = 1.0 - (pos - left)
+    rows = np.arange(len(pos))
     return coo_matrix(
-        (np.concatenate((w, 1 - w)), (np.concatenate((rows, rows)), np.concatenate((seg, other)))),
-        shape=(len(seg), n_segments),
+        (np.concatenate((w, 1 - w)), (np.concatenate((rows, rows)), np.concatenate((left, right)))),
+        shape=(len(pos), n_segments),
     ).tocsr()
 
 
@@ -330,4 +333,155 @@ def write_cht_vtu(model: CoolantThermal, temp_k: np.ndarray, path: Any) -> None:
                 "pressure_pa": fl.pressure,
             },
         ),
+    )
+
+
+@dataclass
+class ChtResult:
+    """A coolant heat-transfer run at a uniform wall temperature: scalar figures (SI, names
+    carry units), per-segment table (arc length [m], area [m^2], heat [W], bulk temperature
+    [K], film [W/(m^2 K)], Nusselt [-], the 1-D model's film and Nusselt) and the fields."""
+
+    metrics: dict[str, float]
+    segments: dict[str, np.ndarray]
+    model: CoolantThermal
+    temp_k: np.ndarray
+
+
+def channel_axis_m(cfg: Any) -> np.ndarray:
+    """The polyline along which the wall is cut into segments: the plate's serpentine centre
+    line, or the duct's axis, (P, 3) [m]."""
+    g = cfg.geometry
+    if cfg.flow.channel == "duct":
+        w, h = g.channel_width_m, g.channel_height_m
+        return np.array([[0.0, w / 2, h / 2], [cfg.flow.duct_length_m, w / 2, h / 2]])
+    return np.asarray(g.channel_path_m())
+
+
+def run_cht(cfg: Any, flow: FlowResult | None = None) -> ChtResult:
+    """Coolant heat transfer of a :class:`~hevsim.thermal.flow.FlowConfig` (``[flow]``) with the
+    whole wall at ``flow.wall_temp_c`` and the inlet at ``coolant.inlet_temp_c``; compares the
+    local film and Nusselt number with the 1-D channel model's correlation
+    (:class:`~hevsim.thermal.coolant.ChannelModel`), which also gives its outlet temperature.
+    ``flow``: a solved flow of the same config (else it is solved here)."""
+    from hevsim.thermal.coolant import ChannelModel
+    from hevsim.thermal.flow import config_channel, solve_flow
+    from hevsim.units import KELVIN_OFFSET
+
+    channel = config_channel(cfg)
+    if flow is None:
+        flow = solve_flow(channel, cfg.coolant, cfg.flow_m3_s, section=cfg.flow, where=cfg.name)
+    axis = channel_axis_m(cfg)
+    n = int(cfg.segments)
+    model = CoolantThermal(flow, channel, cfg.coolant, axis, n, cfg.name)
+    length_m = float(np.linalg.norm(np.diff(axis, axis=0), axis=1).sum())
+    res = model.check_resolution(length_m / n)
+    t_in, t_w = cfg.inlet_temp_c + KELVIN_OFFSET, cfg.flow.wall_temp_c + KELVIN_OFFSET
+    wall = np.full(n, t_w)
+    temp, heat = model.solve(wall, t_in)
+    local = model.local_film(wall, t_in, heat)
+    one_d = ChannelModel(
+        n,
+        inlet_temp_k=t_in,
+        flow_m3_s=cfg.flow_m3_s,
+        width_m=channel.width_m,
+        height_m=channel.height_m,
+        coolant=cfg.coolant,
+    )
+    one_d.fluid_temperature_k(wall, model.wall_area_m2)
+    t_out = model.outlet_temp_k(temp)
+    rise = model.capacity_rate_w_k * (t_out - t_in)
+    k = cfg.coolant.conductivity_w_mk
+    metrics = {
+        "inlet_temp_k": t_in,
+        "wall_temp_k": t_w,
+        "outlet_temp_k": t_out,
+        "heat_w": float(heat.sum()),
+        "enthalpy_rise_w": rise,
+        "energy_imbalance_rel": abs(float(heat.sum()) - rise) / max(abs(rise), 1e-300),
+        "outlet_temp_1d_k": one_d.outlet_temp_k,
+        "heat_1d_w": one_d.heat_w,
+        "film_1d_w_m2k": one_d.h_w_m2k,
+        "nusselt_1d": one_d.nusselt,
+        "nusselt_developed_shah_london": shah_london_nu_t(channel.height_m / channel.width_m),
+        "mean_film_w_m2k": float(heat.sum() / (model.wall_area_m2.sum() * _lmtd_k(t_w, t_in, t_out))),
+        "peclet": model.peclet,
+        "thermal_boundary_layer_m": res["boundary_layer_m"],
+        "temperature_dofs": float(model.basis.N),
+    }
+    metrics["mean_nusselt"] = metrics["mean_film_w_m2k"] * model.dh_m / k
+    s_end = np.arange(1, n + 1) * length_m / n
+    segs = {
+        "arc_length_m": s_end - length_m / (2 * n),
+        "wall_area_m2": model.wall_area_m2,
+        "heat_w": heat,
+        "bulk_temp_k": local["bulk_temp_k"][1:],
+        "film_w_m2k": local["film_w_m2k"],
+        "nusselt": local["nusselt"],
+        "film_1d_w_m2k": one_d.heat_transfer_coefficient_w_m2k(),
+        "nusselt_1d": np.full(n, one_d.nusselt),
+    }
+    return ChtResult(metrics, segs, model, temp)
+
+
+def _lmtd_k(t_w: float, t_in: float, t_out: float) -> float:
+    """Log-mean temperature difference [K] of a channel at uniform wall temperature."""
+    a, b = t_w - t_in, t_w - t_out
+    return (a - b) / math.log(a / b) if abs(a - b) > 1e-12 * abs(a) else a
+
+
+def plot_nusselt(res: ChtResult, path: Any) -> None:
+    """Local Nusselt number along the channel: 3-D laminar vs the 1-D model's correlation and
+    the Shah & London developed value, as a PNG (Agg canvas, no pyplot)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7, 4))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    s = res.segments["arc_length_m"] * 1e3
+    ax.plot(s, res.segments["nusselt"], "o-", ms=3, label="3-D laminar (CHT), local")
+    ax.plot(s, res.segments["nusselt_1d"], "--", label="1-D model correlation")
+    ax.axhline(res.metrics["nusselt_developed_shah_london"], color="k", lw=0.8, ls=":",
+               label="developed, Shah & London")  # fmt: skip
+    ax.set_xlabel("distance along the channel [mm]")
+    ax.set_ylabel("Nusselt number [-]")
+    ax.set_yscale("log")
+    ax.legend()
+    ax.set_title(f"wall {res.metrics['wall_temp_k'] - 273.15:g} degC, Pe {res.metrics['peclet']:.0f}")
+    fig.savefig(str(path), dpi=100)
+
+
+def write_cht(res: ChtResult, out_dir: Any) -> None:
+    """``cht_summary.json``, ``cht_segments.csv``, ``nusselt.png`` and ``temperature.vtu``
+    into the (temporary) results folder ``out_dir``."""
+    from pathlib import Path
+
+    from hevsim.io import write_json
+
+    out = Path(out_dir)
+    write_json(out / "cht_summary.json", {"metrics": res.metrics})
+    keys = list(res.segments)
+    rows = np.column_stack([res.segments[k] for k in keys])
+    np.savetxt(out / "cht_segments.csv", rows, delimiter=",", header=",".join(keys), comments="", fmt="%.10g")
+    plot_nusselt(res, out / "nusselt.png")
+    write_cht_vtu(res.model, res.temp_k, out / "temperature.vtu")
+
+
+def format_cht(res: ChtResult) -> str:
+    """A short text summary of a coolant heat-transfer run."""
+    m = res.metrics
+    from hevsim.units import KELVIN_OFFSET as c
+
+    return "\n".join(
+        [
+            f"coolant heat transfer (wall {m['wall_temp_k'] - c:.4g} degC, inlet {m['inlet_temp_k'] - c:.4g} "
+            f"degC, Pe {m['peclet']:.0f}): outlet {m['outlet_temp_k'] - c:.4f} degC (1-D model "
+            f"{m['outlet_temp_1d_k'] - c:.4f} degC), heat {m['heat_w']:.5g} W (1-D {m['heat_1d_w']:.5g} W)",
+            f"energy balance: wall heat {m['heat_w']:.10g} W, m_dot c_p dT {m['enthalpy_rise_w']:.10g} W "
+            f"(relative {m['energy_imbalance_rel']:.1e})",
+            f"mean Nusselt {m['mean_nusselt']:.4g} (1-D correlation {m['nusselt_1d']:.4g}, developed "
+            f"Shah & London {m['nusselt_developed_shah_london']:.4g}); local "
+            f"{np.nanmin(res.segments['nusselt']):.4g} .. {np.nanmax(res.segments['nusselt']):.4g}",
+        ]
     )

@@ -107,12 +107,15 @@ def duct_fanning_re(width_m: float, height_m: float) -> float:
 class FlowSection:
     """``[flow]``: operating point, channel, mesh and solver of the laminar flow solve.
 
-    ``flow_l_min`` [L/min] (0 = take ``[coolant] flow_l_min``), ``outlet_pressure_pa`` [Pa]
-    (static gauge pressure at the outlet), ``inlet_profile`` (``developed`` or ``uniform``),
+    ``flow_l_min`` [L/min] (absent = take ``[coolant] flow_l_min``; zero is refused),
+    ``outlet_pressure_pa`` [Pa] (static gauge pressure at the outlet),
+    ``inlet_profile`` (``developed`` or ``uniform``),
     ``channel`` (``plate``: the geometry's serpentine; ``duct``: a straight duct of the
     channel's cross-section and length ``duct_length_m`` [m]), mesh resolution
     (``cells_across_width``, ``cells_across_height``, ``cell_length_m`` [m] along the
-    channel), Newton ``tolerance`` (relative velocity update) and ``max_iterations``.
+    channel), Newton ``tolerance`` (relative velocity update) and ``max_iterations``;
+    ``wall_temp_c`` [°C]: the uniform wall temperature of the coolant heat-transfer run
+    (``hevsim flow --thermal``, :func:`hevsim.thermal.cht.run_cht`).
     """
 
     flow_l_min: float = 0.0
@@ -126,6 +129,7 @@ class FlowSection:
     picard_iterations: int = 3
     max_iterations: int = 30
     tolerance: float = 1e-9
+    wall_temp_c: float = 25.0
 
 
 _FLOW_BOUNDS: dict[str, tuple[float, float]] = {
@@ -138,18 +142,22 @@ _FLOW_BOUNDS: dict[str, tuple[float, float]] = {
     "flow.picard_iterations": (0, 100),
     "flow.max_iterations": (1, 200),
     "flow.tolerance": (1e-14, 1e-2),
+    "flow.wall_temp_c": (-50.0, 150.0),
 }
 
 
 @dataclass(frozen=True)
 class FlowConfig:
-    """A validated flow case: the module's geometry and coolant plus its ``[flow]`` section."""
+    """A validated flow case: the module's geometry and coolant plus its ``[flow]`` section;
+    the coolant's inlet temperature [°C] and wall segments (``[coolant]``) for the thermal run."""
 
     name: str = "flow"
     geometry: ModuleGeometry = field(default_factory=ModuleGeometry)
     coolant: Coolant = field(default_factory=Coolant)
     flow_m3_s: float = 10.0 * L_MIN_TO_M3_S
     flow: FlowSection = field(default_factory=FlowSection)
+    inlet_temp_c: float = 15.0
+    segments: int = 30
 
 
 def flow_config_from_dict(
@@ -168,6 +176,11 @@ def flow_config_from_dict(
     thermal = thermal_config_from_dict(data, source, base_dir)
     choices = {"flow.inlet_profile": INLET_PROFILES, "flow.channel": CHANNEL_KINDS}
     sec = build_section(FlowSection, raw, source, "flow", choices, _FLOW_BOUNDS)
+    if "flow_l_min" in raw and not sec.flow_l_min > 0.0:
+        raise ConfigError(
+            f"{source}: key 'flow.flow_l_min' = {sec.flow_l_min!r}; expected a positive inlet flow rate "
+            "[L/min] (leave the key out to take coolant.flow_l_min)."
+        )
     flow_l_min = sec.flow_l_min or thermal.coolant.flow_l_min
     if not flow_l_min > 0.0:
         raise ConfigError(
@@ -175,7 +188,15 @@ def flow_config_from_dict(
             f"{thermal.coolant.flow_l_min!r}; expected a positive inlet flow rate [L/min]."
         )
     coolant = coolant_from_section(thermal.coolant).check(f"{source}: [coolant]")
-    return FlowConfig(thermal.name, thermal.geometry, coolant, flow_l_min * L_MIN_TO_M3_S, sec)
+    return FlowConfig(
+        thermal.name,
+        thermal.geometry,
+        coolant,
+        flow_l_min * L_MIN_TO_M3_S,
+        sec,
+        thermal.coolant.inlet_temp_c,
+        thermal.coolant.segments,
+    )
 
 
 def load_flow_config(path: str | Path) -> FlowConfig:
@@ -265,6 +286,7 @@ class FlowResult:
     basis_p: Any
     history: list[float]
     metadata: dict[str, Any] = field(default_factory=dict)
+    cht: Any = None  # hevsim.thermal.cht.ChtResult of a thermal run (run_flow(thermal=True))
 
     def vertex_velocity_mps(self) -> np.ndarray:
         """Velocity at the mesh vertices, (N, 3) [m/s]."""
@@ -495,13 +517,22 @@ def config_channel(cfg: FlowConfig) -> Channel:
     return plate_channel(g)
 
 
-def run_flow(config: FlowConfig | str | Path, out_dir: str | Path | None = None) -> FlowResult:
+def run_flow(
+    config: FlowConfig | str | Path, out_dir: str | Path | None = None, thermal: bool = False
+) -> FlowResult:
     """Solve the laminar flow of a config; write ``summary.json`` and ``flow.vtu`` to ``out_dir``.
 
-    The results folder appears atomically (:func:`hevsim.io.atomic_directory`).
+    ``thermal``: also the coolant heat transfer on the frozen flow (:func:`hevsim.thermal.cht.run_cht`,
+    in ``res.cht``; files ``cht_summary.json``, ``cht_segments.csv``, ``nusselt.png``,
+    ``temperature.vtu``). The results folder appears atomically
+    (:func:`hevsim.io.atomic_directory`).
     """
     cfg = config if isinstance(config, FlowConfig) else load_flow_config(config)
     res = solve_flow(config_channel(cfg), cfg.coolant, cfg.flow_m3_s, section=cfg.flow, where=cfg.name)
+    if thermal:
+        from hevsim.thermal.cht import run_cht
+
+        res.cht = run_cht(cfg, res)
     res.metadata = {
         "name": cfg.name,
         "channel": cfg.flow.channel,
@@ -515,6 +546,10 @@ def run_flow(config: FlowConfig | str | Path, out_dir: str | Path | None = None)
         with atomic_directory(out_dir) as tmp:
             write_json(tmp / "summary.json", {"metrics": res.metrics, "metadata": res.metadata})
             write_vtu(res, tmp / "flow.vtu")
+            if res.cht is not None:
+                from hevsim.thermal.cht import write_cht
+
+                write_cht(res.cht, tmp)
     return res
 
 
