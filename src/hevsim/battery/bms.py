@@ -102,8 +102,7 @@ class PackRun:
         pack.prm[:, SOCINI] = soc_initial
         self._cells = np.empty((pack.n_cells, 5))
         self._soc = soc_initial
-        n_groups = pack.cfg.pack.n_modules * pack.cfg.module.n_series
-        self._g = [np.empty(n_groups) for _ in range(4)]
+        self._g = [np.empty(pack.n_groups_sim) for _ in range(4)]
         self.start: PackStepStart | None = None
         self.e_dis = self.z_dis = self.e_chg = self.z_chg = math.nan
         self.limits = BmsLimits(math.inf, math.inf, 0, 0, 1.0)

@@ -68,6 +68,8 @@ from hevsim.schema import build_config, read_toml
 from hevsim.units import c_to_k
 
 THERMAL_KINDS = ("rom", "coolant")
+#: ``[module] cells``: every cell simulated, or one representative cell per module
+CELL_MODES = ("all", "representative")
 #: channels of one pack step (:meth:`Pack.step`), the columns of :attr:`PackResult.timeseries`
 STEP_CHANNELS = (
     "time_s", "current_request_a", "current_a", "voltage_v", "voltage_avg_v", "power_w", "derating_factor",
@@ -100,11 +102,14 @@ class CellsSection:
 
 @dataclass(frozen=True)
 class ModuleSection:
-    """``[module]``: cell arrangement and thermal model (module docstring)."""
+    """``[module]``: cell arrangement, thermal model and simulated cells (module docstring):
+    ``cells = "all"`` simulates every cell; ``"representative"`` one cell per module standing
+    for all its ``n_series x n_parallel`` cells (no cell-to-cell spread)."""
 
     n_series: int = field(default=2, metadata={"bounds": (1, 1000)})
     n_parallel: int = field(default=6, metadata={"bounds": (1, 1000)})
     thermal: str = field(default="rom", metadata={"choices": THERMAL_KINDS})
+    cells: str = field(default="all", metadata={"choices": CELL_MODES})
     rom_file: str = ""
     thermal_config: str = ""
 
@@ -170,6 +175,12 @@ def pack_config_from_dict(
         )
     _check_soc_tables(d, source)
     m = cfg.module
+    if m.cells == "representative" and (cfg.cells.capacity_spread > 0.0 or cfg.cells.resistance_spread > 0.0):
+        raise ConfigError(
+            f"{source}: [module] cells = \"representative\" with 'cells.capacity_spread' = "
+            f"{cfg.cells.capacity_spread:g} and 'cells.resistance_spread' = {cfg.cells.resistance_spread:g}; "
+            'expected no cell-to-cell spread (one cell stands for its whole module) or cells = "all".'
+        )
     if m.thermal == "rom" and not (m.rom_file and m.thermal_config):
         raise ConfigError(
             f"{source}: [module] thermal = \"rom\" needs 'module.rom_file' (from `hevsim rom build`) and "
@@ -299,7 +310,16 @@ class Pack:
         self._check_derating(src)
         m, p = cfg.module, cfg.pack
         self.cells_per_module = m.n_series * m.n_parallel
-        self.n_cells = self.cells_per_module * p.n_modules
+        self.representative = m.cells == "representative"
+        #: simulated cells per module, and the physical cells each simulated cell stands for
+        self.sim_per_module = 1 if self.representative else self.cells_per_module
+        self.weight = self.cells_per_module // self.sim_per_module
+        #: simulated cells (``prm``/``x`` rows); ``cells_represented`` the pack's physical cells
+        self.n_cells = self.sim_per_module * p.n_modules
+        self.cells_represented = self.cells_per_module * p.n_modules
+        #: series groups simulated (one per module when representative) and cells in parallel in each
+        self.n_groups_sim = p.n_modules * (1 if self.representative else m.n_series)
+        self.n_p_sim = 1 if self.representative else m.n_parallel
         rng = np.random.default_rng(cfg.cells.seed)
         c0 = 1.0 + cfg.cells.capacity_spread * rng.standard_normal(self.n_cells)
         rs = 1.0 + cfg.cells.resistance_spread * rng.standard_normal(self.n_cells)
@@ -422,10 +442,10 @@ class Pack:
     def stored_energy_j(self) -> dict[str, float]:
         """Stored energies [J]: RC capacitors, cell cores (``C_heat T``), module FEMs (ROM ``sum C T``),
         coolant loop (``M c_p T``); differences of two calls close the balance (:meth:`energy`)."""
-        core = float(np.sum(self.prm[:, CHEAT] * self.x[:, STEMP]))
+        core = self.weight * float(np.sum(self.prm[:, CHEAT] * self.x[:, STEMP]))
         mod = float(self.rom.stored_j(self.stepper.z).sum()) if self.rom is not None else 0.0
         return {
-            "rc_j": self._rc_energy_j(),
+            "rc_j": self.weight * self._rc_energy_j(),
             "cores_j": core,
             "modules_j": mod,
             "loop_j": self.loop.stored_j(),
@@ -446,19 +466,24 @@ class Pack:
         loop_step = self.loop.begin_step(hottest, self.ambient_k, self.cfg.pack.dt_s)
         inlet = self.loop.series_inlets(loop_step, self._plate_heat)
         if self.rom is None:
-            self.port_k = np.repeat(inlet, self.cells_per_module)
+            self.port_k = np.repeat(inlet, self.sim_per_module)
         return PackStepStart(hottest, f, loop_step, inlet)
 
     def thevenin(self, direction: float, e_group: np.ndarray, z_group: np.ndarray) -> tuple[float, float]:
         """The pack's step-average terminal voltage as ``E - Z I`` [V, ohm] for a pack current
         of ``direction`` (+1 discharge, -1 charge) over the next step, from the cells' present
-        state (:func:`pack_thevenin`); ``e_group``/``z_group`` (n_groups,) receive each series
-        group's own pair (its cells' voltage)."""
+        state (:func:`pack_thevenin`); ``e_group``/``z_group`` (:attr:`n_groups_sim`,) receive each
+        series group's own pair (its cells' voltage; representative cells: one group per module,
+        its ``n_parallel`` identical cells in parallel)."""
         m = self.cfg.module
-        return pack_thevenin(  # type: ignore[call-arg]
-            self.prm, *self._tabs, self.x, self.cfg.pack.n_modules * m.n_series, m.n_parallel,
-            self.cfg.pack.dt_s, direction, e_group, z_group,
+        e, z = pack_thevenin(  # type: ignore[call-arg]
+            self.prm, *self._tabs, self.x, self.n_groups_sim, self.n_p_sim, self.cfg.pack.dt_s, direction,
+            e_group, z_group,
         )  # fmt: skip
+        if not self.representative:
+            return e, z
+        z_group /= m.n_parallel
+        return m.n_series * e, m.n_series * z / m.n_parallel
 
     def finish_step(
         self, start: PackStepStart, current_a: float, current_request_a: float | None = None,
@@ -473,21 +498,39 @@ class Pack:
         energy = self._energy_buf
         loop_step, inlet = start.loop_step, start.inlet_k
         i_a = float(current_a)
+        i_cells = i_a / m.n_parallel if self.representative else i_a  # a representative cell's share
         v_end, v_avg = pack_step(  # type: ignore[call-arg]
-            self.prm, *self._tabs, self.x, n_mod * m.n_series, m.n_parallel, i_a, dt, self.port_k, out, energy
+            self.prm,
+            *self._tabs,
+            self.x,
+            self.n_groups_sim,
+            self.n_p_sim,
+            i_cells,
+            dt,
+            self.port_k,
+            out,
+            energy,
         )
-        port_w = out[:, 3].reshape(n_mod, cpm)
+        if self.representative:  # one cell for n_series groups of n_parallel cells
+            v_end, v_avg = m.n_series * v_end, m.n_series * v_avg
+            energy *= self.weight
+        port_w = (
+            np.repeat(out[:, 3], self.weight).reshape(n_mod, cpm)
+            if self.representative
+            else out[:, 3].reshape(n_mod, cpm)
+        )
         if self.rom is not None:
             fluid = self._fluid_k(inlet, self.rom.wall_temp_k(self.stepper.z), loop_step.plate_flow_m3_s)
             z = self.stepper.step(port_w, fluid, self.ambient_k)
             plate_heat = self.rom.wall_heat_w(z, fluid, self.h_plate).sum(axis=1)
             mod_amb = float(np.sum(self.rom.ambient_heat_w(z, self.ambient_k)))
-            self.port_k = self.rom.cell_mean_k(z).ravel()
+            mean_k = self.rom.cell_mean_k(z)
+            self.port_k = mean_k.mean(axis=1) if self.representative else mean_k.ravel()
             module_hot = self.rom.cell_max_k(z).max(axis=1)
         else:
             plate_heat = port_w.sum(axis=1)
             mod_amb = 0.0
-            module_hot = out[:, 2].reshape(n_mod, cpm).max(axis=1)
+            module_hot = out[:, 2].reshape(n_mod, self.sim_per_module).max(axis=1)
         self._plate_heat = plate_heat
         plate_w = float(plate_heat.sum())
         self.loop.end_step(loop_step, plate_w, dt)
