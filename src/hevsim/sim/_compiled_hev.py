@@ -13,6 +13,10 @@ the pack's kernels and the road load of :mod:`hevsim.components.body`. The contr
 rules are those of :mod:`hevsim.control.parallel`, whose objects hand over their parameters
 and candidate grids (:func:`controller_code`).
 
+The compiled loops allocate nothing and run without numba's reference counting (``_nrt=False``):
+passing the component tables (tuples of arrays) into the per-point kernels otherwise costs
+about 100 ns of reference-count traffic per candidate, more than the physics.
+
 Data cross the numba boundary as named tuples (:class:`HEVConstants`,
 :class:`ControllerConstants`, the architectures' ``kernel_tables`` and the components'
 tables), unpacked by name.
@@ -276,7 +280,7 @@ def _argmin(cost, feasible, n):
     return best
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md, buf):
     """The controller's choice at one step (:mod:`hevsim.control.parallel`): (found, c0, c1).
     ``state``: [gear of the shift schedule, equivalence factor s, SOC integral, SOC reference]
@@ -284,7 +288,7 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
     control of every candidate, the electric assist's throttle grid); ``buf``: work arrays."""
     cand0, cand1, thr_grid = cands
     h, dpar, _, etab, _, _ = md
-    cost, fuel, p_eng, feas, det, loss = buf
+    cost, fuel, p_eng, feas, near, det, loss = buf
     regen_ok = v_mid > 0.0
     n = cand0.shape[0]
     p_dem = t_wheel * w_wheel
@@ -341,7 +345,6 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
     if cc.code == POWER_FOLLOWER:
         target = max(p_dem, 0.0) + frac * cc.charge_power_w
         band = max(PS_POWER_BAND * target, PS_POWER_BAND_MIN_W)
-        near = np.empty(n, np.bool_)
         any_near = False
         for i in range(n):
             near[i] = feas[i] and cand1[i] != 0.0 and abs(p_eng[i] - target) <= band
@@ -395,7 +398,7 @@ def _demand(v0, v1, k, dt, gr, h):
 
 
 # ------------------------------------------------------------------------- the run
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def run_hev(
     arch,
     cc,
@@ -417,6 +420,7 @@ def run_hev(
     audit,
     summary,
     state,
+    buf,
 ):
     """One forward run (the compiled :func:`hevsim.sim.forward._run`). Fills ``cols``
     (channels x ``n + 1``: :data:`BASE_COLUMNS`, the details, :data:`TAIL_COLUMNS`),
@@ -425,13 +429,10 @@ def run_hev(
     final speed [m/s])."""
     n = t.shape[0] - 1
     dt = t[1] - t[0]
-    nc = cand0.shape[0]
     cands = (cand0, cand1, thr_grid)
     md = (h, dpar, dps, etab, mtab, gtab)
-    nd = cols.shape[0] - len(BASE_COLUMNS) - len(TAIL_COLUMNS)
-    det = np.zeros(nd)
-    loss = np.zeros(len(P.LOSS_TERMS) if arch == PARALLEL else len(PS.LOSS_TERMS))
-    buf = (np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc, np.bool_), det, loss)
+    det, loss = buf[5], buf[6]
+    nd = det.shape[0]
     nl = loss.shape[0]
     m_eff = h.mass_kg * h.mass_factor
     r = h.radius_m
@@ -578,8 +579,11 @@ def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_m
         model.motor.kernel_tables(),
         model.battery.kernel_tables(),
     )
+    nc = cand0.size
+    buf = (np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc, np.bool_), np.empty(nc, np.bool_),
+           np.zeros(len(mod.DETAILS)), np.zeros(len(mod.LOSS_TERMS)))  # fmt: skip
     status, k, v_end = run_hev(arch, cc, float(soc0), t, v_des, gr, cand0, cand1, thr, h, dpar, dps, etab,
-                               mtab, gtab, ptab, cols, audit, summary, state)  # fmt: skip
+                               mtab, gtab, ptab, cols, audit, summary, state, buf)  # fmt: skip
     if status == ERR_STUCK:
         raise DomainError(f"{model.name}: no feasible control at t = {t[k]:g} s even when stopping.")
     if cc.code == ELECTRIC_ASSIST:
