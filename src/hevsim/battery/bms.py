@@ -100,6 +100,7 @@ class PackRun:
     def __init__(self, pack: Pack, soc_initial: float) -> None:
         self.pack = pack
         pack.prm[:, SOCINI] = soc_initial
+        pack.state_changed()
         self._cells = np.empty((pack.n_cells, 5))
         self._soc = soc_initial
         self._g = [np.empty(pack.n_groups_sim) for _ in range(4)]

@@ -33,6 +33,7 @@ electrical out + chemical change + RC energy change + heat stored (cell cores, m
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,8 +45,16 @@ from numba import njit
 
 from hevsim.battery.cooling import ControllerSection, CoolingLoop, CoolingSection, LoopStep, check_cooling
 from hevsim.battery.kernel import (
+    ALPHARS,
     C0,
     CHEAT,
+    CTI0,
+    HMAX,
+    IBAND,
+    N_FIXED_STATES,
+    NRC,
+    OCVSTEP,
+    RCPERS,
     RECH,
     RECORD,
     REEL,
@@ -53,18 +62,33 @@ from hevsim.battery.kernel import (
     REPORT,
     RPORT,
     RSCALE,
+    RSKIN,
     RSOC,
     RTEMP,
     RV,
     RVAVG,
+    SCYC,
+    SDIR,
+    SILAST,
+    SOCINI,
+    SQ,
+    SQABS,
     STEMP,
+    TREF,
+    VMAX,
+    VMIN,
     branch_affine,
+    cell_capacity,
     cell_step,
+    rc_element,
     rc_energy,
+    series_resistance,
     share_current,
+    step_direction,
 )
 from hevsim.errors import ConfigError
 from hevsim.schema import build_config, read_toml
+from hevsim.tables import interp2
 from hevsim.units import c_to_k
 
 THERMAL_KINDS = ("rom", "coolant")
@@ -272,6 +296,254 @@ def pack_thevenin(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c,
     return e_tot, z_tot
 
 
+@njit(cache=True)
+def _linear_group(prm, x, cells):
+    """True when the cells' step-average voltages are exactly affine in their currents (none of
+    the nonlinear options: in-step OCV, charge transfer, hysteresis)."""
+    for c in cells:
+        if prm[c, OCVSTEP] > 0.0 or prm[c, CTI0] > 0.0 or prm[c, HMAX] > 0.0:
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def _share_affine(prm, x, ez, cells, i_total, i_out):
+    """:func:`hevsim.battery.kernel.share_current` for linear cells from their stored affine pairs
+    ``ez[c]`` = (E, Z) discharge then charge [V, ohm] (the same values it would compute, in the
+    same order: the same currents bit for bit)."""
+    m = cells.shape[0]
+    dirs = np.empty(m)
+    for b in range(m):
+        dirs[b] = step_direction(i_total, x[cells[b], SDIR], prm[cells[b], IBAND])
+    for _it in range(m + 2):
+        inv_z = 0.0
+        e_over_z = 0.0
+        for b in range(m):
+            k = 0 if dirs[b] >= 0.0 else 2
+            inv_z += 1.0 / ez[cells[b], k + 1]
+            e_over_z += ez[cells[b], k] / ez[cells[b], k + 1]
+        v = (e_over_z - i_total) / inv_z
+        turned = False
+        for b in range(m):
+            c = cells[b]
+            k = 0 if dirs[b] >= 0.0 else 2
+            i_out[b] = (ez[c, k] - v) / ez[c, k + 1]
+            d_new = step_direction(i_out[b], x[c, SDIR], prm[c, IBAND])
+            turned = turned or d_new != dirs[b]
+            dirs[b] = d_new
+        if not turned:
+            break
+
+
+@njit(cache=True)
+def pack_pass(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, n_groups, n_p, i_a, dt,
+              t_port, out_cells, energy, ez, ez_valid, pairs, totals):  # fmt: skip
+    """One compiled pass over the pack per step: :func:`pack_step` at pack current ``i_a`` [A]
+    (same arguments and results), then, from every cell's new state, the next step's affine
+    pairs of both directions (:func:`pack_thevenin` for +1 and -1): ``ez[c]`` = the cell's
+    (E_dis, Z_dis, E_chg, Z_chg) [V, ohm], ``pairs[g]`` its series group's, ``totals`` the
+    pack's. With ``ez_valid`` (``ez`` holds the pairs of the present state) the parallel cells
+    of a linear group share the current from ``ez`` (no second evaluation). Returns (end
+    voltage, step-average voltage) [V] of the pack."""
+    rec = np.empty(len(RECORD))
+    i_b = np.empty(n_p)
+    cells = np.empty(n_p, dtype=np.int64)
+    energy[:] = 0.0
+    totals[:] = 0.0
+    v_end = 0.0
+    v_avg = 0.0
+    tabs = (soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c)
+    for g in range(n_groups):
+        for b in range(n_p):
+            cells[b] = g * n_p + b
+        if ez_valid and _linear_group(prm, x, cells):
+            _share_affine(prm, x, ez, cells, i_a, i_b)
+        else:
+            share_current(prm, *tabs, x, cells, i_a, dt, i_b)
+        for b in range(n_p):
+            c = cells[b]
+            cell_step(prm[c], *tabs, x[c], i_b[b], dt, t_port[c], rec)
+            out_cells[c, 0] = i_b[b]
+            out_cells[c, 1] = rec[RSOC]
+            out_cells[c, 2] = rec[RTEMP]
+            out_cells[c, 3] = rec[RPORT]
+            out_cells[c, 4] = rec[RV]
+            v_end += rec[RV] / n_p
+            v_avg += rec[RVAVG] / n_p
+            energy[0] += rec[REEL]
+            energy[1] += rec[RECH]
+            energy[2] += rec[REHEAT]
+            energy[3] += rec[REPORT]
+        _group_pairs(prm, tabs, x, dt, g, cells, ez, ez, np.zeros((2, 1, 5)), False, pairs, totals)
+    return v_end, v_avg
+
+
+@njit(cache=True)
+def rc_constants(p, rc_d, rc_c, dt):
+    """Per direction (discharge, charge) and RC state of cells with parameters ``p``, at step
+    ``dt`` [s]: (connected 0/1, R [ohm] before the cell's scale, tau [s], mean of
+    ``exp(-t/tau)`` over the step, ``exp(-dt/tau)``), as :func:`hevsim.battery.kernel.cell_step`
+    and :func:`~hevsim.battery.kernel.branch_affine` evaluate them."""
+    n = int(p[NRC])
+    persistent = p[RCPERS] > 0.0
+    slots = n if persistent else 2 * n
+    rcc = np.zeros((2, max(slots, 1), 5))
+    for d in range(2):
+        for j in range(slots):
+            table, row, on = rc_element(j, n, persistent, 1.0 - 2.0 * d, rc_d, rc_c)
+            tau = table[row, 1]
+            rcc[d, j, 0] = 1.0 if on else 0.0
+            rcc[d, j, 1] = table[row, 0]
+            rcc[d, j, 2] = tau
+            rcc[d, j, 3] = tau * (1.0 - math.exp(-dt / tau)) / dt
+            rcc[d, j, 4] = math.exp(-dt / tau)
+    return rcc[:, :slots]
+
+
+@njit(cache=True)
+def _affine_linear(p, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rcc, xc, ez_c, oc_c):
+    """:func:`hevsim.battery.kernel.branch_affine` of both directions of a linear cell (the same
+    operations, one capacity for both; ``rcc`` from :func:`rc_constants`): ``ez_c`` = (E_dis,
+    Z_dis, E_chg, Z_chg) [V, ohm]; ``oc_c`` = (capacity [C], OCV_dis, R_s dis, OCV_chg, R_s chg)
+    [V, ohm] for its next step (:func:`_step_linear`)."""
+    temp = xc[STEMP]
+    cap = cell_capacity(p, t_ax, capf, xc[SQABS], temp)
+    soc = p[SOCINI] - xc[SQ] / cap
+    oc_c[0] = cap
+    for d in range(2):
+        u = min(max(interp2(soc_ax, t_ax, ocv_d if d == 0 else ocv_c, soc, temp, False), p[VMIN]), p[VMAX])
+        r_tab = interp2(soc_ax, t_ax, rs_d if d == 0 else rs_c, soc, temp, False)
+        r_s = series_resistance(r_tab, p[RSCALE], p[ALPHARS], temp, p[TREF])
+        oc_c[1 + 2 * d] = u
+        oc_c[2 + 2 * d] = r_s
+        for j in range(rcc.shape[1]):
+            if rcc[d, j, 0] > 0.0:
+                u -= xc[N_FIXED_STATES + j] * rcc[d, j, 3]
+                r_s += rcc[d, j, 1] * p[RSCALE] * (1.0 - rcc[d, j, 3])
+        ez_c[2 * d] = u
+        ez_c[2 * d + 1] = r_s
+
+
+@njit(cache=True)
+def _step_linear(p, rcc, xc, oc_c, i_a, dt, t_port, out_c, energy):
+    """:func:`hevsim.battery.kernel.cell_step` of a linear cell from the capacity, OCV and R_s
+    :func:`_affine_linear` kept (the same operations); fills ``out_c`` as :func:`pack_step`
+    and adds the step's energies. Returns (end voltage, step-average voltage) [V]."""
+    sign = step_direction(i_a, xc[SDIR], p[IBAND])
+    k = 1 if sign >= 0.0 else 3
+    d = 0 if sign > 0.0 else 1  # rc_element's test
+    cap, ocv, rs = oc_c[0], oc_c[k], oc_c[k + 1]
+    rc_end = 0.0
+    rc_avg = 0.0
+    rc_heat = 0.0
+    for j in range(rcc.shape[1]):
+        on = rcc[d, j, 0] > 0.0
+        r_el = rcc[d, j, 1] * p[RSCALE]
+        tau = rcc[d, j, 2]
+        decay = rcc[d, j, 4]
+        v_inf = r_el * i_a if on else 0.0
+        dv = xc[N_FIXED_STATES + j] - v_inf
+        v_new = v_inf + dv * decay
+        sq = (
+            v_inf * v_inf * dt
+            + 2.0 * v_inf * dv * tau * (1.0 - decay)
+            + dv * dv * 0.5 * tau * (1.0 - decay * decay)
+        )
+        rc_heat += sq / r_el
+        if on:
+            rc_end += v_new
+            rc_avg += (v_inf * dt + dv * tau * (1.0 - decay)) / dt
+        xc[N_FIXED_STATES + j] = v_new
+    heat_j = rs * i_a * i_a * dt + rc_heat
+    q_heat = heat_j / dt
+    t_inf = t_port + q_heat * p[RSKIN]
+    temp0 = xc[STEMP]
+    temp1 = t_inf + (temp0 - t_inf) * math.exp(-dt / (p[CHEAT] * p[RSKIN]))
+    port_j = heat_j - p[CHEAT] * (temp1 - temp0)
+    xc[SQ] += i_a * dt
+    xc[SQABS] += abs(i_a) * dt
+    xc[SCYC] += abs(i_a) * dt / (2.0 * cap)
+    xc[STEMP] = temp1
+    xc[SDIR] = sign
+    xc[SILAST] = i_a
+    v_avg = ocv - rs * i_a - rc_avg
+    v_end = ocv - rs * i_a - rc_end
+    out_c[0] = i_a
+    out_c[1] = p[SOCINI] - xc[SQ] / cap
+    out_c[2] = temp1
+    out_c[3] = port_j / dt
+    out_c[4] = v_end
+    energy[0] += v_avg * i_a * dt
+    energy[1] += -ocv * i_a * dt
+    energy[2] += heat_j
+    energy[3] += port_j
+    return v_end, v_avg
+
+
+@njit(cache=True)
+def pack_pass_linear(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, n_groups, n_p, i_a, dt,
+                     t_port, out_cells, energy, ez, oc, rcc, pairs, totals):  # fmt: skip
+    """:func:`pack_pass` for a pack of linear cells (none of the nonlinear options), from the
+    pairs, capacities, OCVs and resistances :func:`pack_pairs` (or the previous pass) stored in
+    ``ez``/``oc``: each cell's tables are read once per direction and step."""
+    tabs = (soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c)
+    i_b = np.empty(n_p)
+    cells = np.empty(n_p, dtype=np.int64)
+    energy[:] = 0.0
+    totals[:] = 0.0
+    v_end = 0.0
+    v_avg = 0.0
+    for g in range(n_groups):
+        for b in range(n_p):
+            cells[b] = g * n_p + b
+        _share_affine(prm, x, ez, cells, i_a, i_b)
+        for b in range(n_p):
+            c = cells[b]
+            ve, va = _step_linear(prm[c], rcc, x[c], oc[c], i_b[b], dt, t_port[c], out_cells[c], energy)
+            v_end += ve / n_p
+            v_avg += va / n_p
+        _group_pairs(prm, tabs, x, dt, g, cells, ez, oc, rcc, True, pairs, totals)
+    return v_end, v_avg
+
+
+@njit(cache=True)
+def _group_pairs(prm, tabs, x, dt, g, cells, ez, oc, rcc, linear, pairs, totals):
+    """Affine pairs of both directions (:func:`pack_pass`) of group ``g``'s ``cells`` (``linear``:
+    by :func:`_affine_linear`, which also fills ``oc``); adds the group's to ``totals``."""
+    if linear:
+        soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf = tabs[:7]
+        for c in cells:
+            _affine_linear(prm[c], soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rcc, x[c], ez[c], oc[c])
+    else:
+        for c in cells:
+            for d in range(2):
+                ez[c, 2 * d], ez[c, 2 * d + 1] = branch_affine(prm[c], *tabs, x[c], dt, 1.0 - 2.0 * d)  # type: ignore[call-arg]
+    for d in range(2):
+        inv_z = 0.0
+        e_over_z = 0.0
+        for c in cells:
+            e, z = ez[c, 2 * d], ez[c, 2 * d + 1]
+            inv_z += 1.0 / z
+            e_over_z += e / z
+        pairs[g, 2 * d] = e_over_z / inv_z
+        pairs[g, 2 * d + 1] = 1.0 / inv_z
+        totals[2 * d] += pairs[g, 2 * d]
+        totals[2 * d + 1] += pairs[g, 2 * d + 1]
+
+
+@njit(cache=True)
+def pack_pairs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, n_groups, n_p, dt, ez, oc,
+               rcc, linear, pairs, totals):  # fmt: skip
+    """The affine pairs of :func:`pack_pass` (and, ``linear``, the data of
+    :func:`pack_pass_linear` in ``oc``) from the cells' present state, without a step."""
+    tabs = (soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c)
+    totals[:] = 0.0
+    for g in range(n_groups):
+        _group_pairs(
+            prm, tabs, x, dt, g, np.arange(g * n_p, (g + 1) * n_p), ez, oc, rcc, linear, pairs, totals
+        )
+
+
 @dataclass(frozen=True)
 class PackStepStart:
     """What :meth:`Pack.begin_step` decided for a step: hottest cell core [K] at its start, the
@@ -360,6 +632,14 @@ class Pack:
         self.port_k = np.full(self.n_cells, t0)
         self._tabs = self.params.tables()
         self._energy_buf = np.zeros(4)
+        # the next step's affine pairs (pack_pass): per cell, per series group, the pack's
+        self._ez = np.zeros((self.n_cells, 4))
+        self._oc = np.zeros((self.n_cells, 5))
+        self._pairs = np.zeros((self.n_groups_sim, 4))
+        self._totals = np.zeros(4)
+        self._ez_valid = False
+        self._is_linear: bool | None = None
+        self._rcc = np.zeros((2, 1, 5))
         self._c0_new = self.prm[:, C0].copy()
         self._rscale_new = self.prm[:, RSCALE].copy()
         self.stress: Any = None
@@ -476,10 +756,17 @@ class Pack:
         series group's own pair (its cells' voltage; representative cells: one group per module,
         its ``n_parallel`` identical cells in parallel)."""
         m = self.cfg.module
-        e, z = pack_thevenin(  # type: ignore[call-arg]
-            self.prm, *self._tabs, self.x, self.n_groups_sim, self.n_p_sim, self.cfg.pack.dt_s, direction,
-            e_group, z_group,
-        )  # fmt: skip
+        if not self._ez_valid:
+            linear = self._linear()  # (sets the RC constants)
+            pack_pairs(  # type: ignore[call-arg]
+                self.prm, *self._tabs, self.x, self.n_groups_sim, self.n_p_sim, self.cfg.pack.dt_s, self._ez,
+                self._oc, self._rcc, linear, self._pairs, self._totals,
+            )  # fmt: skip
+            self._ez_valid = True
+        k = 0 if direction > 0.0 else 2
+        e_group[:] = self._pairs[:, k]
+        z_group[:] = self._pairs[:, k + 1]
+        e, z = float(self._totals[k]), float(self._totals[k + 1])
         if not self.representative:
             return e, z
         z_group /= m.n_parallel
@@ -499,18 +786,20 @@ class Pack:
         loop_step, inlet = start.loop_step, start.inlet_k
         i_a = float(current_a)
         i_cells = i_a / m.n_parallel if self.representative else i_a  # a representative cell's share
-        v_end, v_avg = pack_step(  # type: ignore[call-arg]
-            self.prm,
-            *self._tabs,
-            self.x,
-            self.n_groups_sim,
-            self.n_p_sim,
-            i_cells,
-            dt,
-            self.port_k,
-            out,
-            energy,
-        )
+        if self._ez_valid and self._linear():
+            v_end, v_avg = pack_pass_linear(  # type: ignore[call-arg]
+                self.prm, *self._tabs, self.x, self.n_groups_sim, self.n_p_sim, i_cells, dt, self.port_k, out,
+                energy, self._ez, self._oc, self._rcc, self._pairs, self._totals,
+            )  # fmt: skip
+        else:
+            v_end, v_avg = pack_pass(  # type: ignore[call-arg]
+                self.prm, *self._tabs, self.x, self.n_groups_sim, self.n_p_sim, i_cells, dt, self.port_k, out,
+                energy, self._ez, self._ez_valid, self._pairs, self._totals,
+            )  # fmt: skip
+            if self._linear():  # the capacities, OCVs and resistances for pack_pass_linear
+                self._ez_valid = False
+                self.thevenin(1.0, np.empty(self.n_groups_sim), np.empty(self.n_groups_sim))
+        self._ez_valid = True
         if self.representative:  # one cell for n_series groups of n_parallel cells
             v_end, v_avg = m.n_series * v_end, m.n_series * v_avg
             energy *= self.weight
@@ -593,6 +882,23 @@ class Pack:
             )
         self.prm[:, C0] = self._c0_new * cf
         self.prm[:, RSCALE] = self._rscale_new * rf
+        self.state_changed()
+
+    def state_changed(self) -> None:
+        """Call after editing :attr:`prm` or :attr:`x` directly: the stored affine pairs of the
+        next step (:func:`pack_pass`) are recomputed."""
+        self._ez_valid = False
+        self._is_linear = None
+
+    def _linear(self) -> bool:
+        """Every cell's step voltage is affine in its current (:func:`pack_pass_linear`)."""
+        if self._is_linear is None:
+            p = self.prm
+            nonlinear = (p[:, OCVSTEP] > 0.0) | (p[:, CTI0] > 0.0) | (p[:, HMAX] > 0.0)
+            same_rc = np.all(p[:, NRC] == p[0, NRC]) and np.all(p[:, RCPERS] == p[0, RCPERS])
+            self._is_linear = bool(same_rc and not nonlinear.any())
+            self._rcc = rc_constants(p[0], self._tabs[7], self._tabs[8], self.cfg.pack.dt_s)
+        return self._is_linear
 
     def energy(self, start: dict[str, float]) -> dict[str, float]:
         """The energy terms [J] accumulated since the stored energies were ``start``
@@ -670,6 +976,9 @@ __all__ = [
     "PackStepStart",
     "load_pack_config",
     "pack_config_from_dict",
+    "pack_pairs",
+    "pack_pass",
+    "pack_pass_linear",
     "pack_step",
     "pack_thevenin",
 ]
