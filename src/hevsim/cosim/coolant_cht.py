@@ -44,8 +44,9 @@ from hevsim.units import KELVIN_OFFSET
 class CoolantCHTParticipant(Participant):
     """See the module docstring. ``config``: a module TOML (``hevsim thermal`` / ``hevsim
     flow``: ``[geometry]``, ``[coolant]``, optional ``[flow]`` for the mesh); keywords override
-    ``segments``, ``inlet_temp_k`` [K], ``flow_l_min`` [L/min]; ``transient``: implicit Euler
-    coolant instead of quasi-steady."""
+    ``segments``, ``inlet_temp_k`` [K], ``flow_l_min`` [L/min], ``grad_div`` [-] (the flow's
+    grad-div stabilisation, :class:`~hevsim.thermal.flow.FlowSection`); ``transient``: implicit
+    Euler coolant instead of quasi-steady."""
 
     def __init__(
         self,
@@ -55,6 +56,7 @@ class CoolantCHTParticipant(Participant):
         inlet_temp_k: float | None = None,
         flow_l_min: float | None = None,
         transient: bool = False,
+        grad_div: float | None = None,
     ):
         from hevsim.schema import read_toml
         from hevsim.thermal.cht import CoolantThermal
@@ -65,7 +67,14 @@ class CoolantCHTParticipant(Participant):
         path = Path(config)
         data = read_toml(path)
         if flow_l_min is not None:
+            if not (math.isfinite(float(flow_l_min)) and float(flow_l_min) > 0.0):
+                raise ConfigError(
+                    f"participant {name!r}: flow_l_min = {flow_l_min!r}; expected a positive laminar "
+                    "flow rate [L/min]."
+                )
             data["flow"] = {**data.get("flow", {}), "flow_l_min": float(flow_l_min)}
+        if grad_div is not None:
+            data["flow"] = {**data.get("flow", {}), "grad_div": float(grad_div)}
         cfg = flow_config_from_dict(data, str(path), path.parent)
         cool = load_thermal_config(path).coolant
         n = int(segments if segments is not None else cool.segments)

@@ -162,7 +162,8 @@ class CoolantThermal:
             hp = w.h / TAU_ORDER
             pe = np.maximum(speed * hp / (2 * alpha), 1e-12)
             tau = hp / (2 * speed) * (1 / np.tanh(pe) - 1 / pe)
-            return -rc * t * ugv + k * dot(grad(t), grad(v)) + tau * ugv * rc * dot(w["u"], grad(t))
+            ugt = dot(w["u"], grad(t))
+            return rc * v * ugt + k * dot(grad(t), grad(v)) + tau * ugv * rc * ugt
 
         @BilinearForm
         def capacity(t: Any, v: Any, w: Any) -> Any:
@@ -173,8 +174,8 @@ class CoolantThermal:
             return rc * t * (v + tau * dot(w["u"], grad(v)))
 
         @BilinearForm
-        def boundary_flux(t: Any, v: Any, w: Any) -> Any:  # rho c_p (u . n) T v
-            return rc * dot(w["u"], w.n) * t * v
+        def inflow_exchange(t: Any, v: Any, w: Any) -> Any:  # rho c_p |u . n| T v on the inlet
+            return -rc * dot(w["u"], w.n) * t * v
 
         @LinearForm
         def boundary_inflow(v: Any, w: Any) -> Any:  # -rho c_p (u . n) v per kelvin of T_in
@@ -186,7 +187,7 @@ class CoolantThermal:
         fu_out = FacetBasis(mesh, fl.basis_u.elem, facets=f_out, intorder=4)
         self.stiffness = (
             advection_diffusion.assemble(self.basis, u=u_q)
-            + boundary_flux.assemble(fb_out, u=fu_out.interpolate(fl.velocity))
+            + inflow_exchange.assemble(fb_in, u=fu_in.interpolate(fl.velocity))
         ).tocsr()
         self.capacity = capacity.assemble(self.basis, u=u_q).tocsr()
         self.inflow = boundary_inflow.assemble(fb_in, u=fu_in.interpolate(fl.velocity))  # [W/K]

@@ -115,7 +115,9 @@ class FlowSection:
     (``cells_across_width``, ``cells_across_height``, ``cell_length_m`` [m] along the
     channel), Newton ``tolerance`` (relative velocity update) and ``max_iterations``;
     ``wall_temp_c`` [°C]: the uniform wall temperature of the coolant heat-transfer run
-    (``hevsim flow --thermal``, :func:`hevsim.thermal.cht.run_cht`).
+    (``hevsim flow --thermal``, :func:`hevsim.thermal.cht.run_cht`); ``grad_div`` [-]:
+    grad-div stabilisation ``gamma int div u div v`` with ``gamma = grad_div (mu + rho U D_h)``
+    (0 = none), which improves the local mass conservation the coolant heat balance needs.
     """
 
     flow_l_min: float = 0.0
@@ -130,6 +132,7 @@ class FlowSection:
     max_iterations: int = 30
     tolerance: float = 1e-9
     wall_temp_c: float = 25.0
+    grad_div: float = 0.0
 
 
 _FLOW_BOUNDS: dict[str, tuple[float, float]] = {
@@ -143,6 +146,7 @@ _FLOW_BOUNDS: dict[str, tuple[float, float]] = {
     "flow.max_iterations": (1, 200),
     "flow.tolerance": (1e-14, 1e-2),
     "flow.wall_temp_c": (-50.0, 150.0),
+    "flow.grad_div": (0.0, 1e6),
 }
 
 
@@ -379,7 +383,13 @@ def solve_flow(
     def flux(v: Any, wf: Any) -> Any:
         return dot(v, wf.n)
 
+    @BilinearForm
+    def grad_div(u: Any, v: Any, _: Any) -> Any:
+        return div(u) * div(v)
+
     a_visc = viscous.assemble(basis_u)
+    if sec.grad_div > 0.0:
+        a_visc = a_visc + sec.grad_div * (mu + rho * u_mean * dh) * grad_div.assemble(basis_u)
     b_div = divergence.assemble(basis_u, basis_p)
     f_u = outlet_traction.assemble(fb_out)
     n_u, n_p = basis_u.N, basis_p.N
