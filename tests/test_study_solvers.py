@@ -101,9 +101,7 @@ def test_cross_solver_front_equals_brute_force(parallel_rows: tuple[Any, pd.Data
     study, rows = parallel_rows
     info = study.describe()
     front = fronts(info, rows)["fuel_vs_0_100"]
-    assert set(front["solver"]) == {
-        "simulate[controller=rule_based]"
-    }  # fuel depends on the cycle
+    assert set(front["solver"]) == {"simulate[controller=rule_based]"}  # fuel depends on the cycle
     sim = rows[rows["solver"] == "simulate[controller=rule_based]"]
     perf = rows[rows["solver"] == "performance"].set_index(["sample_id", "cycle"])["time_0_100_kmh_s"]
     for cycle, grp in sim.groupby("cycle"):
@@ -151,3 +149,28 @@ controller = "ecms"
     for needle in (str(p), "solvers[0]", "key 'controller' = 'ecms'", "series", "rule_based, thermostat"):
         assert needle in err, (needle, err)
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("vehicle", "kind"),
+    [
+        ("bev.toml", "direct"),
+        ("conventional_sedan.toml", "shift_schedule"),
+        ("prius_like_power_split.toml", "power_follower"),
+    ],
+)
+def test_simulate_rule_based_on_every_other_architecture_equals_single_runs(vehicle: str, kind: str) -> None:
+    study = study_from_dict({
+        "name": "arch", "vehicle": str(ROOT / "examples" / vehicle), "cycles": ["udds"],
+        "metrics": ["mpgge", "soc_final"], "parameters": {"body.mass_kg": [1400.0, 1650.0]},
+        "solvers": [{"name": "simulate", "controller": "rule_based"}],
+    })  # fmt: skip
+    rows = run_study(study, scheduler="in-process", progress=False)
+    assert (rows["status"] == OK).all(), rows["error"].tolist()
+    for _, r in rows.iterrows():
+        cfg = with_overrides(study.vehicle, {"body.mass_kg": r["body.mass_kg"]})
+        assert cfg.controller.kind == kind
+        ref = simulate_architecture(cfg.architecture, cfg, "udds")
+        for m in ("mpgge", "soc_final"):
+            assert r[m] == pytest.approx(ref.metrics[m]["value"], rel=1e-12, abs=1e-12), (vehicle, m)
+    assert rows["mpgge"].iloc[0] > rows["mpgge"].iloc[1]  # the heavier vehicle uses more energy
