@@ -544,6 +544,18 @@ def pack_pairs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x,
         )
 
 
+@njit(cache=True)
+def _channel_march(inlet_k, wall_k, mean_factor, decay, out):
+    """Segment-mean fluid temperatures [K] ``out[m, i]`` along every plate ``m`` (inlet
+    ``inlet_k[m]``, wall ``wall_k[m, i]``) with the segments' mean and exit factors [-]."""
+    for m in range(wall_k.shape[0]):
+        t_in = inlet_k[m]
+        for i in range(wall_k.shape[1]):
+            tw = wall_k[m, i]
+            out[m, i] = tw + (t_in - tw) * mean_factor[i]
+            t_in = tw + (t_in - tw) * decay[i]
+
+
 @dataclass(frozen=True)
 class PackStepStart:
     """What :meth:`Pack.begin_step` decided for a step: hottest cell core [K] at its start, the
@@ -703,11 +715,7 @@ class Pack:
         decay = np.exp(-ntu)
         mean_factor = np.where(ntu > 1e-12, (1.0 - decay) / np.where(ntu > 1e-12, ntu, 1.0), 1.0)
         out = np.empty_like(wall_k)
-        t_in = inlet_k.astype(float).copy()
-        for i in range(wall_k.shape[1]):
-            tw = wall_k[:, i]
-            out[:, i] = tw + (t_in - tw) * mean_factor[i]
-            t_in = tw + (t_in - tw) * decay[i]
+        _channel_march(np.asarray(inlet_k, dtype=float), wall_k, mean_factor, decay, out)
         return out
 
     def derating_factor(self, hottest_k: float) -> float:
