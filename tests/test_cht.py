@@ -172,3 +172,69 @@ def test_cli_flow_thermal_writes_outputs_and_refuses_zero_flow(
     # the inlet (15 degC) meets the wall (35 degC) on this coarse 4 x 2 mesh
     assert t.min() > 15.0 - 0.1 * 20.0 and t.max() < 35.0 + 0.1 * 20.0
     assert (out / "nusselt.png").stat().st_size > 1000
+
+
+def _small_module(tmp_path: Path) -> Path:
+    """A 1 x 2 module with a single straight channel pass (a fast flow solve)."""
+    text = MODULE_TOML.read_text()
+    text = text.replace("rows = 2", "rows = 1").replace("columns = 6", "columns = 2")
+    text = text.replace("channel_passes = 3", "channel_passes = 1").replace("segments = 30", "segments = 6")
+    (tmp_path / "small_1d.toml").write_text(text)  # the 1-D participant reads no [flow]
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(
+        text + "\n[flow]\ncells_across_width = 4\ncells_across_height = 2\ncell_length_m = 0.002\n"
+    )
+    return cfg
+
+
+def test_participant_same_interface_and_heat_balance(tmp_path: Path) -> None:
+    from hevsim.cosim.coolant import CoolantChannelParticipant
+    from hevsim.cosim.coolant_cht import CoolantCHTParticipant
+
+    cfg = _small_module(tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ThermalMeshWarning)
+        p3 = CoolantCHTParticipant("coolant", cfg, flow_l_min=0.0005, grad_div=10.0)
+    p1 = CoolantChannelParticipant("coolant", tmp_path / "small_1d.toml", flow_l_min=0.0005)
+    assert p3.inputs == p1.inputs and p3.outputs == p1.outputs
+    area = p3.model.wall_area_m2
+    wall = np.linspace(305.0, 300.0, 6)
+    values = {f"wall{i}_temp_k": wall[i] for i in range(6)} | {f"wall{i}_area_m2": area[i] for i in range(6)}
+    for p in (p1, p3):
+        p.set_inputs(values)
+        p.do_step(0.0, 1.0)
+    o1, o3 = p1.get_outputs(), p3.get_outputs()
+    flux = np.array([o3[f"wall{i}_heat_flux_w_m2"] for i in range(6)])
+    film = np.array([o3[f"wall{i}_film_w_m2k"] for i in range(6)])
+    fluid = np.array([o3[f"wall{i}_fluid_temp_k"] for i in range(6)])
+    assert (flux * area).sum() == pytest.approx(o3["cooling_power_w"], rel=1e-9)
+    assert np.all(film > 0) and film * (wall - fluid) == pytest.approx(flux, rel=1e-9)
+    # 0.5 mL/min through a 4.8 cm channel (NTU 12) at a uniform wall: the coolant leaves at the
+    # wall temperature and takes m_dot c_p (T_w - T_in), in both models (an independent limit)
+    for p in (p1, p3):
+        p.set_inputs({f"wall{i}_temp_k": 302.0 for i in range(6)})
+    o1, o3 = p1.get_outputs(), p3.get_outputs()
+    assert o3["outlet_temp_k"] == pytest.approx(302.0, abs=0.05)
+    assert o1["outlet_temp_k"] == pytest.approx(302.0, abs=0.05)
+    rate = p3.model.capacity_rate_w_k * (302.0 - 288.15)
+    assert o3["cooling_power_w"] == pytest.approx(rate, rel=0.01)
+    assert o1["cooling_power_w"] == pytest.approx(rate, rel=0.01)
+    with pytest.raises(ConfigError, match=r"flow_l_min = 0\.0; expected a positive"):
+        CoolantCHTParticipant("coolant", cfg, flow_l_min=0.0)
+
+
+def test_shipped_module_cht_ssd_is_the_example_system() -> None:
+    import sys
+
+    from hevsim.cosim.ssd import read_ssd
+
+    sys.path.insert(0, str(MODULE_TOML.parent / "cosim_module"))
+    from run_module_cht import FLOW_L_MIN, module_cht_system
+
+    shipped = read_ssd(MODULE_TOML.parent / "cosim_module" / "module_cht.ssd")
+    built = module_cht_system()
+    coolant = next(c for c in shipped.components if c.name == "coolant")
+    assert coolant.source == "hevsim.cosim.coolant_cht:CoolantCHTParticipant"
+    assert coolant.parameters["flow_l_min"] == FLOW_L_MIN
+    assert [c.source for c in shipped.components] == [c.source for c in built.components]
+    assert len(shipped.connections) == len(built.connections)

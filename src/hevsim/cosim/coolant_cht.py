@@ -61,7 +61,7 @@ class CoolantCHTParticipant(Participant):
         from hevsim.schema import read_toml
         from hevsim.thermal.cht import CoolantThermal
         from hevsim.thermal.flow import flow_config_from_dict, plate_channel, solve_flow
-        from hevsim.thermal.run import load_thermal_config
+        from hevsim.thermal.run import thermal_config_from_dict
 
         self.name = name
         path = Path(config)
@@ -76,7 +76,9 @@ class CoolantCHTParticipant(Participant):
         if grad_div is not None:
             data["flow"] = {**data.get("flow", {}), "grad_div": float(grad_div)}
         cfg = flow_config_from_dict(data, str(path), path.parent)
-        cool = load_thermal_config(path).coolant
+        cool = thermal_config_from_dict(
+            {k: v for k, v in data.items() if k != "flow"}, str(path), path.parent
+        ).coolant
         n = int(segments if segments is not None else cool.segments)
         if n < 1:
             raise ConfigError(f"participant {name!r}: segments = {n}; expected at least 1.")
