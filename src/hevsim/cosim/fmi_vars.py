@@ -171,6 +171,7 @@ class FmuVariables:
         name = "fmi3SetFloat64" if self.fmi3 else "fmi2SetReal"
         if name in fns:
             self._raw_set = fns[name]
+        self._set_plans: dict[tuple[str, ...], Any] = {}
         self._scalar_real_in = {
             e: vr for var, (ftype, vr, names) in self._in_vars.items() if ftype == real and len(names) == 1
             for e in names
@@ -205,14 +206,24 @@ class FmuVariables:
         """Set input elements (an array variable is written whole, with its other elements
         as last set)."""
         fast = self._raw_set is not None and slave is getattr(self, "_slave", None)
-        if fast and all(e in self._scalar_real_in for e in values):
+        key = tuple(values)
+        plan = self._set_plans.get(key) if fast else None
+        if plan is None and fast and all(e in self._scalar_real_in for e in values):
             import ctypes
 
             n = len(values)
-            cvrs = (ctypes.c_uint * n)(*(self._scalar_real_in[e] for e in values))
-            cvals = (ctypes.c_double * n)(*values.values())
-            for e, v in values.items():  # kept for a later whole-array or mixed write
-                self._in_values[self._in_element[e]][0] = float(v)
+            plan = (
+                (ctypes.c_uint * n)(*(self._scalar_real_in[e] for e in values)),
+                ctypes.c_double * n,
+                n,
+                [self._in_values[self._in_element[e]] for e in values],
+            )
+            self._set_plans[key] = plan  # value references of these inputs, made once
+        if plan is not None:
+            cvrs, ctype, n, stores = plan
+            cvals = ctype(*values.values())
+            for store, v in zip(stores, values.values(), strict=True):  # for a later mixed write
+                store[0] = float(v)
             st = (
                 self._raw_set(slave.component, cvrs, n, cvals, n)
                 if self.fmi3

@@ -242,9 +242,9 @@ class Master:
         self.order = fixed + [n for n in graph_order(self.feeds) if n not in fixed]
 
     # -- helpers ---------------------------------------------------------------------------
-    def _call(self, name: str, call: str, t: float, fn: Callable[[], Any]) -> Any:
+    def _call(self, name: str, call: str, t: float, fn: Callable[..., Any], *args: Any) -> Any:
         try:
-            return fn()
+            return fn(*args)
         except HevsimError as exc:
             if isinstance(exc, CosimFault):
                 raise
@@ -262,7 +262,7 @@ class Master:
     def _send(self, name: str, y: dict[str, dict[str, float]], t: float) -> None:
         vals = self._inputs_for(name, y)
         if vals:
-            self._call(name, "set_inputs", t, lambda: self.p[name].set_inputs(vals))
+            self._call(name, "set_inputs", t, self.p[name].set_inputs, vals)
 
     def _get(self, name: str, t: float) -> dict[str, float]:
         return dict(self._call(name, "get_outputs", t, self.p[name].get_outputs))
@@ -272,7 +272,7 @@ class Master:
 
     def _restore(self, states: dict[str, Any], t: float) -> None:
         for n, s in states.items():
-            self._call(n, "set_state", t, lambda n=n, s=s: self.p[n].set_state(s))  # type: ignore[misc]
+            self._call(n, "set_state", t, self.p[n].set_state, s)
 
     def _step_once(
         self, t: float, h: float, y0: dict[str, dict[str, float]], guess: dict[str, dict[str, float]]
@@ -296,7 +296,7 @@ class Master:
                 self._send(n, sent, t)
             else:
                 self._send(n, cur, t)
-            ok, pref = self._call(n, "do_step", t_n, lambda n=n, a=t_n, b=h_n: self.p[n].do_step(a, b))  # type: ignore[misc]
+            ok, pref = self._call(n, "do_step", t_n, self.p[n].do_step, t_n, h_n)
             if not ok:
                 return new, (pref if pref and pref < h else h / 2), prefs
             if pref:
@@ -436,7 +436,7 @@ class Master:
         self._stream: Any = None
         self._tstream: Any = None
         for n in self.order:
-            self._call(n, "setup", t, lambda n=n: self.p[n].setup(t))  # type: ignore[misc]
+            self._call(n, "setup", t, self.p[n].setup, t)
         y = self._initial_exchange(t)
         self._cols = [(n, v) for n in self.listing for v in y[n] if not isinstance(y[n][v], str)]
         self._tcols = [(n, v) for n in self.listing for v in y[n] if isinstance(y[n][v], str)]

@@ -410,6 +410,8 @@ class FMUParticipant(Participant):
         from fmpy import extract
 
         self._dir = extract(str(self.fmu))
+        if (Path(self._dir) / "resources" / "slavemodule.txt").is_file():
+            start_jit_before_pythonfmu()
         ident = self.md.coSimulation.modelIdentifier
         logging_on = self.fmu_log is not None or self.log_threshold <= 1
         with self._logged():
@@ -526,13 +528,13 @@ class FMUParticipant(Participant):
         """fmi2DoStep; on fmi2Discard ask fmi2GetBooleanStatus(fmi2Terminated): a terminated
         FMU ends the run at fmi2LastSuccessfulTime (as FMPy does), otherwise the step is
         rejected (the master redoes it shorter where it can restore states)."""
-        from fmpy.fmi1 import FMICallException
-        from fmpy.fmi2 import fmi2Discard, fmi2LastSuccessfulTime, fmi2Terminated
-
         status = self._raw_do_step(self.slave.component, t, h, 1)  # noSetFMUStatePriorTo.. = true
         if status <= 1:  # fmi2OK, fmi2Warning
             self.terminate_requested = False
             return True, None
+        from fmpy.fmi1 import FMICallException  # (imported here: not on the per-step path)
+        from fmpy.fmi2 import fmi2Discard, fmi2LastSuccessfulTime, fmi2Terminated
+
         if status != fmi2Discard:
             raise FMICallException(function="fmi2DoStep", status=status)
         try:
@@ -640,16 +642,35 @@ class FMUParticipant(Participant):
             _FAILED_INSTANCES.append(self.slave)
         else:
             self.slave.terminate()
-            # Free the instance but keep the shared library loaded: FMPy's freeInstance also
-            # dlcloses it, and unloading a pythonfmu FMU's library while the interpreter keeps
-            # the objects it created (its model module with numba-compiled code) corrupts the
-            # heap at exit ("corrupted double-linked list" in about half the runs).
+            # Free the instance but keep the shared library loaded (FMPy's freeInstance also
+            # dlcloses it): the interpreter keeps the model module a pythonfmu FMU imported.
+            # The exit aborts seen with pythonfmu FMUs came from numba's first JIT compilation
+            # inside fmi2Instantiate, not from unloading (start_jit_before_pythonfmu).
             sl = self.slave
             (sl.fmi3FreeInstance if self.fmi3 else sl.fmi2FreeInstance)(sl.component)
             _LOADED_LIBRARIES.append(sl)
         self.slave = None
 
 
+def start_jit_before_pythonfmu() -> None:
+    """Compile one numba function in this process, outside any FMU call (once).
+
+    A pythonfmu FMU whose model uses numba (``hevsim export-fmu --pythonfmu``) must not be the
+    first to JIT-compile in a process: when LLVM starts inside the FMU's ``fmi2Instantiate``
+    (a call from C into the interpreter), the heap is corrupted when the process exits and it
+    aborts ("corrupted double-linked list") in about half the runs, whether or not the library
+    is unloaded. Compiled here first, the FMU's kernels load into a running JIT: no abort
+    (hosts that have not started numba get the FMU's pure-Python kernels instead:
+    :mod:`hevsim.battery.fmu`)."""
+    global _JIT_STARTED
+    if not _JIT_STARTED:
+        import numba
+
+        numba.njit(lambda x: x + 1.0)(1.0)
+        _JIT_STARTED = True
+
+
+_JIT_STARTED = False
 _FAILED_INSTANCES: list[Any] = []
 _LOADED_LIBRARIES: list[Any] = []  # freed instances whose FMU libraries stay loaded
 
