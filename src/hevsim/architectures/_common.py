@@ -75,6 +75,12 @@ def battery_details(flow: Any) -> dict[str, Any]:
     return {"battery_current_a": flow.current_a, "battery_power_w": flow.battery_power_w}
 
 
+NO_REFCOUNT: dict[str, Any] = {"_nrt": False}
+"""numba options of a loop that allocates nothing: no reference counting. Passing component
+tables (tuples of arrays) into a per-point kernel otherwise costs about 100 ns of
+reference-count traffic per call, more than the physics of the point."""
+
+
 def broadcast_loop(kernel: Any, names: tuple[str, ...], arrays: list[Any], *constants: Any) -> dict[str, Any]:
     """Call a compiled loop over the broadcast of ``arrays``: ``kernel(*flat arrays,
     *constants, out)`` fills ``out`` (len(names), n); returns ``{name: array}`` in the

@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit
 
 from hevsim.architectures._common import (
+    NO_REFCOUNT,
     GearboxModel,
     broadcast_loop,
     chassis,
@@ -238,7 +239,7 @@ MECH_FLAGS: tuple[str, ...] = ("on", "engine_speed", "motor_speed", "bad")
 """Boolean outputs of :func:`mechanical_point`, in order."""
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _mechanical_many(w_wheel, t_wheel, gear, throttle, grid_duplicates, d, etab, gi, flags, floats):
     """:func:`mechanical_point` over flat arrays; fills ``gi``, ``flags`` (4, n) and ``floats`` (8, n)."""
     w_last, t_last, w_fd, t_fd = np.nan, np.nan, 0.0, 0.0
@@ -333,12 +334,14 @@ def losses_point(wheel_speed_radps, gi, on, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, 
             p_motor - t_em_shaft * w_shaft, -fric * w_fd, t_fd_total * w_fd - p_wheel, p_wheel)  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _losses_many(w_wheel, gi, on, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, w_em, t_em, p_el, d, out):
     """:func:`losses_point` over flat arrays; fills ``out`` (8, n)."""
     for i in range(w_wheel.shape[0]):
-        out[:, i] = losses_point(w_wheel[i], gi[i], on[i], w_fd[i], w_e[i], t_e[i], t_e_fd[i], t_fd[i],
-                                 fuel[i], w_em[i], t_em[i], p_el[i], d)  # fmt: skip
+        r = losses_point(w_wheel[i], gi[i], on[i], w_fd[i], w_e[i], t_e[i], t_e_fd[i], t_fd[i],
+                         fuel[i], w_em[i], t_em[i], p_el[i], d)  # fmt: skip
+        for j in range(len(r)):
+            out[j, i] = r[j]
 
 
 def _losses(hev: ParallelHEV, mech: dict[str, Any], flow: Any, wheel_speed_radps: Any) -> dict[str, Any]:
@@ -374,7 +377,7 @@ def details_point(gi, on, w_e, t_e, throttle, fuel, w_em, t_em, p_el, current_a,
     out[7], out[8], out[9], out[10], out[11], out[12] = w_em, t_em, p_el, current_a, p_bat, brakes_w
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _details_many(gi, on, w_e, t_e, thr, fuel, w_em, t_em, p_el, current_a, p_bat, brakes_w, p2, out):
     """:func:`details_point` over flat arrays; fills ``out`` (13, n)."""
     for i in range(gi.shape[0]):

@@ -34,7 +34,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from hevsim.architectures._common import NamedModel, broadcast_loop, chassis, fixed_gear
+from hevsim.architectures._common import NO_REFCOUNT, NamedModel, broadcast_loop, chassis, fixed_gear
 from hevsim.architectures._common import max_machine_speed_radps as _max_speed
 from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
@@ -223,7 +223,7 @@ MECH_FLOATS: tuple[str, ...] = ("w_ring", "t_ring", "w_e", "t_e", "fuel", "w_sun
 """Float outputs of :func:`mechanical_point`, in order."""
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _mechanical_many(
     w_wheel, t_wheel, w_cmd, throttle, w_cmd_min, grid_duplicates, d, etab, gtab, flags, floats
 ):
@@ -345,12 +345,12 @@ def losses_point(wheel_speed_radps, w_ring, t_ring, w_e, t_e, fuel, w_sun, t_gen
             p_wheel)  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _losses_many(w_wheel, w_ring, t_ring, w_e, t_e, fuel, w_sun, t_gen, p_gen, t_e_ring, w_em, t_m2, p_m2,
                  aux_power_w, d, out):  # fmt: skip
     """:func:`losses_point` over flat arrays; fills ``out`` (9, n)."""
     for i in range(w_wheel.shape[0]):
-        out[:, i] = losses_point(
+        r = losses_point(
             w_wheel[i],
             w_ring[i],
             t_ring[i],
@@ -367,6 +367,8 @@ def _losses_many(w_wheel, w_ring, t_ring, w_e, t_e, fuel, w_sun, t_gen, p_gen, t
             aux_power_w,
             d,
         )
+        for j in range(len(r)):
+            out[j, i] = r[j]
 
 
 def _losses(hev: PowerSplitHEV, m: dict[str, Any], flow: Any, wheel_speed_radps: Any) -> dict[str, Any]:
@@ -429,7 +431,7 @@ def details_point(
     out[12], out[13], out[14], out[15] = w_ring, current_a, p_bat, brakes_w
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _details_many(
     on, w_e, t_e, thr, fuel, w_sun, t_gen, p_gen, w_em, t_m2, p_m2, w_ring, current_a, p_bat, brakes_w, out
 ):

@@ -31,6 +31,7 @@ from numba import njit
 
 from hevsim.architectures import parallel as P
 from hevsim.architectures import power_split as PS
+from hevsim.architectures._common import NO_REFCOUNT
 from hevsim.components.battery import pack_ocv_r, soc_rate
 from hevsim.components.body import grade_force, road_load_force, rolling_force
 from hevsim.components.bus import battery_power_limits, bus_balance, machine_request
@@ -280,7 +281,7 @@ def _argmin(cost, feasible, n):
     return best
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md, buf):
     """The controller's choice at one step (:mod:`hevsim.control.parallel`): (found, c0, c1).
     ``state``: [gear of the shift schedule, equivalence factor s, SOC integral, SOC reference]
@@ -398,7 +399,7 @@ def _demand(v0, v1, k, dt, gr, h):
 
 
 # ------------------------------------------------------------------------- the run
-@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+@njit(cache=True, nogil=True, error_model="numpy", **NO_REFCOUNT)
 def run_hev(
     arch,
     cc,
