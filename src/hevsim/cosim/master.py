@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import json
 import pickle
+import struct
 import time as _time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -155,10 +156,13 @@ class CosimResult:
 
         text = list(self.text.values())
         lines = [",".join(["time_s", *self.columns, *self.text])]
-        lines += [
-            ",".join([*(repr(float(v)) for v in (t, *row)), *(_csv_field(c[i]) for c in text)])
-            for i, (t, row) in enumerate(zip(self.time_s, self.data, strict=True))
-        ]
+        table = np.column_stack([self.time_s, self.data]).tolist()  # Python floats: repr round-trips
+        if text:
+            lines += [
+                ",".join([*map(repr, row), *(_csv_field(c[i]) for c in text)]) for i, row in enumerate(table)
+            ]
+        else:
+            lines += [",".join(map(repr, row)) for row in table]
         write_text_atomic(path, "\n".join(lines) + "\n")
 
 
@@ -332,7 +336,7 @@ class Master:
         if self._tcols:
             self._trows.append(trow)
         if self._stream is not None:
-            self._stream.write(np.array([t, *row], float).tobytes())
+            self._stream.write(self._pack(t, *row))
             if self._tcols:
                 self._tstream.write((json.dumps(trow) + "\n").encode())
 
@@ -440,6 +444,7 @@ class Master:
         y = self._initial_exchange(t)
         self._cols = [(n, v) for n in self.listing for v in y[n] if not isinstance(y[n][v], str)]
         self._tcols = [(n, v) for n in self.listing for v in y[n] if isinstance(y[n][v], str)]
+        self._pack = struct.Struct(f"={1 + len(self._cols)}d").pack  # one row of the stream
         nsteps = 0
         ck = Path(o.checkpoint_path) if o.checkpoint_path else None
         blob = self._load_checkpoint(ck) if resume and ck is not None and ck.is_file() else None
