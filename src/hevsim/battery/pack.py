@@ -36,6 +36,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -544,6 +545,17 @@ def pack_pairs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x,
         )
 
 
+@lru_cache(maxsize=8)
+def module_mesh_hash(geometry: Any, source: str) -> str:
+    """Hash of the module mesh of a (frozen, hashable) module geometry
+    (:func:`hevsim.thermal.rom.mesh_hash`), remembered: meshing takes about a second and every
+    vehicle run of a ROM pack checks its ROM against it."""
+    from hevsim.thermal.geometry import build_module_mesh
+    from hevsim.thermal.rom import mesh_hash
+
+    return str(mesh_hash(build_module_mesh(geometry, source=source)))
+
+
 @njit(cache=True)
 def _channel_march(inlet_k, wall_k, mean_factor, decay, out):
     """Segment-mean fluid temperatures [K] ``out[m, i]`` along every plate ``m`` (inlet
@@ -674,14 +686,13 @@ class Pack:
             )
 
     def _load_rom(self, base: Path) -> Any:
-        from hevsim.thermal.geometry import build_module_mesh
-        from hevsim.thermal.rom import load_rom, mesh_hash
+        from hevsim.thermal.rom import load_rom
 
         m = self.cfg.module
         assert self.thermal_cfg is not None
-        mesh = build_module_mesh(self.thermal_cfg.geometry, source=f"{m.thermal_config}: geometry")
+        digest = module_mesh_hash(self.thermal_cfg.geometry, f"{m.thermal_config}: geometry")
         return load_rom(
-            base / m.rom_file, expected_mesh_hash=mesh_hash(mesh), where=f"{self.cfg.name}: module.rom_file"
+            base / m.rom_file, expected_mesh_hash=digest, where=f"{self.cfg.name}: module.rom_file"
         )
 
     def _wall_film(self, plate_flow_m3_s: float) -> float:
