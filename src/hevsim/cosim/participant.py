@@ -410,7 +410,7 @@ class FMUParticipant(Participant):
         from fmpy import extract
 
         self._dir = extract(str(self.fmu))
-        if (Path(self._dir) / "resources" / "slavemodule.txt").is_file():
+        if jit_first_needed(Path(self._dir)):
             start_jit_before_pythonfmu()
         ident = self.md.coSimulation.modelIdentifier
         logging_on = self.fmu_log is not None or self.log_threshold <= 1
@@ -668,6 +668,23 @@ def start_jit_before_pythonfmu() -> None:
 
         numba.njit(lambda x: x + 1.0)(1.0)
         _JIT_STARTED = True
+
+
+def jit_first_needed(unzipped: Path) -> bool:
+    """Whether :func:`start_jit_before_pythonfmu` must run before the FMU extracted to
+    ``unzipped`` is instantiated: a pythonfmu FMU in a process that has imported numba (the
+    FMU's model may then compile first, inside ``fmi2Instantiate``), or an FMU exported by an
+    older hevsim, whose model imports numba itself. (FMUs exported now import their kernels
+    with the JIT off in a process without numba, and compiling here would cost a fresh
+    ``hevsim cosim`` the start of LLVM, about 1 s.)"""
+    module = unzipped / "resources" / "slavemodule.txt"
+    if not module.is_file():
+        return False
+    if "numba" in sys.modules:
+        return True
+    script = module.with_name(module.read_text(encoding="utf-8").strip() + ".py")
+    text = script.read_text(encoding="utf-8", errors="replace") if script.is_file() else ""
+    return "hevsim.battery.fmu" in text and "NUMBA_DISABLE_JIT" not in text
 
 
 _JIT_STARTED = False
