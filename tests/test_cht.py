@@ -219,8 +219,19 @@ def test_participant_same_interface_and_heat_balance(tmp_path: Path) -> None:
     rate = p3.model.capacity_rate_w_k * (302.0 - 288.15)
     assert o3["cooling_power_w"] == pytest.approx(rate, rel=0.01)
     assert o1["cooling_power_w"] == pytest.approx(rate, rel=0.01)
+    # transient coolant: after many steps at fixed inputs, the quasi-steady outputs
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ThermalMeshWarning)
+        pt = CoolantCHTParticipant("coolant", cfg, flow_l_min=0.0005, grad_div=10.0, transient=True)
+    pt.set_inputs(values | {f"wall{i}_temp_k": 302.0 for i in range(6)})
+    for k in range(40):  # transit time 0.048 m / 0.26 mm/s = 185 s
+        pt.do_step(10.0 * k, 10.0)
+    assert pt.get_outputs()["cooling_power_w"] == pytest.approx(o3["cooling_power_w"], rel=1e-3)
     with pytest.raises(ConfigError, match=r"flow_l_min = 0\.0; expected a positive"):
         CoolantCHTParticipant("coolant", cfg, flow_l_min=0.0)
+    p3.set_inputs({"wall2_temp_k": -1.0})
+    with pytest.raises(ConfigError, match=r"segment 2 has wall temperature -1\.0 K"):
+        p3.get_outputs()
 
 
 def test_shipped_module_cht_ssd_is_the_example_system() -> None:

@@ -30,18 +30,16 @@ flow rate (docs/flow.md).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from hevsim.cosim.participant import Participant, store_inputs
+from hevsim.cosim.coolant import CoolantChannelParticipant
 from hevsim.errors import ConfigError
-from hevsim.units import KELVIN_OFFSET
 
 
-class CoolantCHTParticipant(Participant):
+class CoolantCHTParticipant(CoolantChannelParticipant):
     """See the module docstring. ``config``: a module TOML (``hevsim thermal`` / ``hevsim
     flow``: ``[geometry]``, ``[coolant]``, optional ``[flow]`` for the mesh); keywords override
     ``segments``, ``inlet_temp_k`` [K], ``flow_l_min`` [L/min], ``grad_div`` [-] (the flow's
@@ -60,7 +58,7 @@ class CoolantCHTParticipant(Participant):
     ):
         from hevsim.schema import read_toml
         from hevsim.thermal.cht import CoolantThermal
-        from hevsim.thermal.flow import flow_config_from_dict, plate_channel, solve_flow
+        from hevsim.thermal.flow import L_MIN_TO_M3_S, flow_config_from_dict, plate_channel, solve_flow
         from hevsim.thermal.run import thermal_config_from_dict
 
         self.name = name
@@ -76,55 +74,39 @@ class CoolantCHTParticipant(Participant):
         if grad_div is not None:
             data["flow"] = {**data.get("flow", {}), "grad_div": float(grad_div)}
         cfg = flow_config_from_dict(data, str(path), path.parent)
-        cool = thermal_config_from_dict(
+        thermal = thermal_config_from_dict(
             {k: v for k, v in data.items() if k != "flow"}, str(path), path.parent
-        ).coolant
-        n = int(segments if segments is not None else cool.segments)
-        if n < 1:
-            raise ConfigError(f"participant {name!r}: segments = {n}; expected at least 1.")
-        self.n_segments = n
-        t_in = float(inlet_temp_k) if inlet_temp_k is not None else cool.inlet_temp_c + KELVIN_OFFSET
+        )
+        # the interface (inputs, outputs, segments, initial inputs) and the 1-D channel at the
+        # same flow rate, kept for comparison (``self.channel``)
+        super().__init__(name, thermal, segments, inlet_temp_k, cfg.flow_m3_s / L_MIN_TO_M3_S)
+        n, t_in = self.n_segments, self.u["inlet_temp_k"]
         self.config = cfg
         channel = plate_channel(cfg.geometry)
-        self.flow = solve_flow(
-            channel, cfg.coolant, cfg.flow_m3_s, section=cfg.flow, where=f"participant {name!r}"
-        )
         where = f"participant {name!r}"
-        self.model = CoolantThermal(self.flow, channel, cfg.coolant, cfg.geometry.channel_path_m(), n, where)
+        self.flow = solve_flow(channel, cfg.coolant, cfg.flow_m3_s, section=cfg.flow, where=where)
         path_m = cfg.geometry.channel_path_m()
+        self.model = CoolantThermal(self.flow, channel, cfg.coolant, path_m, n, where)
         length_m = float(np.linalg.norm(np.diff(path_m, axis=0), axis=1).sum())
         self.resolution = self.model.check_resolution(length_m / n)
         self.transient = bool(transient)
-        self.inputs = {
-            "inlet_temp_k": "K",
-            **{f"wall{i}_temp_k": "K" for i in range(n)},
-            **{f"wall{i}_area_m2": "m2" for i in range(n)},
-        }
-        self.outputs = {
-            **{f"wall{i}_heat_flux_w_m2": "W/m2" for i in range(n)},
-            **{f"wall{i}_film_w_m2k": "W/(m2.K)" for i in range(n)},
-            **{f"wall{i}_fluid_temp_k": "K" for i in range(n)},
-            "outlet_temp_k": "K",
-            "cooling_power_w": "W",
-        }
-        self.u: dict[str, float] = {k: t_in if k.endswith("_k") else 0.0 for k in self.inputs}
         self.temp_k = np.full(self.model.basis.N, t_in)  # coolant field (transient state)
         self.heat_w = np.zeros(n)
         self._stepped, self._dt_s = False, math.inf
 
     def _inputs(self) -> tuple[np.ndarray, np.ndarray, float]:
-        n, u = self.n_segments, self.u
-        wall = np.array([u[f"wall{i}_temp_k"] for i in range(n)])
-        area = np.array([u[f"wall{i}_area_m2"] for i in range(n)])
-        if not (np.all(np.isfinite(wall)) and np.all(wall > 0.0) and np.all(area >= 0.0)):
+        """Wall temperature [K] and area [m^2] per segment and the inlet temperature [K]."""
+        wall, area = (
+            np.array([self.u[f"wall{i}_{q}"] for i in range(self.n_segments)]) for q in ("temp_k", "area_m2")
+        )
+        bad = ~np.isfinite(wall) | (wall <= 0.0) | ~(area >= 0.0)
+        if bad.any():
+            i = int(np.argmax(bad))
             raise ConfigError(
-                f"participant {self.name!r}: wall temperatures {wall.tolist()} K / areas {area.tolist()} m^2 "
-                "are not physical; expected temperatures > 0 K and areas >= 0."
+                f"participant {self.name!r}: segment {i} has wall temperature {float(wall[i])!r} K and area "
+                f"{float(area[i])!r} m^2; expected a temperature > 0 K and an area >= 0."
             )
-        return wall, area, u["inlet_temp_k"]
-
-    def set_inputs(self, values: Mapping[str, float]) -> None:
-        store_inputs(self, self.u, values)
+        return wall, area, self.u["inlet_temp_k"]
 
     def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
         if self.transient:
