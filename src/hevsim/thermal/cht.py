@@ -9,8 +9,8 @@ conductivity k [W/(m K)]) on the channel volume, velocity u [m/s] from
 
 Discretisation: P2 temperature on the flow's tetrahedral mesh, convective term in advective
 form ``int rho c_p v u . grad T`` with streamline-upwind Petrov-Galerkin stabilisation
-``int tau (u . grad v) rho c_p (dT/dt + u . grad T)`` (tau = h'/(2|u|) (coth Pe_h - 1/Pe_h)
-with the nodal spacing h' = h/2 and Pe_h = |u| h' / (2 alpha); the diffusive part of the
+``int tau (u . grad v) rho c_p (dT/dt + u . grad T)`` (``tau = h'/(2 |u|) (coth Pe_h - 1/Pe_h)``
+with the nodal spacing ``h' = h/2`` and ``Pe_h = |u| h' / (2 alpha)``; the diffusive part of the
 element residual, zero for P1 and small for P2 at the cell Peclet numbers where tau matters, is
 left out). Boundaries: the wall (all channel faces but inlet and outlet) takes the plate's
 wall temperature (Dirichlet: one value per coolant segment along the channel path,
