@@ -308,12 +308,11 @@ def _linear_group(prm, x, cells):
 
 
 @njit(cache=True, inline="always")
-def _share_affine(prm, x, ez, cells, i_total, i_out):
+def _share_affine(prm, x, ez, cells, i_total, i_out, dirs):
     """:func:`hevsim.battery.kernel.share_current` for linear cells from their stored affine pairs
     ``ez[c]`` = (E, Z) discharge then charge [V, ohm] (the same values it would compute, in the
     same order: the same currents bit for bit)."""
     m = cells.shape[0]
-    dirs = np.empty(m)
     for b in range(m):
         dirs[b] = step_direction(i_total, x[cells[b], SDIR], prm[cells[b], IBAND])
     for _it in range(m + 2):
@@ -358,7 +357,7 @@ def pack_pass(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, 
         for b in range(n_p):
             cells[b] = g * n_p + b
         if ez_valid and _linear_group(prm, x, cells):
-            _share_affine(prm, x, ez, cells, i_a, i_b)
+            _share_affine(prm, x, ez, cells, i_a, i_b, np.empty(n_p))
         else:
             share_current(prm, *tabs, x, cells, i_a, dt, i_b)
         for b in range(n_p):
@@ -489,6 +488,7 @@ def pack_pass_linear(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc
     ``ez``/``oc``: each cell's tables are read once per direction and step."""
     tabs = (soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c)
     i_b = np.empty(n_p)
+    dirs = np.empty(n_p)
     cells = np.empty(n_p, dtype=np.int64)
     energy[:] = 0.0
     totals[:] = 0.0
@@ -497,7 +497,7 @@ def pack_pass_linear(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc
     for g in range(n_groups):
         for b in range(n_p):
             cells[b] = g * n_p + b
-        _share_affine(prm, x, ez, cells, i_a, i_b)
+        _share_affine(prm, x, ez, cells, i_a, i_b, dirs)
         for b in range(n_p):
             c = cells[b]
             ve, va = _step_linear(prm[c], rcc, x[c], oc[c], i_b[b], dt, t_port[c], out_cells[c], energy)
