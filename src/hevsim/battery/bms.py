@@ -63,7 +63,7 @@ class BmsLimits:
 
 def _binding(candidates: tuple[float, ...]) -> tuple[float, int]:
     """(smallest limit, index in LIMIT_NAMES): the unconstrained entry 0 wins ties."""
-    best = int(np.argmin(candidates))
+    best = min(range(len(candidates)), key=candidates.__getitem__)  # the first smallest (np.argmin)
     return max(float(candidates[best]), 0.0), best
 
 

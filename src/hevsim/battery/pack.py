@@ -556,6 +556,15 @@ def module_mesh_hash(geometry: Any, source: str) -> str:
     return str(mesh_hash(build_module_mesh(geometry, source=source)))
 
 
+@lru_cache(maxsize=4)
+def _cached_rom(path: str, mtime_ns: int, size: int, digest: str, where: str) -> Any:
+    """A module ROM file loaded once per (file, modification time, size, mesh hash): every run
+    of a ROM pack reads the same ROM (the packs using it do not modify its arrays)."""
+    from hevsim.thermal.rom import load_rom
+
+    return load_rom(path, expected_mesh_hash=digest, where=where)
+
+
 @njit(cache=True)
 def _channel_march(inlet_k, wall_k, mean_factor, decay, out):
     """Segment-mean fluid temperatures [K] ``out[m, i]`` along every plate ``m`` (inlet
@@ -691,9 +700,12 @@ class Pack:
         m = self.cfg.module
         assert self.thermal_cfg is not None
         digest = module_mesh_hash(self.thermal_cfg.geometry, f"{m.thermal_config}: geometry")
-        return load_rom(
-            base / m.rom_file, expected_mesh_hash=digest, where=f"{self.cfg.name}: module.rom_file"
-        )
+        path = (base / m.rom_file).resolve()
+        where = f"{self.cfg.name}: module.rom_file"
+        if not path.is_file():  # load_rom names the missing file
+            return load_rom(path, expected_mesh_hash=digest, where=where)
+        st = path.stat()
+        return _cached_rom(str(path), st.st_mtime_ns, st.st_size, digest, where)
 
     def _wall_film(self, plate_flow_m3_s: float) -> float:
         """Wall film [W/(m^2 K)] of one plate at its flow (the ROM's lowest film at zero flow)."""
