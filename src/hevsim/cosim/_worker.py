@@ -16,7 +16,7 @@ from typing import Any
 
 def main() -> None:
     """Serve requests until ``quit`` or end of input."""
-    from hevsim.cosim.participant import FMUParticipant
+    from hevsim.cosim.participant import FMUParticipant, start_jit_before_pythonfmu
 
     # the protocol gets its own copy of fd 1; what the FMU prints (Python or C, fd 1 or 2)
     # goes to the inherited stderr, with the FMU logger's lines (log_level and up)
@@ -30,6 +30,10 @@ def main() -> None:
         try:
             res: Any = None
             if cmd == "open":
+                if _runs_hevsim_kernels(req["fmu"]):
+                    # compiled kernels for hevsim's pythonfmu FMUs, as before their guard (this
+                    # process leaves with os._exit, so the exit abort cannot happen here)
+                    start_jit_before_pythonfmu()
                 p = FMUParticipant(
                     req["name"],
                     req["fmu"],
@@ -81,6 +85,19 @@ def main() -> None:
         out.flush()
     out.flush()
     os._exit(0)
+
+
+def _runs_hevsim_kernels(fmu: str) -> bool:
+    """Whether ``fmu`` is a pythonfmu FMU whose model (a top-level script under
+    ``resources/``) imports :mod:`hevsim.battery.fmu` (checked without importing it)."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(fmu) as z:
+            scripts = [n for n in z.namelist() if n.count("/") == 1 and n.startswith("resources/")]
+            return any(n.endswith(".py") and b"hevsim.battery.fmu" in z.read(n) for n in scripts)
+    except (OSError, zipfile.BadZipFile):
+        return False
 
 
 if __name__ == "__main__":
