@@ -39,7 +39,8 @@ Exit of the host: numba's first JIT compilation in a process, when it happens in
 host aborts in its C library destructors after Python's finalisation ("corrupted double-linked
 list", about half the runs, with or without unloading the library). So in a host that has not
 imported numba the FMU's model module imports the cell kernels with the JIT off (plain Python
-functions, the same equations; a module step takes about 0.35 ms instead of 0.05 ms). Where
+functions, the same equations; a module step takes about 0.35 ms instead of 0.05 ms; numba
+reads the setting once, so numba code the host imports later runs uncompiled too). Where
 numba is already imported, ``hevsim cosim`` compiles a numba function before it loads a
 pythonfmu FMU in process (:func:`hevsim.cosim.participant.start_jit_before_pythonfmu`; also
 for FMUs exported by older versions), so the FMU gets the compiled kernels there.
