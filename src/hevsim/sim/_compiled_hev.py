@@ -33,13 +33,14 @@ from hevsim.architectures import parallel as P
 from hevsim.architectures import power_split as PS
 from hevsim.architectures._common import NO_REFCOUNT
 from hevsim.components.battery import pack_ocv_r, soc_rate
-from hevsim.components.body import grade_force, road_load_force, rolling_force
+from hevsim.components.body import road_load_force
 from hevsim.components.bus import battery_power_limits, bus_balance, machine_request
 from hevsim.components.driveline import gear_input_torque
 from hevsim.control.parallel import PowerFollower
 from hevsim.control.simple import shift_gear
 from hevsim.optimal._hev_common import LIMIT_RTOL
 from hevsim.sim import kernel as K
+from hevsim.sim._compiled_common import add_road_audit
 from hevsim.sim.forward import BISECTION_STEPS, REGEN_CURRENT_RTOL, BatchRecord, ForwardRecord
 
 PARALLEL, POWER_SPLIT = 0, 1
@@ -489,14 +490,7 @@ def run_hev(
         p_bat = det[nd - 2]
         audit[2] += e_chem
         audit[len(AUDIT_BASE) + nl - 2] += e_chem - p_bat * dt
-        if v_mid > 0.0:
-            f_grade = grade_force(h.mass_kg, g)
-            f_roll = rolling_force(h.mass_kg, g, h.rolling_resistance)
-            f_aero = f - m_eff * a - f_roll - f_grade
-            audit[3] += f_aero * v_mid * dt
-            audit[4] += f_roll * v_mid * dt
-            audit[5] += f_grade * v_mid * dt
-            audit[6] += 0.5 * m_eff * (v1 * v1 - v * v)
+        add_road_audit(audit, v, v1, v_mid, a, g, f, h.mass_kg, m_eff, h.rolling_resistance, dt)
         # ---- mode and bookkeeping
         i_on = 1 if arch == PARALLEL else 0
         on = det[i_on] > 0.0
