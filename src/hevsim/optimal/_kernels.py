@@ -104,6 +104,34 @@ def _par_and_ser(body: Any, sig: Any) -> tuple[Any, Any]:
 
 
 @njit(cache=True, inline="always")
+def _store_row(s, bad, n_ok, n_inb, best, arg, cost_v, arg_v, v_out, is_ls, out_J, out_arg, out_status, out_V,
+               out_argV):  # fmt: skip
+    """Write one state's Bellman result: its status (``ST_*``: bad model output, every input
+    masked, every next state out of bounds, no finite cost, feasible), cost-to-go and argmin
+    (the closest approach's when infeasible; level-set mode keeps its cost), level value
+    ``v_out`` and the closest approach's argmin. Shared by the 1-D, n-D and separable rows."""
+    if bad:
+        status = ST_BAD
+    elif n_ok == 0:
+        status = ST_MASKED
+    elif n_inb == 0:
+        status = ST_BOUNDS
+    elif best == np.inf:
+        status = ST_UNREACHABLE
+    else:
+        status = ST_FEASIBLE
+    out_status[s] = status
+    if status == ST_FEASIBLE:
+        out_J[s] = best
+        out_arg[s] = arg
+    else:
+        out_J[s] = cost_v if is_ls else np.inf
+        out_arg[s] = arg_v
+    out_V[s] = v_out
+    out_argV[s] = arg_v
+
+
+@njit(cache=True, inline="always")
 def _locate(grid, uniform, inv_dx, x):
     """Cell index ``i`` and weight ``w`` of ``x`` (inside the grid) on ``grid``."""
     n = grid.shape[0]
@@ -470,25 +498,9 @@ def _row_1d(
     else:
         res = _loop_levelset(s, xb, xn, g, mask, has_mask, grid, uniform, inv_dx, J, V)
     best, arg, best_v, arg_v, cost_v, fmax, fmin, n_ok, n_inb, bad = res
-    if bad:
-        status = ST_BAD
-    elif n_ok == 0:
-        status = ST_MASKED
-    elif n_inb == 0:
-        status = ST_BOUNDS
-    elif best == np.inf:
-        status = ST_UNREACHABLE
-    else:
-        status = ST_FEASIBLE
-    out_status[s] = status
-    if status == ST_FEASIBLE:
-        out_J[s] = best
-        out_arg[s] = arg
-    else:
-        out_J[s] = cost_v if is_ls else np.inf
-        out_arg[s] = arg_v
-    out_V[s] = best_v if n_ok > 0 else V_CAP
-    out_argV[s] = arg_v
+    v_out = best_v if n_ok > 0 else V_CAP
+    _store_row(s, bad, n_ok, n_inb, best, arg, cost_v, arg_v, v_out, is_ls, out_J, out_arg, out_status, out_V,
+               out_argV)  # fmt: skip
     out_fmax[s] = fmax
     out_fmin[s] = fmin
 
@@ -652,25 +664,9 @@ def _row_nd(
         if tot < best:
             best = tot
             arg = m
-    if bad:
-        status = ST_BAD
-    elif n_ok == 0:
-        status = ST_MASKED
-    elif n_inb == 0:
-        status = ST_BOUNDS
-    elif best == np.inf:
-        status = ST_UNREACHABLE
-    else:
-        status = ST_FEASIBLE
-    out_status[s] = status
-    if status == ST_FEASIBLE:
-        out_J[s] = best
-        out_arg[s] = arg
-    else:
-        out_J[s] = cost_v if mode == MODE_LEVELSET else np.inf
-        out_arg[s] = arg_v
-    out_V[s] = min(best_v, v_in) if n_ok > 0 else V_CAP
-    out_argV[s] = arg_v
+    v_out = min(best_v, v_in) if n_ok > 0 else V_CAP
+    _store_row(s, bad, n_ok, n_inb, best, arg, cost_v, arg_v, v_out, mode == MODE_LEVELSET, out_J, out_arg,
+               out_status, out_V, out_argV)  # fmt: skip
 
 
 def _bellman_nd(
@@ -826,25 +822,9 @@ def _row_sep(s, ti, tw, td, dims, d, g, mask, has_mask, gstride, J, V, mode, out
         if tot < best:
             best = tot
             arg = m
-    if bad:
-        status = ST_BAD
-    elif n_ok == 0:
-        status = ST_MASKED
-    elif n_inb == 0:
-        status = ST_BOUNDS
-    elif best == np.inf:
-        status = ST_UNREACHABLE
-    else:
-        status = ST_FEASIBLE
-    out_status[s] = status
-    if status == ST_FEASIBLE:
-        out_J[s] = best
-        out_arg[s] = arg
-    else:
-        out_J[s] = cost_v if mode == MODE_LEVELSET else np.inf
-        out_arg[s] = arg_v
-    out_V[s] = min(best_v, v_in) if n_ok > 0 else V_CAP
-    out_argV[s] = arg_v
+    v_out = min(best_v, v_in) if n_ok > 0 else V_CAP
+    _store_row(s, bad, n_ok, n_inb, best, arg, cost_v, arg_v, v_out, mode == MODE_LEVELSET, out_J, out_arg,
+               out_status, out_V, out_argV)  # fmt: skip
 
 
 def _bellman_sep(
