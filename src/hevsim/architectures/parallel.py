@@ -42,6 +42,8 @@ from hevsim.architectures._common import (
     broadcast_loop,
     chassis,
     fixed_gear,
+    hev_simulate_batch_compiled,
+    hev_simulate_compiled,
     max_machine_speed_radps,
 )
 from hevsim.components.battery import BatteryPack
@@ -519,19 +521,7 @@ def capability_controls(hev: ParallelHEV) -> tuple[np.ndarray, ...]:
     return candidate_controls(hev, CAPABILITY_THROTTLE_POINTS)
 
 
-def simulate_compiled(model: ParallelHEV, grid: Any, controller: Any, *, soc_initial: float, soc_min: float,
-                      soc_max: float) -> Any:  # fmt: skip
-    """The compiled forward run (hook of :mod:`hevsim.sim.forward`; electric assist, ECMS and
-    A-ECMS): :func:`hevsim.sim._compiled_hev.simulate`."""
-    from hevsim.sim._compiled_hev import simulate
-
-    return simulate(model, grid, controller, soc_initial=soc_initial, soc_min=soc_min, soc_max=soc_max)
-
-
-def simulate_batch_compiled(model: ParallelHEV, variants: dict[str, Any], grid: Any, controller: Any,
-                            **options: Any) -> Any:  # fmt: skip
-    """The compiled batch (hook of :mod:`hevsim.sim.forward`):
-    :func:`hevsim.sim._compiled_hev.simulate_batch`."""
-    from hevsim.sim._compiled_hev import simulate_batch
-
-    return simulate_batch(model, variants, grid, controller, **options)
+simulate_compiled = hev_simulate_compiled
+"""The compiled forward run (hook of :mod:`hevsim.sim.forward`; electric assist, ECMS, A-ECMS)."""
+simulate_batch_compiled = hev_simulate_batch_compiled
+"""The compiled batch (hook of :mod:`hevsim.sim.forward`)."""

@@ -34,7 +34,15 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from hevsim.architectures._common import NO_REFCOUNT, NamedModel, broadcast_loop, chassis, fixed_gear
+from hevsim.architectures._common import (
+    NO_REFCOUNT,
+    NamedModel,
+    broadcast_loop,
+    chassis,
+    fixed_gear,
+    hev_simulate_batch_compiled,
+    hev_simulate_compiled,
+)
 from hevsim.architectures._common import max_machine_speed_radps as _max_speed
 from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
@@ -488,19 +496,7 @@ def power_mode_point(engine_on, battery_power_w, wheel_force_n, v_mid_mps):
     return 3 if battery_power_w < 0.0 else 2
 
 
-def simulate_compiled(model: PowerSplitHEV, grid: Any, controller: Any, *, soc_initial: float, soc_min: float,
-                      soc_max: float) -> Any:  # fmt: skip
-    """The compiled forward run (hook of :mod:`hevsim.sim.forward`; power follower, ECMS and
-    A-ECMS): :func:`hevsim.sim._compiled_hev.simulate`."""
-    from hevsim.sim._compiled_hev import simulate
-
-    return simulate(model, grid, controller, soc_initial=soc_initial, soc_min=soc_min, soc_max=soc_max)
-
-
-def simulate_batch_compiled(model: PowerSplitHEV, variants: dict[str, Any], grid: Any, controller: Any,
-                            **options: Any) -> Any:  # fmt: skip
-    """The compiled batch (hook of :mod:`hevsim.sim.forward`):
-    :func:`hevsim.sim._compiled_hev.simulate_batch`."""
-    from hevsim.sim._compiled_hev import simulate_batch
-
-    return simulate_batch(model, variants, grid, controller, **options)
+simulate_compiled = hev_simulate_compiled
+"""The compiled forward run (hook of :mod:`hevsim.sim.forward`; power follower, ECMS, A-ECMS)."""
+simulate_batch_compiled = hev_simulate_batch_compiled
+"""The compiled batch (hook of :mod:`hevsim.sim.forward`)."""
