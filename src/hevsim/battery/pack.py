@@ -235,6 +235,22 @@ def load_pack_config(path: str | Path) -> PackConfig:
     return pack_config_from_dict(read_toml(p), str(p), p.parent)
 
 
+@njit(cache=True, inline="always")
+def _record_cell(c, i_a, rec, out_cells, energy):
+    """Store cell ``c``'s step record (current [A], SOC, temperature [K], port temperature
+    [K], end voltage [V]) in ``out_cells`` and add its energies [J] (electrical, chemical,
+    heat, to the port) to ``energy``."""
+    out_cells[c, 0] = i_a
+    out_cells[c, 1] = rec[RSOC]
+    out_cells[c, 2] = rec[RTEMP]
+    out_cells[c, 3] = rec[RPORT]
+    out_cells[c, 4] = rec[RV]
+    energy[0] += rec[REEL]
+    energy[1] += rec[RECH]
+    energy[2] += rec[REHEAT]
+    energy[3] += rec[REPORT]
+
+
 @njit(cache=True)
 def pack_step(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, n_groups, n_p, i_a, dt,
               t_port, out_cells, energy):  # fmt: skip
@@ -256,17 +272,9 @@ def pack_step(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, 
             c = cells[b]
             cell_step(prm[c], soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x[c], i_b[b], dt,
                       t_port[c], rec)  # fmt: skip
-            out_cells[c, 0] = i_b[b]
-            out_cells[c, 1] = rec[RSOC]
-            out_cells[c, 2] = rec[RTEMP]
-            out_cells[c, 3] = rec[RPORT]
-            out_cells[c, 4] = rec[RV]
+            _record_cell(c, i_b[b], rec, out_cells, energy)
             v_end += rec[RV] / n_p
             v_avg += rec[RVAVG] / n_p
-            energy[0] += rec[REEL]
-            energy[1] += rec[RECH]
-            energy[2] += rec[REHEAT]
-            energy[3] += rec[REPORT]
     return v_end, v_avg
 
 
@@ -363,17 +371,9 @@ def pack_pass(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, 
         for b in range(n_p):
             c = cells[b]
             cell_step(prm[c], *tabs, x[c], i_b[b], dt, t_port[c], rec)
-            out_cells[c, 0] = i_b[b]
-            out_cells[c, 1] = rec[RSOC]
-            out_cells[c, 2] = rec[RTEMP]
-            out_cells[c, 3] = rec[RPORT]
-            out_cells[c, 4] = rec[RV]
+            _record_cell(c, i_b[b], rec, out_cells, energy)
             v_end += rec[RV] / n_p
             v_avg += rec[RVAVG] / n_p
-            energy[0] += rec[REEL]
-            energy[1] += rec[RECH]
-            energy[2] += rec[REHEAT]
-            energy[3] += rec[REPORT]
         _group_pairs(prm, tabs, x, dt, g, cells, ez, ez, np.zeros((2, 1, 5)), False, pairs, totals)
     return v_end, v_avg
 
