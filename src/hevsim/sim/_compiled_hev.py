@@ -290,7 +290,7 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
     control of every candidate, the electric assist's throttle grid); ``buf``: work arrays."""
     cand0, cand1, thr_grid = cands
     h, dpar, _, etab, _, _ = md
-    cost, fuel, p_eng, feas, near, det, loss = buf
+    cost, fuel, p_eng, feas, near, det, loss, p_cand = buf
     regen_ok = v_mid > 0.0
     n = cand0.shape[0]
     p_dem = t_wheel * w_wheel
@@ -339,25 +339,36 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
                 )[0]
             ):
                 return True, cand0[i], cand1[i]
-    for i in range(n):  # every candidate: ECMS score, fuel, engine power
-        feas[i], fuel[i], d_soc, p_eng[i] = _point(
-            arch, cand0[i], cand1[i], w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
-        )
-        cost[i] = fuel[i] / dt * h.lhv_jpkg + s * (-d_soc / dt * e_soc)
     if cc.code == POWER_FOLLOWER:
+        # Candidates whose engine power (known per run: p_cand) is near the target are
+        # evaluated first; the rest only when none of those is feasible. Same choice as
+        # evaluating every candidate (the engine power of _point is p_cand).
         target = max(p_dem, 0.0) + frac * cc.charge_power_w
         band = max(PS_POWER_BAND * target, PS_POWER_BAND_MIN_W)
         any_near = False
         for i in range(n):
-            near[i] = feas[i] and cand1[i] != 0.0 and abs(p_eng[i] - target) <= band
-            any_near = any_near or near[i]
+            near[i] = cand1[i] != 0.0 and abs(p_cand[i] - target) <= band
+            if near[i]:
+                feas[i], fuel[i], d_soc, p_eng[i] = _point(
+                    arch, cand0[i], cand1[i], w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
+                )
+                near[i] = feas[i]
+                any_near = any_near or near[i]
         if any_near:
             i = _argmin(fuel, near, n)
         else:
             for i in range(n):
+                feas[i], fuel[i], d_soc, p_eng[i] = _point(
+                    arch, cand0[i], cand1[i], w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
+                )
                 cost[i] = abs(p_eng[i] - target)
             i = _argmin(cost, feas, n)
     else:
+        for i in range(n):  # every candidate: ECMS score, fuel, engine power
+            feas[i], fuel[i], d_soc, p_eng[i] = _point(
+                arch, cand0[i], cand1[i], w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
+            )
+            cost[i] = fuel[i] / dt * h.lhv_jpkg + s * (-d_soc / dt * e_soc)
         i = _argmin(cost, feas, n)
     if i < 0:
         return False, 0.0, 0.0
@@ -433,7 +444,11 @@ def run_hev(
     dt = t[1] - t[0]
     cands = (cand0, cand1, thr_grid)
     md = (h, dpar, dps, etab, mtab, gtab)
-    det, loss = buf[5], buf[6]
+    det, loss, p_cand = buf[5], buf[6], buf[7]
+    if cc.code == POWER_FOLLOWER:  # each candidate's engine power [W]: the same kernel as _point
+        for i in range(cand0.shape[0]):
+            r_i = PS.mechanical_point(0.0, 0.0, cand0[i], cand1[i], 0.0, False, dps, etab, gtab)
+            p_cand[i] = r_i[9] * r_i[8]
     nd = det.shape[0]
     nl = loss.shape[0]
     m_eff = h.mass_kg * h.mass_factor
@@ -576,7 +591,7 @@ def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_m
     )
     nc = cand0.size
     buf = (np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc, np.bool_), np.empty(nc, np.bool_),
-           np.zeros(len(mod.DETAILS)), np.zeros(len(mod.LOSS_TERMS)))  # fmt: skip
+           np.zeros(len(mod.DETAILS)), np.zeros(len(mod.LOSS_TERMS)), np.zeros(nc))  # fmt: skip
     status, k, v_end = run_hev(arch, cc, float(soc0), t, v_des, gr, cand0, cand1, thr, h, dpar, dps, etab,
                                mtab, gtab, ptab, cols, audit, summary, state, buf)  # fmt: skip
     if status == ERR_STUCK:
