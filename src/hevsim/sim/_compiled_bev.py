@@ -24,7 +24,7 @@ from hevsim.architectures._common import max_machine_speed_radps
 from hevsim.control.simple import Direct
 from hevsim.errors import DomainError
 from hevsim.sim import kernel as K
-from hevsim.sim._compiled_common import add_road_audit
+from hevsim.sim._compiled_common import add_road_audit, track_step, write_summary
 from hevsim.sim._compiled_hev import (
     AUDIT_BASE,
     BASE_COLUMNS,
@@ -124,11 +124,9 @@ def run_bev(soc0, t, v_des, gr, h, wd, mtab, ptab, cols, audit, summary):
         audit[2] += e_chem
         audit[len(AUDIT_BASE) + 4] += e_chem - p_bat * dt
         add_road_audit(audit, v, v1, v_mid, a, g, f, h.mass_kg, m_eff, h.rolling_resistance, dt)
-        err = v_des[k] - v
-        err_sq += err * err
-        err_max = max(err_max, abs(err))
-        dist += v_mid * dt
-        lim_s += limited * dt
+        err_sq, err_max, dist, lim_s = track_step(
+            v_des[k] - v, v_mid, dt, limited, err_sq, err_max, dist, lim_s
+        )
         row = (v_des[k], v, a, f, q[5], f - m_eff * a, 0.0, soc, w_m, t_m, p_el, cur, p_bat, q[2])
         for j in range(len(row)):
             cols[j, k] = row[j]
@@ -137,11 +135,7 @@ def run_bev(soc0, t, v_des, gr, h, wd, mtab, ptab, cols, audit, summary):
         cols[nb + 8, k] = ocv
         cols[nb + 9, k] = p_bat / cur if cur != 0.0 else ocv
         v, soc = v1, soc + d_soc
-    err = v_des[n] - v
-    err_sq += err * err
-    err_max = max(err_max, abs(err))
-    summary[K.S_DIST], summary[K.S_SOCF], summary[K.S_RMS] = dist, soc, np.sqrt(err_sq / (n + 1))
-    summary[K.S_MAXERR], summary[K.S_BLIM], summary[K.S_DUR] = err_max, lim_s, t[n] - t[0]
+    write_summary(summary, v_des[n] - v, err_sq, err_max, n, dist, 0.0, soc, 0.0, 0.0, lim_s, t[n] - t[0])
     return v, -1
 
 

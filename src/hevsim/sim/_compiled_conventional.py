@@ -32,7 +32,7 @@ from hevsim.components.body import road_load_force
 from hevsim.control.simple import ShiftSchedule, kickdown_gear, shift_gear
 from hevsim.errors import DomainError
 from hevsim.sim import kernel as K
-from hevsim.sim._compiled_common import add_road_audit
+from hevsim.sim._compiled_common import add_road_audit, track_step, write_summary
 from hevsim.sim.forward import BISECTION_STEPS, BatchRecord, ForwardRecord
 from hevsim.units import RADPS_PER_RPM
 
@@ -231,25 +231,14 @@ def _run_variant(
             row[20] = power_mode_code(det[1], det[3], det[2], det[4], v_mid)
             row[21] = limited
         eon += dt if on else 0.0
-        err = v_des[k] - v
-        err_sq += err * err
-        err_max = max(err_max, abs(err))
-        dist += v_mid * dt
-        lim_s += limited * dt
+        err_sq, err_max, dist, lim_s = track_step(
+            v_des[k] - v, v_mid, dt, limited, err_sq, err_max, dist, lim_s
+        )
         traction += max(p_wheel, 0.0)
         v = v1
-    err = v_des[n] - v
-    err_sq += err * err
-    err_max = max(err_max, abs(err))
-    summary[:] = 0.0
-    summary[0], summary[1], summary[2], summary[3], summary[4] = (
-        dist,
-        fuel,
-        soc0,
-        np.sqrt(err_sq / (n + 1)),
-        err_max,
+    write_summary(
+        summary, v_des[n] - v, err_sq, err_max, n, dist, fuel, soc0, eon, starts, lim_s, t[n] - t[0]
     )
-    summary[5], summary[6], summary[7], summary[8] = eon, starts, lim_s, t[n] - t[0]
     return v, traction * dt, gear, -1
 
 

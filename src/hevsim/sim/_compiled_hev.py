@@ -40,7 +40,7 @@ from hevsim.control.parallel import PowerFollower
 from hevsim.control.simple import shift_gear
 from hevsim.optimal._hev_common import LIMIT_RTOL
 from hevsim.sim import kernel as K
-from hevsim.sim._compiled_common import add_road_audit
+from hevsim.sim._compiled_common import add_road_audit, track_step, write_summary
 from hevsim.sim.forward import BISECTION_STEPS, REGEN_CURRENT_RTOL, BatchRecord, ForwardRecord
 
 PARALLEL, POWER_SPLIT = 0, 1
@@ -514,11 +514,9 @@ def run_hev(
         was_on = on
         fuel += fuel_kg
         eon += dt if on else 0.0
-        err = v_des[k] - v
-        err_sq += err * err
-        err_max = max(err_max, abs(err))
-        dist += v_mid * dt
-        lim_s += limited * dt
+        err_sq, err_max, dist, lim_s = track_step(
+            v_des[k] - v, v_mid, dt, limited, err_sq, err_max, dist, lim_s
+        )
         row = (v_des[k], v, a, f, loss[nl - 1], f - m_eff * a, fuel, soc)
         for j in range(len(row)):
             cols[j, k] = row[j]
@@ -535,12 +533,7 @@ def run_hev(
         i_bat = det[nd - 3]
         cols[b + 4, k] = p_bat / i_bat if i_bat != 0.0 else ocv
         v, soc = v1, soc + d_soc
-    err = v_des[n] - v
-    err_sq += err * err
-    err_max = max(err_max, abs(err))
-    summary[K.S_DIST], summary[K.S_FUEL], summary[K.S_SOCF] = dist, fuel, soc
-    summary[K.S_RMS], summary[K.S_MAXERR], summary[K.S_EON] = np.sqrt(err_sq / (n + 1)), err_max, eon
-    summary[K.S_STARTS], summary[K.S_BLIM], summary[K.S_DUR] = starts, lim_s, t[n] - t[0]
+    write_summary(summary, v_des[n] - v, err_sq, err_max, n, dist, fuel, soc, eon, starts, lim_s, t[n] - t[0])
     return ERR_NONE, n, v
 
 

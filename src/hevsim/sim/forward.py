@@ -71,7 +71,7 @@ from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DomainError, InputError
 from hevsim.fuels import config_fuel
 from hevsim.sim import kernel as K
-from hevsim.sim._compiled_common import AUDIT_ROAD, add_road_audit
+from hevsim.sim._compiled_common import AUDIT_ROAD, add_road_audit, track_step, write_summary
 from hevsim.sim.metrics import compute_metrics
 from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
 
@@ -578,11 +578,9 @@ def _run(
         was_on = on
         fuel += float(np.ravel(st.cost_kg)[0])
         eon += dt if on else 0.0
-        err = v_des[k] - v
-        err_sq += err * err
-        err_max = max(err_max, abs(err))
-        dist += v_mid * dt
-        lim_s += limited * dt
+        err_sq, err_max, dist, lim_s = track_step(
+            v_des[k] - v, v_mid, dt, limited, err_sq, err_max, dist, lim_s
+        )
         row = {
             "speed_desired_mps": v_des[k], "speed_mps": v, "accel_mps2": a, "wheel_force_n": f,
             "wheel_power_w": loss["wheel"], "road_load_force_n": f - m_eff * a, "fuel_kg": fuel, "soc": soc,
@@ -599,12 +597,9 @@ def _run(
         v, soc = v1, soc + d_soc
         if pack is not None:  # the pack steps at the bus's terminal power: its own SOC
             soc = pack.finish_power(det["battery_power_w"])
-    err = v_des[n] - v
-    err_sq += err * err
-    err_max = max(err_max, abs(err))
     summary = np.zeros(len(K.SUMMARY))
-    summary[[K.S_DIST, K.S_FUEL, K.S_SOCF, K.S_RMS, K.S_MAXERR, K.S_EON, K.S_STARTS, K.S_BLIM, K.S_DUR]] = (
-        dist, fuel, soc, np.sqrt(err_sq / (n + 1)), err_max, eon, starts, lim_s, t[n] - t[0])  # fmt: skip
+    write_summary(summary, float(v_des[n] - v), err_sq, err_max, n, dist, fuel, soc, eon, starts, lim_s,
+                  float(t[n] - t[0]))  # fmt: skip
     return ForwardRecord(cols, audit, summary, v)
 
 
