@@ -1,17 +1,17 @@
-"""An FMU participant in a persistent worker process (JSON lines over stdin/stdout), so an FMU
-that crashes cannot take the master down: the master gets a :class:`SimulationError` naming
-the participant and the call instead."""
+"""An FMU participant in a persistent worker process (length-prefixed pickle frames over its
+stdin/stdout pipes: :mod:`hevsim.cosim._worker`), so an FMU that crashes cannot take the
+master down: the master gets a :class:`SimulationError` naming the participant and the call
+instead. One round trip per communication step (inputs, doStep, outputs)."""
 
 from __future__ import annotations
 
-import base64
-import json
 import subprocess
 import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from hevsim.cosim._worker import recv_frame, send_frame
 from hevsim.cosim.participant import Participant, fmu_file
 from hevsim.errors import ConfigError, SimulationError
 
@@ -35,18 +35,23 @@ class WorkerFMUParticipant(Participant):
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=None,  # the FMU's own output and its logger lines from log_level up
-            text=True,
-            bufsize=1,
+            bufsize=0,
         )
+        assert self.proc.stdin is not None and self.proc.stdout is not None
+        self._wfd, self._rfd = self.proc.stdin.fileno(), self.proc.stdout.fileno()
+        self._broken = ""  # the call a protocol exchange was interrupted in
+        self._in_names: tuple[str, ...] | None = None  # input names the worker holds
+        self._out_names: tuple[str, ...] = ()
         try:
-            info = self._rpc("open", name=name, fmu=str(self.fmu), parameters=dict(parameters or {}),
-                             log_level=log_level, fmu_log=str(fmu_log) if fmu_log else None)  # fmt: skip
+            info = self._rpc("open", name, str(self.fmu), dict(parameters or {}), log_level,
+                             str(fmu_log) if fmu_log else None)  # fmt: skip
         except SimulationError as exc:
             self.close()
             raise ConfigError(str(exc)) from None
-        self.inputs, self.outputs = dict(info["inputs"]), dict(info["outputs"])
-        self._can_state, self._state_note = bool(info["can_state"]), str(info["state_note"])
-        self.types = dict(info["types"])
+        ins, outs, can_state, note, types = info
+        self.inputs, self.outputs = dict(ins), dict(outs)
+        self._can_state, self._state_note = bool(can_state), str(note)
+        self.types = dict(types)
 
     @property
     def can_save_state(self) -> bool:
@@ -56,74 +61,87 @@ class WorkerFMUParticipant(Participant):
     def state_note(self) -> str:
         return self._state_note
 
-    def _rpc(self, cmd: str, **kw: Any) -> Any:
+    def _rpc(self, cmd: str, *args: Any) -> Any:
         proc = self.proc
-        if proc.poll() is not None:
+        if self._broken:
             raise SimulationError(
-                f"participant {self.name!r}: worker process has exited (code {proc.returncode})."
+                f"participant {self.name!r}: the exchange with its worker process was interrupted "
+                f"in {self._broken}; the worker cannot be used any more."
             )
         try:
-            assert proc.stdin is not None and proc.stdout is not None
-            proc.stdin.write(json.dumps({"cmd": cmd, **kw}) + "\n")
-            proc.stdin.flush()
-            line = proc.stdout.readline()
-        except (BrokenPipeError, OSError) as exc:
-            line = ""
-            _ = exc
-        if not line:
+            send_frame(self._wfd, (cmd, *args))
+            ok, res = recv_frame(self._rfd)
+        except (EOFError, OSError):
             code = proc.wait(timeout=10)
             raise SimulationError(
                 f"participant {self.name!r}: worker process crashed in {cmd} (exit code {code})."
-            )
-        rep = json.loads(line)
-        if not rep["ok"]:
-            raise SimulationError(f"participant {self.name!r}: {cmd} failed: {rep['error']}")
-        return rep["result"]
+            ) from None
+        except BaseException:  # e.g. KeyboardInterrupt between request and reply
+            self._broken = cmd
+            raise
+        if not ok:
+            raise SimulationError(f"participant {self.name!r}: {cmd} failed: {res}")
+        return res
 
     # Inputs are sent with the next step (or output query): one round trip per step.
     def setup(self, t0: float) -> None:
-        self._pending: dict[str, float] = {}
-        self._out: dict[str, float] | None = None
-        self._rpc("setup", t0=t0)
+        self._pending: dict[str, Any] = {}
+        self._out: dict[str, Any] | None = None
+        self._rpc("setup", t0)
 
-    def set_inputs(self, values: Mapping[str, float]) -> None:
-        unknown = [k for k in values if k not in self.inputs]
-        if unknown:
-            raise ConfigError(f"participant {self.name!r}: FMU {self.fmu.name} has no input {unknown[0]!r}.")
+    def set_inputs(self, values: Mapping[str, Any]) -> None:
+        inputs = self.inputs
+        for k in values:
+            if k not in inputs:
+                raise ConfigError(f"participant {self.name!r}: FMU {self.fmu.name} has no input {k!r}.")
         self._pending.update(values)
         self._out = None
 
     def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
-        ok, pref, term, t_term, out = self._rpc("step", t=t, h=h, values=self._pending)
+        pending = self._pending
+        names: tuple[str, ...] | None = tuple(pending)
+        if names == self._in_names:
+            names = None  # the worker has them from the previous step
+        else:
+            self._in_names = names
+        ok, pref, term, t_term, outs = self._rpc("step", t, h, names, tuple(pending.values()))
         self._pending = {}
         self.terminate_requested = bool(term)
         self.terminate_time = t_term
-        self._out = out
+        if outs is not None:
+            keys, vals = outs
+            if keys is not None:
+                self._out_names = keys
+            self._out = dict(zip(self._out_names, vals, strict=True))
+        else:
+            self._out = None
         return bool(ok), pref
 
-    def get_outputs(self) -> dict[str, float]:
+    def get_outputs(self) -> dict[str, Any]:
         if self._out is None:
-            if self._pending:
-                self._rpc("set", values=self._pending)
-                self._pending = {}
+            self._flush()
             self._out = dict(self._rpc("get"))
         return dict(self._out)
 
-    def get_state(self) -> Any:
+    def _flush(self) -> None:
         if self._pending:
-            self._rpc("set", values=self._pending)
+            self._rpc("set", self._pending)
             self._pending = {}
-        return base64.b64decode(self._rpc("get_state"))
+
+    def get_state(self) -> Any:
+        self._flush()
+        return self._rpc("get_state")
 
     def set_state(self, state: Any) -> None:
         self._pending = {}
         self._out = None
-        self._rpc("set_state", state=base64.b64encode(bytes(state)).decode())
+        self._rpc("set_state", bytes(state))
 
     def terminate(self) -> None:
         if self.proc.poll() is None:
             try:
-                self._rpc("terminate")
+                if not self._broken:
+                    self._rpc("terminate")
             finally:
                 self.close()
 
@@ -131,8 +149,9 @@ class WorkerFMUParticipant(Participant):
         """Stop the worker process (idempotent)."""
         if self.proc.poll() is None:
             try:
+                if not self._broken:
+                    send_frame(self._wfd, ("quit",))
                 assert self.proc.stdin is not None
-                self.proc.stdin.write(json.dumps({"cmd": "quit"}) + "\n")
                 self.proc.stdin.close()
                 self.proc.wait(timeout=10)
             except (OSError, subprocess.TimeoutExpired):
