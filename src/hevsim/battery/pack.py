@@ -89,7 +89,7 @@ from hevsim.battery.kernel import (
 )
 from hevsim.errors import ConfigError
 from hevsim.schema import build_config, read_toml
-from hevsim.tables import interp2
+from hevsim.tables import _segment
 from hevsim.units import c_to_k
 
 THERMAL_KINDS = ("rom", "coolant")
@@ -400,31 +400,72 @@ def rc_constants(p, rc_d, rc_c, dt):
     return rcc[:, :slots]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
+def _table_location(xp, yp, x, y):
+    """Where :func:`hevsim.tables.interp2` (``linear=False``) reads a table on the axes ``xp``,
+    ``yp`` at ``(x, y)``: (kind, i, j, wx, wy); kind 0 bilinear, 1 along ``x`` only (one ``y``
+    point), 2 along ``y`` only (one ``x`` point). :func:`_table_value` evaluates any table on
+    those axes there with interp2's operations (the same value bit for bit), so that the four
+    tables of a cell share one search."""
+    nx = xp.shape[0]
+    ny = yp.shape[0]
+    x = min(max(x, xp[0]), xp[nx - 1])
+    y = min(max(y, yp[0]), yp[ny - 1])
+    if nx == 1 or ny == 1:  # interp1 (linear=False) along the other axis: edges exactly
+        ax, v = (yp, y) if nx == 1 else (xp, x)
+        n = ax.shape[0]
+        k, w = 0, 0.0
+        if n > 1 and v >= ax[n - 1]:
+            k = n - 1
+        elif n > 1 and v > ax[0]:
+            k = _segment(ax, v)
+            w = (v - ax[k]) / (ax[k + 1] - ax[k])
+        if nx == 1:
+            return 2, 0, k, 0.0, w
+        return 1, k, 0, w, 0.0
+    i = _segment(xp, x)
+    j = _segment(yp, y)
+    return 0, i, j, (x - xp[i]) / (xp[i + 1] - xp[i]), (y - yp[j]) / (yp[j + 1] - yp[j])
+
+
+@njit(cache=True, inline="always")
+def _table_value(fp, kind, i, j, wx, wy):
+    """Table ``fp`` at a :func:`_table_location` (interp2's arithmetic)."""
+    if kind == 1:
+        return fp[i, 0] if wx == 0.0 else fp[i, 0] + wx * (fp[i + 1, 0] - fp[i, 0])
+    if kind == 2:
+        return fp[0, j] if wy == 0.0 else fp[0, j] + wy * (fp[0, j + 1] - fp[0, j])
+    f0 = fp[i, j] + wy * (fp[i, j + 1] - fp[i, j])
+    f1 = fp[i + 1, j] + wy * (fp[i + 1, j + 1] - fp[i + 1, j])
+    return f0 + wx * (f1 - f0)
+
+
+@njit(cache=True, inline="always")
 def _affine_linear(p, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rcc, xc, ez_c, oc_c):
     """:func:`hevsim.battery.kernel.branch_affine` of both directions of a linear cell (the same
-    operations, one capacity for both; ``rcc`` from :func:`rc_constants`): ``ez_c`` = (E_dis,
-    Z_dis, E_chg, Z_chg) [V, ohm]; ``oc_c`` = (capacity [C], OCV_dis, R_s dis, OCV_chg, R_s chg)
-    [V, ohm] for its next step (:func:`_step_linear`)."""
+    operations, one capacity and one table location for both; ``rcc`` from
+    :func:`rc_constants`): ``ez_c`` = (E_dis, Z_dis, E_chg, Z_chg) [V, ohm]; ``oc_c`` = (capacity
+    [C], OCV_dis, R_s dis, OCV_chg, R_s chg) [V, ohm] for its next step (:func:`_step_linear`)."""
     temp = xc[STEMP]
     cap = cell_capacity(p, t_ax, capf, xc[SQABS], temp)
     soc = p[SOCINI] - xc[SQ] / cap
     oc_c[0] = cap
+    kind, i, j, wx, wy = _table_location(soc_ax, t_ax, soc, temp)
     for d in range(2):
-        u = min(max(interp2(soc_ax, t_ax, ocv_d if d == 0 else ocv_c, soc, temp, False), p[VMIN]), p[VMAX])
-        r_tab = interp2(soc_ax, t_ax, rs_d if d == 0 else rs_c, soc, temp, False)
+        u = min(max(_table_value(ocv_d if d == 0 else ocv_c, kind, i, j, wx, wy), p[VMIN]), p[VMAX])
+        r_tab = _table_value(rs_d if d == 0 else rs_c, kind, i, j, wx, wy)
         r_s = series_resistance(r_tab, p[RSCALE], p[ALPHARS], temp, p[TREF])
         oc_c[1 + 2 * d] = u
         oc_c[2 + 2 * d] = r_s
-        for j in range(rcc.shape[1]):
-            if rcc[d, j, 0] > 0.0:
-                u -= xc[N_FIXED_STATES + j] * rcc[d, j, 3]
-                r_s += rcc[d, j, 1] * p[RSCALE] * (1.0 - rcc[d, j, 3])
+        for k in range(rcc.shape[1]):
+            if rcc[d, k, 0] > 0.0:
+                u -= xc[N_FIXED_STATES + k] * rcc[d, k, 3]
+                r_s += rcc[d, k, 1] * p[RSCALE] * (1.0 - rcc[d, k, 3])
         ez_c[2 * d] = u
         ez_c[2 * d + 1] = r_s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _step_linear(p, rcc, xc, oc_c, i_a, dt, t_port, out_c, energy):
     """:func:`hevsim.battery.kernel.cell_step` of a linear cell from the capacity, OCV and R_s
     :func:`_affine_linear` kept (the same operations); fills ``out_c`` as :func:`pack_step`
