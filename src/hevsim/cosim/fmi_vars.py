@@ -142,6 +142,8 @@ class FmuVariables:
         self._raw_get: Any = None
         self._raw_set: Any = None
         self._scalar_real_in: dict[str, int] = {}
+        self._slave: Any = None
+        self._other_groups = self._out_groups  # read through FMPy's wrappers
 
     def _call(self, op: str, ftype: str) -> str:
         if self.fmi3:
@@ -158,6 +160,7 @@ class FmuVariables:
         g = next((g for g in self._out_groups if g.fmi_type == real), None)
         fns = getattr(slave, "_functions", {})
         name = "fmi3GetFloat64" if self.fmi3 else "fmi2GetReal"
+        self._other_groups = self._out_groups
         if g is not None and name in fns:
             n = len(g.names)
             self._raw_get = (
@@ -166,8 +169,9 @@ class FmuVariables:
                 len(g.vrs),
                 (ctypes.c_double * n)(),
                 n,
-                g,
+                tuple(g.names),
             )
+            self._other_groups = [o for o in self._out_groups if o is not g]
         name = "fmi3SetFloat64" if self.fmi3 else "fmi2SetReal"
         if name in fns:
             self._raw_set = fns[name]
@@ -186,16 +190,18 @@ class FmuVariables:
 
     def get_outputs(self, slave: Any) -> dict[str, Any]:
         """Every output element's value."""
-        out: dict[str, Any] = {}
-        raw = self._raw_get if slave is getattr(self, "_slave", None) else None
+        raw = self._raw_get if slave is self._slave else None
+        groups = self._out_groups
         if raw is not None:
-            fn, vrs, nvr, buf, n, rg = raw
+            fn, vrs, nvr, buf, n, names = raw
             st = fn(slave.component, vrs, nvr, buf, n) if self.fmi3 else fn(slave.component, vrs, nvr, buf)
-            self._status("fmi3GetFloat64" if self.fmi3 else "fmi2GetReal", st)
-            out.update(zip(rg.names, buf, strict=True))
-        for g in self._out_groups:
-            if raw is not None and g is raw[5]:
-                continue
+            if st > 1:
+                self._status("fmi3GetFloat64" if self.fmi3 else "fmi2GetReal", st)
+            out = dict(zip(names, buf, strict=True))
+            groups = self._other_groups
+        else:
+            out = {}
+        for g in groups:
             fn = getattr(slave, self._call("get", g.fmi_type))
             vals = fn(g.vrs, len(g.names)) if self.fmi3 else fn(g.vrs)
             for n, val in zip(g.names, vals, strict=True):
@@ -205,31 +211,27 @@ class FmuVariables:
     def set_inputs(self, slave: Any, values: Mapping[str, Any]) -> None:
         """Set input elements (an array variable is written whole, with its other elements
         as last set)."""
-        fast = self._raw_set is not None and slave is getattr(self, "_slave", None)
+        fast = self._raw_set is not None and slave is self._slave
         key = tuple(values)
         plan = self._set_plans.get(key) if fast else None
         if plan is None and fast and all(e in self._scalar_real_in for e in values):
             import ctypes
 
             n = len(values)
-            plan = (
-                (ctypes.c_uint * n)(*(self._scalar_real_in[e] for e in values)),
-                ctypes.c_double * n,
-                n,
-                [self._in_values[self._in_element[e]] for e in values],
-            )
-            self._set_plans[key] = plan  # value references of these inputs, made once
+            # value references of these inputs, made once (scalars: a later write through
+            # the general path below sets each of them from its own value, so no copy is kept)
+            plan = ((ctypes.c_uint * n)(*(self._scalar_real_in[e] for e in values)), ctypes.c_double * n, n)
+            self._set_plans[key] = plan
         if plan is not None:
-            cvrs, ctype, n, stores = plan
+            cvrs, ctype, n = plan
             cvals = ctype(*values.values())
-            for store, v in zip(stores, values.values(), strict=True):  # for a later mixed write
-                store[0] = float(v)
             st = (
                 self._raw_set(slave.component, cvrs, n, cvals, n)
                 if self.fmi3
                 else self._raw_set(slave.component, cvrs, n, cvals)
             )
-            self._status("fmi3SetFloat64" if self.fmi3 else "fmi2SetReal", st)
+            if st > 1:
+                self._status("fmi3SetFloat64" if self.fmi3 else "fmi2SetReal", st)
             return
         touched: dict[str, None] = {}
         for e, val in values.items():

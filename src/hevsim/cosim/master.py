@@ -129,7 +129,9 @@ class Options:
 @dataclass
 class CosimResult:
     """Time series of every participant output (``columns`` "participant.variable", the
-    time in ``time_s``), plus step statistics, why the run stopped and the participants
+    time in ``time_s``), plus step statistics (``stats``: steps, iterations, rejected steps,
+    largest iteration residual, ``loop_s`` the wall time of the stepping loop [s] and, from
+    :func:`simulate`, ``wall_s`` the whole run's [s]), why the run stopped and the participants
     (for what they keep beyond their outputs, e.g. temperature fields)."""
 
     time_s: np.ndarray
@@ -244,19 +246,18 @@ class Master:
             self.feeds[c.dst].append((c.dst_var, c.src, c.src_var, f, o, conv))
         fixed = list(options.order or ())
         self.order = fixed + [n for n in graph_order(self.feeds) if n not in fixed]
+        self._jacobi = options.algorithm == "jacobi"
+        self._multirate = [n for n in self.order if self.rates[n] > 1]
+        self._plain = options.max_iterations == 1 and not self._multirate
 
     # -- helpers ---------------------------------------------------------------------------
     def _call(self, name: str, call: str, t: float, fn: Callable[..., Any], *args: Any) -> Any:
         try:
             return fn(*args)
-        except HevsimError as exc:
-            if isinstance(exc, CosimFault):
-                raise
-            raise CosimFault(f"participant {name!r} failed in {call} at t = {t:g} s: {exc}") from exc
+        except CosimFault:
+            raise
         except Exception as exc:
-            raise CosimFault(
-                f"participant {name!r} failed in {call} at t = {t:g} s: {type(exc).__name__}: {exc}"
-            ) from exc
+            raise _fault(name, call, t, exc) from exc
 
     def _inputs_for(self, name: str, y: dict[str, dict[str, Any]]) -> dict[str, Any]:
         return {
@@ -282,6 +283,8 @@ class Master:
         self, t: float, h: float, y0: dict[str, dict[str, float]], guess: dict[str, dict[str, float]]
     ) -> tuple[dict[str, dict[str, float]], float | None, list[float]]:
         """One pass over the participants; returns (end outputs, reject-preferred h, preferred hs)."""
+        if self._plain:
+            return self._step_plain(t, h, y0)
         jacobi = self.opt.algorithm == "jacobi"
         mid = self.opt.max_iterations > 1 and self.opt.hold == "midpoint"
         cur = dict(guess)  # entries are replaced, never mutated
@@ -308,6 +311,42 @@ class Master:
             new[n] = self._get(n, t + h)
             if not jacobi:
                 cur[n] = new[n]
+        return new, None, prefs
+
+    def _step_plain(
+        self, t: float, h: float, y0: dict[str, dict[str, float]]
+    ) -> tuple[dict[str, dict[str, float]], float | None, list[float]]:
+        """:meth:`_step_once` without iteration or multi-rate windows (the common case), with
+        the feeds and the participants' calls resolved once (:attr:`_plan`): the same
+        operations in the same order, without the per-call wrappers."""
+        cur = y0 if self._jacobi else dict(y0)
+        new: dict[str, dict[str, float]] = {}
+        prefs: list[float] = []
+        n, call, tc = "", "", t
+        try:
+            for n, set_inputs, do_step, get_outputs, feeds in self._plan:
+                call, tc = "set_inputs", t
+                if feeds:
+                    set_inputs(
+                        {
+                            dv: f * cur[s][sv] + o if cv is None else cv(cur[s][sv])
+                            for dv, s, sv, f, o, cv in feeds
+                        }
+                    )
+                call = "do_step"
+                ok, pref = do_step(t, h)
+                if not ok:
+                    return new, (pref if pref and pref < h else h / 2), prefs
+                if pref:
+                    prefs.append(float(pref))
+                call, tc = "get_outputs", t + h
+                new[n] = out = dict(get_outputs())
+                if cur is not y0:
+                    cur[n] = out
+        except CosimFault:
+            raise
+        except Exception as exc:
+            raise _fault(n, call, tc, exc) from exc
         return new, None, prefs
 
     def _exchanges(self, n: str, t_end: float) -> bool:
@@ -441,6 +480,10 @@ class Master:
         self._tstream: Any = None
         for n in self.order:
             self._call(n, "setup", t, self.p[n].setup, t)
+        self._plan = [
+            (n, self.p[n].set_inputs, self.p[n].do_step, self.p[n].get_outputs, tuple(self.feeds[n]))
+            for n in self.order
+        ]
         y = self._initial_exchange(t)
         self._cols = [(n, v) for n in self.listing for v in y[n] if not isinstance(y[n][v], str)]
         self._tcols = [(n, v) for n in self.listing for v in y[n] if isinstance(y[n][v], str)]
@@ -472,7 +515,9 @@ class Master:
                 self._restore(blob["states"], t)
             else:
                 self._record(t, y)
+            t_loop = _time.perf_counter()
             stopped_by = self._loop(t, h, y, nsteps, ck, progress)
+            self.stats["loop_s"] = _time.perf_counter() - t_loop
         except CosimFault as exc:
             exc.partial = self._result(f"fault: {exc}")
             self._terminate_all(t)
@@ -514,6 +559,8 @@ class Master:
         o = self.opt
         eps = 1e-9 * max(1.0, abs(o.stop_time_s))
         need_state = o.max_iterations > 1 or o.negotiation != "fixed"
+        fixed_h = o.negotiation == "fixed" and not o.min_step_s and not o.max_step_s
+        parts = [self.p[n] for n in self.order]
         while t < o.stop_time_s - eps:
             t_end = self._grid(t, h)
             h = t_end - t
@@ -556,15 +603,20 @@ class Master:
                     default=0.0,
                 )
                 self.stats["max_residual"] = max(self.stats["max_residual"], res)
-            for n in self.order:
-                if self.rates[n] > 1 and self._exchanges(n, t_end):
+            for n in self._multirate:
+                if self._exchanges(n, t_end):
                     self._window_start[n] = t_end
             y = new
             t = t_end
             nsteps += 1
             self.stats["steps"] = nsteps
-            term = [n for n in self.order if self.p[n].terminate_requested]
-            if term:
+            stop = False
+            for p in parts:
+                if p.terminate_requested:
+                    stop = True
+                    break
+            if stop:
+                term = [n for n in self.order if self.p[n].terminate_requested]
                 ends = [self.p[n].terminate_time for n in term]
                 t_stop = min((te for te in ends if te is not None and te < t), default=t)
                 self._record(t_stop, y)
@@ -572,7 +624,7 @@ class Master:
                 return f"participant {who!r} requested termination at t = {t_stop:g} s"
             if nsteps % o.record_every == 0 or t >= o.stop_time_s - eps:
                 self._record(t, y)
-            h = self._next_h(h, prefs)
+            h = o.step_s if fixed_h else self._next_h(h, prefs)
             if ck is not None and (
                 nsteps % o.checkpoint_every == 0
                 if o.checkpoint_every
@@ -639,6 +691,13 @@ class Master:
 
 def _identity(v: Any) -> Any:
     return v
+
+
+def _fault(name: str, call: str, t: float, exc: Exception) -> CosimFault:
+    """``exc`` raised by participant ``name`` in ``call`` at ``t`` [s] as a :class:`CosimFault`
+    naming them."""
+    what = str(exc) if isinstance(exc, HevsimError) else f"{type(exc).__name__}: {exc}"
+    return CosimFault(f"participant {name!r} failed in {call} at t = {t:g} s: {what}")
 
 
 def _mix(a: Any, b: Any, w: float) -> Any:

@@ -1,0 +1,172 @@
+"""The master's plain stepping path and the worker protocol (issue 13 item 11): the same
+results as the general path, faults named with the right call and time, and a worker that
+keeps its inputs and outputs straight across steps and interruptions."""
+
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from hevsim.cosim import Connection, CosimFault, FunctionParticipant
+from hevsim.cosim._worker import recv_frame, send_frame
+from hevsim.cosim.master import Master, Options
+from hevsim.cosim.trivial import build_integrator_fmu
+from hevsim.errors import SimulationError
+
+
+def _system() -> tuple[list[FunctionParticipant], list[Connection]]:
+    """A heater (degC out), a counter (an Integer output) and a mass heated by both (K in),
+    which feeds its temperature back to the heater: unit and type conversions, a loop."""
+    heater = FunctionParticipant(
+        "heater", lambda t, h, x, u: (x, {"temp_c": 20.0 + 0.3 * u["back_k"] - 0.3 * 293.15 + t}), 0,
+        {"temp_c": 20.0}, {"back_k": "K"}, {"temp_c": "degC"},
+    )  # fmt: skip
+    counter = FunctionParticipant("counter", lambda t, h, x, u: (x + 1, {"n": x + 1}), 0, {"n": 0}, {})
+    counter.types = {"n": "Integer"}
+    mass = FunctionParticipant(
+        "mass", lambda t, h, x, u: (x + h * (u["src_k"] - x + 0.01 * u["n"]), {"temp_k": x}), 290.0,
+        {"temp_k": 290.0}, {"src_k": "K", "n": ""}, {"temp_k": "K"},
+    )  # fmt: skip
+    conns = [
+        Connection("heater", "temp_c", "mass", "src_k"),
+        Connection("counter", "n", "mass", "n"),
+        Connection("mass", "temp_k", "heater", "back_k"),
+    ]
+    return [mass, heater, counter], conns
+
+
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+def test_plain_path_equals_general_path_bit_for_bit(algorithm: str) -> None:
+    runs = []
+    for plain in (True, False):
+        parts, conns = _system()
+        m = Master(parts, conns, Options(stop_time_s=2.0, step_s=0.1, algorithm=algorithm))
+        assert m._plain  # no iteration, no multi-rate: the plain path is the one taken
+        m._plain = plain
+        runs.append(m.run())
+    a, b = runs
+    assert a.columns == b.columns and len(a.time_s) == 21
+    assert np.array_equal(a.time_s, b.time_s) and np.array_equal(a.data, b.data)
+    assert np.ptp(a["mass.temp_k"]) > 1.0  # the system does move
+
+
+class _Failing(FunctionParticipant):
+    """A pass-through participant whose ``call`` raises once ``steps`` steps are done."""
+
+    def __init__(self, name: str, call: str, steps: int):
+        super().__init__(name, lambda t, h, x, u: (x + 1, {"y": u["x"]}), 0, {"y": 0.0}, {"x": ""})
+        self.call, self.after = call, steps
+
+    def _check(self, call: str) -> None:
+        if call == self.call and self.state >= self.after:
+            raise RuntimeError(f"{call} refused")
+
+    def set_inputs(self, values: Any) -> None:
+        self._check("set_inputs")
+        super().set_inputs(values)
+
+    def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
+        self._check("do_step")
+        return super().do_step(t, h)
+
+    def get_outputs(self) -> dict[str, float]:
+        self._check("get_outputs")
+        return super().get_outputs()
+
+
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+@pytest.mark.parametrize(("call", "steps", "t_msg"), [("set_inputs", 3, 0.3), ("do_step", 3, 0.3),
+                                                      ("get_outputs", 4, 0.4)])  # fmt: skip
+def test_fault_names_the_call_and_its_time(algorithm: str, call: str, steps: int, t_msg: float) -> None:
+    """The failing participant comes second (after its source): the message must give the
+    time of its own call (set_inputs and do_step at t, get_outputs at t + h)."""
+    src = FunctionParticipant("a", lambda t, h, x, u: (x, {"x": t + h}), 0, {"x": 0.0}, {})
+    bad = _Failing("b", call, steps)
+    m = Master([bad, src], [Connection("a", "x", "b", "x")], Options(stop_time_s=1.0, step_s=0.1,
+               algorithm=algorithm))  # fmt: skip
+    assert m.order == ["a", "b"]
+    with pytest.raises(CosimFault) as ei:
+        m.run()
+    assert (
+        str(ei.value) == f"participant 'b' failed in {call} at t = {t_msg:g} s: RuntimeError: {call} refused"
+    )
+    assert ei.value.partial is not None and ei.value.partial.time_s[-1] == pytest.approx(0.3)
+
+
+def test_frames_round_trip_and_end_of_input() -> None:
+    r, w = os.pipe()
+    big = bytes(range(256)) * 1200  # more than a pipe holds at once
+    objs: list[Any] = [("step", 0.1, 0.01, ("u",), (1.5,)), big, {"k": [1, 2.5, "x"]}]
+
+    def write_all() -> None:
+        for o in objs:
+            send_frame(w, o)
+        os.close(w)
+
+    writer = threading.Thread(target=write_all)
+    writer.start()
+    try:
+        got = [recv_frame(r) for _ in objs]
+        with pytest.raises(EOFError):
+            recv_frame(r)
+    finally:
+        writer.join()
+        os.close(r)
+    assert got == objs
+
+
+@pytest.fixture(scope="module")
+def integrator(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return build_integrator_fmu(tmp_path_factory.mktemp("fast") / "i.fmu", name="FastPathInt", y0=1.0)
+
+
+def test_worker_keeps_inputs_and_outputs_straight(integrator: Path) -> None:
+    """y += k u h: inputs set, then not set (held), then set again; outputs by name."""
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
+    p = WorkerFMUParticipant("w", integrator, {"k": 2.0})
+    try:
+        p.setup(0.0)
+        ys = []
+        for k, u in enumerate((1.0, None, 3.0, None, -1.0)):
+            if u is not None:
+                p.set_inputs({"u": u})
+            assert p.do_step(k * 0.5, 0.5) == (True, None)
+            ys.append(p.get_outputs())
+        state = p.get_state()
+        p.set_inputs({"u": 10.0})
+        p.do_step(2.5, 0.5)
+        assert p.get_outputs() == {"y": ys[-1]["y"] + 10.0}
+        p.set_state(state)
+        assert p.get_outputs() == ys[-1]
+    finally:
+        p.terminate()
+    assert [y["y"] for y in ys] == [2.0, 3.0, 6.0, 9.0, 8.0]
+    assert p.proc.poll() == 0
+
+
+def test_interrupted_exchange_retires_the_worker(integrator: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """An exception between a request and its reply (Ctrl-C) would leave the reply in the pipe
+    for the next call: the worker is declared unusable instead of answering out of turn."""
+    import hevsim.cosim.worker as W
+
+    p = W.WorkerFMUParticipant("w", integrator)
+    p.setup(0.0)
+    real = W.recv_frame
+
+    def interrupted(fd: int) -> Any:
+        monkeypatch.setattr(W, "recv_frame", real)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(W, "recv_frame", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        p.do_step(0.0, 0.1)
+    with pytest.raises(SimulationError, match="interrupted in step; the worker cannot be used"):
+        p.do_step(0.1, 0.1)
+    p.terminate()
+    assert p.proc.poll() is not None
