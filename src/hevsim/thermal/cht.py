@@ -20,18 +20,25 @@ continuous, :func:`segment_weights`); the inlet takes the inflow enthalpy weakly
 flux. Steady or implicit Euler.
 
 The heat through the wall is the consistent residual of the Dirichlet rows (the heat each wall
-degree of freedom must supply). Summed over the wall it equals the coolant's enthalpy rise
-``m_dot c_p (T_out - T_in)`` (mixing-cup outlet temperature) up to
-``int rho c_p (T - T_in) div u``: to round-off for a divergence-free velocity, and to the
-discrete divergence of the Taylor-Hood flow otherwise (4.7e-5 in the developed duct test; on the
-serpentine's default mesh 28 %, 6.8 % and 0.55 % with ``flow.grad_div`` 0, 1 and 10 —
-the bends are where the coarse mesh conserves mass worst). The advective form was chosen over
-the conservative one (which closes the balance exactly for any velocity) because the latter
-turns the discrete divergence times the absolute temperature into spurious wall heat (about
-+-150 W per segment at the serpentine's bends at a uniform wall temperature); the advective
-form gives no heat without a temperature difference. The coupling to conduction in the plate
-is partitioned: the plate's FEM gives the wall temperature per segment, the coolant returns
-the heat per segment (:class:`hevsim.cosim.coolant_cht.CoolantCHTParticipant`).
+degree of freedom must supply). Summed over the wall (the test function ``v = 1``) it equals the
+coolant's enthalpy rise ``m_dot c_p (T_out - T_in)`` (mixing-cup outlet temperature) up to
+``int rho c_p T div u``, which vanishes for a divergence-free velocity but not for the Taylor-Hood
+flow, whose divergence is zero only against the P1 pressure space: on the serpentine's default
+mesh the plain advective form left 28 %, 6.8 % and 0.55 % of the heat unbalanced with
+``flow.grad_div`` 0, 1 and 10 (the bends are where the coarse mesh conserves mass worst). The
+convective term therefore carries the correction ``int rho c_p (T - I_1 T) v div u``, with
+``I_1 T`` the P1 interpolant of T at the vertices (:func:`vertex_interpolation`). Since
+``int I_1 T div u = 0`` for the Taylor-Hood velocity, the balance closes to round-off (measured
+1e-9 on the serpentine, :func:`run_cht`'s ``energy_imbalance_rel``); the term is zero for a
+uniform temperature (no heat without a temperature difference, unlike the conservative form,
+which turns the discrete divergence times the absolute temperature into about +-150 W of
+spurious wall heat per bend segment) and for a divergence-free velocity, and it is consistent
+(of order ``h^2 |T|_2 |div u_h|``). ``divergence_correction=False`` gives the plain advective
+form.
+
+The coupling to conduction in the plate is partitioned: the plate's FEM gives the wall
+temperature per segment, the coolant returns the heat per segment
+(:class:`hevsim.cosim.coolant_cht.CoolantCHTParticipant`).
 
 Local heat-transfer coefficient per segment, defined like the 1-D channel model's
 (:class:`hevsim.thermal.coolant.ChannelModel`) so the two compare directly: with the bulk
@@ -127,6 +134,8 @@ class CoolantThermal:
         path_m: polyline (P, 3) [m] along which the wall is cut into ``n_segments`` segments.
         n_segments: number of wall segments (one wall temperature each).
         where: prefix of error messages.
+        divergence_correction: add the term that closes the energy balance on a flow that
+            is divergence-free only weakly (module docstring); False = plain advective form.
     """
 
     flow: FlowResult
@@ -135,6 +144,7 @@ class CoolantThermal:
     path_m: np.ndarray
     n_segments: int
     where: str = "cht"
+    divergence_correction: bool = True
 
     def __post_init__(self) -> None:
         from skfem import BilinearForm, ElementTetP2, FacetBasis, LinearForm
@@ -195,6 +205,8 @@ class CoolantThermal:
             advection_diffusion.assemble(self.basis, u=u_q)
             + inflow_exchange.assemble(fb_in, u=fu_in.interpolate(fl.velocity))
         ).tocsr()
+        if self.divergence_correction:
+            self.stiffness = (self.stiffness + _divergence_correction(self.basis, u_q, rc)).tocsr()
         self.capacity = capacity.assemble(self.basis, u=u_q).tocsr()
         self.inflow = boundary_inflow.assemble(fb_in, u=fu_in.interpolate(fl.velocity))  # [W/K]
         self._fb_out, self._u_out = fb_out, fu_out.interpolate(fl.velocity)
@@ -321,6 +333,35 @@ class CoolantThermal:
                 stacklevel=2,
             )
         return {"boundary_layer_m": delta, "cells_across_height": cells_h, "cells_needed": float(need)}
+
+
+def vertex_interpolation(basis: Any) -> Any:
+    """Sparse (N, N) map [-] of P2 dofs to the P2 dofs of their P1 vertex interpolant: vertex
+    dofs are kept, an edge's midpoint dof becomes the mean of its two vertex dofs."""
+    from scipy.sparse import coo_matrix
+
+    nodal, edge = basis.nodal_dofs[0], basis.edge_dofs[0]
+    ends = nodal[basis.mesh.edges]  # (2, edges): the vertex dofs at each edge's ends
+    rows = np.concatenate((nodal, edge, edge))
+    cols = np.concatenate((nodal, ends[0], ends[1]))
+    vals = np.concatenate((np.ones(nodal.size), np.full(2 * edge.size, 0.5)))
+    return coo_matrix((vals, (rows, cols)), shape=(basis.N, basis.N)).tocsr()
+
+
+def _divergence_correction(basis: Any, u_q: Any, rc: float) -> Any:
+    """Matrix [W/K] of ``int rho c_p (T - I_1 T) v div u`` (``I_1``: :func:`vertex_interpolation`),
+    the term that makes the discrete energy balance exact on a Taylor-Hood velocity; see
+    :class:`CoolantThermal`."""
+    from scipy.sparse import identity
+    from skfem import BilinearForm
+    from skfem.helpers import div
+
+    @BilinearForm
+    def divergence_mass(t: Any, v: Any, w: Any) -> Any:
+        return rc * div(w["u"]) * t * v
+
+    d = divergence_mass.assemble(basis, u=u_q).tocsr()
+    return d @ (identity(basis.N, format="csr") - vertex_interpolation(basis))
 
 
 def write_cht_vtu(model: CoolantThermal, temp_k: np.ndarray, path: Any) -> None:
