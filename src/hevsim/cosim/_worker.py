@@ -22,32 +22,50 @@ from typing import Any
 _HEADER = struct.Struct("<I")  # payload length [bytes]
 
 
-def send_frame(fd: int, obj: Any) -> None:
-    """Write ``obj`` as one frame (length + pickle) to the pipe ``fd``."""
+def encode_frame(obj: Any) -> bytes:
+    """``obj`` as one frame: its pickle's length, then the pickle."""
     payload = pickle.dumps(obj, pickle.HIGHEST_PROTOCOL)
-    view = memoryview(_HEADER.pack(len(payload)) + payload)
+    return _HEADER.pack(len(payload)) + payload
+
+
+def write_frame(fd: int, frame: bytes) -> None:
+    """Write a frame made by :func:`encode_frame` to the pipe ``fd``."""
+    view = memoryview(frame)
     while view:
         view = view[os.write(fd, view) :]
 
 
+def send_frame(fd: int, obj: Any) -> None:
+    """Write ``obj`` as one frame to the pipe ``fd``."""
+    write_frame(fd, encode_frame(obj))
+
+
 def recv_frame(fd: int) -> Any:
-    """Read one frame from the pipe ``fd``; :class:`EOFError` if the writer has gone."""
-    head = _read_exactly(fd, _HEADER.size)
-    return pickle.loads(_read_exactly(fd, _HEADER.unpack(head)[0]))
+    """Read one frame from the pipe ``fd``; :class:`EOFError` if the writer has gone. The
+    peers alternate (a request, then its reply), so one read usually gets the whole frame."""
+    data = os.read(fd, _READ_BYTES)
+    while len(data) < _HEADER.size:
+        data += _more(fd, _HEADER.size - len(data))
+    end = _HEADER.size + _HEADER.unpack_from(data)[0]
+    if len(data) < end:
+        data += _more(fd, end - len(data))
+    if len(data) != end:
+        raise EOFError("protocol error: data after a frame")  # the peer is out of step
+    return pickle.loads(memoryview(data)[_HEADER.size :])
 
 
-def _read_exactly(fd: int, n: int) -> bytes:
-    data = os.read(fd, n)
-    if len(data) == n:
-        return data
-    parts = [data]
-    got = len(data)
-    while got < n:
+_READ_BYTES = 1 << 16
+
+
+def _more(fd: int, n: int) -> bytes:
+    """The next ``n`` bytes from ``fd``."""
+    parts = []
+    while n > 0:
+        data = os.read(fd, n)
         if not data:
             raise EOFError
-        data = os.read(fd, n - got)
         parts.append(data)
-        got += len(data)
+        n -= len(data)
     return b"".join(parts)
 
 

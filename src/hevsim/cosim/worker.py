@@ -11,7 +11,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from hevsim.cosim._worker import recv_frame, send_frame
+from hevsim.cosim._worker import encode_frame, recv_frame, send_frame, write_frame
 from hevsim.cosim.participant import Participant, fmu_file
 from hevsim.errors import ConfigError, SimulationError
 
@@ -68,11 +68,16 @@ class WorkerFMUParticipant(Participant):
                 f"participant {self.name!r}: the exchange with its worker process was interrupted "
                 f"in {self._broken}; the worker cannot be used any more."
             )
+        frame = encode_frame((cmd, *args))  # (an argument that cannot be sent fails here)
         try:
-            send_frame(self._wfd, (cmd, *args))
+            write_frame(self._wfd, frame)
             ok, res = recv_frame(self._rfd)
         except (EOFError, OSError):
-            code = proc.wait(timeout=10)
+            try:
+                code = proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:  # alive but out of step: stop it
+                proc.kill()
+                code = proc.wait()
             raise SimulationError(
                 f"participant {self.name!r}: worker process crashed in {cmd} (exit code {code})."
             ) from None
