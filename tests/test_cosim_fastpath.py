@@ -170,3 +170,31 @@ def test_interrupted_exchange_retires_the_worker(integrator: Path, monkeypatch: 
         p.do_step(0.1, 0.1)
     p.terminate()
     assert p.proc.poll() is not None
+
+
+def test_jacobi_worker_fmus_step_in_parallel_with_the_same_results(tmp_path: Path) -> None:
+    """x' = v, v' = -x from two integrator FMUs in workers, Jacobi: started together
+    (start_step) or one after the other, both give explicit Euler exactly."""
+    from hevsim.cosim import simulate
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
+    x_fmu = build_integrator_fmu(tmp_path / "x.fmu", name="FastPathX", y0=1.0)
+    v_fmu = build_integrator_fmu(tmp_path / "v.fmu", name="FastPathV", y0=0.0)
+    conns = [Connection("v", "y", "x", "u"), Connection("x", "y", "v", "u")]
+    runs, started = [], []
+    for early in (True, False):
+        parts = [WorkerFMUParticipant("x", x_fmu), WorkerFMUParticipant("v", v_fmu, {"k": -1.0})]
+        for p in parts:
+            if early:
+                real = p.start_step
+                p.start_step = lambda t, h, real=real: (started.append(t), real(t, h))[1]  # type: ignore[method-assign]
+            else:
+                p.start_step = None  # type: ignore[assignment,method-assign]
+        runs.append(simulate(parts, conns, stop_time_s=1.0, step_s=0.1))
+    assert len(started) == 20  # 10 steps x 2 workers, started in the background
+    x, v = [1.0], [0.0]
+    for k in range(10):
+        h = (k + 1) * 0.1 - k * 0.1  # the steps between grid points t_k = k * 0.1
+        x, v = [*x, x[-1] + v[-1] * h], [*v, v[-1] - x[-1] * h]
+    for r in runs:
+        assert np.array_equal(r["x.y"], x) and np.array_equal(r["v.y"], v)

@@ -5,6 +5,8 @@ Algorithm per communication step from ``t`` by ``h`` (inputs held constant over 
 
 * **Jacobi** (the default, as libcosim's fixed-step algorithm and FMPy's SSP runner): every
   participant receives the others' outputs at ``t`` and steps; each connection lags one step.
+  Worker-process FMUs step at the same time (each is started before the master steps the
+  participants in process, and collected in turn).
 * **Gauss-Seidel**: participants step in ``order``; each receives the outputs of those
   already stepped to ``t + h`` and of the others at ``t``. Without an explicit ``order`` (or
   after the participants it names) the order comes from the connection graph
@@ -50,6 +52,7 @@ from hevsim.errors import ConfigError, HevsimError, SimulationError
 ALGORITHMS = ("jacobi", "gauss-seidel")
 Feed = tuple[str, str, str, float, float, "Callable[[Any], Any] | None"]
 """A connection into a participant: (input, source, output, factor, offset, type conversion)."""
+Feeds = tuple[Feed, ...]
 NEGOTIATION = ("fixed", "min", "max")
 
 
@@ -260,9 +263,7 @@ class Master:
             raise _fault(name, call, t, exc) from exc
 
     def _inputs_for(self, name: str, y: dict[str, dict[str, Any]]) -> dict[str, Any]:
-        return {
-            dv: f * y[s][sv] + o if cv is None else cv(y[s][sv]) for dv, s, sv, f, o, cv in self.feeds[name]
-        }
+        return _values(self.feeds[name], y)
 
     def _send(self, name: str, y: dict[str, dict[str, float]], t: float) -> None:
         vals = self._inputs_for(name, y)
@@ -318,21 +319,25 @@ class Master:
     ) -> tuple[dict[str, dict[str, float]], float | None, list[float]]:
         """:meth:`_step_once` without iteration or multi-rate windows (the common case), with
         the feeds and the participants' calls resolved once (:attr:`_plan`): the same
-        operations in the same order, without the per-call wrappers."""
+        operations without the per-call wrappers. Under Jacobi, participants with a
+        ``start_step(t, h)`` (worker-process FMUs) get their inputs and start first and are
+        collected in order, so they step in parallel with each other and with the rest (their
+        inputs are the outputs at ``t`` either way: same results)."""
         cur = y0 if self._jacobi else dict(y0)
         new: dict[str, dict[str, float]] = {}
         prefs: list[float] = []
         n, call, tc = "", "", t
         try:
+            for n, set_inputs, start_step, feeds in self._early:  # noqa: B007 (n: for _fault)
+                call = "set_inputs"
+                if feeds:
+                    set_inputs(_values(feeds, cur))
+                call = "do_step"
+                start_step(t, h)
             for n, set_inputs, do_step, get_outputs, feeds in self._plan:
                 call, tc = "set_inputs", t
                 if feeds:
-                    set_inputs(
-                        {
-                            dv: f * cur[s][sv] + o if cv is None else cv(cur[s][sv])
-                            for dv, s, sv, f, o, cv in feeds
-                        }
-                    )
+                    set_inputs(_values(feeds, cur))
                 call = "do_step"
                 ok, pref = do_step(t, h)
                 if not ok:
@@ -480,10 +485,17 @@ class Master:
         self._tstream: Any = None
         for n in self.order:
             self._call(n, "setup", t, self.p[n].setup, t)
-        self._plan = [
-            (n, self.p[n].set_inputs, self.p[n].do_step, self.p[n].get_outputs, tuple(self.feeds[n]))
-            for n in self.order
-        ]
+        # Jacobi: participants that can step in the background (start_step: worker FMUs) get
+        # their inputs and start first, so they step while the others do
+        self._early: list[tuple[str, Callable[..., Any], Callable[[float, float], None], Feeds]] = []
+        self._plan: list[tuple[str, Callable[..., Any], Callable[..., Any], Callable[..., Any], Feeds]] = []
+        for n in self.order:
+            p, feeds = self.p[n], tuple(self.feeds[n])
+            start = getattr(p, "start_step", None) if self._jacobi else None
+            if start is not None:
+                self._early.append((n, p.set_inputs, start, feeds))
+                feeds = ()  # sent before the start
+            self._plan.append((n, p.set_inputs, p.do_step, p.get_outputs, feeds))
         y = self._initial_exchange(t)
         self._cols = [(n, v) for n in self.listing for v in y[n] if not isinstance(y[n][v], str)]
         self._tcols = [(n, v) for n in self.listing for v in y[n] if isinstance(y[n][v], str)]
@@ -691,6 +703,12 @@ class Master:
 
 def _identity(v: Any) -> Any:
     return v
+
+
+def _values(feeds: Sequence[Feed], y: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+    """The input values ``feeds`` (of one participant) take from the outputs ``y``: unit
+    conversion ``factor * value + offset`` for Real values, else the type conversion."""
+    return {dv: f * y[s][sv] + o if cv is None else cv(y[s][sv]) for dv, s, sv, f, o, cv in feeds}
 
 
 def _fault(name: str, call: str, t: float, exc: Exception) -> CosimFault:

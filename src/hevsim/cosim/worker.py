@@ -9,7 +9,7 @@ import subprocess
 import sys
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from hevsim.cosim._worker import encode_frame, recv_frame, send_frame, write_frame
 from hevsim.cosim.participant import Participant, fmu_file
@@ -40,6 +40,9 @@ class WorkerFMUParticipant(Participant):
         assert self.proc.stdin is not None and self.proc.stdout is not None
         self._wfd, self._rfd = self.proc.stdin.fileno(), self.proc.stdout.fileno()
         self._broken = ""  # the call a protocol exchange was interrupted in
+        self._in_flight = False  # a step was sent and its reply not read yet
+        self._started = False  # start_step ran; do_step has not collected it yet
+        self._step_reply: tuple[bool, Any] = (False, None)
         self._in_names: tuple[str, ...] | None = None  # input names the worker holds
         self._out_names: tuple[str, ...] = ()
         try:
@@ -62,25 +65,31 @@ class WorkerFMUParticipant(Participant):
         return self._state_note
 
     def _rpc(self, cmd: str, *args: Any) -> Any:
-        proc = self.proc
+        self._send(cmd, *args)
+        return self._recv(cmd)
+
+    def _send(self, cmd: str, *args: Any) -> None:
         if self._broken:
             raise SimulationError(
                 f"participant {self.name!r}: the exchange with its worker process was interrupted "
                 f"in {self._broken}; the worker cannot be used any more."
             )
+        if self._in_flight:  # a started step's reply comes first
+            self._collect()
         frame = encode_frame((cmd, *args))  # (an argument that cannot be sent fails here)
         try:
             write_frame(self._wfd, frame)
+        except OSError:
+            self._crashed(cmd)
+        except BaseException:  # e.g. KeyboardInterrupt: part of a frame may have gone
+            self._broken = cmd
+            raise
+
+    def _recv(self, cmd: str) -> Any:
+        try:
             ok, res = recv_frame(self._rfd)
         except (EOFError, OSError):
-            try:
-                code = proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:  # alive but out of step: stop it
-                proc.kill()
-                code = proc.wait()
-            raise SimulationError(
-                f"participant {self.name!r}: worker process crashed in {cmd} (exit code {code})."
-            ) from None
+            self._crashed(cmd)
         except BaseException:  # e.g. KeyboardInterrupt between request and reply
             self._broken = cmd
             raise
@@ -88,10 +97,32 @@ class WorkerFMUParticipant(Participant):
             raise SimulationError(f"participant {self.name!r}: {cmd} failed: {res}")
         return res
 
+    def _crashed(self, cmd: str) -> NoReturn:
+        proc = self.proc
+        try:
+            code = proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:  # alive but out of step: stop it
+            proc.kill()
+            code = proc.wait()
+        raise SimulationError(
+            f"participant {self.name!r}: worker process crashed in {cmd} (exit code {code})."
+        ) from None
+
+    def _collect(self) -> None:
+        """Read the reply of the step :meth:`start_step` sent (kept for :meth:`do_step`)."""
+        self._in_flight = False
+        try:
+            self._step_reply = (True, self._recv("step"))
+        except SimulationError as exc:
+            if self.proc.poll() is not None:
+                raise
+            self._step_reply = (False, exc)
+
     # Inputs are sent with the next step (or output query): one round trip per step.
     def setup(self, t0: float) -> None:
         self._pending: dict[str, Any] = {}
         self._out: dict[str, Any] | None = None
+        self._started = False
         self._rpc("setup", t0)
 
     def set_inputs(self, values: Mapping[str, Any]) -> None:
@@ -102,15 +133,36 @@ class WorkerFMUParticipant(Participant):
         self._pending.update(values)
         self._out = None
 
-    def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
+    def start_step(self, t: float, h: float) -> None:
+        """Send the step from ``t`` by ``h`` [s] with the inputs set so far and return at once:
+        the worker steps while the master does other work; :meth:`do_step` with the same
+        arguments collects the result (the master's Jacobi steps use this, so worker FMUs
+        step at the same time as each other and as the participants in process)."""
+        self._send_step(t, h)
+        self._in_flight = self._started = True
+
+    def _send_step(self, t: float, h: float) -> None:
         pending = self._pending
         names: tuple[str, ...] | None = tuple(pending)
-        if names == self._in_names:
-            names = None  # the worker has them from the previous step
-        else:
-            self._in_names = names
-        ok, pref, term, t_term, outs = self._rpc("step", t, h, names, tuple(pending.values()))
+        same = names == self._in_names
+        self._send("step", t, h, None if same else names, tuple(pending.values()))
+        self._in_names = names  # the worker keeps them for the next steps
         self._pending = {}
+        self._out = None
+
+    def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
+        if self._started:
+            self._started = False
+            if self._in_flight:
+                self._collect()
+            done, reply = self._step_reply
+            self._step_reply = (False, None)
+            if not done:
+                raise reply
+        else:
+            self._send_step(t, h)
+            reply = self._recv("step")
+        ok, pref, term, t_term, outs = reply
         self.terminate_requested = bool(term)
         self.terminate_time = t_term
         if outs is not None:
@@ -118,8 +170,6 @@ class WorkerFMUParticipant(Participant):
             if keys is not None:
                 self._out_names = keys
             self._out = dict(zip(self._out_names, vals, strict=True))
-        else:
-            self._out = None
         return bool(ok), pref
 
     def get_outputs(self) -> dict[str, Any]:
@@ -140,6 +190,7 @@ class WorkerFMUParticipant(Participant):
     def set_state(self, state: Any) -> None:
         self._pending = {}
         self._out = None
+        self._started = False  # a step started from the replaced state is void
         self._rpc("set_state", bytes(state))
 
     def terminate(self) -> None:
