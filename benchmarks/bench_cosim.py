@@ -9,12 +9,23 @@ for N steps of 0.01 s by
   runs after parsing its arguments: results.csv, summary.json, system.ssd, pictures), and the
   ``hevsim cosim`` command itself in a fresh process against ``python -c
   "fmpy.simulate_fmu(...)"`` in a fresh process (both pay interpreter start and imports),
-* the master alone (``simulate``) with the FMU in process and in a worker process; the raw
-  cost of the same FMI calls (set inputs, doStep, get outputs) made directly is subtracted
-  to give the master's own overhead per step per FMU.
+* the master alone (``simulate``) with FMUs in process and in a worker process.
+
+The master's own overhead per step per FMU is the CPU time per step of ``simulate`` minus
+that of the same FMI calls (set inputs, doStep, get outputs) made in a plain loop, divided
+by the number of FMUs: CPU time, because on a shared, loaded machine wall-clock differences
+of a few µs drown in the waits for a core; per step from the difference of a run of 2N and
+one of N steps, so the FMUs' one-off extraction and instantiation do not count. Two systems:
+two FMUs feeding each other (x0 -> u both ways), and one FMU fed by a Python source
+participant (the figure reported before, whose step counts as overhead). The raw cost is
+also given for FMPy's ctypes functions called directly, without hevsim's participant.
+
+A worker-process FMU is timed over the stepping loop only (wall clock, and the CPU time of
+the master and of the worker process, from /proc on Linux), the worker's start excluded.
 
 Targets: end to end within 1.5x of FMPy, master overhead <= 10 µs per step per FMU, worker
-FMUs <= 60 µs per step, time linear in the number of steps (1k/2k/4k/8k table).
+FMUs <= 60 µs per step, time linear in the number of steps (1k/2k/4k/8k table). The load of
+the machine is printed: compare figures of the same run only.
 
 Run: ``.venv/bin/python benchmarks/bench_cosim.py [--steps 10000] [--skip-cli]``
 """
@@ -23,11 +34,15 @@ from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
+
+from _machine import OtherLoad
 
 H = 0.01
 TARGET_RATIO = 1.5
@@ -104,32 +119,116 @@ def t_run_cosim(ssd: Path, out: Path) -> tuple[float, dict[str, float]]:
     return wall, {"master_s": res.stats["wall_s"]}
 
 
-def raw_cost_us(fmu: Path, steps: int) -> float:
-    """Per-step cost [µs] of set + doStep + get through FMPy with no master."""
+def raw_cost_us(fmu: Path, steps: int, n_fmus: int = 1) -> float:
+    """Per-step CPU time [µs] of set + doStep + get on ``n_fmus`` in-process FMU participants
+    (each fed the previous one's ``x0``, as :func:`master_cpu_us` couples them), no master."""
     from hevsim.cosim.participant import FMUParticipant
 
-    p = FMUParticipant("raw", fmu)
-    p.setup(0.0)
-    t0 = time.perf_counter()
+    ps = [FMUParticipant(f"raw{i}", fmu) for i in range(n_fmus)]
+    for p in ps:
+        p.setup(0.0)
+    y = [p.get_outputs() for p in ps]
+    c0 = time.process_time()
     for k in range(steps):
-        p.set_inputs({"u": 0.0})
-        p.do_step(k * H, H)
-        p.get_outputs()
-    dt = time.perf_counter() - t0
+        for i, p in enumerate(ps):
+            p.set_inputs({"u": y[i - 1]["x0"] if n_fmus > 1 else 0.0})
+        for p in ps:
+            p.do_step(k * H, H)
+        y = [p.get_outputs() for p in ps]
+    dt = time.process_time() - c0
+    for p in ps:
+        p.terminate()
+    return dt / steps * 1e6
+
+
+def direct_cost_us(fmu: Path, steps: int) -> float:
+    """Per-step CPU time [µs] of fmi2SetReal + fmi2DoStep + fmi2GetReal called through FMPy's
+    ctypes functions directly (no participant), with the outputs put in a dict."""
+    import ctypes
+
+    from hevsim.cosim.participant import FMUParticipant
+
+    p = FMUParticipant("direct", fmu)
+    p.setup(0.0)
+    sl = p.slave
+    comp, fns = sl.component, sl._functions
+    set_real, do_step, get_real = fns["fmi2SetReal"], fns["fmi2DoStep"], fns["fmi2GetReal"]
+    vin, val = (ctypes.c_uint * 1)(p.vr["u"]), (ctypes.c_double * 1)(0.0)
+    vout, buf = (ctypes.c_uint * 2)(p.vr["x0"], p.vr["x1"]), (ctypes.c_double * 2)()
+    c0 = time.process_time()
+    for k in range(steps):
+        set_real(comp, vin, 1, val)
+        do_step(comp, k * H, H, 1)
+        get_real(comp, vout, 2, buf)
+        dict(zip(("x0", "x1"), buf, strict=True))
+    dt = time.process_time() - c0
     p.terminate()
     return dt / steps * 1e6
 
 
-def master_us(fmu: Path, steps: int, cls: type) -> float:
-    from hevsim.cosim import FunctionParticipant, simulate
+def _system(fmu: Path, cls: type, n_fmus: int) -> tuple[list[Any], list[Any]]:
+    """``n_fmus`` FMUs in a ring (x0 -> u), or (0) one FMU fed by a constant source."""
+    from hevsim.cosim import FunctionParticipant
     from hevsim.cosim.master import Connection
 
-    # a constant source feeds u, so the FMU gets set + doStep + get every step, like raw_cost_us
-    src = FunctionParticipant("src", lambda t, h, x, u: (x, {"u": 0.0}), 0, {"u": 0.0}, {})
-    res = simulate(
-        [src, cls("vdp", fmu)], [Connection("src", "u", "vdp", "u")], stop_time_s=steps * H, step_s=H
-    )
-    return float(res.stats["wall_s"]) / steps * 1e6
+    if n_fmus == 0:
+        src = FunctionParticipant("src", lambda t, h, x, u: (x, {"u": 0.0}), 0, {"u": 0.0}, {})
+        return [src, cls("vdp", fmu)], [Connection("src", "u", "vdp", "u")]
+    conns = [Connection(f"v{i - 1 if i else n_fmus - 1}", "x0", f"v{i}", "u") for i in range(n_fmus)]
+    return [cls(f"v{i}", fmu) for i in range(n_fmus)], conns
+
+
+def master_cpu_us(fmu: Path, steps: int, n_fmus: int) -> float:
+    """Per-step CPU time [µs] of ``simulate`` with in-process FMUs (:func:`_system`), from the
+    difference of a run of 2 ``steps`` and one of ``steps`` (setup excluded)."""
+    from hevsim.cosim import simulate
+    from hevsim.cosim.participant import FMUParticipant
+
+    cpu = []
+    for n in (steps, 2 * steps):
+        parts, conns = _system(fmu, FMUParticipant, n_fmus)
+        c0 = time.process_time()
+        simulate(parts, conns, stop_time_s=n * H, step_s=H)
+        cpu.append(time.process_time() - c0)
+    return (cpu[1] - cpu[0]) / steps * 1e6
+
+
+def _proc_cpu_s(pid: int) -> float | None:
+    """CPU time [s] (user + system) of process ``pid`` so far (Linux /proc; None elsewhere)."""
+    try:
+        f = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def worker_us(
+    fmu: Path, steps: int, n_fmus: int = 0, parallel: bool = True
+) -> tuple[float, float, float | None]:
+    """Per step over the stepping loop of worker-process FMUs (:func:`_system`; Jacobi, the
+    workers started together unless not ``parallel``): (wall [µs], master CPU [µs], workers'
+    CPU [µs] or None)."""
+    from hevsim.cosim import simulate
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
+    parts, conns = _system(fmu, WorkerFMUParticipant, n_fmus)
+    workers = [p for p in parts if isinstance(p, WorkerFMUParticipant)]
+    if not parallel:
+        for p in workers:
+            p.start_step = None  # type: ignore[assignment,method-assign]
+    marks: list[tuple[float, float, float | None]] = []
+
+    def mark(t: float, stop: float) -> None:  # at the end of the first and of the last step
+        if not marks or t >= stop - H / 2:
+            cpu = [_proc_cpu_s(p.proc.pid) for p in workers]
+            total = None if None in cpu else sum(c for c in cpu if c is not None)
+            marks.append((time.perf_counter(), time.process_time(), total))
+
+    simulate(parts, conns, stop_time_s=steps * H, step_s=H, progress=mark)
+    (w0, c0, p0), (w1, c1, p1) = marks[0], marks[-1]
+    n = steps - 1
+    wcpu = (p1 - p0) / n * 1e6 if p0 is not None and p1 is not None else None
+    return (w1 - w0) / n * 1e6, (c1 - c0) / n * 1e6, wcpu
 
 
 def cli_ratio(d: Path, fmu: Path, ssd: Path, steps: int) -> tuple[float, float]:
@@ -152,7 +251,8 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=10_000)
     ap.add_argument("--skip-cli", action="store_true", help="skip the fresh-process CLI comparison")
     a = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
+    print("load average at start: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg()))
+    with tempfile.TemporaryDirectory() as tmp, OtherLoad() as load:
         d = Path(tmp)
         fmu = build_vdp(d)
         ssd = write_system(d, fmu, a.steps)
@@ -167,17 +267,24 @@ def main() -> None:
             f"  hevsim run_cosim (files, plots): {th:7.3f} s   ratio {th / tf:5.2f} (target {TARGET_RATIO})"
         )
         print(f"    of which the master loop     : {ms:7.3f} s   ratio {ms / tf:5.2f}")
-        raw = raw_cost_us(fmu, a.steps)
-        from hevsim.cosim.participant import FMUParticipant
-        from hevsim.cosim.worker import WorkerFMUParticipant
-
-        tot = master_us(fmu, a.steps, FMUParticipant)
-        print(f"  raw FMI set+doStep+get per step: {raw:7.2f} µs")
-        print(f"  master per step (in process)   : {tot:7.2f} µs; own overhead {tot - raw:6.2f} µs per step "
-              f"per FMU (target {TARGET_OVERHEAD_US}; the source participant step included)")  # fmt: skip
-        wsteps = max(a.steps // 5, 200)
-        tw = master_us(fmu, wsteps, WorkerFMUParticipant)
-        print(f"  worker-process FMU per step    : {tw:7.2f} µs (target <= {TARGET_WORKER_US})")
+        print("  master overhead (CPU time per step, setup excluded; medians of 5 interleaved runs):")
+        for k, what in ((2, "2 FMUs feeding each other"), (0, "1 FMU fed by a Python source")):
+            pairs = [(raw_cost_us(fmu, a.steps, max(k, 1)), master_cpu_us(fmu, a.steps, k)) for _ in range(5)]
+            raw = statistics.median(r for r, _ in pairs)
+            tot = statistics.median(m for _, m in pairs)
+            per = max(k, 1)
+            print(f"    {what:28s}: raw set+doStep+get {raw:6.2f} µs, master {tot:6.2f} µs, own overhead "
+                  f"{(tot - raw) / per:5.2f} µs per step per FMU (target {TARGET_OVERHEAD_US})")  # fmt: skip
+        direct = statistics.median(direct_cost_us(fmu, a.steps) for _ in range(5))
+        print(f"    FMI calls through FMPy's ctypes functions directly: {direct:6.2f} µs per step per FMU")
+        ws = [worker_us(fmu, a.steps) for _ in range(2)]
+        tw, cm, cw = min(ws, key=lambda r: r[0])
+        cpu = f"; CPU: master {cm:.1f} µs + worker {cw:.1f} µs" if cw is not None else ""
+        print(f"  worker-process FMU per step    : {tw:7.2f} µs wall (target <= {TARGET_WORKER_US}){cpu}")
+        par = min(worker_us(fmu, a.steps // 2, 2)[0] for _ in range(2))
+        seq = min(worker_us(fmu, a.steps // 2, 2, parallel=False)[0] for _ in range(2))
+        print(f"  2 worker FMUs feeding each other (Jacobi): {par:7.2f} µs per step stepping together, "
+              f"{seq:7.2f} µs one after the other")  # fmt: skip
         print("  scaling (run_cosim, in process):")
         print("     steps   hevsim [s]   fmpy [s]   ratio   hevsim per 1k steps [s]")
         for n in (1000, 2000, 4000, 8000):
@@ -189,6 +296,7 @@ def main() -> None:
             t_cli, t_fp = cli_ratio(d, fmu, ssd, a.steps)
             print(f"  fresh process: hevsim cosim {t_cli:.2f} s, python -c simulate_fmu {t_fp:.2f} s, "
                   f"ratio {t_cli / t_fp:.2f}")  # fmt: skip
+    print(load.text() + "; load average at end: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg()))
 
 
 if __name__ == "__main__":
