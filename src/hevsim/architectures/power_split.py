@@ -162,28 +162,12 @@ def _sun_speed_many(w_e, w_r, sun_teeth, ring_teeth):
 
 
 @njit(cache=True, inline="always")
-def mechanical_point(
-    wheel_speed_radps,
-    wheel_torque_nm,
-    engine_speed_radps,
-    throttle,
-    w_cmd_min,
-    grid_duplicates,
-    d,
-    etab,
-    gtab,
-):
-    """The state-independent half at one point (THE scalar kernel; see :func:`mechanical`).
-
-    ``w_cmd_min`` [rad/s]: the smallest commanded engine speed of the grid (with
-    ``grid_duplicates``); ``d``: :class:`PowerSplitTables`; ``etab``, ``gtab``: the engine's
-    and MG1's tables. Returns (on, engine_speed, generator_torque, generator_speed,
-    motor_speed, bad, w_ring, t_ring, w_e, t_e, fuel, w_sun, t_gen, p_gen, t_e_ring, w_em,
-    t_em_req).
-    """
-    zs, zr = d.sun_teeth, d.ring_teeth
-    w_r = wheel_speed_radps * d.final_drive_ratio
-    t_ring = gear_input_torque(wheel_torque_nm, d.final_drive_ratio, d.final_drive_efficiency)
+def engine_point(engine_speed_radps, throttle, d, etab):
+    """The engine half of :func:`mechanical_point` (scalar kernel): the operating point of
+    one control, which does not depend on the wheels (compiled loops compute it once per
+    candidate and run). ``d``: :class:`PowerSplitTables`; ``etab``: the engine's tables.
+    Returns (fired, on, engine speed out of its window, engine speed [rad/s], torque [N·m],
+    fuel rate [kg/s])."""
     fired = throttle > 0.0
     w_e = engine_speed_radps if fired else 0.0
     can_run = w_e >= d.stall_radps and w_e <= d.redline_radps
@@ -198,6 +182,20 @@ def mechanical_point(
             t_e, w_e, d.use_fuel_map, d.lhv_jpkg, d.stall_radps, d.redline_radps, d.engine_torque_scale,
             etab.tmax_x, etab.tmax_y, etab.fuel_x, etab.fuel_y, etab.fuel_z,
         )  # fmt: skip
+    return fired, on, fired and not can_run, w_e, t_e, fuel
+
+
+@njit(cache=True, inline="always")
+def drive_point(wheel_speed_radps, wheel_torque_nm, engine_speed_radps, w_cmd_min, grid_duplicates, eng, d,
+                gtab):  # fmt: skip
+    """The wheel half of :func:`mechanical_point` (scalar kernel): planetary set, MG1 and the
+    torque MG2 must give, from :func:`engine_point`'s result ``eng`` for the commanded engine
+    speed ``engine_speed_radps`` [rad/s]; other arguments and the result as
+    :func:`mechanical_point`."""
+    fired, on, engine_speed, w_e, t_e, fuel = eng
+    zs, zr = d.sun_teeth, d.ring_teeth
+    w_r = wheel_speed_radps * d.final_drive_ratio
+    t_ring = gear_input_torque(wheel_torque_nm, d.final_drive_ratio, d.final_drive_efficiency)
     w_s = sun_speed(w_e, w_r, zs, zr)
     t_g = -t_e * zs / (zs + zr)
     t_e_ring = t_e * zr / (zs + zr)
@@ -208,13 +206,38 @@ def mechanical_point(
                          gtab.eff_x, gtab.eff_y, gtab.eff_z)  # fmt: skip
     w_em = w_r * d.coupling_ratio
     motor_speed = abs(w_em) > d.motor_max_speed_radps
-    engine_speed = fired and not can_run
     bad = engine_speed or not np.isfinite(fuel) or gen_torque or gen_speed or motor_speed
     if grid_duplicates:
         bad = bad or (not fired and engine_speed_radps > w_cmd_min)
     t_em_req = gear_input_torque(t_ring - t_e_ring, d.coupling_ratio, d.coupling_efficiency)
     return (on, engine_speed, gen_torque, gen_speed, motor_speed, bad,
             w_r, t_ring, w_e, t_e, fuel, w_s, t_g, p_g, t_e_ring, w_em, t_em_req)  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def mechanical_point(
+    wheel_speed_radps,
+    wheel_torque_nm,
+    engine_speed_radps,
+    throttle,
+    w_cmd_min,
+    grid_duplicates,
+    d,
+    etab,
+    gtab,
+):
+    """The state-independent half at one point (THE scalar kernel; see :func:`mechanical`):
+    :func:`drive_point` of :func:`engine_point`.
+
+    ``w_cmd_min`` [rad/s]: the smallest commanded engine speed of the grid (with
+    ``grid_duplicates``); ``d``: :class:`PowerSplitTables`; ``etab``, ``gtab``: the engine's
+    and MG1's tables. Returns (on, engine_speed, generator_torque, generator_speed,
+    motor_speed, bad, w_ring, t_ring, w_e, t_e, fuel, w_sun, t_gen, p_gen, t_e_ring, w_em,
+    t_em_req).
+    """
+    eng = engine_point(engine_speed_radps, throttle, d, etab)
+    w, t, w_cmd = wheel_speed_radps, wheel_torque_nm, engine_speed_radps
+    return drive_point(w, t, w_cmd, w_cmd_min, grid_duplicates, eng, d, gtab)
 
 
 MECH_FLAGS: tuple[str, ...] = (

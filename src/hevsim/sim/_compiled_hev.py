@@ -223,12 +223,14 @@ def _feasible(infeasible, others, cur, t_em, p_bat, soc, h):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _point(arch, c0, c1, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want, det, loss):
+def _point(arch, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want, det, loss):
     """The power flow of one candidate control (``c0``, ``c1``) at one step: (feasible, fuel
-    [kg] over the step, SOC change [-], engine power [W]). ``bat``: :func:`_battery` at
-    ``soc``; ``md``: (:class:`HEVConstants`, parallel and power-split tables, engine, motor
-    and generator tables). With ``want``, fills the architecture's details (``det``) and
-    audit terms (``loss``, [W])."""
+    [kg] over the step, SOC change [-], engine power [W]). ``eng``: the power split's
+    :func:`~hevsim.architectures.power_split.engine_point` of the control (:func:`_engine`;
+    unused by the parallel HEV); ``bat``: :func:`_battery` at ``soc``; ``md``:
+    (:class:`HEVConstants`, parallel and power-split tables, engine, motor and generator
+    tables). With ``want``, fills the architecture's details (``det``) and audit terms
+    (``loss``, [W])."""
     ocv, r_dis, r_chg, p_chg = bat
     h, dpar, dps, etab, mtab, gtab = md
     if arch == PARALLEL:
@@ -245,8 +247,8 @@ def _point(arch, c0, c1, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want, det
                 loss[j] = lo[j]
             P.details_point(gi, on, w_e, t_e, c1, fuel, w_em, t, p_el, cur, p_bat, lo[5], dpar.p2, det)
         return ok, fuel * dt, d_soc, t_e * (w_e if on else 0.0)
-    on, es, gt, gs, ms, bad, w_r, t_r, w_e, t_e, fuel, w_s, t_g, p_g, t_er, w_em, t_req = PS.mechanical_point(
-        w_wheel, t_wheel, c0, c1, 0.0, False, dps, etab, gtab
+    on, es, gt, gs, ms, bad, w_r, t_r, w_e, t_e, fuel, w_s, t_g, p_g, t_er, w_em, t_req = PS.drive_point(
+        w_wheel, t_wheel, c0, 0.0, False, eng, dps, gtab
     )
     oth, inf, t, p_el, p_bat, cur, d_soc = _electric(
         t_req, w_em, p_g + h.aux_power_w, regen_ok, soc, dt, ocv, r_dis, r_chg, p_chg, h, mtab
@@ -260,6 +262,28 @@ def _point(arch, c0, c1, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want, det
             loss[j] = lo[j]
         PS.details_point(on, w_e, t_e, c1, fuel, w_s, t_g, p_g, w_em, t, p_el, w_r, cur, p_bat, lo[5], det)
     return ok, fuel * dt, d_soc, t_e * w_e
+
+
+NO_ENGINE = (False, False, False, 0.0, 0.0, 0.0)
+"""The ``eng`` argument of :func:`_point` for the parallel HEV (unused)."""
+
+
+@njit(cache=True, inline="always")
+def _engine(eng_flags, eng_floats, i):
+    """Candidate ``i``'s :func:`~hevsim.architectures.power_split.engine_point`, as
+    :func:`_engine_cache` stored it."""
+    return (eng_flags[0, i], eng_flags[1, i], eng_flags[2, i], eng_floats[0, i], eng_floats[1, i],
+            eng_floats[2, i])  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def _engine_cache(cand0, cand1, dps, etab, eng_flags, eng_floats):
+    """Store every candidate's :func:`~hevsim.architectures.power_split.engine_point` (it
+    does not depend on the step: computed once per run instead of once per step)."""
+    for i in range(cand0.shape[0]):
+        r = PS.engine_point(cand0[i], cand1[i], dps, etab)
+        eng_flags[0, i], eng_flags[1, i], eng_flags[2, i] = r[0], r[1], r[2]
+        eng_floats[0, i], eng_floats[1, i], eng_floats[2, i] = r[3], r[4], r[5]
 
 
 # ------------------------------------------------------------------------- controllers
@@ -290,7 +314,7 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
     control of every candidate, the electric assist's throttle grid); ``buf``: work arrays."""
     cand0, cand1, thr_grid = cands
     h, dpar, _, etab, _, _ = md
-    cost, fuel, p_eng, feas, near, det, loss, p_cand = buf
+    cost, fuel, p_eng, feas, near, det, loss, p_cand, e_flags, e_floats = buf
     regen_ok = v_mid > 0.0
     n = cand0.shape[0]
     p_dem = t_wheel * w_wheel
@@ -321,7 +345,9 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
                     i_max, t_max = i, te
             if any_ok:
                 c1 = thr_grid[first_above if first_above >= 0 else i_max]
-        ok = _point(arch, c0, c1, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss)[0]
+        ok = _point(arch, c0, c1, NO_ENGINE, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss)[
+            0
+        ]
         if ok:
             return True, c0, c1
     elif cc.code == AECMS:
@@ -335,7 +361,20 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
             if (
                 cand1[i] == 0.0
                 and _point(
-                    arch, cand0[i], cand1[i], w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
+                    arch,
+                    cand0[i],
+                    cand1[i],
+                    _engine(e_flags, e_floats, i),
+                    w_wheel,
+                    t_wheel,
+                    regen_ok,
+                    soc,
+                    dt,
+                    bat,
+                    md,
+                    False,
+                    det,
+                    loss,
                 )[0]
             ):
                 return True, cand0[i], cand1[i]
@@ -350,7 +389,20 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
             near[i] = cand1[i] != 0.0 and abs(p_cand[i] - target) <= band
             if near[i]:
                 feas[i], fuel[i], d_soc, p_eng[i] = _point(
-                    arch, cand0[i], cand1[i], w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
+                    arch,
+                    cand0[i],
+                    cand1[i],
+                    _engine(e_flags, e_floats, i),
+                    w_wheel,
+                    t_wheel,
+                    regen_ok,
+                    soc,
+                    dt,
+                    bat,
+                    md,
+                    False,
+                    det,
+                    loss,
                 )
                 near[i] = feas[i]
                 any_near = any_near or near[i]
@@ -359,14 +411,40 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
         else:
             for i in range(n):
                 feas[i], fuel[i], d_soc, p_eng[i] = _point(
-                    arch, cand0[i], cand1[i], w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
+                    arch,
+                    cand0[i],
+                    cand1[i],
+                    _engine(e_flags, e_floats, i),
+                    w_wheel,
+                    t_wheel,
+                    regen_ok,
+                    soc,
+                    dt,
+                    bat,
+                    md,
+                    False,
+                    det,
+                    loss,
                 )
                 cost[i] = abs(p_eng[i] - target)
             i = _argmin(cost, feas, n)
     else:
         for i in range(n):  # every candidate: ECMS score, fuel, engine power
             feas[i], fuel[i], d_soc, p_eng[i] = _point(
-                arch, cand0[i], cand1[i], w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
+                arch,
+                cand0[i],
+                cand1[i],
+                _engine(e_flags, e_floats, i),
+                w_wheel,
+                t_wheel,
+                regen_ok,
+                soc,
+                dt,
+                bat,
+                md,
+                False,
+                det,
+                loss,
             )
             cost[i] = fuel[i] / dt * h.lhv_jpkg + s * (-d_soc / dt * e_soc)
         i = _argmin(cost, feas, n)
@@ -444,11 +522,11 @@ def run_hev(
     dt = t[1] - t[0]
     cands = (cand0, cand1, thr_grid)
     md = (h, dpar, dps, etab, mtab, gtab)
-    det, loss, p_cand = buf[5], buf[6], buf[7]
-    if cc.code == POWER_FOLLOWER:  # each candidate's engine power [W]: the same kernel as _point
+    det, loss, p_cand, e_flags, e_floats = buf[5], buf[6], buf[7], buf[8], buf[9]
+    if arch == POWER_SPLIT:  # each candidate's engine operating point and power [W]
+        _engine_cache(cand0, cand1, dps, etab, e_flags, e_floats)
         for i in range(cand0.shape[0]):
-            r_i = PS.mechanical_point(0.0, 0.0, cand0[i], cand1[i], 0.0, False, dps, etab, gtab)
-            p_cand[i] = r_i[9] * r_i[8]
+            p_cand[i] = e_floats[1, i] * e_floats[0, i]
     nd = det.shape[0]
     nl = loss.shape[0]
     m_eff = h.mass_kg * h.mass_factor
@@ -492,8 +570,9 @@ def run_hev(
             v_mid, a, g, f, c0, c1 = bv, ba, bg, bf, bc0, bc1
             v1 = v_mid * 2.0 - v
         w_wheel, t_wheel = v_mid / r, f * r
+        eng = PS.engine_point(c0, c1, dps, etab) if arch == POWER_SPLIT else NO_ENGINE
         _, fuel_kg, d_soc, _ = _point(
-            arch, c0, c1, w_wheel, t_wheel, v_mid > 0.0, soc, dt, bat, md, True, det, loss
+            arch, c0, c1, eng, w_wheel, t_wheel, v_mid > 0.0, soc, dt, bat, md, True, det, loss
         )
         if cc.code == AECMS:  # update: integrate the SOC error of the step taken
             state[2] += (state[3] - cc.kin * v_mid**2 / e_soc - soc) * dt
@@ -584,7 +663,8 @@ def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_m
     )
     nc = cand0.size
     buf = (np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc, np.bool_), np.empty(nc, np.bool_),
-           np.zeros(len(mod.DETAILS)), np.zeros(len(mod.LOSS_TERMS)), np.zeros(nc))  # fmt: skip
+           np.zeros(len(mod.DETAILS)), np.zeros(len(mod.LOSS_TERMS)), np.zeros(nc),
+           np.zeros((3, nc), np.bool_), np.zeros((3, nc)))  # fmt: skip
     status, k, v_end = run_hev(arch, cc, float(soc0), t, v_des, gr, cand0, cand1, thr, h, dpar, dps, etab,
                                mtab, gtab, ptab, cols, audit, summary, state, buf)  # fmt: skip
     if status == ERR_STUCK:
