@@ -601,8 +601,10 @@ def _cmd_flow(args: argparse.Namespace) -> int:
     print(format_flow(res))
     if res.cht is not None:
         from hevsim.thermal.cht import format_cht
+        from hevsim.thermal.pictures import add_coolant_pictures
 
         print(format_cht(res.cht))
+        add_coolant_pictures(res.cht, out)  # coolant temperature pictures (thesis figs 4.30-4.31)
     print(f"results written to {out}/ ({_written(out)})")
     return 0
 

@@ -16,6 +16,7 @@ matplotlib is imported only inside the drawing functions.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -329,6 +330,61 @@ def plot_cells_top(mesh: Any, disc: Any, geometry: Any, temp_c: Any, time_s: flo
     return _save(fig, path)
 
 
+@dataclass(frozen=True)
+class PlateFace:
+    """Temperature of the cooling plate's top face: ``xy_m`` (N, 2) [m] node coordinates,
+    ``temp_c`` (N,) [°C], ``triangles`` (T, 3) a triangulation of the nodes, the plate's
+    ``length_x_m``, ``length_y_m`` [m] and ``channel_path_m`` (P, 3) [m] (the channel centre
+    line, or None). Plain arrays: it pickles, so a worker process can return it."""
+
+    xy_m: np.ndarray
+    temp_c: np.ndarray
+    triangles: np.ndarray
+    length_x_m: float
+    length_y_m: float
+    channel_path_m: np.ndarray | None
+
+    @property
+    def spread_k(self) -> float:
+        """Hottest minus coldest top-face node [K]."""
+        return float(self.temp_c.max() - self.temp_c.min())
+
+
+def plate_top_face(
+    mesh: Any, disc: Any, geometry: Any, temp_c: Any, where: str = "plate picture"
+) -> PlateFace:
+    """The plate's top face (``z = plate_thickness_m``) of a module temperature field [°C]."""
+    from matplotlib.tri import Triangulation
+
+    g = geometry
+    t = check_field(mesh, disc, temp_c, where)
+    names = list(mesh.part_names)
+    if "plate" not in names:
+        raise InputError(f"{where}: the mesh has no part 'plate'; parts are {names}.")
+    tol = 1e-6 * g.plate_thickness_m + 1e-9
+    top = np.flatnonzero(
+        (disc.node_part == names.index("plate")) & (np.abs(disc.points_m[:, 2] - g.plate_thickness_m) < tol)
+    )
+    if top.size < 3:
+        raise InputError(
+            f"{where}: {top.size} plate nodes at z = plate_thickness_m = {g.plate_thickness_m} m; "
+            "expected the plate's top face (is the geometry the mesh's?)."
+        )
+    xy = np.asarray(disc.points_m[top, :2], dtype=float)
+    path = None if mesh.channel_path_m is None else np.asarray(mesh.channel_path_m, dtype=float)
+    tri = Triangulation(xy[:, 0], xy[:, 1]).triangles
+    return PlateFace(xy, t[top], np.asarray(tri), float(g.length_x_m), float(g.length_y_m), path)
+
+
+def _face_image(face: PlateFace, width_px: int = 640) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+    """The face rasterised [°C] on a pixel grid over the plate, and its extent [mm]."""
+    lx, ly = face.length_x_m * 1e3, face.length_y_m * 1e3
+    extent = (0.0, lx, 0.0, ly)
+    xy = face.xy_m * 1e3
+    shape = (max(8, round(width_px * ly / lx)), width_px)
+    return raster_triangles(xy[face.triangles], face.temp_c[face.triangles], extent, shape), extent
+
+
 def plot_plate(mesh: Any, disc: Any, geometry: Any, temp_c: Any, time_s: float, path: str | Path) -> Path:
     """Temperature of the cooling plate's top face (thesis fig 4.30) with the channel path.
 
@@ -340,27 +396,13 @@ def plot_plate(mesh: Any, disc: Any, geometry: Any, temp_c: Any, time_s: float, 
     from matplotlib.tri import Triangulation
 
     g = geometry
-    t = check_field(mesh, disc, temp_c, "plate picture")
-    names = list(mesh.part_names)
-    if "plate" not in names:
-        raise InputError(f"plate picture: the mesh has no part 'plate'; parts are {names}.")
-    tol = 1e-6 * g.plate_thickness_m + 1e-9
-    top = np.flatnonzero(
-        (disc.node_part == names.index("plate")) & (np.abs(disc.points_m[:, 2] - g.plate_thickness_m) < tol)
-    )
-    if top.size < 3:
-        raise InputError(
-            f"plate picture: {top.size} plate nodes at z = plate_thickness_m = {g.plate_thickness_m} m; "
-            "expected the plate's top face (is the geometry the mesh's?)."
-        )
-    xy, tt = disc.points_m[top, :2] * 1e3, t[top]
+    face = plate_top_face(mesh, disc, geometry, temp_c)
+    xy, tt = face.xy_m * 1e3, face.temp_c
     lx, ly = g.length_x_m * 1e3, g.length_y_m * 1e3
-    tri = Triangulation(xy[:, 0], xy[:, 1])
+    tri = Triangulation(xy[:, 0], xy[:, 1], face.triangles)
     t_lo, t_hi = float(tt.min()), max(float(tt.max()), float(tt.min()) + 1e-6)
     norm = Normalize(t_lo, t_hi)
-    extent = (0.0, lx, 0.0, ly)
-    shape = (max(8, round(640 * ly / lx)), 640)
-    img = raster_triangles(xy[tri.triangles], tt[tri.triangles], extent, shape)
+    img, extent = _face_image(face)
     fig = Figure(figsize=(9.5, 1.6 + 7.0 * ly / lx), layout="constrained")
     ax = fig.add_subplot()
     pc = ax.imshow(img, origin="lower", extent=extent, cmap=FIELD_CMAP, norm=norm, interpolation="nearest")
@@ -544,15 +586,185 @@ def plot_fields(
     ]
 
 
+def plot_plate_comparison(
+    faces: Sequence[PlateFace], titles: Sequence[str], path: str | Path, suptitle: str = ""
+) -> Path:
+    """Top faces of several cooling plates, one panel each (stacked), on one colour scale [°C],
+    with their channel centre lines and the hottest and coldest points; for comparing plate
+    layouts side by side (``examples/plate_comparison``). Returns ``path``."""
+    from matplotlib import patheffects
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
+
+    if not faces or len(faces) != len(titles):
+        raise InputError(
+            f"plate comparison: {len(faces)} plate faces and {len(titles)} titles; expected one title per "
+            "face and at least one face."
+        )
+    t_lo = min(float(f.temp_c.min()) for f in faces)
+    t_hi = max(max(float(f.temp_c.max()) for f in faces), t_lo + 1e-6)
+    norm = Normalize(t_lo, t_hi)
+    lx = max(f.length_x_m for f in faces) * 1e3
+    ly = max(f.length_y_m for f in faces) * 1e3
+    fig = Figure(figsize=(8.0, len(faces) * (0.9 + 6.0 * ly / lx) + 0.6), layout="constrained")
+    axes = fig.subplots(len(faces), 1, squeeze=False)[:, 0]
+    glow = [patheffects.withStroke(linewidth=2.2, foreground="black")]
+    pc: Any = None
+    for ax, face, title in zip(axes, faces, titles, strict=True):
+        img, extent = _face_image(face)
+        pc = ax.imshow(
+            img, origin="lower", extent=extent, cmap=FIELD_CMAP, norm=norm, interpolation="nearest"
+        )
+        if face.channel_path_m is not None:
+            cp = face.channel_path_m * 1e3
+            ax.plot(cp[:, 0], cp[:, 1], color="white", ls="--", lw=1.0, path_effects=glow)
+            ax.annotate("in", (cp[0, 0], cp[0, 1]), xytext=(-3, 0), textcoords="offset points", ha="right",
+                        va="center", fontsize=7)  # fmt: skip
+            ax.annotate("out", (cp[-1, 0], cp[-1, 1]), xytext=(3 if cp[-1, 0] > lx / 2 else -3, 0),
+                        textcoords="offset points", ha="left" if cp[-1, 0] > lx / 2 else "right",
+                        va="center", fontsize=7)  # fmt: skip
+        xy = face.xy_m * 1e3
+        for i, style in ((int(np.argmax(face.temp_c)), "r^"), (int(np.argmin(face.temp_c)), "bv")):
+            ax.plot(xy[i, 0], xy[i, 1], style, ms=7, mec="black", clip_on=False, zorder=5)
+        ax.set_xlim(-0.08 * lx, 1.08 * lx)
+        ax.set_ylim(-0.04 * ly, 1.04 * ly)
+        ax.set_aspect("equal")
+        ax.set_ylabel("y [mm]")
+        ax.set_title(
+            f"{title}: {face.temp_c.min():.2f} (▼) .. {face.temp_c.max():.2f} °C (▲), spread "
+            f"{face.spread_k:.2f} K",
+            fontsize=9,
+        )
+    axes[-1].set_xlabel("x [mm]")
+    fig.colorbar(pc, ax=list(axes), label="plate top-face temperature [°C]", shrink=0.9)
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=10)
+    return _save(fig, path)
+
+
+def coolant_midplane_c(
+    res: Any, spacing_m: float = 5e-4
+) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+    """Coolant temperature [°C] of a heat-transfer run (:class:`hevsim.thermal.cht.ChtResult`)
+    in the channel's mid-height plane, sampled on a pixel grid of ``spacing_m`` [m] (NaN
+    outside the channel), and its extent ``(x0, x1, y0, y1)`` [mm]. The P2 field is evaluated
+    exactly at the pixel centres."""
+    from hevsim.units import KELVIN_OFFSET
+
+    model = res.model
+    boxes = np.asarray(model.channel.boxes, dtype=float)
+    x0, x1 = float(boxes[:, 0].min()), float(boxes[:, 1].max())
+    y0, y1 = float(boxes[:, 2].min()), float(boxes[:, 3].max())
+    z = 0.5 * float(boxes[0, 4] + boxes[0, 5])
+    nx, ny = max(2, round((x1 - x0) / spacing_m)), max(2, round((y1 - y0) / spacing_m))
+    xc = x0 + (np.arange(nx) + 0.5) * (x1 - x0) / nx
+    yc = y0 + (np.arange(ny) + 0.5) * (y1 - y0) / ny
+    gx, gy = np.meshgrid(xc, yc)
+    inside = np.zeros(gx.shape, dtype=bool)
+    for bx0, bx1, by0, by1, *_ in boxes:
+        inside |= (gx > bx0) & (gx < bx1) & (gy > by0) & (gy < by1)
+    img = np.full(gx.shape, np.nan)
+    pts = np.vstack([gx[inside], gy[inside], np.full(int(inside.sum()), z)])
+    img[inside] = model.basis.probes(pts) @ np.asarray(res.temp_k) - KELVIN_OFFSET
+    return img, (x0 * 1e3, x1 * 1e3, y0 * 1e3, y1 * 1e3)
+
+
+def bulk_temperature_1d_k(res: Any) -> np.ndarray:
+    """Bulk coolant temperature [K] at the segment ends (inlet first) of the 1-D channel model
+    for the wall temperatures of a heat-transfer run: each segment relaxes the bulk towards its
+    wall temperature by ``exp(-h A / (m_dot c_p))`` with the 1-D model's film ``h``
+    (:meth:`hevsim.thermal.coolant.ChannelModel.fluid_temperature_k`) and the run's wall area."""
+    m, seg = res.metrics, res.segments
+    ntu = seg["film_1d_w_m2k"] * seg["wall_area_m2"] / res.model.capacity_rate_w_k
+    out = [float(m["inlet_temp_k"])]
+    for decay in np.exp(-ntu):
+        out.append(m["wall_temp_k"] + (out[-1] - m["wall_temp_k"]) * decay)
+    return np.array(out)
+
+
+def plot_coolant(res: Any, path: str | Path) -> Path:
+    """Pictures of a coolant heat-transfer run (``hevsim flow --thermal``,
+    :class:`hevsim.thermal.cht.ChtResult`), the coolant side of the thesis's figs 4.30-4.31:
+    top, the coolant temperature in the channel's mid-height plane (top view); bottom, the bulk
+    (mixing-cup) temperature along the channel from the 3-D field and from the 1-D channel
+    model, with the wall and the outlet temperatures. Returns ``path``."""
+    from matplotlib.figure import Figure
+
+    from hevsim.units import KELVIN_OFFSET as c0
+
+    img, extent = coolant_midplane_c(res)
+    m, seg = res.metrics, res.segments
+    lx, ly = extent[1] - extent[0], extent[3] - extent[2]
+    fig = Figure(figsize=(8.0, 3.2 + 6.0 * ly / lx), layout="constrained")
+    top, bottom = fig.subplots(2, 1, height_ratios=[6.0 * ly / lx + 0.6, 2.8])
+    pc = top.imshow(img, origin="lower", extent=extent, cmap=FIELD_CMAP, interpolation="nearest")
+    axis = np.asarray(res.model.path_m) * 1e3
+    top.plot(axis[:, 0], axis[:, 1], color="white", ls=":", lw=0.8)
+    top.annotate("inlet", (axis[0, 0], axis[0, 1]), xytext=(4, 4), textcoords="offset points", ha="left",
+                 va="bottom", fontsize=7, bbox={"boxstyle": "round,pad=0.15", "fc": "white", "alpha": 0.8,
+                 "lw": 0})  # fmt: skip
+    top.set_aspect("equal")
+    top.set_xlabel("x [mm]")
+    top.set_ylabel("y [mm]")
+    top.set_title(
+        f"Coolant temperature at mid-height (z = {0.5 * sum(res.model.channel.boxes[0][4:6]) * 1e3:g} mm), "
+        f"wall {m['wall_temp_k'] - c0:g} °C, inlet {m['inlet_temp_k'] - c0:g} °C",
+        fontsize=9,
+    )
+    fig.colorbar(pc, ax=top, label="temperature [°C]", shrink=0.9)
+    length_mm = float(np.sum(np.linalg.norm(np.diff(axis, axis=0), axis=1)))
+    s_mm = np.linspace(0.0, length_mm, seg["heat_w"].size + 1)
+    bulk_3d = np.concatenate(([m["inlet_temp_k"]], seg["bulk_temp_k"]))
+    bottom.plot(s_mm, bulk_3d - c0, "o-", ms=3, label=f"3-D (outlet {m['outlet_temp_k'] - c0:.2f} °C)")
+    one_d = f"1-D channel, Nu {m['nusselt_1d']:.2f} (outlet {m['outlet_temp_1d_k'] - c0:.2f} °C)"
+    bottom.plot(s_mm, bulk_temperature_1d_k(res) - c0, "--", label=one_d)
+    bottom.axhline(m["wall_temp_k"] - c0, color="k", lw=0.8, ls=":", label="wall")
+    bottom.set_xlabel("distance along the channel [mm]")
+    bottom.set_ylabel("bulk temperature [°C]")
+    bottom.legend(fontsize=8)
+    bottom.set_title("Coolant bulk temperature along the channel", fontsize=9)
+    return _save(fig, path)
+
+
+def add_coolant_pictures(res: Any, out_dir: str | Path) -> list[Path]:
+    """Add ``coolant_temperature.png`` (:func:`plot_coolant`) to the results folder ``out_dir``
+    of a coolant heat-transfer run (``hevsim flow --thermal``, written by
+    :func:`hevsim.thermal.flow.run_flow`). The folder is rewritten through
+    :func:`hevsim.io.atomic_directory` with its files and the picture, so it is never seen
+    with a partial set and stays a hevsim results folder. Returns the pictures' paths."""
+    import shutil
+
+    from hevsim.io import MARKER, atomic_directory
+
+    out = Path(out_dir)
+    with atomic_directory(out) as tmp:
+        for f in out.iterdir():
+            if f.name == MARKER:
+                continue
+            if f.is_dir():
+                shutil.copytree(f, tmp / f.name)
+            else:
+                shutil.copy2(f, tmp / f.name)
+        made = [plot_coolant(res, tmp / "coolant_temperature.png")]
+    return [out / m.name for m in made]
+
+
 __all__ = [
     "FIELD_CMAP",
+    "PlateFace",
     "Section",
+    "add_coolant_pictures",
+    "bulk_temperature_1d_k",
     "cell_temperatures_c",
     "check_field",
+    "coolant_midplane_c",
+    "plate_top_face",
     "plot_cells_section",
     "plot_cells_top",
+    "plot_coolant",
     "plot_fields",
     "plot_plate",
+    "plot_plate_comparison",
     "raster_triangles",
     "row_y_m",
     "section_hot_points",
