@@ -18,7 +18,7 @@ _result_fd = os.dup(1)
 os.dup2(2, 1)
 def finish(out):
     os.write(_result_fd, json.dumps(out).encode())
-    os._exit(0)  # in-process pythonfmu FMUs can abort the interpreter at exit
+    os._exit(0)  # pythonfmu test FMUs can abort the host at exit (hevsim._pythonfmu_exit)
 """
 
 

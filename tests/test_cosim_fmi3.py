@@ -1,7 +1,8 @@
 """FMI 3.0 co-simulation FMUs (built with pythonfmu3) through FMPy.
 
 FMUs are loaded only in worker processes (:class:`WorkerFMUParticipant`) or in a child
-process: in-process pythonfmu FMUs can corrupt the heap of the host and abort it at exit.
+process: pythonfmu binaries still loaded at exit can abort the host (they release their
+interpreter handle twice, :mod:`hevsim._pythonfmu_exit`).
 """
 
 from __future__ import annotations

@@ -45,9 +45,10 @@ def test_fmu_oscillator_first_order(fmus: dict[str, Path], cls: type) -> None:
     assert errs[1] < 0.02
 
 
-# In-process FMPy + pythonfmu FMUs can corrupt the heap of the host process and abort it at
-# exit (../shared/DEPENDENCIES.md), so in-process runs happen in a child process that prints
-# its results as JSON and leaves with os._exit; the test process only loads FMUs in workers.
+# pythonfmu binaries still loaded at exit release their interpreter handle twice and can abort
+# the host (hevsim._pythonfmu_exit; hevsim cosim releases it, a bare FMPy host of these test
+# FMUs does not), so in-process runs happen in a child process that prints its results as JSON
+# and leaves with os._exit; the test process only loads FMUs in workers.
 _INPROCESS = """
 import numpy as np
 from hevsim.cosim import Connection, CosimFault, simulate

@@ -2,17 +2,16 @@
 the exported pythonfmu cell and module FMUs exit normally (no "corrupted double-linked list"
 abort at exit).
 
-The cause: numba's first JIT compilation inside the FMU's ``fmi2Instantiate`` (a call from C
-into the interpreter) leaves the heap corrupted when the process exits; the abort comes in the
-C library destructors after Python's finalisation, in about half the runs, with or without
-``dlclose``. The fix: the FMU's model module imports the cell kernels with the JIT off in a host
-that has not started numba (pure-Python kernels, same equations), and ``hevsim cosim`` starts
-the JIT before loading a pythonfmu FMU in process where numba is already imported or the FMU
-predates that guard (:func:`hevsim.cosim.participant.jit_first_needed`). Measured without the
-fixes: FMPy hosts of FMUs without the guard abort in 7-8 of 20 runs (the first test fails);
-``hevsim cosim`` hosts with neither part abort in 5 of 10 (either part alone: 0 of 10, so the
-second test fails only with both disabled). pythonfmu3 (FMI 3.0) FMUs are not exported
-(``--fmi-version 3`` is native only).
+The cause (found with valgrind): pythonfmu 0.7's binary resets its global
+``std::shared_ptr<PyState>`` in an ``__attribute__((destructor))`` function that glibc runs at
+exit after the C++ static destructor has already freed it, a write into freed heap memory
+(:mod:`hevsim._pythonfmu_exit`). The fix releases the pointer while the process runs: the FMU's
+model at the Python host's finalisation, ``hevsim cosim`` right after freeing the instance.
+Measured with numba compiling inside ``fmi2Instantiate`` (the heap state that aborts most):
+without the fix 3 of 10 FMPy hosts and 3 of 10 ``hevsim cosim`` hosts abort, with it 0 of 10
+and 0 of 30. At 3 in 10, :data:`RUNS` clean hosts in a row happen by chance with probability
+0.7**12 = 1.4 % per test. pythonfmu3 (FMI 3.0) FMUs are not exported (``--fmi-version 3`` is
+native only).
 """
 
 from __future__ import annotations
@@ -30,7 +29,7 @@ pytest.importorskip("pythonfmu")
 from hevsim.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
-RUNS = 20
+RUNS = 12
 
 FMPY_HOST = """
 import sys
@@ -67,7 +66,8 @@ def run_hosts(cmd: list[str]) -> list[subprocess.CompletedProcess[str]]:
 
 def test_fmpy_hosts_exit_cleanly(fmus: list[Path]) -> None:
     """FMPy's ``simulate_fmu`` (instantiate, step, ``fmi2FreeInstance``, ``dlclose``) runs the
-    cell and the module FMU in each of 20 fresh host processes: all exit 0, same results."""
+    cell and the module FMU in each of :data:`RUNS` fresh host processes: all exit 0, same
+    results."""
     procs = run_hosts([sys.executable, "-c", FMPY_HOST, *map(str, fmus)])
     assert len({p.stdout for p in procs}) == 1
     lines = procs[0].stdout.splitlines()
@@ -77,8 +77,8 @@ def test_fmpy_hosts_exit_cleanly(fmus: list[Path]) -> None:
 
 
 def test_hevsim_cosim_hosts_exit_cleanly(fmus: list[Path], tmp_path: Path) -> None:
-    """``hevsim cosim`` with both FMUs in process, in 20 fresh processes: all exit 0 and write
-    the same results, equal to FMPy's run of the same FMUs."""
+    """``hevsim cosim`` with both FMUs in process, in :data:`RUNS` fresh processes: all exit 0
+    and write the same results, equal to FMPy's run of the same FMUs."""
     from hevsim.cosim.ssd import FMU_TYPE, Component, SystemDescription
     from hevsim.cosim.ssp_write import write_ssd
 
@@ -97,3 +97,50 @@ def test_hevsim_cosim_hosts_exit_cleanly(fmus: list[Path], tmp_path: Path) -> No
                          timeout=300, check=True).stdout.splitlines()  # fmt: skip
     got = [float(rows[-1][f"{p.stem}.voltage_v"]) for p in fmus]
     np.testing.assert_allclose(got, [float(line.split()[2]) for line in ref], rtol=1e-12)
+
+
+RELEASE_PROBE = """
+import atexit, sys
+from fmpy import simulate_fmu
+import hevsim._pythonfmu_exit as x
+
+calls = []
+original = x.release_pythonfmu_state
+x.release_pythonfmu_state = lambda dll: calls.append(dll._name) or original(dll)
+simulate_fmu(sys.argv[1], stop_time=2.0, output_interval=1.0, fmi_type="CoSimulation")
+print(len(x._REGISTERED))
+atexit._run_exitfuncs()
+print(calls[0].endswith(".so"), len(calls))
+"""
+
+
+def test_pythonfmu_handle_released_before_exit(fmus: list[Path]) -> None:
+    """The exported model registers the release of its library's interpreter handle in a
+    Python host (FMPy), and it runs at the interpreter's exit on the still loaded library;
+    ``hevsim cosim`` releases it when it frees the instance."""
+    proc = subprocess.run([sys.executable, "-c", RELEASE_PROBE, str(fmus[0])], capture_output=True,
+                          text=True, timeout=300, check=True)  # fmt: skip
+    assert proc.stdout.split() == ["1", "True", "1"], proc.stdout + proc.stderr[-2000:]
+
+
+PARTICIPANT_PROBE = """
+import sys
+import hevsim.cosim.participant as participant
+
+released = []
+original = participant.release_pythonfmu_state
+participant.release_pythonfmu_state = lambda dll: released.append(dll._name) or original(dll)
+p = participant.FMUParticipant("cell", sys.argv[1], {})
+p.setup(0.0)
+p.do_step(0.0, 1.0)
+p.terminate()
+print(len(released), released[0].endswith(".so"))
+"""
+
+
+def test_hevsim_participant_releases_pythonfmu_handle(fmus: list[Path]) -> None:
+    """``FMUParticipant.terminate`` (what ``hevsim cosim`` runs in process) hands the FMU's
+    library to the release once it has freed the instance."""
+    proc = subprocess.run([sys.executable, "-c", PARTICIPANT_PROBE, str(fmus[0])], capture_output=True,
+                          text=True, timeout=300, check=True)  # fmt: skip
+    assert proc.stdout.split() == ["1", "True"], proc.stdout + proc.stderr[-2000:]

@@ -82,7 +82,7 @@ def main() -> None:
 
 def serve(rfd: int, wfd: int) -> None:
     """Answer the requests read from ``rfd`` on ``wfd`` until ``quit`` or end of input."""
-    from hevsim.cosim.participant import FMUParticipant, start_jit_before_pythonfmu
+    from hevsim.cosim.participant import FMUParticipant
 
     p: FMUParticipant | None = None
     in_names: tuple[str, ...] = ()
@@ -112,10 +112,6 @@ def serve(rfd: int, wfd: int) -> None:
                 res = (ok, pref, p.terminate_requested, p.terminate_time, outs)
             elif cmd == "open":
                 _, name, fmu, parameters, log_level, fmu_log = req
-                if _runs_hevsim_kernels(fmu):
-                    # compiled kernels for hevsim's pythonfmu FMUs, as before their guard (this
-                    # process leaves with os._exit, so the exit abort cannot happen here)
-                    start_jit_before_pythonfmu()
                 p = FMUParticipant(name, fmu, parameters, log_level=log_level, fmu_log=fmu_log)
                 res = (p.inputs, p.outputs, p.can_save_state, p.state_note, dict(p.types))
             elif cmd == "quit":
@@ -148,19 +144,6 @@ def _other(p: Any, cmd: str, args: tuple[Any, ...]) -> Any:
     else:
         raise ValueError(f"unknown command {cmd!r}")
     return None
-
-
-def _runs_hevsim_kernels(fmu: str) -> bool:
-    """Whether ``fmu`` is a pythonfmu FMU whose model (a top-level script under
-    ``resources/``) imports :mod:`hevsim.battery.fmu` (checked without importing it)."""
-    import zipfile
-
-    try:
-        with zipfile.ZipFile(fmu) as z:
-            scripts = [n for n in z.namelist() if n.count("/") == 1 and n.startswith("resources/")]
-            return any(n.endswith(".py") and b"hevsim.battery.fmu" in z.read(n) for n in scripts)
-    except (OSError, zipfile.BadZipFile):
-        return False
 
 
 if __name__ == "__main__":

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from hevsim._pythonfmu_exit import release_pythonfmu_state
 from hevsim.cosim.fmi_vars import FmuVariables
 from hevsim.errors import ConfigError, SimulationError
 
@@ -410,8 +411,8 @@ class FMUParticipant(Participant):
         from fmpy import extract
 
         self._dir = extract(str(self.fmu))
-        if jit_first_needed(Path(self._dir)):
-            start_jit_before_pythonfmu()
+        if _jit_guarded_export(Path(self._dir)):
+            import numba  # noqa: F401 (keeps the JIT on, see _jit_guarded_export)
         ident = self.md.coSimulation.modelIdentifier
         logging_on = self.fmu_log is not None or self.log_threshold <= 1
         with self._logged():
@@ -644,50 +645,27 @@ class FMUParticipant(Participant):
             self.slave.terminate()
             # Free the instance but keep the shared library loaded (FMPy's freeInstance also
             # dlcloses it): the interpreter keeps the model module a pythonfmu FMU imported.
-            # The exit aborts seen with pythonfmu FMUs came from numba's first JIT compilation
-            # inside fmi2Instantiate, not from unloading (start_jit_before_pythonfmu).
             sl = self.slave
             (sl.fmi3FreeInstance if self.fmi3 else sl.fmi2FreeInstance)(sl.component)
             _LOADED_LIBRARIES.append(sl)
+        release_pythonfmu_state(self.slave.dll)  # see hevsim._pythonfmu_exit
         self.slave = None
 
 
-def start_jit_before_pythonfmu() -> None:
-    """Compile one numba function in this process, outside any FMU call (once).
-
-    A pythonfmu FMU whose model uses numba (``hevsim export-fmu --pythonfmu``) must not be the
-    first to JIT-compile in a process: when LLVM starts inside the FMU's ``fmi2Instantiate``
-    (a call from C into the interpreter), the heap is corrupted when the process exits and it
-    aborts ("corrupted double-linked list") in about half the runs, whether or not the library
-    is unloaded. Compiled here first, the FMU's kernels load into a running JIT: no abort
-    (hosts that have not started numba get the FMU's pure-Python kernels instead:
-    :mod:`hevsim.battery.fmu`)."""
-    global _JIT_STARTED
-    if not _JIT_STARTED:
-        import numba
-
-        numba.njit(lambda x: x + 1.0)(1.0)
-        _JIT_STARTED = True
-
-
-def jit_first_needed(unzipped: Path) -> bool:
-    """Whether :func:`start_jit_before_pythonfmu` must run before the FMU extracted to
-    ``unzipped`` is instantiated: a pythonfmu FMU in a process that has imported numba (the
-    FMU's model may then compile first, inside ``fmi2Instantiate``), or an FMU exported by an
-    older hevsim, whose model imports numba itself. (FMUs exported now import their kernels
-    with the JIT off in a process without numba, and compiling here would cost a fresh
-    ``hevsim cosim`` the start of LLVM, about 1 s.)"""
+def _jit_guarded_export(unzipped: Path) -> bool:
+    """Whether the FMU extracted to ``unzipped`` is a pythonfmu FMU from an hevsim that
+    guarded its exit abort by importing numba with the JIT off when the host had not imported
+    numba yet (which leaves every numba function of the process uncompiled). The abort's real
+    cause is fixed by :mod:`hevsim._pythonfmu_exit`; importing numba before such an FMU keeps
+    the JIT on."""
     module = unzipped / "resources" / "slavemodule.txt"
-    if not module.is_file():
+    if not module.is_file() or "numba" in sys.modules:
         return False
-    if "numba" in sys.modules:
-        return True
     script = module.with_name(module.read_text(encoding="utf-8").strip() + ".py")
     text = script.read_text(encoding="utf-8", errors="replace") if script.is_file() else ""
-    return "hevsim.battery.fmu" in text and "NUMBA_DISABLE_JIT" not in text
+    return "NUMBA_DISABLE_JIT" in text
 
 
-_JIT_STARTED = False
 _FAILED_INSTANCES: list[Any] = []
 _LOADED_LIBRARIES: list[Any] = []  # freed instances whose FMU libraries stay loaded
 
