@@ -325,7 +325,8 @@ for path in sys.argv[1:]:
 def test_default_exported_fmus_survive_fresh_fmpy_hosts(case: dict[str, Any], tmp_path: Path) -> None:
     """Issue 13 item 8 for the default export: the cell, module and ROM FMUs (``hevsim
     export-fmu`` without options: native FMI 2.0) each loaded, run, freed and unloaded by FMPy
-    (``simulate_fmu``: ``freeInstance`` and ``dlclose``) in 20 fresh host processes: no aborts."""
+    (``simulate_fmu``: ``freeInstance`` and ``dlclose``) in 5 fresh host processes: no aborts (they
+    carry no interpreter, so none of the pythonfmu exit fault of tests/test_fmu_host_exit.py)."""
     from hevsim.battery.native import is_native_fmu
 
     fmus = []
@@ -335,7 +336,7 @@ def test_default_exported_fmus_survive_fresh_fmpy_hosts(case: dict[str, Any], tm
         fmus.append(str(out))
     fmus.append(str(case["fmus"][2]))
     assert all(is_native_fmu(f) for f in fmus)
-    for k in range(20):
+    for k in range(5):
         proc = subprocess.run([sys.executable, "-c", HOST_SCRIPT, *fmus], capture_output=True, text=True,
                               timeout=120, check=False)  # fmt: skip
         assert proc.returncode == 0, (k, proc.returncode, proc.stderr[-2000:])
