@@ -1,0 +1,936 @@
+"""Turbulent coolant flow in the plate's channel: a RANS solve (k-omega SST) with OpenFOAM.
+
+Above the laminar limit (:data:`~hevsim.thermal.coolant.RE_LAMINAR_MAX`; the shipped
+10 L/min gives Re about 3450 in the 8 x 4 mm channel) the flow is solved by OpenFOAM's
+steady incompressible solver ``simpleFoam`` with the k-omega SST model, from the same
+parametric channel as the laminar solver (:class:`~hevsim.thermal.flow.Channel`: the plate's
+serpentine or a straight duct), and read back onto hevsim's tetrahedral mesh.
+
+**Mesh.** The channel is a union of axis-aligned boxes, so the case's mesh is a tensor grid
+of hexahedra restricted to that union, written directly as an OpenFOAM ``polyMesh`` (points,
+faces, owner, neighbour, boundary) rather than through gmsh + ``gmshToFoam``: hexahedra
+aligned with the walls need far fewer cells than tetrahedra for the same wall resolution, the
+grid lines can be graded geometrically towards every wall plane (first cell height
+``flow.rans_wall_cell_m`` [m], growth ratio ``flow.growth`` [-], cells no larger than the
+channel width / ``flow.rans_cells_across_width``, height / ``flow.rans_cells_across_height``
+and ``flow.rans_cell_length_m`` along the channel), which sets the wall y+, and there is no
+mesh generator to run (``blockMesh`` would need one block per grid box with matching
+gradings; the result is the same). Patches: ``inlet``, ``outlet`` and ``walls``.
+
+**Case.** ``0/``: U (uniform inlet velocity = flow rate / inlet area, no-slip walls,
+zero-gradient outlet), p (kinematic; the outlet at ``flow.outlet_pressure_pa`` / rho), k and
+omega at the inlet from the turbulence intensity ``flow.turbulence_intensity`` [-] (default
+0.05) and length scale ``flow.turbulence_length_m`` [m] (0 = 0.07 D_h, the usual duct value):
+``k = 1.5 (I U)^2``, ``omega = sqrt(k) / (C_mu^0.25 l)``; walls: ``kqRWallFunction``,
+``omegaWallFunction`` and ``nutUSpaldingWallFunction`` (Spalding's law covers the viscous,
+buffer and log layers, so the first cell may sit anywhere from y+ about 1 to 100).
+``constant/``: ``transportProperties`` (Newtonian, nu = mu / rho of the coolant),
+``turbulenceProperties`` (``simulationType RAS; RAS { RASModel kOmegaSST; }``, the v1912
+keys). ``system/``: ``controlDict`` (ASCII output, a ``yPlus`` function object),
+``fvSchemes`` (second-order linearUpwind for U, upwind for k and omega), ``fvSolution``
+(SIMPLEC, ``residualControl`` at ``flow.rans_tolerance``, at most ``flow.rans_iterations``
+iterations). ``flow.rans_processes`` = 2 decomposes the case and runs ``mpirun -np 2
+simpleFoam -parallel``.
+
+**Reading back.** The cell-centre fields U, p, nut of the last time directory are averaged
+onto the grid's vertices (walls: U = nut = 0; inlet: the inlet velocity) and interpolated
+trilinearly within the hexahedra to any point of the channel (:class:`GridField`): the P2
+velocity and P1 pressure of a :class:`~hevsim.thermal.flow.FlowResult` on the tetrahedral mesh
+:func:`~hevsim.thermal.flow.channel_mesh` builds from the ``[flow]`` resolution keys, and the
+turbulent (eddy) diffusivity ``nu_t / Pr_t`` [m^2/s] at its vertices (``Pr_t`` =
+``flow.prandtl_turbulent``, default 0.85, the usual value for water-like liquids, e.g.
+W. M. Kays, J. Heat Transfer 116 (1994) 284-295), which the coolant heat transfer
+(:mod:`hevsim.thermal.cht`) adds to the molecular one. The flow is frozen for the thermal run.
+
+**Finding OpenFOAM.** :func:`find_openfoam`: ``$HEVSIM_OPENFOAM`` (an installation folder with
+``etc/bashrc``), an already sourced environment (``$WM_PROJECT_DIR`` and ``simpleFoam`` on the
+``PATH``), Debian's package (``/usr/bin/simpleFoam`` with its files in
+``/usr/share/openfoam``) or the openfoam.com / openfoam.org packages'
+``/usr/lib/openfoam/openfoam*/etc/bashrc`` and ``/opt/openfoam*/etc/bashrc``. Missing: a
+:class:`OpenFoamMissingError` (exit 2) naming what to install.
+
+Verification (``tests/test_rans.py``): the friction factor of a straight duct against
+Blasius (``f = 0.316 Re^-0.25``, H. Blasius, Forschungsarbeiten VDI 131 (1913)) and the
+Nusselt number of the coolant heat transfer on the frozen RANS flow against Gnielinski
+(V. Gnielinski, Int. Chem. Eng. 16 (1976) 359-368).
+"""
+
+from __future__ import annotations
+
+import glob
+import math
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hevsim.errors import ConfigError, SimulationError
+from hevsim.thermal.coolant import Coolant
+
+#: Environment variable naming an OpenFOAM installation folder (the one holding ``etc/bashrc``).
+OPENFOAM_ENV = "HEVSIM_OPENFOAM"
+#: Debian's package: solvers in /usr/bin, the ``etc`` files here (``WM_PROJECT_DIR``).
+DEBIAN_PROJECT_DIR = "/usr/share/openfoam"
+#: bashrc files of the openfoam.com (``/usr/lib/openfoam``) and openfoam.org (``/opt``) packages.
+KNOWN_BASHRC = (
+    "/usr/lib/openfoam/openfoam*/etc/bashrc",
+    "/opt/openfoam*/etc/bashrc",
+    "/opt/OpenFOAM-*/etc/bashrc",
+)
+#: What to install, for the error message.
+INSTALL_HINT = (
+    "install OpenFOAM: on Debian/Ubuntu 'apt-get install openfoam' (or 'make openfoam' in the hevsim "
+    "repository, as root), otherwise the packages of openfoam.com or openfoam.org; or set "
+    f"{OPENFOAM_ENV} to an installation folder holding etc/bashrc"
+)
+#: k-epsilon/k-omega constant C_mu [-] (omega = sqrt(k) / (C_mu^0.25 l)).
+C_MU = 0.09
+#: Inlet turbulence length scale as a fraction of the hydraulic diameter when not given [-].
+LENGTH_SCALE_FRACTION = 0.07
+
+
+class OpenFoamMissingError(ConfigError):
+    """OpenFOAM (``simpleFoam``) is not installed or not found (exit 2)."""
+
+
+# --------------------------------------------------------------------------- finding OpenFOAM
+@dataclass(frozen=True)
+class OpenFoam:
+    """An OpenFOAM installation: the environment its applications run in and where it came from."""
+
+    env: dict[str, str]
+    source: str
+
+    def which(self, app: str) -> str | None:
+        """Full path of the application ``app`` on this installation's PATH (None if absent)."""
+        return shutil.which(app, path=self.env.get("PATH", ""))
+
+
+def _sourced_env(bashrc: Path) -> dict[str, str] | None:
+    """The environment after ``source bashrc`` in bash (None when it fails)."""
+    bash = shutil.which("bash")
+    if bash is None:
+        return None
+    try:
+        out = subprocess.run(
+            [bash, "-c", f'source "{bashrc}" >/dev/null 2>&1; env -0'],
+            capture_output=True,
+            check=False,
+            timeout=60,
+        ).stdout
+    except (OSError, subprocess.SubprocessError):
+        return None
+    env = dict(kv.split("=", 1) for kv in out.decode(errors="replace").split("\0") if "=" in kv)
+    return env or None
+
+
+def find_openfoam(
+    environ: dict[str, str] | None = None, known_bashrc: Sequence[str] | None = None
+) -> OpenFoam:
+    """Locate OpenFOAM's ``simpleFoam`` (see the module docstring for the order of the search).
+
+    ``environ``: the environment to search (default ``os.environ``); ``known_bashrc``: glob
+    patterns of installations' bashrc files (default :data:`KNOWN_BASHRC`).
+
+    Raises:
+        OpenFoamMissingError: nothing found; the message says what to install.
+    """
+    env = dict(os.environ if environ is None else environ)
+    known_bashrc = KNOWN_BASHRC if known_bashrc is None else known_bashrc
+    tried: list[str] = []
+    candidates: list[tuple[str, dict[str, str] | None]] = []
+    given = env.get(OPENFOAM_ENV, "").strip()
+    if given:
+        rc = Path(given) / "etc" / "bashrc"
+        tried.append(f"{OPENFOAM_ENV}={given}")
+        if not rc.is_file():
+            raise OpenFoamMissingError(
+                f"{OPENFOAM_ENV}={given!r}: no etc/bashrc there; expected an OpenFOAM installation folder. "
+                f"To use another one, {INSTALL_HINT}."
+            )
+        candidates.append((str(rc), _sourced_env(rc)))
+    path = env.get("PATH", "")
+    on_path = shutil.which("simpleFoam", path=path)
+    if on_path:
+        tried.append(f"simpleFoam on PATH ({on_path})")
+        if env.get("WM_PROJECT_DIR"):
+            candidates.append((f"PATH (WM_PROJECT_DIR={env['WM_PROJECT_DIR']})", env))
+        elif Path(DEBIAN_PROJECT_DIR, "etc", "controlDict").is_file():
+            candidates.append((f"Debian package ({on_path})", {**env, "WM_PROJECT_DIR": DEBIAN_PROJECT_DIR}))
+    for pattern in known_bashrc:
+        for rc_name in sorted(glob.glob(pattern), reverse=True):
+            tried.append(rc_name)
+            candidates.append((rc_name, _sourced_env(Path(rc_name))))
+    for source, cand in candidates:
+        if cand is not None and shutil.which("simpleFoam", path=cand.get("PATH", "")):
+            return OpenFoam(cand, source)
+    looked = "; ".join(tried) if tried else f"PATH, {OPENFOAM_ENV}, {', '.join(known_bashrc)}"
+    raise OpenFoamMissingError(
+        f"OpenFOAM's simpleFoam is needed for a turbulent (RANS) coolant flow but was not found "
+        f"(looked at: {looked}). To solve it, {INSTALL_HINT}; or solve a laminar case "
+        '(flow.model = "laminar" with a lower flow.flow_l_min).'
+    )
+
+
+# --------------------------------------------------------------------------- graded grid
+def graded_axis(
+    breaks: Sequence[float], walls: Sequence[bool], max_cell_m: float, wall_cell_m: float, growth: float
+) -> np.ndarray:
+    """Grid nodes [m] along one axis through every value of ``breaks`` (sorted): cells no
+    larger than ``max_cell_m`` [m], and from each break flagged in ``walls`` a geometric
+    progression starting at ``wall_cell_m`` [m] growing by ``growth`` [-] (``wall_cell_m`` = 0:
+    uniform cells)."""
+    out = [float(breaks[0])]
+    for i in range(len(breaks) - 1):
+        a, b = float(breaks[i]), float(breaks[i + 1])
+        length = b - a
+        ends = [walls[i], walls[i + 1]] if wall_cell_m > 0 else [False, False]
+        sides: list[list[float]] = [[], []]
+        for s in (0, 1):
+            if not ends[s]:
+                continue
+            size = wall_cell_m
+            while size < max_cell_m and sum(sides[s]) + size <= length / (2 if ends[1 - s] else 1):
+                sides[s].append(size)
+                size *= growth
+        middle = length - sum(sides[0]) - sum(sides[1])
+        n_mid = max(0, math.ceil(middle / max_cell_m - 1e-9))
+        if n_mid == 0 and not (sides[0] or sides[1]):
+            n_mid = 1
+        sizes = (
+            np.array(sides[0] + [middle / n_mid] * n_mid + sides[1][::-1])
+            if n_mid
+            else np.array(sides[0] + sides[1][::-1])
+        )
+        sizes *= length / sizes.sum()
+        out.extend((a + np.cumsum(sizes))[:-1])
+        out.append(b)
+    return np.array(out)
+
+
+@dataclass
+class ChannelGrid:
+    """A tensor grid of hexahedra restricted to a channel's boxes.
+
+    ``nodes``: the three axes' grid nodes [m]; ``inside``: (nx, ny, nz) cell mask;
+    ``cell_id``: (nx, ny, nz) OpenFOAM cell index (-1 outside)."""
+
+    nodes: tuple[np.ndarray, np.ndarray, np.ndarray]
+    inside: np.ndarray
+    cell_id: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.cell_id = np.full(self.inside.shape, -1, dtype=np.int64)
+        self.cell_id[self.inside] = np.arange(int(self.inside.sum()))
+
+    @property
+    def n_cells(self) -> int:
+        return int(self.inside.sum())
+
+    def centres(self) -> np.ndarray:
+        """Cell centres (n_cells, 3) [m] in cell-index order."""
+        mids = [(n[1:] + n[:-1]) / 2 for n in self.nodes]
+        i, j, k = np.nonzero(self.inside)
+        return np.column_stack([mids[0][i], mids[1][j], mids[2][k]])
+
+
+def _box_mask(channel: Any, nodes: Sequence[np.ndarray]) -> np.ndarray:
+    mids = [(n[1:] + n[:-1]) / 2 for n in nodes]
+    cx, cy, cz = np.meshgrid(*mids, indexing="ij")
+    inside = np.zeros(cx.shape, dtype=bool)
+    for x0, x1, y0, y1, z0, z1 in channel.boxes:
+        inside |= (cx > x0) & (cx < x1) & (cy > y0) & (cy < y1) & (cz > z0) & (cz < z1)
+    return inside
+
+
+def _on_port(channel: Any, x: float, y: np.ndarray) -> np.ndarray:
+    """True where the points (x, y) lie on the inlet or outlet plane's span."""
+    hit = np.zeros(np.shape(y), dtype=bool)
+    for px, y0, y1, _ in (channel.inlet, channel.outlet):
+        tol = 1e-9 * max(abs(y1 - y0), 1e-3)
+        hit |= (abs(x - px) < tol) & (y > y0 - tol) & (y < y1 + tol)
+    return hit
+
+
+def wall_planes(channel: Any) -> list[list[bool]]:
+    """For each axis, whether each break (box face coordinate) carries channel wall somewhere
+    (inlet and outlet planes do not count)."""
+    breaks = [sorted({round(v, 12) for b in channel.boxes for v in b[2 * a : 2 * a + 2]}) for a in range(3)]
+    nodes = [np.array(b) for b in breaks]
+    mask = np.pad(_box_mask(channel, nodes), 1)  # padded with outside
+    mids = [(n[1:] + n[:-1]) / 2 for n in nodes]
+    flags: list[list[bool]] = []
+    for a in range(3):
+        m = np.moveaxis(mask, a, 0)
+        boundary = m[1:] != m[:-1]  # (n_breaks, ., .) faces on each plane
+        f = []
+        for p in range(len(breaks[a])):
+            faces = boundary[p][1:-1, 1:-1]
+            if a == 0 and faces.any():  # discount the inlet/outlet spans on x planes
+                jj = np.nonzero(faces)[0]
+                faces_wall = ~_on_port(channel, breaks[0][p], mids[1][jj])
+                f.append(bool(faces_wall.any()))
+            else:
+                f.append(bool(faces.any()))
+        flags.append(f)
+    return flags
+
+
+def channel_grid(
+    channel: Any,
+    cells_across_width: int,
+    cells_across_height: int,
+    cell_length_m: float,
+    wall_cell_m: float = 0.0,
+    growth: float = 1.2,
+) -> ChannelGrid:
+    """The graded tensor grid of ``channel`` (see the module docstring): cells at most
+    width / ``cells_across_width``, height / ``cells_across_height`` and ``cell_length_m`` [m]
+    long, first cell ``wall_cell_m`` [m] at every wall plane (0 = uniform), ``growth`` [-]."""
+    w, h = channel.width_m, channel.height_m
+    walls = wall_planes(channel)
+    breaks = [sorted({round(v, 12) for b in channel.boxes for v in b[2 * a : 2 * a + 2]}) for a in range(3)]
+    sizes = (cell_length_m, min(w / cells_across_width, cell_length_m), h / cells_across_height)
+    nodes = tuple(graded_axis(breaks[a], walls[a], sizes[a], wall_cell_m, growth) for a in range(3))
+    return ChannelGrid((nodes[0], nodes[1], nodes[2]), _box_mask(channel, nodes))
+
+
+# --------------------------------------------------------------------------- case writer
+def _header(cls: str, obj: str, location: str = "") -> str:
+    loc = f'    location    "{location}";\n' if location else ""
+    return (
+        "FoamFile\n{\n    version     2.0;\n    format      ascii;\n"
+        f"    class       {cls};\n{loc}    object      {obj};\n}}\n\n"
+    )
+
+
+def _write(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+
+
+def _faces_of_axis(grid: ChannelGrid, axis: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Faces normal to ``axis``: (lower cell id, upper cell id, (F, 4) point grid indices with
+    the right-hand normal along +axis); -1 marks a cell outside the channel."""
+    ids = np.pad(grid.cell_id, [(1, 1) if a == axis else (0, 0) for a in range(3)], constant_values=-1)
+    lo = np.take(ids, np.arange(ids.shape[axis] - 1), axis=axis)
+    hi = np.take(ids, np.arange(1, ids.shape[axis]), axis=axis)
+    keep = (lo >= 0) | (hi >= 0)
+    idx = np.nonzero(keep)  # (p, q, r) with the plane index along `axis`
+    # in-plane axes in cyclic order after `axis`: x -> (y, z), y -> (z, x), z -> (x, y)
+    a1, a2 = (axis + 1) % 3, (axis + 2) % 3
+    corners = []
+    for du, dv in ((0, 0), (1, 0), (1, 1), (0, 1)):
+        ijk = [idx[axis], idx[a1] + du, idx[a2] + dv]
+        ijk = [ijk[(a - axis) % 3] for a in range(3)]
+        corners.append(np.column_stack(ijk))
+    return lo[keep], hi[keep], np.stack(corners, axis=1)
+
+
+def write_polymesh(grid: ChannelGrid, channel: Any, mesh_dir: Path) -> dict[str, int]:
+    """Write ``constant/polyMesh`` of ``grid`` (patches inlet, outlet, walls); returns counts."""
+    shape = tuple(len(n) for n in grid.nodes)
+    lows, highs, quads = [], [], []
+    for axis in range(3):
+        lo, hi, q = _faces_of_axis(grid, axis)
+        lows.append(lo)
+        highs.append(hi)
+        quads.append(q)
+    lo, hi, q = np.concatenate(lows), np.concatenate(highs), np.concatenate(quads)
+    axis_of = np.concatenate([np.full(len(x), a) for a, x in enumerate(lows)])
+    internal = (lo >= 0) & (hi >= 0)
+    # boundary faces: owner is the inside cell; flip the quad when that cell is the upper one
+    flip = ~internal & (lo < 0)
+    owner = np.where(lo >= 0, lo, hi)
+    q = np.where(flip[:, None, None], q[:, ::-1], q)
+    # points used by the faces, numbered in grid order
+    flat = np.ravel_multi_index(tuple(q.reshape(-1, 3).T), shape)
+    used, inverse = np.unique(flat, return_inverse=True)
+    face_pts = inverse.reshape(-1, 4)
+    pijk = np.unravel_index(used, shape)
+    points = np.column_stack([grid.nodes[a][pijk[a]] for a in range(3)])
+    # patches of the boundary faces
+    centre = points[face_pts].mean(axis=1)
+    port_in = (axis_of == 0) & _on_port_one(channel.inlet, centre)
+    port_out = (axis_of == 0) & _on_port_one(channel.outlet, centre)
+    kind = np.where(internal, 0, np.where(port_in, 1, np.where(port_out, 2, 3)))
+    order_int = np.nonzero(internal)[0]
+    order_int = order_int[np.lexsort((hi[order_int], lo[order_int]))]
+    groups = [order_int] + [np.nonzero(kind == k)[0] for k in (1, 2, 3)]
+    order = np.concatenate(groups)
+    if len(groups[1]) == 0 or len(groups[2]) == 0:
+        raise ConfigError("rans: the channel mesh has no inlet or outlet face; check the geometry.")
+    n_int = len(groups[0])
+    loc = "constant/polyMesh"
+    pts_txt = "\n".join(f"({x:.12g} {y:.12g} {z:.12g})" for x, y, z in points)
+    _write(mesh_dir / "points", _header("vectorField", "points", loc) + f"{len(points)}\n(\n{pts_txt}\n)\n")
+    f_txt = "\n".join(f"4({a} {b} {c} {d})" for a, b, c, d in face_pts[order])
+    _write(mesh_dir / "faces", _header("faceList", "faces", loc) + f"{len(order)}\n(\n{f_txt}\n)\n")
+    own_txt = "\n".join(map(str, owner[order]))
+    note = f"nPoints:{len(points)} nCells:{grid.n_cells} nFaces:{len(order)} nInternalFaces:{n_int}"
+    _write(
+        mesh_dir / "owner",
+        _header("labelList", "owner", loc).replace("    object", f'    note        "{note}";\n    object')
+        + f"{len(order)}\n(\n{own_txt}\n)\n",
+    )
+    nei_txt = "\n".join(map(str, hi[order[:n_int]]))
+    _write(
+        mesh_dir / "neighbour",
+        _header("labelList", "neighbour", loc).replace("    object", f'    note        "{note}";\n    object')
+        + f"{n_int}\n(\n{nei_txt}\n)\n",
+    )
+    start = n_int
+    entries = []
+    for name, ptype, g in (
+        ("inlet", "patch", groups[1]),
+        ("outlet", "patch", groups[2]),
+        ("walls", "wall", groups[3]),
+    ):
+        entries.append(
+            f"    {name}\n    {{\n        type {ptype};\n        nFaces {len(g)};\n"
+            f"        startFace {start};\n    }}"
+        )
+        start += len(g)
+    _write(
+        mesh_dir / "boundary",
+        _header("polyBoundaryMesh", "boundary", loc) + "3\n(\n" + "\n".join(entries) + "\n)\n",
+    )
+    return {"points": len(points), "cells": grid.n_cells, "faces": len(order), "internal_faces": n_int}
+
+
+def _on_port_one(spec: tuple[float, float, float, int], centre: np.ndarray) -> np.ndarray:
+    x, y0, y1, _ = spec
+    tol = 1e-9 * max(abs(y1 - y0), 1e-3)
+    return (np.abs(centre[:, 0] - x) < tol) & (centre[:, 1] > y0 - tol) & (centre[:, 1] < y1 + tol)
+
+
+def _field(name: str, cls: str, dims: str, internal: str, patches: dict[str, str]) -> str:
+    """An OpenFOAM field file; ``patches`` maps a patch to its ``key value; key value`` entries."""
+    blocks = []
+    for patch, spec in patches.items():
+        lines = "".join(f"        {item.strip()};\n" for item in spec.split(";") if item.strip())
+        blocks.append(f"    {patch}\n    {{\n{lines}    }}")
+    body = "\n".join(blocks)
+    return (
+        _header(cls, name, "0")
+        + f"dimensions      {dims};\n\ninternalField   {internal};\n\nboundaryField\n{{\n{body}\n}}\n"
+    )
+
+
+@dataclass(frozen=True)
+class RansCase:
+    """Inputs of one RANS case: inlet velocity vector [m/s], kinematic viscosity [m^2/s],
+    inlet k [m^2/s^2] and omega [1/s], outlet kinematic pressure [m^2/s^2], iterations,
+    residual tolerance and number of processes."""
+
+    inlet_velocity_mps: tuple[float, float, float]
+    nu_m2_s: float
+    k_inlet: float
+    omega_inlet: float
+    outlet_p_kin: float
+    iterations: int
+    tolerance: float
+    processes: int
+
+
+def write_case(case: Path, grid: ChannelGrid, channel: Any, rc: RansCase) -> dict[str, int]:
+    """Write the OpenFOAM case (mesh, ``0/``, ``constant/``, ``system/``) into the folder ``case``."""
+    counts = write_polymesh(grid, channel, case / "constant" / "polyMesh")
+    ux, uy, uz = rc.inlet_velocity_mps
+    fields = {
+        "U": ("volVectorField", "[0 1 -1 0 0 0 0]", "uniform (0 0 0)", {
+            "inlet": f"type fixedValue; value uniform ({ux:.12g} {uy:.12g} {uz:.12g})",
+            "outlet": "type inletOutlet; inletValue uniform (0 0 0); value uniform (0 0 0)",
+            "walls": "type noSlip",
+        }),
+        "p": ("volScalarField", "[0 2 -2 0 0 0 0]", f"uniform {rc.outlet_p_kin:.12g}", {
+            "inlet": "type zeroGradient",
+            "outlet": f"type fixedValue; value uniform {rc.outlet_p_kin:.12g}",
+            "walls": "type zeroGradient",
+        }),
+        "k": ("volScalarField", "[0 2 -2 0 0 0 0]", f"uniform {rc.k_inlet:.12g}", {
+            "inlet": f"type fixedValue; value uniform {rc.k_inlet:.12g}",
+            "outlet": (f"type inletOutlet; inletValue uniform {rc.k_inlet:.12g}; "
+                       f"value uniform {rc.k_inlet:.12g}"),
+            "walls": f"type kqRWallFunction; value uniform {rc.k_inlet:.12g}",
+        }),
+        "omega": ("volScalarField", "[0 0 -1 0 0 0 0]", f"uniform {rc.omega_inlet:.12g}", {
+            "inlet": f"type fixedValue; value uniform {rc.omega_inlet:.12g}",
+            "outlet": (f"type inletOutlet; inletValue uniform {rc.omega_inlet:.12g}; "
+                       f"value uniform {rc.omega_inlet:.12g}"),
+            "walls": f"type omegaWallFunction; value uniform {rc.omega_inlet:.12g}",
+        }),
+        "nut": ("volScalarField", "[0 2 -1 0 0 0 0]", "uniform 0", {
+            "inlet": "type calculated; value uniform 0",
+            "outlet": "type calculated; value uniform 0",
+            "walls": "type nutUSpaldingWallFunction; value uniform 0",
+        }),
+    }  # fmt: skip
+    for name, (cls, dims, internal, patches) in fields.items():
+        _write(case / "0" / name, _field(name, cls, dims, internal, patches))
+    _write(
+        case / "constant" / "transportProperties",
+        _header("dictionary", "transportProperties", "constant")
+        + f"transportModel  Newtonian;\n\nnu              [0 2 -1 0 0 0 0] {rc.nu_m2_s:.12g};\n",
+    )
+    _write(
+        case / "constant" / "turbulenceProperties",
+        _header("dictionary", "turbulenceProperties", "constant")
+        + "simulationType  RAS;\n\nRAS\n{\n    RASModel        kOmegaSST;\n    turbulence      on;\n"
+        "    printCoeffs     off;\n}\n",
+    )
+    _write(
+        case / "system" / "controlDict",
+        _header("dictionary", "controlDict", "system")
+        + "application     simpleFoam;\nstartFrom       startTime;\nstartTime       0;\n"
+        f"stopAt          endTime;\nendTime         {rc.iterations};\ndeltaT          1;\n"
+        f"writeControl    timeStep;\nwriteInterval   {rc.iterations};\npurgeWrite      0;\n"
+        "writeFormat     ascii;\nwritePrecision  10;\nwriteCompression off;\ntimeFormat      general;\n"
+        "timePrecision   6;\nrunTimeModifiable false;\n\nfunctions\n{\n    yPlus\n    {\n"
+        '        type            yPlus;\n        libs            ("libfieldFunctionObjects.so");\n'
+        "        writeControl    writeTime;\n    }\n}\n",
+    )
+    _write(
+        case / "system" / "fvSchemes",
+        _header("dictionary", "fvSchemes", "system")
+        + "ddtSchemes\n{\n    default         steadyState;\n}\n\n"
+        "gradSchemes\n{\n    default         Gauss linear;\n"
+        "    grad(U)         cellLimited Gauss linear 1;\n}\n\ndivSchemes\n{\n    default         none;\n"
+        "    div(phi,U)      bounded Gauss linearUpwind grad(U);\n    div(phi,k)      bounded Gauss upwind;\n"
+        "    div(phi,omega)  bounded Gauss upwind;\n    div((nuEff*dev2(T(grad(U))))) Gauss linear;\n}\n\n"
+        "laplacianSchemes\n{\n    default         Gauss linear corrected;\n}\n\n"
+        "interpolationSchemes\n{\n    default         linear;\n}\n\n"
+        "snGradSchemes\n{\n    default         corrected;\n}\n\n"
+        "wallDist\n{\n    method          meshWave;\n}\n",
+    )
+    _write(
+        case / "system" / "fvSolution",
+        _header("dictionary", "fvSolution", "system")
+        + "solvers\n{\n    p\n    {\n        solver          GAMG;\n        smoother        GaussSeidel;\n"
+        '        tolerance       1e-08;\n        relTol          0.05;\n    }\n\n    "(U|k|omega)"\n    {\n'
+        "        solver          smoothSolver;\n        smoother        symGaussSeidel;\n"
+        "        tolerance       1e-10;\n        relTol          0.1;\n    }\n}\n\n"
+        "SIMPLE\n{\n    nNonOrthogonalCorrectors 0;\n    consistent      yes;\n    residualControl\n    {\n"
+        f"        p               {rc.tolerance:.3g};\n        U               {rc.tolerance:.3g};\n"
+        f'        "(k|omega)"     {rc.tolerance:.3g};\n    }}\n}}\n\n'
+        "relaxationFactors\n{\n    equations\n    {\n        U               0.9;\n"
+        '        ".*"            0.7;\n'
+        "    }\n}\n",
+    )
+    if rc.processes > 1:
+        _write(
+            case / "system" / "decomposeParDict",
+            _header("dictionary", "decomposeParDict", "system")
+            + f"numberOfSubdomains {rc.processes};\n\nmethod          scotch;\n",
+        )
+    return counts
+
+
+# --------------------------------------------------------------------------- running
+_TIME_LINE = re.compile(r"^Time = (\d+)\s*$")
+_RESIDUAL = re.compile(r"Solving for (\w+), Initial residual = ([0-9.eE+-]+)")
+
+
+def _run(of: OpenFoam, args: list[str], case: Path, log: Path, total: int | None, progress: bool) -> str:
+    """Run one OpenFOAM application in ``case``, its output to ``log``; returns the output."""
+    from hevsim.progress import task
+
+    env = dict(of.env)
+    if hasattr(os, "geteuid") and os.geteuid() == 0:  # Open MPI refuses root without these
+        env.setdefault("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        env.setdefault("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+    exe = of.which(args[0])
+    if exe is None:
+        raise OpenFoamMissingError(
+            f"OpenFOAM application {args[0]!r} not found ({of.source}); {INSTALL_HINT}."
+        )
+    lines: list[str] = []
+    with (
+        task(
+            f"{args[-2] if args[0] == 'mpirun' else args[0]}",
+            total or 1,
+            "iteration",
+            show=progress and bool(total),
+        ) as t,
+        log.open("w") as fh,
+    ):
+        proc = subprocess.Popen(
+            [exe, *args[1:]], cwd=case, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+        )
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            fh.write(line)
+            lines.append(line)
+            if total and _TIME_LINE.match(line.strip()):
+                t.update(1)
+        rc = proc.wait()
+    out = "".join(lines)
+    if rc != 0:
+        tail = "".join(lines[-25:])
+        raise SimulationError(f"OpenFOAM {' '.join(args)} failed (exit {rc}) in {case}; log {log}:\n{tail}")
+    return out
+
+
+def _latest_time(case: Path) -> Path:
+    times = [
+        (float(p.name), p) for p in case.iterdir() if p.is_dir() and re.fullmatch(r"[0-9.eE+-]+", p.name)
+    ]
+    times = [tp for tp in times if tp[0] > 0]
+    if not times:
+        raise SimulationError(f"OpenFOAM wrote no result time folder in {case}.")
+    return max(times)[1]
+
+
+def read_internal_field(path: Path, n_cells: int) -> np.ndarray:
+    """The ``internalField`` of an ASCII OpenFOAM field file: (n_cells,) or (n_cells, 3)."""
+    text = path.read_text()
+    m = re.search(r"internalField\s+(uniform|nonuniform)\s+", text)
+    if m is None:
+        raise SimulationError(f"{path}: no internalField.")
+    rest = text[m.end() :]
+    if m.group(1) == "uniform":
+        value = rest.split(";", 1)[0].strip().strip("()")
+        vals = np.array([float(v) for v in value.split()])
+        return np.tile(vals, (n_cells, 1)) if vals.size > 1 else np.full(n_cells, vals[0])
+    m2 = re.match(r"List<(\w+)>\s*(\d+)\s*\(", rest)
+    if m2 is None:
+        raise SimulationError(f"{path}: cannot read the internalField list.")
+    n = int(m2.group(2))
+    body = rest[m2.end() :]
+    vector = m2.group(1) == "vector"
+    end = body.index("\n)")
+    arr = np.array(body[:end].replace("(", " ").replace(")", " ").split(), dtype=float)
+    arr = arr.reshape(n, 3) if vector else arr
+    if n != n_cells:
+        raise SimulationError(f"{path}: {n} values for {n_cells} cells.")
+    return arr
+
+
+def _read_yplus(case: Path) -> dict[str, float]:
+    files = sorted(case.glob("postProcessing/yPlus/*/yPlus.dat"))
+    for f in reversed(files):
+        rows = [ln.split() for ln in f.read_text().splitlines() if ln.strip() and not ln.startswith("#")]
+        rows = [r for r in rows if len(r) >= 5 and r[1] == "walls"]
+        if rows:
+            return {
+                "yplus_min": float(rows[-1][2]),
+                "yplus_max": float(rows[-1][3]),
+                "yplus_mean": float(rows[-1][4]),
+            }
+    return {"yplus_min": math.nan, "yplus_max": math.nan, "yplus_mean": math.nan}
+
+
+# --------------------------------------------------------------------------- reading back
+def boundary_points(grid: ChannelGrid, channel: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Masks over the grid's points: on the walls, and on the inlet (not on a wall)."""
+    shape = tuple(len(n) for n in grid.nodes)
+    wall = np.zeros(shape, dtype=bool)
+    inlet = np.zeros(shape, dtype=bool)
+    for axis in range(3):
+        lo, hi, q = _faces_of_axis(grid, axis)
+        bnd = (lo < 0) | (hi < 0)
+        qb = q[bnd]
+        centre = np.column_stack([grid.nodes[a][qb[:, :, a]].mean(axis=1) for a in range(3)])
+        port_in = _on_port_one(channel.inlet, centre) if axis == 0 else np.zeros(len(qb), dtype=bool)
+        port = port_in | (_on_port_one(channel.outlet, centre) if axis == 0 else False)
+        for target, sel in ((wall, ~port), (inlet, port_in)):
+            pts = qb[sel].reshape(-1, 3)
+            target[pts[:, 0], pts[:, 1], pts[:, 2]] = True
+    return wall, inlet & ~wall
+
+
+@dataclass
+class GridField:
+    """A field at the vertices of a :class:`ChannelGrid`, (nx+1, ny+1, nz+1, c), interpolated
+    trilinearly within the hexahedra (:meth:`at`)."""
+
+    grid: ChannelGrid
+    values: np.ndarray
+
+    @classmethod
+    def from_cells(
+        cls, grid: ChannelGrid, cells: np.ndarray, fixed: Sequence[tuple[np.ndarray, np.ndarray]] = ()
+    ) -> GridField:
+        """Vertex values = the mean of the cells around each vertex, then ``fixed`` (mask over
+        the points, value) pairs applied in order (boundary conditions)."""
+        c = cells.reshape(len(cells), -1)
+        nx, ny, nz = grid.inside.shape
+        full = np.zeros((nx, ny, nz, c.shape[1]))
+        full[grid.inside] = c
+        total = np.zeros((nx + 1, ny + 1, nz + 1, c.shape[1]))
+        count = np.zeros((nx + 1, ny + 1, nz + 1, 1))
+        ins = grid.inside[..., None].astype(float)
+        for di in (0, 1):
+            for dj in (0, 1):
+                for dk in (0, 1):
+                    total[di : di + nx, dj : dj + ny, dk : dk + nz] += full
+                    count[di : di + nx, dj : dj + ny, dk : dk + nz] += ins
+        with np.errstate(invalid="ignore", divide="ignore"):
+            vals = np.where(count > 0, total / count, np.nan)
+        for mask, value in fixed:
+            vals[mask] = value
+        return cls(grid, vals)
+
+    def at(self, points_m: np.ndarray) -> np.ndarray:
+        """Values at ``points_m`` (N, 3) [m], (N, c); every point must lie in the channel."""
+        pts = np.asarray(points_m, dtype=float)
+        choices = []
+        frac = []
+        for a in range(3):
+            nodes = self.grid.nodes[a]
+            q = pts[:, a]
+            n = len(nodes) - 1
+            hi = np.clip(np.searchsorted(nodes, q, "right") - 1, 0, n - 1)
+            near = np.abs(q - nodes[np.clip(np.searchsorted(nodes, q), 0, n)]) < 1e-9 * (nodes[-1] - nodes[0])
+            lo = np.where(near, np.clip(hi - 1, 0, n - 1), hi)
+            choices.append((hi, lo))
+            frac.append(nodes)
+        out = np.full((len(pts), self.values.shape[-1]), np.nan)
+        todo = np.ones(len(pts), dtype=bool)
+        for ci in choices[0]:
+            for cj in choices[1]:
+                for ck in choices[2]:
+                    ok = todo & self.grid.inside[ci, cj, ck]
+                    if not ok.any():
+                        continue
+                    idx = (ci[ok], cj[ok], ck[ok])
+                    t = [
+                        np.clip(
+                            (pts[ok, a] - frac[a][idx[a]]) / (frac[a][idx[a] + 1] - frac[a][idx[a]]), 0.0, 1.0
+                        )
+                        for a in range(3)
+                    ]
+                    acc = np.zeros((int(ok.sum()), self.values.shape[-1]))
+                    for di in (0, 1):
+                        for dj in (0, 1):
+                            for dk in (0, 1):
+                                wgt = (
+                                    (t[0] if di else 1 - t[0])
+                                    * (t[1] if dj else 1 - t[1])
+                                    * (t[2] if dk else 1 - t[2])
+                                )
+                                acc += wgt[:, None] * self.values[idx[0] + di, idx[1] + dj, idx[2] + dk]
+                    out[ok] = acc
+                    todo &= ~ok
+        if todo.any():
+            raise SimulationError(
+                f"rans: {int(todo.sum())} points lie outside the channel grid (first {pts[todo][0]} m)."
+            )
+        return out
+
+
+def _port_cells(grid: ChannelGrid, spec: tuple[float, float, float, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Cells next to a port (inlet/outlet plane) and the areas [m^2] of their port faces."""
+    lo, hi, q = _faces_of_axis(grid, 0)
+    centre = np.column_stack([grid.nodes[a][q[:, :, a]].mean(axis=1) for a in range(3)])
+    on = ((lo < 0) | (hi < 0)) & _on_port_one(spec, centre)
+    cells = np.where(lo[on] >= 0, lo[on], hi[on])
+    y, z = grid.nodes[1], grid.nodes[2]
+    qo = q[on]
+    area = (y[qo[:, 2, 1]] - y[qo[:, 0, 1]]) * (z[qo[:, 2, 2]] - z[qo[:, 0, 2]])
+    return cells, np.abs(area)
+
+
+@dataclass
+class RansResult:
+    """The OpenFOAM solution on its own grid: cell-centre velocity [m/s], pressure [Pa] and
+    turbulent viscosity [m^2/s], the vertex fields (:class:`GridField`), the log's residuals."""
+
+    grid: ChannelGrid
+    velocity_mps: np.ndarray
+    pressure_pa: np.ndarray
+    nut_m2_s: np.ndarray
+    u_field: GridField
+    p_field: GridField
+    nut_field: GridField
+    residuals: dict[str, float]
+    log: str
+
+
+def solve_rans(
+    channel: Any,
+    coolant: Coolant,
+    flow_m3_s: float,
+    *,
+    section: Any = None,
+    where: str = "flow",
+    case_dir: str | Path | None = None,
+    progress: bool = False,
+) -> Any:
+    """Steady turbulent flow through ``channel`` at ``flow_m3_s`` [m^3/s] with OpenFOAM
+    (module docstring); returns a :class:`~hevsim.thermal.flow.FlowResult` on the
+    ``[flow]`` tetrahedral mesh, its ``rans`` holding the :class:`RansResult`.
+
+    ``case_dir``: folder for the OpenFOAM case (absent or empty; created); default a temporary
+    folder removed afterwards. ``progress``: iterations on the terminal.
+
+    Raises:
+        OpenFoamMissingError: OpenFOAM is not installed.
+        ConfigError: bad flow rate or mesh settings.
+        SimulationError: OpenFOAM failed.
+    """
+    from skfem import Basis, ElementTetP1, ElementTetP2, ElementVector
+
+    from hevsim.thermal.flow import L_MIN_TO_M3_S, FlowResult, FlowSection, channel_mesh
+
+    sec = section or FlowSection()
+    coolant.check(f"{where}: coolant")
+    if not (math.isfinite(flow_m3_s) and flow_m3_s > 0.0):
+        raise ConfigError(f"{where}: flow rate {flow_m3_s!r} m^3/s; expected a finite positive flow rate.")
+    of = find_openfoam()
+    rho, mu = coolant.density_kg_m3, coolant.viscosity_pa_s
+    nu = mu / rho
+    w, h = channel.width_m, channel.height_m
+    area, dh = w * h, 2 * w * h / (w + h)
+    u_mean = flow_m3_s / area
+    reynolds = u_mean * dh / nu
+    length = sec.turbulence_length_m or LENGTH_SCALE_FRACTION * dh
+    k_in = 1.5 * (sec.turbulence_intensity * u_mean) ** 2
+    omega_in = math.sqrt(k_in) / (C_MU**0.25 * length)
+    t0 = time.perf_counter()
+    grid = channel_grid(
+        channel,
+        sec.rans_cells_across_width,
+        sec.rans_cells_across_height,
+        sec.rans_cell_length_m,
+        sec.rans_wall_cell_m,
+        sec.growth,
+    )
+    rc = RansCase(
+        (channel.inlet[3] * u_mean, 0.0, 0.0),
+        nu,
+        k_in,
+        omega_in,
+        sec.outlet_pressure_pa / rho,
+        sec.rans_iterations,
+        sec.rans_tolerance,
+        sec.rans_processes,
+    )
+    own_tmp = case_dir is None
+    case = Path(tempfile.mkdtemp(prefix="hevsim-rans-")) if own_tmp else Path(case_dir)  # type: ignore[arg-type]
+    if not own_tmp:
+        if case.exists() and (not case.is_dir() or any(case.iterdir())):
+            raise ConfigError(
+                f"{where}: OpenFOAM case folder {case} exists and is not empty; expected a new folder."
+            )
+        case.mkdir(parents=True, exist_ok=True)
+    try:
+        counts = write_case(case, grid, channel, rc)
+        n = grid.n_cells
+        if progress:
+            from hevsim.progress import stage
+
+            stage(
+                f"RANS k-omega SST with OpenFOAM ({of.source}): Re = {reynolds:.0f}, {n} cells, "
+                f"at most {rc.iterations} iterations, {rc.processes} process(es), case {case}"
+            )
+        if rc.processes > 1:
+            _run(of, ["decomposePar", "-force"], case, case / "log.decomposePar", None, False)
+            out = _run(
+                of,
+                ["mpirun", "-np", str(rc.processes), of.which("simpleFoam") or "simpleFoam", "-parallel"],
+                case,
+                case / "log.simpleFoam",
+                rc.iterations,
+                progress,
+            )
+            _run(of, ["reconstructPar", "-latestTime"], case, case / "log.reconstructPar", None, False)
+        else:
+            out = _run(of, ["simpleFoam"], case, case / "log.simpleFoam", rc.iterations, progress)
+        last = _latest_time(case)
+        u_c = read_internal_field(last / "U", n)
+        p_c = read_internal_field(last / "p", n) * rho
+        nut_c = read_internal_field(last / "nut", n)
+        yplus = _read_yplus(case)
+        log_text = out
+    finally:
+        if own_tmp:
+            shutil.rmtree(case, ignore_errors=True)
+    iterations = max((int(m.group(1)) for m in re.finditer(r"^Time = (\d+)\s*$", log_text, re.M)), default=0)
+    converged = "solution converged in" in log_text
+    residuals: dict[str, float] = {}
+    for m in _RESIDUAL.finditer(log_text):
+        residuals[m.group(1)] = float(m.group(2))
+    if not converged:
+        last_res = ", ".join(f"{k} {v:.2g}" for k, v in residuals.items())
+        warnings.warn(
+            f"{where}: simpleFoam did not reach the residual tolerance {rc.tolerance:g} in {rc.iterations} "
+            f"iterations (last initial residuals: {last_res}); "
+            "raise flow.rans_iterations or flow.rans_tolerance.",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+    wall_pts, inlet_pts = boundary_points(grid, channel)
+    u_in = np.array(rc.inlet_velocity_mps)
+    u_field = GridField.from_cells(grid, u_c, [(inlet_pts, u_in), (wall_pts, np.zeros(3))])
+    p_field = GridField.from_cells(grid, p_c)
+    nut_field = GridField.from_cells(grid, nut_c, [(wall_pts, np.zeros(1))])
+    # onto the tetrahedral mesh of the [flow] resolution keys
+    mesh = channel_mesh(
+        channel,
+        sec.cells_across_width,
+        sec.cells_across_height,
+        sec.cell_length_m,
+        sec.wall_cell_m,
+        sec.growth,
+    )
+    basis_u = Basis(mesh, ElementVector(ElementTetP2()), intorder=4)
+    basis_p = basis_u.with_element(ElementTetP1())
+    scalar = basis_u.with_element(ElementTetP2())
+    velocity = u_field.at(scalar.doflocs.T).reshape(-1)
+    pressure = p_field.at(mesh.p.T)[:, 0]
+    eddy = nut_field.at(mesh.p.T)[:, 0] / sec.prandtl_turbulent
+    # figures from the OpenFOAM cells
+    cin, a_in = _port_cells(grid, channel.inlet)
+    cout, a_out = _port_cells(grid, channel.outlet)
+    p_in = float((p_c[cin] * a_in).sum() / a_in.sum())
+    q_in = float(abs(u_in[0]) * a_in.sum())
+    q_out = float(abs((u_c[cout, 0] * a_out).sum()))
+    dp = p_in - sec.outlet_pressure_pa
+    metrics = {
+        "flow_m3_s": flow_m3_s,
+        "flow_l_min": flow_m3_s / L_MIN_TO_M3_S,
+        "inlet_flow_m3_s": q_in,
+        "outlet_flow_m3_s": q_out,
+        "mass_imbalance_rel": abs(q_in - q_out) / flow_m3_s,
+        "reynolds": reynolds,
+        "mean_velocity_mps": u_mean,
+        "hydraulic_diameter_m": dh,
+        "inlet_pressure_pa": p_in,
+        "outlet_pressure_pa": sec.outlet_pressure_pa,
+        "pressure_drop_pa": dp,
+        "pump_power_w": dp * flow_m3_s,
+        "max_velocity_mps": float(np.max(np.linalg.norm(u_c, axis=1))),
+        "channel_volume_m3": float(
+            np.einsum("i,j,k->ijk", *[np.diff(nd) for nd in grid.nodes])[grid.inside].sum()
+        ),
+        "iterations": float(iterations),
+        "converged": float(converged),
+        "rans_cells": float(n),
+        "rans_faces": float(counts["faces"]),
+        **yplus,
+        "max_eddy_viscosity_ratio": float(np.max(nut_c) / nu),
+        "turbulence_intensity": sec.turbulence_intensity,
+        "turbulence_length_m": length,
+        "velocity_dofs": float(basis_u.N),
+        "pressure_dofs": float(basis_p.N),
+        "elements": float(mesh.t.shape[1]),
+        "cells_across_width": float(sec.cells_across_width),
+        "cells_across_height": float(sec.cells_across_height),
+        "solve_time_s": time.perf_counter() - t0,
+    }
+    for key, val in residuals.items():
+        metrics[f"final_residual_{key}"] = val
+    res = FlowResult(metrics, mesh, velocity, pressure, basis_u, basis_p, [])
+    res.eddy_diffusivity_m2_s = eddy
+    res.rans = RansResult(grid, u_c, p_c, nut_c, u_field, p_field, nut_field, residuals, log_text)
+    return res
