@@ -146,7 +146,7 @@ def _module_data(**flow: object) -> dict:
 
 
 def test_shipped_10_l_min_case_is_turbulent_and_refused_with_the_laminar_limit() -> None:
-    cfg = flow_config_from_dict(_module_data(), str(MODULE_TOML))
+    cfg = flow_config_from_dict(_module_data(model="laminar"), str(MODULE_TOML))  # "auto" takes RANS
     assert cfg.flow_m3_s == pytest.approx(10 * L_MIN_TO_M3_S)
     with pytest.raises(
         ConfigError, match=r"Re = 34\d\d.*laminar solver needs Re <= 2300.*flow_l_min <= 6\.6"
@@ -162,6 +162,7 @@ def test_shipped_10_l_min_case_is_turbulent_and_refused_with_the_laminar_limit()
         ({"cells_across_height": 1}, "flow.cells_across_height"),
         ({"pressure": 3.0}, "flow.pressure"),
         ({"channel": "pipe"}, "flow.channel"),
+        ({"model": "les"}, "flow.model"),
     ],
 )
 def test_bad_flow_section_is_a_config_error_naming_the_key(flow: dict, match: str) -> None:
@@ -190,7 +191,7 @@ def test_cli_flow_refuses_turbulent_case_writes_nothing_and_runs_a_laminar_one(
     from hevsim.cli import main
 
     out = tmp_path / "res"
-    assert main(["flow", str(MODULE_TOML), "--out", str(out)]) == 2
+    assert main(["flow", str(MODULE_TOML), "--model", "laminar", "--out", str(out)]) == 2
     assert "Re = 3451" in capsys.readouterr().err and not out.exists()
     cfg = tmp_path / "duct.toml"
     cfg.write_text(

@@ -14,11 +14,13 @@ sets the outlet's static pressure and is exact for developed flow.
 The channel is the shipped plate's serpentine (:meth:`ModuleGeometry.channel_path_m`), or a
 straight rectangular duct for verification, meshed as a structured tensor grid of tetrahedra
 restricted to the union of the channel's axis-aligned boxes (the same boxes the module mesh
-cuts out of the plate). Only laminar flow is solved here: a Reynolds number above
-:data:`~hevsim.thermal.coolant.RE_LAMINAR_MAX` is refused with a message; the shipped
-10 L/min case (Re about 3450 with the Table 4.4 properties) is transitional/turbulent and
-needs a RANS solver (issue 19, later step). Coolant properties are constant, so the field is
-solved once per operating point (flow rate, temperature) and can be frozen for a thermal run.
+cuts out of the plate). ``flow.model`` chooses the solver: ``laminar`` (this module; a Reynolds
+number above :data:`~hevsim.thermal.coolant.RE_LAMINAR_MAX` is refused with a message),
+``rans`` (k-omega SST with OpenFOAM, :mod:`hevsim.thermal.rans`, read back onto this module's
+mesh) or ``auto`` (the default: laminar up to ``RE_LAMINAR_MAX``, RANS above; the shipped
+10 L/min case, Re about 3450 with the Table 4.4 properties, is transitional/turbulent).
+Coolant properties are constant, so the field is solved once per operating point (flow rate,
+temperature) and can be frozen for a thermal run.
 
 Verification (``tests/test_thermal_flow.py``) uses the series solution for Poiseuille flow in
 a rectangular duct: F. M. White, *Viscous Fluid Flow*, 3rd ed., McGraw-Hill (2006), eqs.
@@ -51,6 +53,8 @@ SERIES_TERMS = 200
 INLET_PROFILES = ("developed", "uniform")
 #: Channels :class:`FlowSection` accepts: the plate's serpentine or a straight duct.
 CHANNEL_KINDS = ("plate", "duct")
+#: Flow models :class:`FlowSection` accepts (``auto``: laminar up to RE_LAMINAR_MAX, else RANS).
+FLOW_MODELS = ("auto", "laminar", "rans")
 #: Continuation in Reynolds number: the first level's Re is at most this [-] ...
 CONTINUATION_START_RE = 50.0
 #: ... and each level multiplies Re by this factor [-] up to the case's Re.
@@ -118,6 +122,17 @@ class FlowSection:
     (``hevsim flow --thermal``, :func:`hevsim.thermal.cht.run_cht`); ``grad_div`` [-]:
     grad-div stabilisation ``gamma int div u div v`` with ``gamma = grad_div (mu + rho U D_h)``
     (0 = none), which improves the local mass conservation the coolant heat balance needs.
+    ``wall_cell_m`` [m]: first cell height at the channel walls of this (FEM) mesh, growing by
+    ``growth`` [-] away from them up to the sizes above (0 = uniform cells, the default).
+
+    ``model``: ``auto`` (default), ``laminar`` or ``rans`` (module docstring). RANS keys
+    (:mod:`hevsim.thermal.rans`): ``turbulence_intensity`` [-] (0.05) and
+    ``turbulence_length_m`` [m] (0 = 0.07 D_h) of the inflow, ``prandtl_turbulent`` [-]
+    (0.85) for the coolant's eddy diffusivity nu_t / Pr_t, the OpenFOAM grid
+    (``rans_cells_across_width``, ``rans_cells_across_height``, ``rans_cell_length_m`` [m],
+    first cell height ``rans_wall_cell_m`` [m] at the walls, ``growth``), at most
+    ``rans_iterations`` SIMPLE iterations down to initial residuals ``rans_tolerance`` [-], on
+    ``rans_processes`` MPI processes.
     """
 
     flow_l_min: float = 0.0
@@ -133,6 +148,19 @@ class FlowSection:
     tolerance: float = 1e-9
     wall_temp_c: float = 25.0
     grad_div: float = 0.0
+    wall_cell_m: float = 0.0
+    growth: float = 1.3
+    model: str = "auto"
+    turbulence_intensity: float = 0.05
+    turbulence_length_m: float = 0.0
+    prandtl_turbulent: float = 0.85
+    rans_cells_across_width: int = 12
+    rans_cells_across_height: int = 6
+    rans_cell_length_m: float = 0.002
+    rans_wall_cell_m: float = 2e-4
+    rans_iterations: int = 2000
+    rans_tolerance: float = 1e-4
+    rans_processes: int = 1
 
 
 _FLOW_BOUNDS: dict[str, tuple[float, float]] = {
@@ -147,6 +175,18 @@ _FLOW_BOUNDS: dict[str, tuple[float, float]] = {
     "flow.tolerance": (1e-14, 1e-2),
     "flow.wall_temp_c": (-50.0, 150.0),
     "flow.grad_div": (0.0, 1e6),
+    "flow.wall_cell_m": (0.0, 1.0),
+    "flow.growth": (1.0, 3.0),
+    "flow.turbulence_intensity": (1e-4, 0.5),
+    "flow.turbulence_length_m": (0.0, 1.0),
+    "flow.prandtl_turbulent": (0.1, 10.0),
+    "flow.rans_cells_across_width": (2, 400),
+    "flow.rans_cells_across_height": (2, 400),
+    "flow.rans_cell_length_m": (1e-6, 1.0),
+    "flow.rans_wall_cell_m": (0.0, 1.0),
+    "flow.rans_iterations": (1, 100000),
+    "flow.rans_tolerance": (1e-12, 1e-1),
+    "flow.rans_processes": (1, 256),
 }
 
 
@@ -178,7 +218,7 @@ def flow_config_from_dict(
     data = dict(data)
     raw = data.pop("flow", {})
     thermal = thermal_config_from_dict(data, source, base_dir)
-    choices = {"flow.inlet_profile": INLET_PROFILES, "flow.channel": CHANNEL_KINDS}
+    choices = {"flow.inlet_profile": INLET_PROFILES, "flow.channel": CHANNEL_KINDS, "flow.model": FLOW_MODELS}
     sec = build_section(FlowSection, raw, source, "flow", choices, _FLOW_BOUNDS)
     if "flow_l_min" in raw and not sec.flow_l_min > 0.0:
         raise ConfigError(
@@ -261,14 +301,30 @@ def _axis_nodes(breaks: list[float], spacing: float) -> np.ndarray:
     return np.array(out)
 
 
-def channel_mesh(ch: Channel, cells_across_width: int, cells_across_height: int, cell_length_m: float) -> Any:
-    """Structured tetrahedral mesh (scikit-fem ``MeshTet``) of the channel's box union."""
+def channel_mesh(
+    ch: Channel,
+    cells_across_width: int,
+    cells_across_height: int,
+    cell_length_m: float,
+    wall_cell_m: float = 0.0,
+    growth: float = 1.3,
+) -> Any:
+    """Structured tetrahedral mesh (scikit-fem ``MeshTet``) of the channel's box union;
+    ``wall_cell_m`` > 0 [m]: cells graded geometrically (``growth`` [-]) from that height at the
+    walls (:func:`hevsim.thermal.rans.channel_grid`)."""
     from skfem import MeshTet
 
     w, h = ch.width_m, ch.height_m
-    xs = _axis_nodes([v for b in ch.boxes for v in b[:2]], cell_length_m)
-    ys = _axis_nodes([v for b in ch.boxes for v in b[2:4]], min(w / cells_across_width, cell_length_m))
-    zs = _axis_nodes([v for b in ch.boxes for v in b[4:]], h / cells_across_height)
+    if wall_cell_m > 0.0:
+        from hevsim.thermal.rans import channel_grid
+
+        xs, ys, zs = channel_grid(
+            ch, cells_across_width, cells_across_height, cell_length_m, wall_cell_m, growth
+        ).nodes
+    else:
+        xs = _axis_nodes([v for b in ch.boxes for v in b[:2]], cell_length_m)
+        ys = _axis_nodes([v for b in ch.boxes for v in b[2:4]], min(w / cells_across_width, cell_length_m))
+        zs = _axis_nodes([v for b in ch.boxes for v in b[4:]], h / cells_across_height)
     m = MeshTet.init_tensor(xs, ys, zs)
     c = m.p[:, m.t].mean(axis=1)
     inside = np.zeros(c.shape[1], dtype=bool)
@@ -291,6 +347,9 @@ class FlowResult:
     history: list[float]
     metadata: dict[str, Any] = field(default_factory=dict)
     cht: Any = None  # hevsim.thermal.cht.ChtResult of a thermal run (run_flow(thermal=True))
+    #: turbulent (eddy) diffusivity nu_t / Pr_t at the mesh vertices [m^2/s] (RANS only)
+    eddy_diffusivity_m2_s: np.ndarray | None = None
+    rans: Any = None  # hevsim.thermal.rans.RansResult of a RANS solve
 
     def vertex_velocity_mps(self) -> np.ndarray:
         """Velocity at the mesh vertices, (N, 3) [m/s]."""
@@ -304,12 +363,18 @@ def solve_flow(
     *,
     section: FlowSection | None = None,
     where: str = "flow",
+    progress: bool = False,
+    case_dir: str | Path | None = None,
 ) -> FlowResult:
-    """Steady laminar flow through ``channel`` at ``flow_m3_s`` [m^3/s]; see the module docstring.
+    """Steady flow through ``channel`` at ``flow_m3_s`` [m^3/s]; see the module docstring.
+
+    ``flow.model`` ``rans`` (or ``auto`` above the laminar limit) hands over to
+    :func:`hevsim.thermal.rans.solve_rans` (``progress``: OpenFOAM's iterations on the
+    terminal; ``case_dir``: keep its case there).
 
     Raises:
         ConfigError: the flow rate is not positive, or the Reynolds number is above the laminar
-            limit (no RANS solver yet).
+            limit with ``flow.model = "laminar"``; OpenFOAM is missing for a RANS solve.
         SimulationError: the nonlinear iterations do not converge.
     """
     from scipy.sparse import bmat
@@ -327,12 +392,19 @@ def solve_flow(
     area, dh = w * h, 2 * w * h / (w + h)
     u_mean = flow_m3_s / area
     re = rho * u_mean * dh / mu
+    if sec.model == "rans" or (sec.model == "auto" and re > RE_LAMINAR_MAX):
+        from hevsim.thermal.rans import solve_rans
+
+        return solve_rans(
+            channel, coolant, flow_m3_s, section=sec, where=where, case_dir=case_dir, progress=progress
+        )
     if re > RE_LAMINAR_MAX:
         raise ConfigError(
             f"{where}: flow rate {flow_m3_s / L_MIN_TO_M3_S:.4g} L/min gives Re = {re:.0f} in the "
             f"{w * 1e3:g} x {h * 1e3:g} mm channel (D_h = {dh * 1e3:.3g} mm, nu = {mu / rho:.3g} m^2/s); "
-            f"the laminar solver needs Re <= {RE_LAMINAR_MAX:g} (a turbulent RANS solve is not available "
-            f"yet). Use flow.flow_l_min <= {RE_LAMINAR_MAX * mu * area / (rho * dh) / L_MIN_TO_M3_S:.3g}."
+            f'the laminar solver needs Re <= {RE_LAMINAR_MAX:g} (flow.model = "rans" or "auto" '
+            f"solves it with OpenFOAM's k-omega SST). Or use flow.flow_l_min <= "
+            f"{RE_LAMINAR_MAX * mu * area / (rho * dh) / L_MIN_TO_M3_S:.3g}."
         )
     cell_m = max(sec.cell_length_m, w / sec.cells_across_width, h / sec.cells_across_height)
     cell_re = rho * u_mean * cell_m / mu
@@ -528,23 +600,43 @@ def config_channel(cfg: FlowConfig) -> Channel:
 
 
 def run_flow(
-    config: FlowConfig | str | Path, out_dir: str | Path | None = None, thermal: bool = False
+    config: FlowConfig | str | Path,
+    out_dir: str | Path | None = None,
+    thermal: bool = False,
+    progress: bool = False,
 ) -> FlowResult:
-    """Solve the laminar flow of a config; write ``summary.json`` and ``flow.vtu`` to ``out_dir``.
+    """Solve the flow of a config; write ``summary.json`` and ``flow.vtu`` to ``out_dir``.
 
     ``thermal``: also the coolant heat transfer on the frozen flow (:func:`hevsim.thermal.cht.run_cht`,
     in ``res.cht``; files ``cht_summary.json``, ``cht_segments.csv``, ``nusselt.png``,
-    ``temperature.vtu``). The results folder appears atomically
-    (:func:`hevsim.io.atomic_directory`).
+    ``temperature.vtu``). A RANS solve also leaves its OpenFOAM case in ``openfoam/``. The
+    results folder appears atomically (:func:`hevsim.io.atomic_directory`). ``progress``: the
+    RANS iterations on the terminal.
     """
+    import tempfile
+
     cfg = config if isinstance(config, FlowConfig) else load_flow_config(config)
-    res = solve_flow(config_channel(cfg), cfg.coolant, cfg.flow_m3_s, section=cfg.flow, where=cfg.name)
+    with tempfile.TemporaryDirectory(prefix="hevsim-flow-") as work:
+        case = Path(work) / "openfoam" if out_dir is not None else None
+        res = solve_flow(
+            config_channel(cfg), cfg.coolant, cfg.flow_m3_s, section=cfg.flow, where=cfg.name,
+            progress=progress, case_dir=case,
+        )  # fmt: skip
+        _finish_flow(cfg, res, out_dir, thermal, case if res.rans is not None else None)
+    return res
+
+
+def _finish_flow(
+    cfg: FlowConfig, res: FlowResult, out_dir: str | Path | None, thermal: bool, case: Path | None
+) -> None:
+    """The thermal run, metadata and result files of :func:`run_flow`."""
     if thermal:
         from hevsim.thermal.cht import run_cht
 
         res.cht = run_cht(cfg, res)
     res.metadata = {
         "name": cfg.name,
+        "model": "rans" if res.rans is not None else "laminar",
         "channel": cfg.flow.channel,
         "flow": dataclasses.asdict(cfg.flow),
         "coolant": dataclasses.asdict(cfg.coolant),
@@ -560,7 +652,10 @@ def run_flow(
                 from hevsim.thermal.cht import write_cht
 
                 write_cht(res.cht, tmp)
-    return res
+            if case is not None:
+                import shutil
+
+                shutil.copytree(case, tmp / "openfoam", ignore=shutil.ignore_patterns("processor*"))
 
 
 def write_vtu(res: FlowResult, path: str | Path) -> None:
@@ -572,7 +667,15 @@ def write_vtu(res: FlowResult, path: str | Path) -> None:
         meshio.Mesh(
             res.mesh.p.T,
             [("tetra", res.mesh.t.T)],
-            point_data={"velocity_mps": res.vertex_velocity_mps(), "pressure_pa": res.pressure},
+            point_data={
+                "velocity_mps": res.vertex_velocity_mps(),
+                "pressure_pa": res.pressure,
+                **(
+                    {}
+                    if res.eddy_diffusivity_m2_s is None
+                    else {"eddy_diffusivity_m2_s": res.eddy_diffusivity_m2_s}
+                ),
+            },
         ),
     )
 
@@ -580,15 +683,26 @@ def write_vtu(res: FlowResult, path: str | Path) -> None:
 def format_flow(res: FlowResult) -> str:
     """A short text summary of a flow result."""
     m = res.metrics
-    return "\n".join(
-        [
-            f"laminar flow: {m['flow_l_min']:.4g} L/min, Re = {m['reynolds']:.0f}, mean velocity "
-            f"{m['mean_velocity_mps']:.4g} m/s, max {m['max_velocity_mps']:.4g} m/s",
-            f"pressure drop {m['pressure_drop_pa']:.6g} Pa, pump power {m['pump_power_w']:.6g} W",
-            f"mass balance: inlet {m['inlet_flow_m3_s']:.6e} m^3/s, outlet {m['outlet_flow_m3_s']:.6e} m^3/s "
-            f"(relative imbalance {m['mass_imbalance_rel']:.1e})",
-            f"mesh: {m['elements']:.0f} tetrahedra, "
-            f"{m['velocity_dofs']:.0f} + {m['pressure_dofs']:.0f} dofs, "
-            f"{m['iterations']:.0f} iterations, {m['solve_time_s']:.2f} s",
+    rans = res.rans is not None
+    kind = "turbulent flow (RANS k-omega SST, OpenFOAM)" if rans else "laminar flow"
+    lines = [
+        f"{kind}: {m['flow_l_min']:.4g} L/min, Re = {m['reynolds']:.0f}, mean velocity "
+        f"{m['mean_velocity_mps']:.4g} m/s, max {m['max_velocity_mps']:.4g} m/s",
+        f"pressure drop {m['pressure_drop_pa']:.6g} Pa, pump power {m['pump_power_w']:.6g} W",
+        f"mass balance: inlet {m['inlet_flow_m3_s']:.6e} m^3/s, outlet {m['outlet_flow_m3_s']:.6e} m^3/s "
+        f"(relative imbalance {m['mass_imbalance_rel']:.1e})",
+    ]
+    if rans:
+        lines += [
+            f"wall y+ {m['yplus_min']:.3g} .. {m['yplus_max']:.3g} (mean {m['yplus_mean']:.3g}); max nu_t/nu "
+            f"{m['max_eddy_viscosity_ratio']:.3g}",
+            f"OpenFOAM: {m['rans_cells']:.0f} hexahedra, {m['iterations']:.0f} SIMPLE iterations "
+            f"({'converged' if m['converged'] else 'NOT converged'}), {m['solve_time_s']:.2f} s; "
+            f"read back onto {m['elements']:.0f} tetrahedra",
         ]
-    )
+    else:
+        lines.append(
+            f"mesh: {m['elements']:.0f} tetrahedra, {m['velocity_dofs']:.0f} + {m['pressure_dofs']:.0f} "
+            f"dofs, {m['iterations']:.0f} iterations, {m['solve_time_s']:.2f} s"
+        )
+    return "\n".join(lines)
