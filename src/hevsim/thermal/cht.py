@@ -147,7 +147,7 @@ class CoolantThermal:
     divergence_correction: bool = True
 
     def __post_init__(self) -> None:
-        from skfem import BilinearForm, ElementTetP2, FacetBasis, LinearForm
+        from skfem import BilinearForm, ElementTetP1, ElementTetP2, FacetBasis, LinearForm
         from skfem.helpers import dot, grad
 
         if self.n_segments < 1:
@@ -159,6 +159,9 @@ class CoolantThermal:
         mesh = fl.mesh
         self.basis = fl.basis_u.with_element(ElementTetP2())
         u_q = fl.basis_u.interpolate(fl.velocity)
+        # RANS flow: the eddy diffusivity nu_t / Pr_t [m^2/s] adds to alpha (k -> k + rc a_t)
+        eddy = fl.eddy_diffusivity_m2_s if fl.eddy_diffusivity_m2_s is not None else np.zeros(mesh.p.shape[1])
+        a_t = fl.basis_u.with_element(ElementTetP1()).interpolate(eddy)
         tol = 1e-9 * max(max(b[1] for b in self.channel.boxes), self.channel.width_m)
         mid = mesh.p[:, mesh.facets].mean(axis=1)
         bnd = mesh.boundary_facets()
@@ -176,16 +179,16 @@ class CoolantThermal:
             ugv = dot(w["u"], grad(v))
             speed = np.sqrt(dot(w["u"], w["u"])) + 1e-300
             hp = w.h / TAU_ORDER
-            pe = np.maximum(speed * hp / (2 * alpha), 1e-12)
+            pe = np.maximum(speed * hp / (2 * (alpha + w["a_t"])), 1e-12)
             tau = hp / (2 * speed) * (1 / np.tanh(pe) - 1 / pe)
             ugt = dot(w["u"], grad(t))
-            return rc * v * ugt + k * dot(grad(t), grad(v)) + tau * ugv * rc * ugt
+            return rc * v * ugt + (k + rc * w["a_t"]) * dot(grad(t), grad(v)) + tau * ugv * rc * ugt
 
         @BilinearForm
         def capacity(t: Any, v: Any, w: Any) -> Any:
             speed = np.sqrt(dot(w["u"], w["u"])) + 1e-300
             hp = w.h / TAU_ORDER
-            pe = np.maximum(speed * hp / (2 * alpha), 1e-12)
+            pe = np.maximum(speed * hp / (2 * (alpha + w["a_t"])), 1e-12)
             tau = hp / (2 * speed) * (1 / np.tanh(pe) - 1 / pe)
             return rc * t * (v + tau * dot(w["u"], grad(v)))
 
@@ -202,12 +205,12 @@ class CoolantThermal:
         fu_in = FacetBasis(mesh, fl.basis_u.elem, facets=f_in, intorder=4)
         fu_out = FacetBasis(mesh, fl.basis_u.elem, facets=f_out, intorder=4)
         self.stiffness = (
-            advection_diffusion.assemble(self.basis, u=u_q)
+            advection_diffusion.assemble(self.basis, u=u_q, a_t=a_t)
             + inflow_exchange.assemble(fb_in, u=fu_in.interpolate(fl.velocity))
         ).tocsr()
         if self.divergence_correction:
             self.stiffness = (self.stiffness + _divergence_correction(self.basis, u_q, rc)).tocsr()
-        self.capacity = capacity.assemble(self.basis, u=u_q).tocsr()
+        self.capacity = capacity.assemble(self.basis, u=u_q, a_t=a_t).tocsr()
         self.inflow = boundary_inflow.assemble(fb_in, u=fu_in.interpolate(fl.velocity))  # [W/K]
         self._fb_out, self._u_out = fb_out, fu_out.interpolate(fl.velocity)
         self.flow_m3_s = float(fl.metrics["flow_m3_s"])
