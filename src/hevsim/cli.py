@@ -597,7 +597,10 @@ def _cmd_flow(args: argparse.Namespace) -> int:
     data = read_toml(args.config)
     if args.flow_l_min is not None:  # the operating point from the command line
         data["flow"] = {**data.get("flow", {}), "flow_l_min": args.flow_l_min}
-    res = run_flow(flow_config_from_dict(data, str(args.config), Path(args.config).parent), out, args.thermal)
+    if args.model is not None:  # laminar / rans / auto from the command line
+        data["flow"] = {**data.get("flow", {}), "model": args.model}
+    cfg = flow_config_from_dict(data, str(args.config), Path(args.config).parent)
+    res = run_flow(cfg, out, args.thermal, progress=True)
     print(format_flow(res))
     if res.cht is not None:
         from hevsim.thermal.cht import format_cht
@@ -932,9 +935,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_force(p, "folder at --out")
     p.set_defaults(func=_cmd_thermal)
 
-    p = sub.add_parser("flow", help="laminar coolant flow in the plate's channel (Navier-Stokes, FEM)")
+    p = sub.add_parser(
+        "flow", help="coolant flow in the plate's channel: laminar (Navier-Stokes, FEM) or RANS (OpenFOAM)"
+    )
     p.add_argument("config", help="module configuration (TOML) with an optional [flow] section")
     p.add_argument("--flow-l-min", type=float, help="inlet flow rate [L/min] (replaces flow.flow_l_min)")
+    p.add_argument("--model", choices=("auto", "laminar", "rans"),
+                   help="flow model (replaces flow.model; auto: RANS above Re 2300)")  # fmt: skip
     p.add_argument("--thermal", action="store_true",
                    help="also the coolant's heat transfer on the frozen flow (docs/flow.md)")  # fmt: skip
     p.add_argument("--out", help="results folder (default results/<config>_flow)")
