@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo examples test docs lint refinement bench clean
+.PHONY: setup demo examples test docs lint refinement bench clean openfoam
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,7 +25,22 @@ examples: $(STAMP)
 # test also runs a duplicate-code scan (issue 18): no block of 7+ lines twice in src/hevsim; at
 # 4-6 lines two remain, neither physics: optimal/__init__ vs optimal/dp (__all__), battery/cell
 # vs battery/module (current-profile checks).
-test: $(STAMP)
+# OpenFOAM (simpleFoam) for the turbulent coolant flow (hevsim.thermal.rans, tests/test_rans.py):
+# Debian's package when missing, if we are root with apt-get; otherwise say so and go on (the
+# RANS tests then skip, and `hevsim flow` says what to install).
+openfoam:
+	@if command -v simpleFoam >/dev/null 2>&1 || [ -n "$$HEVSIM_OPENFOAM" ]; then \
+		echo "openfoam: found ($$(command -v simpleFoam || echo $$HEVSIM_OPENFOAM))"; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+		echo "openfoam: installing Debian's package: apt-get install -y openfoam"; \
+		DEBIAN_FRONTEND=noninteractive apt-get install -y openfoam || \
+		{ apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y openfoam; }; \
+	else \
+		echo "openfoam: simpleFoam not found and not root with apt-get: skipping (install 'openfoam'" \
+			"as root, or openfoam.com/.org packages; the RANS tests will be skipped)"; \
+	fi
+
+test: $(STAMP) openfoam
 	$(BIN)/ruff check src tests benchmarks examples
 	$(BIN)/ruff format --check src tests benchmarks examples
 	$(BIN)/mypy
