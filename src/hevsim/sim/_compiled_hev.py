@@ -271,15 +271,16 @@ NO_ENGINE = (False, False, False, 0.0, 0.0, 0.0)
 @njit(cache=True, inline="always")
 def _engine(eng_flags, eng_floats, i):
     """Candidate ``i``'s :func:`~hevsim.architectures.power_split.engine_point`, as
-    :func:`_engine_cache` stored it."""
+    :func:`engine_cache` stored it."""
     return (eng_flags[0, i], eng_flags[1, i], eng_flags[2, i], eng_floats[0, i], eng_floats[1, i],
             eng_floats[2, i])  # fmt: skip
 
 
-@njit(cache=True, inline="always")
-def _engine_cache(cand0, cand1, dps, etab, eng_flags, eng_floats):
-    """Store every candidate's :func:`~hevsim.architectures.power_split.engine_point` (it
-    does not depend on the step: computed once per run instead of once per step)."""
+@njit(cache=True)
+def engine_cache(cand0, cand1, dps, etab, eng_flags, eng_floats):
+    """Store every candidate's :func:`~hevsim.architectures.power_split.engine_point` in
+    ``eng_flags`` (3, n) and ``eng_floats`` (3, n) (it does not depend on the step: computed
+    once per run instead of once per step and candidate)."""
     for i in range(cand0.shape[0]):
         r = PS.engine_point(cand0[i], cand1[i], dps, etab)
         eng_flags[0, i], eng_flags[1, i], eng_flags[2, i] = r[0], r[1], r[2]
@@ -306,6 +307,15 @@ def _argmin(cost, feasible, n):
     return best
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _candidate(arch, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf):
+    """:func:`_point` of candidate ``i`` of ``cands`` at one step (no details), its engine
+    operating point from ``ecache`` (:func:`engine_cache`)."""
+    eng = _engine(ecache[0], ecache[1], i)
+    return _point(arch, cands[0][i], cands[1][i], eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False,
+                  buf[6], buf[7])  # fmt: skip
+
+
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md, buf):
     """The controller's choice at one step (:mod:`hevsim.control.parallel`): (found, c0, c1).
@@ -314,7 +324,8 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
     control of every candidate, the electric assist's throttle grid); ``buf``: work arrays."""
     cand0, cand1, thr_grid = cands
     h, dpar, _, etab, _, _ = md
-    cost, fuel, p_eng, feas, near, det, loss, p_cand, e_flags, e_floats = buf
+    cost, fuel, p_eng, feas, p_cand, order, det, loss = buf[:8]
+    ecache = (buf[8], buf[9])
     regen_ok = v_mid > 0.0
     n = cand0.shape[0]
     p_dem = t_wheel * w_wheel
@@ -345,10 +356,8 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
                     i_max, t_max = i, te
             if any_ok:
                 c1 = thr_grid[first_above if first_above >= 0 else i_max]
-        ok = _point(arch, c0, c1, NO_ENGINE, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss)[
-            0
-        ]
-        if ok:
+        ok = _point(arch, c0, c1, NO_ENGINE, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss)
+        if ok[0]:
             return True, c0, c1
     elif cc.code == AECMS:
         err = state[3] - cc.kin * v_mid**2 / e_soc - soc
@@ -360,91 +369,32 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
         for i in range(n):
             if (
                 cand1[i] == 0.0
-                and _point(
-                    arch,
-                    cand0[i],
-                    cand1[i],
-                    _engine(e_flags, e_floats, i),
-                    w_wheel,
-                    t_wheel,
-                    regen_ok,
-                    soc,
-                    dt,
-                    bat,
-                    md,
-                    False,
-                    det,
-                    loss,
-                )[0]
+                and _candidate(arch, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf)[0]
             ):
                 return True, cand0[i], cand1[i]
     if cc.code == POWER_FOLLOWER:
-        # Candidates whose engine power (known per run: p_cand) is near the target are
-        # evaluated first; the rest only when none of those is feasible. Same choice as
-        # evaluating every candidate (the engine power of _point is p_cand).
+        # The least fuel of the feasible candidates whose engine power (known per run: p_cand)
+        # is near the target: candidates in the order of their fuel (``order``, ties by index;
+        # per run, as the fuel depends on the engine alone), the first near and feasible one is
+        # it (the argmin over all, as the Python controller takes it). The rest only when none
+        # is feasible.
         target = max(p_dem, 0.0) + frac * cc.charge_power_w
         band = max(PS_POWER_BAND * target, PS_POWER_BAND_MIN_W)
-        any_near = False
+        for j in range(n):
+            i = order[j]
+            if cand1[i] != 0.0 and abs(p_cand[i] - target) <= band:
+                if _candidate(arch, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf)[0]:
+                    return True, cand0[i], cand1[i]
         for i in range(n):
-            near[i] = cand1[i] != 0.0 and abs(p_cand[i] - target) <= band
-            if near[i]:
-                feas[i], fuel[i], d_soc, p_eng[i] = _point(
-                    arch,
-                    cand0[i],
-                    cand1[i],
-                    _engine(e_flags, e_floats, i),
-                    w_wheel,
-                    t_wheel,
-                    regen_ok,
-                    soc,
-                    dt,
-                    bat,
-                    md,
-                    False,
-                    det,
-                    loss,
-                )
-                near[i] = feas[i]
-                any_near = any_near or near[i]
-        if any_near:
-            i = _argmin(fuel, near, n)
-        else:
-            for i in range(n):
-                feas[i], fuel[i], d_soc, p_eng[i] = _point(
-                    arch,
-                    cand0[i],
-                    cand1[i],
-                    _engine(e_flags, e_floats, i),
-                    w_wheel,
-                    t_wheel,
-                    regen_ok,
-                    soc,
-                    dt,
-                    bat,
-                    md,
-                    False,
-                    det,
-                    loss,
-                )
-                cost[i] = abs(p_eng[i] - target)
-            i = _argmin(cost, feas, n)
+            feas[i], fuel[i], d_soc, p_eng[i] = _candidate(
+                arch, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
+            )
+            cost[i] = abs(p_eng[i] - target)
+        i = _argmin(cost, feas, n)
     else:
         for i in range(n):  # every candidate: ECMS score, fuel, engine power
-            feas[i], fuel[i], d_soc, p_eng[i] = _point(
-                arch,
-                cand0[i],
-                cand1[i],
-                _engine(e_flags, e_floats, i),
-                w_wheel,
-                t_wheel,
-                regen_ok,
-                soc,
-                dt,
-                bat,
-                md,
-                False,
-                det,
-                loss,
+            feas[i], fuel[i], d_soc, p_eng[i] = _candidate(
+                arch, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
             )
             cost[i] = fuel[i] / dt * h.lhv_jpkg + s * (-d_soc / dt * e_soc)
         i = _argmin(cost, feas, n)
@@ -522,11 +472,7 @@ def run_hev(
     dt = t[1] - t[0]
     cands = (cand0, cand1, thr_grid)
     md = (h, dpar, dps, etab, mtab, gtab)
-    det, loss, p_cand, e_flags, e_floats = buf[5], buf[6], buf[7], buf[8], buf[9]
-    if arch == POWER_SPLIT:  # each candidate's engine operating point and power [W]
-        _engine_cache(cand0, cand1, dps, etab, e_flags, e_floats)
-        for i in range(cand0.shape[0]):
-            p_cand[i] = e_floats[1, i] * e_floats[0, i]
+    det, loss = buf[6], buf[7]
     nd = det.shape[0]
     nl = loss.shape[0]
     m_eff = h.mass_kg * h.mass_factor
@@ -662,9 +608,15 @@ def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_m
         model.battery.kernel_tables(),
     )
     nc = cand0.size
-    buf = (np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc, np.bool_), np.empty(nc, np.bool_),
-           np.zeros(len(mod.DETAILS)), np.zeros(len(mod.LOSS_TERMS)), np.zeros(nc),
-           np.zeros((3, nc), np.bool_), np.zeros((3, nc)))  # fmt: skip
+    e_flags, e_floats = np.zeros((3, nc), np.bool_), np.zeros((3, nc))
+    p_cand, order = np.zeros(nc), np.arange(nc)
+    if not parallel:  # each candidate's engine operating point, engine power [W], fuel order
+        engine_cache(cand0, cand1, dps, etab, e_flags, e_floats)
+        p_cand = e_floats[1] * e_floats[0]
+        fuel_kg = e_floats[2] * (t[1] - t[0])  # as _point gives it
+        order = np.argsort(np.where(np.isnan(fuel_kg), -np.inf, fuel_kg), kind="stable")  # NaN first
+    buf = (np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc, np.bool_), p_cand, order,
+           np.zeros(len(mod.DETAILS)), np.zeros(len(mod.LOSS_TERMS)), e_flags, e_floats)  # fmt: skip
     status, k, v_end = run_hev(arch, cc, float(soc0), t, v_des, gr, cand0, cand1, thr, h, dpar, dps, etab,
                                mtab, gtab, ptab, cols, audit, summary, state, buf)  # fmt: skip
     if status == ERR_STUCK:
