@@ -79,3 +79,16 @@ def test_simulate_replays_dp_schedule(tmp_path: Path) -> None:
 
     dp = fuel_eq(opt)
     assert dp <= fuel_eq(rep) <= fuel_eq(rule)
+    # --replay: the DP's decisions applied as its quasi-static model took them burn its fuel (to
+    # the round-off of the CSV: the API test, tests/test_dp_vehicle_series.py, holds 1e-9)
+    exact = tmp_path / "exact"
+    assert main(["simulate", str(SERIES), "--cycle", "fu505", "--out", str(exact), "--no-plots", *sched,
+                 "--replay"]) == 0  # fmt: skip
+    fuel = json.loads((exact / "metrics.json").read_text())["fuel_kg"]["value"]
+    assert fuel == pytest.approx(json.loads((opt / "metrics.json").read_text())["fuel_kg"]["value"], rel=1e-7)
+
+
+def test_replay_without_schedule_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["simulate", str(SERIES), "--replay", "--out", str(tmp_path / "o")]) == 2
+    assert "--schedule" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

@@ -96,13 +96,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
         check_controller(cfg.replace(**{"controller.kind": kind}) if kind else cfg, str(args.config))
     cycle = load_cycle(args.cycle or cfg.simulation.cycle)
+    if args.replay and not args.schedule:
+        raise ConfigError("--replay applies a genset schedule exactly as the DP took it; give the schedule "
+                          "with --schedule DIR/timeseries.csv (from `hevsim optimize`).")  # fmt: skip
     out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_{cycle.name}"
     _prepare(args, out, args.config, args.cycle, args.schedule)
     schedule = None
     if args.schedule:
         from hevsim.sim.simulator import GensetSchedule
 
-        schedule = GensetSchedule.from_csv(args.schedule)
+        schedule = GensetSchedule.from_csv(args.schedule, quasi_static=args.replay)
     from hevsim.guards import simulation_preflight
 
     simulation_preflight(cfg, cycle, args.dt)  # memory refusal, long-run line, compile notice
@@ -760,6 +763,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--schedule",
         help="replay a genset schedule CSV (time_s, engine_speed_rpm|engine_speed_radps, "
         "engine_throttle), e.g. the timeseries.csv of `hevsim optimize` on a series HEV",
+    )
+    p.add_argument(
+        "--replay",
+        action="store_true",
+        help="with --schedule: apply each step's engine speed and torque exactly as the DP's "
+        "quasi-static model took them (no cranking or speed-loop dynamics; reproduces the DP's fuel)",
     )
     p.add_argument(
         "--controller",
