@@ -695,7 +695,11 @@ class GridField:
             choices.append((hi, lo))
             frac.append(nodes)
         out = np.full((len(pts), self.values.shape[-1]), np.nan)
-        todo = np.ones(len(pts), dtype=bool)
+        lo_b = np.array([n[0] for n in self.grid.nodes])
+        hi_b = np.array([n[-1] for n in self.grid.nodes])
+        slack = 1e-9 * float(np.max(hi_b - lo_b))
+        todo = np.all((pts >= lo_b - slack) & (pts <= hi_b + slack), axis=1)
+        outside = ~todo
         for ci in choices[0]:
             for cj in choices[1]:
                 for ck in choices[2]:
@@ -721,6 +725,7 @@ class GridField:
                                 acc += wgt[:, None] * self.values[idx[0] + di, idx[1] + dj, idx[2] + dk]
                     out[ok] = acc
                     todo &= ~ok
+        todo |= outside
         if todo.any():
             raise SimulationError(
                 f"rans: {int(todo.sum())} points lie outside the channel grid (first {pts[todo][0]} m)."

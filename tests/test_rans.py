@@ -1,0 +1,271 @@
+"""Turbulent coolant flow through OpenFOAM (issue 19, hevsim.thermal.rans).
+
+References: H. Blasius, Forschungsarbeiten VDI 131 (1913): Darcy friction factor of smooth
+ducts f = 0.316 Re^-0.25 (Re 4e3..1e5); V. Gnielinski, Int. Chem. Eng. 16 (1976) 359-368:
+Nu = (f/8)(Re - 1000) Pr / (1 + 12.7 (f/8)^0.5 (Pr^(2/3) - 1)) with f = (0.79 ln Re - 1.64)^-2.
+Both for circular pipes, applied to the 8 x 4 mm duct on its hydraulic diameter (for aspect
+1/2, Jones' laminar-equivalent diameter differs from D_h by 1 %).
+
+The tests that run OpenFOAM skip when it is not installed (``make test`` installs it first,
+``make openfoam``); the "OpenFOAM missing" tests run everywhere.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hevsim.errors import ConfigError
+from hevsim.thermal import rans
+from hevsim.thermal.coolant import Coolant
+from hevsim.thermal.flow import (
+    FlowConfig,
+    FlowSection,
+    config_channel,
+    duct_channel,
+    plate_channel,
+    solve_flow,
+)
+from hevsim.thermal.geometry import ModuleGeometry
+
+ROOT = Path(__file__).resolve().parents[1]
+MODULE_TOML = ROOT / "examples" / "module_thermal.toml"
+
+
+def _have_openfoam() -> bool:
+    try:
+        rans.find_openfoam()
+    except ConfigError:
+        return False
+    return True
+
+
+needs_openfoam = pytest.mark.skipif(not _have_openfoam(), reason="OpenFOAM not installed (make openfoam)")
+
+#: Water at 50 degC (handbook values, e.g. F. P. Incropera et al., Fundamentals of Heat and Mass
+#: Transfer, Table A.6): Pr 3.56, inside Gnielinski's range and with a conduction sublayer the
+#: graded P2 mesh resolves; the shipped glycol's Pr 65 needs a far finer wall mesh.
+WATER_50C = Coolant(
+    conductivity_w_mk=0.643, density_kg_m3=988.0, viscosity_pa_s=5.47e-4, specific_heat_j_kgk=4181.0
+)
+RE_DUCT = 6000.0
+DUCT_LENGTH_M = 0.12  # 22.5 D_h
+
+
+# --------------------------------------------------------------------------- no OpenFOAM needed
+def test_graded_axis_starts_at_the_wall_cell_grows_by_the_ratio_and_keeps_the_breaks() -> None:
+    nodes = rans.graded_axis([0.0, 0.004, 0.01], [True, False, True], 5e-4, 2e-5, 1.3)
+    assert nodes[0] == 0.0 and nodes[-1] == pytest.approx(0.01)
+    assert np.any(np.isclose(nodes, 0.004, rtol=0, atol=1e-15))
+    d = np.diff(nodes)
+    assert d[0] == pytest.approx(2e-5, rel=0.05) and d[-1] == pytest.approx(2e-5, rel=0.05)
+    assert d.max() <= 5e-4 * 1.0001
+    grow = d[1:] / d[:-1]
+    assert np.all((grow < 1.3 * 1.06) & (grow > 1 / (1.3 * 1.06)))
+    # no wall at 0.004 (a break only): the cells meet there at full size
+    i = int(np.argmin(np.abs(nodes - 0.004)))
+    assert d[i - 1] > 2e-4 and d[i] > 2e-4
+
+
+def test_wall_planes_of_the_serpentine_exclude_the_inlet_and_outlet_planes() -> None:
+    flags = rans.wall_planes(plate_channel(ModuleGeometry()))
+    assert flags[0][0] is False and flags[0][-1] is False  # x = 0 (inlet), x = 128 mm (outlet)
+    assert all(flags[0][1:-1]) and all(flags[1]) and all(flags[2])
+
+
+def test_grid_field_reproduces_a_linear_field_and_applies_boundary_values() -> None:
+    ch = duct_channel(0.01, 0.008, 0.004)
+    grid = rans.channel_grid(ch, 8, 4, 0.0025)  # uniform 2.5 x 1 x 1 mm: vertex means are exact inside
+    c = grid.centres()
+    lin = 3.0 + 2.0 * c[:, 0] - 5.0 * c[:, 1] + 7.0 * c[:, 2]
+    field = rans.GridField.from_cells(grid, lin)
+    rng = np.random.default_rng(1)
+    pts = rng.uniform([0.0025, 0.001, 0.001], [0.0075, 0.007, 0.003], size=(200, 3))  # hexes off the walls
+    expect = 3.0 + 2.0 * pts[:, 0] - 5.0 * pts[:, 1] + 7.0 * pts[:, 2]
+    assert np.allclose(field.at(pts)[:, 0], expect, rtol=0, atol=1e-12)
+    wall, inlet = rans.boundary_points(grid, ch)
+    zero = rans.GridField.from_cells(grid, lin, [(wall, np.zeros(1))])
+    on_wall = np.array([[0.005, 0.0, 0.001], [0.005, 0.008, 0.0013], [0.002, 0.001, 0.0]])
+    assert np.allclose(zero.at(on_wall), 0.0)
+    assert inlet.sum() == (9 - 2) * (5 - 2)  # inlet vertices off the walls: 7 x 3
+    with pytest.raises(Exception, match="outside the channel"):
+        field.at(np.array([[0.005, 0.009, 0.001]]))
+
+
+def _no_openfoam(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    empty = tmp_path / "empty_bin"
+    empty.mkdir()
+    monkeypatch.setenv("PATH", str(empty))
+    monkeypatch.delenv(rans.OPENFOAM_ENV, raising=False)
+    monkeypatch.delenv("WM_PROJECT_DIR", raising=False)
+    monkeypatch.setattr(rans, "KNOWN_BASHRC", ())
+
+
+def test_openfoam_missing_exits_2_naming_what_to_install_and_writes_nothing(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from hevsim.cli import main
+
+    _no_openfoam(monkeypatch, tmp_path)
+    out = tmp_path / "res"
+    assert main(["flow", str(MODULE_TOML), "--out", str(out)]) == 2  # 10 L/min: Re 3451 -> RANS
+    err = capsys.readouterr().err
+    assert "simpleFoam" in err and "apt-get install openfoam" in err and "openfoam.com" in err
+    assert not out.exists()
+
+
+def test_hevsim_openfoam_pointing_nowhere_is_an_error(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    _no_openfoam(monkeypatch, tmp_path)
+    monkeypatch.setenv(rans.OPENFOAM_ENV, str(tmp_path))
+    with pytest.raises(rans.OpenFoamMissingError, match=r"HEVSIM_OPENFOAM=.*no etc/bashrc"):
+        rans.find_openfoam()
+
+
+def test_debian_layout_is_found_from_path_alone(tmp_path: Path) -> None:
+    """``/usr/bin/simpleFoam`` + ``/usr/share/openfoam/etc`` (the Debian package) without a
+    sourced environment: hevsim sets WM_PROJECT_DIR itself."""
+    if not (
+        Path(rans.DEBIAN_PROJECT_DIR, "etc", "controlDict").is_file() and Path("/usr/bin/simpleFoam").exists()
+    ):
+        pytest.skip("Debian's openfoam package is not installed")
+    of = rans.find_openfoam({"PATH": "/usr/bin:/bin"}, known_bashrc=())
+    assert of.env["WM_PROJECT_DIR"] == rans.DEBIAN_PROJECT_DIR and of.which("simpleFoam")
+
+
+# --------------------------------------------------------------------------- OpenFOAM
+@needs_openfoam
+def test_plate_case_mesh_passes_checkmesh_with_the_channel_volume_and_port_areas(tmp_path: Path) -> None:
+    g = ModuleGeometry()
+    ch = plate_channel(g)
+    grid = rans.channel_grid(ch, 6, 3, 0.004, 3e-4, 1.4)
+    rc = rans.RansCase((1.0, 0.0, 0.0), 8e-6, 0.01, 100.0, 0.0, 10, 1e-4, 1)
+    counts = rans.write_case(tmp_path, grid, ch, rc)
+    of = rans.find_openfoam()
+    exe = of.which("checkMesh")
+    assert exe is not None
+    out = subprocess.run([exe], cwd=tmp_path, env=of.env, capture_output=True, text=True, check=False).stdout
+    assert "Mesh OK." in out, out[-3000:]
+    assert f"cells:            {counts['cells']}" in out
+    vol = float(out.split("Total volume = ")[1].split(".  ")[0])
+    boxes = g.channel_boxes_m()
+    # the union of the boxes: the tensor cells inside (exact for axis-aligned boxes)
+    expected = sum((b[1] - b[0]) * (b[3] - b[2]) * (b[5] - b[4]) for b in boxes)
+    overlap = expected - vol
+    assert vol > 0 and 0 <= overlap < 0.2 * expected
+    _cells, a_in = rans._port_cells(grid, ch.inlet)
+    assert a_in.sum() == pytest.approx(g.channel_width_m * g.channel_height_m, rel=1e-12)
+
+
+@pytest.fixture(scope="module")
+def duct_rans() -> tuple[FlowConfig, object]:
+    if not _have_openfoam():
+        pytest.skip("OpenFOAM not installed (make openfoam)")
+    c = WATER_50C
+    w, h = 0.008, 0.004
+    dh = 2 * w * h / (w + h)
+    q = RE_DUCT * c.viscosity_pa_s / c.density_kg_m3 / dh * w * h
+    sec = FlowSection(
+        channel="duct",
+        duct_length_m=DUCT_LENGTH_M,
+        model="rans",
+        rans_cells_across_width=16,
+        rans_cells_across_height=8,
+        rans_cell_length_m=0.006,
+        rans_wall_cell_m=3e-5,
+        growth=1.3,
+        rans_tolerance=1e-5,
+        cells_across_width=4,
+        cells_across_height=2,
+        cell_length_m=0.012,
+        wall_cell_m=5e-5,
+    )
+    cfg = FlowConfig("duct", ModuleGeometry(), c, q, sec, inlet_temp_c=15.0, segments=10)
+    res = solve_flow(config_channel(cfg), c, q, section=sec, where="duct")
+    return cfg, res
+
+
+@needs_openfoam
+def test_turbulent_duct_friction_factor_against_blasius(duct_rans: tuple[FlowConfig, object]) -> None:
+    cfg, res = duct_rans
+    m = res.metrics  # type: ignore[attr-defined]
+    assert m["converged"] == 1.0 and m["reynolds"] == pytest.approx(RE_DUCT)
+    assert m["mass_imbalance_rel"] < 1e-3
+    assert 0.05 < m["yplus_mean"] < 2.0  # the wall cell resolves the viscous sublayer
+    r = res.rans  # type: ignore[attr-defined]
+    g = r.grid
+    xs = (g.nodes[0][1:] + g.nodes[0][:-1]) / 2
+    i = np.nonzero(g.inside)[0]
+    vol = np.einsum("i,j,k->ijk", *[np.diff(n) for n in g.nodes])[g.inside]
+    p_mean = np.array([np.average(r.pressure_pa[i == k], weights=vol[i == k]) for k in range(len(xs))])
+    developed = (xs > 0.5 * DUCT_LENGTH_M) & (xs < 0.9 * DUCT_LENGTH_M)
+    gradient = -np.polyfit(xs[developed], p_mean[developed], 1)[0]
+    u, dh = m["mean_velocity_mps"], m["hydraulic_diameter_m"]
+    f = gradient * dh / (0.5 * cfg.coolant.density_kg_m3 * u**2)
+    blasius = 0.316 * RE_DUCT**-0.25
+    assert f == pytest.approx(blasius, rel=0.15), (f, blasius)
+    # laminar flow at this Re would give f = 62.2 / Re (Shah & London, aspect 1/2): 4x lower
+    assert f > 2.5 * 62.2 / RE_DUCT
+
+
+@needs_openfoam
+def test_turbulent_duct_nusselt_on_the_frozen_rans_flow_against_gnielinski(
+    duct_rans: tuple[FlowConfig, object],
+) -> None:
+    from hevsim.thermal.cht import run_cht
+
+    cfg, res = duct_rans
+    pr = cfg.coolant.prandtl
+    f = (0.79 * math.log(RE_DUCT) - 1.64) ** -2
+    gnielinski = (f / 8) * (RE_DUCT - 1000) * pr / (1 + 12.7 * math.sqrt(f / 8) * (pr ** (2 / 3) - 1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the thermal-mesh warning counts laminar layers
+        cht = run_cht(cfg, res)  # type: ignore[arg-type]
+    nu = cht.segments["nusselt"]
+    developed = float(np.mean(nu[-4:]))  # x = 72-120 mm, 13-22 D_h
+    assert developed == pytest.approx(gnielinski, rel=0.15), (nu, gnielinski)
+    assert nu[0] > developed  # thermal entry
+    # without the eddy diffusivity the same velocity field transfers far less heat
+    eddy = res.eddy_diffusivity_m2_s  # type: ignore[attr-defined]
+    res.eddy_diffusivity_m2_s = np.zeros_like(eddy)  # type: ignore[attr-defined]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            molecular = run_cht(cfg, res)  # type: ignore[arg-type]
+    finally:
+        res.eddy_diffusivity_m2_s = eddy  # type: ignore[attr-defined]
+    assert float(np.mean(molecular.segments["nusselt"][-4:])) < 0.6 * developed
+
+
+@needs_openfoam
+def test_cli_flow_at_the_shipped_10_l_min_runs_rans_and_keeps_the_case(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The shipped module TOML (Re 3451, model auto) through the RANS path, on a deliberately
+    coarse OpenFOAM grid and few iterations (the full solve is benchmarks/bench_flow.py --rans)."""
+    from hevsim.cli import main
+
+    cfg = tmp_path / "module.toml"
+    cfg.write_text(
+        MODULE_TOML.read_text() + "\n[flow]\nrans_cells_across_width = 3\nrans_cells_across_height = 2\n"
+        "rans_cell_length_m = 0.008\nrans_wall_cell_m = 0.0\nrans_iterations = 15\n"
+    )
+    out = tmp_path / "res"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # not converged in 15 iterations
+        assert main(["flow", str(cfg), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "RANS k-omega SST" in text and "y+" in text and "Re = 3451" in text
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["metadata"]["model"] == "rans"
+    assert summary["metrics"]["iterations"] == 15 and summary["metrics"]["pressure_drop_pa"] > 0
+    assert (out / "openfoam" / "log.simpleFoam").is_file()
+    assert (out / "openfoam" / "constant" / "polyMesh" / "faces").is_file()
+    assert (out / "openfoam" / "15" / "U").is_file()
