@@ -230,7 +230,9 @@ def _point(arch, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want
     unused by the parallel HEV); ``bat``: :func:`_battery` at ``soc``; ``md``:
     (:class:`HEVConstants`, parallel and power-split tables, engine, motor and generator
     tables). With ``want``, fills the architecture's details (``det``) and audit terms
-    (``loss``, [W])."""
+    (``loss``, [W]); without, a power-split control infeasible by its engine or machine
+    speeds or MG1's torque is not taken to the bus (SOC change 0: callers read only its
+    infeasibility)."""
     ocv, r_dis, r_chg, p_chg = bat
     h, dpar, dps, etab, mtab, gtab = md
     if arch == PARALLEL:
@@ -250,6 +252,8 @@ def _point(arch, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want
     on, es, gt, gs, ms, bad, w_r, t_r, w_e, t_e, fuel, w_s, t_g, p_g, t_er, w_em, t_req = PS.drive_point(
         w_wheel, t_wheel, c0, 0.0, False, eng, dps, gtab
     )
+    if not want and (es or gt or gs or ms):  # infeasible whatever the bus gives (see _feasible)
+        return False, fuel * dt, 0.0, t_e * w_e
     oth, inf, t, p_el, p_bat, cur, d_soc = _electric(
         t_req, w_em, p_g + h.aux_power_w, regen_ok, soc, dt, ocv, r_dis, r_chg, p_chg, h, mtab
     )
