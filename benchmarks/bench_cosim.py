@@ -167,10 +167,13 @@ def direct_cost_us(fmu: Path, steps: int) -> float:
 
 
 def _system(fmu: Path, cls: type, n_fmus: int) -> tuple[list[Any], list[Any]]:
-    """``n_fmus`` FMUs in a ring (x0 -> u), or (0) one FMU fed by a constant source."""
+    """``n_fmus`` FMUs in a ring (x0 -> u), or (0) one FMU fed by a constant source, or (-1)
+    one FMU alone (its input at its start value)."""
     from hevsim.cosim import FunctionParticipant
     from hevsim.cosim.master import Connection
 
+    if n_fmus == -1:
+        return [cls("vdp", fmu)], []
     if n_fmus == 0:
         src = FunctionParticipant("src", lambda t, h, x, u: (x, {"u": 0.0}), 0, {"u": 0.0}, {})
         return [src, cls("vdp", fmu)], [Connection("src", "u", "vdp", "u")]
@@ -281,6 +284,12 @@ def main() -> None:
         tw, cm, cw = min(ws, key=lambda r: r[0])
         cpu = f"; CPU: master {cm:.1f} µs + worker {cw:.1f} µs" if cw is not None else ""
         print(f"  worker-process FMU per step    : {tw:7.2f} µs wall (target <= {TARGET_WORKER_US}){cpu}")
+        import hevsim.cosim.worker as worker
+
+        batch = getattr(worker, "RUN_AHEAD_STEPS", None)
+        how = f"runs ahead, {batch} steps per exchange" if batch else "one exchange per step"
+        alone = min(worker_us(fmu, a.steps, -1)[0] for _ in range(2))
+        print(f"  worker FMU without inputs ({how}): {alone:7.2f} µs per step")
         par = min(worker_us(fmu, a.steps // 2, 2)[0] for _ in range(2))
         seq = min(worker_us(fmu, a.steps // 2, 2, parallel=False)[0] for _ in range(2))
         print(f"  2 worker FMUs feeding each other (Jacobi): {par:7.2f} µs per step stepping together, "

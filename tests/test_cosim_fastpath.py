@@ -198,3 +198,64 @@ def test_jacobi_worker_fmus_step_in_parallel_with_the_same_results(tmp_path: Pat
         x, v = [*x, x[-1] + v[-1] * h], [*v, v[-1] - x[-1] * h]
     for r in runs:
         assert np.array_equal(r["x.y"], x) and np.array_equal(r["v.y"], v)
+
+
+@pytest.fixture(scope="module")
+def cfmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from tests.cosim_cfmu import build_c_fmu
+
+    return build_c_fmu(tmp_path_factory.mktemp("fast_c") / "c.fmu")
+
+
+def _ahead(fmu: Path, params: dict[str, float], batch: int | None) -> tuple[Any, list[int]]:
+    """The C FMU in a worker, running ahead ``batch`` steps per exchange (None: one at a time);
+    also (steps asked for, steps run, whether none failed) per exchange."""
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
+    p = WorkerFMUParticipant("c", fmu, params)
+    sizes: list[tuple[int, int, bool]] = []
+    if batch is None:
+        p.run_ahead = None  # type: ignore[assignment,method-assign]
+    else:
+        real_run_ahead, real_rpc = p.run_ahead, p._rpc
+        p.run_ahead = lambda next_end: real_run_ahead(next_end, batch)  # type: ignore[method-assign]
+
+        def rpc(cmd: str, *args: Any) -> Any:
+            res = real_rpc(cmd, *args)
+            if cmd == "steps":
+                sizes.append((len(args[0]), len(res[0]), res[1] is None))
+            return res
+
+        p._rpc = rpc  # type: ignore[method-assign]
+    return p, sizes
+
+
+def test_worker_without_inputs_runs_ahead_with_the_same_results(cfmu: Path) -> None:
+    from hevsim.cosim import simulate
+
+    params = {"k": 2.0, "u": 1.5, "y0": 0.25}
+    runs = []
+    for batch in (4, None):
+        p, sizes = _ahead(cfmu, params, batch)
+        runs.append(simulate([p], [], stop_time_s=1.05, step_s=0.1))
+        assert sizes == ([(4, 4, True), (4, 4, True), (3, 3, True)] if batch else [])  # the last 0.05 s
+    a, b = runs
+    assert np.array_equal(a.time_s, b.time_s) and np.array_equal(a.data, b.data)
+    assert a.time_s[-1] == 1.05 and list(a["c.n"]) == list(range(12))
+    assert np.abs(a["c.y"] - (0.25 + 3.0 * a.time_s)).max() < 1e-12
+
+
+def test_worker_running_ahead_stops_and_fails_in_the_right_step(cfmu: Path) -> None:
+    from hevsim.cosim import simulate
+
+    p, sizes = _ahead(cfmu, {"terminate_at": 0.55, "k": 2.0, "u": 1.5, "y0": 0.25}, 4)
+    res = simulate([p], [], stop_time_s=1.0, step_s=0.1)
+    assert sizes == [(4, 4, True), (4, 2, True)]  # no step after the one that asked to terminate
+    assert res.stopped_by == "participant 'c' requested termination at t = 0.55 s"
+    assert res.time_s[-1] == 0.55 and res["c.y"][-1] == pytest.approx(0.25 + 3.0 * 0.55, abs=1e-12)
+    p, sizes = _ahead(cfmu, {"fail_at": 0.35, "u": 1.0}, 2)
+    msg = r"participant 'c' failed in do_step at t = 0.3 s: .*integrator blew up"
+    with pytest.raises(CosimFault, match=msg) as ei:
+        simulate([p], [], stop_time_s=1.0, step_s=0.1)
+    assert sizes == [(2, 2, True), (2, 1, False)]  # the step from 0.2 s, then the failing one
+    assert ei.value.partial is not None and ei.value.partial.time_s[-1] == pytest.approx(0.3)

@@ -4,9 +4,11 @@ Protocol: length-prefixed pickle frames on two pipes (requests on fd 0, replies 
 copy of fd 1). A request is a tuple ``(command, *arguments)``, a reply ``(True, result)`` or
 ``(False, "ExceptionType: message")``. The per-step request ``("step", t, h, names, values)``
 carries the inputs as a tuple of values, with their names only when they differ from the
-previous step's (``names`` None otherwise); its reply carries the outputs the same way. One
-round trip per communication step, no text encoding: about 2 µs of protocol work per side
-on top of the pipe's wake-up (``docs/cosim.md``, Speed).
+previous step's (``names`` None otherwise); its reply carries the outputs the same way.
+``("steps", ((t, h), ...))`` runs several steps with the inputs held (a participant without
+inputs running ahead of the master) and replies with each step's result. One round trip
+per communication step (or batch of steps), no text encoding: about 2 µs of protocol work
+per side on top of the pipe's wake-ups (``docs/cosim.md``, Speed).
 
 Leaves with ``os._exit`` so a crash in an FMU's teardown cannot hang or fail the master.
 """
@@ -80,13 +82,54 @@ def main() -> None:
     os._exit(0)
 
 
+class _Stepper:
+    """The per-step requests on one participant; remembers the input and output names last
+    exchanged (sent only when they change)."""
+
+    def __init__(self, p: Any):
+        self.p = p
+        self.in_names: tuple[str, ...] = ()
+        self.out_names: tuple[str, ...] | None = None
+
+    def step(self, t: float, h: float, names: tuple[str, ...] | None, values: tuple[Any, ...]) -> Any:
+        """Set inputs, step, get outputs: (ok, preferred h, terminate requested, terminate
+        time, (output names or None, output values) or None)."""
+        p = self.p
+        if names is not None:
+            self.in_names = names
+        if values:
+            p.set_inputs(dict(zip(self.in_names, values, strict=True)))
+        ok, pref = p.do_step(t, h)
+        outs: Any = None
+        if ok:
+            o = p.get_outputs()
+            keys = tuple(o)
+            outs = (None if keys == self.out_names else keys, tuple(o.values()))
+            self.out_names = keys
+        return ok, pref, p.terminate_requested, p.terminate_time, outs
+
+    def steps(self, schedule: tuple[tuple[float, float], ...]) -> Any:
+        """Run ahead: the steps ``schedule`` ((t, h) pairs) with the inputs held, up to the first
+        that is not accepted or asks to terminate: (their replies, the error of the step
+        that raised or None)."""
+        replies: list[Any] = []
+        for t, h in schedule:
+            try:
+                r = self.step(t, h, None, ())
+            except Exception as exc:
+                return replies, f"{type(exc).__name__}: {exc}"
+            replies.append(r)
+            if not r[0] or r[2]:
+                break
+        return replies, None
+
+
 def serve(rfd: int, wfd: int) -> None:
     """Answer the requests read from ``rfd`` on ``wfd`` until ``quit`` or end of input."""
     from hevsim.cosim.participant import FMUParticipant
 
     p: FMUParticipant | None = None
-    in_names: tuple[str, ...] = ()
-    out_names: tuple[str, ...] | None = None
+    st: _Stepper | None = None
     while True:
         try:
             req = recv_frame(rfd)
@@ -96,23 +139,15 @@ def serve(rfd: int, wfd: int) -> None:
         try:
             res: Any = None
             if cmd == "step":  # set inputs, step, get outputs in one round trip
-                _, t, h, names, values = req
-                assert p is not None
-                if names is not None:
-                    in_names = names
-                if values:
-                    p.set_inputs(dict(zip(in_names, values, strict=True)))
-                ok, pref = p.do_step(t, h)
-                outs: Any = None
-                if ok:
-                    o = p.get_outputs()
-                    keys = tuple(o)
-                    outs = (None if keys == out_names else keys, tuple(o.values()))
-                    out_names = keys
-                res = (ok, pref, p.terminate_requested, p.terminate_time, outs)
+                assert st is not None
+                res = st.step(*req[1:])
+            elif cmd == "steps":  # several steps without inputs in one round trip
+                assert st is not None
+                res = st.steps(req[1])
             elif cmd == "open":
                 _, name, fmu, parameters, log_level, fmu_log = req
                 p = FMUParticipant(name, fmu, parameters, log_level=log_level, fmu_log=fmu_log)
+                st = _Stepper(p)
                 res = (p.inputs, p.outputs, p.can_save_state, p.state_note, dict(p.types))
             elif cmd == "quit":
                 return

@@ -452,6 +452,13 @@ class Master:
                 f.truncate(nb)
         return blob
 
+    def _next_end(self, t: float) -> float | None:
+        """End of the fixed step from ``t`` [s] (None: ``t`` is the stop time)."""
+        o = self.opt
+        if t >= o.stop_time_s - 1e-9 * max(1.0, abs(o.stop_time_s)):
+            return None
+        return self._grid(t, o.step_s)
+
     def _grid(self, t: float, h: float) -> float:
         """End of the step from ``t`` by ``h``: snapped to ``t_start + n * step_s`` when it is
         that point up to rounding (no drift over long runs), and to the stop time."""
@@ -485,13 +492,23 @@ class Master:
         self._tstream: Any = None
         for n in self.order:
             self._call(n, "setup", t, self.p[n].setup, t)
+        # A participant without inputs from others that can run ahead (worker FMUs) steps
+        # several steps per exchange where steps are fixed and never redone or saved
+        ahead: set[str] = set()
+        fixed = o.negotiation == "fixed" and not o.min_step_s and not o.max_step_s
+        if fixed and o.max_iterations == 1 and not o.checkpoint_path:
+            for n in self.order:
+                run_ahead = getattr(self.p[n], "run_ahead", None)
+                if run_ahead is not None and not self.feeds[n] and self.rates[n] == 1:
+                    run_ahead(self._next_end)
+                    ahead.add(n)
         # Jacobi: participants that can step in the background (start_step: worker FMUs) get
         # their inputs and start first, so they step while the others do
         self._early: list[tuple[str, Callable[..., Any], Callable[[float, float], None], Feeds]] = []
         self._plan: list[tuple[str, Callable[..., Any], Callable[..., Any], Callable[..., Any], Feeds]] = []
         for n in self.order:
             p, feeds = self.p[n], tuple(self.feeds[n])
-            start = getattr(p, "start_step", None) if self._jacobi else None
+            start = getattr(p, "start_step", None) if self._jacobi and n not in ahead else None
             if start is not None:
                 self._early.append((n, p.set_inputs, start, feeds))
                 feeds = ()  # sent before the start

@@ -5,15 +5,19 @@ instead. One round trip per communication step (inputs, doStep, outputs)."""
 
 from __future__ import annotations
 
+import collections
 import subprocess
 import sys
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, NoReturn
 
 from hevsim.cosim._worker import encode_frame, recv_frame, send_frame, write_frame
 from hevsim.cosim.participant import Participant, fmu_file
 from hevsim.errors import ConfigError, SimulationError
+
+RUN_AHEAD_STEPS = 100
+"""Steps per round trip of a worker FMU running ahead (:meth:`WorkerFMUParticipant.run_ahead`)."""
 
 
 class WorkerFMUParticipant(Participant):
@@ -43,6 +47,9 @@ class WorkerFMUParticipant(Participant):
         self._in_flight = False  # a step was sent and its reply not read yet
         self._started = False  # start_step ran; do_step has not collected it yet
         self._step_reply: tuple[bool, Any] = (False, None)
+        self._next_end: Callable[[float], float | None] | None = None  # running ahead
+        self._batch = RUN_AHEAD_STEPS
+        self._ahead: collections.deque[tuple[float, float, Any]] = collections.deque()
         self._in_names: tuple[str, ...] | None = None  # input names the worker holds
         self._out_names: tuple[str, ...] = ()
         try:
@@ -123,6 +130,7 @@ class WorkerFMUParticipant(Participant):
         self._pending: dict[str, Any] = {}
         self._out: dict[str, Any] | None = None
         self._started = False
+        self._ahead.clear()
         self._rpc("setup", t0)
 
     def set_inputs(self, values: Mapping[str, Any]) -> None:
@@ -150,8 +158,52 @@ class WorkerFMUParticipant(Participant):
         self._pending = {}
         self._out = None
 
+    def run_ahead(self, next_end: Callable[[float], float | None], batch: int = RUN_AHEAD_STEPS) -> None:
+        """Step ``batch`` steps per round trip from now on: the master calls this for a
+        participant without inputs in a run whose steps are fixed and never redone;
+        ``next_end(t)`` is the end of the step from ``t`` [s] (None: ``t`` is the stop time).
+        Steps already run come from the buffer, with the same results, termination
+        requests and failures, in the same steps, as stepping one at a time."""
+        self._next_end = next_end
+        self._batch = int(batch)
+        self._ahead.clear()
+
+    def _fetch(self, t: float) -> None:
+        """Run the next steps from ``t`` in the worker and buffer their replies."""
+        assert self._next_end is not None
+        schedule: list[tuple[float, float]] = []
+        tk = t
+        while len(schedule) < self._batch:
+            te = self._next_end(tk)
+            if te is None:
+                break
+            schedule.append((tk, te - tk))
+            tk = te
+        if not schedule:
+            raise SimulationError(f"participant {self.name!r}: asked to step from the stop time {t!r} s.")
+        replies, err = self._rpc("steps", tuple(schedule))
+        self._ahead.extend((*step, r) for step, r in zip(schedule, replies, strict=False))
+        if err is not None:
+            self._ahead.append((*schedule[len(replies)], err))
+
     def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
-        if self._started:
+        if self._next_end is not None:
+            if self._pending:  # (the master sets no inputs on a participant running ahead)
+                if self._ahead:
+                    raise SimulationError(f"participant {self.name!r}: inputs set while running ahead.")
+                self._flush()
+            if not self._ahead:
+                self._fetch(t)
+            tk, hk, reply = self._ahead.popleft()
+            if (tk, hk) != (t, h):
+                raise SimulationError(
+                    f"participant {self.name!r}: asked for the step from {t!r} by {h!r} s while it "
+                    f"ran ahead from {tk!r} by {hk!r} s."
+                )
+            self._out = None
+            if isinstance(reply, str):
+                raise SimulationError(f"participant {self.name!r}: step failed: {reply}")
+        elif self._started:
             self._started = False
             if self._in_flight:
                 self._collect()
@@ -184,6 +236,8 @@ class WorkerFMUParticipant(Participant):
             self._pending = {}
 
     def get_state(self) -> Any:
+        if self._ahead:
+            raise SimulationError(f"participant {self.name!r}: cannot save its state while running ahead.")
         self._flush()
         return self._rpc("get_state")
 
@@ -191,6 +245,7 @@ class WorkerFMUParticipant(Participant):
         self._pending = {}
         self._out = None
         self._started = False  # a step started from the replaced state is void
+        self._ahead.clear()
         self._rpc("set_state", bytes(state))
 
     def terminate(self) -> None:
