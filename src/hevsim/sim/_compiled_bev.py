@@ -33,8 +33,9 @@ from hevsim.sim._compiled_hev import (
     _electric,
     _feasible,
     constants,
+    threaded_batch,
 )
-from hevsim.sim.forward import BISECTION_STEPS, ForwardRecord
+from hevsim.sim.forward import BISECTION_STEPS, BatchRecord, ForwardRecord
 
 DETAILS: tuple[str, ...] = (
     "motor_speed_radps", "motor_torque_nm", "motor_power_elec_w", "battery_current_a", "battery_power_w",
@@ -76,7 +77,7 @@ def _point(w_wheel, t_wheel, regen_ok, soc, dt, bat, h, wd, mtab):
     return _feasible(inf or over, oth or over, cur, t, p_bat, soc, h), t, p_el, p_bat, cur, d_soc, w_m, t_fd
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def run_bev(soc0, t, v_des, gr, h, wd, mtab, ptab, cols, audit, summary):
     """One run; fills ``cols`` (:data:`COLUMNS` x ``n + 1``), ``audit`` (:data:`AUDIT` [J])
     and ``summary`` (:data:`hevsim.sim.kernel.SUMMARY`). Returns (end speed [m/s], index of
@@ -139,14 +140,9 @@ def run_bev(soc0, t, v_des, gr, h, wd, mtab, ptab, cols, audit, summary):
     return v, -1
 
 
-def simulate_compiled(
-    model: B.BEV, grid: Any, controller: Any, *, soc_initial: float, soc_min: float, soc_max: float
-) -> ForwardRecord | None:
-    """One compiled run (the ``simulate_compiled`` hook of :mod:`hevsim.sim.forward`); None
-    for a controller other than :class:`~hevsim.control.simple.Direct`."""
-    if type(controller) is not Direct:
-        return None
-    controller.reset(float(soc_initial))
+def _run(model: B.BEV, grid: Any, soc0: float, soc_min: float, soc_max: float) -> tuple[Any, ...]:
+    """One compiled run: (channel names, channels (:data:`COLUMNS` x n + 1), audit names,
+    audit [J], summary, end speed [m/s])."""
     # a BEV burns no fuel: the constants of the HEV loop with a fuel LHV of 0
     proxy = SimpleNamespace(
         motor=model.motor, battery=model.battery, body=model.body, tire=model.tire,
@@ -162,10 +158,45 @@ def simulate_compiled(
     audit = np.zeros(len(AUDIT))
     summary = np.zeros(len(K.SUMMARY))
     v_end, failed = run_bev(
-        float(soc_initial), t, v_des, gr, constants(proxy, soc_min, soc_max), wd, model.motor.kernel_tables(),
+        float(soc0), t, v_des, gr, constants(proxy, soc_min, soc_max), wd, model.motor.kernel_tables(),
         model.battery.kernel_tables(), cols, audit, summary,
     )  # fmt: skip
     if failed >= 0:
         raise DomainError(f"{model.name}: no feasible control at t = {t[failed]:g} s even when stopping.")
+    return COLUMNS, cols, AUDIT, audit, summary, float(v_end)
+
+
+def simulate_compiled(
+    model: B.BEV, grid: Any, controller: Any, *, soc_initial: float, soc_min: float, soc_max: float
+) -> ForwardRecord | None:
+    """One compiled run (the ``simulate_compiled`` hook of :mod:`hevsim.sim.forward`); None
+    for a controller other than :class:`~hevsim.control.simple.Direct`."""
+    if type(controller) is not Direct:
+        return None
+    controller.reset(float(soc_initial))
+    _, cols, _, audit, summary, v_end = _run(model, grid, soc_initial, soc_min, soc_max)
     columns = {name: cols[j] for j, name in enumerate(COLUMNS)}
-    return ForwardRecord(columns, dict(zip(AUDIT, audit.tolist(), strict=True)), summary, float(v_end))
+    return ForwardRecord(columns, dict(zip(AUDIT, audit.tolist(), strict=True)), summary, v_end)
+
+
+def simulate_batch_compiled(
+    model: B.BEV,
+    variants: dict[str, np.ndarray],
+    grid: Any,
+    controller: Any,
+    *,
+    soc_initial: np.ndarray,
+    soc_min: float,
+    soc_max: float,
+) -> BatchRecord | None:
+    """The compiled batch (the ``simulate_batch_compiled`` hook of :mod:`hevsim.sim.forward`):
+    every variant one compiled run (:func:`hevsim.sim._compiled_hev.threaded_batch`, threads);
+    None for a controller other than :class:`~hevsim.control.simple.Direct` or a key outside
+    :data:`hevsim.sim._compiled_hev.MODEL_KEYS` and ``simulation.soc_initial``."""
+    if type(controller) is not Direct:
+        return None
+
+    def run(vm: B.BEV, _ctl: Any, soc0: float) -> tuple[Any, ...]:
+        return _run(vm, grid, soc0, soc_min, soc_max)[:5]
+
+    return threaded_batch(model, variants, grid, controller, soc_initial, run)

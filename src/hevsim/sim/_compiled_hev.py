@@ -696,14 +696,28 @@ def simulate_batch(
     soc_max: float,
 ) -> BatchRecord | None:
     """The compiled batch (the ``simulate_batch_compiled`` hook of :mod:`hevsim.sim.forward`):
-    every variant a compiled run on its own thread of a pool (the loop releases the GIL);
-    None for a controller without a compiled form or a key outside :data:`MODEL_KEYS`,
-    ``simulation.soc_initial`` and the ``controller.*`` keys the controller reads."""
+    :func:`threaded_batch` of :func:`_run_one`; None for a controller without a compiled form
+    or a key outside :data:`MODEL_KEYS`, ``simulation.soc_initial`` and the ``controller.*``
+    keys the controller reads."""
+    if controller_code(controller) is None:
+        return None
+
+    def run(vm: Any, ctl: Any, soc0: float) -> tuple[Any, ...]:
+        return _run_one(vm, grid, ctl, soc0, soc_min, soc_max)[:5]
+
+    return threaded_batch(model, variants, grid, controller, soc_initial, run)
+
+
+def threaded_batch(
+    model: Any, variants: dict[str, np.ndarray], grid: Any, controller: Any, soc_initial: np.ndarray, run: Any
+) -> BatchRecord | None:
+    """Every variant (:func:`_variant`) a compiled run on its own thread of a pool (the
+    compiled loops release the GIL): ``run(variant model, its controller, initial SOC)``
+    returns (channel names, channels (names x n + 1), audit names, audit [J], summary) of one
+    run. None when a variant's keys cannot be varied on the built model."""
     import os
     from concurrent.futures import ThreadPoolExecutor
 
-    if controller_code(controller) is None:
-        return None
     n = int(np.size(soc_initial))
     runs = []
     for i in range(n):
@@ -715,9 +729,7 @@ def simulate_batch(
 
     def one(i: int) -> tuple[Any, ...]:
         vm, ctl = runs[i]
-        names, cols, audit_names, audit, summary, _ = _run_one(
-            vm, grid, ctl, float(soc_initial[i]), soc_min, soc_max
-        )
+        names, cols, audit_names, audit, summary = run(vm, ctl, float(soc_initial[i]))
         wheel = cols[names.index("wheel_power_w")][:-1]
         return (
             dict(zip(audit_names, audit.tolist(), strict=True)),
