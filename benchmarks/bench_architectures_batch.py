@@ -6,14 +6,14 @@ Run from the repository root (or anywhere; paths are resolved from this file)::
 
 For the conventional sedan, the parallel HEV (P3), the power split and the BEV with their
 rule-based controllers, ``hevsim.sim.simulator.simulate_batch(cfg, {"body.mass_kg": ...},
-"udds")`` over
-``--variants`` masses (after a warm-up batch of 4), reported as variant-cycles per second of
-wall time (validation of every variant included) and of the batch's CPU time, and the ratio
-to the same batch run variant by variant through the Python loop (``compiled=False``,
-``--baseline`` variants) measured in the same run. The issue's target is >= 1000
-variant-cycles/s on UDDS for the conventional and parallel vehicles on an idle 2-core machine. Whether an architecture has a
-compiled batch is shown (``compiled``: the architecture module defines
-``simulate_batch_compiled``). The script only reports: it always exits 0.
+"udds")`` over ``--variants`` masses (after a warm-up batch of 4), reported as variant-cycles
+per second of wall time (validation of every variant included) and of the batch's CPU time,
+and the ratio to the same batch run variant by variant through the Python loop
+(``compiled=False``, ``--baseline`` variants) measured in the same run. The issue's target
+is >= 1000 variant-cycles/s on UDDS for the conventional and parallel vehicles on an idle
+2-core machine. Whether an architecture has a compiled batch is shown (``compiled``: the
+architecture module defines ``simulate_batch_compiled``). The script only reports: it
+always exits 0.
 """
 
 from __future__ import annotations
