@@ -154,11 +154,11 @@ class FlowSection:
     turbulence_intensity: float = 0.05
     turbulence_length_m: float = 0.0
     prandtl_turbulent: float = 0.85
-    rans_cells_across_width: int = 12
-    rans_cells_across_height: int = 6
+    rans_cells_across_width: int = 8
+    rans_cells_across_height: int = 4
     rans_cell_length_m: float = 0.002
-    rans_wall_cell_m: float = 2e-4
-    rans_iterations: int = 2000
+    rans_wall_cell_m: float = 3e-4
+    rans_iterations: int = 500
     rans_tolerance: float = 1e-4
     rans_processes: int = 1
 
@@ -695,7 +695,8 @@ def format_flow(res: FlowResult) -> str:
     if rans:
         lines += [
             f"wall y+ {m['yplus_min']:.3g} .. {m['yplus_max']:.3g} (mean {m['yplus_mean']:.3g}); max nu_t/nu "
-            f"{m['max_eddy_viscosity_ratio']:.3g}",
+            f"{m['max_eddy_viscosity_ratio']:.3g}; pressure drop changed {m['pressure_drop_change_rel']:.1e} "
+            "(relative) over the last tenth of the iterations",
             f"OpenFOAM: {m['rans_cells']:.0f} hexahedra, {m['iterations']:.0f} SIMPLE iterations "
             f"({'converged' if m['converged'] else 'NOT converged'}), {m['solve_time_s']:.2f} s; "
             f"read back onto {m['elements']:.0f} tetrahedra",

@@ -497,7 +497,12 @@ def write_case(case: Path, grid: ChannelGrid, channel: Any, rc: RansCase) -> dic
         "writeFormat     ascii;\nwritePrecision  10;\nwriteCompression off;\ntimeFormat      general;\n"
         "timePrecision   6;\nrunTimeModifiable false;\n\nfunctions\n{\n    yPlus\n    {\n"
         '        type            yPlus;\n        libs            ("libfieldFunctionObjects.so");\n'
-        "        writeControl    writeTime;\n    }\n}\n",
+        "        writeControl    writeTime;\n    }\n    inletPressure\n    {\n"
+        "        type            surfaceFieldValue;\n"
+        '        libs            ("libfieldFunctionObjects.so");\n'
+        "        writeControl    timeStep;\n        writeInterval   1;\n        log             false;\n"
+        "        writeFields     false;\n        regionType      patch;\n        name            inlet;\n"
+        "        operation       areaAverage;\n        fields          (p);\n    }\n}\n",
     )
     _write(
         case / "system" / "fvSchemes",
@@ -613,6 +618,18 @@ def read_internal_field(path: Path, n_cells: int) -> np.ndarray:
     if n != n_cells:
         raise SimulationError(f"{path}: {n} values for {n_cells} cells.")
     return arr
+
+
+def _read_inlet_pressure(case: Path) -> np.ndarray:
+    """Area-mean kinematic inlet pressure [m^2/s^2] per iteration (the ``inletPressure``
+    function object); empty if absent."""
+    rows: list[float] = []
+    for f in sorted(case.glob("postProcessing/inletPressure/*/surfaceFieldValue.dat")):
+        for ln in f.read_text().splitlines():
+            parts = ln.split()
+            if len(parts) >= 2 and not ln.startswith("#"):
+                rows.append(float(parts[1]))
+    return np.array(rows)
 
 
 def _read_yplus(case: Path) -> dict[str, float]:
@@ -856,6 +873,7 @@ def solve_rans(
         p_c = read_internal_field(last / "p", n) * rho
         nut_c = read_internal_field(last / "nut", n)
         yplus = _read_yplus(case)
+        p_hist = _read_inlet_pressure(case) * rho - sec.outlet_pressure_pa
         log_text = out
     finally:
         if own_tmp:
@@ -865,12 +883,16 @@ def solve_rans(
     residuals: dict[str, float] = {}
     for m in _RESIDUAL.finditer(log_text):
         residuals[m.group(1)] = float(m.group(2))
+    tail = p_hist[-max(1, len(p_hist) // 10) :] if p_hist.size else np.array([np.nan])
+    dp_change = float(np.max(np.abs(tail - tail[-1])) / max(abs(tail[-1]), 1e-300))
     if not converged:
         last_res = ", ".join(f"{k} {v:.2g}" for k, v in residuals.items())
         warnings.warn(
             f"{where}: simpleFoam did not reach the residual tolerance {rc.tolerance:g} in {rc.iterations} "
-            f"iterations (last initial residuals: {last_res}); "
-            "raise flow.rans_iterations or flow.rans_tolerance.",
+            f"iterations (last initial residuals: {last_res}; the pressure drop changed by {dp_change:.1e} "
+            "(relative) over the last tenth of the iterations); raise flow.rans_iterations or "
+            "flow.rans_tolerance, or accept the result if that change is small (steady RANS in the bends "
+            "may not settle further).",
             RuntimeWarning,
             stacklevel=2,
         )
@@ -914,6 +936,8 @@ def solve_rans(
         "outlet_pressure_pa": sec.outlet_pressure_pa,
         "pressure_drop_pa": dp,
         "pump_power_w": dp * flow_m3_s,
+        # largest change of the pressure drop over the last tenth of the iterations, relative [-]
+        "pressure_drop_change_rel": dp_change,
         "max_velocity_mps": float(np.max(np.linalg.norm(u_c, axis=1))),
         "channel_volume_m3": float(
             np.einsum("i,j,k->ijk", *[np.diff(nd) for nd in grid.nodes])[grid.inside].sum()
@@ -935,7 +959,7 @@ def solve_rans(
     }
     for key, val in residuals.items():
         metrics[f"final_residual_{key}"] = val
-    res = FlowResult(metrics, mesh, velocity, pressure, basis_u, basis_p, [])
+    res = FlowResult(metrics, mesh, velocity, pressure, basis_u, basis_p, [float(v) for v in p_hist])
     res.eddy_diffusivity_m2_s = eddy
     res.rans = RansResult(grid, u_c, p_c, nut_c, u_field, p_field, nut_field, residuals, log_text)
     return res
