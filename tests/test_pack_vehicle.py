@@ -257,7 +257,7 @@ def test_bms_limits_are_exact_at_the_voltage_window() -> None:
     cfg = load_vehicle_config(EX / "series_hev_pack.toml")
     run: PackRun = make_pack_run(cfg, 1.0, 0.08)  # nearly empty: the voltage limit binds
     run.begin()
-    ed, zd = run._g[0], run._g[1]
+    ed, zd = run.group_pairs(1.0)
     v_min = run.pack.params.limits.v_min_v
     i_v = float(np.min((ed - v_min) / zd))
     assert run.limits.discharge_a <= i_v + 1e-12

@@ -8,7 +8,8 @@ Each vehicle step ``dt`` (the pack's ``pack.dt_s``):
      the step-average terminal voltage (:func:`hevsim.battery.pack.pack_thevenin`; exact over
      the step, as the single-cell ECM kind of :mod:`hevsim.battery.vehicle`), which the
      vehicle's bus balance uses as its OCV and resistance;
-   * the BMS current limits (:func:`bms_limits`): ``pack.max_current_a`` times the smallest of
+   * the BMS current limits (:func:`hevsim.battery.pack_run.pack_begin`, compiled):
+     ``pack.max_current_a`` times the smallest of
      the temperature factor (hottest cell core, ``[derating] temp_c``/``current_factor``) and
      the SOC factor (``[derating] soc`` with ``discharge_soc_factor`` at the lowest cell SOC,
      ``charge_soc_factor`` at the highest), and the current that keeps every series group's
@@ -34,7 +35,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from hevsim.battery.kernel import SOCINI, VMAX, VMIN
+from hevsim.battery.kernel import SOCINI
 from hevsim.battery.pack import Pack, PackStepStart
 
 LIMIT_NAMES = ("none", "temperature", "soc", "voltage")
@@ -61,76 +62,89 @@ class BmsLimits:
     temp_factor: float
 
 
-def _binding(candidates: tuple[float, ...]) -> tuple[float, int]:
-    """(smallest limit, index in LIMIT_NAMES): the unconstrained entry 0 wins ties."""
-    best = min(range(len(candidates)), key=candidates.__getitem__)  # the first smallest (np.argmin)
-    return max(float(candidates[best]), 0.0), best
-
-
-def bms_limits(
-    pack: Pack,
-    start: PackStepStart,
-    dis: tuple[np.ndarray, np.ndarray],
-    chg: tuple[np.ndarray, np.ndarray],
-    soc_min: float,
-    soc_max: float,
-) -> BmsLimits:
-    """The step's limits (module docstring): ``dis``/``chg`` the series groups' ``(E_g, Z_g)``
-    [V, ohm] for each direction; ``soc_min``/``soc_max`` the lowest and highest cell SOC."""
-    d = pack.cfg.derating
-    i_max = pack.cfg.pack.max_current_a
-    f_dis = float(np.interp(soc_min, d.soc, d.discharge_soc_factor))
-    f_chg = float(np.interp(soc_max, d.soc, d.charge_soc_factor))
-    v_lo, v_hi = float(pack.prm[0, VMIN]), float(pack.prm[0, VMAX])
-    i_v_dis = float(np.min((dis[0] - v_lo) / dis[1]))
-    i_v_chg = float(np.min((v_hi - chg[0]) / chg[1]))
-    lim_d, why_d = _binding((i_max, start.factor * i_max, f_dis * i_max, i_v_dis))
-    lim_c, why_c = _binding((i_max, start.factor * i_max, f_chg * i_max, i_v_chg))
-    return BmsLimits(lim_d, lim_c, why_d, why_c, start.factor)
-
-
 class PackRun:
     """One vehicle run of a :class:`~hevsim.battery.pack.Pack` (module docstring).
 
     ``soc_initial`` [-] replaces every cell's initial SOC (the vehicle's ``soc_initial``).
     After :meth:`begin`: ``e_dis``/``z_dis``, ``e_chg``/``z_chg`` [V, ohm], ``limits``
-    (:class:`BmsLimits`) and ``cooling_w`` [W] hold for the step.
+    (:class:`BmsLimits`) and ``cooling_w`` [W] hold for the step (the pack's step vector,
+    :data:`hevsim.battery.pack_run.SV_NAMES`). The compiled series kernel steps the same
+    arrays without this class (:mod:`hevsim.battery.vehicle`, section 3).
     """
 
     def __init__(self, pack: Pack, soc_initial: float) -> None:
+        from hevsim.battery.pack_run import F_SOC, F_SOCMAX, F_SOCMIN
+
         self.pack = pack
         pack.prm[:, SOCINI] = soc_initial
         pack.state_changed()
-        self._cells = np.empty((pack.n_cells, 5))
-        self._soc = soc_initial
-        self._g = [np.empty(pack.n_groups_sim) for _ in range(4)]
+        pack._f[[F_SOC, F_SOCMIN, F_SOCMAX]] = soc_initial
         self.start: PackStepStart | None = None
-        self.e_dis = self.z_dis = self.e_chg = self.z_chg = math.nan
-        self.limits = BmsLimits(math.inf, math.inf, 0, 0, 1.0)
-        self.cooling_w = 0.0
-        self.rows: dict[str, list[float]] = {name: [] for name in CHANNELS}
-        self.module_hot: list[np.ndarray] = []
         self.stored0 = pack.stored_energy_j()
-        self.soc_min = self.soc_max = soc_initial
         self.error: BaseException | None = None
         self.base_aux_w: float | None = None
-        self.kernel_arrays: tuple[np.ndarray, np.ndarray] | None = None
+
+    def _sv(self, name: str) -> float:
+        from hevsim.battery.pack_run import SV_NAMES
+
+        return float(self.pack._sv[SV_NAMES.index(name)])
+
+    @property
+    def e_dis(self) -> float:
+        return self._sv("e_dis_v")
+
+    @property
+    def z_dis(self) -> float:
+        return self._sv("z_dis_ohm")
+
+    @property
+    def e_chg(self) -> float:
+        return self._sv("e_chg_v")
+
+    @property
+    def z_chg(self) -> float:
+        return self._sv("z_chg_ohm")
+
+    @property
+    def cooling_w(self) -> float:
+        """Electrical power of pump, fan and chiller this step [W]."""
+        return self._sv("cooling_w")
+
+    @property
+    def limits(self) -> BmsLimits:
+        """The BMS's limits of the step (:func:`hevsim.battery.pack_run.pack_begin`)."""
+        sv = self._sv
+        return BmsLimits(sv("limit_dis_a"), sv("limit_chg_a"), int(sv("reason_dis")), int(sv("reason_chg")),
+                         sv("factor"))  # fmt: skip
 
     @property
     def soc(self) -> float:
         """Mean cell SOC [-] at the end of the last step (the vehicle's SOC)."""
-        return self._soc
+        from hevsim.battery.pack_run import F_SOC
+
+        return float(self.pack._f[F_SOC])
+
+    @property
+    def rows(self) -> dict[str, np.ndarray]:
+        """The pack channels (:data:`CHANNELS`) of the steps so far."""
+        rec = self.pack.records[0]
+        return {name: rec[:, j] for j, name in enumerate(CHANNELS)}
+
+    @property
+    def module_hot(self) -> np.ndarray:
+        """Per step and module the hot spot [K] (steps, n_modules)."""
+        return self.pack.records[1]
+
+    def group_pairs(self, direction: float) -> tuple[np.ndarray, np.ndarray]:
+        """The series groups' step pairs ``(E_g, Z_g)`` [V, ohm] of the present step for a pack
+        current of ``direction`` (+1 discharge, -1 charge) (:meth:`hevsim.battery.pack.Pack.thevenin`)."""
+        e, z = np.empty(self.pack.n_groups_sim), np.empty(self.pack.n_groups_sim)
+        self.pack.thevenin(direction, e, z)
+        return e, z
 
     def begin(self) -> None:
         """Start a step: Thevenin pair per direction, BMS limits, cooling power."""
-        pack = self.pack
-        self.start = start = pack.begin_step()
-        ed, zd, ec, zc = self._g
-        self.e_dis, self.z_dis = pack.thevenin(1.0, ed, zd)
-        self.e_chg, self.z_chg = pack.thevenin(-1.0, ec, zc)
-        self.limits = bms_limits(pack, start, (ed, zd), (ec, zc), self.soc_min, self.soc_max)
-        ls = start.loop_step
-        self.cooling_w = ls.pump_power_w + ls.fan_power_w + ls.chiller_power_w
+        self.start = self.pack.begin_step()
 
     def vehicle_step(self, model: Any, soc: float, soc_max: float) -> tuple[Any, Any]:
         """Begin a step of the forward simulator (:mod:`hevsim.sim.forward`): returns the
@@ -157,27 +171,6 @@ class PackRun:
         )
         return replace(model, battery=battery, aux_power_w=self.base_aux_w + self.cooling_w), bs
 
-    def kernel_begin(self) -> None:
-        """Begin a step of the compiled series kernel (:func:`hevsim.battery.vehicle.battery_pack_begin`):
-        writes the Thevenin pairs into its aux vector and the BMS limits and the bus load
-        (the model's own auxiliary load + the cooling) into its parameter vector."""
-        from hevsim.battery import vehicle as V
-        from hevsim.sim import kernel as K
-
-        assert self.kernel_arrays is not None
-        p, aux = self.kernel_arrays
-        if self.base_aux_w is None:
-            self.base_aux_w = float(p[K.PAUX])
-        self.begin()
-        p[K.BIDIS], p[K.BICHG] = self.limits.discharge_a, self.limits.charge_a
-        p[K.PAUX] = self.base_aux_w + self.cooling_w
-        aux[V.A_EDIS], aux[V.A_ZDIS], aux[V.A_ECHG], aux[V.A_ZCHG] = (
-            self.e_dis,
-            self.z_dis,
-            self.e_chg,
-            self.z_chg,
-        )
-
     def current_for_power(self, power_w: float) -> float:
         """Pack current [A] whose step-average terminal power is ``power_w`` [W] (> 0
         discharging), from the direction's ``E I - Z I^2 = P`` (the root nearer zero; the
@@ -196,28 +189,7 @@ class PackRun:
         """End the step at pack current ``current_a`` [A]; records the channels; returns the
         new SOC [-]."""
         assert self.start is not None, "PackRun.begin() first"
-        row, hot = self.pack.finish_step(self.start, current_a, cells_out=self._cells)
-        self._soc = float(self._cells[:, 1].mean())
-        lim, ls = self.limits, self.start.loop_step
-        e, z = (self.e_dis, self.z_dis) if current_a >= 0.0 else (self.e_chg, self.z_chg)
-        self.soc_min, self.soc_max = row["min_soc"], row["max_soc"]
-        values = {
-            "pack_current_a": current_a, "pack_voltage_v": row["voltage_avg_v"],
-            "pack_power_w": row["power_w"], "pack_ocv_v": e, "pack_resistance_ohm": z,
-            "bms_discharge_limit_a": lim.discharge_a,
-            "bms_charge_limit_a": lim.charge_a, "bms_discharge_reason": lim.discharge_reason,
-            "bms_charge_reason": lim.charge_reason, "derating_factor": lim.temp_factor,
-            "hottest_cell_temp_k": row["hottest_cell_temp_k"], "hot_spot_temp_k": row["hot_spot_temp_k"],
-            "cell_soc_min": row["min_soc"], "cell_soc_max": row["max_soc"],
-            "cell_soc_spread": row["max_soc"] - row["min_soc"], "coolant_loop_temp_k": row["loop_temp_k"],
-            "coolant_supply_temp_k": row["supply_temp_k"], "pump_power_w": ls.pump_power_w,
-            "fan_power_w": ls.fan_power_w, "chiller_power_w": ls.chiller_power_w,
-            "chiller_heat_w": ls.chiller_w,
-            "cooling_power_w": self.cooling_w, "plate_heat_w": row["plate_heat_w"],
-        }  # fmt: skip
-        for name, val in values.items():
-            self.rows[name].append(float(val))
-        self.module_hot.append(hot.copy())
+        self.pack.finish_step(self.start, current_a)
         self.start = None
         return self.soc
 
@@ -225,11 +197,12 @@ class PackRun:
     def frame(self, n_rows: int) -> pd.DataFrame:
         """The pack channels as ``n_rows`` rows (one per vehicle sample: the last step's values
         repeated on the final sample, as the vehicle's own channels)."""
-        cols: dict[str, Any] = {name: np.asarray(vals) for name, vals in self.rows.items()}
-        hot = np.asarray(self.module_hot)
-        for j in range(hot.shape[1] if hot.ndim == 2 else 0):
-            cols[f"module{j}_hottest_cell_temp_k"] = hot[:, j]
-        ts = pd.DataFrame(cols)
+        rec, hot = self.pack.records
+        cols = [pd.DataFrame(rec[:, : len(CHANNELS)], columns=list(CHANNELS))]
+        cols.append(
+            pd.DataFrame(hot, columns=[f"module{j}_hottest_cell_temp_k" for j in range(hot.shape[1])])
+        )
+        ts = pd.concat(cols, axis=1)
         if len(ts) < n_rows:
             ts = pd.concat([ts, ts.iloc[[-1] * (n_rows - len(ts))]], ignore_index=True)
         return ts.iloc[:n_rows].reset_index(drop=True)
@@ -239,4 +212,4 @@ class PackRun:
         return self.pack.energy(self.stored0)
 
 
-__all__ = ["CHANNELS", "LIMIT_NAMES", "BmsLimits", "PackRun", "bms_limits"]
+__all__ = ["CHANNELS", "LIMIT_NAMES", "BmsLimits", "PackRun"]

@@ -37,6 +37,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 from hevsim.errors import ConfigError
 from hevsim.units import c_to_k
@@ -47,6 +48,29 @@ LITRE_M3 = 1e-3
 LITRE_PER_MIN_M3_S = 1.0 / 60000.0
 CONTROLLER_KINDS = ("thresholds", "pi", "off")
 LAYOUTS = ("series", "parallel")
+
+#: cooling loop parameters ``CoolingLoop.lp`` (:class:`CoolingLoop`)
+LP_NAMES = (
+    "infinite", "supply_k", "flow_m3_s", "plate_flow_m3_s", "rho_cp", "heat_capacity_j_k", "c_air_w_k",
+    "radiator_ua_w_k", "bypass", "chiller", "controller", "chiller_max_w", "min_supply_k", "cop",
+    "on_c", "off_c", "setpoint_c", "kp", "ki", "pump_w", "fan_power_w", "loop_ua_w_k", "series",
+    "zero_c_k",
+)  # fmt: skip
+(LP_INF, LP_SUPPLY, LP_FLOW, LP_PFLOW, LP_RHOCP, LP_HCAP, LP_CAIR, LP_UA, LP_BYPASS, LP_CHILLER, LP_CTRL,
+ LP_CHMAX, LP_MINSUP, LP_COP, LP_ON, LP_OFF, LP_SET, LP_KP, LP_KI, LP_PUMP, LP_FAN, LP_LOOPUA, LP_SERIES,
+ LP_ZEROC) = range(len(LP_NAMES))  # fmt: skip
+#: cooling loop state ``CoolingLoop.ls``: loop temperature [K], chiller on (0/1), PI integral [K s]
+LS_TEMP, LS_ON, LS_INT = range(3)
+#: controller codes (``LP_CTRL``) of :data:`hevsim.battery.cooling.CONTROLLER_KINDS`
+CTRL_THRESHOLDS, CTRL_PI, CTRL_OFF = range(3)
+
+#: one loop step (:class:`LoopStep` without the inlets) as :func:`loop_begin` writes it
+LOOP_STEP = (
+    "supply_k", "plate_flow_m3_s", "radiator_w", "chiller_w", "chiller_power_w", "pump_power_w",
+    "fan_power_w", "loop_ambient_w",
+)  # fmt: skip
+LS_SUPPLY, LS_PFLOW, LS_RAD, LS_CH, LS_CHP, LS_PUMP, LS_FAN, LS_LAMB = range(len(LOOP_STEP))
+
 
 _T = {"bounds": (-60.0, 150.0), "unit": "degC"}
 
@@ -113,6 +137,93 @@ def counterflow_effectiveness(ntu: float, cr: float) -> float:
     return (1.0 - e) / (1.0 - cr * e)
 
 
+@njit(cache=True)
+def _effectiveness(ntu, cr):
+    """:func:`counterflow_effectiveness` (the same operations)."""
+    if ntu <= 0.0:
+        return 0.0
+    if abs(1.0 - cr) < 1e-9:
+        return ntu / (1.0 + ntu)
+    e = math.exp(-ntu * (1.0 - cr))
+    return (1.0 - e) / (1.0 - cr * e)
+
+
+@njit(cache=True)
+def _chiller_demand(lp, ls, hottest_k, dt):
+    """The controller's chiller demand [W] (:class:`CoolingLoop`)."""
+    kind = int(lp[LP_CTRL])
+    if lp[LP_CHILLER] == 0.0 or kind == CTRL_OFF:
+        return 0.0
+    t = hottest_k - lp[LP_ZEROC]
+    if kind == CTRL_THRESHOLDS:
+        if t > lp[LP_ON]:
+            ls[LS_ON] = 1.0
+        elif t < lp[LP_OFF]:
+            ls[LS_ON] = 0.0
+        return lp[LP_CHMAX] if ls[LS_ON] > 0.0 else 0.0
+    err = t - lp[LP_SET]
+    cmd = lp[LP_KP] * err + lp[LP_KI] * (ls[LS_INT] + err * dt)
+    if 0.0 < cmd < lp[LP_CHMAX]:  # anti-windup: integrate only when not clipped
+        ls[LS_INT] += err * dt
+    return min(max(cmd, 0.0), lp[LP_CHMAX])
+
+
+@njit(cache=True)
+def loop_begin(lp, ls, hottest_k, ambient_k, dt, plate_heat_w, inlet_k, st):
+    """The loop's step (:meth:`hevsim.battery.cooling.CoolingLoop.begin_step` then
+    ``series_inlets`` with the plates' heat of the previous step): the step ``st``
+    (:data:`LOOP_STEP`) and the plates' inlet temperatures ``inlet_k`` [K]."""
+    n = inlet_k.shape[0]
+    q = lp[LP_FLOW]
+    if lp[LP_INF] > 0.0:
+        st[LS_SUPPLY] = lp[LP_SUPPLY]
+        inlet_k[:] = lp[LP_SUPPLY]
+        st[LS_PFLOW] = lp[LP_PFLOW]
+        st[LS_RAD:] = 0.0
+        return
+    cap = lp[LP_RHOCP] * q
+    temp = ls[LS_TEMP]
+    rad = 0.0
+    ch = 0.0
+    if cap > 0.0:
+        c_min, c_max = min(cap, lp[LP_CAIR]), max(cap, lp[LP_CAIR])
+        eps = _effectiveness(lp[LP_UA] / c_min, c_min / c_max)
+        rad = eps * c_min * (temp - ambient_k)
+        if lp[LP_BYPASS] > 0.0 and rad < 0.0:  # the thermostat valve bypasses a radiator that would heat
+            rad = 0.0
+        after = temp - rad / cap
+        ch = _chiller_demand(lp, ls, hottest_k, dt)
+        ch = min(ch, max(0.0, cap * (after - lp[LP_MINSUP])))
+        supply = after - ch / cap
+    else:
+        supply = temp
+    st[LS_SUPPLY] = supply
+    st[LS_PFLOW] = lp[LP_PFLOW]
+    st[LS_RAD] = rad
+    st[LS_CH] = ch
+    st[LS_CHP] = ch / lp[LP_COP]
+    st[LS_PUMP] = lp[LP_PUMP]
+    st[LS_FAN] = lp[LP_FAN] if q > 0.0 and rad > 0.0 else 0.0
+    st[LS_LAMB] = lp[LP_LOOPUA] * (ambient_k - temp)
+    if lp[LP_SERIES] > 0.0 and q != 0.0:  # the plates upstream heat the coolant
+        upstream = 0.0
+        for m in range(n):
+            inlet_k[m] = supply + upstream / cap
+            upstream += plate_heat_w[m]
+    else:
+        inlet_k[:] = supply
+
+
+@njit(cache=True)
+def loop_end(lp, ls, st, plate_w, dt):
+    """Advance the loop temperature with the step's heat flows [W]
+    (:meth:`hevsim.battery.cooling.CoolingLoop.end_step`)."""
+    if lp[LP_INF] > 0.0:
+        return
+    net = plate_w + st[LS_PUMP] - st[LS_RAD] - st[LS_CH] + st[LS_LAMB]
+    ls[LS_TEMP] += dt * net / lp[LP_HCAP]
+
+
 @dataclass
 class LoopStep:
     """What the loop did in one step (SI)."""
@@ -130,7 +241,9 @@ class LoopStep:
 
 class CoolingLoop:
     """State and step of the loop (module docstring). ``capacity_rate`` from the coolant's
-    density [kg/m^3] and specific heat [J/(kg K)]."""
+    density [kg/m^3] and specific heat [J/(kg K)]. The parameters are the vector :attr:`lp`
+    (:data:`LP_NAMES`) and the state the vector :attr:`ls` (loop temperature [K], chiller on,
+    PI integral [K s]) that the compiled :func:`loop_begin` / :func:`loop_end` step."""
 
     def __init__(
         self,
@@ -144,11 +257,42 @@ class CoolingLoop:
         check_cooling(cool, ctrl, source)
         self.cool, self.ctrl, self.n = cool, ctrl, int(n_plates)
         self.rho_cp = density_kg_m3 * specific_heat_j_kgk  # [J/(m^3 K)]
-        self.temp_k = c_to_k(cool.supply_temp_c)
         self.heat_capacity_j_k = self.rho_cp * cool.coolant_volume_l * LITRE_M3
-        self.chiller_on = False
-        self.integral_ks = 0.0
         self.flow_m3_s = cool.flow_l_min * LITRE_PER_MIN_M3_S
+        c, q = cool, self.flow_m3_s
+        q_ref = c.flow_ref_l_min * LITRE_PER_MIN_M3_S
+        qp = self.plate_flow_m3_s
+        plates = self.n * c.plate_pressure_drop_pa * (qp / q_ref) ** 2
+        if c.layout == "parallel":
+            plates = c.plate_pressure_drop_pa * (qp / q_ref) ** 2
+        dp = c.loop_pressure_drop_pa * (q / q_ref) ** 2 + plates
+        values = {
+            "infinite": c.infinite_capacity, "supply_k": c_to_k(c.supply_temp_c), "flow_m3_s": q,
+            "plate_flow_m3_s": qp, "rho_cp": self.rho_cp, "heat_capacity_j_k": self.heat_capacity_j_k,
+            "c_air_w_k": c.radiator_air_flow_kg_s * AIR_SPECIFIC_HEAT_J_KGK,
+            "radiator_ua_w_k": c.radiator_ua_w_k, "bypass": c.radiator_bypass, "chiller": c.chiller,
+            "controller": CONTROLLER_KINDS.index(ctrl.kind),
+            "chiller_max_w": c.chiller_max_w, "min_supply_k": c_to_k(c.chiller_min_supply_c),
+            "cop": c.chiller_cop, "on_c": ctrl.on_temp_c, "off_c": ctrl.off_temp_c,
+            "setpoint_c": ctrl.setpoint_c, "kp": ctrl.kp_w_k, "ki": ctrl.ki_w_ks,
+            "pump_w": q * dp / c.pump_efficiency, "fan_power_w": c.fan_power_w, "loop_ua_w_k": c.loop_ua_w_k,
+            "series": float(c.layout == "series"), "zero_c_k": c_to_k(0.0),
+        }  # fmt: skip
+        self.lp = np.array([float(values[k]) for k in LP_NAMES])
+        self.ls = np.array([c_to_k(cool.supply_temp_c), 0.0, 0.0])
+
+    @property
+    def temp_k(self) -> float:
+        """Loop temperature [K]."""
+        return float(self.ls[LS_TEMP])
+
+    @property
+    def chiller_on(self) -> bool:
+        return bool(self.ls[LS_ON])
+
+    @property
+    def integral_ks(self) -> float:
+        return float(self.ls[LS_INT])
 
     @property
     def plate_flow_m3_s(self) -> float:
@@ -158,55 +302,15 @@ class CoolingLoop:
         """``M c_p T_loop`` [J] (0 with an infinite capacity: the reservoir is outside)."""
         return 0.0 if self.cool.infinite_capacity else self.heat_capacity_j_k * self.temp_k
 
-    def _chiller_demand_w(self, hottest_k: float, dt_s: float) -> float:
-        c, k = self.cool, self.ctrl
-        if not c.chiller or k.kind == "off":
-            return 0.0
-        t = hottest_k - c_to_k(0.0)
-        if k.kind == "thresholds":
-            if t > k.on_temp_c:
-                self.chiller_on = True
-            elif t < k.off_temp_c:
-                self.chiller_on = False
-            return c.chiller_max_w if self.chiller_on else 0.0
-        err = t - k.setpoint_c
-        cmd = k.kp_w_k * err + k.ki_w_ks * (self.integral_ks + err * dt_s)
-        if 0.0 < cmd < c.chiller_max_w:  # anti-windup: integrate only when not clipped
-            self.integral_ks += err * dt_s
-        return min(max(cmd, 0.0), c.chiller_max_w)
-
     def begin_step(self, hottest_k: float, ambient_k: float, dt_s: float) -> LoopStep:
-        """Supply temperature and plate inlets [K] for this step, from the loop state."""
-        c = self.cool
-        q = self.flow_m3_s
-        cap = self.rho_cp * q
-        if c.infinite_capacity:
-            t = c_to_k(c.supply_temp_c)
-            return LoopStep(t, np.full(self.n, t), self.plate_flow_m3_s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        rad = ch = 0.0
-        if cap > 0.0:
-            c_air = c.radiator_air_flow_kg_s * AIR_SPECIFIC_HEAT_J_KGK
-            c_min, c_max = min(cap, c_air), max(cap, c_air)
-            eps = counterflow_effectiveness(c.radiator_ua_w_k / c_min, c_min / c_max)
-            rad = eps * c_min * (self.temp_k - ambient_k)
-            if c.radiator_bypass and rad < 0.0:  # the thermostat valve bypasses a radiator that would heat
-                rad = 0.0
-            after = self.temp_k - rad / cap
-            ch = self._chiller_demand_w(hottest_k, dt_s)
-            ch = min(ch, max(0.0, cap * (after - c_to_k(c.chiller_min_supply_c))))
-            supply = after - ch / cap
-        else:
-            supply = self.temp_k
-        q_ref = c.flow_ref_l_min * LITRE_PER_MIN_M3_S
-        qp = self.plate_flow_m3_s
-        plates = self.n * c.plate_pressure_drop_pa * (qp / q_ref) ** 2
-        if c.layout == "parallel":
-            plates = c.plate_pressure_drop_pa * (qp / q_ref) ** 2
-        dp = c.loop_pressure_drop_pa * (q / q_ref) ** 2 + plates
-        pump = q * dp / c.pump_efficiency
-        fan = c.fan_power_w if q > 0.0 and rad > 0.0 else 0.0
-        loop_amb = c.loop_ua_w_k * (ambient_k - self.temp_k)
-        return LoopStep(supply, np.full(self.n, supply), qp, rad, ch, ch / c.chiller_cop, pump, fan, loop_amb)
+        """Supply temperature and plate inlets [K] for this step, from the loop state
+        (:func:`loop_begin`; the inlets all at the supply: :meth:`series_inlets` adds the
+        plates upstream)."""
+        st = np.empty(len(LOOP_STEP))
+        inlet = np.empty(self.n)
+        heat = np.zeros(self.n)
+        loop_begin(self.lp, self.ls, float(hottest_k), float(ambient_k), float(dt_s), heat, inlet, st)
+        return LoopStep(float(st[0]), inlet, *(float(v) for v in st[1:]))
 
     def series_inlets(self, step: LoopStep, plate_heat_w: np.ndarray) -> np.ndarray:
         """Plate inlet temperatures [K] in series: the supply plus the heat of the plates upstream
@@ -217,19 +321,21 @@ class CoolingLoop:
         return step.supply_k + np.concatenate([[0.0], np.cumsum(plate_heat_w)[:-1]]) / cap
 
     def end_step(self, step: LoopStep, plate_heat_w: float, dt_s: float) -> None:
-        """Advance the loop temperature with this step's heat flows [W]."""
-        if self.cool.infinite_capacity:
-            return
-        net = plate_heat_w + step.pump_power_w - step.radiator_w - step.chiller_w + step.loop_ambient_w
-        self.temp_k += dt_s * net / self.heat_capacity_j_k
+        """Advance the loop temperature with this step's heat flows [W] (:func:`loop_end`)."""
+        st = np.array([getattr(step, name) for name in LOOP_STEP])
+        loop_end(self.lp, self.ls, st, float(plate_heat_w), float(dt_s))
 
 
 __all__ = [
     "CONTROLLER_KINDS",
+    "LOOP_STEP",
+    "LP_NAMES",
     "ControllerSection",
     "CoolingLoop",
     "CoolingSection",
     "LoopStep",
     "check_cooling",
     "counterflow_effectiveness",
+    "loop_begin",
+    "loop_end",
 ]

@@ -46,39 +46,47 @@ ACTIVATION_TEMPERATURE_K = 31700.0 / 8.314
 """Ea / R of the Arrhenius-effective temperature [K] (Wang 2011's 31.7 kJ/mol, as
 :func:`hevsim.battery.ageing.stress_of`)."""
 STATE_FORMAT = "hevsim-pack-age-state-1"
+#: rows of :attr:`CellStress.data`: discharged charge [A s], sum of |current| [A], moving
+#: steps, sum of ``exp(-Ea/(R T))``, sums of SOC and core temperature [K], SOC range
+STRESS_ROWS = (
+    "discharged_as", "abs_current_sum", "moving", "arrhenius_sum", "soc_sum", "temp_sum", "soc_min",
+    "soc_max",
+)  # fmt: skip
 
 
 class CellStress:
-    """Per-cell stress accumulated over the steps of a run (module docstring)."""
+    """Per-cell stress accumulated over the steps of a run (module docstring): the rows of
+    :attr:`data` (:data:`STRESS_ROWS`, (8, n_cells)) and :attr:`counts` (steps, duration [s]),
+    which the pack's compiled step also accumulates into (:func:`hevsim.battery.pack_run.pack_finish`)."""
+
+    activation_k = ACTIVATION_TEMPERATURE_K
 
     def __init__(self, n_cells: int) -> None:
-        z = np.zeros(n_cells)
-        self.steps = 0
-        self.duration_s = 0.0
-        self.discharged_as = z.copy()
-        self.abs_current_sum = z.copy()
-        self.moving = z.copy()
-        self.arrhenius_sum = z.copy()
-        self.soc_sum = z.copy()
-        self.temp_sum = z.copy()
-        self.soc_min = np.full(n_cells, np.inf)
-        self.soc_max = np.full(n_cells, -np.inf)
+        self.data = np.zeros((len(STRESS_ROWS), n_cells))
+        self.data[STRESS_ROWS.index("soc_min")] = np.inf
+        self.data[STRESS_ROWS.index("soc_max")] = -np.inf
+        self.counts = np.zeros(2)
+
+    def __getattr__(self, name: str) -> Any:
+        if name in STRESS_ROWS:
+            return self.data[STRESS_ROWS.index(name)]
+        raise AttributeError(name)
+
+    @property
+    def steps(self) -> int:
+        return int(self.counts[0])
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.counts[1])
 
     def add(self, cells: np.ndarray, dt_s: float) -> None:
         """One step's per-cell record ``cells`` (n_cells, 5: current [A], SOC, core temperature
         [K], port heat [W], voltage [V]) of length ``dt_s`` [s]."""
-        i, soc, temp = cells[:, 0], cells[:, 1], cells[:, 2]
-        self.steps += 1
-        self.duration_s += dt_s
-        self.discharged_as += np.clip(i, 0.0, None) * dt_s
-        a = np.abs(i)
-        self.abs_current_sum += a
-        self.moving += a > 0.0
-        self.arrhenius_sum += np.exp(-ACTIVATION_TEMPERATURE_K / temp)
-        self.soc_sum += soc
-        self.temp_sum += temp
-        np.minimum(self.soc_min, soc, out=self.soc_min)
-        np.maximum(self.soc_max, soc, out=self.soc_max)
+        from hevsim.battery.pack_run import _stress_add
+
+        cells = np.ascontiguousarray(cells, dtype=float)
+        _stress_add(self.data, self.counts, cells, float(dt_s), self.activation_k)
 
     def stresses(self, pack: Any, soc_initial: np.ndarray, capacity_ah: np.ndarray) -> list[Stress]:
         """One :class:`~hevsim.battery.ageing.Stress` per cell: ``soc_initial`` [-] and the

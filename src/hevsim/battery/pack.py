@@ -606,18 +606,6 @@ def _cached_rom(path: str, mtime_ns: int, size: int, digest: str, where: str) ->
     return load_rom(path, expected_mesh_hash=digest, where=where)
 
 
-@njit(cache=True)
-def _channel_march(inlet_k, wall_k, mean_factor, decay, out):
-    """Segment-mean fluid temperatures [K] ``out[m, i]`` along every plate ``m`` (inlet
-    ``inlet_k[m]``, wall ``wall_k[m, i]``) with the segments' mean and exit factors [-]."""
-    for m in range(wall_k.shape[0]):
-        t_in = inlet_k[m]
-        for i in range(wall_k.shape[1]):
-            tw = wall_k[m, i]
-            out[m, i] = tw + (t_in - tw) * mean_factor[i]
-            t_in = tw + (t_in - tw) * decay[i]
-
-
 @dataclass(frozen=True)
 class PackStepStart:
     """What :meth:`Pack.begin_step` decided for a step: hottest cell core [K] at its start, the
@@ -700,24 +688,22 @@ class Pack:
                     f"{m.n_series} x {m.n_parallel} = {self.cells_per_module}; expected the same number."
                 )
             self.h_plate = self._wall_film(self.loop.plate_flow_m3_s)
-            from hevsim.thermal.rom import RomStepper
-
-            self.stepper = RomStepper(self.rom, p.dt_s, self.h_plate, t0, n_modules=p.n_modules)
         self.port_k = np.full(self.n_cells, t0)
         self._tabs = self.params.tables()
         self._energy_buf = np.zeros(4)
+        self._cells = np.zeros((self.n_cells, 5))
         # the next step's affine pairs (pack_pass): per cell, per series group, the pack's
         self._ez = np.zeros((self.n_cells, 4))
         self._oc = np.zeros((self.n_cells, 5))
         self._pairs = np.zeros((self.n_groups_sim, 4))
         self._totals = np.zeros(4)
-        self._ez_valid = False
         self._is_linear: bool | None = None
         self._rcc = np.zeros((2, 1, 5))
         self._c0_new = self.prm[:, C0].copy()
         self._rscale_new = self.prm[:, RSCALE].copy()
-        self.stress: Any = None
-        """Per-cell ageing stress accumulator (:class:`hevsim.battery.life.CellStress`) or None."""
+        self._stress: Any = None
+        self._arrays: Any = None
+        self._init_run_arrays(t0)
         self._new_accounts()
 
     # -- construction helpers ----------------------------------------------------------------
@@ -768,20 +754,6 @@ class Pack:
             )
         return float(ch.h_w_m2k)
 
-    def _fluid_k(self, inlet_k: np.ndarray, wall_k: np.ndarray, plate_flow_m3_s: float) -> np.ndarray:
-        """Segment-mean fluid temperature [K] (n_modules, n_seg): the 1-D quasi-steady channel of
-        :class:`hevsim.thermal.coolant.ChannelModel`, vectorised over the plates."""
-        assert self.rom is not None
-        cap = self.loop.rho_cp * plate_flow_m3_s
-        if cap <= 0.0:
-            return wall_k.copy()  # stagnant coolant follows the wall
-        ntu = self.h_plate * self.rom.wall_area_m2 / cap
-        decay = np.exp(-ntu)
-        mean_factor = np.where(ntu > 1e-12, (1.0 - decay) / np.where(ntu > 1e-12, ntu, 1.0), 1.0)
-        out = np.empty_like(wall_k)
-        _channel_march(np.asarray(inlet_k, dtype=float), wall_k, mean_factor, decay, out)
-        return out
-
     def derating_factor(self, hottest_k: float) -> float:
         d = self.cfg.derating
         return float(np.interp(hottest_k - 273.15, d.temp_c, d.current_factor))
@@ -795,7 +767,7 @@ class Pack:
         """Stored energies [J]: RC capacitors, cell cores (``C_heat T``), module FEMs (ROM ``sum C T``),
         coolant loop (``M c_p T``); differences of two calls close the balance (:meth:`energy`)."""
         core = self.weight * float(np.sum(self.prm[:, CHEAT] * self.x[:, STEMP]))
-        mod = float(self.rom.stored_j(self.stepper.z).sum()) if self.rom is not None else 0.0
+        mod = float(np.sum(self._rom_w @ self._modal["energy"])) if self.rom is not None else 0.0
         return {
             "rc_j": self.weight * self._rc_energy_j(),
             "cores_j": core,
@@ -804,22 +776,158 @@ class Pack:
         }
 
     # -- simulation --------------------------------------------------------------------------------
+    def _init_run_arrays(self, t0: float) -> None:
+        """The scalars, ROM (modal) and record arrays of :class:`~hevsim.battery.pack_run.PackArrays`."""
+        from hevsim.battery import pack_run as R
+        from hevsim.battery.life import ACTIVATION_TEMPERATURE_K
+
+        cfg, m, n_mod = self.cfg, self.cfg.module, self.cfg.pack.n_modules
+        f = np.zeros(len(R.F_NAMES))
+        f[R.F_DT], f[R.F_NG], f[R.F_NP] = cfg.pack.dt_s, self.n_groups_sim, self.n_p_sim
+        f[R.F_REP], f[R.F_NS], f[R.F_NPAR] = float(self.representative), m.n_series, m.n_parallel
+        f[R.F_WEIGHT], f[R.F_NMOD], f[R.F_SIMPM] = self.weight, n_mod, self.sim_per_module
+        f[R.F_IMAX], f[R.F_AMB] = cfg.pack.max_current_a, self.ambient_k
+        f[R.F_SOCMIN] = f[R.F_SOCMAX] = f[R.F_SOC] = cfg.cells.soc_initial
+        f[R.F_VMIN], f[R.F_VMAX] = self.prm[0, VMIN], self.prm[0, VMAX]
+        f[R.F_ACT] = ACTIVATION_TEMPERATURE_K
+        self._f = f
+        d = cfg.derating
+        tables = (d.temp_c, d.current_factor, d.soc, d.discharge_soc_factor, d.charge_soc_factor)
+        self._derating = tuple(np.asarray(v, dtype=float) for v in tables)
+        self._inlet = np.full(n_mod, self.loop.temp_k)
+        self._plate_heat = np.zeros(n_mod)
+        self._sv = np.zeros(len(R.SV_NAMES))
+        self._acc = np.zeros(len(ENERGY_TERMS))
+        self._rec = np.zeros((0, len(R.RECORD_CHANNELS)))
+        self._hot = np.zeros((0, n_mod))
+        if self.rom is None:
+            e1, e2 = np.zeros(0), np.zeros((0, 0))
+            self._modal = {"rom_decay": e1, "rom_in": e2, "rom_out": e2, "rom_cand": e2, "hs_norm": e1,
+                           "hs_unit": e1, "energy": e1, "hs_ub": e2, "hs_prev": e2}  # fmt: skip
+            self._rom_w, self._rom_u, self._rom_y = (np.zeros((n_mod, 0)) for _ in range(3))
+            self._channel = (e1, e1, e1)
+            return
+        rom = self.rom
+        f[R.F_ROM], f[R.F_H] = 1.0, self.h_plate
+        f[R.F_BAMB], f[R.F_FCONST] = rom.b_amb_total, rom.f_const_total
+        self._modal = R.modal_rom(rom, cfg.pack.dt_s, self.h_plate)
+        self._modal["hs_ub"] = np.zeros((n_mod, self._modal["rom_cand"].shape[0]))
+        self._modal["hs_prev"] = np.zeros((n_mod, rom.order + 2))
+        w0 = t0 * (rom.unit_state @ self._modal["q"])
+        self._rom_w = np.ascontiguousarray(np.repeat(w0[None, :], n_mod, axis=0))
+        self._rom_u = np.zeros((n_mod, rom.n_cells + rom.n_segments + 2))
+        self._rom_y = self._rom_w @ self._modal["rom_out"]
+        cap = self.loop.rho_cp * self.loop.plate_flow_m3_s
+        ntu = self.h_plate * rom.wall_area_m2 / cap if cap > 0.0 else np.zeros(rom.n_segments)
+        decay = np.exp(-ntu)
+        mean_factor = np.where(ntu > 1e-12, (1.0 - decay) / np.where(ntu > 1e-12, ntu, 1.0), 1.0)
+        self._channel = (np.ascontiguousarray(mean_factor), decay, np.asarray(rom.wall_area_m2, dtype=float))
+
+    @property
+    def arrays(self) -> Any:
+        """The pack's :class:`~hevsim.battery.pack_run.PackArrays` (views of its state; rebuilt
+        after :meth:`state_changed`, a new stress accumulator or more record rows)."""
+        if self._arrays is None:
+            from hevsim.battery.pack_run import F_LINEAR, F_STRESS, PackArrays
+
+            self._f[F_LINEAR] = float(self._linear())
+            st = self._stress
+            self._f[F_STRESS] = float(st is not None)
+            md = self._modal
+            self._arrays = PackArrays(  # type: ignore[call-arg]
+                self._f, self.prm, self.x, *self._tabs, self._ez, self._oc, self._rcc, self._pairs,
+                self._totals, self.port_k, self._cells, self._energy_buf, self.loop.lp, self.loop.ls,
+                self._inlet, self._plate_heat, *self._derating, md["rom_decay"], md["rom_in"], md["rom_out"],
+                md["rom_cand"], md["hs_norm"], md["hs_unit"], md["energy"], md["hs_ub"], md["hs_prev"],
+                self._rom_w, self._rom_u, self._rom_y, *self._channel, self._acc, self._sv,
+                self._rec, self._hot, st.data if st is not None else np.zeros((8, 0)),
+                st.counts if st is not None else np.zeros(2),
+            )  # fmt: skip
+        return self._arrays
+
+    @property
+    def stress(self) -> Any:
+        """Per-cell ageing stress accumulator (:class:`hevsim.battery.life.CellStress`) or None."""
+        return self._stress
+
+    @stress.setter
+    def stress(self, value: Any) -> None:
+        self._stress = value
+        self._arrays = None
+
+    @property
+    def acc(self) -> dict[str, float]:
+        """The energy terms [J] accumulated since the last :meth:`simulate` began (:data:`ENERGY_TERMS`)."""
+        return dict(zip(ENERGY_TERMS, (float(v) for v in self._acc), strict=True))
+
+    @property
+    def time_s(self) -> float:
+        from hevsim.battery.pack_run import F_TIME
+
+        return float(self._f[F_TIME])
+
+    @property
+    def steps_done(self) -> int:
+        """Steps since the accounts were reset (rows of :attr:`records`)."""
+        from hevsim.battery.pack_run import F_STEP
+
+        return int(self._f[F_STEP])
+
+    @property
+    def _ez_valid(self) -> bool:
+        from hevsim.battery.pack_run import F_EZVALID
+
+        return bool(self._f[F_EZVALID])
+
+    @_ez_valid.setter
+    def _ez_valid(self, value: bool) -> None:
+        from hevsim.battery.pack_run import F_EZVALID
+
+        self._f[F_EZVALID] = float(value)
+
+    def rom_state_z(self) -> np.ndarray:
+        """The modules' ROM states ``z`` (n_modules, order) (:mod:`hevsim.thermal.rom`; the
+        pack steps them in modal coordinates)."""
+        assert self.rom is not None
+        return np.asarray(self._rom_w @ self._modal["q"].T)
+
+    def reserve(self, steps: int) -> None:
+        """Room for ``steps`` more record rows (:attr:`records`)."""
+        need = self.steps_done + int(steps)
+        if need > self._rec.shape[0]:
+            rows = max(need, 2 * self._rec.shape[0])
+            rec, hot = np.zeros((rows, self._rec.shape[1])), np.zeros((rows, self._hot.shape[1]))
+            rec[: self._rec.shape[0]], hot[: self._hot.shape[0]] = self._rec, self._hot
+            self._rec, self._hot, self._arrays = rec, hot, None
+
+    @property
+    def records(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per step since the accounts were reset: the record rows
+        (:data:`hevsim.battery.pack_run.RECORD_CHANNELS`) and the per-module hot spots [K]."""
+        k = self.steps_done
+        return self._rec[:k], self._hot[:k]
+
     def _new_accounts(self) -> None:
-        self.acc = dict.fromkeys(ENERGY_TERMS, 0.0)
-        self.time_s = 0.0
-        self._plate_heat = np.zeros(self.cfg.pack.n_modules)
+        from hevsim.battery.pack_run import F_STEP, F_TIME
+
+        self._acc[:] = 0.0
+        self._f[F_TIME] = 0.0
+        self._f[F_STEP] = 0.0
+        self._plate_heat[:] = 0.0
 
     def begin_step(self) -> PackStepStart:
         """The first half of a step: the BMS's temperature derating factor (hottest cell core at
         the start of the step) and the cooling loop's decision (pump, fan, chiller power [W],
-        known before the cells' current: an auxiliary load the vehicle puts on its bus)."""
-        hottest = float(self.x[:, STEMP].max())
-        f = self.derating_factor(hottest)
-        loop_step = self.loop.begin_step(hottest, self.ambient_k, self.cfg.pack.dt_s)
-        inlet = self.loop.series_inlets(loop_step, self._plate_heat)
-        if self.rom is None:
-            self.port_k = np.repeat(inlet, self.sim_per_module)
-        return PackStepStart(hottest, f, loop_step, inlet)
+        known before the cells' current: an auxiliary load the vehicle puts on its bus);
+        :func:`hevsim.battery.pack_run.pack_begin` (which also forms the step's Thevenin pairs
+        and BMS limits, :mod:`hevsim.battery.bms`)."""
+        from hevsim.battery import pack_run as R
+
+        R.pack_begin(self.arrays)
+        sv = self._sv
+        loop_step = LoopStep(float(sv[R.SV_SUPPLY]), self._inlet.copy(),
+                             *(float(v) for v in sv[R.SV_PFLOW:]))  # fmt: skip
+        return PackStepStart(float(sv[R.SV_HOT]), float(sv[R.SV_FACTOR]), loop_step, loop_step.inlet_k)
 
     def thevenin(self, direction: float, e_group: np.ndarray, z_group: np.ndarray) -> tuple[float, float]:
         """The pack's step-average terminal voltage as ``E - Z I`` [V, ohm] for a pack current
@@ -849,86 +957,22 @@ class Pack:
         cells_out: np.ndarray | None = None,
     ) -> tuple[dict[str, float], np.ndarray]:  # fmt: skip
         """The second half of a step at pack current ``current_a`` [A] (discharge > 0, already
-        within the BMS limits): cells, module thermal model, cooling loop, energy terms."""
-        cfg, m = self.cfg, self.cfg.module
-        dt = cfg.pack.dt_s
-        n_mod, cpm = cfg.pack.n_modules, self.cells_per_module
-        out = np.empty((self.n_cells, 5)) if cells_out is None else cells_out
-        energy = self._energy_buf
-        loop_step, inlet = start.loop_step, start.inlet_k
+        within the BMS limits) after :meth:`begin_step` (``start``): cells, module thermal model,
+        cooling loop, energy terms (:func:`hevsim.battery.pack_run.pack_finish`). Returns the
+        step's channels (:data:`STEP_CHANNELS`) and the per-module hot spots [K]; ``cells_out``
+        (n_cells, 5) receives the per-cell record."""
+        from hevsim.battery import pack_run as R
+
+        self.reserve(1)
         i_a = float(current_a)
-        i_cells = i_a / m.n_parallel if self.representative else i_a  # a representative cell's share
-        if self._ez_valid and self._linear():
-            v_end, v_avg = pack_pass_linear(  # type: ignore[call-arg]
-                self.prm, *self._tabs, self.x, self.n_groups_sim, self.n_p_sim, i_cells, dt, self.port_k, out,
-                energy, self._ez, self._oc, self._rcc, self._pairs, self._totals,
-            )  # fmt: skip
-        else:
-            v_end, v_avg = pack_pass(  # type: ignore[call-arg]
-                self.prm, *self._tabs, self.x, self.n_groups_sim, self.n_p_sim, i_cells, dt, self.port_k, out,
-                energy, self._ez, self._ez_valid, self._pairs, self._totals,
-            )  # fmt: skip
-            if self._linear():  # the capacities, OCVs and resistances for pack_pass_linear
-                self._ez_valid = False
-                self.thevenin(1.0, np.empty(self.n_groups_sim), np.empty(self.n_groups_sim))
-        self._ez_valid = True
-        if self.representative:  # one cell for n_series groups of n_parallel cells
-            v_end, v_avg = m.n_series * v_end, m.n_series * v_avg
-            energy *= self.weight
-        port_w = (
-            np.repeat(out[:, 3], self.weight).reshape(n_mod, cpm)
-            if self.representative
-            else out[:, 3].reshape(n_mod, cpm)
-        )
-        if self.rom is not None:
-            fluid = self._fluid_k(inlet, self.rom.wall_temp_k(self.stepper.z), loop_step.plate_flow_m3_s)
-            z = self.stepper.step(port_w, fluid, self.ambient_k)
-            plate_heat = self.rom.wall_heat_w(z, fluid, self.h_plate).sum(axis=1)
-            mod_amb = float(np.sum(self.rom.ambient_heat_w(z, self.ambient_k)))
-            mean_k = self.rom.cell_mean_k(z)
-            self.port_k = mean_k.mean(axis=1) if self.representative else mean_k.ravel()
-            module_hot = self.rom.cell_max_k(z).max(axis=1)
-        else:
-            plate_heat = port_w.sum(axis=1)
-            mod_amb = 0.0
-            module_hot = out[:, 2].reshape(n_mod, self.sim_per_module).max(axis=1)
-        self._plate_heat = plate_heat
-        plate_w = float(plate_heat.sum())
-        self.loop.end_step(loop_step, plate_w, dt)
-        acc = self.acc
-        acc["electrical_out_j"] += energy[0]
-        acc["chemical_change_j"] += energy[1]
-        acc["cell_heat_j"] += energy[2]
-        acc["port_heat_j"] += energy[3]
-        acc["plate_heat_j"] += dt * plate_w
-        acc["module_ambient_j"] += dt * mod_amb
-        acc["throughput_j"] += abs(energy[0])
-        if cfg.cooling.infinite_capacity:
-            acc["reservoir_j"] += dt * plate_w
-        else:
-            acc["radiator_j"] += dt * loop_step.radiator_w
-            acc["chiller_j"] += dt * loop_step.chiller_w
-            acc["loop_ambient_in_j"] += dt * loop_step.loop_ambient_w
-            acc["pump_work_j"] += dt * loop_step.pump_power_w
-            acc["chiller_electric_j"] += dt * loop_step.chiller_power_w
-            acc["fan_electric_j"] += dt * loop_step.fan_power_w
-        self.time_s += dt
-        soc = out[:, 1]
-        if self.stress is not None:
-            self.stress.add(out, dt)
         req = i_a if current_request_a is None else float(current_request_a)
-        row = {
-            "time_s": self.time_s, "current_request_a": req, "current_a": i_a,
-            "voltage_v": v_end, "voltage_avg_v": v_avg, "power_w": v_avg * i_a,
-            "derating_factor": start.factor,
-            "hottest_cell_temp_k": float(out[:, 2].max()), "hot_spot_temp_k": float(module_hot.max()),
-            "min_soc": float(soc.min()), "max_soc": float(soc.max()), "loop_temp_k": self.loop.temp_k,
-            "supply_temp_k": loop_step.supply_k, "plate_heat_w": plate_w, "module_ambient_w": mod_amb,
-            "radiator_w": loop_step.radiator_w, "chiller_w": loop_step.chiller_w,
-            "chiller_power_w": loop_step.chiller_power_w, "pump_power_w": loop_step.pump_power_w,
-            "fan_power_w": loop_step.fan_power_w,
-        }  # fmt: skip
-        return row, module_hot
+        k = self.steps_done
+        R.pack_finish(self.arrays, i_a, req)
+        if cells_out is not None:
+            cells_out[:] = self._cells
+        rec = self._rec[k]
+        row = {name: float(rec[R.RECORD_CHANNELS.index(col)]) for name, col in R.STEP_TO_RECORD.items()}
+        return row, self._hot[k].copy()
 
     def step(
         self, current_request_a: float, cells_out: np.ndarray | None = None
@@ -961,6 +1005,7 @@ class Pack:
         next step (:func:`pack_pass`) are recomputed."""
         self._ez_valid = False
         self._is_linear = None
+        self._arrays = None
 
     def _linear(self) -> bool:
         """Every cell's step voltage is affine in its current (:func:`pack_pass_linear`)."""
@@ -1002,28 +1047,30 @@ class Pack:
         if req.ndim != 1 or req.size == 0 or not np.all(np.isfinite(req)):
             raise ConfigError(f"{self.cfg.name}: current profile: expected a non-empty 1-D finite array [A].")
         if ambient_temp_c is not None:
+            from hevsim.battery.pack_run import F_AMB
+
             self.ambient_k = c_to_k(ambient_temp_c)
+            self._f[F_AMB] = self.ambient_k
         cfg = self.cfg
         steps, n_mod = req.size, cfg.pack.n_modules
         out_cells = np.empty((steps, self.n_cells, 5))
-        rows = {k: np.empty(steps) for k in STEP_CHANNELS}
-        module_hot = np.empty((steps, n_mod))
         self._new_accounts()
         s0 = self.stored_energy_j()
         from threadpoolctl import threadpool_limits
 
+        from hevsim.battery.pack_run import RECORD_CHANNELS, STEP_TO_RECORD, pack_simulate
+
+        self.reserve(steps)
         with threadpool_limits(1, user_api="blas"):  # small per-step ROM products (see pack_vehicle)
-            for k in range(steps):
-                row, module_hot[k] = self.step(req[k], out_cells[k])
-                for key, val in row.items():
-                    rows[key][k] = val
+            pack_simulate(self.arrays, req, out_cells)
+        rec, module_hot = self.records
+        rows = {key: rec[:, RECORD_CHANNELS.index(STEP_TO_RECORD[key])].copy() for key in STEP_CHANNELS}
         check_cell_domain(
             f"pack {cfg.name}", rows["time_s"], rows["current_a"], rows["voltage_v"], out_cells[:, :, 2]
         )
         e = self.energy(s0)
-        ts = pd.DataFrame(rows)
-        for j in range(n_mod):
-            ts[f"module{j}_hot_spot_temp_k"] = module_hot[:, j]
+        hot_cols = pd.DataFrame(module_hot, columns=[f"module{j}_hot_spot_temp_k" for j in range(n_mod)])
+        ts = pd.concat([pd.DataFrame(rows), hot_cols], axis=1)
         derated = rows["derating_factor"] < 1.0
         metrics = {
             "duration_s": steps * cfg.pack.dt_s,

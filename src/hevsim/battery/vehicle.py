@@ -16,13 +16,14 @@ Three ways to put a pack into the vehicle (the first two: n_s x n_p identical ce
 
 3. The pack kind (``[battery] model = "pack"``, :mod:`hevsim.sim.pack_vehicle`): a whole
    :class:`~hevsim.battery.pack.Pack` (cells with spread, module thermal ROM, cooling loop,
-   BMS) run by a :class:`hevsim.battery.bms.PackRun`. The compiled kernel calls
-   :func:`battery_pack_begin` at the start of each step's bus balance (the run writes the
-   step's Thevenin pairs into the aux vector, the BMS current limits and the cooling load into
-   the kernel's parameter vector ``p``), :func:`battery_pack` as its battery role, and
-   :func:`battery_pack_advance` once the current is solved (the run steps the pack and returns
-   its SOC). The pack is Python (ROM, cooling loop), so these two are callbacks through numba's
-   object mode, found by the run number in the aux vector (:func:`pack_run_registered`).
+   BMS) run by a :class:`hevsim.battery.bms.PackRun`. The kernel's battery tuple is a
+   :data:`PackKernelTables` holding the pack's arrays (:func:`pack_kernel_tables`), and the
+   compiled kernel calls :func:`battery_pack_begin` at the start of each step's bus balance
+   (the pack's compiled :func:`~hevsim.battery.pack_run.pack_begin`: the step's Thevenin pairs,
+   the BMS current limits and the cooling load into the kernel's parameter vector ``p``),
+   :func:`battery_pack` as its battery role, and :func:`battery_pack_advance` once the current
+   is solved (:func:`~hevsim.battery.pack_run.pack_finish` steps the cells, the module ROMs and
+   the cooling loop and returns the SOC): one compiled loop, no Python per step.
 
 The kernel's battery tables are an :class:`EcmTables` named tuple (read by name in compiled
 code); :func:`pad_tables_kind` extends a ``"tables"`` kind's
@@ -32,25 +33,22 @@ serves both kinds.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import contextmanager
+from collections import namedtuple
 from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
-from numba import njit, objmode
+from numba import njit, types
+from numba.extending import overload
 
 from hevsim.battery import kernel as K
 from hevsim.battery.params import CellParameters, load_cell_parameters
 from hevsim.components.battery import BatteryPack, PackTables, pack_resistance
 from hevsim.tables import FloatArray, Table2D
 
-# aux vector of the ECM tuple (entry 11); the last five serve the pack kind (section 3 below)
-AUX = (
-    "n_series", "n_parallel", "dt_s", "port_temp_k", "r_extra_ohm", "heat_w", "cell_temp_k",
-    "pack_run", "e_discharge_v", "z_discharge_ohm", "e_charge_v", "z_charge_ohm",
-)  # fmt: skip
-A_NS, A_NP, A_DT, A_TPORT, A_REXT, A_HEAT, A_TCELL, A_RUN, A_EDIS, A_ZDIS, A_ECHG, A_ZCHG = range(len(AUX))
+# aux vector of the ECM tuple (entry 11)
+AUX = ("n_series", "n_parallel", "dt_s", "port_temp_k", "r_extra_ohm", "heat_w", "cell_temp_k")
+A_NS, A_NP, A_DT, A_TPORT, A_REXT, A_HEAT, A_TCELL = range(len(AUX))
 
 
 class EcmTables(NamedTuple):
@@ -269,68 +267,89 @@ def battery_ecm_advance(p, bat, i_pack, dt):
     return aux[A_HEAT], aux[A_TCELL]
 
 
-# -- 3. the pack kind: callbacks into a hevsim.battery.bms.PackRun ---------------------------------
-_PACK_RUNS: dict[int, Any] = {}
-"""The pack runs in progress, by run number (only while :func:`pack_run_registered` is open)."""
+# -- 3. the pack kind: the pack's compiled step inside the kernel ----------------------------------
+PackKernelTables: Any = namedtuple("PackKernelTables", [*ECM_TUPLE, "pack"])  # type: ignore[misc]
+"""The pack kind's battery tuple: the :class:`EcmTables` entries of the pack's cell (so that the
+kernel's other battery kinds compile for it) and ``pack``, the
+:class:`~hevsim.battery.pack_run.PackArrays` of the run's :class:`~hevsim.battery.pack.Pack`."""
 
 
-@contextmanager
-def pack_run_registered(run: Any, p: FloatArray, bat: EcmTables) -> Iterator[None]:
-    """Make ``run`` (:class:`hevsim.battery.bms.PackRun`) the pack of the kernel arguments ``p``
-    (parameter vector) and ``bat`` for the duration of one kernel call. An exception raised in
-    a callback is kept by the run (``run.error``) and raised again here after the kernel."""
-    key = max(_PACK_RUNS, default=0) + 1
-    bat.aux[A_RUN] = key
-    run.kernel_arrays = (p, bat.aux)
-    _PACK_RUNS[key] = run
-    try:
-        yield
-    finally:
-        del _PACK_RUNS[key]
-    if run.error is not None:
-        raise run.error
+def pack_kernel_tables(run: Any, p: FloatArray, dt_s: float) -> Any:
+    """The battery tuple of the pack kind for one kernel run of ``run``
+    (:class:`hevsim.battery.bms.PackRun`): its pack's arrays, with the kernel's auxiliary load
+    ``p[PAUX]`` as the base the cooling adds to each step."""
+    from hevsim.battery.pack_run import F_BASEAUX
+    from hevsim.sim import kernel as SK
+
+    pack = run.pack
+    m = pack.cfg.module
+    bat = ecm_kernel_tables(pack.params, pack.cfg.pack.n_modules * m.n_series, m.n_parallel,
+                            float(pack.prm[0, K.SOCINI]), float(pack.x[0, K.STEMP]), dt_s)  # fmt: skip
+    pack._f[F_BASEAUX] = p[SK.PAUX]
+    return PackKernelTables(*bat, pack.arrays)  # type: ignore[call-arg]
 
 
-def _pack_begin(key: int) -> None:
-    run = _PACK_RUNS[key]
-    if run.error is None:
-        try:
-            run.kernel_begin()
-        except Exception as exc:  # raised again after the kernel
-            run.error = exc
+def _is_pack_tuple(bat: Any) -> bool:
+    return isinstance(bat, types.BaseNamedTuple) and getattr(bat, "instance_class", None) is PackKernelTables
 
 
-def _pack_advance(key: int, current_a: float) -> float:
-    run = _PACK_RUNS[key]
-    if run.error is None:
-        try:
-            return float(run.finish_current(current_a))
-        except Exception as exc:  # raised again after the kernel
-            run.error = exc
-    return float(run.soc)
+def battery_pack_begin(p: FloatArray, bat: Any) -> None:
+    """Pack kind: the BMS's step (:func:`hevsim.battery.pack_run.pack_begin`) sets the kernel's
+    current limits ``p[BIDIS]``, ``p[BICHG]`` and its bus load ``p[PAUX]`` (the base + the
+    cooling); nothing for the other kinds. (Compiled: a numba overload.)"""
+    raise NotImplementedError("compiled only (numba overload)")
 
 
-@njit(cache=True)
-def battery_pack_begin(p, bat):
-    """Pack kind: the run sets this step's Thevenin pairs, BMS limits and cooling load."""
-    key = int(bat.aux[A_RUN])
-    with objmode():
-        _pack_begin(key)
-
-
-@njit(cache=True)
-def battery_pack(p, bat, soc, current_sign):
+def battery_pack(p: FloatArray, bat: Any, soc: float, current_sign: float) -> tuple[float, float]:
     """Battery role of the pack kind: the step's ``(E [V], Z [ohm])`` for a direction."""
-    aux = bat.aux
-    if current_sign >= 0.0:
-        return aux[A_EDIS], aux[A_ZDIS]
-    return aux[A_ECHG], aux[A_ZCHG]
+    raise NotImplementedError("compiled only (numba overload)")
 
 
-@njit(cache=True)
-def battery_pack_advance(p, bat, i_pack, dt):
-    """Pack kind: step the pack at the solved current ``i_pack`` [A]; returns its SOC [-]."""
-    key = int(bat.aux[A_RUN])
-    with objmode(soc="float64"):
-        soc = _pack_advance(key, i_pack)
-    return soc
+def battery_pack_advance(p: FloatArray, bat: Any, i_pack: float, dt: float) -> float:
+    """Pack kind: step the pack at the solved current ``i_pack`` [A]
+    (:func:`hevsim.battery.pack_run.pack_finish`); returns its SOC [-]."""
+    raise NotImplementedError("compiled only (numba overload)")
+
+
+@overload(battery_pack_begin)
+def _battery_pack_begin(p, bat):
+    if not _is_pack_tuple(bat):
+        return lambda p, bat: None
+    from hevsim.battery.pack_run import F_BASEAUX, SV_COOLW, SV_LIMC, SV_LIMD, pack_begin
+    from hevsim.sim.kernel import BICHG, BIDIS, PAUX
+
+    def impl(p, bat):
+        s = bat.pack
+        pack_begin(s)
+        p[BIDIS] = s.sv[SV_LIMD]
+        p[BICHG] = s.sv[SV_LIMC]
+        p[PAUX] = s.f[F_BASEAUX] + s.sv[SV_COOLW]
+
+    return impl
+
+
+@overload(battery_pack)
+def _battery_pack(p, bat, soc, current_sign):
+    if not _is_pack_tuple(bat):
+        return lambda p, bat, soc, current_sign: (0.0, 1.0)
+    from hevsim.battery.pack_run import SV_ECHG, SV_EDIS, SV_ZCHG, SV_ZDIS
+
+    def impl(p, bat, soc, current_sign):
+        sv = bat.pack.sv
+        if current_sign >= 0.0:
+            return sv[SV_EDIS], sv[SV_ZDIS]
+        return sv[SV_ECHG], sv[SV_ZCHG]
+
+    return impl
+
+
+@overload(battery_pack_advance)
+def _battery_pack_advance(p, bat, i_pack, dt):
+    if not _is_pack_tuple(bat):
+        return lambda p, bat, i_pack, dt: 0.0
+    from hevsim.battery.pack_run import pack_finish
+
+    def impl(p, bat, i_pack, dt):
+        return pack_finish(bat.pack, i_pack, i_pack)
+
+    return impl

@@ -318,8 +318,10 @@ def supervise(kind, p, sched, k, soc, w_gs, gs_state):
 def battery_state(kind, p, bat, soc, current_sign):
     """Battery-model dispatcher (codes: :data:`BATTERY_KINDS`).
 
-    ``bat`` is a :class:`hevsim.battery.vehicle.EcmTables` for every kind (the ``tables`` kind
-    padded), so one compiled dispatcher serves both.
+    ``bat`` is a :class:`hevsim.battery.vehicle.EcmTables` for the ``tables`` (padded) and
+    ``ecm`` kinds, so one compiled dispatcher serves both; the ``pack`` kind's
+    :data:`hevsim.battery.vehicle.PackKernelTables` holds the same entries plus the pack's
+    arrays (its role and steps are numba overloads that do nothing for the other tuple).
     """
     if kind == 1:
         return battery_ecm(p, bat, soc, current_sign)
@@ -700,7 +702,7 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
         if prev_state == GS_OFF and gs_state != GS_OFF:
             starts += 1.0
         # the battery's discharge and charge states and power limits at the start of the step
-        if bat_kind == 2:  # a pack: its BMS sets p[BIDIS], p[BICHG] and the cooling load p[PAUX]
+        if bat_kind == 2:  # a pack (compiled): its BMS sets p[BIDIS], p[BICHG] and the cooling load p[PAUX]
             battery_pack_begin(p, bat)
         ocv, r_b = battery_state(bat_kind, p, bat, soc, 1.0)
         ocv_c, r_c = battery_state(bat_kind, p, bat, soc, -1.0)

@@ -9,10 +9,9 @@ the cooling loop's electrical load; after the step the pack advances with the ac
 and the ambient temperature.
 
 * **Series HEV**: the compiled kernel (:func:`hevsim.sim.kernel.run_series`) with the battery
-  kind ``"pack"``: two object-mode callbacks per step (:mod:`hevsim.battery.vehicle`, section
-  3). The series keeps its one integrator (genset shaft, driver, thermostat) and the pack
-  costs two ~1 us calls plus its own work per step; a second, Python, series step would have
-  to repeat the kernel's equations.
+  kind ``"pack"``: the pack's compiled step (:mod:`hevsim.battery.pack_run`) inside the
+  kernel's loop (:mod:`hevsim.battery.vehicle`, section 3), one compiled loop with no Python
+  per step.
 * **Parallel HEV** (and the other forward architectures): the Python loop of
   :mod:`hevsim.sim.forward` (the compiled fast paths do not take a pack), which asks the run
   for the step's model (battery limits, bus load) and battery state and hands back the
@@ -195,23 +194,19 @@ def simulate_pack_vehicle(
 def _simulate_series(model: Any, cyc: DriveCycle, dt: float, soc0: float, run: PackRun, schedule: Any) -> Any:
     import time
 
-    from hevsim.battery.vehicle import ecm_kernel_tables, pack_run_registered
+    from hevsim.battery.vehicle import pack_kernel_tables
     from hevsim.sim import kernel as K
     from hevsim.sim.checks import check_domain, check_metrics
     from hevsim.sim.simulator import _assemble, kernel_inputs
 
     t0 = time.perf_counter()
     hev, cyc, dt, args = kernel_inputs(model, cyc, dt, soc0, schedule)
-    pack = run.pack
-    m = pack.cfg.module
-    bat = ecm_kernel_tables(pack.params, pack.cfg.pack.n_modules * m.n_series, m.n_parallel, soc0,
-                            float(pack.x[0, 2]), dt)  # fmt: skip
     p = args[0]
     p[K.BATKIND] = K.BATTERY_KINDS.index("pack")
-    args = (*args[:4], bat, *args[5:])
+    run.pack.reserve(len(cyc.time_s))
+    args = (*args[:4], pack_kernel_tables(run, p, dt), *args[5:])
     t1 = time.perf_counter()
-    with pack_run_registered(run, p, bat):  # type: ignore[arg-type]
-        K.run_series(*args)
+    K.run_series(*args)  # the pack's compiled step inside the kernel's loop
     t2 = time.perf_counter()
     out, energy, summary = args[-3], args[-2], args[-1]
     label = f"{hev.name} on {cyc.name}"

@@ -1,0 +1,519 @@
+"""One compiled step of a whole pack: BMS, cells, module thermal ROM, cooling loop, records.
+
+:class:`~hevsim.battery.pack.Pack` keeps its state in the arrays of a :class:`PackArrays`
+named tuple, and a step is two compiled calls on it (the same operations as the pack's
+module docstring describes, in the same order):
+
+* :func:`pack_begin`: the hottest cell core and the temperature derating factor, the cooling
+  loop's decision for the step (:func:`loop_begin`: pump, radiator, chiller, the plates'
+  inlets), the pack's step Thevenin pairs ``E - Z I`` for each direction and the BMS's current
+  limits (:mod:`hevsim.battery.bms`), written into the step vector ``sv`` (``SV_*``);
+* :func:`pack_finish`: the cells at the pack current (one compiled pass,
+  :func:`~hevsim.battery.pack.pack_pass_linear`), the module ROMs in modal coordinates
+  (:func:`rom_modal`) or the coolant ports, the loop's temperature (:func:`loop_end`), the
+  energy terms (``acc``, :data:`~hevsim.battery.pack.ENERGY_TERMS`), the cells' ageing stress
+  and one row of records (``rec``, :data:`RECORD_CHANNELS`; ``hot``: per-module hot spots).
+
+The vehicle's compiled series kernel calls both directly (no Python per step,
+:mod:`hevsim.battery.vehicle` section 3); :meth:`Pack.simulate
+<hevsim.battery.pack.Pack.simulate>` runs :func:`pack_simulate`; the Python forward loop and
+:meth:`Pack.step <hevsim.battery.pack.Pack.step>` call them one step at a time.
+
+**ROM in modal coordinates.** The reduced matrix ``A_r = K_s,r + h K_w,r`` is symmetric (the
+basis is C-orthonormal), so ``A_r = Q diag(lambda) Q^T`` with ``Q`` orthogonal and the
+implicit-Euler step of :class:`~hevsim.thermal.rom.RomStepper` is, for ``w = Q^T z``,
+``w_1 = (w_0 / dt + Q^T B_r(h) u_1) / (1 / dt + lambda)``: the same step (up to rounding)
+at a fraction of the products (the inputs' ``r x 44`` instead of ``r x (r + 44)``), and the
+outputs (cell means, wall temperatures, film heat) are one product with the output rows
+times ``Q``. The hot spot of a module (the largest of its cells' candidate nodes) is exact to
+rounding, with only the rows that can be the largest evaluated (:func:`_module_hot_spots`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from hevsim.battery.cooling import LP_INF, LP_PFLOW, LP_RHOCP, LP_ZEROC, LS_TEMP, loop_begin, loop_end
+from hevsim.battery.kernel import STEMP
+from hevsim.battery.pack import pack_pairs, pack_pass, pack_pass_linear
+from hevsim.tables import FloatArray
+
+#: scalar entries of :attr:`PackArrays.f` (sizes, flags and the run's running values)
+F_NAMES = (
+    "dt_s", "n_groups_sim", "n_p_sim", "representative", "module_n_series", "module_n_parallel",
+    "weight", "n_modules", "sim_per_module", "max_current_a", "ambient_k", "linear", "ez_valid", "rom",
+    "h_plate", "time_s", "step", "soc", "soc_min", "soc_max", "stress", "v_min", "v_max", "base_aux_w",
+    "rom_b_amb_w_k", "rom_f_const_w", "activation_k", "hot_spot_started",
+    "hot_spot_rows",
+)  # fmt: skip
+(F_DT, F_NG, F_NP, F_REP, F_NS, F_NPAR, F_WEIGHT, F_NMOD, F_SIMPM, F_IMAX, F_AMB, F_LINEAR, F_EZVALID,
+ F_ROM, F_H, F_TIME, F_STEP, F_SOC, F_SOCMIN, F_SOCMAX, F_STRESS, F_VMIN, F_VMAX, F_BASEAUX, F_BAMB,
+ F_FCONST, F_ACT, F_HSINIT, F_HSROWS) = range(
+    len(F_NAMES))  # fmt: skip
+
+#: the step vector :attr:`PackArrays.sv` that :func:`pack_begin` fills
+SV_NAMES = (
+    "hottest_k", "factor", "e_dis_v", "z_dis_ohm", "e_chg_v", "z_chg_ohm", "limit_dis_a", "limit_chg_a",
+    "reason_dis", "reason_chg", "cooling_w", "supply_k", "plate_flow_m3_s", "radiator_w", "chiller_w",
+    "chiller_power_w", "pump_power_w", "fan_power_w", "loop_ambient_w",
+)  # fmt: skip
+(SV_HOT, SV_FACTOR, SV_EDIS, SV_ZDIS, SV_ECHG, SV_ZCHG, SV_LIMD, SV_LIMC, SV_WHYD, SV_WHYC, SV_COOLW,
+ SV_SUPPLY, SV_PFLOW, SV_RAD, SV_CH, SV_CHP, SV_PUMP, SV_FAN, SV_LAMB) = range(len(SV_NAMES))  # fmt: skip
+
+#: one row of :attr:`PackArrays.rec` per step: :data:`hevsim.battery.bms.CHANNELS` then the rest
+#: of :data:`hevsim.battery.pack.STEP_CHANNELS`
+RECORD_CHANNELS = (
+    "pack_current_a", "pack_voltage_v", "pack_power_w", "pack_ocv_v", "pack_resistance_ohm",
+    "bms_discharge_limit_a", "bms_charge_limit_a", "bms_discharge_reason", "bms_charge_reason",
+    "derating_factor", "hottest_cell_temp_k", "hot_spot_temp_k", "cell_soc_min", "cell_soc_max",
+    "cell_soc_spread", "coolant_loop_temp_k", "coolant_supply_temp_k", "pump_power_w", "fan_power_w",
+    "chiller_power_w", "chiller_heat_w", "cooling_power_w", "plate_heat_w",
+    "time_s", "current_request_a", "voltage_end_v", "module_ambient_w", "radiator_w",
+)  # fmt: skip
+(R_I, R_V, R_P, R_E, R_Z, R_LIMD, R_LIMC, R_WHYD, R_WHYC, R_FACTOR, R_HOT, R_HOTSPOT, R_SOCMIN, R_SOCMAX,
+ R_SPREAD, R_LOOP, R_SUPPLY, R_PUMP, R_FAN, R_CHP, R_CH, R_COOL, R_PLATE, R_TIME, R_REQ, R_VEND, R_MODAMB,
+ R_RAD) = range(len(RECORD_CHANNELS))  # fmt: skip
+#: :data:`hevsim.battery.pack.STEP_CHANNELS` -> the record column holding it
+STEP_TO_RECORD = {
+    "time_s": "time_s", "current_request_a": "current_request_a", "current_a": "pack_current_a",
+    "voltage_v": "voltage_end_v", "voltage_avg_v": "pack_voltage_v", "power_w": "pack_power_w",
+    "derating_factor": "derating_factor", "hottest_cell_temp_k": "hottest_cell_temp_k",
+    "hot_spot_temp_k": "hot_spot_temp_k", "min_soc": "cell_soc_min", "max_soc": "cell_soc_max",
+    "loop_temp_k": "coolant_loop_temp_k", "supply_temp_k": "coolant_supply_temp_k",
+    "plate_heat_w": "plate_heat_w", "module_ambient_w": "module_ambient_w", "radiator_w": "radiator_w",
+    "chiller_w": "chiller_heat_w", "chiller_power_w": "chiller_power_w", "pump_power_w": "pump_power_w",
+    "fan_power_w": "fan_power_w",
+}  # fmt: skip
+#: energy terms (:data:`hevsim.battery.pack.ENERGY_TERMS` order) in :attr:`PackArrays.acc`
+(A_EL, A_CHEM, A_CELLHEAT, A_PORT, A_PLATE, A_MODAMB, A_RAD, A_CH, A_LOOPAMB, A_PUMP, A_RES, A_THRU,
+ A_CHEL, A_FANEL) = range(14)  # fmt: skip
+#: ageing stress rows (:class:`hevsim.battery.life.CellStress`) and its two counters
+ST_DIS, ST_ABS, ST_MOVING, ST_ARR, ST_SOC, ST_TEMP, ST_SOCMIN, ST_SOCMAX = range(8)
+
+
+class PackArrays(NamedTuple):
+    """A pack's arrays (SI), read by name in compiled code (module docstring).
+
+    Cells: parameters ``prm``/state ``x`` (rows per simulated cell), the cell tables (as
+    :meth:`hevsim.battery.params.CellParameters.tables`), the affine pairs ``ez``/``oc``/``pairs``/
+    ``totals`` and RC constants ``rcc`` of :func:`~hevsim.battery.pack.pack_pass_linear`, port
+    temperatures ``port_k`` [K], the last step's per-cell record ``cells`` (current [A], SOC,
+    core temperature [K], port heat [W], voltage [V]) and energies ``energy`` [J]. Loop: ``lp``
+    (``LP_*``), ``ls`` (``LS_*``), plate inlets ``inlet_k`` and last plate heats ``plate_heat_w``
+    per module. Derating tables (``[derating]``). ROM (empty without one): modal decay
+    ``1 / (1/dt + lambda)`` ``rom_decay`` (r,), inputs ``rom_in`` (m_in, r) (``(Q^T B_r(h))^T``),
+    outputs ``rom_out`` (r, n_cells + n_seg + 1) (cell means, wall integrals, film row, times Q),
+    candidate rows ``rom_cand`` (n_cells * n_candidates, r) with the hot-spot screening's
+    arrays (``hs_*``, :func:`_module_hot_spots`), modal states ``rom_w`` (n_modules, r),
+    input rows ``rom_u`` (n_modules, m_in), last outputs ``rom_y``, the channel's segment mean and
+    exit factors and the wall areas [m^2]. Records: ``acc``, ``sv``, ``rec``, ``hot``, ``stress``
+    (8, n_cells) and ``stress_n`` (steps, duration [s]).
+    """
+
+    f: FloatArray
+    prm: FloatArray
+    x: FloatArray
+    soc_ax: FloatArray
+    t_ax: FloatArray
+    ocv_c: FloatArray
+    ocv_d: FloatArray
+    rs_c: FloatArray
+    rs_d: FloatArray
+    capf: FloatArray
+    rc_d: FloatArray
+    rc_c: FloatArray
+    ez: FloatArray
+    oc: FloatArray
+    rcc: FloatArray
+    pairs: FloatArray
+    totals: FloatArray
+    port_k: FloatArray
+    cells: FloatArray
+    energy: FloatArray
+    lp: FloatArray
+    ls: FloatArray
+    inlet_k: FloatArray
+    plate_heat_w: FloatArray
+    d_temp_c: FloatArray
+    d_factor: FloatArray
+    d_soc: FloatArray
+    d_dis: FloatArray
+    d_chg: FloatArray
+    rom_decay: FloatArray
+    rom_in: FloatArray
+    rom_out: FloatArray
+    rom_cand: FloatArray
+    hs_norm: FloatArray
+    hs_unit: FloatArray
+    hs_energy: FloatArray
+    hs_ub: FloatArray
+    hs_prev: FloatArray
+    rom_w: FloatArray
+    rom_u: FloatArray
+    rom_y: FloatArray
+    ch_mean: FloatArray
+    ch_decay: FloatArray
+    wall_area_m2: FloatArray
+    acc: FloatArray
+    sv: FloatArray
+    rec: FloatArray
+    hot: FloatArray
+    stress: FloatArray
+    stress_n: FloatArray
+
+
+@njit(cache=True)
+def _binding(i_max, a, b, c):
+    """(smallest of ``i_max, a, b, c`` clipped at 0, its index; the first wins ties)."""
+    best, why = i_max, 0
+    if a < best:
+        best, why = a, 1
+    if b < best:
+        best, why = b, 2
+    if c < best:
+        best, why = c, 3
+    return max(best, 0.0), why
+
+
+@njit(cache=True)
+def pack_begin(s):
+    """The first half of a step (module docstring): fills ``s.sv``."""
+    f, sv = s.f, s.sv
+    dt = f[F_DT]
+    hottest = -np.inf
+    for c in range(s.x.shape[0]):
+        hottest = max(hottest, s.x[c, STEMP])
+    factor = np.interp(hottest - s.lp[LP_ZEROC], s.d_temp_c, s.d_factor)
+    sv[SV_HOT] = hottest
+    sv[SV_FACTOR] = factor
+    loop_begin(s.lp, s.ls, hottest, f[F_AMB], dt, s.plate_heat_w, s.inlet_k, sv[SV_SUPPLY:])
+    if f[F_ROM] == 0.0:
+        spm = int(f[F_SIMPM])
+        for c in range(s.port_k.shape[0]):
+            s.port_k[c] = s.inlet_k[c // spm]
+    if f[F_EZVALID] == 0.0:
+        pack_pairs(s.prm, s.soc_ax, s.t_ax, s.ocv_c, s.ocv_d, s.rs_c, s.rs_d, s.capf, s.rc_d, s.rc_c, s.x,
+                   int(f[F_NG]), int(f[F_NP]), dt, s.ez, s.oc, s.rcc, f[F_LINEAR] > 0.0, s.pairs,
+                   s.totals)  # fmt: skip
+        f[F_EZVALID] = 1.0
+    rep = f[F_REP] > 0.0
+    n_par = f[F_NPAR]
+    i_max = f[F_IMAX]
+    # the pack's pairs and the series groups' voltage limits (representative: n_parallel cells
+    # in parallel in each of the module's n_series groups)
+    i_v = np.empty(2)
+    for d in range(2):
+        e, z = s.totals[2 * d], s.totals[2 * d + 1]
+        if rep:
+            e, z = f[F_NS] * e, f[F_NS] * z / n_par
+        sv[SV_EDIS + 2 * d] = e
+        sv[SV_ZDIS + 2 * d] = z
+        lim = np.inf
+        for g in range(s.pairs.shape[0]):
+            zg = s.pairs[g, 2 * d + 1] / n_par if rep else s.pairs[g, 2 * d + 1]
+            eg = s.pairs[g, 2 * d]
+            lim = min(lim, (eg - f[F_VMIN]) / zg if d == 0 else (f[F_VMAX] - eg) / zg)
+        i_v[d] = lim
+    f_dis = np.interp(f[F_SOCMIN], s.d_soc, s.d_dis)
+    f_chg = np.interp(f[F_SOCMAX], s.d_soc, s.d_chg)
+    sv[SV_LIMD], sv[SV_WHYD] = _binding(i_max, factor * i_max, f_dis * i_max, i_v[0])
+    sv[SV_LIMC], sv[SV_WHYC] = _binding(i_max, factor * i_max, f_chg * i_max, i_v[1])
+    sv[SV_COOLW] = sv[SV_PUMP] + sv[SV_FAN] + sv[SV_CHP]
+
+
+#: absolute slack [K] added to the hot-spot bounds per step (the rounding of the products)
+HOT_SPOT_SLACK_K = 1e-10
+
+
+@njit(cache=True, fastmath=True)
+def _dot(a, b):
+    """``a . b`` (vectorised: the sum's order is the compiler's, a rounding of ~1e-16 relative)."""
+    acc = 0.0
+    for i in range(a.shape[0]):
+        acc += a[i] * b[i]
+    return acc
+
+
+@njit(cache=True)
+def _module_hot_spots(s, w, hot):
+    """Per-module hot spot [K]: the largest candidate-node temperature ``G_j w`` of each
+    module's cells (``G = rom_cand``, modal), exact (to rounding) with few rows evaluated.
+
+    Every candidate row satisfies ``G_j u = 1`` for the modal state ``u`` of the uniform 1 K
+    field, so with ``T_ref = e.w / e.u`` (the module's mean, ``e`` the stored-heat row) and
+    ``d = w - T_ref u``, a row changes over a step by ``dT_ref + G_j dd`` and
+    ``|G_j dd| <= |G_j| |dd|``. Each row keeps an upper bound ``hs_ub`` (its value when last
+    evaluated plus those increments); a step evaluates the row that was the hottest, then
+    every row whose bound exceeds the largest value found so far: the rows skipped are below
+    it, so the maximum is the maximum of all rows. The first step evaluates every row."""
+    g, gn, unit, en = s.rom_cand, s.hs_norm, s.hs_unit, s.hs_energy
+    ub, prev = s.hs_ub, s.hs_prev
+    r = w.shape[1]
+    n_rows = g.shape[0]
+    e_u = 0.0
+    for i in range(r):
+        e_u += en[i] * unit[i]
+    first = s.f[F_HSINIT] == 0.0
+    for m in range(w.shape[0]):
+        wm = w[m]
+        e_w = 0.0
+        for i in range(r):
+            e_w += en[i] * wm[i]
+        t_ref = e_w / e_u
+        dd2 = 0.0
+        for i in range(r):
+            d = wm[i] - t_ref * unit[i]
+            dd2 += (d - prev[m, i]) ** 2
+            prev[m, i] = d
+        grow = math.sqrt(dd2) * (1.0 + 1e-12)
+        rise = t_ref - prev[m, r] + HOT_SPOT_SLACK_K
+        prev[m, r] = t_ref
+        best = -np.inf
+        j_best = int(prev[m, r + 1])
+        if not first:
+            for j in range(n_rows):
+                ub[m, j] += rise + gn[j] * grow
+            y = _dot(g[j_best], wm)
+            ub[m, j_best] = y
+            best = y
+            s.f[F_HSROWS] += 1.0
+        for j in range(n_rows):
+            if ub[m, j] > best or first:
+                s.f[F_HSROWS] += 1.0
+                y = _dot(g[j], wm)
+                ub[m, j] = y
+                if y > best:
+                    best, j_best = y, j
+        prev[m, r + 1] = j_best
+        hot[m] = best
+    s.f[F_HSINIT] = 1.0
+
+
+@njit(cache=True)
+def rom_modal(s, port_w, hot):
+    """The module ROMs' step in modal coordinates (module docstring) with the cells' port heat
+    ``port_w`` (n_modules, n_cells) [W]: the channel's fluid temperatures from the wall at the
+    start of the step and the plates' inlets, the step, then the outputs; returns (plate heat
+    per module [W] in ``s.plate_heat_w``; returns the modules' heat to the ambient [W]); port temperatures
+    -> ``s.port_k``, hot spots -> ``hot``."""
+    f = s.f
+    n_mod = port_w.shape[0]
+    nc = port_w.shape[1]
+    ns = s.wall_area_m2.shape[0]
+    h = f[F_H]
+    u, y, w = s.rom_u, s.rom_y, s.rom_w
+    cap = s.lp[LP_RHOCP] * s.lp[LP_PFLOW]
+    for m in range(n_mod):
+        u[m, :nc] = port_w[m]
+        t_in = s.inlet_k[m]
+        for i in range(ns):
+            tw = y[m, nc + i] / s.wall_area_m2[i]
+            if cap <= 0.0:  # stagnant coolant follows the wall
+                u[m, nc + i] = tw
+            else:
+                u[m, nc + i] = tw + (t_in - tw) * s.ch_mean[i]
+                t_in = tw + (t_in - tw) * s.ch_decay[i]
+        u[m, nc + ns] = f[F_AMB]
+        u[m, nc + ns + 1] = 1.0
+    bu = u @ s.rom_in
+    dt = f[F_DT]
+    for m in range(n_mod):
+        for j in range(w.shape[1]):
+            w[m, j] = (w[m, j] / dt + bu[m, j]) * s.rom_decay[j]
+    y[:, :] = w @ s.rom_out
+    to_amb = 0.0
+    rep = f[F_REP] > 0.0
+    for m in range(n_mod):
+        q = 0.0
+        for i in range(ns):
+            q += h * (y[m, nc + i] - s.wall_area_m2[i] * u[m, nc + i])
+        s.plate_heat_w[m] = q
+        to_amb += y[m, nc + ns] - f[F_BAMB] * f[F_AMB] - f[F_FCONST]
+        if rep:
+            mean = 0.0
+            for c in range(nc):
+                mean += y[m, c]
+            s.port_k[m] = mean / nc
+        else:
+            for c in range(nc):
+                s.port_k[m * nc + c] = y[m, c]
+    _module_hot_spots(s, w, hot)
+    return to_amb
+
+
+@njit(cache=True)
+def _stress_add(st, st_n, cells, dt, activation_k):
+    """One step of the cells' ageing stress (:meth:`hevsim.battery.life.CellStress.add`)."""
+    st_n[0] += 1.0
+    st_n[1] += dt
+    for c in range(cells.shape[0]):
+        i, soc, temp = cells[c, 0], cells[c, 1], cells[c, 2]
+        st[ST_DIS, c] += max(i, 0.0) * dt
+        st[ST_ABS, c] += abs(i)
+        st[ST_MOVING, c] += 1.0 if abs(i) > 0.0 else 0.0
+        st[ST_ARR, c] += math.exp(-activation_k / temp)
+        st[ST_SOC, c] += soc
+        st[ST_TEMP, c] += temp
+        st[ST_SOCMIN, c] = min(st[ST_SOCMIN, c], soc)
+        st[ST_SOCMAX, c] = max(st[ST_SOCMAX, c], soc)
+
+
+@njit(cache=True)
+def pack_finish(s, current_a, current_request_a):
+    """The second half of a step at pack current ``current_a`` [A] (module docstring); returns
+    the mean cell SOC [-]. The record row is ``rec[step]`` (skipped beyond its rows)."""
+    f, sv, cells, energy, acc = s.f, s.sv, s.cells, s.energy, s.acc
+    dt = f[F_DT]
+    rep = f[F_REP] > 0.0
+    n_mod = int(f[F_NMOD])
+    spm = int(f[F_SIMPM])
+    i_cells = current_a / f[F_NPAR] if rep else current_a  # a representative cell's share
+    ng, n_p = int(f[F_NG]), int(f[F_NP])
+    linear = f[F_LINEAR] > 0.0
+    if f[F_EZVALID] > 0.0 and linear:
+        v_end, v_avg = pack_pass_linear(s.prm, s.soc_ax, s.t_ax, s.ocv_c, s.ocv_d, s.rs_c, s.rs_d, s.capf,
+                                        s.rc_d, s.rc_c, s.x, ng, n_p, i_cells, dt, s.port_k, cells, energy,
+                                        s.ez, s.oc, s.rcc, s.pairs, s.totals)  # fmt: skip
+    else:
+        v_end, v_avg = pack_pass(s.prm, s.soc_ax, s.t_ax, s.ocv_c, s.ocv_d, s.rs_c, s.rs_d, s.capf, s.rc_d,
+                                 s.rc_c, s.x, ng, n_p, i_cells, dt, s.port_k, cells, energy, s.ez,
+                                 f[F_EZVALID] > 0.0, s.pairs, s.totals)  # fmt: skip
+        if linear:  # the capacities, OCVs and resistances for pack_pass_linear
+            pack_pairs(s.prm, s.soc_ax, s.t_ax, s.ocv_c, s.ocv_d, s.rs_c, s.rs_d, s.capf, s.rc_d, s.rc_c,
+                       s.x, ng, n_p, dt, s.ez, s.oc, s.rcc, True, s.pairs, s.totals)  # fmt: skip
+    f[F_EZVALID] = 1.0
+    if rep:  # one cell for n_series groups of n_parallel cells
+        v_end, v_avg = f[F_NS] * v_end, f[F_NS] * v_avg
+        for j in range(4):
+            energy[j] *= f[F_WEIGHT]
+    k = int(f[F_STEP])
+    hot = s.hot[k] if k < s.hot.shape[0] else np.empty(n_mod)
+    mod_amb = 0.0
+    if f[F_ROM] > 0.0:
+        nc = s.rom_u.shape[1] - s.wall_area_m2.shape[0] - 2
+        port_w = np.empty((n_mod, nc))
+        for m in range(n_mod):
+            for c in range(nc):
+                port_w[m, c] = cells[m if rep else m * nc + c, 3]
+        mod_amb = rom_modal(s, port_w, hot)
+    else:
+        for m in range(n_mod):
+            q = 0.0
+            t_hot = -np.inf
+            for c in range(spm):
+                q += cells[m * spm + c, 3]
+                t_hot = max(t_hot, cells[m * spm + c, 2])
+            s.plate_heat_w[m] = q * f[F_WEIGHT]
+            hot[m] = t_hot
+    plate_w = 0.0
+    for m in range(n_mod):
+        plate_w += s.plate_heat_w[m]
+    loop_end(s.lp, s.ls, sv[SV_SUPPLY:], plate_w, dt)
+    acc[A_EL] += energy[0]
+    acc[A_CHEM] += energy[1]
+    acc[A_CELLHEAT] += energy[2]
+    acc[A_PORT] += energy[3]
+    acc[A_PLATE] += dt * plate_w
+    acc[A_MODAMB] += dt * mod_amb
+    acc[A_THRU] += abs(energy[0])
+    if s.lp[LP_INF] > 0.0:
+        acc[A_RES] += dt * plate_w
+    else:
+        acc[A_RAD] += dt * sv[SV_RAD]
+        acc[A_CH] += dt * sv[SV_CH]
+        acc[A_LOOPAMB] += dt * sv[SV_LAMB]
+        acc[A_PUMP] += dt * sv[SV_PUMP]
+        acc[A_CHEL] += dt * sv[SV_CHP]
+        acc[A_FANEL] += dt * sv[SV_FAN]
+    f[F_TIME] += dt
+    soc_sum = 0.0
+    soc_min = np.inf
+    soc_max = -np.inf
+    t_max = -np.inf
+    for c in range(cells.shape[0]):
+        soc_sum += cells[c, 1]
+        soc_min = min(soc_min, cells[c, 1])
+        soc_max = max(soc_max, cells[c, 1])
+        t_max = max(t_max, cells[c, 2])
+    f[F_SOC] = soc_sum / cells.shape[0]
+    f[F_SOCMIN], f[F_SOCMAX] = soc_min, soc_max
+    if f[F_STRESS] > 0.0:
+        _stress_add(s.stress, s.stress_n, cells, dt, f[F_ACT])
+    if k < s.rec.shape[0]:
+        r = s.rec[k]
+        d = 0 if current_a >= 0.0 else 2
+        r[R_I] = current_a
+        r[R_V] = v_avg
+        r[R_P] = v_avg * current_a
+        r[R_E] = sv[SV_EDIS + d]
+        r[R_Z] = sv[SV_ZDIS + d]
+        r[R_LIMD], r[R_LIMC] = sv[SV_LIMD], sv[SV_LIMC]
+        r[R_WHYD], r[R_WHYC] = sv[SV_WHYD], sv[SV_WHYC]
+        r[R_FACTOR] = sv[SV_FACTOR]
+        r[R_HOT] = t_max
+        r[R_HOTSPOT] = hot.max()
+        r[R_SOCMIN], r[R_SOCMAX], r[R_SPREAD] = soc_min, soc_max, soc_max - soc_min
+        r[R_LOOP] = s.ls[LS_TEMP]
+        r[R_SUPPLY] = sv[SV_SUPPLY]
+        r[R_PUMP], r[R_FAN], r[R_CHP], r[R_CH] = sv[SV_PUMP], sv[SV_FAN], sv[SV_CHP], sv[SV_CH]
+        r[R_COOL] = sv[SV_COOLW]
+        r[R_PLATE] = plate_w
+        r[R_TIME] = f[F_TIME]
+        r[R_REQ] = current_request_a
+        r[R_VEND] = v_end
+        r[R_MODAMB] = mod_amb
+        r[R_RAD] = sv[SV_RAD]
+    f[F_STEP] = k + 1
+    return f[F_SOC]
+
+
+@njit(cache=True)
+def pack_simulate(s, request_a, cells_out):
+    """:meth:`hevsim.battery.pack.Pack.simulate`'s loop: per step, :func:`pack_begin`, the
+    request clipped to the temperature-derated current limit, :func:`pack_finish`; the cells'
+    records -> ``cells_out[k]``."""
+    for k in range(request_a.shape[0]):
+        pack_begin(s)
+        lim = s.sv[SV_FACTOR] * s.f[F_IMAX]
+        i_a = min(max(request_a[k], -lim), lim)
+        pack_finish(s, i_a, request_a[k])
+        cells_out[k] = s.cells
+
+
+def modal_rom(rom, dt_s: float, wall_h_w_m2k: float) -> dict[str, np.ndarray]:
+    """The modal arrays of a :class:`~hevsim.thermal.rom.ThermalRom` at step ``dt_s`` [s] and wall
+    film ``wall_h_w_m2k`` [W/(m^2 K)] (module docstring): ``q`` (r, r) the eigenvectors, and the
+    :class:`PackArrays` entries ``rom_decay``, ``rom_in``, ``rom_out``, ``rom_cand``, ``hs_norm``,
+    ``hs_unit``; plus
+    ``energy`` (r,) the stored-heat row and ``film`` the film row, both times ``q``."""
+    h = rom.check_wall_h(float(wall_h_w_m2k))
+    lam, q = np.linalg.eigh(rom.stiffness(h))
+    cand = rom.out_candidates @ q
+    out_rows = np.vstack([rom.out_mean, rom.out_wall, rom.film_row[None, :]])
+    return {
+        "q": q,
+        "rom_decay": 1.0 / (1.0 / dt_s + lam),
+        "rom_in": np.ascontiguousarray((q.T @ rom.inputs(h)).T),
+        "rom_out": np.ascontiguousarray((out_rows @ q).T),
+        "rom_cand": np.ascontiguousarray(cand),
+        "hs_norm": np.sqrt(np.einsum("ij,ij->i", cand, cand)),
+        "hs_unit": rom.unit_state @ q,
+        "energy": rom.energy @ q,
+    }
+
+
+__all__ = [
+    "F_NAMES",
+    "RECORD_CHANNELS",
+    "SV_NAMES",
+    "PackArrays",
+    "modal_rom",
+    "pack_begin",
+    "pack_finish",
+    "pack_simulate",
+    "rom_modal",
+]

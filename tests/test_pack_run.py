@@ -1,0 +1,141 @@
+"""The pack's compiled step (:mod:`hevsim.battery.pack_run`, issue 12 speed): the module ROMs
+stepped in modal coordinates against the dense implicit Euler of
+:class:`~hevsim.thermal.rom.RomStepper` (the one the ROM-vs-FEM validation uses), the screened
+hot spot against the maximum over every candidate row, the compiled cooling loop against its
+closed-form steady state, and the series kernel's compiled pack step against the same pack
+stepped from Python at the kernel's currents."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from tests.thermal_helpers import COARSE_TOML
+
+from hevsim.battery import pack_run as R
+from hevsim.battery.cooling import (
+    AIR_SPECIFIC_HEAT_J_KGK,
+    LITRE_PER_MIN_M3_S,
+    ControllerSection,
+    CoolingLoop,
+    CoolingSection,
+    counterflow_effectiveness,
+)
+from hevsim.battery.pack import Pack, pack_config_from_dict
+
+ROOT = Path(__file__).resolve().parents[1]
+EX = ROOT / "examples"
+
+
+@pytest.fixture(scope="module")
+def rom_pack(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    pytest.importorskip("skfem")
+    pytest.importorskip("gmsh")
+    from hevsim.thermal.rom import BuildOptions, build_rom_from_config
+
+    d = tmp_path_factory.mktemp("pack_run")
+    toml = d / "module_coarse.toml"
+    toml.write_text(COARSE_TOML)
+    rom, _ = build_rom_from_config(toml, BuildOptions(tol_k=0.1))
+    rom.save(d / "module.rom.npz")
+    data = {
+        "name": "modal",
+        "cells": {"soc_initial": 0.9, "capacity_spread": 0.03, "resistance_spread": 0.05, "seed": 5},
+        "module": {"n_series": 2, "n_parallel": 6, "thermal": "rom", "rom_file": "module.rom.npz",
+                   "thermal_config": "module_coarse.toml"},
+        "pack": {"n_modules": 3, "initial_temp_c": 30.0, "ambient_temp_c": 35.0, "max_current_a": 300.0},
+        "cooling": {"layout": "series", "flow_l_min": 10.0, "supply_temp_c": 28.0},
+    }  # fmt: skip
+    return {"cfg": pack_config_from_dict(data, "modal", d), "rom": rom}
+
+
+def _current(steps: int) -> np.ndarray:
+    """A US06 road-load pack current [A] (3C peaks on the 2s6p modules)."""
+    from hevsim.battery.profiles import cycle_cell_current
+
+    return 6.0 * 3.0 * cycle_cell_current("us06", duration_s=float(steps))[:steps]
+
+
+def test_modal_rom_and_hot_spot_equal_the_dense_stepper(rom_pack: dict[str, Any]) -> None:
+    """Step the pack; replay every module's inputs (cell port heats, fluid from the wall at the
+    start of the step, ambient) through the dense RomStepper: the same states (1e-9 K on the
+    cell means, reconstructed) and, every step, the screened hot spot equals the largest of all
+    candidate rows of the dense state (1e-9 K) while evaluating fewer rows than all of them."""
+    from hevsim.thermal.rom import RomStepper
+
+    cfg, rom = rom_pack["cfg"], rom_pack["rom"]
+    pack = Pack(cfg, rom=rom)
+    n_mod, dt = cfg.pack.n_modules, cfg.pack.dt_s
+    dense = RomStepper(rom, dt, pack.h_plate, 30.0 + 273.15, n_modules=n_mod)
+    cells = np.empty((pack.n_cells, 5))
+    steps = 200
+    for i_a in _current(steps):
+        wall = rom.wall_temp_k(dense.z)  # the wall at the start of the step
+        start = pack.begin_step()
+        row, hot = pack.finish_step(start, float(np.clip(i_a, -300, 300)), cells_out=cells)
+        port_w = cells[:, 3].reshape(n_mod, -1)
+        fluid = pack._rom_u[:, rom.n_cells : rom.n_cells + rom.n_segments]
+        # the pack's fluid is the channel march of the dense wall from the plates' inlets
+        cap = pack.loop.rho_cp * pack.loop.plate_flow_m3_s
+        ntu = pack.h_plate * rom.wall_area_m2 / cap
+        for m in range(n_mod):
+            t_in = start.inlet_k[m]
+            for i in range(rom.n_segments):
+                mean = wall[m, i] + (t_in - wall[m, i]) * (1 - np.exp(-ntu[i])) / ntu[i]
+                assert fluid[m, i] == pytest.approx(mean, abs=1e-9)
+                t_in = wall[m, i] + (t_in - wall[m, i]) * np.exp(-ntu[i])
+        z = dense.step(port_w, fluid, pack.ambient_k)
+        np.testing.assert_allclose(pack.rom_state_z() @ rom.out_mean.T, rom.cell_mean_k(z), rtol=0, atol=1e-9)
+        brute = rom.cell_max_k(z).max(axis=1)
+        np.testing.assert_allclose(hot, brute, rtol=0, atol=1e-9)
+        assert row["hot_spot_temp_k"] == pytest.approx(brute.max(), abs=1e-9)
+    rows = pack._f[R.F_HSROWS] / (steps * n_mod)
+    assert rows < rom.out_candidates.shape[0], rows  # the screening skips rows
+    assert pack.steps_done == steps
+
+
+def test_cooling_loop_reaches_its_closed_form_steady_state() -> None:
+    """Constant plate heat Q, chiller off: the compiled loop settles where the radiator, the
+    pipes and the pump balance it: eps C_min (T - T_a) + UA_loop (T - T_a) = Q + P_pump."""
+    cool = CoolingSection(
+        flow_l_min=12.0, coolant_volume_l=0.5, chiller=0, radiator_bypass=0, loop_ua_w_k=3.0
+    )
+    loop = CoolingLoop(cool, ControllerSection(kind="off"), 4, 1070.0, 3300.0)
+    amb, q = 300.0, 800.0
+    for _ in range(4000):
+        st = loop.begin_step(330.0, amb, 1.0)
+        loop.end_step(st, q, 1.0)
+    cap = 1070.0 * 3300.0 * 12.0 * LITRE_PER_MIN_M3_S
+    c_air = cool.radiator_air_flow_kg_s * AIR_SPECIFIC_HEAT_J_KGK
+    c_min, c_max = min(cap, c_air), max(cap, c_air)
+    eps = counterflow_effectiveness(cool.radiator_ua_w_k / c_min, c_min / c_max)
+    t_ss = amb + (q + st.pump_power_w) / (eps * c_min + cool.loop_ua_w_k)
+    assert loop.temp_k == pytest.approx(t_ss, abs=1e-6)
+    assert st.pump_power_w > 0 and st.chiller_w == 0.0
+
+
+def test_kernel_pack_step_equals_python_steps() -> None:
+    """The series kernel's compiled pack step (no Python per step) and the same pack stepped
+    from Python (PackRun.begin / finish_current) at the kernel's pack currents: the same
+    channels to rounding (1e-9) and the same energy terms."""
+    from hevsim.config import load_vehicle_config
+    from hevsim.cycles import load_cycle
+    from hevsim.sim.pack_vehicle import make_pack_run, simulate_pack_vehicle
+
+    cfg = load_vehicle_config(EX / "series_hev_pack.toml")
+    cyc = load_cycle("us06")
+    res = simulate_pack_vehicle(cfg, cyc, 1.0)
+    current = res.timeseries["pack_current_a"].to_numpy()[:-1]
+    run = make_pack_run(cfg, 1.0, float(cfg.simulation.soc_initial))
+    for i_a in current:
+        run.begin()
+        run.finish_current(float(i_a))
+    ref = run.frame(len(res.timeseries))
+    for col in ref.columns:
+        np.testing.assert_allclose(res.timeseries[col].to_numpy(), ref[col].to_numpy(), rtol=1e-9, atol=1e-9)
+    e_kernel, e_py = res.extra["pack_energy"], run.energy()
+    for key in ("electrical_out_j", "plate_heat_j", "chiller_j", "pump_work_j"):
+        assert e_kernel[key] == pytest.approx(e_py[key], rel=1e-9, abs=1e-6)
+    assert abs(e_kernel["residual_relative"]) < 1e-9
