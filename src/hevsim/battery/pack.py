@@ -499,7 +499,7 @@ def _step_linear(p, rcc, xc, oc_c, i_a, dt, t_port, out_c, energy):
     q_heat = heat_j / dt
     t_inf = t_port + q_heat * p[RSKIN]
     temp0 = xc[STEMP]
-    temp1 = t_inf + (temp0 - t_inf) * math.exp(-dt / (p[CHEAT] * p[RSKIN]))
+    temp1 = t_inf + (temp0 - t_inf) * oc_c[5]  # exp(-dt / (C_heat R_skin)) (pack_pairs)
     port_j = heat_j - p[CHEAT] * (temp1 - temp0)
     xc[SQ] += i_a * dt
     xc[SQABS] += abs(i_a) * dt
@@ -577,13 +577,17 @@ def _group_pairs(prm, tabs, x, dt, g, cells, ez, oc, rcc, linear, pairs, totals)
 def pack_pairs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, n_groups, n_p, dt, ez, oc,
                rcc, linear, pairs, totals):  # fmt: skip
     """The affine pairs of :func:`pack_pass` (and, ``linear``, the data of
-    :func:`pack_pass_linear` in ``oc``) from the cells' present state, without a step."""
+    :func:`pack_pass_linear` in ``oc``, with each cell's thermal decay over a step
+    ``exp(-dt / (C_heat R_skin))`` in ``oc[:, 5]``) from the cells' present state, without a step."""
     tabs = (soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c)
     totals[:] = 0.0
     for g in range(n_groups):
         _group_pairs(
             prm, tabs, x, dt, g, np.arange(g * n_p, (g + 1) * n_p), ez, oc, rcc, linear, pairs, totals
         )
+    if linear:  # the cells' thermal decay over a step (constant: their heat capacity and skin)
+        for c in range(x.shape[0]):
+            oc[c, 5] = math.exp(-dt / (prm[c, CHEAT] * prm[c, RSKIN]))
 
 
 @lru_cache(maxsize=8)
@@ -694,7 +698,7 @@ class Pack:
         self._cells = np.zeros((self.n_cells, 5))
         # the next step's affine pairs (pack_pass): per cell, per series group, the pack's
         self._ez = np.zeros((self.n_cells, 4))
-        self._oc = np.zeros((self.n_cells, 5))
+        self._oc = np.zeros((self.n_cells, 6))
         self._pairs = np.zeros((self.n_groups_sim, 4))
         self._totals = np.zeros(4)
         self._is_linear: bool | None = None
