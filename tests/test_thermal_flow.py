@@ -70,15 +70,24 @@ def _l2_error(res, grad_pa_m: float) -> tuple[float, float]:
     return math.sqrt(err2.assemble(res.basis_u, u=ui)), math.sqrt(ref2.assemble(res.basis_u))
 
 
-def test_developed_duct_flow_converges_at_third_order_to_the_series_solution() -> None:
-    """Developed inlet + do-nothing outlet: the exact solution is Poiseuille flow everywhere."""
+@pytest.mark.parametrize("streamline_diffusion", [0.0, 1.0])
+def test_developed_duct_flow_converges_at_third_order_to_the_series_solution(
+    streamline_diffusion: float,
+) -> None:
+    """Developed inlet + do-nothing outlet: the exact solution is Poiseuille flow everywhere
+    (also with the momentum streamline diffusion, which vanishes for developed flow)."""
     q = 5e-6  # Re ~ 100: the Newton iterations carry a convective term
     length = 0.004
     grad = q / duct_flow_m3_s(W, H, 1.0, COOLANT.viscosity_pa_s)  # -dp/dx [Pa/m]
     errors, dp_err = [], []
     sizes = (2, 3, 4)
     for n in sizes:
-        sec = FlowSection(cells_across_width=2 * n, cells_across_height=n, cell_length_m=H / n)
+        sec = FlowSection(
+            cells_across_width=2 * n,
+            cells_across_height=n,
+            cell_length_m=H / n,
+            streamline_diffusion=streamline_diffusion,
+        )
         res = solve_flow(duct_channel(length, W, H), COOLANT, q, section=sec)
         assert res.metrics["mass_imbalance_rel"] < 1e-9
         e, ref = _l2_error(res, grad)
@@ -204,3 +213,24 @@ def test_cli_flow_refuses_turbulent_case_writes_nothing_and_runs_a_laminar_one(
     text = capsys.readouterr().out
     assert "0.5 L/min" in text and "pressure drop" in text
     assert json.loads((out / "summary.json").read_text())["metrics"]["flow_l_min"] == pytest.approx(0.5)
+
+
+@pytest.mark.slow
+def test_serpentine_converges_at_the_top_of_the_laminar_range_with_streamline_diffusion() -> None:
+    """Re 2278 (6.6 L/min, just below RE_LAMINAR_MAX = 2300) through a two-pass serpentine on the
+    default coolant mesh (cell Re 854): Newton with grad-div alone does not converge (measured:
+    last update 0.98 after 40 iterations, also with continuation steps of 1.5); with the
+    momentum streamline diffusion it does (29 iterations)."""
+    from hevsim.thermal.coolant import RE_LAMINAR_MAX
+
+    g = ModuleGeometry(rows=1, columns=2, channel_passes=2)
+    q = 6.6 * L_MIN_TO_M3_S
+    sec = FlowSection(grad_div=10.0, streamline_diffusion=1.0, model="laminar")
+    res = solve_flow(plate_channel(g), COOLANT, q, section=sec)
+    m = res.metrics
+    assert 2200 < m["reynolds"] <= RE_LAMINAR_MAX
+    assert res.history[-1] < sec.tolerance and m["mass_imbalance_rel"] < 1e-9
+    # more than the developed-flow drop of the straight length: entrance and bend losses
+    path = g.channel_path_m()
+    grad = q / duct_flow_m3_s(W, H, 1.0, COOLANT.viscosity_pa_s)
+    assert m["pressure_drop_pa"] > grad * np.linalg.norm(np.diff(path, axis=0), axis=1).sum()

@@ -59,6 +59,9 @@ FLOW_MODELS = ("auto", "laminar", "rans")
 CONTINUATION_START_RE = 50.0
 #: ... and each level multiplies Re by this factor [-] up to the case's Re.
 CONTINUATION_FACTOR = 3.0
+#: Polynomial order of the velocity: the streamline-diffusion length is h / this (the P2
+#: nodal spacing), as in the coolant's SUPG (:data:`hevsim.thermal.cht.TAU_ORDER`) [-].
+STREAMLINE_ORDER = 2.0
 #: Relative velocity update at which an intermediate continuation level counts as converged [-].
 CONTINUATION_TOLERANCE = 1e-4
 
@@ -122,6 +125,13 @@ class FlowSection:
     (``hevsim flow --thermal``, :func:`hevsim.thermal.cht.run_cht`); ``grad_div`` [-]:
     grad-div stabilisation ``gamma int div u div v`` with ``gamma = grad_div (mu + rho U D_h)``
     (0 = none), which improves the local mass conservation the coolant heat balance needs.
+    ``streamline_diffusion`` [-]: streamline-upwind stabilisation of the momentum equation,
+    ``int tau rho ((u . grad) u) . ((u . grad) v)`` with the SUPG ``tau = s h'/(2 |u|) (coth Pe_h -
+    1/Pe_h)`` scaled by this factor ``s`` (0 = none; 1 = the standard tau;
+    :data:`STREAMLINE_ORDER` sets ``h'``), Newton-linearised with tau frozen; it lets the
+    serpentine converge up to the laminar limit on coarse meshes (docs/flow.md). It adds
+    numerical diffusion along the streamlines only (no pressure or viscous part of the
+    residual): it vanishes for developed flow and is of order ``h`` where the flow develops.
     ``wall_cell_m`` [m]: first cell height at the channel walls of this (FEM) mesh, growing by
     ``growth`` [-] away from them up to the sizes above (0 = uniform cells, the default).
 
@@ -148,6 +158,7 @@ class FlowSection:
     tolerance: float = 1e-9
     wall_temp_c: float = 25.0
     grad_div: float = 0.0
+    streamline_diffusion: float = 0.0
     wall_cell_m: float = 0.0
     growth: float = 1.3
     model: str = "auto"
@@ -175,6 +186,7 @@ _FLOW_BOUNDS: dict[str, tuple[float, float]] = {
     "flow.tolerance": (1e-14, 1e-2),
     "flow.wall_temp_c": (-50.0, 150.0),
     "flow.grad_div": (0.0, 1e6),
+    "flow.streamline_diffusion": (0.0, 10.0),
     "flow.wall_cell_m": (0.0, 1.0),
     "flow.growth": (1.0, 3.0),
     "flow.turbulence_intensity": (1e-4, 0.5),
@@ -455,6 +467,34 @@ def solve_flow(
     def flux(v: Any, wf: Any) -> Any:
         return dot(v, wf.n)
 
+    def streamline_tau(wf: Any) -> Any:  # SUPG tau [s] of the iterate wf["w"]
+        speed = np.sqrt(dot(wf["w"], wf["w"])) + 1e-300
+        hp = wf.h / STREAMLINE_ORDER
+        pe = np.maximum(speed * hp * rho_eff[0] / (2 * mu), 1e-12)
+        return sec.streamline_diffusion * hp / (2 * speed) * (1 / np.tanh(pe) - 1 / pe)
+
+    def along(a: Any, g: Any) -> Any:  # (a . grad) of the field with gradient g
+        return np.einsum("j...,ij...->i...", a, g)
+
+    @BilinearForm
+    def streamline_picard(u: Any, v: Any, wf: Any) -> Any:
+        return rho_eff[0] * streamline_tau(wf) * dot(along(wf["w"], grad(u)), along(wf["w"], grad(v)))
+
+    @BilinearForm
+    def streamline_newton(u: Any, v: Any, wf: Any) -> Any:  # d/du of tau rho (u.grad u).(u.grad v)
+        w_, gw = wf["w"], grad(wf["w"])
+        du = along(w_, grad(u)) + along(u, gw)
+        return (
+            rho_eff[0]
+            * streamline_tau(wf)
+            * (dot(du, along(w_, grad(v))) + dot(along(w_, gw), along(u, grad(v))))
+        )
+
+    @LinearForm
+    def streamline_rhs(v: Any, wf: Any) -> Any:  # J(w) w - T(w) = 2 T(w) (T cubic in w, tau frozen)
+        w_ = wf["w"]
+        return 2 * rho_eff[0] * streamline_tau(wf) * dot(along(w_, grad(w_)), along(w_, grad(v)))
+
     @BilinearForm
     def grad_div(u: Any, v: Any, _: Any) -> Any:
         return div(u) * div(v)
@@ -511,11 +551,19 @@ def solve_flow(
             iterations += 1
             u_k = basis_u.interpolate(x[:n_u])
             a_conv = oseen.assemble(basis_u, w=u_k)
-            if level == 0 and it < sec.picard_iterations:
-                x_new = solve(a_visc + a_conv, f_u)
+            picard = level == 0 and it < sec.picard_iterations
+            sd = sec.streamline_diffusion > 0.0
+            if picard:
+                a_k, f_k = a_visc + a_conv, f_u
+                if sd:
+                    a_k = a_k + streamline_picard.assemble(basis_u, w=u_k)
             else:
-                a_new = newton_extra.assemble(basis_u, w=u_k)
-                x_new = solve(a_visc + a_conv + a_new, f_u + newton_rhs.assemble(basis_u, w=u_k))
+                a_k = a_visc + a_conv + newton_extra.assemble(basis_u, w=u_k)
+                f_k = f_u + newton_rhs.assemble(basis_u, w=u_k)
+                if sd:
+                    a_k = a_k + streamline_newton.assemble(basis_u, w=u_k)
+                    f_k = f_k + streamline_rhs.assemble(basis_u, w=u_k)
+            x_new = solve(a_k, f_k)
             size = max(float(np.linalg.norm(x_new[:n_u])), 1e-300)
             change = float(np.linalg.norm(x_new[:n_u] - x[:n_u])) / size
             history.append(change)
