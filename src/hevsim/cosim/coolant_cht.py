@@ -42,9 +42,10 @@ from hevsim.errors import ConfigError
 class CoolantCHTParticipant(CoolantChannelParticipant):
     """See the module docstring. ``config``: a module TOML (``hevsim thermal`` / ``hevsim
     flow``: ``[geometry]``, ``[coolant]``, optional ``[flow]`` for the mesh); keywords override
-    ``segments``, ``inlet_temp_k`` [K], ``flow_l_min`` [L/min], ``grad_div`` [-] (the flow's
-    grad-div stabilisation, :class:`~hevsim.thermal.flow.FlowSection`); ``transient``: implicit
-    Euler coolant instead of quasi-steady."""
+    ``segments``, ``inlet_temp_k`` [K], ``flow_l_min`` [L/min], ``grad_div`` [-] and
+    ``streamline_diffusion`` [-] (the flow's stabilisations,
+    :class:`~hevsim.thermal.flow.FlowSection`); ``transient``: implicit Euler coolant instead of
+    quasi-steady."""
 
     def __init__(
         self,
@@ -55,6 +56,7 @@ class CoolantCHTParticipant(CoolantChannelParticipant):
         flow_l_min: float | None = None,
         transient: bool = False,
         grad_div: float | None = None,
+        streamline_diffusion: float | None = None,
     ):
         from hevsim.schema import read_toml
         from hevsim.thermal.cht import CoolantThermal
@@ -71,8 +73,9 @@ class CoolantCHTParticipant(CoolantChannelParticipant):
                     "flow rate [L/min]."
                 )
             data["flow"] = {**data.get("flow", {}), "flow_l_min": float(flow_l_min)}
-        if grad_div is not None:
-            data["flow"] = {**data.get("flow", {}), "grad_div": float(grad_div)}
+        for key, value in (("grad_div", grad_div), ("streamline_diffusion", streamline_diffusion)):
+            if value is not None:
+                data["flow"] = {**data.get("flow", {}), key: float(value)}
         cfg = flow_config_from_dict(data, str(path), path.parent)
         thermal = thermal_config_from_dict(
             {k: v for k, v in data.items() if k != "flow"}, str(path), path.parent
