@@ -580,8 +580,10 @@ def solve_flow(
                 f"Re = {re:.0f}; last relative update {history[-1]:.3g}). The mesh has "
                 f"{sec.cells_across_width} x {sec.cells_across_height} cells across the channel and a cell "
                 f"Reynolds number of {cell_re:.0f} (mean velocity x largest cell size / nu); the Galerkin "
-                "solver needs it well below 100: refine flow.cells_across_width, flow.cells_across_height "
-                "and flow.cell_length_m, or lower the flow rate."
+                "solver needs it well below 100 (flow.streamline_diffusion = "
+                f"{sec.streamline_diffusion:g}; 1 stabilises it): refine flow.cells_across_width, "
+                "flow.cells_across_height and flow.cell_length_m, set flow.streamline_diffusion = 1, or "
+                "lower the flow rate."
             )
     vel, prs = x[:n_u], x[n_u:]
     q_in = -float(phi_in @ vel)
