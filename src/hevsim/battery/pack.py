@@ -548,7 +548,7 @@ def pack_pass_linear(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc
     return v_end, v_avg
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _group_pairs(prm, tabs, x, dt, g, cells, ez, oc, rcc, linear, pairs, totals):
     """Affine pairs of both directions (:func:`pack_pass`) of group ``g``'s ``cells`` (``linear``:
     by :func:`_affine_linear`, which also fills ``oc``); adds the group's to ``totals``."""
