@@ -577,6 +577,7 @@ def _run(of: OpenFoam, args: list[str], case: Path, log: Path, total: int | None
             lines.append(line)
             if total and _TIME_LINE.match(line.strip()):
                 t.update(1)
+        proc.stdout.close()
         rc = proc.wait()
     out = "".join(lines)
     if rc != 0:
@@ -778,6 +779,59 @@ class RansResult:
     log: str
 
 
+def project_solenoidal(
+    mesh: Any, basis_u: Any, basis_p: Any, channel: Any, velocity: np.ndarray, flow_m3_s: float
+) -> np.ndarray:
+    """The P2 velocity nearest to ``velocity`` [m/s] (in the norm weighted by the mass matrix's
+    diagonal D) that is discretely divergence-free against P1 (``int q div u = 0`` for every
+    P1 ``q``, as the Taylor-Hood flows are), with u = 0 on the walls and the inlet values
+    scaled to carry ``flow_m3_s`` [m^3/s] exactly: ``u = u_0 + D^-1 B^T lambda`` with
+    ``(B D^-1 B^T) lambda = -B u_0`` on the free dofs (a P1-sized sparse solve). The
+    interpolated OpenFOAM field is divergence-free only to its interpolation error; after this
+    the coolant heat transfer's energy balance closes as on the laminar flow and the outlet
+    carries exactly the inlet flow."""
+    from scipy.sparse import diags
+    from scipy.sparse.linalg import splu
+    from skfem import BilinearForm, FacetBasis, LinearForm
+    from skfem.helpers import div, dot
+
+    @BilinearForm
+    def mass(u: Any, v: Any, _: Any) -> Any:
+        return dot(u, v)
+
+    @BilinearForm
+    def divergence(u: Any, q: Any, _: Any) -> Any:
+        return div(u) * q
+
+    @LinearForm
+    def flux(v: Any, w: Any) -> Any:
+        return dot(v, w.n)
+
+    tol = 1e-9 * max(max(b[1] for b in channel.boxes), channel.width_m)
+    mid = mesh.p[:, mesh.facets].mean(axis=1)
+    bnd = mesh.boundary_facets()
+
+    def port(spec: tuple[float, float, float, int]) -> np.ndarray:
+        x, y0, y1, _ = spec
+        return bnd[(np.abs(mid[0, bnd] - x) < tol) & (mid[1, bnd] > y0 - tol) & (mid[1, bnd] < y1 + tol)]
+
+    f_in, f_out = port(channel.inlet), port(channel.outlet)
+    wall_dofs = basis_u.get_dofs(np.setdiff1d(bnd, np.union1d(f_in, f_out))).all()
+    in_dofs = np.setdiff1d(basis_u.get_dofs(f_in).all(), wall_dofs)
+    u = np.array(velocity, dtype=float)
+    u[wall_dofs] = 0.0
+    phi_in = flux.assemble(FacetBasis(mesh, basis_u.elem, facets=f_in, intorder=4))
+    u[in_dofs] *= -flow_m3_s / float(phi_in[in_dofs] @ u[in_dofs])  # outward normal: inflow < 0
+    free = np.setdiff1d(np.arange(basis_u.N), np.union1d(wall_dofs, in_dofs))
+    d_inv = 1.0 / mass.assemble(basis_u).diagonal()[free]
+    b = divergence.assemble(basis_u, basis_p).tocsr()  # (P1, P2 vector)
+    b_free = b[:, free]
+    schur = (b_free @ diags(d_inv) @ b_free.T).tocsc()
+    lam = splu(schur).solve(-(b @ u))
+    u[free] += d_inv * (b_free.T @ lam)
+    return u
+
+
 def solve_rans(
     channel: Any,
     coolant: Coolant,
@@ -913,7 +967,9 @@ def solve_rans(
     basis_u = Basis(mesh, ElementVector(ElementTetP2()), intorder=4)
     basis_p = basis_u.with_element(ElementTetP1())
     scalar = basis_u.with_element(ElementTetP2())
-    velocity = u_field.at(scalar.doflocs.T).reshape(-1)
+    velocity = project_solenoidal(
+        mesh, basis_u, basis_p, channel, u_field.at(scalar.doflocs.T).reshape(-1), flow_m3_s
+    )
     pressure = p_field.at(mesh.p.T)[:, 0]
     eddy = nut_field.at(mesh.p.T)[:, 0] / sec.prandtl_turbulent
     # figures from the OpenFOAM cells
