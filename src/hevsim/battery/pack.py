@@ -318,8 +318,9 @@ def _linear_group(prm, x, cells):
 @njit(cache=True, inline="always")
 def _share_affine(prm, x, ez, cells, i_total, i_out, dirs):
     """:func:`hevsim.battery.kernel.share_current` for linear cells from their stored affine pairs
-    ``ez[c]`` = (E, Z) discharge then charge [V, ohm] (the same values it would compute, in the
-    same order: the same currents bit for bit)."""
+    ``ez[c]`` = (E, Z) discharge then charge [V, ohm], then ``1/Z`` and ``E/Z`` of each
+    direction (the same values it would compute, in the same order: the same currents bit for
+    bit)."""
     m = cells.shape[0]
     for b in range(m):
         dirs[b] = step_direction(i_total, x[cells[b], SDIR], prm[cells[b], IBAND])
@@ -327,9 +328,9 @@ def _share_affine(prm, x, ez, cells, i_total, i_out, dirs):
         inv_z = 0.0
         e_over_z = 0.0
         for b in range(m):
-            k = 0 if dirs[b] >= 0.0 else 2
-            inv_z += 1.0 / ez[cells[b], k + 1]
-            e_over_z += ez[cells[b], k] / ez[cells[b], k + 1]
+            k = 4 if dirs[b] >= 0.0 else 6
+            inv_z += ez[cells[b], k]  # 1/Z and E/Z, stored by _group_pairs
+            e_over_z += ez[cells[b], k + 1]
         v = (e_over_z - i_total) / inv_z
         turned = False
         for b in range(m):
@@ -565,8 +566,10 @@ def _group_pairs(prm, tabs, x, dt, g, cells, ez, oc, rcc, linear, pairs, totals)
         e_over_z = 0.0
         for c in cells:
             e, z = ez[c, 2 * d], ez[c, 2 * d + 1]
-            inv_z += 1.0 / z
-            e_over_z += e / z
+            ez[c, 4 + 2 * d] = 1.0 / z
+            ez[c, 5 + 2 * d] = e / z
+            inv_z += ez[c, 4 + 2 * d]
+            e_over_z += ez[c, 5 + 2 * d]
         pairs[g, 2 * d] = e_over_z / inv_z
         pairs[g, 2 * d + 1] = 1.0 / inv_z
         totals[2 * d] += pairs[g, 2 * d]
@@ -697,7 +700,7 @@ class Pack:
         self._energy_buf = np.zeros(4)
         self._cells = np.zeros((self.n_cells, 5))
         # the next step's affine pairs (pack_pass): per cell, per series group, the pack's
-        self._ez = np.zeros((self.n_cells, 4))
+        self._ez = np.zeros((self.n_cells, 8))
         self._oc = np.zeros((self.n_cells, 6))
         self._pairs = np.zeros((self.n_groups_sim, 4))
         self._totals = np.zeros(4)
