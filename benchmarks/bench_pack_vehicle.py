@@ -1,7 +1,7 @@
 """Benchmark: a 1-hour drive (1 s step) of a vehicle with a whole pack (issue 12 speed targets).
 
-Vehicle: examples/series_hev_pack.toml (compiled series kernel + the pack's object-mode
-callbacks) on UDDS repeated to 3600 s, with
+Vehicle: examples/series_hev_pack.toml (the compiled series kernel with the pack's compiled
+step inside its loop, hevsim.battery.pack_run) on UDDS repeated to 3600 s, with
 
 (a) 100 thesis 2s6p modules = 1200 cells, every cell simulated, module thermal ROM (built once
     from examples/module_thermal.toml into a temporary folder, or ``--rom FILE``) + cooling loop;
@@ -19,6 +19,10 @@ per-function path the pack used before (``pack_thevenin`` for each direction, th
 and CPU seconds, ratios, and the other processes' load.
 
     python benchmarks/bench_pack_vehicle.py [--rom examples/module.rom.npz] [--repeat 2]
+
+(numba caches a compiled function keyed on its own source file only: after editing
+hevsim/battery/pack*.py, delete hevsim/sim/__pycache__/kernel.run_series-*.nbi and
+hevsim/battery/__pycache__/pack_run.*.nbi before measuring, or the kernel runs the old pack step.)
 """
 
 from __future__ import annotations
