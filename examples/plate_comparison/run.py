@@ -17,7 +17,12 @@ Reported per layout and coolant model (``comparison.csv`` / ``.json`` / ``.md``)
   coolant from the Navier-Stokes solution; for the 1-D channel the developed-flow closed form
   ``2 (f Re) mu U L / D_h^2`` over the centre-line length (Shah & London's f Re of the
   rectangle, :func:`hevsim.thermal.flow.duct_fanning_re`; no bend or entrance losses);
-* ``outlet_temp_c`` at the end [degC], ``heat_removed_j`` over the run [J].
+* ``outlet_temp_c`` at the end [degC];
+* ``heat_removed_j``: heat through the channel wall over the run [J], from the FEM module's
+  ``wall_heat_w`` (the heat the plate actually gave: it closes the module's energy balance
+  with its stored energy and the cells' heat); ``coolant_heat_j`` is the same integral of the
+  coolant's reported ``cooling_power_w``, which the Gauss-Seidel exchange evaluates at the
+  wall temperatures of the step's start (a few % higher while the plate cools fast).
 
 Pictures: ``plate_comparison.png`` (the plates' top faces at the end, one colour scale;
 thesis fig 4.30), ``comparison.png`` (bars of the figures above) and
@@ -37,6 +42,7 @@ import math
 import os
 import re
 import sys
+import textwrap
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -65,6 +71,7 @@ COLUMNS = (
     ("hottest_cell_mean_c", "hottest cell mean [°C]", "{:.3f}"),
     ("cell_spread_k", "cell spread [K]", "{:.3f}"),
     ("plate_spread_k", "plate spread [K]", "{:.3f}"),
+    ("plate_max_c", "plate max [°C]", "{:.3f}"),
     ("pressure_drop_pa", "Δp [Pa]", "{:.0f}"),
     ("pump_power_w", "pump power [mW]", "{:.3f}"),
     ("outlet_temp_c", "outlet [°C]", "{:.3f}"),
@@ -273,7 +280,6 @@ def run_case(study: Study, layout: Layout, model: str, folder: Path) -> dict[str
     face = plate_top_face(fem.mesh, fem.disc, fem.cfg.geometry, final_c)
     cells = np.array([res[f"fem.cell{c}_temp_k"][-1] for c in range(N_CELLS)]) - C0
     t = np.asarray(res.time_s)
-    power = np.asarray(res["coolant.cooling_power_w"])
     flow_m3_s = study.flow_l_min * 1e-3 / 60.0
     if model == "cht":
         dp = float(cool.flow.metrics["pressure_drop_pa"])
@@ -297,13 +303,21 @@ def run_case(study: Study, layout: Layout, model: str, folder: Path) -> dict[str
         "pressure_drop_pa": dp,
         "pump_power_w": dp * flow_m3_s,
         "outlet_temp_c": float(res["coolant.outlet_temp_k"][-1]) - C0,
-        "heat_removed_j": float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(t))),
+        "heat_removed_j": _integral(t, res["fem.wall_heat_w"]),
+        "coolant_heat_j": _integral(t, res["coolant.cooling_power_w"]),
+        "stored_energy_change_j": float(res["fem.stored_energy_j"][-1] - res["fem.stored_energy_j"][0]),
         "cpu_s": time.process_time() - cpu0,
         "wall_s": float(res.stats["wall_s"]),
         "time_s": t,
         "outlet_temp_series_c": np.asarray(res["coolant.outlet_temp_k"]) - C0,
         "face": face,
     }
+
+
+def _integral(t: np.ndarray, y: Any) -> float:
+    """Trapezoidal integral of the samples ``y`` over the times ``t`` [s]."""
+    v = np.asarray(y, dtype=float)
+    return float(np.sum(0.5 * (v[1:] + v[:-1]) * np.diff(t)))
 
 
 def _case(args: tuple[Study, Layout, str, Path]) -> dict[str, Any]:
@@ -336,7 +350,7 @@ def plot_bars(rows: list[dict[str, Any]], path: Path) -> Path:
             vals = [v * 1e3 if key == "pump_power_w" else v for v in vals]
             ax.bar(np.arange(len(labels)) + (j - 0.5 * (len(MODELS) - 1)) * width, vals, width,
                    label=MODELS[model])  # fmt: skip
-        ax.set_xticks(np.arange(len(labels)), labels, fontsize=8)
+        ax.set_xticks(np.arange(len(labels)), [textwrap.fill(lab, 10) for lab in labels], fontsize=7)
         ax.set_title(label, fontsize=9)
         if key.endswith("_c"):  # temperatures: the differences, not the distance from 0 degC
             lo, hi = min(r[key] for r in rows), max(r[key] for r in rows)
@@ -362,6 +376,7 @@ def plot_outlet(rows: list[dict[str, Any]], path: Path) -> Path:
                 label=f"{r['label']}, {MODELS[r['model']]}")  # fmt: skip
     ax.set_xlabel("time [s]")
     ax.set_ylabel("coolant outlet temperature [°C]")
+    ax.set_title("Coolant outlet temperature (inlet 15 °C, module from 30 °C)", fontsize=10)
     ax.legend(fontsize=8)
     return save_png(fig, path, 120)
 
