@@ -535,7 +535,9 @@ def write_case(case: Path, grid: ChannelGrid, channel: Any, rc: RansCase) -> dic
         _write(
             case / "system" / "decomposeParDict",
             _header("dictionary", "decomposeParDict", "system")
-            + f"numberOfSubdomains {rc.processes};\n\nmethod          scotch;\n",
+            # split along x, the channels' long axis (Debian's build has no scotch library)
+            + f"numberOfSubdomains {rc.processes};\n\nmethod          simple;\n\n"
+            f"coeffs\n{{\n    n               ({rc.processes} 1 1);\n    delta           0.001;\n}}\n",
         )
     return counts
 
