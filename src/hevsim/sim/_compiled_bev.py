@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from hevsim.architectures import bev as B
-from hevsim.architectures._common import max_machine_speed_radps
+from hevsim.architectures._common import NO_REFCOUNT, max_machine_speed_radps
 from hevsim.control.simple import Direct
 from hevsim.errors import DomainError
 from hevsim.sim import kernel as K
@@ -61,7 +61,7 @@ class WheelData(NamedTuple):
     w_max_radps: float
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _point(w_wheel, t_wheel, regen_ok, soc, dt, bat, h, wd, mtab):
     """The power flow at one point: (feasible for the forward driver, machine torque [N·m],
     electrical power [W], battery power [W], current [A], SOC change [-], machine speed
@@ -77,7 +77,7 @@ def _point(w_wheel, t_wheel, regen_ok, soc, dt, bat, h, wd, mtab):
     return _feasible(inf or over, oth or over, cur, t, p_bat, soc, h), t, p_el, p_bat, cur, d_soc, w_m, t_fd
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, **NO_REFCOUNT)
 def run_bev(soc0, t, v_des, gr, h, wd, mtab, ptab, cols, audit, summary):
     """One run; fills ``cols`` (:data:`COLUMNS` x ``n + 1``), ``audit`` (:data:`AUDIT` [J])
     and ``summary`` (:data:`hevsim.sim.kernel.SUMMARY`). Returns (end speed [m/s], index of
