@@ -272,3 +272,21 @@ def test_cli_flow_at_the_shipped_10_l_min_runs_rans_and_keeps_the_case(
     assert (out / "openfoam" / "log.simpleFoam").is_file()
     assert (out / "openfoam" / "constant" / "polyMesh" / "faces").is_file()
     assert (out / "openfoam" / "15" / "U").is_file()
+
+
+@needs_openfoam
+def test_coarse_fem_wall_cells_on_a_turbulent_flow_warn_with_the_needed_size(
+    duct_rans: tuple[FlowConfig, object],
+) -> None:
+    import dataclasses
+
+    from hevsim.thermal.cht import ThermalMeshWarning
+    from hevsim.thermal.flow import _check_turbulent_wall_mesh
+
+    cfg, res = duct_rans
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _check_turbulent_wall_mesh(cfg, res)  # type: ignore[arg-type]  # 50 um: fine
+    coarse = dataclasses.replace(cfg, flow=dataclasses.replace(cfg.flow, wall_cell_m=0.0))
+    with pytest.warns(ThermalMeshWarning, match=r"no thicker than about 8\.7e-05 m.*flow\.wall_cell_m"):
+        _check_turbulent_wall_mesh(coarse, res)  # type: ignore[arg-type]  # uniform 1 mm cells

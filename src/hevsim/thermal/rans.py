@@ -96,6 +96,19 @@ INSTALL_HINT = (
 C_MU = 0.09
 #: Inlet turbulence length scale as a fraction of the hydraulic diameter when not given [-].
 LENGTH_SCALE_FRACTION = 0.07
+#: Edge of the viscous sublayer in wall units [-]; the conduction sublayer is this times
+#: Pr^(-1/3) wall units thick (the usual high-Pr scaling, e.g. Kays, Crawford & Weigand,
+#: Convective Heat and Mass Transfer, 4th ed. (2005), ch. 13).
+SUBLAYER_YPLUS = 5.0
+
+
+def conduction_sublayer_m(reynolds: float, hydraulic_diameter_m: float, prandtl: float) -> float:
+    """Thickness [m] of the near-wall conduction sublayer of developed turbulent duct flow:
+    ``SUBLAYER_YPLUS Pr^(-1/3) nu / u_tau`` with ``u_tau = U (f/8)^(1/2)`` and Blasius' f, so
+    ``nu / u_tau = D_h / (Re (f/8)^(1/2))``. The P2 temperature of the coolant heat transfer
+    needs its first cell at the wall no thicker than about twice this (a node inside it)."""
+    f = 0.316 * reynolds**-0.25
+    return SUBLAYER_YPLUS * prandtl ** (-1.0 / 3.0) * hydraulic_diameter_m / (reynolds * math.sqrt(f / 8))
 
 
 class OpenFoamMissingError(ConfigError):
