@@ -22,7 +22,9 @@ def write_two_blocks(path: Path) -> None:
     """Two 10 x 4 x 4 mm blocks side by side: physical volumes 'alu' and 'cell', surface 'wall' at x = 0."""
     import gmsh
 
-    gmsh.initialize(readConfigFiles=False)
+    from hevsim.thermal.geometry import initialize_gmsh
+
+    initialize_gmsh(gmsh)  # not gmsh.initialize: it would leave SIGPIPE fatal in the test process
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.option.setNumber("General.NumThreads", 1)

@@ -10,9 +10,13 @@ thread so the same inputs give the same mesh.
 
 from __future__ import annotations
 
+import ctypes
 import itertools
 import math
+import signal
+import threading
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -130,6 +134,26 @@ class ModuleGeometry:
         return boxes
 
 
+def initialize_gmsh(gmsh: Any) -> None:
+    """``gmsh.initialize`` without its process-wide side effects.
+
+    gmsh's library resets SIGPIPE to the default action when it starts, so a later write to a
+    closed pipe (a co-simulation worker's pipe, ``hevsim ... | head``) kills the whole process
+    without a message instead of raising ``BrokenPipeError``; its Python API also replaces the
+    SIGINT handler and, in gmsh 4.x, never restores it (Ctrl-C would no longer raise
+    ``KeyboardInterrupt``, which long runs catch to checkpoint). This starts gmsh with
+    ``interruptible=False`` and puts SIGPIPE back to Python's own setting (ignored)."""
+    gmsh.initialize(readConfigFiles=False, interruptible=False)
+    if not hasattr(signal, "SIGPIPE"):
+        return
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+    else:  # signal.signal works in the main thread only; the C library's call anywhere
+        libc = ctypes.CDLL(None)
+        libc.signal.restype = ctypes.c_void_p
+        libc.signal(int(signal.SIGPIPE), ctypes.c_void_p(1))  # 1 = SIG_IGN
+
+
 def build_module_mesh(geom: ModuleGeometry | None = None, *, source: str = "module geometry") -> ThermalMesh:
     """Build and mesh the module with gmsh (one thread); returns a :class:`ThermalMesh`."""
     import gmsh
@@ -137,7 +161,7 @@ def build_module_mesh(geom: ModuleGeometry | None = None, *, source: str = "modu
     g = (geom or ModuleGeometry()).check(source)
     started_here = not gmsh.isInitialized()
     if started_here:
-        gmsh.initialize(readConfigFiles=False)
+        initialize_gmsh(gmsh)
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.option.setNumber("General.Verbosity", 0)
