@@ -26,6 +26,7 @@ VEHICLES = {
     "p3": ("examples/parallel_hev.toml", {}),
     "p2": ("examples/parallel_hev.toml", {"motor_coupling.position": "p2"}),
     "power_split": ("examples/prius_like_power_split.toml", {}),
+    "prius_2016": ("examples/prius_2016_power_split.toml", {}),
 }
 
 
@@ -87,6 +88,15 @@ def test_compiled_run_equals_the_python_loop_when_the_car_cannot_follow(
 ) -> None:
     fast, ref = _both(_config(vehicle, **changes), "us06", kind)
     assert ref.value("traction_limited_s") > 10.0  # the driver's bisection ran
+    assert_same_run(fast, ref)
+
+
+@pytest.mark.parametrize("kind", ["power_follower", "ecms", "aecms"])
+def test_compiled_run_equals_the_python_loop_with_the_small_pack(kind: str) -> None:
+    """The shipped 2016 Prius's 0.75 kWh pack limits US06 (the driver's bisection runs), the
+    power follower's fuel-ordered search and its fallback as the Python controller."""
+    fast, ref = _both(_config("prius_2016"), "us06", kind)
+    assert ref.value("traction_limited_s") > 10.0
     assert_same_run(fast, ref)
 
 
