@@ -6,7 +6,7 @@ Nu = (f/8)(Re - 1000) Pr / (1 + 12.7 (f/8)^0.5 (Pr^(2/3) - 1)) with f = (0.79 ln
 Both for circular pipes, applied to the 8 x 4 mm duct on its hydraulic diameter (for aspect
 1/2, Jones' laminar-equivalent diameter differs from D_h by 1 %).
 
-The tests that run OpenFOAM skip when it is not installed (``make test`` installs it first,
+The tests that run OpenFOAM (marked slow) skip when it is not installed (``make test`` installs it first,
 ``make openfoam``); the "OpenFOAM missing" tests run everywhere.
 """
 
@@ -192,6 +192,7 @@ def duct_rans() -> tuple[FlowConfig, object]:
     return cfg, res
 
 
+@pytest.mark.slow  # OpenFOAM solve (the duct fixture: ~15 s CPU)
 @needs_openfoam
 def test_turbulent_duct_friction_factor_against_blasius(duct_rans: tuple[FlowConfig, object]) -> None:
     cfg, res = duct_rans
@@ -215,6 +216,7 @@ def test_turbulent_duct_friction_factor_against_blasius(duct_rans: tuple[FlowCon
     assert f > 2.5 * 62.2 / RE_DUCT
 
 
+@pytest.mark.slow  # OpenFOAM solve (the duct fixture: ~15 s CPU)
 @needs_openfoam
 def test_turbulent_duct_nusselt_on_the_frozen_rans_flow_against_gnielinski(
     duct_rans: tuple[FlowConfig, object],
@@ -247,6 +249,7 @@ def test_turbulent_duct_nusselt_on_the_frozen_rans_flow_against_gnielinski(
     assert float(np.mean(molecular.segments["nusselt"][-4:])) < 0.6 * developed
 
 
+@pytest.mark.slow  # OpenFOAM solve (the duct fixture: ~15 s CPU)
 @needs_openfoam
 def test_cli_flow_at_the_shipped_10_l_min_runs_rans_and_keeps_the_case(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
@@ -274,6 +277,7 @@ def test_cli_flow_at_the_shipped_10_l_min_runs_rans_and_keeps_the_case(
     assert (out / "openfoam" / "15" / "U").is_file()
 
 
+@pytest.mark.slow  # OpenFOAM solve (the duct fixture: ~15 s CPU)
 @needs_openfoam
 def test_coarse_fem_wall_cells_on_a_turbulent_flow_warn_with_the_needed_size(
     duct_rans: tuple[FlowConfig, object],
