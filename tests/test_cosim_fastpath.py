@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from hevsim.cosim import Connection, CosimFault, FunctionParticipant
-from hevsim.cosim._worker import recv_frame, send_frame
+from hevsim.cosim._worker import FrameReader, send_frame
 from hevsim.cosim.master import Master, Options
 from hevsim.cosim.trivial import build_integrator_fmu
 from hevsim.errors import SimulationError
@@ -100,24 +100,36 @@ def test_fault_names_the_call_and_its_time(algorithm: str, call: str, steps: int
 
 def test_frames_round_trip_and_end_of_input() -> None:
     r, w = os.pipe()
-    big = bytes(range(256)) * 1200  # more than a pipe holds at once
-    objs: list[Any] = [("step", 0.1, 0.01, ("u",), (1.5,)), big, {"k": [1, 2.5, "x"]}]
+    small: list[Any] = [("step", 0.1, 0.01, ("u",), (1.5,)), {"k": [1, 2.5, "x"]}, None]
+    for o in small:  # all in the pipe before the first read: one read gets several frames
+        send_frame(w, o)
+    os.close(w)
+    reader = FrameReader(r)
+    try:
+        assert [reader.recv() for _ in small] == small
+        with pytest.raises(EOFError):
+            reader.recv()
+    finally:
+        os.close(r)
+    r, w = os.pipe()
+    big = bytes(range(256)) * 1200  # more than a pipe holds at once: read in parts
 
-    def write_all() -> None:
-        for o in objs:
-            send_frame(w, o)
+    def write_big() -> None:
+        send_frame(w, big)
+        send_frame(w, small[0])
         os.close(w)
 
-    writer = threading.Thread(target=write_all)
+    writer = threading.Thread(target=write_big)
     writer.start()
+    reader = FrameReader(r)
     try:
-        got = [recv_frame(r) for _ in objs]
+        got = [reader.recv(), reader.recv()]
         with pytest.raises(EOFError):
-            recv_frame(r)
+            reader.recv()
     finally:
-        writer.join()
         os.close(r)
-    assert got == objs
+        writer.join(timeout=10)
+    assert got == [big, small[0]]
 
 
 @pytest.fixture(scope="module")
@@ -157,13 +169,12 @@ def test_interrupted_exchange_retires_the_worker(integrator: Path, monkeypatch: 
 
     p = W.WorkerFMUParticipant("w", integrator)
     p.setup(0.0)
-    real = W.recv_frame
 
-    def interrupted(fd: int) -> Any:
-        monkeypatch.setattr(W, "recv_frame", real)
+    def interrupted() -> Any:
+        monkeypatch.undo()
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(W, "recv_frame", interrupted)
+    monkeypatch.setattr(p._reader, "recv", interrupted)
     with pytest.raises(KeyboardInterrupt):
         p.do_step(0.0, 0.1)
     with pytest.raises(SimulationError, match="interrupted in step; the worker cannot be used"):
@@ -259,3 +270,31 @@ def test_worker_running_ahead_stops_and_fails_in_the_right_step(cfmu: Path) -> N
         simulate([p], [], stop_time_s=1.0, step_s=0.1)
     assert sizes == [(2, 2, True), (2, 1, False)]  # the step from 0.2 s, then the failing one
     assert ei.value.partial is not None and ei.value.partial.time_s[-1] == pytest.approx(0.3)
+
+
+def test_checkpoint_of_a_worker_running_ahead_resumes_identically(integrator: Path, tmp_path: Path) -> None:
+    """The checkpoint holds the FMU's state where the worker got to plus the steps it ran
+    ahead; resumed, the run goes on from the checkpoint's time with the same results."""
+    import pickle
+
+    from tests.cosim_helpers import interrupt_after
+
+    from hevsim.cosim import simulate
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
+    def run(**kw: Any) -> Any:
+        p = WorkerFMUParticipant("i", integrator, {"k": 2.0, "u": 0.75})
+        real = p.run_ahead
+        p.run_ahead = lambda next_end: real(next_end, 4)  # type: ignore[method-assign]
+        return simulate([p], [], stop_time_s=1.0, step_s=0.1, **kw)
+
+    ck = tmp_path / "ck.pkl"
+    interrupt_after(run, 0.55, checkpoint_path=ck, checkpoint_every=1)
+    saved = pickle.loads(ck.read_bytes())
+    assert saved["t"] == pytest.approx(0.6)
+    fmu_state, _, ahead = saved["states"]["i"]  # at 0.8 s, with the steps from 0.6 and 0.7 s
+    assert isinstance(fmu_state, bytes) and [round(s[0], 9) for s in ahead] == [0.6, 0.7]
+    resumed = run(checkpoint_path=ck, resume=True)
+    full = run()
+    assert np.array_equal(resumed.time_s, full.time_s) and np.array_equal(resumed.data, full.data)
+    assert np.abs(full["i.y"] - (1.0 + 1.5 * full.time_s)).max() < 1e-12

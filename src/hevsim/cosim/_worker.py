@@ -42,33 +42,34 @@ def send_frame(fd: int, obj: Any) -> None:
     write_frame(fd, encode_frame(obj))
 
 
-def recv_frame(fd: int) -> Any:
-    """Read one frame from the pipe ``fd``; :class:`EOFError` if the writer has gone. The
-    peers alternate (a request, then its reply), so one read usually gets the whole frame."""
-    data = os.read(fd, _READ_BYTES)
-    while len(data) < _HEADER.size:
-        data += _more(fd, _HEADER.size - len(data))
-    end = _HEADER.size + _HEADER.unpack_from(data)[0]
-    if len(data) < end:
-        data += _more(fd, end - len(data))
-    if len(data) != end:
-        raise EOFError("protocol error: data after a frame")  # the peer is out of step
-    return pickle.loads(memoryview(data)[_HEADER.size :])
+class FrameReader:
+    """Reads frames from the pipe ``fd``, keeping bytes that arrived beyond a frame for the
+    next one (in the request-reply exchange one read usually holds exactly one frame)."""
+
+    def __init__(self, fd: int):
+        self.fd = fd
+        self.buf = b""
+
+    def recv(self) -> Any:
+        """The next frame's object; :class:`EOFError` if the writer has gone."""
+        buf = self.buf
+        while True:
+            if len(buf) >= _HEADER.size:
+                end = _HEADER.size + _HEADER.unpack_from(buf)[0]
+                if len(buf) >= end:
+                    self.buf = buf[end:]
+                    return pickle.loads(memoryview(buf)[_HEADER.size : end])
+                need = end - len(buf)
+            else:
+                need = _HEADER.size - len(buf)
+            data = os.read(self.fd, max(need, _READ_BYTES))
+            if not data:
+                self.buf = buf
+                raise EOFError
+            buf += data
 
 
 _READ_BYTES = 1 << 16
-
-
-def _more(fd: int, n: int) -> bytes:
-    """The next ``n`` bytes from ``fd``."""
-    parts = []
-    while n > 0:
-        data = os.read(fd, n)
-        if not data:
-            raise EOFError
-        parts.append(data)
-        n -= len(data)
-    return b"".join(parts)
 
 
 def main() -> None:
@@ -130,9 +131,10 @@ def serve(rfd: int, wfd: int) -> None:
 
     p: FMUParticipant | None = None
     st: _Stepper | None = None
+    reader = FrameReader(rfd)
     while True:
         try:
-            req = recv_frame(rfd)
+            req = reader.recv()
         except EOFError:
             return
         cmd = req[0]

@@ -493,10 +493,11 @@ class Master:
         for n in self.order:
             self._call(n, "setup", t, self.p[n].setup, t)
         # A participant without inputs from others that can run ahead (worker FMUs) steps
-        # several steps per exchange where steps are fixed and never redone or saved
+        # several steps per exchange where steps are fixed and never redone (checkpoints
+        # save the steps it ran ahead with its state)
         ahead: set[str] = set()
         fixed = o.negotiation == "fixed" and not o.min_step_s and not o.max_step_s
-        if fixed and o.max_iterations == 1 and not o.checkpoint_path:
+        if fixed and o.max_iterations == 1:
             for n in self.order:
                 run_ahead = getattr(self.p[n], "run_ahead", None)
                 if run_ahead is not None and not self.feeds[n] and self.rates[n] == 1:

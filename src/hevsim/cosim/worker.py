@@ -12,7 +12,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, NoReturn
 
-from hevsim.cosim._worker import encode_frame, recv_frame, send_frame, write_frame
+from hevsim.cosim._worker import FrameReader, encode_frame, send_frame, write_frame
 from hevsim.cosim.participant import Participant, fmu_file
 from hevsim.errors import ConfigError, SimulationError
 
@@ -42,7 +42,8 @@ class WorkerFMUParticipant(Participant):
             bufsize=0,
         )
         assert self.proc.stdin is not None and self.proc.stdout is not None
-        self._wfd, self._rfd = self.proc.stdin.fileno(), self.proc.stdout.fileno()
+        self._wfd = self.proc.stdin.fileno()
+        self._reader = FrameReader(self.proc.stdout.fileno())
         self._broken = ""  # the call a protocol exchange was interrupted in
         self._in_flight = False  # a step was sent and its reply not read yet
         self._started = False  # start_step ran; do_step has not collected it yet
@@ -94,7 +95,7 @@ class WorkerFMUParticipant(Participant):
 
     def _recv(self, cmd: str) -> Any:
         try:
-            ok, res = recv_frame(self._rfd)
+            ok, res = self._reader.recv()
         except (EOFError, OSError):
             self._crashed(cmd)
         except BaseException:  # e.g. KeyboardInterrupt between request and reply
@@ -160,7 +161,8 @@ class WorkerFMUParticipant(Participant):
 
     def run_ahead(self, next_end: Callable[[float], float | None], batch: int = RUN_AHEAD_STEPS) -> None:
         """Step ``batch`` steps per round trip from now on: the master calls this for a
-        participant without inputs in a run whose steps are fixed and never redone;
+        participant without inputs in a run whose steps are fixed and never redone (its
+        state is only saved for checkpoints: :meth:`get_state` keeps the steps run ahead);
         ``next_end(t)`` is the end of the step from ``t`` [s] (None: ``t`` is the stop time).
         Steps already run come from the buffer, with the same results, termination
         requests and failures, in the same steps, as stepping one at a time."""
@@ -236,16 +238,20 @@ class WorkerFMUParticipant(Participant):
             self._pending = {}
 
     def get_state(self) -> Any:
-        if self._ahead:
-            raise SimulationError(f"participant {self.name!r}: cannot save its state while running ahead.")
+        """The FMU's serialised state; running ahead, with the results of the steps run but
+        not taken yet (a checkpoint then resumes with them)."""
         self._flush()
-        return self._rpc("get_state")
+        state = self._rpc("get_state")
+        return (state, self._out_names, tuple(self._ahead)) if self._ahead else state
 
     def set_state(self, state: Any) -> None:
         self._pending = {}
         self._out = None
         self._started = False  # a step started from the replaced state is void
         self._ahead.clear()
+        if isinstance(state, tuple):  # saved while running ahead
+            state, self._out_names, ahead = state
+            self._ahead.extend(ahead)
         self._rpc("set_state", bytes(state))
 
     def terminate(self) -> None:
