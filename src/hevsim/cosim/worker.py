@@ -1,7 +1,9 @@
 """An FMU participant in a persistent worker process (length-prefixed pickle frames over its
 stdin/stdout pipes: :mod:`hevsim.cosim._worker`), so an FMU that crashes cannot take the
 master down: the master gets a :class:`SimulationError` naming the participant and the call
-instead. One round trip per communication step (inputs, doStep, outputs)."""
+instead. One round trip per communication step (inputs, doStep, outputs); under Jacobi the
+workers step in parallel (:meth:`WorkerFMUParticipant.start_step`), and a worker without
+inputs runs ahead, several steps per round trip (:meth:`WorkerFMUParticipant.run_ahead`)."""
 
 from __future__ import annotations
 
@@ -109,7 +111,7 @@ class WorkerFMUParticipant(Participant):
         proc = self.proc
         try:
             code = proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:  # alive but out of step: stop it
+        except subprocess.TimeoutExpired:  # closed its pipe but still running: stop it
             proc.kill()
             code = proc.wait()
         raise SimulationError(
