@@ -162,6 +162,10 @@ class CoolantThermal:
         # RANS flow: the eddy diffusivity nu_t / Pr_t [m^2/s] adds to alpha (k -> k + rc a_t)
         eddy = fl.eddy_diffusivity_m2_s if fl.eddy_diffusivity_m2_s is not None else np.zeros(mesh.p.shape[1])
         a_t = fl.basis_u.with_element(ElementTetP1()).interpolate(eddy)
+        if fl.rans is not None:  # the FEM wall cells must resolve the conduction sublayer
+            from hevsim.thermal.rans import check_thermal_wall_mesh
+
+            check_thermal_wall_mesh(fl, self.where)
         tol = 1e-9 * max(max(b[1] for b in self.channel.boxes), self.channel.width_m)
         mid = mesh.p[:, mesh.facets].mean(axis=1)
         bnd = mesh.boundary_facets()

@@ -676,35 +676,6 @@ def run_flow(
     return res
 
 
-def _check_turbulent_wall_mesh(cfg: FlowConfig, res: FlowResult) -> None:
-    """Warn (``ThermalMeshWarning``) when the FEM mesh's wall cells are thicker than twice the
-    conduction sublayer of the turbulent flow: the eddy diffusivity, interpolated across a
-    cell that spans the sublayer, then reaches the wall and the wall heat comes out far too
-    high (on the shipped plate's uniform default mesh about 7x the 1-D model's)."""
-    import warnings
-
-    from hevsim.thermal.cht import ThermalMeshWarning
-    from hevsim.thermal.rans import conduction_sublayer_m
-
-    sec = cfg.flow
-    m = res.metrics
-    delta = conduction_sublayer_m(m["reynolds"], m["hydraulic_diameter_m"], cfg.coolant.prandtl)
-    ch = config_channel(cfg)
-    cell = sec.wall_cell_m or min(
-        ch.height_m / sec.cells_across_height, ch.width_m / sec.cells_across_width, sec.cell_length_m
-    )
-    m["conduction_sublayer_m"], m["fem_wall_cell_m"] = delta, cell
-    if cell > 2 * delta:
-        warnings.warn(
-            f"{cfg.name}: the coolant heat transfer on the turbulent flow needs FEM cells at the wall no "
-            f"thicker than about {2 * delta:.2g} m (twice the conduction sublayer at Re {m['reynolds']:.0f}, "
-            f"Pr {cfg.coolant.prandtl:.3g}), but they are {cell:.2g} m: the eddy diffusivity reaches the "
-            "wall and the wall heat is far too high. Set flow.wall_cell_m (graded FEM mesh) accordingly.",
-            ThermalMeshWarning,
-            stacklevel=3,
-        )
-
-
 def _finish_flow(
     cfg: FlowConfig, res: FlowResult, out_dir: str | Path | None, thermal: bool, case: Path | None
 ) -> None:
@@ -712,8 +683,6 @@ def _finish_flow(
     if thermal:
         from hevsim.thermal.cht import run_cht
 
-        if res.rans is not None:
-            _check_turbulent_wall_mesh(cfg, res)
         res.cht = run_cht(cfg, res)
     res.metadata = {
         "name": cfg.name,

@@ -111,6 +111,27 @@ def conduction_sublayer_m(reynolds: float, hydraulic_diameter_m: float, prandtl:
     return SUBLAYER_YPLUS * prandtl ** (-1.0 / 3.0) * hydraulic_diameter_m / (reynolds * math.sqrt(f / 8))
 
 
+def check_thermal_wall_mesh(flow: Any, where: str = "cht") -> None:
+    """Warn (:class:`~hevsim.thermal.cht.ThermalMeshWarning`) when the FEM mesh of a RANS
+    ``flow`` has wall cells thicker than twice the conduction sublayer (metrics
+    ``fem_wall_cell_m``, ``conduction_sublayer_m``): the eddy diffusivity, interpolated across
+    a cell that spans the sublayer, then reaches the wall and the coolant's wall heat comes out
+    far too high (on the shipped plate's uniform default mesh about 7x the 1-D model's)."""
+    from hevsim.thermal.cht import ThermalMeshWarning
+
+    m = flow.metrics
+    cell, delta = m["fem_wall_cell_m"], m["conduction_sublayer_m"]
+    if cell > 2 * delta:
+        warnings.warn(
+            f"{where}: the coolant heat transfer on the turbulent flow needs FEM cells at the wall no "
+            f"thicker than about {2 * delta:.2g} m (twice the conduction sublayer at Re {m['reynolds']:.0f}, "
+            f"Pr {m['prandtl']:.3g}), but they are {cell:.2g} m: the eddy diffusivity reaches the wall and "
+            "the wall heat is far too high. Set flow.wall_cell_m (graded FEM mesh) accordingly.",
+            ThermalMeshWarning,
+            stacklevel=3,
+        )
+
+
 class OpenFoamMissingError(ConfigError):
     """OpenFOAM (``simpleFoam``) is not installed or not found (exit 2)."""
 
@@ -1020,6 +1041,10 @@ def solve_rans(
         **yplus,
         "max_eddy_viscosity_ratio": float(np.max(nut_c) / nu),
         "turbulence_intensity": sec.turbulence_intensity,
+        "prandtl": coolant.prandtl,
+        "conduction_sublayer_m": conduction_sublayer_m(reynolds, dh, coolant.prandtl),
+        "fem_wall_cell_m": sec.wall_cell_m
+        or min(h / sec.cells_across_height, w / sec.cells_across_width, sec.cell_length_m),
         "turbulence_length_m": length,
         "velocity_dofs": float(basis_u.N),
         "pressure_dofs": float(basis_p.N),
