@@ -230,8 +230,8 @@ def _point(arch, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want
     unused by the parallel HEV); ``bat``: :func:`_battery` at ``soc``; ``md``:
     (:class:`HEVConstants`, parallel and power-split tables, engine, motor and generator
     tables). With ``want``, fills the architecture's details (``det``) and audit terms
-    (``loss``, [W]); without, a power-split control infeasible by its engine or machine
-    speeds or MG1's torque is not taken to the bus (SOC change 0: callers read only its
+    (``loss``, [W]); without, a control infeasible by its engine or machine speeds (or
+    MG1's torque) is not taken to the bus (SOC change 0: callers read only its
     infeasibility)."""
     ocv, r_dis, r_chg, p_chg = bat
     h, dpar, dps, etab, mtab, gtab = md
@@ -239,6 +239,8 @@ def _point(arch, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want
         gi, on, es, ms, bad, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, w_em, t_req = P.mechanical_point(
             w_wheel, t_wheel, c0, c1, False, dpar, etab
         )
+        if not want and (es or ms):  # infeasible whatever the bus gives (see _feasible)
+            return False, fuel * dt, 0.0, t_e * (w_e if on else 0.0)
         oth, inf, t, p_el, p_bat, cur, d_soc = _electric(
             t_req, w_em, h.aux_power_w, regen_ok, soc, dt, ocv, r_dis, r_chg, p_chg, h, mtab
         )
