@@ -71,3 +71,21 @@ def test_shipped_prius_pack_is_56_cells_of_3p6_ah() -> None:
               if r["temperature_degC"] == "25"}  # fmt: skip
     r_pack = pack.resistance(0.6, 1.0)
     assert float(r_pack) == pytest.approx(56 * saft_r[0.6] / K, rel=1e-6)
+
+
+def test_full_battery_takes_no_charge_from_any_source() -> None:
+    """At ``soc_max`` nothing charges the battery, the engine through MG1 included: an ECMS
+    that overvalues charge (s = 3.5) on HWFET stays within one step's charge of soc_max = 0.95
+    (it ended at SOC 1.048 before), the compiled run equal to the Python loop; and a run whose
+    SOC left [0, 1] would stop with a DomainError (hevsim.sim.forward)."""
+    from hevsim.sim.forward import simulate_architecture
+
+    ecms = {"controller.kind": "ecms", "controller.equivalence_factor": 3.5}
+    cfg = C.load_vehicle_config(PRIUS).replace(**ecms)
+    model = C.build_vehicle(cfg)
+    runs = [simulate_architecture("power_split", model, "hwfet", compiled=c) for c in (True, False)]
+    socs = [r.timeseries["soc"].to_numpy() for r in runs]
+    assert socs[0].max() >= 0.95  # the case reaches the full battery
+    step_charge = 20e3 / (56 * 3.6 * 3600 * 3.3)  # about 20 kW for 1 s on the 0.75 kWh pack
+    assert socs[0].max() <= 0.95 + step_charge, socs[0].max()
+    np.testing.assert_allclose(socs[0], socs[1], rtol=1e-9, atol=1e-12)

@@ -74,7 +74,8 @@ def _point(w_wheel, t_wheel, regen_ok, soc, dt, bat, h, wd, mtab):
     oth, inf, t, p_el, p_bat, cur, d_soc = _electric(
         t_req, w_m, h.aux_power_w, ok, soc, dt, ocv, r_dis, r_chg, p_chg, h, mtab
     )
-    return _feasible(inf or over, oth or over, cur, t, p_bat, soc, h), t, p_el, p_bat, cur, d_soc, w_m, t_fd
+    ok = _feasible(inf or over, oth or over, cur, t, p_bat, p_el, soc, h)
+    return ok, t, p_el, p_bat, cur, d_soc, w_m, t_fd
 
 
 @njit(cache=True, nogil=True, **NO_REFCOUNT)

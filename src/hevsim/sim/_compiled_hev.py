@@ -212,13 +212,17 @@ def _electric(t_req, w_em, p_other, regen_ok, soc, dt, ocv, r_dis, r_chg, p_chg,
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _feasible(infeasible, others, cur, t_em, p_bat, soc, h):
-    """The forward driver's feasibility of a point (see :data:`hevsim.sim.forward.REGEN_CURRENT_RTOL`)."""
+def _feasible(infeasible, others, cur, t_em, p_bat, p_el, soc, h):
+    """The forward driver's feasibility of a point (as :meth:`hevsim.sim.forward.Step.evaluate`;
+    see :data:`hevsim.sim.forward.REGEN_CURRENT_RTOL`)."""
     ok = not infeasible
-    if not others and cur >= -h.i_charge_max_a * (1.0 + REGEN_CURRENT_RTOL) and t_em < 0.0:
+    near = cur >= -h.i_charge_max_a * (1.0 + REGEN_CURRENT_RTOL)
+    if not others and near and t_em < 0.0 and soc < h.soc_max:  # full: no charging at all
         ok = True
     if soc <= h.soc_min:  # empty: no discharge
         ok = ok and p_bat <= 0.0
+    if soc >= h.soc_max:  # full: no charging, up to the regeneration limiter's round-off
+        ok = ok and p_bat >= -REGEN_CURRENT_RTOL * abs(p_el)
     return ok
 
 
@@ -244,7 +248,7 @@ def _point(arch, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want
         oth, inf, t, p_el, p_bat, cur, d_soc = _electric(
             t_req, w_em, h.aux_power_w, regen_ok, soc, dt, ocv, r_dis, r_chg, p_chg, h, mtab
         )
-        ok = _feasible(inf or bad, oth or es or ms, cur, t, p_bat, soc, h)
+        ok = _feasible(inf or bad, oth or es or ms, cur, t, p_bat, p_el, soc, h)
         if want:
             lo = P.losses_point(w_wheel, gi, on, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, w_em, t, p_el, dpar)
             for j in range(len(lo)):
@@ -259,7 +263,7 @@ def _point(arch, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want
     oth, inf, t, p_el, p_bat, cur, d_soc = _electric(
         t_req, w_em, p_g + h.aux_power_w, regen_ok, soc, dt, ocv, r_dis, r_chg, p_chg, h, mtab
     )
-    ok = _feasible(inf or bad, oth or es or gt or gs or ms, cur, t, p_bat, soc, h)
+    ok = _feasible(inf or bad, oth or es or gt or gs or ms, cur, t, p_bat, p_el, soc, h)
     if want:
         lo = PS.losses_point(
             w_wheel, w_r, t_r, w_e, t_e, fuel, w_s, t_g, p_g, t_er, w_em, t, p_el, h.aux_power_w, dps

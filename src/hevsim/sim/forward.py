@@ -160,6 +160,7 @@ class Step:
     energy_per_soc_j: float
     battery_state: Any
     soc_min: float
+    soc_max: float = 1.0
 
     @property
     def hev(self) -> Any:
@@ -183,9 +184,14 @@ class Step:
                         others = others | np.asarray(flag)
                 limit = self.model.battery.max_charge_current_a
                 near = np.asarray(flow.current_a) >= -limit * (1.0 + REGEN_CURRENT_RTOL)
-                feasible = feasible | (~others & near & (np.asarray(flow.torque_nm) < 0.0))
+                if self.soc < self.soc_max:  # full: no charging at all (not even near the limit)
+                    feasible = feasible | (~others & near & (np.asarray(flow.torque_nm) < 0.0))
             if self.soc <= self.soc_min:  # empty: no discharge
                 feasible = feasible & (np.asarray(flow.battery_power_w) <= 0.0)
+            if self.soc >= self.soc_max:  # full: no charging from any source (the engine through a
+                # generator too), up to the regeneration limiter's round-off (REGEN_CURRENT_RTOL)
+                tol = REGEN_CURRENT_RTOL * np.abs(np.asarray(flow.power_elec_w))
+                feasible = feasible & (np.asarray(flow.battery_power_w) >= -tol)
         return st, np.broadcast_to(feasible, np.shape(st.d_soc))
 
 
@@ -295,6 +301,15 @@ def simulate_architecture(
         raise DomainError(
             f"{model.name} on {cyc.name}: non-finite results ({', '.join(bad) or 'time series'})."
         )
+    if "soc" in ts:  # a state outside its physical domain stops the run (no silently wrong number)
+        soc = ts["soc"].to_numpy()
+        out = np.flatnonzero((soc < 0.0) | (soc > 1.0))
+        if out.size:
+            k = int(out[0])
+            raise DomainError(
+                f"{model.name} on {cyc.name}: battery SOC = {soc[k]:.6g} at t = {ts['time_s'].iloc[k]:g} s "
+                "leaves [0, 1]; check battery.soc_min/soc_max and the controller's charge limits."
+            )
     metadata = {
         "architecture": name, "config": model.name, "description": cfg.description, "cycle": cyc.name,
         "cycle_source": cyc.source, "dt_s": dt, "controller": getattr(ctl, "name", type(ctl).__name__),
@@ -519,9 +534,8 @@ def _run(
         def step_at(v1: float, k: int = k, v0: float = v, soc: float = soc, bs: Any = bs,
                     e_soc: float = e_soc, mk: Any = model_k) -> tuple[Step, float, float, float]:  # fmt: skip
             v_mid, a, g, f = demand(v0, v1, k)
-            st = Step(
-                mk, mod.power_flow, k, float(t[k]), dt, v_mid, v_mid / r, f * r, soc, e_soc, bs, soc_min
-            )
+            st = Step(mk, mod.power_flow, k, float(t[k]), dt, v_mid, v_mid / r, f * r, soc, e_soc, bs,
+                      soc_min, soc_max)  # fmt: skip
             return st, a, g, f
 
         v1 = float(v_des[k + 1])
