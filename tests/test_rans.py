@@ -279,26 +279,24 @@ def test_cli_flow_at_the_shipped_10_l_min_runs_rans_and_keeps_the_case(
 
 @pytest.mark.slow  # OpenFOAM solve (the duct fixture: ~15 s CPU)
 @needs_openfoam
-def test_coarse_fem_wall_cells_on_a_turbulent_flow_warn_with_the_needed_size(
+def test_coarse_fem_wall_cells_on_a_turbulent_flow_are_refused_with_the_needed_size(
     duct_rans: tuple[FlowConfig, object],
 ) -> None:
     from types import SimpleNamespace
 
-    from hevsim.thermal.cht import CoolantThermal, ThermalMeshWarning, channel_axis_m
+    from hevsim.thermal.cht import CoolantThermal, channel_axis_m
 
     cfg, res = duct_rans
     m = res.metrics  # type: ignore[attr-defined]
     assert m["fem_wall_cell_m"] == 5e-5 and m["conduction_sublayer_m"] == pytest.approx(4.35e-5, rel=0.01)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", ThermalMeshWarning)
-        rans.check_thermal_wall_mesh(res)  # 50 um: fine
+    rans.check_thermal_wall_mesh(res)  # 50 um: fine
     coarse = SimpleNamespace(metrics={**m, "fem_wall_cell_m": 1e-3})  # a uniform 4 x 2 mesh
-    with pytest.warns(ThermalMeshWarning, match=r"no thicker than about 8\.7e-05 m.*flow\.wall_cell_m"):
+    with pytest.raises(ConfigError, match=r"no thicker than about 8\.7e-05 m.*flow\.wall_cell_m"):
         rans.check_thermal_wall_mesh(coarse)
     # the coolant model itself checks (as used by hevsim flow --thermal and the CHT participant)
     res.metrics = {**m, "fem_wall_cell_m": 1e-3}  # type: ignore[attr-defined]
     try:
-        with pytest.warns(ThermalMeshWarning, match="conduction sublayer"):
+        with pytest.raises(ConfigError, match="conduction sublayer"):
             CoolantThermal(res, config_channel(cfg), cfg.coolant, channel_axis_m(cfg), 4)  # type: ignore[arg-type]
     finally:
         res.metrics = m  # type: ignore[attr-defined]

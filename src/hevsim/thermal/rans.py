@@ -112,23 +112,21 @@ def conduction_sublayer_m(reynolds: float, hydraulic_diameter_m: float, prandtl:
 
 
 def check_thermal_wall_mesh(flow: Any, where: str = "cht") -> None:
-    """Warn (:class:`~hevsim.thermal.cht.ThermalMeshWarning`) when the FEM mesh of a RANS
-    ``flow`` has wall cells thicker than twice the conduction sublayer (metrics
+    """Refuse (:class:`~hevsim.errors.ConfigError`, exit 2) heat transfer on a RANS ``flow``
+    whose FEM mesh has wall cells thicker than twice the conduction sublayer (metrics
     ``fem_wall_cell_m``, ``conduction_sublayer_m``): the eddy diffusivity, interpolated across
     a cell that spans the sublayer, then reaches the wall and the coolant's wall heat comes out
-    far too high (on the shipped plate's uniform default mesh about 7x the 1-D model's)."""
-    from hevsim.thermal.cht import ThermalMeshWarning
-
+    far too high (on the shipped plate's uniform default mesh about 7x the 1-D model's), a
+    wrong number rather than an approximate one."""
     m = flow.metrics
     cell, delta = m["fem_wall_cell_m"], m["conduction_sublayer_m"]
     if cell > 2 * delta:
-        warnings.warn(
+        raise ConfigError(
             f"{where}: the coolant heat transfer on the turbulent flow needs FEM cells at the wall no "
             f"thicker than about {2 * delta:.2g} m (twice the conduction sublayer at Re {m['reynolds']:.0f}, "
-            f"Pr {m['prandtl']:.3g}), but they are {cell:.2g} m: the eddy diffusivity reaches the wall and "
-            "the wall heat is far too high. Set flow.wall_cell_m (graded FEM mesh) accordingly.",
-            ThermalMeshWarning,
-            stacklevel=3,
+            f"Pr {m['prandtl']:.3g}), but they are {cell:.2g} m: the eddy diffusivity would reach the wall "
+            "and the wall heat would be far too high. Set flow.wall_cell_m (graded FEM mesh) accordingly, "
+            "or use the 1-D coolant channel at this flow rate."
         )
 
 
