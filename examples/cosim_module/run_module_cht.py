@@ -33,8 +33,9 @@ from hevsim.cosim.system import run_cosim  # noqa: E402
 
 #: Laminar flow rate of the variant [L/min] (Re 86 with the Table 4.4 properties).
 FLOW_L_MIN = 0.25
-#: Grad-div stabilisation of the flow [-] (:class:`hevsim.thermal.flow.FlowSection`): it brings
-#: the coolant's heat balance (wall heat vs m_dot c_p dT) on the default mesh from 28 % to 0.5 %.
+#: Grad-div stabilisation of the flow [-] (:class:`hevsim.thermal.flow.FlowSection`): a better
+#: mass conservation of the Taylor-Hood flow on the default mesh (the coolant's heat balance is
+#: exact either way, through the divergence correction of hevsim.thermal.cht).
 GRAD_DIV = 10.0
 #: Coolant participants by model name.
 COOLANTS = {
