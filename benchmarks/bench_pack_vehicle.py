@@ -20,9 +20,8 @@ and CPU seconds, ratios, and the other processes' load.
 
     python benchmarks/bench_pack_vehicle.py [--rom examples/module.rom.npz] [--repeat 2]
 
-(numba caches a compiled function keyed on its own source file only: after editing
-hevsim/battery/pack*.py, delete hevsim/sim/__pycache__/kernel.run_series-*.nbi and
-hevsim/battery/__pycache__/pack_run.*.nbi before measuring, or the kernel runs the old pack step.)
+(After an edit to compiled code the first run recompiles: hevsim keeps numba's cache in one
+folder per version of its compiled modules, hevsim._numba_cache.)
 """
 
 from __future__ import annotations

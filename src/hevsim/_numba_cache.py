@@ -1,0 +1,90 @@
+"""Where numba keeps hevsim's compiled kernels: one cache folder per version of hevsim's
+compiled code.
+
+numba keys each function's on-disk cache on its own source file only. hevsim's kernels call
+(and inline) numba functions of other modules (the series kernel runs the pack step, the
+forward loops the component kernels), so after a change to one of those modules - a
+``git pull``, an edit in a development install - a kernel whose own file did not change
+would load the old machine code and compute with the old equations, silently. So the cache
+lives in ``<user cache>/hevsim/numba/<digest>``, where the digest covers the version and the
+content of every hevsim module that uses numba: any change to compiled code starts a fresh
+cache (one compilation, about a minute), and unchanged code keeps its cache across processes.
+
+``NUMBA_CACHE_DIR`` set by the user wins. If the user cache folder cannot be written, numba's
+default (``__pycache__`` next to the sources) is kept. hevsim keeps the
+:data:`KEEP` most recently used of its own cache folders (those holding :data:`MARKER`) and
+removes older ones unused for :data:`STALE_S`; it never touches anything else. The setting is
+also exported in the environment, so the processes hevsim starts (workers, FMU hosts) use the
+same folder.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import shutil
+import sys
+import time
+from pathlib import Path
+
+MARKER = ".hevsim-numba-cache"
+"""File that marks a cache folder as created by hevsim."""
+KEEP = 3
+"""Number of hevsim cache folders kept (the current one and the most recently used others)."""
+STALE_S = 7 * 86400.0
+"""A folder beyond :data:`KEEP` is removed only when unused for this long [s] (another checkout
+may be running with it)."""
+_NAME = re.compile(r"^[0-9a-f]{16}$")
+
+
+def code_digest(package_root: Path, version: str) -> str:
+    """16 hex digits of SHA-256 over ``version`` and the path and content of every module under
+    ``package_root`` that mentions numba."""
+    h = hashlib.sha256(version.encode())
+    for path in sorted(package_root.rglob("*.py")):
+        data = path.read_bytes()
+        if b"numba" in data:
+            h.update(path.relative_to(package_root).as_posix().encode() + b"\0")
+            h.update(hashlib.sha256(data).digest())
+    return h.hexdigest()[:16]
+
+
+def cache_root() -> Path:
+    """``$XDG_CACHE_HOME/hevsim/numba`` (default ``~/.cache/hevsim/numba``)."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "hevsim" / "numba"
+
+
+def configure(package_root: Path, version: str) -> Path | None:
+    """Point numba's cache at this code version's folder (see the module docstring); returns
+    it, or None when the user chose ``NUMBA_CACHE_DIR`` or the folder cannot be written."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return None
+    try:
+        root = cache_root()
+        folder = root / code_digest(package_root, version)
+        folder.mkdir(parents=True, exist_ok=True)
+        marker = folder / MARKER
+        marker.touch()
+        if not os.access(folder, os.W_OK):
+            return None
+        _prune(root, folder)
+    except OSError:
+        return None
+    os.environ["NUMBA_CACHE_DIR"] = str(folder)  # for this process and the ones it starts
+    numba_config = sys.modules.get("numba.core.config")
+    if numba_config is not None:  # numba imported first: its configuration was read already
+        numba_config.CACHE_DIR = str(folder)  # type: ignore[attr-defined]
+    return folder
+
+
+def _prune(root: Path, current: Path) -> None:
+    """Remove hevsim's cache folders beyond the :data:`KEEP` most recently used that have not
+    been used for :data:`STALE_S`."""
+    ours = [p for p in root.iterdir() if p.is_dir() and _NAME.match(p.name) and (p / MARKER).is_file()]
+    ours.sort(key=lambda p: (p == current, (p / MARKER).stat().st_mtime), reverse=True)
+    now = time.time()
+    for old in ours[KEEP:]:
+        if now - (old / MARKER).stat().st_mtime > STALE_S:
+            shutil.rmtree(old, ignore_errors=True)
