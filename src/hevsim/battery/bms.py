@@ -58,16 +58,11 @@ import pandas as pd
 
 from hevsim.battery.kernel import SOCINI
 from hevsim.battery.pack import Pack, PackStepStart
+from hevsim.battery.pack_run import VEHICLE_CHANNELS
 
 LIMIT_NAMES = ("none", "temperature", "soc", "voltage")
 """What binds a BMS current limit (the ``bms_*_limit_reason`` channel codes)."""
-CHANNELS = (
-    "pack_current_a", "pack_voltage_v", "pack_power_w", "pack_ocv_v", "pack_resistance_ohm",
-    "bms_discharge_limit_a", "bms_charge_limit_a", "bms_discharge_reason", "bms_charge_reason",
-    "derating_factor", "hottest_cell_temp_k", "hot_spot_temp_k", "cell_soc_min", "cell_soc_max",
-    "cell_soc_spread", "coolant_loop_temp_k", "coolant_supply_temp_k", "pump_power_w", "fan_power_w",
-    "chiller_power_w", "chiller_heat_w", "cooling_power_w", "plate_heat_w",
-)  # fmt: skip
+CHANNELS = VEHICLE_CHANNELS
 """Per-step pack channels of a vehicle run (step k's row: the values over/at the end of step k)."""
 
 

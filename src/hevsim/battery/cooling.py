@@ -128,18 +128,14 @@ def check_cooling(cool: CoolingSection, ctrl: ControllerSection, source: str) ->
 
 
 def counterflow_effectiveness(ntu: float, cr: float) -> float:
-    """Effectiveness of a counterflow heat exchanger [-] (Incropera eq. 11.29a/b)."""
-    if ntu <= 0.0:
-        return 0.0
-    if abs(1.0 - cr) < 1e-9:
-        return ntu / (1.0 + ntu)
-    e = math.exp(-ntu * (1.0 - cr))
-    return (1.0 - e) / (1.0 - cr * e)
+    """Effectiveness of a counterflow heat exchanger [-] (Incropera eq. 11.29a/b), for
+    ``ntu`` [-] and capacity-rate ratio ``cr`` [-] (the compiled kernel, called from Python)."""
+    return float(_effectiveness(float(ntu), float(cr)))
 
 
 @njit(cache=True)
 def _effectiveness(ntu, cr):
-    """:func:`counterflow_effectiveness` (the same operations)."""
+    """:func:`counterflow_effectiveness`'s kernel."""
     if ntu <= 0.0:
         return 0.0
     if abs(1.0 - cr) < 1e-9:

@@ -64,16 +64,24 @@ SV_NAMES = (
 (SV_HOT, SV_FACTOR, SV_EDIS, SV_ZDIS, SV_ECHG, SV_ZCHG, SV_LIMD, SV_LIMC, SV_WHYD, SV_WHYC, SV_COOLW,
  SV_SUPPLY, SV_PFLOW, SV_RAD, SV_CH, SV_CHP, SV_PUMP, SV_FAN, SV_LAMB) = range(len(SV_NAMES))  # fmt: skip
 
-#: one row of :attr:`PackArrays.rec` per step: :data:`hevsim.battery.bms.CHANNELS` then the rest
-#: of :data:`hevsim.battery.pack.STEP_CHANNELS`
-RECORD_CHANNELS = (
+#: per-step pack channels of a vehicle run (:data:`hevsim.battery.bms.CHANNELS`)
+VEHICLE_CHANNELS = (
     "pack_current_a", "pack_voltage_v", "pack_power_w", "pack_ocv_v", "pack_resistance_ohm",
     "bms_discharge_limit_a", "bms_charge_limit_a", "bms_discharge_reason", "bms_charge_reason",
     "derating_factor", "hottest_cell_temp_k", "hot_spot_temp_k", "cell_soc_min", "cell_soc_max",
     "cell_soc_spread", "coolant_loop_temp_k", "coolant_supply_temp_k", "pump_power_w", "fan_power_w",
     "chiller_power_w", "chiller_heat_w", "cooling_power_w", "plate_heat_w",
-    "time_s", "current_request_a", "voltage_end_v", "module_ambient_w", "radiator_w",
 )  # fmt: skip
+#: one row of :attr:`PackArrays.rec` per step: :data:`VEHICLE_CHANNELS` then the rest of
+#: :data:`hevsim.battery.pack.STEP_CHANNELS`
+RECORD_CHANNELS = (
+    *VEHICLE_CHANNELS,
+    "time_s",
+    "current_request_a",
+    "voltage_end_v",
+    "module_ambient_w",
+    "radiator_w",
+)
 (R_I, R_V, R_P, R_E, R_Z, R_LIMD, R_LIMC, R_WHYD, R_WHYC, R_FACTOR, R_HOT, R_HOTSPOT, R_SOCMIN, R_SOCMAX,
  R_SPREAD, R_LOOP, R_SUPPLY, R_PUMP, R_FAN, R_CHP, R_CH, R_COOL, R_PLATE, R_TIME, R_REQ, R_VEND, R_MODAMB,
  R_RAD) = range(len(RECORD_CHANNELS))  # fmt: skip

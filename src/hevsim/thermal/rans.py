@@ -890,7 +890,7 @@ def solve_rans(
     """
     from skfem import Basis, ElementTetP1, ElementTetP2, ElementVector
 
-    from hevsim.thermal.flow import L_MIN_TO_M3_S, FlowResult, FlowSection, channel_mesh
+    from hevsim.thermal.flow import FlowResult, FlowSection, channel_mesh, hydraulic_metrics
 
     sec = section or FlowSection()
     coolant.check(f"{where}: coolant")
@@ -1012,20 +1012,8 @@ def solve_rans(
     p_in = float((p_c[cin] * a_in).sum() / a_in.sum())
     q_in = float(abs(u_in[0]) * a_in.sum())
     q_out = float(abs((u_c[cout, 0] * a_out).sum()))
-    dp = p_in - sec.outlet_pressure_pa
     metrics = {
-        "flow_m3_s": flow_m3_s,
-        "flow_l_min": flow_m3_s / L_MIN_TO_M3_S,
-        "inlet_flow_m3_s": q_in,
-        "outlet_flow_m3_s": q_out,
-        "mass_imbalance_rel": abs(q_in - q_out) / flow_m3_s,
-        "reynolds": reynolds,
-        "mean_velocity_mps": u_mean,
-        "hydraulic_diameter_m": dh,
-        "inlet_pressure_pa": p_in,
-        "outlet_pressure_pa": sec.outlet_pressure_pa,
-        "pressure_drop_pa": dp,
-        "pump_power_w": dp * flow_m3_s,
+        **hydraulic_metrics(flow_m3_s, q_in, q_out, reynolds, u_mean, dh, p_in, sec.outlet_pressure_pa),
         # largest change of the pressure drop over the last tenth of the iterations, relative [-]
         "pressure_drop_change_rel": dp_change,
         "max_velocity_mps": float(np.max(np.linalg.norm(u_c, axis=1))),
