@@ -23,7 +23,6 @@ from __future__ import annotations
 import hashlib
 import os
 import re
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -84,6 +83,8 @@ def _prune(root: Path, current: Path) -> None:
     been used for :data:`STALE_S`."""
     ours = [p for p in root.iterdir() if p.is_dir() and _NAME.match(p.name) and (p / MARKER).is_file()]
     ours.sort(key=lambda p: (p == current, (p / MARKER).stat().st_mtime), reverse=True)
+    import shutil  # here: most imports of hevsim prune nothing
+
     now = time.time()
     for old in ours[KEEP:]:
         if now - (old / MARKER).stat().st_mtime > STALE_S:
