@@ -64,10 +64,7 @@ def configure(package_root: Path, version: str) -> Path | None:
         root = cache_root()
         folder = root / code_digest(package_root, version)
         folder.mkdir(parents=True, exist_ok=True)
-        marker = folder / MARKER
-        marker.touch()
-        if not os.access(folder, os.W_OK):
-            return None
+        (folder / MARKER).touch()  # raises if the folder cannot be written
         _prune(root, folder)
     except OSError:
         return None

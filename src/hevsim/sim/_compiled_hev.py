@@ -216,8 +216,7 @@ def _feasible(infeasible, others, cur, t_em, p_bat, p_el, soc, h):
     """The forward driver's feasibility of a point (as :meth:`hevsim.sim.forward.Step.evaluate`;
     see :data:`hevsim.sim.forward.REGEN_CURRENT_RTOL`)."""
     ok = not infeasible
-    near = cur >= -h.i_charge_max_a * (1.0 + REGEN_CURRENT_RTOL)
-    if not others and near and t_em < 0.0 and soc < h.soc_max:  # full: no charging at all
+    if not others and cur >= -h.i_charge_max_a * (1.0 + REGEN_CURRENT_RTOL) and t_em < 0.0:
         ok = True
     if soc <= h.soc_min:  # empty: no discharge
         ok = ok and p_bat <= 0.0

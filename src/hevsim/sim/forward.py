@@ -184,8 +184,7 @@ class Step:
                         others = others | np.asarray(flag)
                 limit = self.model.battery.max_charge_current_a
                 near = np.asarray(flow.current_a) >= -limit * (1.0 + REGEN_CURRENT_RTOL)
-                if self.soc < self.soc_max:  # full: no charging at all (not even near the limit)
-                    feasible = feasible | (~others & near & (np.asarray(flow.torque_nm) < 0.0))
+                feasible = feasible | (~others & near & (np.asarray(flow.torque_nm) < 0.0))
             if self.soc <= self.soc_min:  # empty: no discharge
                 feasible = feasible & (np.asarray(flow.battery_power_w) <= 0.0)
             if self.soc >= self.soc_max:  # full: no charging from any source (the engine through a
