@@ -182,6 +182,52 @@ class FmuVariables:
         }  # fmt: skip
         self._slave = slave
 
+    def fast_names(self) -> tuple[tuple[str, ...], tuple[str, ...]] | None:
+        """(The scalar float64 inputs, the outputs in the order :meth:`real_io` reads them)
+        when every output is float64 (FMI 2.0 Real, FMI 3.0 Float64), else None."""
+        real = "Float64" if self.fmi3 else "Real"
+        if len(self._out_groups) > 1 or any(g.fmi_type != real for g in self._out_groups):
+            return None
+        ins = tuple(e for ftype, _, names in self._in_vars.values() if ftype == real and len(names) == 1
+                    for e in names)  # fmt: skip
+        return ins, tuple(self._out_groups[0].names) if self._out_groups else ()
+
+    def real_io(
+        self, slave: Any, names: tuple[str, ...], in_values: Any, out_values: Any
+    ) -> tuple[Callable[[], None] | None, Callable[[], None] | None]:
+        """Calls of the FMU's own float64 set / get functions on ``slave`` (instantiated) that
+        set the scalar float64 inputs ``names`` from the ctypes double array ``in_values``
+        and read every output (:meth:`fast_names`) into ``out_values`` (None: no call)."""
+        import ctypes
+
+        fns, comp, fmi3 = slave._functions, slave.component, self.fmi3
+        set_call = get_call = None
+        if names:
+            scalar = (self.fast_names() or ((), ()))[0]
+            missing = [e for e in names if e not in scalar]
+            if missing:
+                raise ConfigError(f"FMU {self.fmu_name}: {missing} are not scalar float64 inputs.")
+            vrs = (ctypes.c_uint * len(names))(*(self._in_vars[e][1] for e in names))
+            set_call = self._raw_call("fmi3SetFloat64" if fmi3 else "fmi2SetReal", fns, comp, vrs, in_values)
+        g = self._out_groups[0] if self._out_groups else None
+        if g is not None:
+            vrs = (ctypes.c_uint * len(g.vrs))(*g.vrs)
+            get_call = self._raw_call("fmi3GetFloat64" if fmi3 else "fmi2GetReal", fns, comp, vrs, out_values)
+        return set_call, get_call
+
+    def _raw_call(
+        self, name: str, fns: Mapping[str, Any], comp: Any, vrs: Any, values: Any
+    ) -> Callable[[], None]:
+        fn, nvr, n = fns[name], len(vrs), len(values)
+        args = (comp, vrs, nvr, values, n) if self.fmi3 else (comp, vrs, nvr, values)
+
+        def call() -> None:
+            st = fn(*args)
+            if st > 1:
+                self._status(name, st)
+
+        return call
+
     def _status(self, fn: str, status: int) -> None:
         if status > 1:  # fmiOK, fmiWarning
             from fmpy.fmi1 import FMICallException

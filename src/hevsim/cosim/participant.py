@@ -504,6 +504,32 @@ class FMUParticipant(Participant):
                 raise self._explained(exc, mark) from exc
             raise
 
+    def real_io(
+        self, names: tuple[str, ...], in_values: Any, out_values: Any
+    ) -> tuple[Callable[[], None] | None, Callable[[], None] | None]:
+        """Calls that set the scalar float64 inputs ``names`` from the ctypes double array
+        ``in_values`` and read all outputs into ``out_values``
+        (:meth:`hevsim.cosim.fmi_vars.FmuVariables.real_io`: the worker's steps in shared
+        memory), failing as :meth:`set_inputs` and :meth:`get_outputs` do."""
+        set_call, get_call = self.vars.real_io(self.slave, names, in_values, out_values)
+        return self._explaining(set_call), self._explaining(get_call)
+
+    def _explaining(self, call: Callable[[], None] | None) -> Callable[[], None] | None:
+        """``call`` re-raising a failure with the FMU's log messages since it began."""
+        if call is None:
+            return None
+
+        def explained() -> None:
+            mark = self._log_count
+            try:
+                call()
+            except Exception as exc:
+                if self._log_count != mark:
+                    raise self._explained(exc, mark) from exc
+                raise
+
+        return explained
+
     @property
     def can_save_state(self) -> bool:
         return self.can_state

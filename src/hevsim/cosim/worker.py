@@ -1,20 +1,39 @@
 """An FMU participant in a persistent worker process (length-prefixed pickle frames over its
-stdin/stdout pipes: :mod:`hevsim.cosim._worker`), so an FMU that crashes cannot take the
-master down: the master gets a :class:`SimulationError` naming the participant and the call
-instead. One round trip per communication step (inputs, doStep, outputs); under Jacobi the
-workers step in parallel (:meth:`WorkerFMUParticipant.start_step`), and a worker without
-inputs runs ahead, several steps per round trip (:meth:`WorkerFMUParticipant.run_ahead`)."""
+stdin/stdout pipes, float64 steps in shared memory: :mod:`hevsim.cosim._worker`), so an FMU
+that crashes cannot take the master down: the master gets a :class:`SimulationError` naming
+the participant and the call instead. One round trip per communication step (inputs,
+doStep, outputs); under Jacobi the workers step in parallel
+(:meth:`WorkerFMUParticipant.start_step`), and a worker without inputs runs ahead, several
+steps per round trip (:meth:`WorkerFMUParticipant.run_ahead`)."""
 
 from __future__ import annotations
 
 import collections
+import math
+import os
+import struct
 import subprocess
 import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, NoReturn
 
-from hevsim.cosim._worker import FrameReader, encode_frame, send_frame, write_frame
+from hevsim.cosim._worker import (
+    OUTCOME_AT,
+    OUTCOME_FORMAT,
+    REPLY_SEQ_AT,
+    REQUEST_SEQ_AT,
+    TOKEN,
+    TOKEN_FRAME,
+    FrameReader,
+    Spin,
+    channel_size,
+    encode_frame,
+    send_frame,
+    step_at,
+    write_frame,
+    write_seq,
+)
 from hevsim.cosim.participant import Participant, fmu_file
 from hevsim.errors import ConfigError, SimulationError
 
@@ -36,12 +55,17 @@ class WorkerFMUParticipant(Participant):
         self.name = name
         self.fmu = fmu_file(name, fmu)
         self.terminate_requested = False
+        # shared memory for the float64 steps (Linux; elsewhere every step is a pickled frame)
+        self._fd = os.memfd_create(f"hevsim-worker-{name}") if hasattr(os, "memfd_create") else -1
+        self._mm: Any = None
+        self._awaiting = 0  # counter of the step in shared memory whose reply is due
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "hevsim.cosim._worker"],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=None,  # the FMU's own output and its logger lines from log_level up
             bufsize=0,
+            pass_fds=(self._fd,) if self._fd >= 0 else (),
         )
         assert self.proc.stdin is not None and self.proc.stdout is not None
         self._wfd = self.proc.stdin.fileno()
@@ -61,10 +85,32 @@ class WorkerFMUParticipant(Participant):
         except SimulationError as exc:
             self.close()
             raise ConfigError(str(exc)) from None
-        ins, outs, can_state, note, types = info
+        ins, outs, can_state, note, types, fast = info
         self.inputs, self.outputs = dict(ins), dict(outs)
         self._can_state, self._state_note = bool(can_state), str(note)
         self.types = dict(types)
+        self._open_channel(fast)
+
+    def _open_channel(self, fast: tuple[tuple[str, ...], tuple[str, ...]] | None) -> None:
+        """Map the shared memory when the FMU's outputs are all float64 (``fast``: its scalar
+        float64 inputs and its outputs, else None): steps setting only such inputs go
+        through it (:mod:`hevsim.cosim._worker`)."""
+        self._fast_in: frozenset[str] = frozenset()
+        self._fast_names: tuple[str, ...] | None = None  # the inputs the worker is bound to
+        self._seq = 0
+        self._packers: dict[tuple[str, ...], Callable[..., None]] = {}
+        if fast is None or self._fd < 0:
+            return
+        import mmap
+
+        fast_in, self._fast_out = fast
+        self._size = channel_size(len(fast_in), len(self._fast_out))
+        os.ftruncate(self._fd, self._size)
+        self._mm = mmap.mmap(self._fd, self._size)
+        self._spin = Spin(self._mm, REPLY_SEQ_AT)
+        self._step_at = step_at(len(self._fast_out))
+        self._unpack_reply = struct.Struct(f"{OUTCOME_FORMAT}{len(self._fast_out)}d").unpack_from
+        self._fast_in = frozenset(fast_in)
 
     @property
     def can_save_state(self) -> bool:
@@ -79,6 +125,11 @@ class WorkerFMUParticipant(Participant):
         return self._recv(cmd)
 
     def _send(self, cmd: str, *args: Any) -> None:
+        self._ready()
+        self._write(cmd, encode_frame((cmd, *args)))  # (an argument that cannot be sent fails here)
+
+    def _ready(self) -> None:
+        """Check the worker can take a request (collecting a started step's reply first)."""
         if self._broken:
             raise SimulationError(
                 f"participant {self.name!r}: the exchange with its worker process was interrupted "
@@ -86,7 +137,8 @@ class WorkerFMUParticipant(Participant):
             )
         if self._in_flight:  # a started step's reply comes first
             self._collect()
-        frame = encode_frame((cmd, *args))  # (an argument that cannot be sent fails here)
+
+    def _write(self, cmd: str, frame: bytes) -> None:
         try:
             write_frame(self._wfd, frame)
         except OSError:
@@ -96,13 +148,24 @@ class WorkerFMUParticipant(Participant):
             raise
 
     def _recv(self, cmd: str) -> Any:
+        seq, self._awaiting = self._awaiting, 0
         try:
-            ok, res = self._reader.recv()
+            if seq:  # a step in shared memory: poll for its reply before blocking on the pipe
+                t0 = self._spin.poll(seq) if not self._reader.buf else None
+                msg = self._reader.recv()
+                if t0 is not None:
+                    self._spin.waited(t0)
+                if msg is TOKEN:
+                    return self._fast_reply()
+                self._fast_names = None  # it failed: bind again
+            else:
+                msg = self._reader.recv()
         except (EOFError, OSError):
             self._crashed(cmd)
         except BaseException:  # e.g. KeyboardInterrupt between request and reply
             self._broken = cmd
             raise
+        ok, res = msg
         if not ok:
             raise SimulationError(f"participant {self.name!r}: {cmd} failed: {res}")
         return res
@@ -130,6 +193,7 @@ class WorkerFMUParticipant(Participant):
 
     # Inputs are sent with the next step (or output query): one round trip per step.
     def setup(self, t0: float) -> None:
+        self._fast_names = None  # a new instance: bind the shared memory again
         self._pending: dict[str, Any] = {}
         self._out: dict[str, Any] | None = None
         self._started = False
@@ -155,11 +219,43 @@ class WorkerFMUParticipant(Participant):
     def _send_step(self, t: float, h: float) -> None:
         pending = self._pending
         names: tuple[str, ...] | None = tuple(pending)
+        if self._mm is not None and self._fast_in.issuperset(names) and self._send_fast(t, h, names):  # type: ignore[arg-type]
+            return
         same = names == self._in_names
         self._send("step", t, h, None if same else names, tuple(pending.values()))
         self._in_names = names  # the worker keeps them for the next steps
         self._pending = {}
         self._out = None
+
+    def _send_fast(self, t: float, h: float, names: tuple[str, ...]) -> bool:
+        """Send the step through the shared memory (False: a value is not a float, sent pickled)."""
+        self._ready()
+        mm = self._mm
+        pack = self._packers.get(names)
+        if pack is None:
+            pack = self._packers[names] = struct.Struct(f"<{2 + len(names)}d").pack_into
+        try:
+            pack(mm, self._step_at, t, h, *self._pending.values())
+        except struct.error:
+            return False
+        self._seq += 1
+        write_seq(mm, REQUEST_SEQ_AT, self._seq)
+        if names == self._fast_names:
+            frame = TOKEN_FRAME
+        else:  # the worker binds these inputs to the memory, then steps
+            frame = encode_frame(("bind", names, self._fd, self._size))
+        self._write("step", frame)
+        self._fast_names = names
+        self._awaiting = self._seq
+        self._pending = {}
+        self._out = None
+        return True
+
+    def _fast_reply(self) -> tuple[bool, float | None, bool, float | None, Any]:
+        """The reply of a step in shared memory, as the pickled step's."""
+        ok, term, pref, tt, *outs = self._unpack_reply(self._mm, OUTCOME_AT)
+        return (bool(ok), None if math.isnan(pref) else pref, bool(term), None if math.isnan(tt) else tt,
+                (self._fast_out, outs) if ok else None)  # fmt: skip
 
     def run_ahead(self, next_end: Callable[[float], float | None], batch: int = RUN_AHEAD_STEPS) -> None:
         """Step ``batch`` steps per round trip from now on: the master calls this for a
@@ -266,6 +362,12 @@ class WorkerFMUParticipant(Participant):
 
     def close(self) -> None:
         """Stop the worker process (idempotent)."""
+        if self._mm is not None:
+            self._mm.close()
+            self._mm = None
+        if self._fd >= 0:
+            os.close(self._fd)
+            self._fd = -1
         if self.proc.poll() is None:
             try:
                 if not self._broken:
