@@ -6,7 +6,7 @@ gallons and BTU happen only at the edges (input files and reports).
 
 from pathlib import Path as _Path
 
-from hevsim._numba_cache import configure as _configure_numba_cache
+from hevsim._numba_cache import configure_before_numba as _configure_numba_cache
 
 __version__ = "0.1.0"
 

@@ -16,6 +16,11 @@ default (``__pycache__`` next to the sources) is kept. hevsim keeps the
 removes older ones unused for :data:`STALE_S`; it never touches anything else. The setting is
 also exported in the environment, so the processes hevsim starts (workers, FMU hosts) use the
 same folder.
+
+The digest reads every module of the package (a few ms), so ``import hevsim`` does not
+compute it: :func:`configure_before_numba` does it just before numba is first imported (a
+finder on ``sys.meta_path`` that removes itself), or at once when numba was imported first.
+Commands that never compile (``hevsim cosim`` of FMUs) do not pay for it.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ import re
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 MARKER = ".hevsim-numba-cache"
 """File that marks a cache folder as created by hevsim."""
@@ -73,6 +79,28 @@ def configure(package_root: Path, version: str) -> Path | None:
     if numba_config is not None:  # numba imported first: its configuration was read already
         numba_config.CACHE_DIR = str(folder)  # type: ignore[attr-defined]
     return folder
+
+
+class _BeforeNumba:
+    """A ``sys.meta_path`` finder that calls :func:`configure` when ``numba`` is about to be
+    imported for the first time (then leaves the import to the other finders)."""
+
+    def __init__(self, package_root: Path, version: str):
+        self.args = (package_root, version)
+
+    def find_spec(self, name: str, path: Any = None, target: Any = None) -> None:
+        if name == "numba":
+            if self in sys.meta_path:
+                sys.meta_path.remove(self)
+            configure(*self.args)
+
+
+def configure_before_numba(package_root: Path, version: str) -> None:
+    """:func:`configure` now if numba is imported already, else just before its import."""
+    if "numba" in sys.modules:
+        configure(package_root, version)
+    elif not any(isinstance(f, _BeforeNumba) for f in sys.meta_path):
+        sys.meta_path.insert(0, _BeforeNumba(package_root, version))
 
 
 def _prune(root: Path, current: Path) -> None:

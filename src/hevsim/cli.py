@@ -525,21 +525,25 @@ def _cmd_cosim(args: argparse.Namespace) -> int:
         datacheck(args.config)
         print(f"{args.config}: ok (well-formed, structure, references, connection pairing, units)")
         return 0
-    from tqdm import tqdm
-
     out = Path(args.out) if args.out else Path("results") / Path(args.config).stem
     _prepare(args, out, args.config)
-    bar = tqdm(total=1.0, unit="run", disable=not sys.stderr.isatty(), bar_format="{l_bar}{bar}| {elapsed}")
+    bar: Any = None
+    progress: Callable[[float, float], None] | None = None
+    if sys.stderr.isatty():  # (tqdm and its locks are imported only for a terminal)
+        from tqdm import tqdm
 
-    def progress(t_s: float, stop_s: float) -> None:
-        bar.n = min(t_s / stop_s, 1.0) if stop_s > 0 else 1.0
-        bar.refresh()
+        bar = tqdm(total=1.0, unit="run", bar_format="{l_bar}{bar}| {elapsed}")
+
+        def progress(t_s: float, stop_s: float) -> None:
+            bar.n = min(t_s / stop_s, 1.0) if stop_s > 0 else 1.0
+            bar.refresh()
 
     try:
         res = run_cosim(args.config, out, progress=progress, resume=args.resume, log_level=args.log_level,
                         fmu_log=args.fmu_log)  # fmt: skip
     finally:
-        bar.close()
+        if bar is not None:
+            bar.close()
     print(format_cosim_summary(res, out))
     return 0
 
@@ -737,10 +741,23 @@ def _version() -> str:
         return __version__
 
 
+class _VersionAction(argparse.Action):
+    """``--version``: the version looked up only when asked (importlib.metadata costs ~10 ms
+    of every command's start)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str = argparse.SUPPRESS, **kw: Any):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS,
+                         help="show program's version number and exit", **kw)  # fmt: skip
+
+    def __call__(self, parser: argparse.ArgumentParser, *args: Any) -> None:
+        print(f"hevsim {_version()}")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``hevsim`` command."""
     parser = argparse.ArgumentParser(prog="hevsim", description=__doc__.splitlines()[0])
-    parser.add_argument("--version", action="version", version=f"hevsim {_version()}")
+    parser.add_argument("--version", action=_VersionAction)
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("cycles", help="list the shipped drive cycles")
