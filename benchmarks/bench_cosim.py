@@ -21,13 +21,21 @@ participant (the figure reported before, whose step counts as overhead). The raw
 also given for FMPy's ctypes functions called directly, without hevsim's participant.
 
 A worker-process FMU is timed over the stepping loop only (wall clock, and the CPU time of
-the master and of the worker process, from /proc on Linux), the worker's start excluded.
+the master and of the worker process, from /proc on Linux), the worker's start excluded, 5
+runs (min / median / max), with the steps in shared memory and polling (the default), in
+shared memory without polling and as pickled frames (the protocol before), interleaved; then
+the same while one busy-loop process (started and killed here) loads the machine.
+
+The fresh-process comparison runs each command 5 times (interleaved; min and median) in two
+settings: with Python's bytecode cache (a normal installation; ``PYTHONPYCACHEPREFIX`` in a
+temporary folder, filled by a first run) and as the environment starts it (where
+``PYTHONDONTWRITEBYTECODE`` is set, every hevsim module is compiled at each start).
 
 Targets: end to end within 1.5x of FMPy, master overhead <= 10 µs per step per FMU, worker
 FMUs <= 60 µs per step, time linear in the number of steps (1k/2k/4k/8k table). The load of
 the machine is printed: compare figures of the same run only.
 
-Run: ``.venv/bin/python benchmarks/bench_cosim.py [--steps 10000] [--skip-cli]``
+Run: ``.venv/bin/python benchmarks/bench_cosim.py [--steps 10000] [--skip-cli] [--worker-only]``
 """
 
 from __future__ import annotations
@@ -205,16 +213,25 @@ def _proc_cpu_s(pid: int) -> float | None:
         return None
 
 
+WORKER_VARIANTS = {
+    "shared memory, polling": {},
+    "shared memory, no polling": {"spin_s": 0.0},
+    "pickled frames (before)": {"shared_memory": False},
+}
+"""Worker protocols compared (class attributes of WorkerFMUParticipant)."""
+
+
 def worker_us(
-    fmu: Path, steps: int, n_fmus: int = 0, parallel: bool = True
+    fmu: Path, steps: int, n_fmus: int = 0, parallel: bool = True, variant: str = "shared memory, polling"
 ) -> tuple[float, float, float | None]:
     """Per step over the stepping loop of worker-process FMUs (:func:`_system`; Jacobi, the
-    workers started together unless not ``parallel``): (wall [µs], master CPU [µs], workers'
-    CPU [µs] or None)."""
+    workers started together unless not ``parallel``; protocol ``variant`` of
+    :data:`WORKER_VARIANTS`): (wall [µs], master CPU [µs], workers' CPU [µs] or None)."""
     from hevsim.cosim import simulate
     from hevsim.cosim.worker import WorkerFMUParticipant
 
-    parts, conns = _system(fmu, WorkerFMUParticipant, n_fmus)
+    cls = type("BenchWorker", (WorkerFMUParticipant,), dict(WORKER_VARIANTS[variant]))
+    parts, conns = _system(fmu, cls, n_fmus)
     workers = [p for p in parts if isinstance(p, WorkerFMUParticipant)]
     if not parallel:
         for p in workers:
@@ -234,79 +251,130 @@ def worker_us(
     return (w1 - w0) / n * 1e6, (c1 - c0) / n * 1e6, wcpu
 
 
-def cli_ratio(d: Path, fmu: Path, ssd: Path, steps: int) -> tuple[float, float]:
-    """Wall time [s] of ``hevsim cosim`` and of FMPy, each in a fresh process."""
+def cli_ratio(
+    d: Path, fmu: Path, ssd: Path, steps: int, env: dict[str, str] | None = None
+) -> tuple[float, float]:
+    """Wall time [s] of ``hevsim cosim`` and of FMPy, each in a fresh process (environment
+    ``env``; None: this one)."""
     py = sys.executable
     t0 = time.perf_counter()
     hevsim = str(Path(py).with_name("hevsim"))
     subprocess.run([hevsim, "cosim", str(ssd), "--out", str(d / "cli_out"), "--force"],
-                   check=True, capture_output=True)  # fmt: skip
+                   check=True, capture_output=True, env=env)  # fmt: skip
     t_cli = time.perf_counter() - t0
     code = (f"from fmpy import simulate_fmu; simulate_fmu({str(fmu)!r}, stop_time={steps * H}, "
             f"step_size={H}, output_interval={H}); import os; os._exit(0)")  # fmt: skip
     t0 = time.perf_counter()
-    subprocess.run([py, "-c", code], check=True, capture_output=True)
+    subprocess.run([py, "-c", code], check=True, capture_output=True, env=env)
     return t_cli, time.perf_counter() - t0
+
+
+def cli_rows(d: Path, fmu: Path, ssd: Path, steps: int, runs: int = 5) -> None:
+    """Print the fresh-process comparison, with and without a bytecode cache."""
+    cached = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    cached["PYTHONPYCACHEPREFIX"] = str(d / "pycache")
+    settings = [("bytecode cached (normal install)", cached)]
+    if os.environ.get("PYTHONDONTWRITEBYTECODE"):
+        settings.append(("as started here, PYTHONDONTWRITEBYTECODE=1 (no bytecode cache)", None))
+    for what, env in settings:
+        cli_ratio(d, fmu, ssd, steps, env)  # warm-up (fills the bytecode cache)
+        r = [cli_ratio(d, fmu, ssd, steps, env) for _ in range(runs)]
+        hv, fp = [x[0] for x in r], [x[1] for x in r]
+        print(f"  fresh process, {what}, {runs} runs: hevsim cosim min {min(hv):.3f} / median "
+              f"{statistics.median(hv):.3f} s, python -c simulate_fmu min {min(fp):.3f} / median "
+              f"{statistics.median(fp):.3f} s; ratio of mins {min(hv) / min(fp):.2f}, of medians "
+              f"{statistics.median(hv) / statistics.median(fp):.2f} (target {TARGET_RATIO})")  # fmt: skip
+
+
+def worker_rows(fmu: Path, steps: int, runs: int = 5) -> None:
+    """Print the worker-process FMU per step: each protocol of :data:`WORKER_VARIANTS`,
+    ``runs`` interleaved runs, on the machine as it is and with one busy loop started here."""
+    for busy in (False, True):
+        loop = subprocess.Popen([sys.executable, "-c", "while 1: pass"]) if busy else None
+        try:
+            time.sleep(0.2 if busy else 0.0)
+            rows: dict[str, list[tuple[float, float, float | None]]] = {v: [] for v in WORKER_VARIANTS}
+            with OtherLoad() as other:
+                for _ in range(runs):
+                    for v in WORKER_VARIANTS:
+                        rows[v].append(worker_us(fmu, steps, variant=v))
+            load = os.getloadavg()[0]
+        finally:
+            if loop is not None:
+                loop.kill()
+                loop.wait()
+        how = "with one busy-loop process running" if busy else "machine as it is"
+        print(f"  worker-process FMU per step, {how} (load average {load:.2f}; {other.text()}), "
+              f"{runs} runs (target <= {TARGET_WORKER_US} µs):")  # fmt: skip
+        for v, rs in rows.items():
+            w = sorted(r[0] for r in rs)
+            cm = statistics.median(r[1] for r in rs)
+            cws = [r[2] for r in rs if r[2] is not None]
+            cpu = f"; CPU medians: master {cm:.1f} + worker {statistics.median(cws):.1f} µs" if cws else ""
+            print(f"    {v:26s}: wall min {w[0]:6.1f} / median {statistics.median(w):6.1f} / "
+                  f"max {w[-1]:6.1f} µs{cpu}")  # fmt: skip
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     ap.add_argument("--steps", type=int, default=10_000)
     ap.add_argument("--skip-cli", action="store_true", help="skip the fresh-process CLI comparison")
+    ap.add_argument("--worker-only", action="store_true", help="only the worker-process FMU rows")
     a = ap.parse_args()
     print("load average at start: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg()))
     with tempfile.TemporaryDirectory() as tmp, OtherLoad() as load:
         d = Path(tmp)
         fmu = build_vdp(d)
         ssd = write_system(d, fmu, a.steps)
-        t_fmpy(fmu, 100)  # warm up both paths (imports, extraction)
-        t_run_cosim(write_system(d, fmu, 100), d / "warm")
-        tf = min(t_fmpy(fmu, a.steps) for _ in range(2))
-        th, extra = min((t_run_cosim(ssd, d / f"out{i}") for i in range(2)), key=lambda r: r[0])
-        print(f"Van der Pol FMU (pythonfmu, in process), {a.steps} steps of {H} s")
-        print(f"  fmpy.simulate_fmu              : {tf:7.3f} s")
-        ms = extra["master_s"]
-        print(
-            f"  hevsim run_cosim (files, plots): {th:7.3f} s   ratio {th / tf:5.2f} (target {TARGET_RATIO})"
-        )
-        print(f"    of which the master loop     : {ms:7.3f} s   ratio {ms / tf:5.2f}")
-        print("  master overhead (CPU time per step, setup excluded; medians of 5 interleaved runs):")
-        for k, what in ((2, "2 FMUs feeding each other"), (0, "1 FMU fed by a Python source")):
-            pairs = [(raw_cost_us(fmu, a.steps, max(k, 1)), master_cpu_us(fmu, a.steps, k)) for _ in range(5)]
-            raw = statistics.median(r for r, _ in pairs)
-            tot = statistics.median(m for _, m in pairs)
-            per = max(k, 1)
-            print(f"    {what:28s}: raw set+doStep+get {raw:6.2f} µs, master {tot:6.2f} µs, own overhead "
-                  f"{(tot - raw) / per:5.2f} µs per step per FMU (target {TARGET_OVERHEAD_US})")  # fmt: skip
-        direct = statistics.median(direct_cost_us(fmu, a.steps) for _ in range(5))
-        print(f"    FMI calls through FMPy's ctypes functions directly: {direct:6.2f} µs per step per FMU")
-        ws = [worker_us(fmu, a.steps) for _ in range(2)]
-        tw, cm, cw = min(ws, key=lambda r: r[0])
-        cpu = f"; CPU: master {cm:.1f} µs + worker {cw:.1f} µs" if cw is not None else ""
-        print(f"  worker-process FMU per step    : {tw:7.2f} µs wall (target <= {TARGET_WORKER_US}){cpu}")
-        import hevsim.cosim.worker as worker
-
-        batch = getattr(worker, "RUN_AHEAD_STEPS", None)
-        how = f"runs ahead, {batch} steps per exchange" if batch else "one exchange per step"
-        alone = min(worker_us(fmu, a.steps, -1)[0] for _ in range(2))
-        print(f"  worker FMU without inputs ({how}): {alone:7.2f} µs per step")
-        par = min(worker_us(fmu, a.steps // 2, 2)[0] for _ in range(2))
-        seq = min(worker_us(fmu, a.steps // 2, 2, parallel=False)[0] for _ in range(2))
-        print(f"  2 worker FMUs feeding each other (Jacobi): {par:7.2f} µs per step stepping together, "
-              f"{seq:7.2f} µs one after the other")  # fmt: skip
-        print("  scaling (run_cosim, in process):")
-        print("     steps   hevsim [s]   fmpy [s]   ratio   hevsim per 1k steps [s]")
-        for n in (1000, 2000, 4000, 8000):
-            s_n = write_system(d, fmu, n)
-            h_n = min(t_run_cosim(s_n, d / f"s{n}_{i}")[0] for i in range(2))
-            f_n = min(t_fmpy(fmu, n) for _ in range(2))
-            print(f"    {n:6d}   {h_n:10.3f}   {f_n:8.3f}   {h_n / f_n:5.2f}   {h_n / n * 1000:10.3f}")
-        if not a.skip_cli:
-            runs = [cli_ratio(d, fmu, ssd, a.steps) for _ in range(3)]  # best of 3 of each
-            t_cli, t_fp = min(r[0] for r in runs), min(r[1] for r in runs)
-            print(f"  fresh process: hevsim cosim {t_cli:.2f} s, python -c simulate_fmu {t_fp:.2f} s, "
-                  f"ratio {t_cli / t_fp:.2f}")  # fmt: skip
+        if a.worker_only:
+            worker_us(fmu, 100)
+            worker_rows(fmu, a.steps)
+        else:
+            run_all(d, fmu, ssd, a)
     print(load.text() + "; load average at end: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg()))
+
+
+def run_all(d: Path, fmu: Path, ssd: Path, a: argparse.Namespace) -> None:
+    """Every row of the table (see the module docstring)."""
+    t_fmpy(fmu, 100)  # warm up both paths (imports, extraction)
+    t_run_cosim(write_system(d, fmu, 100), d / "warm")
+    tf = min(t_fmpy(fmu, a.steps) for _ in range(2))
+    th, extra = min((t_run_cosim(ssd, d / f"out{i}") for i in range(2)), key=lambda r: r[0])
+    print(f"Van der Pol FMU (pythonfmu, in process), {a.steps} steps of {H} s")
+    print(f"  fmpy.simulate_fmu              : {tf:7.3f} s")
+    ms = extra["master_s"]
+    print(f"  hevsim run_cosim (files, plots): {th:7.3f} s   ratio {th / tf:5.2f} (target {TARGET_RATIO})")
+    print(f"    of which the master loop     : {ms:7.3f} s   ratio {ms / tf:5.2f}")
+    print("  master overhead (CPU time per step, setup excluded; medians of 5 interleaved runs):")
+    for k, what in ((2, "2 FMUs feeding each other"), (0, "1 FMU fed by a Python source")):
+        pairs = [(raw_cost_us(fmu, a.steps, max(k, 1)), master_cpu_us(fmu, a.steps, k)) for _ in range(5)]
+        raw = statistics.median(r for r, _ in pairs)
+        tot = statistics.median(m for _, m in pairs)
+        per = max(k, 1)
+        print(f"    {what:28s}: raw set+doStep+get {raw:6.2f} µs, master {tot:6.2f} µs, own overhead "
+              f"{(tot - raw) / per:5.2f} µs per step per FMU (target {TARGET_OVERHEAD_US})")  # fmt: skip
+    direct = statistics.median(direct_cost_us(fmu, a.steps) for _ in range(5))
+    print(f"    FMI calls through FMPy's ctypes functions directly: {direct:6.2f} µs per step per FMU")
+    worker_rows(fmu, a.steps)
+    import hevsim.cosim.worker as worker
+
+    batch = getattr(worker, "RUN_AHEAD_STEPS", None)
+    how = f"runs ahead, {batch} steps per exchange" if batch else "one exchange per step"
+    alone = min(worker_us(fmu, a.steps, -1)[0] for _ in range(2))
+    print(f"  worker FMU without inputs ({how}): {alone:7.2f} µs per step")
+    par = min(worker_us(fmu, a.steps // 2, 2)[0] for _ in range(2))
+    seq = min(worker_us(fmu, a.steps // 2, 2, parallel=False)[0] for _ in range(2))
+    print(f"  2 worker FMUs feeding each other (Jacobi): {par:7.2f} µs per step stepping together, "
+          f"{seq:7.2f} µs one after the other")  # fmt: skip
+    print("  scaling (run_cosim, in process):")
+    print("     steps   hevsim [s]   fmpy [s]   ratio   hevsim per 1k steps [s]")
+    for n in (1000, 2000, 4000, 8000):
+        s_n = write_system(d, fmu, n)
+        h_n = min(t_run_cosim(s_n, d / f"s{n}_{i}")[0] for i in range(2))
+        f_n = min(t_fmpy(fmu, n) for _ in range(2))
+        print(f"    {n:6d}   {h_n:10.3f}   {f_n:8.3f}   {h_n / f_n:5.2f}   {h_n / n * 1000:10.3f}")
+    if not a.skip_cli:
+        cli_rows(d, fmu, ssd, a.steps)
 
 
 if __name__ == "__main__":

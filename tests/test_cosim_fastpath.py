@@ -298,3 +298,72 @@ def test_checkpoint_of_a_worker_running_ahead_resumes_identically(integrator: Pa
     full = run()
     assert np.array_equal(resumed.time_s, full.time_s) and np.array_equal(resumed.data, full.data)
     assert np.abs(full["i.y"] - (1.0 + 1.5 * full.time_s)).max() < 1e-12
+
+
+def _oscillator_runs(tmp_path: Path, variants: list[dict[str, Any]]) -> list[tuple[Any, list[Any]]]:
+    """x' = v, v' = -x from two integrator FMUs in workers (Jacobi), once per variant of
+    WorkerFMUParticipant's class attributes: (result, participants)."""
+    from hevsim.cosim import simulate
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
+    x_fmu = build_integrator_fmu(tmp_path / "x.fmu", name="ShmX", y0=1.0)
+    v_fmu = build_integrator_fmu(tmp_path / "v.fmu", name="ShmV", y0=0.0)
+    conns = [Connection("v", "y", "x", "u"), Connection("x", "y", "v", "u")]
+    runs = []
+    for attrs in variants:
+        cls = type("W", (WorkerFMUParticipant,), attrs)
+        parts = [cls("x", x_fmu), cls("v", v_fmu, {"k": -1.0})]
+        runs.append((simulate(parts, conns, stop_time_s=1.0, step_s=0.1), parts))
+    return runs
+
+
+def test_shared_memory_steps_equal_pickled_steps(tmp_path: Path) -> None:
+    """Steps through shared memory (polling or not) give the pickled protocol's results bit for
+    bit, and every communication step did go through the memory."""
+    runs = _oscillator_runs(tmp_path, [{}, {"spin_s": 0.0}, {"shared_memory": False}])
+    x, v = [1.0], [0.0]
+    for k in range(10):
+        h = (k + 1) * 0.1 - k * 0.1
+        x, v = [*x, x[-1] + v[-1] * h], [*v, v[-1] - x[-1] * h]
+    for res, _ in runs:
+        assert np.array_equal(res["x.y"], x) and np.array_equal(res["v.y"], v)
+    for _, parts in runs[:2]:
+        assert [p._seq for p in parts] == [10, 10]  # 10 steps each in shared memory
+    assert [p._seq for p in runs[2][1]] == [0, 0]  # no memory: pickled
+
+
+def test_shared_memory_step_failure_reads_as_the_pickled_one(tmp_path: Path) -> None:
+    from hevsim.cosim import simulate
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
+    fmu = build_integrator_fmu(tmp_path / "f.fmu", name="ShmFail", y0=0.0)
+    src = FunctionParticipant("s", lambda t, h, x, u: (x, {"y": 1.0}), 0, {"y": 1.0}, {})
+    msgs = []
+    for shm in (True, False):
+        cls = type("W", (WorkerFMUParticipant,), {"shared_memory": shm})
+        p = cls("f", fmu, {"stop_at": 0.25})
+        with pytest.raises(CosimFault) as ei:
+            simulate([src, p], [Connection("s", "y", "f", "u")], stop_time_s=1.0, step_s=0.1)
+        msgs.append(str(ei.value))
+        assert ei.value.partial is not None and ei.value.partial.time_s[-1] == pytest.approx(0.2)
+        assert (p._seq > 0) == shm
+    assert msgs[0] == msgs[1] and "participant 'f' failed in do_step at t = 0.2 s" in msgs[0]
+
+
+def test_a_value_that_is_not_a_float_is_sent_pickled(integrator: Path) -> None:
+    """A Real input given a value struct cannot pack goes by the pickled step (which reports
+    it as before); float values go through the memory."""
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
+    p = WorkerFMUParticipant("w", integrator, {"k": 1.0})
+    try:
+        p.setup(0.0)
+        p.set_inputs({"u": 2})  # an int packs as a float
+        assert p.do_step(0.0, 0.5) == (True, None) and p._seq == 1
+        assert p.get_outputs() == {"y": 2.0}
+        p.set_inputs({"u": "x"})
+        with pytest.raises(SimulationError, match="step failed"):
+            p.do_step(0.5, 0.5)
+        assert p._seq == 1  # not through the memory
+    finally:
+        p.terminate()

@@ -15,11 +15,12 @@ counter and sends a 4-byte token frame; the worker sets the inputs from that mem
 reads the outputs into it with the FMU's own ``fmi2SetReal`` / ``fmi2GetReal`` (FMI 3.0:
 ``fmi3SetFloat64`` / ``fmi3GetFloat64``), writes the step's outcome, bumps the reply counter
 and sends a token back (a failure still replies with a pickled error frame). The first step
-with a new set of input names is ``("bind", names, fd, size)`` with its values already in the
-memory. Each side waits for the other by polling the counter for a short, adaptive time
-(:class:`Spin`, yielding the core between polls) before it blocks on the pipe: the token is
-always read, so the pipe orders the memory accesses and a side that stopped polling is woken
-as before; the polling saves the two process wake-ups of a round trip when a core is free.
+with a new set of input names is ``("bind", names, fd, size, spin_s)`` with its values
+already in the memory. Each side waits for the other by polling the counter for a short,
+adaptive time (:class:`Spin`, at most ``spin_s``, yielding the core between polls) before it
+blocks on the pipe: the token is always read, so the pipe orders the memory accesses and a
+side that stopped polling is woken as before; the polling saves the two process wake-ups of
+a round trip when a core is free.
 
 Leaves with ``os._exit`` so a crash in an FMU's teardown cannot hang or fail the master.
 """
@@ -130,7 +131,8 @@ def write_seq(mm: Any, at: int, seq: int) -> None:
 
 SPIN_MAX_S = 50e-6
 """Longest a side polls the shared memory for the other's token before it blocks on the pipe
-[s]; it polls only while its recent waits (an exponential average) were shorter than that."""
+[s] by default (:attr:`hevsim.cosim.worker.WorkerFMUParticipant.spin_s`); it polls only while
+its recent waits (an exponential average) were shorter than that."""
 _SPIN_AVERAGE = 0.125  # weight of the newest wait in the average
 _sched_yield = getattr(os, "sched_yield", lambda: None)
 
@@ -138,11 +140,12 @@ _sched_yield = getattr(os, "sched_yield", lambda: None)
 class Spin:
     """Waits for a counter in the shared memory ``mm`` at offset ``at`` to reach a value by
     polling it, giving the core to any other runnable process between polls, for at most
-    :data:`SPIN_MAX_S` and only while waits have been short; the caller then reads the token
-    from the pipe (at once when it has come, else blocking as without the polling)."""
+    ``limit_s`` [s] and only while waits have been shorter than that on average; the caller
+    then reads the token from the pipe (at once when it has come, else blocking as without
+    the polling)."""
 
-    def __init__(self, mm: Any, at: int):
-        self.mm, self.at = mm, at
+    def __init__(self, mm: Any, at: int, limit_s: float = SPIN_MAX_S):
+        self.mm, self.at, self.limit_s = mm, at, float(limit_s)
         self.average_s = 0.0  # recent waits [s]
 
     def poll(self, seq: int) -> float:
@@ -150,9 +153,10 @@ class Spin:
         :meth:`waited`."""
         clock = time.perf_counter
         t0 = clock()
-        if self.average_s < SPIN_MAX_S:
+        limit = self.limit_s
+        if self.average_s < limit:
             unpack, mm, at = _SEQ.unpack_from, self.mm, self.at
-            while unpack(mm, at)[0] != seq and clock() - t0 < SPIN_MAX_S:
+            while unpack(mm, at)[0] != seq and clock() - t0 < limit:
                 _sched_yield()
         return t0
 
@@ -166,12 +170,12 @@ class StepChannel:
     master, ``size`` bytes): steps with their inputs and outputs in place, the FMU's float64
     get / set functions reading and writing it directly."""
 
-    def __init__(self, fd: int, size: int):
+    def __init__(self, fd: int, size: int, spin_s: float):
         import mmap
 
         self.mm = mmap.mmap(fd, size)
         self.size = size
-        self.spin = Spin(self.mm, REQUEST_SEQ_AT)
+        self.spin = Spin(self.mm, REQUEST_SEQ_AT, spin_s)
         self.seq = 0  # the last request's counter
         self.set_inputs: Any = None
         self.get_outputs: Any = None
@@ -277,9 +281,9 @@ def serve(rfd: int, wfd: int) -> None:
             try:
                 assert p is not None
                 if req is not TOKEN:
-                    _, names, fd, size = req
+                    _, names, fd, size, spin_s = req
                     if ch is None:
-                        ch = StepChannel(fd, size)
+                        ch = StepChannel(fd, size, spin_s)
                     ch.bind(p, names)
                 assert ch is not None
                 ch.step(p)

@@ -23,6 +23,7 @@ from hevsim.cosim._worker import (
     OUTCOME_FORMAT,
     REPLY_SEQ_AT,
     REQUEST_SEQ_AT,
+    SPIN_MAX_S,
     TOKEN,
     TOKEN_FRAME,
     FrameReader,
@@ -44,6 +45,13 @@ RUN_AHEAD_STEPS = 100
 class WorkerFMUParticipant(Participant):
     """Same behaviour as :class:`hevsim.cosim.participant.FMUParticipant`, in a subprocess."""
 
+    shared_memory = True
+    """Steps go through shared memory where the types allow (False: every step is a pickled
+    frame, as on systems without ``os.memfd_create``; for comparisons)."""
+    spin_s = SPIN_MAX_S
+    """How long each side polls for the other's reply before blocking on the pipe [s]
+    (0: never; see :class:`hevsim.cosim._worker.Spin`)."""
+
     def __init__(
         self,
         name: str,
@@ -56,7 +64,8 @@ class WorkerFMUParticipant(Participant):
         self.fmu = fmu_file(name, fmu)
         self.terminate_requested = False
         # shared memory for the float64 steps (Linux; elsewhere every step is a pickled frame)
-        self._fd = os.memfd_create(f"hevsim-worker-{name}") if hasattr(os, "memfd_create") else -1
+        shm = self.shared_memory and hasattr(os, "memfd_create")
+        self._fd = os.memfd_create(f"hevsim-worker-{name}") if shm else -1
         self._mm: Any = None
         self._awaiting = 0  # counter of the step in shared memory whose reply is due
         self.proc = subprocess.Popen(
@@ -107,7 +116,7 @@ class WorkerFMUParticipant(Participant):
         self._size = channel_size(len(fast_in), len(self._fast_out))
         os.ftruncate(self._fd, self._size)
         self._mm = mmap.mmap(self._fd, self._size)
-        self._spin = Spin(self._mm, REPLY_SEQ_AT)
+        self._spin = Spin(self._mm, REPLY_SEQ_AT, self.spin_s)
         self._step_at = step_at(len(self._fast_out))
         self._unpack_reply = struct.Struct(f"{OUTCOME_FORMAT}{len(self._fast_out)}d").unpack_from
         self._fast_in = frozenset(fast_in)
@@ -243,7 +252,7 @@ class WorkerFMUParticipant(Participant):
         if names == self._fast_names:
             frame = TOKEN_FRAME
         else:  # the worker binds these inputs to the memory, then steps
-            frame = encode_frame(("bind", names, self._fd, self._size))
+            frame = encode_frame(("bind", names, self._fd, self._size, self.spin_s))
         self._write("step", frame)
         self._fast_names = names
         self._awaiting = self._seq
