@@ -17,10 +17,9 @@ reads the outputs into it with the FMU's own ``fmi2SetReal`` / ``fmi2GetReal`` (
 and sends a token back (a failure still replies with a pickled error frame). The first step
 with a new set of input names is ``("bind", names, fd, size, spin_s)`` with its values
 already in the memory. Each side waits for the other by polling the counter for a short,
-adaptive time (:class:`Spin`, at most ``spin_s``, yielding the core between polls) before it
-blocks on the pipe: the token is always read, so the pipe orders the memory accesses and a
-side that stopped polling is woken as before; the polling saves the two process wake-ups of
-a round trip when a core is free.
+adaptive time (:class:`Spin`, at most ``spin_s``) before it blocks on the pipe: the token is
+always read, so the pipe orders the memory accesses and a side that stopped polling is woken
+as before; the polling saves the two process wake-ups of a round trip when a core is free.
 
 Leaves with ``os._exit`` so a crash in an FMU's teardown cannot hang or fail the master.
 """
@@ -131,38 +130,43 @@ def write_seq(mm: Any, at: int, seq: int) -> None:
 
 SPIN_MAX_S = 50e-6
 """Longest a side polls the shared memory for the other's token before it blocks on the pipe
-[s] by default (:attr:`hevsim.cosim.worker.WorkerFMUParticipant.spin_s`); it polls only while
-its recent waits (an exponential average) were shorter than that."""
-_SPIN_AVERAGE = 0.125  # weight of the newest wait in the average
-_sched_yield = getattr(os, "sched_yield", lambda: None)
+[s] by default (:attr:`hevsim.cosim.worker.WorkerFMUParticipant.spin_s`)."""
+SPIN_BACKOFF_MAX = 8
+"""After ``k`` polls in a row ran out of time, the next ``2**k`` waits block without polling
+(``k`` at most this)."""
 
 
 class Spin:
     """Waits for a counter in the shared memory ``mm`` at offset ``at`` to reach a value by
-    polling it, giving the core to any other runnable process between polls, for at most
-    ``limit_s`` [s] and only while waits have been shorter than that on average; the caller
-    then reads the token from the pipe (at once when it has come, else blocking as without
-    the polling)."""
+    polling it for at most ``limit_s`` [s]; the caller then reads the token from the pipe (at
+    once when it has come, else blocking as without the polling). The poll keeps the core: a
+    yield would hand it to whatever else is runnable there for a whole time slice. A poll
+    that runs out of time (the other side is slow, or waits for the very core this side
+    holds) makes the next 2, 4, .. 2**:data:`SPIN_BACKOFF_MAX` waits block at once; a poll
+    answered in time resets that. So on a free core a round trip costs no process wake-up,
+    and on a loaded machine the polling soon stops costing anything."""
 
     def __init__(self, mm: Any, at: int, limit_s: float = SPIN_MAX_S):
         self.mm, self.at, self.limit_s = mm, at, float(limit_s)
-        self.average_s = 0.0  # recent waits [s]
+        self.misses = 0  # polls in a row that ran out of time
+        self.skip = 0  # waits left to block without polling
 
-    def poll(self, seq: int) -> float:
-        """Poll until the counter is ``seq`` (or the time is up); the start time for
-        :meth:`waited`."""
-        clock = time.perf_counter
-        t0 = clock()
+    def poll(self, seq: int) -> None:
+        """Poll until the counter is ``seq`` or the time is up (see the class)."""
         limit = self.limit_s
-        if self.average_s < limit:
-            unpack, mm, at = _SEQ.unpack_from, self.mm, self.at
-            while unpack(mm, at)[0] != seq and clock() - t0 < limit:
-                _sched_yield()
-        return t0
-
-    def waited(self, t0: float) -> None:
-        """The wait begun at ``t0`` (:meth:`poll`) is over: update the average."""
-        self.average_s += (time.perf_counter() - t0 - self.average_s) * _SPIN_AVERAGE
+        if limit <= 0.0:
+            return
+        if self.skip:
+            self.skip -= 1
+            return
+        clock, unpack, mm, at = time.perf_counter, _SEQ.unpack_from, self.mm, self.at
+        t0 = clock()
+        while unpack(mm, at)[0] != seq:
+            if clock() - t0 > limit:
+                self.misses = min(self.misses + 1, SPIN_BACKOFF_MAX)
+                self.skip = 1 << self.misses
+                return
+        self.misses = 0
 
 
 class StepChannel:
@@ -269,13 +273,12 @@ def serve(rfd: int, wfd: int) -> None:
     reader = FrameReader(rfd)
     stepping = False  # the last request was a step in shared memory: poll for the next
     while True:
-        t0 = ch.spin.poll(ch.seq + 1) if ch is not None and stepping and not reader.buf else None
+        if ch is not None and stepping and not reader.buf:
+            ch.spin.poll(ch.seq + 1)
         try:
             req = reader.recv()
         except EOFError:
             return
-        if t0 is not None:
-            ch.spin.waited(t0)  # type: ignore[union-attr]
         stepping = req is TOKEN or req[0] == "bind"
         if stepping:
             try:

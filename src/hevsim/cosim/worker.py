@@ -160,10 +160,9 @@ class WorkerFMUParticipant(Participant):
         seq, self._awaiting = self._awaiting, 0
         try:
             if seq:  # a step in shared memory: poll for its reply before blocking on the pipe
-                t0 = self._spin.poll(seq) if not self._reader.buf else None
+                if not self._reader.buf:
+                    self._spin.poll(seq)
                 msg = self._reader.recv()
-                if t0 is not None:
-                    self._spin.waited(t0)
                 if msg is TOKEN:
                     return self._fast_reply()
                 self._fast_names = None  # it failed: bind again
