@@ -355,3 +355,14 @@ def test_partitioned_cht_converges_to_the_monolithic_reference(tmp_path: Path) -
         assert par["outlet_temp_k"][-1] == pytest.approx(ref["outlet_temp_k"][-1], abs=0.03)
     assert errors[1] < 0.7 * errors[0] and errors[2] < 0.7 * errors[1]
     assert errors[2] < 0.03 * e_ref
+
+
+def test_wall_function_on_a_laminar_flow_is_refused(duct: CoolantThermal) -> None:
+    """The law of the wall is a turbulent one: asked for on a laminar flow, a ConfigError (exit
+    2); an unknown wall treatment names the valid ones."""
+    args = (duct.flow, duct.channel, duct.coolant, duct.path_m, 4)
+    with pytest.raises(ConfigError, match=r"thermal_wall = 'wall_function' needs a turbulent \(RANS\) flow"):
+        CoolantThermal(*args, thermal_wall="wall_function")
+    with pytest.raises(ConfigError, match="expected one of auto, resolved, wall_function"):
+        CoolantThermal(*args, thermal_wall="log")
+    assert CoolantThermal(*args, thermal_wall="resolved").wall_metrics() == {"wall_function": 0.0}

@@ -172,6 +172,7 @@ def test_shipped_10_l_min_case_is_turbulent_and_refused_with_the_laminar_limit()
         ({"pressure": 3.0}, "flow.pressure"),
         ({"channel": "pipe"}, "flow.channel"),
         ({"model": "les"}, "flow.model"),
+        ({"thermal_wall": "log_law"}, r"flow\.thermal_wall.*auto.*resolved.*wall_function"),
     ],
 )
 def test_bad_flow_section_is_a_config_error_naming_the_key(flow: dict, match: str) -> None:

@@ -22,9 +22,12 @@ the precomputed linear response: one small matrix product per exchange); ``trans
 keeps the coolant's temperature field as a state and advances it by implicit Euler over each
 co-simulation step.
 
-The flow rate must be laminar (the flow solver refuses Re above the laminar limit); the
-shipped module's 10 L/min is turbulent, so the example ``module_cht.ssd`` runs at a laminar
-flow rate (docs/flow.md).
+Above the laminar limit (``flow.model = "auto"``, the default) the flow is a RANS solution
+from OpenFOAM (:mod:`hevsim.thermal.rans`, about a minute of CPU on the shipped plate at
+10 L/min), frozen like the laminar one, and the coolant's wall layer is bridged by the
+thermal wall function (``flow.thermal_wall``, :mod:`hevsim.thermal.wall_function`); the
+example ``module_cht.ssd`` runs at a laminar flow rate, ``run_module_cht.py --flow-l-min 10``
+at the thesis's (docs/flow.md).
 """
 
 from __future__ import annotations
@@ -44,8 +47,9 @@ class CoolantCHTParticipant(CoolantChannelParticipant):
     flow``: ``[geometry]``, ``[coolant]``, optional ``[flow]`` for the mesh); keywords override
     ``segments``, ``inlet_temp_k`` [K], ``flow_l_min`` [L/min], ``grad_div`` [-] and
     ``streamline_diffusion`` [-] (the flow's stabilisations,
-    :class:`~hevsim.thermal.flow.FlowSection`); ``transient``: implicit Euler coolant instead of
-    quasi-steady."""
+    :class:`~hevsim.thermal.flow.FlowSection`), the coolant mesh's ``cells_across_width`` and
+    ``cells_across_height`` and its wall treatment ``thermal_wall`` (``[flow]`` keys, validated
+    like them); ``transient``: implicit Euler coolant instead of quasi-steady."""
 
     def __init__(
         self,
@@ -57,6 +61,9 @@ class CoolantCHTParticipant(CoolantChannelParticipant):
         transient: bool = False,
         grad_div: float | None = None,
         streamline_diffusion: float | None = None,
+        cells_across_width: int | None = None,
+        cells_across_height: int | None = None,
+        thermal_wall: str | None = None,
     ):
         from hevsim.schema import read_toml
         from hevsim.thermal.cht import CoolantThermal
@@ -69,13 +76,20 @@ class CoolantCHTParticipant(CoolantChannelParticipant):
         if flow_l_min is not None:
             if not (math.isfinite(float(flow_l_min)) and float(flow_l_min) > 0.0):
                 raise ConfigError(
-                    f"participant {name!r}: flow_l_min = {flow_l_min!r}; expected a positive laminar "
-                    "flow rate [L/min]."
+                    f"participant {name!r}: flow_l_min = {flow_l_min!r}; expected a positive flow rate "
+                    "[L/min]."
                 )
             data["flow"] = {**data.get("flow", {}), "flow_l_min": float(flow_l_min)}
-        for key, value in (("grad_div", grad_div), ("streamline_diffusion", streamline_diffusion)):
+        overrides: dict[str, object] = {
+            "grad_div": None if grad_div is None else float(grad_div),
+            "streamline_diffusion": None if streamline_diffusion is None else float(streamline_diffusion),
+            "cells_across_width": cells_across_width,
+            "cells_across_height": cells_across_height,
+            "thermal_wall": thermal_wall,
+        }
+        for key, value in overrides.items():
             if value is not None:
-                data["flow"] = {**data.get("flow", {}), key: float(value)}
+                data["flow"] = {**data.get("flow", {}), key: value}
         cfg = flow_config_from_dict(data, str(path), path.parent)
         thermal = thermal_config_from_dict(
             {k: v for k, v in data.items() if k != "flow"}, str(path), path.parent
@@ -89,7 +103,9 @@ class CoolantCHTParticipant(CoolantChannelParticipant):
         where = f"participant {name!r}"
         self.flow = solve_flow(channel, cfg.coolant, cfg.flow_m3_s, section=cfg.flow, where=where)
         path_m = cfg.geometry.channel_path_m()
-        self.model = CoolantThermal(self.flow, channel, cfg.coolant, path_m, n, where)
+        self.model = CoolantThermal(
+            self.flow, channel, cfg.coolant, path_m, n, where, thermal_wall=cfg.flow.thermal_wall
+        )
         length_m = float(np.linalg.norm(np.diff(path_m, axis=0), axis=1).sum())
         self.resolution = self.model.check_resolution(length_m / n)
         self.transient = bool(transient)
@@ -165,6 +181,8 @@ class CoolantCHTParticipant(CoolantChannelParticipant):
         out_dir.mkdir(parents=True, exist_ok=True)
         write_cht_vtu(self.model, temp, out_dir / "coolant_cht.vtu")
         keys = ("flow_l_min", "reynolds", "pressure_drop_pa", "pump_power_w", "elements")
-        return {k: self.flow.metrics[k] for k in keys} | {
-            "thermal_boundary_layer_m": self.resolution["boundary_layer_m"]
-        }
+        return (
+            {k: self.flow.metrics[k] for k in keys}
+            | {"thermal_boundary_layer_m": self.resolution["boundary_layer_m"]}
+            | self.model.wall_metrics()
+        )

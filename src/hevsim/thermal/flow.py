@@ -55,6 +55,11 @@ INLET_PROFILES = ("developed", "uniform")
 CHANNEL_KINDS = ("plate", "duct")
 #: Flow models :class:`FlowSection` accepts (``auto``: laminar up to RE_LAMINAR_MAX, else RANS).
 FLOW_MODELS = ("auto", "laminar", "rans")
+#: Coolant wall treatments on a turbulent flow (``flow.thermal_wall``): ``auto`` (the thermal
+#: wall function when the FEM wall cells are thicker than twice the conduction sublayer, else
+#: resolved), ``resolved`` (the interpolated eddy diffusivity down to the wall; refused on such
+#: cells) or ``wall_function`` (:mod:`hevsim.thermal.wall_function`).
+THERMAL_WALL_MODES = ("auto", "resolved", "wall_function")
 #: Continuation in Reynolds number: the first level's Re is at most this [-] ...
 CONTINUATION_START_RE = 50.0
 #: ... and each level multiplies Re by this factor [-] up to the case's Re.
@@ -142,7 +147,8 @@ class FlowSection:
     (``rans_cells_across_width``, ``rans_cells_across_height``, ``rans_cell_length_m`` [m],
     first cell height ``rans_wall_cell_m`` [m] at the walls, ``growth``), at most
     ``rans_iterations`` SIMPLE iterations down to initial residuals ``rans_tolerance`` [-], on
-    ``rans_processes`` MPI processes.
+    ``rans_processes`` MPI processes. ``thermal_wall``: the coolant heat transfer's wall
+    treatment on a turbulent flow, :data:`THERMAL_WALL_MODES` (default ``auto``).
     """
 
     flow_l_min: float = 0.0
@@ -172,6 +178,7 @@ class FlowSection:
     rans_iterations: int = 500
     rans_tolerance: float = 1e-4
     rans_processes: int = 1
+    thermal_wall: str = "auto"
 
 
 _FLOW_BOUNDS: dict[str, tuple[float, float]] = {
@@ -230,7 +237,12 @@ def flow_config_from_dict(
     data = dict(data)
     raw = data.pop("flow", {})
     thermal = thermal_config_from_dict(data, source, base_dir)
-    choices = {"flow.inlet_profile": INLET_PROFILES, "flow.channel": CHANNEL_KINDS, "flow.model": FLOW_MODELS}
+    choices = {
+        "flow.inlet_profile": INLET_PROFILES,
+        "flow.channel": CHANNEL_KINDS,
+        "flow.model": FLOW_MODELS,
+        "flow.thermal_wall": THERMAL_WALL_MODES,
+    }
     sec = build_section(FlowSection, raw, source, "flow", choices, _FLOW_BOUNDS)
     if "flow_l_min" in raw and not sec.flow_l_min > 0.0:
         raise ConfigError(
@@ -244,7 +256,7 @@ def flow_config_from_dict(
             f"{thermal.coolant.flow_l_min!r}; expected a positive inlet flow rate [L/min]."
         )
     coolant = coolant_from_section(thermal.coolant).check(f"{source}: [coolant]")
-    return FlowConfig(
+    cfg = FlowConfig(
         thermal.name,
         thermal.geometry,
         coolant,
@@ -253,6 +265,27 @@ def flow_config_from_dict(
         thermal.coolant.inlet_temp_c,
         thermal.coolant.segments,
     )
+    _check_config_channel(cfg, source)
+    return cfg
+
+
+def _check_config_channel(cfg: FlowConfig, source: str) -> None:
+    """Fail early (ConfigError naming the file and the geometry keys) when the config's channel
+    does not connect the inlet to the outlet. The tensor mesh puts a node plane on every box
+    face whatever its resolution, so the coarsest one (one cell across, boxes' own lengths)
+    has the connectivity of the boxes' union."""
+    g = cfg.geometry
+    if cfg.flow.channel == "duct":
+        keys = f"flow.duct_length_m = {cfg.flow.duct_length_m!r}"
+    else:
+        keys = (
+            f"[geometry] channel_passes = {g.channel_passes}, channel_width_m = {g.channel_width_m!r}, "
+            f"rows = {g.rows}, columns = {g.columns}, cell_pitch_m = {g.cell_pitch_m!r}, "
+            f"margin_m = {g.margin_m!r}"
+        )
+    ch = config_channel(cfg)
+    coarse = max(max(b[1] - b[0] for b in ch.boxes), ch.width_m)
+    check_channel_mesh(channel_mesh(ch, 1, 1, coarse), ch, f"{source}: {keys}")
 
 
 def load_flow_config(path: str | Path) -> FlowConfig:
@@ -343,6 +376,30 @@ def channel_mesh(
     for x0, x1, y0, y1, z0, z1 in ch.boxes:
         inside |= (c[0] > x0) & (c[0] < x1) & (c[1] > y0) & (c[1] < y1) & (c[2] > z0) & (c[2] < z1)
     return m.restrict(np.nonzero(inside)[0])
+
+
+def port_facets(mesh: Any, channel: Channel) -> tuple[np.ndarray, np.ndarray]:
+    """Boundary facets of ``mesh`` on the channel's inlet and on its outlet plane."""
+    tol = 1e-9 * max(max(b[1] for b in channel.boxes), channel.width_m, channel.height_m)
+    mid = mesh.p[:, mesh.facets].mean(axis=1)
+    bnd = mesh.boundary_facets()
+
+    def plane(spec: tuple[float, float, float, int]) -> np.ndarray:
+        x, y0, y1, _ = spec
+        on = (np.abs(mid[0, bnd] - x) < tol) & (mid[1, bnd] > y0 - tol) & (mid[1, bnd] < y1 + tol)
+        return bnd[on]
+
+    return plane(channel.inlet), plane(channel.outlet)
+
+
+def check_channel_mesh(mesh: Any, channel: Channel, where: str) -> None:
+    """Refuse (ConfigError, exit 2) a channel mesh without an inlet or outlet face or whose
+    volume does not connect them (:func:`hevsim.thermal.geometry.check_channel_connected`)."""
+    from hevsim.thermal.geometry import check_channel_connected
+
+    f_in, f_out = port_facets(mesh, channel)
+    f2t = mesh.f2t
+    check_channel_connected(mesh.t, f2t[0, f_in], f2t[0, f_out], where)
 
 
 # --------------------------------------------------------------------------- solver
@@ -436,6 +493,7 @@ def solve_flow(
     f_in, f_out = plane(channel.inlet), plane(channel.outlet)
     if f_in.size == 0 or f_out.size == 0:
         raise ConfigError(f"{where}: the channel mesh has no inlet or outlet face; check the geometry.")
+    check_channel_mesh(mesh, channel, where)
     fb_in = FacetBasis(mesh, e_u, facets=f_in, intorder=4)
     fb_out = FacetBasis(mesh, e_u, facets=f_out, intorder=4)
 

@@ -323,3 +323,46 @@ def _build(gmsh: object, g: ModuleGeometry, source: str) -> ThermalMesh:
         source,
         nominal,
     ).validate()
+
+
+def check_channel_connected(
+    elements: np.ndarray, inlet_elements: np.ndarray, outlet_elements: np.ndarray, where: str
+) -> None:
+    """Refuse (:class:`~hevsim.errors.ConfigError`, exit 2) a coolant channel whose volume does
+    not connect the inlet to the outlet.
+
+    ``elements``: (4, E) vertex indices of the channel's tetrahedra; two are neighbours when
+    they share a face (a shared edge or corner is no passage for the flow).
+    ``inlet_elements``, ``outlet_elements``: indices of the elements next to the inlet and the
+    outlet planes. A flood fill over the neighbours from the inlet elements must reach an
+    outlet element; ``where`` names the file and keys (or the mesh) in the message, which also
+    says how many separate pieces the channel has."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    t = np.asarray(elements)
+    n_el = t.shape[1]
+    if np.size(inlet_elements) == 0 or np.size(outlet_elements) == 0:
+        raise ConfigError(
+            f"{where}: the channel has no {'inlet' if np.size(inlet_elements) == 0 else 'outlet'} face."
+        )
+    nv = t.shape[0]
+    faces = np.concatenate(
+        [np.sort(np.delete(t, i, axis=0), axis=0) for i in range(nv)], axis=1
+    )  # (nv-1, nv E)
+    owner = np.tile(np.arange(n_el), nv)
+    _, key = np.unique(faces.T, axis=0, return_inverse=True)
+    key = key.ravel()
+    order = np.argsort(key, kind="stable")
+    k, o = key[order], owner[order]
+    same = k[1:] == k[:-1]
+    a, b = o[:-1][same], o[1:][same]
+    graph = coo_matrix((np.ones(a.size), (a, b)), shape=(n_el, n_el))
+    n_parts, label = connected_components(graph, directed=False)
+    reached = np.unique(label[np.asarray(inlet_elements)])
+    if not np.isin(label[np.asarray(outlet_elements)], reached).any():
+        raise ConfigError(
+            f"{where}: the coolant channel does not connect the inlet to the outlet (its volume falls into "
+            f"{n_parts} separate pieces; the inlet's is not the outlet's); expected one continuous channel "
+            "from the inlet to the outlet. Check the channel's geometry (passes, width and the plate's size)."
+        )

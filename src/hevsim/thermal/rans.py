@@ -100,6 +100,9 @@ LENGTH_SCALE_FRACTION = 0.07
 #: Pr^(-1/3) wall units thick (the usual high-Pr scaling, e.g. Kays, Crawford & Weigand,
 #: Convective Heat and Mass Transfer, 4th ed. (2005), ch. 13).
 SUBLAYER_YPLUS = 5.0
+#: Thickest FEM wall cell for the resolved coolant heat transfer, in conduction-sublayer
+#: thicknesses [-] (a P2 node inside the sublayer).
+SUBLAYER_CELLS = 2.0
 
 
 def conduction_sublayer_m(reynolds: float, hydraulic_diameter_m: float, prandtl: float) -> float:
@@ -111,6 +114,14 @@ def conduction_sublayer_m(reynolds: float, hydraulic_diameter_m: float, prandtl:
     return SUBLAYER_YPLUS * prandtl ** (-1.0 / 3.0) * hydraulic_diameter_m / (reynolds * math.sqrt(f / 8))
 
 
+def wall_cells_resolve_sublayer(metrics: dict[str, float]) -> bool:
+    """Whether the FEM wall cells of a RANS flow's ``metrics`` (``fem_wall_cell_m``,
+    ``conduction_sublayer_m``) are no thicker than twice the conduction sublayer (a P2 node
+    inside it): the criterion of :func:`check_thermal_wall_mesh` and of ``flow.thermal_wall =
+    "auto"``."""
+    return bool(metrics["fem_wall_cell_m"] <= SUBLAYER_CELLS * metrics["conduction_sublayer_m"])
+
+
 def check_thermal_wall_mesh(flow: Any, where: str = "cht") -> None:
     """Refuse (:class:`~hevsim.errors.ConfigError`, exit 2) heat transfer on a RANS ``flow``
     whose FEM mesh has wall cells thicker than twice the conduction sublayer (metrics
@@ -120,12 +131,14 @@ def check_thermal_wall_mesh(flow: Any, where: str = "cht") -> None:
     wrong number rather than an approximate one."""
     m = flow.metrics
     cell, delta = m["fem_wall_cell_m"], m["conduction_sublayer_m"]
-    if cell > 2 * delta:
+    if not wall_cells_resolve_sublayer(m):
         raise ConfigError(
             f"{where}: the coolant heat transfer on the turbulent flow needs FEM cells at the wall no "
-            f"thicker than about {2 * delta:.2g} m (twice the conduction sublayer at Re {m['reynolds']:.0f}, "
+            f"thicker than about {SUBLAYER_CELLS * delta:.2g} m (twice the conduction sublayer at Re "
+            f"{m['reynolds']:.0f}, "
             f"Pr {m['prandtl']:.3g}), but they are {cell:.2g} m: the eddy diffusivity would reach the wall "
             "and the wall heat would be far too high. Set flow.wall_cell_m (graded FEM mesh) accordingly, "
+            'use the thermal wall function (flow.thermal_wall = "wall_function" or "auto"), '
             "or use the 1-D coolant channel at this flow rate."
         )
 
@@ -888,14 +901,13 @@ def solve_rans(
         ConfigError: bad flow rate or mesh settings.
         SimulationError: OpenFOAM failed.
     """
-    from skfem import Basis, ElementTetP1, ElementTetP2, ElementVector
-
-    from hevsim.thermal.flow import FlowResult, FlowSection, channel_mesh, hydraulic_metrics
+    from hevsim.thermal.flow import FlowSection, channel_mesh, check_channel_mesh
 
     sec = section or FlowSection()
     coolant.check(f"{where}: coolant")
     if not (math.isfinite(flow_m3_s) and flow_m3_s > 0.0):
         raise ConfigError(f"{where}: flow rate {flow_m3_s!r} m^3/s; expected a finite positive flow rate.")
+    check_channel_mesh(channel_mesh(channel, 1, 1, max(b[1] - b[0] for b in channel.boxes)), channel, where)
     of = find_openfoam()
     rho, mu = coolant.density_kg_m3, coolant.viscosity_pa_s
     nu = mu / rho
@@ -934,18 +946,17 @@ def solve_rans(
             )
         case.mkdir(parents=True, exist_ok=True)
     try:
-        counts = write_case(case, grid, channel, rc)
-        n = grid.n_cells
+        write_case(case, grid, channel, rc)
         if progress:
             from hevsim.progress import stage
 
             stage(
-                f"RANS k-omega SST with OpenFOAM ({of.source}): Re = {reynolds:.0f}, {n} cells, "
+                f"RANS k-omega SST with OpenFOAM ({of.source}): Re = {reynolds:.0f}, {grid.n_cells} cells, "
                 f"at most {rc.iterations} iterations, {rc.processes} process(es), case {case}"
             )
         if rc.processes > 1:
             _run(of, ["decomposePar", "-force"], case, case / "log.decomposePar", None, False)
-            out = _run(
+            _run(
                 of,
                 ["mpirun", "-np", str(rc.processes), of.which("simpleFoam") or "simpleFoam", "-parallel"],
                 case,
@@ -955,17 +966,61 @@ def solve_rans(
             )
             _run(of, ["reconstructPar", "-latestTime"], case, case / "log.reconstructPar", None, False)
         else:
-            out = _run(of, ["simpleFoam"], case, case / "log.simpleFoam", rc.iterations, progress)
-        last = _latest_time(case)
-        u_c = read_internal_field(last / "U", n)
-        p_c = read_internal_field(last / "p", n) * rho
-        nut_c = read_internal_field(last / "nut", n)
-        yplus = _read_yplus(case)
-        p_hist = _read_inlet_pressure(case) * rho - sec.outlet_pressure_pa
-        log_text = out
+            _run(of, ["simpleFoam"], case, case / "log.simpleFoam", rc.iterations, progress)
+        return read_rans_case(case, channel, coolant, flow_m3_s, section=sec, where=where, started=t0)
     finally:
         if own_tmp:
             shutil.rmtree(case, ignore_errors=True)
+
+
+def read_rans_case(
+    case_dir: str | Path,
+    channel: Any,
+    coolant: Coolant,
+    flow_m3_s: float,
+    *,
+    section: Any = None,
+    where: str = "flow",
+    started: float | None = None,
+) -> Any:
+    """Read a finished OpenFOAM case of :func:`solve_rans` (its folder ``case_dir``, e.g. the
+    ``openfoam/`` of ``hevsim flow --out``) back onto the ``[flow]`` tetrahedral mesh: the same
+    :class:`~hevsim.thermal.flow.FlowResult` the solve returned, without solving again. The
+    channel, coolant, flow rate [m^3/s] and ``section`` must be the solve's (the grid is rebuilt
+    from them and must match the case's cell count). ``started``: ``time.perf_counter()`` at
+    the start of the solve (the metrics' ``solve_time_s``; default: now)."""
+    from hevsim.thermal.flow import FlowSection, hydraulic_metrics
+
+    sec = section or FlowSection()
+    t0 = time.perf_counter() if started is None else started
+    case = Path(case_dir)
+    rho, nu = coolant.density_kg_m3, coolant.viscosity_pa_s / coolant.density_kg_m3
+    w, h = channel.width_m, channel.height_m
+    area, dh = w * h, 2 * w * h / (w + h)
+    u_mean = flow_m3_s / area
+    reynolds = u_mean * dh / nu
+    length = sec.turbulence_length_m or LENGTH_SCALE_FRACTION * dh
+    grid = channel_grid(
+        channel,
+        sec.rans_cells_across_width,
+        sec.rans_cells_across_height,
+        sec.rans_cell_length_m,
+        sec.rans_wall_cell_m,
+        sec.growth,
+    )
+    n = grid.n_cells
+    log_file = case / "log.simpleFoam"
+    if not log_file.is_file():
+        raise ConfigError(f"{where}: {case} holds no finished OpenFOAM case (no log.simpleFoam).")
+    log_text = log_file.read_text()
+    last = _latest_time(case)
+    u_c = read_internal_field(last / "U", n)
+    p_c = read_internal_field(last / "p", n) * rho
+    nut_c = read_internal_field(last / "nut", n)
+    yplus = _read_yplus(case)
+    p_hist = _read_inlet_pressure(case) * rho - sec.outlet_pressure_pa
+    faces = re.search(r"nFaces:(\d+)", (case / "constant" / "polyMesh" / "owner").read_text())
+    n_faces = int(faces.group(1)) if faces else 0
     iterations = max((int(m.group(1)) for m in re.finditer(r"^Time = (\d+)\s*$", log_text, re.M)), default=0)
     converged = "solution converged in" in log_text
     residuals: dict[str, float] = {}
@@ -976,36 +1031,20 @@ def solve_rans(
     if not converged:
         last_res = ", ".join(f"{k} {v:.2g}" for k, v in residuals.items())
         warnings.warn(
-            f"{where}: simpleFoam did not reach the residual tolerance {rc.tolerance:g} in {rc.iterations} "
-            f"iterations (last initial residuals: {last_res}; the pressure drop changed by {dp_change:.1e} "
-            "(relative) over the last tenth of the iterations); raise flow.rans_iterations or "
-            "flow.rans_tolerance, or accept the result if that change is small (steady RANS in the bends "
-            "may not settle further).",
+            f"{where}: simpleFoam did not reach the residual tolerance {sec.rans_tolerance:g} in "
+            f"{iterations} iterations (last initial residuals: {last_res}; the pressure drop changed by "
+            f"{dp_change:.1e} (relative) over the last tenth of the iterations); raise "
+            "flow.rans_iterations or flow.rans_tolerance, or accept the result if that change is small "
+            "(steady RANS in the bends may not settle further).",
             RuntimeWarning,
             stacklevel=2,
         )
     wall_pts, inlet_pts = boundary_points(grid, channel)
-    u_in = np.array(rc.inlet_velocity_mps)
+    u_in = np.array((channel.inlet[3] * u_mean, 0.0, 0.0))
     u_field = GridField.from_cells(grid, u_c, [(inlet_pts, u_in), (wall_pts, np.zeros(3))])
     p_field = GridField.from_cells(grid, p_c)
     nut_field = GridField.from_cells(grid, nut_c, [(wall_pts, np.zeros(1))])
-    # onto the tetrahedral mesh of the [flow] resolution keys
-    mesh = channel_mesh(
-        channel,
-        sec.cells_across_width,
-        sec.cells_across_height,
-        sec.cell_length_m,
-        sec.wall_cell_m,
-        sec.growth,
-    )
-    basis_u = Basis(mesh, ElementVector(ElementTetP2()), intorder=4)
-    basis_p = basis_u.with_element(ElementTetP1())
-    scalar = basis_u.with_element(ElementTetP2())
-    velocity = project_solenoidal(
-        mesh, basis_u, basis_p, channel, u_field.at(scalar.doflocs.T).reshape(-1), flow_m3_s
-    )
-    pressure = p_field.at(mesh.p.T)[:, 0]
-    eddy = nut_field.at(mesh.p.T)[:, 0] / sec.prandtl_turbulent
+    rres = RansResult(grid, u_c, p_c, nut_c, u_field, p_field, nut_field, residuals, log_text)
     # figures from the OpenFOAM cells
     cin, a_in = _port_cells(grid, channel.inlet)
     cout, a_out = _port_cells(grid, channel.outlet)
@@ -1023,25 +1062,65 @@ def solve_rans(
         "iterations": float(iterations),
         "converged": float(converged),
         "rans_cells": float(n),
-        "rans_faces": float(counts["faces"]),
+        "rans_faces": float(n_faces),
         **yplus,
         "max_eddy_viscosity_ratio": float(np.max(nut_c) / nu),
         "turbulence_intensity": sec.turbulence_intensity,
         "prandtl": coolant.prandtl,
         "conduction_sublayer_m": conduction_sublayer_m(reynolds, dh, coolant.prandtl),
+        "turbulence_length_m": length,
+        "solve_time_s": time.perf_counter() - t0,
+    }
+    for key, val in residuals.items():
+        metrics[f"final_residual_{key}"] = val
+    # onto the tetrahedral mesh of the [flow] resolution keys
+    return on_fem_mesh(rres, channel, metrics, sec, [float(v) for v in p_hist])
+
+
+def on_fem_mesh(
+    rres: RansResult, channel: Any, metrics: dict[str, float], section: Any, history: Sequence[float] = ()
+) -> Any:
+    """A :class:`~hevsim.thermal.flow.FlowResult` of the OpenFOAM solution ``rres`` on the
+    tetrahedral mesh of ``section``'s resolution keys (``cells_across_width``,
+    ``cells_across_height``, ``cell_length_m``, ``wall_cell_m``, ``growth``): the P2 velocity
+    interpolated and projected to be discretely divergence-free (:func:`project_solenoidal`,
+    carrying ``metrics["flow_m3_s"]``), the P1 pressure [Pa] and the eddy diffusivity
+    ``nu_t / section.prandtl_turbulent`` [m^2/s] at the vertices. ``metrics``: the solve's
+    figures, completed with the FEM mesh's. One OpenFOAM solve can so be read onto several FEM
+    meshes (a mesh study, or a coarse mesh with the thermal wall function)."""
+    from skfem import Basis, ElementTetP1, ElementTetP2, ElementVector
+
+    from hevsim.thermal.flow import FlowResult, channel_mesh
+
+    sec = section
+    w, h = channel.width_m, channel.height_m
+    mesh = channel_mesh(
+        channel,
+        sec.cells_across_width,
+        sec.cells_across_height,
+        sec.cell_length_m,
+        sec.wall_cell_m,
+        sec.growth,
+    )
+    basis_u = Basis(mesh, ElementVector(ElementTetP2()), intorder=4)
+    basis_p = basis_u.with_element(ElementTetP1())
+    scalar = basis_u.with_element(ElementTetP2())
+    flow_m3_s = float(metrics["flow_m3_s"])
+    velocity = project_solenoidal(
+        mesh, basis_u, basis_p, channel, rres.u_field.at(scalar.doflocs.T).reshape(-1), flow_m3_s
+    )
+    pressure = rres.p_field.at(mesh.p.T)[:, 0]
+    eddy = rres.nut_field.at(mesh.p.T)[:, 0] / sec.prandtl_turbulent
+    fem = {
         "fem_wall_cell_m": sec.wall_cell_m
         or min(h / sec.cells_across_height, w / sec.cells_across_width, sec.cell_length_m),
-        "turbulence_length_m": length,
         "velocity_dofs": float(basis_u.N),
         "pressure_dofs": float(basis_p.N),
         "elements": float(mesh.t.shape[1]),
         "cells_across_width": float(sec.cells_across_width),
         "cells_across_height": float(sec.cells_across_height),
-        "solve_time_s": time.perf_counter() - t0,
     }
-    for key, val in residuals.items():
-        metrics[f"final_residual_{key}"] = val
-    res = FlowResult(metrics, mesh, velocity, pressure, basis_u, basis_p, [float(v) for v in p_hist])
+    res = FlowResult({**metrics, **fem}, mesh, velocity, pressure, basis_u, basis_p, list(history))
     res.eddy_diffusivity_m2_s = eddy
-    res.rans = RansResult(grid, u_c, p_c, nut_c, u_field, p_field, nut_field, residuals, log_text)
+    res.rans = rres
     return res
