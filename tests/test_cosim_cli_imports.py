@@ -1,6 +1,7 @@
 """The start of ``hevsim cosim`` pays only for what a co-simulation uses (issue 13 item 11):
 no numba cache digest unless numba is imported, no compiler, solver, table or plotting
-package, no progress bar off a terminal, no package metadata lookup."""
+package, no progress bar off a terminal, no package metadata lookup, no worker protocol for
+FMUs in process, no CSE reader for an SSD."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ from hevsim.cosim.ssd import FMU_TYPE, Component, SystemDescription
 from hevsim.cosim.ssp_write import write_ssd
 from hevsim.cosim.trivial import build_integrator_fmu
 
-HEAVY = ("numba", "scipy", "pandas", "matplotlib", "pyarrow", "tqdm", "importlib.metadata")
+HEAVY = ("numba", "scipy", "pandas", "matplotlib", "pyarrow", "tqdm", "importlib.metadata",
+         "hevsim.cosim.worker", "hevsim.cosim.cse")  # fmt: skip
 
 
 def _env(tmp_path: Path) -> dict[str, str]:

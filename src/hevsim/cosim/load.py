@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hevsim.cosim.cse import read_cse
 from hevsim.cosim.ssd import Component, SystemDescription, read_ssd, read_ssp
 from hevsim.errors import ConfigError
 
@@ -22,5 +21,7 @@ def load_system(path: str | Path, bindings: dict[str, Component] | None = None) 
     if p.suffix == ".ssd":
         return read_ssd(p)
     if p.suffix == ".xml":
+        from hevsim.cosim.cse import read_cse  # (here: most runs read SSP)
+
         return read_cse(p, bindings)
     raise ConfigError(f"{p}: unknown configuration type {p.suffix!r}; valid: .ssp, .ssd, .xml (SIMULIA CSE).")

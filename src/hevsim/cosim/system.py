@@ -7,7 +7,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from hevsim.cosim.datacheck import datacheck
 from hevsim.cosim.load import load_system
@@ -17,6 +17,9 @@ from hevsim.cosim.ssd import COMPONENT_TYPES, FMU_TYPE, PY_TYPE, SystemDescripti
 from hevsim.cosim.ssp_write import ssd_xml
 from hevsim.errors import ConfigError
 
+if TYPE_CHECKING:
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
 
 def build_participants(
     desc: SystemDescription, log_level: str = "error", fmu_log: str | Path | None = None
@@ -24,13 +27,17 @@ def build_participants(
     """Instantiate the participants of ``desc`` (FMUs in worker processes by default; their
     logger messages from ``log_level`` up on stderr, all of them in ``fmu_log``)."""
     from hevsim.cosim.participant import FMUParticipant
-    from hevsim.cosim.worker import WorkerFMUParticipant
 
     inproc = desc.master.get("fmu_process", "worker") == "inprocess"
     parts: list[Participant] = []
     for c in desc.components:
         if c.type == FMU_TYPE:
-            cls = FMUParticipant if inproc else WorkerFMUParticipant
+            if inproc:
+                cls: type[FMUParticipant] | type[WorkerFMUParticipant] = FMUParticipant
+            else:
+                from hevsim.cosim.worker import WorkerFMUParticipant  # (a process start anyway)
+
+                cls = WorkerFMUParticipant
             parts.append(cls(c.name, desc.base_dir / c.source, c.parameters, log_level, fmu_log))
         elif c.type == PY_TYPE:
             mod, _, fn = c.source.partition(":")
