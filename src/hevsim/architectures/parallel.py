@@ -205,15 +205,9 @@ def driveline_point(w_fd, t_fd, gear, throttle, grid_duplicates, d, etab):
     gi = int(np.rint(gear)) - 1
     ratio, eff = d.gear_ratio[gi], d.gear_efficiency[gi]
     w_e = w_fd * ratio
-    fired = throttle > 0.0
-    can_run = w_e >= d.stall_radps and w_e <= d.redline_radps
-    on = fired and can_run
-    t_e = fuel = t_e_fd = t_in_req = 0.0
+    fired, can_run, on, t_e = engine_torque_point(w_e, throttle, d, etab)
+    fuel = t_e_fd = t_in_req = 0.0
     if on:
-        t_e = torque_from_maps(
-            throttle, w_e, d.use_torque_map, d.stall_radps, d.redline_radps, d.engine_torque_scale,
-            etab.tmax_x, etab.tmax_y, etab.tct_x, etab.tct_y, etab.tmap_x, etab.tmap_y, etab.tmap_z,
-        )  # fmt: skip
         fuel = fired_fuel_from_maps(
             t_e, w_e, d.use_fuel_map, d.lhv_jpkg, d.stall_radps, d.redline_radps, d.engine_torque_scale,
             etab.tmax_x, etab.tmax_y, etab.fuel_x, etab.fuel_y, etab.fuel_z,
@@ -233,6 +227,39 @@ def driveline_point(w_fd, t_fd, gear, throttle, grid_duplicates, d, etab):
     if grid_duplicates and not d.p2:  # P3: with the engine off the gear does not matter
         bad = bad or (not fired and gi > 0)
     return gi, on, engine_speed, motor_speed, bad, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, w_em, t_em_req
+
+
+@njit(cache=True, inline="always")
+def engine_torque_point(w_e, throttle, d, etab):
+    """The engine of :func:`driveline_point` at speed ``w_e`` [rad/s] and ``throttle`` [-]:
+    (fired (``throttle > 0``), within its running window, on (both), brake torque [N·m], 0
+    unless on)."""
+    fired = throttle > 0.0
+    can_run = w_e >= d.stall_radps and w_e <= d.redline_radps
+    on = fired and can_run
+    t_e = 0.0
+    if on:
+        t_e = torque_from_maps(
+            throttle, w_e, d.use_torque_map, d.stall_radps, d.redline_radps, d.engine_torque_scale,
+            etab.tmax_x, etab.tmax_y, etab.tct_x, etab.tct_y, etab.tmap_x, etab.tmap_y, etab.tmap_z,
+        )  # fmt: skip
+    return fired, can_run, on, t_e
+
+
+def torque_rises_with_throttle(hev: ParallelHEV, throttles: Any) -> bool:
+    """Whether :func:`engine_torque_point`'s torque never falls from one of ``throttles`` [-]
+    to the next at any engine speed: the throttles ascend from >= 0 and the engine reads no
+    torque map (its torque is ``torque_scale x throttle x max torque(speed)``) with a
+    max-torque curve and scale >= 0 (rounding keeps the order of such products)."""
+    thr = np.asarray(throttles, dtype=np.float64)
+    eng = hev.engine
+    return bool(
+        eng.torque_map is None
+        and eng.torque_scale >= 0.0
+        and np.all(eng.kernel_tables().tmax_y >= 0.0)
+        and np.all(thr >= 0.0)
+        and np.all(np.diff(thr) >= 0.0)
+    )
 
 
 MECH_FLOATS: tuple[str, ...] = ("w_fd", "w_e", "t_e", "t_e_fd", "t_fd", "fuel", "w_em", "t_em_req")

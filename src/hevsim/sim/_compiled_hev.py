@@ -43,8 +43,6 @@ from hevsim.sim import kernel as K
 from hevsim.sim._compiled_common import add_road_audit, track_step, write_summary
 from hevsim.sim.forward import BISECTION_STEPS, REGEN_CURRENT_RTOL, BatchRecord, ForwardRecord
 
-PARALLEL, POWER_SPLIT = 0, 1
-"""Architecture codes of the compiled loop."""
 ELECTRIC_ASSIST, ECMS, AECMS, POWER_FOLLOWER = 0, 1, 2, 3
 """Controller codes of the compiled loop (:func:`controller_code`)."""
 BASE_COLUMNS = (
@@ -104,7 +102,9 @@ class HEVConstants(NamedTuple):
 class ControllerConstants(NamedTuple):
     """A controller's parameters (unused ones 0): code, equivalence factor and the A-ECMS PI
     gains and kinetic-energy term, the rule-based SOC band, EV speed [m/s] and power [W],
-    charging power [W], shift speeds [rad/s]."""
+    charging power [W], shift speeds [rad/s], and whether the electric assist's engine torque
+    rises with its throttle grid (:func:`~hevsim.architectures.parallel.torque_rises_with_throttle`;
+    :func:`_assist_throttle` then bisects)."""
 
     code: int
     s0: float
@@ -118,6 +118,7 @@ class ControllerConstants(NamedTuple):
     charge_power_w: float
     w_up_radps: float
     w_down_radps: float
+    thr_monotone: bool
 
 
 def controller_code(ctl: Any) -> ControllerConstants | None:
@@ -147,6 +148,7 @@ def controller_code(ctl: Any) -> ControllerConstants | None:
         charge_power_w=g("charge_power"),
         w_up_radps=g("w_up"),
         w_down_radps=g("w_down"),
+        thr_monotone=code == ELECTRIC_ASSIST and P.torque_rises_with_throttle(ctl.hev, ctl.thr_grid),
     )
 
 
@@ -225,20 +227,21 @@ def _feasible(infeasible, others, cur, t_em, p_bat, p_el, soc, h):
     return ok
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def _point(arch, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want, det, loss):
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
+def _point(dpar, dps, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want, det, loss):
     """The power flow of one candidate control (``c0``, ``c1``) at one step: (feasible, fuel
-    [kg] over the step, SOC change [-], engine power [W]). ``eng``: the power split's
+    [kg] over the step, SOC change [-], engine power [W]). ``dpar``, ``dps``: the parallel
+    or the power-split tables, the other None (the architecture: numba compiles the one
+    given, see :func:`run_hev`); ``eng``: the power split's
     :func:`~hevsim.architectures.power_split.engine_point` of the control (:func:`_engine`;
     unused by the parallel HEV); ``bat``: :func:`_battery` at ``soc``; ``md``:
-    (:class:`HEVConstants`, parallel and power-split tables, engine, motor and generator
-    tables). With ``want``, fills the architecture's details (``det``) and audit terms
-    (``loss``, [W]); without, a control infeasible by its engine or machine speeds (or
-    MG1's torque) is not taken to the bus (SOC change 0: callers read only its
-    infeasibility)."""
+    (:class:`HEVConstants`, engine, motor and generator tables). With ``want``, fills the
+    architecture's details (``det``) and audit terms (``loss``, [W]); without, a control
+    infeasible by its engine or machine speeds (or MG1's torque) is not taken to the bus
+    (SOC change 0: callers read only its infeasibility)."""
     ocv, r_dis, r_chg, p_chg = bat
-    h, dpar, dps, etab, mtab, gtab = md
-    if arch == PARALLEL:
+    h, etab, mtab, gtab = md
+    if dpar is not None:
         gi, on, es, ms, bad, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, w_em, t_req = P.mechanical_point(
             w_wheel, t_wheel, c0, c1, False, dpar, etab
         )
@@ -254,23 +257,27 @@ def _point(arch, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want
                 loss[j] = lo[j]
             P.details_point(gi, on, w_e, t_e, c1, fuel, w_em, t, p_el, cur, p_bat, lo[5], dpar.p2, det)
         return ok, fuel * dt, d_soc, t_e * (w_e if on else 0.0)
-    on, es, gt, gs, ms, bad, w_r, t_r, w_e, t_e, fuel, w_s, t_g, p_g, t_er, w_em, t_req = PS.drive_point(
-        w_wheel, t_wheel, c0, 0.0, False, eng, dps, gtab
-    )
-    if not want and (es or gt or gs or ms):  # infeasible whatever the bus gives (see _feasible)
-        return False, fuel * dt, 0.0, t_e * w_e
-    oth, inf, t, p_el, p_bat, cur, d_soc = _electric(
-        t_req, w_em, p_g + h.aux_power_w, regen_ok, soc, dt, ocv, r_dis, r_chg, p_chg, h, mtab
-    )
-    ok = _feasible(inf or bad, oth or es or gt or gs or ms, cur, t, p_bat, p_el, soc, h)
-    if want:
-        lo = PS.losses_point(
-            w_wheel, w_r, t_r, w_e, t_e, fuel, w_s, t_g, p_g, t_er, w_em, t, p_el, h.aux_power_w, dps
+    if dps is not None:
+        on, es, gt, gs, ms, bad, w_r, t_r, w_e, t_e, fuel, w_s, t_g, p_g, t_er, w_em, t_req = PS.drive_point(
+            w_wheel, t_wheel, c0, 0.0, False, eng, dps, gtab
         )
-        for j in range(len(lo)):
-            loss[j] = lo[j]
-        PS.details_point(on, w_e, t_e, c1, fuel, w_s, t_g, p_g, w_em, t, p_el, w_r, cur, p_bat, lo[5], det)
-    return ok, fuel * dt, d_soc, t_e * w_e
+        if not want and (es or gt or gs or ms):  # infeasible whatever the bus gives (see _feasible)
+            return False, fuel * dt, 0.0, t_e * w_e
+        oth, inf, t, p_el, p_bat, cur, d_soc = _electric(
+            t_req, w_em, p_g + h.aux_power_w, regen_ok, soc, dt, ocv, r_dis, r_chg, p_chg, h, mtab
+        )
+        ok = _feasible(inf or bad, oth or es or gt or gs or ms, cur, t, p_bat, p_el, soc, h)
+        if want:
+            lo = PS.losses_point(
+                w_wheel, w_r, t_r, w_e, t_e, fuel, w_s, t_g, p_g, t_er, w_em, t, p_el, h.aux_power_w, dps
+            )
+            for j in range(len(lo)):
+                loss[j] = lo[j]
+            PS.details_point(
+                on, w_e, t_e, c1, fuel, w_s, t_g, p_g, w_em, t, p_el, w_r, cur, p_bat, lo[5], det
+            )
+        return ok, fuel * dt, d_soc, t_e * w_e
+    return False, 0.0, 0.0, 0.0  # no architecture's tables (run_hev always gives one)
 
 
 NO_ENGINE = (False, False, False, 0.0, 0.0, 0.0)
@@ -317,22 +324,77 @@ def _argmin(cost, feasible, n):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _candidate(arch, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf):
+def _candidate(dpar, dps, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf):
     """:func:`_point` of candidate ``i`` of ``cands`` at one step (no details), its engine
     operating point from ``ecache`` (:func:`engine_cache`)."""
     eng = _engine(ecache[0], ecache[1], i)
-    return _point(arch, cands[0][i], cands[1][i], eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False,
-                  buf[6], buf[7])  # fmt: skip
+    return _point(dpar, dps, cands[0][i], cands[1][i], eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md,
+                  False, buf[6], buf[7])  # fmt: skip
 
 
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md, buf):
-    """The controller's choice at one step (:mod:`hevsim.control.parallel`): (found, c0, c1).
-    ``state``: [gear of the shift schedule, equivalence factor s, SOC integral, SOC reference]
-    (updated as the controller objects update themselves); ``cands``: (first and second
-    control of every candidate, the electric assist's throttle grid); ``buf``: work arrays."""
+def _assist_point(w_wheel, gear, throttle, dpar, etab):
+    """(``bad``, engine torque [N·m]) of :func:`~hevsim.architectures.parallel.mechanical_point`
+    at no wheel torque (compiled once, called by :func:`_assist_throttle`)."""
+    r = P.mechanical_point(w_wheel, 0.0, gear, throttle, False, dpar, etab)
+    return r[4], r[7]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _assist_throttle(w_wheel, g, t_req, thr_grid, monotone, dpar, etab):
+    """The electric assist's throttle in gear ``g`` (as
+    :meth:`hevsim.control.parallel.ElectricAssist.choose`): of the engine points not
+    ``bad``, the first of ``thr_grid`` whose torque reaches ``t_req`` [N·m], else the one of
+    the largest torque; 0 when every point is ``bad``. ``monotone``
+    (:attr:`ControllerConstants.thr_monotone`): the engine torque does not fall as the
+    throttle rises along the grid, so a bisection on the torque alone skips the throttles
+    below the answer, and the last throttle is the answer when none reaches ``t_req`` and
+    its torque is strictly the largest. The scan of every throttle decides the other cases."""
+    n = thr_grid.shape[0]
+    gf = float(g)
+    if monotone and n >= 2:
+        w_fd = P.final_drive_point(w_wheel, 0.0, dpar)[0]
+        w_e = w_fd * dpar.gear_ratio[g - 1]  # as P.driveline_point
+        lo, hi = 0, n
+        while lo < hi:  # the first throttle whose torque reaches t_req
+            mid = (lo + hi) // 2
+            if P.engine_torque_point(w_e, thr_grid[mid], dpar, etab)[3] >= t_req:
+                hi = mid
+            else:
+                lo = mid + 1
+        for i in range(lo, n):  # from there, the first point not bad
+            if not _assist_point(w_wheel, gf, thr_grid[i], dpar, etab)[0]:
+                return thr_grid[i]
+        if lo == n:  # none reaches t_req: the last throttle, if not bad and strictly the largest
+            bad, t_last = _assist_point(w_wheel, gf, thr_grid[n - 1], dpar, etab)
+            if not bad and t_last > P.engine_torque_point(w_e, thr_grid[n - 2], dpar, etab)[3]:
+                return thr_grid[n - 1]
+    first_above, i_max, t_max, any_ok = -1, -1, -np.inf, False
+    for i in range(n):
+        bad, te = _assist_point(w_wheel, gf, thr_grid[i], dpar, etab)
+        te = te if not bad else -np.inf
+        any_ok = any_ok or not bad
+        if te >= t_req:  # the first throttle that gives the torque (the rest cannot change it)
+            first_above = i
+            break
+        if i_max < 0 or te > t_max:
+            i_max, t_max = i, te
+    if any_ok:
+        return thr_grid[first_above if first_above >= 0 else i_max]
+    return 0.0
+
+
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
+def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md, buf):
+    """The controller's choice at one step (:mod:`hevsim.control.parallel`): (found, c0, c1,
+    filled, fuel [kg], SOC change [-]); ``filled``: the choice's details, audit terms
+    (``buf[6]``, ``buf[7]``), fuel and SOC change are those of :func:`_point` with ``want``
+    (else not computed). ``dpar``, ``dps``: as :func:`_point`. ``state``: [gear of the
+    shift schedule, equivalence factor s, SOC integral, SOC reference] (updated as the
+    controller objects update themselves); ``cands``: (first and second control of every
+    candidate, the electric assist's throttle grid); ``buf``: work arrays."""
     cand0, cand1, thr_grid = cands
-    h, dpar, _, etab, _, _ = md
+    h, etab, _, _ = md
     cost, fuel, p_eng, feas, p_cand, order, det, loss = buf[:8]
     ecache = (buf[8], buf[9])
     regen_ok = v_mid > 0.0
@@ -342,32 +404,23 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
     frac = min(max((cc.soc_high - soc) / (cc.soc_high - cc.soc_low), 0.0), 1.0)  # charge_fraction
     s = 0.0
     if cc.code == ELECTRIC_ASSIST:
-        w_fd = w_wheel * dpar.final_drive_ratio
-        g = shift_gear(int(state[0]), w_fd, dpar.gear_ratio, cc.w_up_radps, cc.w_down_radps)
-        state[0] = g
-        ev = p_dem <= 0.0 or soc > cc.soc_high or (soc > cc.soc_low and low_load)
-        c0, c1 = float(g), 0.0
-        if not ev:
-            w_e = w_fd * dpar.gear_ratio[g - 1]
-            t_fd = gear_input_torque(t_wheel, dpar.final_drive_ratio, dpar.final_drive_efficiency)
-            t_req = gear_input_torque(t_fd, dpar.gear_ratio[g - 1], dpar.gear_efficiency[g - 1]) + (
-                frac * cc.charge_power_w / w_e if w_e > 0 else 0.0
-            )
-            first_above, i_max, t_max, any_ok = -1, -1, -np.inf, False
-            for i in range(thr_grid.shape[0]):
-                r = P.mechanical_point(w_wheel, 0.0, float(g), thr_grid[i], False, dpar, etab)
-                te = r[7] if not r[4] else -np.inf
-                any_ok = any_ok or not r[4]
-                if te >= t_req:  # the first throttle that gives the torque (the rest cannot change it)
-                    first_above = i
-                    break
-                if i_max < 0 or te > t_max:
-                    i_max, t_max = i, te
-            if any_ok:
-                c1 = thr_grid[first_above if first_above >= 0 else i_max]
-        ok = _point(arch, c0, c1, NO_ENGINE, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss)
-        if ok[0]:
-            return True, c0, c1
+        if dpar is not None:
+            w_fd = w_wheel * dpar.final_drive_ratio
+            g = shift_gear(int(state[0]), w_fd, dpar.gear_ratio, cc.w_up_radps, cc.w_down_radps)
+            state[0] = g
+            ev = p_dem <= 0.0 or soc > cc.soc_high or (soc > cc.soc_low and low_load)
+            c0, c1 = float(g), 0.0
+            if not ev:
+                w_e = w_fd * dpar.gear_ratio[g - 1]
+                t_fd = gear_input_torque(t_wheel, dpar.final_drive_ratio, dpar.final_drive_efficiency)
+                t_req = gear_input_torque(t_fd, dpar.gear_ratio[g - 1], dpar.gear_efficiency[g - 1]) + (
+                    frac * cc.charge_power_w / w_e if w_e > 0 else 0.0
+                )
+                c1 = _assist_throttle(w_wheel, g, t_req, thr_grid, cc.thr_monotone, dpar, etab)
+            ok, fuel_kg, d_soc, _ = _point(dpar, dps, c0, c1, NO_ENGINE, w_wheel, t_wheel, regen_ok, soc, dt,
+                                           bat, md, True, det, loss)  # fmt: skip
+            if ok:
+                return True, c0, c1, True, fuel_kg, d_soc
     elif cc.code == AECMS:
         err = state[3] - cc.kin * v_mid**2 / e_soc - soc
         s = max(0.0, cc.s0 + cc.kp * err + cc.ki * state[2])
@@ -376,11 +429,12 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
         s = cc.s0
     elif p_dem <= 0.0 or (soc > cc.soc_low and low_load):  # power follower: the first feasible EV candidate
         for i in range(n):
-            if (
-                cand1[i] == 0.0
-                and _candidate(arch, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf)[0]
-            ):
-                return True, cand0[i], cand1[i]
+            if cand1[i] == 0.0:
+                pt = _candidate(
+                    dpar, dps, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
+                )
+                if pt[0]:
+                    return True, cand0[i], cand1[i], False, 0.0, 0.0
     if cc.code == POWER_FOLLOWER:
         # The least fuel of the feasible candidates whose engine power (known per run: p_cand)
         # is near the target: candidates in the order of their fuel (``order``, ties by index;
@@ -392,24 +446,27 @@ def _choose(arch, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat
         for j in range(n):
             i = order[j]
             if cand1[i] != 0.0 and abs(p_cand[i] - target) <= band:
-                if _candidate(arch, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf)[0]:
-                    return True, cand0[i], cand1[i]
+                pt = _candidate(
+                    dpar, dps, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
+                )
+                if pt[0]:
+                    return True, cand0[i], cand1[i], False, 0.0, 0.0
         for i in range(n):
             feas[i], fuel[i], d_soc, p_eng[i] = _candidate(
-                arch, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
+                dpar, dps, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
             )
             cost[i] = abs(p_eng[i] - target)
         i = _argmin(cost, feas, n)
     else:
         for i in range(n):  # every candidate: ECMS score, fuel, engine power
             feas[i], fuel[i], d_soc, p_eng[i] = _candidate(
-                arch, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
+                dpar, dps, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
             )
             cost[i] = fuel[i] / dt * h.lhv_jpkg + s * (-d_soc / dt * e_soc)
         i = _argmin(cost, feas, n)
     if i < 0:
-        return False, 0.0, 0.0
-    return True, cand0[i], cand1[i]
+        return False, 0.0, 0.0, False, 0.0, 0.0
+    return True, cand0[i], cand1[i], False, 0.0, 0.0
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -450,7 +507,8 @@ def _demand(v0, v1, k, dt, gr, h):
 # ------------------------------------------------------------------------- the run
 @njit(cache=True, nogil=True, error_model="numpy", **NO_REFCOUNT)
 def run_hev(
-    arch,
+    dpar,
+    dps,
     cc,
     soc0,
     t,
@@ -460,8 +518,6 @@ def run_hev(
     cand1,
     thr_grid,
     h,
-    dpar,
-    dps,
     etab,
     mtab,
     gtab,
@@ -472,7 +528,10 @@ def run_hev(
     state,
     buf,
 ):
-    """One forward run (the compiled :func:`hevsim.sim.forward._run`). Fills ``cols``
+    """One forward run (the compiled :func:`hevsim.sim.forward._run`) of the parallel HEV
+    (tables ``dpar``, ``dps`` None) or the power split (``dps``, ``dpar`` None): numba
+    compiles one architecture's code per type signature (its branches on the other's None
+    are pruned before typing). Fills ``cols``
     (channels x ``n + 1``: :data:`BASE_COLUMNS`, the details, :data:`TAIL_COLUMNS`),
     ``audit`` (:data:`AUDIT_BASE`, the loss terms but ``fuel`` and ``wheel``, battery loss;
     [J]) and ``summary`` (:data:`hevsim.sim.kernel.SUMMARY`). Returns (status, step index,
@@ -480,7 +539,7 @@ def run_hev(
     n = t.shape[0] - 1
     dt = t[1] - t[0]
     cands = (cand0, cand1, thr_grid)
-    md = (h, dpar, dps, etab, mtab, gtab)
+    md = (h, etab, mtab, gtab)
     det, loss = buf[6], buf[7]
     nd = det.shape[0]
     nl = loss.shape[0]
@@ -500,7 +559,9 @@ def run_hev(
         e_soc = q_as * ocv
         v1 = v_des[k + 1]
         v_mid, a, g, f = _demand(v, v1, k, dt, gr, h)
-        found, c0, c1 = _choose(arch, cc, state, cands, v_mid / r, f * r, v_mid, soc, dt, e_soc, bat, md, buf)
+        found, c0, c1, filled, fuel_kg, d_soc = _choose(
+            dpar, dps, cc, state, cands, v_mid / r, f * r, v_mid, soc, dt, e_soc, bat, md, buf
+        )
         limited = 0.0
         if not found:  # beyond the powertrain: lower the end speed until a control exists
             limited = 1.0
@@ -509,7 +570,9 @@ def run_hev(
             for _ in range(BISECTION_STEPS):
                 mid = 0.5 * (lo + hi)
                 tv, ta, tg, tf = _demand(v, mid, k, dt, gr, h)
-                ok, x0, x1 = _choose(arch, cc, state, cands, tv / r, tf * r, tv, soc, dt, e_soc, bat, md, buf)
+                ok, x0, x1, _, _, _ = _choose(
+                    dpar, dps, cc, state, cands, tv / r, tf * r, tv, soc, dt, e_soc, bat, md, buf
+                )
                 if not ok:
                     hi = mid
                 else:
@@ -517,18 +580,21 @@ def run_hev(
                     bv, ba, bg, bf, bc0, bc1 = tv, ta, tg, tf, x0, x1
             if not have:
                 bv, ba, bg, bf = _demand(v, 0.0, k, dt, gr, h)
-                ok, bc0, bc1 = _choose(
-                    arch, cc, state, cands, bv / r, bf * r, bv, soc, dt, e_soc, bat, md, buf
+                ok, bc0, bc1, _, _, _ = _choose(
+                    dpar, dps, cc, state, cands, bv / r, bf * r, bv, soc, dt, e_soc, bat, md, buf
                 )
                 if not ok:
                     return ERR_STUCK, k, v
             v_mid, a, g, f, c0, c1 = bv, ba, bg, bf, bc0, bc1
             v1 = v_mid * 2.0 - v
-        w_wheel, t_wheel = v_mid / r, f * r
-        eng = PS.engine_point(c0, c1, dps, etab) if arch == POWER_SPLIT else NO_ENGINE
-        _, fuel_kg, d_soc, _ = _point(
-            arch, c0, c1, eng, w_wheel, t_wheel, v_mid > 0.0, soc, dt, bat, md, True, det, loss
-        )
+            filled = False
+        if not filled:  # the chosen control's details and audit terms
+            eng = NO_ENGINE
+            if dps is not None:
+                eng = PS.engine_point(c0, c1, dps, etab)
+            _, fuel_kg, d_soc, _ = _point(
+                dpar, dps, c0, c1, eng, v_mid / r, f * r, v_mid > 0.0, soc, dt, bat, md, True, det, loss
+            )
         if cc.code == AECMS:  # update: integrate the SOC error of the step taken
             state[2] += (state[3] - cc.kin * v_mid**2 / e_soc - soc) * dt
         # ---- energy audit [J]
@@ -541,7 +607,11 @@ def run_hev(
         audit[len(AUDIT_BASE) + nl - 2] += e_chem - p_bat * dt
         add_road_audit(audit, v, v1, v_mid, a, g, f, h.mass_kg, m_eff, h.rolling_resistance, dt)
         # ---- mode and bookkeeping
-        i_on = 1 if arch == PARALLEL else 0
+        i_on, mode = 0, 0.0
+        if dpar is not None:
+            i_on, mode = 1, P.power_mode_point(det[1], det[9], f, v_mid)
+        if dps is not None:
+            mode = PS.power_mode_point(det[0], det[14], f, v_mid)
         on = det[i_on] > 0.0
         if on and not was_on:
             starts += 1.0
@@ -557,10 +627,7 @@ def run_hev(
         for j in range(nd):
             cols[len(BASE_COLUMNS) + j, k] = det[j]
         b = len(BASE_COLUMNS) + nd
-        if arch == PARALLEL:
-            cols[b, k] = P.power_mode_point(det[1], det[9], f, v_mid)
-        else:
-            cols[b, k] = PS.power_mode_point(det[0], det[14], f, v_mid)
+        cols[b, k] = mode
         cols[b + 1, k] = limited
         cols[b + 2, k] = det[i_on]
         cols[b + 3, k] = ocv
@@ -572,16 +639,6 @@ def run_hev(
 
 
 # ------------------------------------------------------------------------- Python side
-def _dummy_tables() -> tuple[P.ParallelTables, PS.PowerSplitTables]:
-    """Tables of the architecture a run does not use (the compiled loop types both)."""
-    one = np.ones(1)
-    dpar = P.ParallelTables(one, one, 1.0, 1.0, 1.0, 1.0, False, 0.0, 1.0, 1.0, False, False, 1.0,
-                            np.inf)  # fmt: skip
-    dps = PS.PowerSplitTables(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, 1.0, 1.0, False, False, 1.0, 0, 1.0, 1.0,
-                              np.inf, np.inf)  # fmt: skip
-    return dpar, dps
-
-
 def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_max: float) -> tuple[Any, ...]:
     """One compiled run: (channel names, channels (names x n + 1), audit names, audit [J],
     summary, final speed [m/s]); the controller left as the Python loop leaves it."""
@@ -590,8 +647,8 @@ def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_m
     cc = controller_code(ctl)
     assert cc is not None
     parallel = isinstance(model, P.ParallelHEV)
-    arch, mod = (PARALLEL, P) if parallel else (POWER_SPLIT, PS)
-    dpar, dps = _dummy_tables()
+    mod = P if parallel else PS
+    dpar, dps = None, None  # the other architecture's: None (run_hev)
     if parallel:
         dpar = P.kernel_tables(model)
         gtab = model.motor.kernel_tables()
@@ -626,8 +683,8 @@ def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_m
         order = np.argsort(np.where(np.isnan(fuel_kg), -np.inf, fuel_kg), kind="stable")  # NaN first
     buf = (np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc, np.bool_), p_cand, order,
            np.zeros(len(mod.DETAILS)), np.zeros(len(mod.LOSS_TERMS)), e_flags, e_floats)  # fmt: skip
-    status, k, v_end = run_hev(arch, cc, float(soc0), t, v_des, gr, cand0, cand1, thr, h, dpar, dps, etab,
-                               mtab, gtab, ptab, cols, audit, summary, state, buf)  # fmt: skip
+    status, k, v_end = run_hev(dpar, dps, cc, float(soc0), t, v_des, gr, cand0, cand1, thr, h, etab, mtab,
+                               gtab, ptab, cols, audit, summary, state, buf)  # fmt: skip
     if status == ERR_STUCK:
         raise DomainError(f"{model.name}: no feasible control at t = {t[k]:g} s even when stopping.")
     if cc.code == ELECTRIC_ASSIST:
