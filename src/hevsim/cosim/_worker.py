@@ -142,8 +142,8 @@ class Spin:
     once when it has come, else blocking as without the polling). The poll keeps the core: a
     yield would hand it to whatever else is runnable there for a whole time slice. A poll
     that runs out of time (the other side is slow, or waits for the very core this side
-    holds) makes the next 2, 4, .. 2**:data:`SPIN_BACKOFF_MAX` waits block at once; a poll
-    answered in time resets that. So on a free core a round trip costs no process wake-up,
+    holds) makes the next 2, 4, .. 256 waits (2 to the power :data:`SPIN_BACKOFF_MAX`) block
+    at once; a poll answered in time resets that. So on a free core a round trip costs no process wake-up,
     and on a loaded machine the polling soon stops costing anything."""
 
     def __init__(self, mm: Any, at: int, limit_s: float = SPIN_MAX_S):
