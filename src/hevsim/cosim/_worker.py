@@ -132,8 +132,7 @@ SPIN_MAX_S = 50e-6
 """Longest a side polls the shared memory for the other's token before it blocks on the pipe
 [s] by default (:attr:`hevsim.cosim.worker.WorkerFMUParticipant.spin_s`)."""
 SPIN_BACKOFF_MAX = 8
-"""After ``k`` polls in a row ran out of time, the next ``2**k`` waits block without polling
-(``k`` at most this)."""
+"""At most this many misses counted by :class:`Spin` (then 256 waits block between polls)."""
 
 
 class Spin:
@@ -142,13 +141,14 @@ class Spin:
     once when it has come, else blocking as without the polling). The poll keeps the core: a
     yield would hand it to whatever else is runnable there for a whole time slice. A poll
     that runs out of time (the other side is slow, or waits for the very core this side
-    holds) makes the next 2, 4, .. 256 waits (2 to the power :data:`SPIN_BACKOFF_MAX`) block
-    at once; a poll answered in time resets that. So on a free core a round trip costs no process wake-up,
-    and on a loaded machine the polling soon stops costing anything."""
+    holds) counts a miss, a poll answered in time takes one off, and after ``k`` misses the
+    next ``2**k`` waits block at once (``k`` at most :data:`SPIN_BACKOFF_MAX`): the polling
+    goes on while it is answered more often than not. So on a free core a round trip costs
+    no process wake-up, and on a loaded machine the polling soon stops costing anything."""
 
     def __init__(self, mm: Any, at: int, limit_s: float = SPIN_MAX_S):
         self.mm, self.at, self.limit_s = mm, at, float(limit_s)
-        self.misses = 0  # polls in a row that ran out of time
+        self.misses = 0  # polls that ran out of time, less those answered in time
         self.skip = 0  # waits left to block without polling
 
     def poll(self, seq: int) -> None:
@@ -166,7 +166,8 @@ class Spin:
                 self.misses = min(self.misses + 1, SPIN_BACKOFF_MAX)
                 self.skip = 1 << self.misses
                 return
-        self.misses = 0
+        if self.misses:
+            self.misses -= 1
 
 
 class StepChannel:
