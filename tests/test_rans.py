@@ -294,9 +294,168 @@ def test_coarse_fem_wall_cells_on_a_turbulent_flow_are_refused_with_the_needed_s
     with pytest.raises(ConfigError, match=r"no thicker than about 8\.7e-05 m.*flow\.wall_cell_m"):
         rans.check_thermal_wall_mesh(coarse)
     # the coolant model itself checks (as used by hevsim flow --thermal and the CHT participant)
+    # when told to resolve the wall layer (flow.thermal_wall = "resolved"; "auto" takes the wall
+    # function on such cells)
     res.metrics = {**m, "fem_wall_cell_m": 1e-3}  # type: ignore[attr-defined]
     try:
-        with pytest.raises(ConfigError, match="conduction sublayer"):
-            CoolantThermal(res, config_channel(cfg), cfg.coolant, channel_axis_m(cfg), 4)  # type: ignore[arg-type]
+        with pytest.raises(ConfigError, match=r"conduction sublayer.*thermal_wall"):
+            CoolantThermal(
+                res,  # type: ignore[arg-type]
+                config_channel(cfg),
+                cfg.coolant,
+                channel_axis_m(cfg),
+                4,
+                thermal_wall="resolved",
+            )
     finally:
         res.metrics = m  # type: ignore[attr-defined]
+
+
+def _gnielinski(prandtl: float) -> float:
+    f = (0.79 * math.log(RE_DUCT) - 1.64) ** -2
+    return (f / 8) * (RE_DUCT - 1000) * prandtl / (1 + 12.7 * math.sqrt(f / 8) * (prandtl ** (2 / 3) - 1))
+
+
+def _on_mesh(duct_rans: tuple[FlowConfig, object], **mesh: object) -> tuple[FlowConfig, object]:
+    """The duct's OpenFOAM solution read onto another FEM mesh (no second OpenFOAM run)."""
+    import dataclasses
+
+    cfg, res = duct_rans
+    sec = dataclasses.replace(cfg.flow, **mesh)  # type: ignore[arg-type]
+    cfg2 = dataclasses.replace(cfg, flow=sec)
+    return cfg2, rans.on_fem_mesh(res.rans, config_channel(cfg2), res.metrics, sec)  # type: ignore[attr-defined]
+
+
+@pytest.fixture(scope="module")
+def duct_resolved_nusselt(duct_rans: tuple[FlowConfig, object]) -> float:
+    """Developed Nusselt number of the resolved CHT (50 um FEM wall cells) on the duct."""
+    from hevsim.thermal.cht import run_cht
+
+    cfg, res = duct_rans
+    cht = run_cht(cfg, res)  # type: ignore[arg-type]
+    assert cht.metrics["wall_function"] == 0.0  # auto: these cells resolve the sublayer
+    return float(np.mean(cht.segments["nusselt"][-4:]))
+
+
+@pytest.mark.slow  # OpenFOAM solve (the duct fixture) + the resolved CHT (~30 s CPU)
+@needs_openfoam
+@pytest.mark.parametrize(
+    "mesh",
+    [
+        {"wall_cell_m": 0.0, "cells_across_width": 8, "cells_across_height": 4},  # uniform 1 x 0.5 mm
+        {"wall_cell_m": 3e-4},  # 4 x 2 graded from 0.3 mm
+    ],
+    ids=["uniform-8x4", "graded-0.3mm"],
+)
+def test_wall_function_on_coarse_fem_wall_cells_against_gnielinski_and_the_resolved_mesh(
+    duct_rans: tuple[FlowConfig, object], duct_resolved_nusselt: float, mesh: dict
+) -> None:
+    """FEM wall cells 6-10x the conduction sublayer's limit (15-60x fewer tetrahedra than the
+    resolved mesh): ``thermal_wall = "auto"`` takes the wall function; developed Nusselt
+    within the issue's 15 % of Gnielinski and of the resolved CHT; exact energy balance."""
+    from hevsim.thermal.cht import run_cht
+
+    cfg, res = _on_mesh(duct_rans, **mesh)
+    assert not rans.wall_cells_resolve_sublayer(res.metrics)  # type: ignore[attr-defined]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the wall cells are inside the law's range: no warning
+        cht = run_cht(cfg, res)  # type: ignore[arg-type]
+    m = cht.metrics
+    assert m["wall_function"] == 1.0 and m["energy_imbalance_rel"] < 1e-6
+    assert 5.0 < m["wall_yplus_min"] <= m["wall_yplus_mean"] <= m["wall_yplus_max"] < 300.0
+    assert m["wall_beyond_log_layer_fraction"] == 0.0
+    developed = float(np.mean(cht.segments["nusselt"][-4:]))
+    assert developed == pytest.approx(_gnielinski(cfg.coolant.prandtl), rel=0.15)
+    assert developed == pytest.approx(duct_resolved_nusselt, rel=0.15)
+    # the same cells without the wall function (the interpolated eddy diffusivity down to the
+    # wall: 7x the heat on the plate) are refused
+    with pytest.raises(ConfigError, match="conduction sublayer"):
+        run_cht(_with_wall(cfg, "resolved"), res)  # type: ignore[arg-type]
+
+
+def _with_wall(cfg: FlowConfig, mode: str) -> FlowConfig:
+    import dataclasses
+
+    return dataclasses.replace(cfg, flow=dataclasses.replace(cfg.flow, thermal_wall=mode))
+
+
+@pytest.mark.slow  # OpenFOAM solve (the duct fixture) + a CHT on the resolved mesh (~40 s CPU)
+@needs_openfoam
+def test_wall_function_on_the_resolved_mesh_gives_the_resolved_answer(
+    duct_rans: tuple[FlowConfig, object], duct_resolved_nusselt: float
+) -> None:
+    """Wall cells in the viscous sublayer (y+ < 6): the law of the wall is molecular conduction
+    there, the film tends to an imposed wall temperature, and the wall function reproduces the
+    resolved model."""
+    from hevsim.thermal.cht import run_cht
+
+    cfg, res = duct_rans
+    cht = run_cht(_with_wall(cfg, "wall_function"), res)  # type: ignore[arg-type]
+    m = cht.metrics
+    assert m["wall_function"] == 1.0 and m["wall_yplus_max"] < 6.0
+    assert m["wall_yplus_in_viscous_sublayer_fraction"] > 0.9
+    developed = float(np.mean(cht.segments["nusselt"][-4:]))
+    assert developed == pytest.approx(duct_resolved_nusselt, rel=0.05)
+
+
+@pytest.mark.slow  # OpenFOAM solve (the duct fixture: ~15 s CPU)
+@needs_openfoam
+def test_wall_function_warns_when_the_wall_node_is_in_the_core(duct_rans: tuple[FlowConfig, object]) -> None:
+    """The 4 x 2 uniform mesh puts the node at the channel's centre line (2 mm = D_h/2.7):
+    beyond the log layer; the wall heat comes out ~35 % high there, and the run says so."""
+    from hevsim.thermal.cht import WallFunctionWarning, run_cht
+
+    cfg, res = _on_mesh(duct_rans, wall_cell_m=0.0)
+    with pytest.warns(WallFunctionWarning, match=r"beyond the log layer.*flow\.wall_cell_m"):
+        cht = run_cht(cfg, res)  # type: ignore[arg-type]
+    assert cht.metrics["wall_beyond_log_layer_fraction"] > 0.5
+
+
+@pytest.mark.slow  # a short OpenFOAM run (15 iterations on a coarse grid: ~10 s CPU)
+@needs_openfoam
+def test_cht_participant_at_the_thesis_10_l_min_takes_the_wall_function(tmp_path: Path) -> None:
+    """The co-simulation participant at the shipped 10 L/min: RANS flow (deliberately short
+    and coarse here; the full case is examples/cosim_module/run_module_cht.py --flow-l-min 10),
+    the thermal wall function on the example's 8 x 4 coolant mesh, the 1-D channel's interface,
+    and the steady energy balance: the cooling power is m_dot c_p (T_out - T_in)."""
+    import sys
+
+    from hevsim.cosim.coolant import CoolantChannelParticipant
+    from hevsim.cosim.coolant_cht import CoolantCHTParticipant
+
+    sys.path.insert(0, str(ROOT / "examples" / "cosim_module"))
+    from run_module_cht import TURBULENT_MESH, module_cht_system
+
+    cht = next(c for c in module_cht_system(10.0, "cht", "inprocess", 10.0).components if c.name == "coolant")
+    assert cht.parameters["flow_l_min"] == 10.0 and TURBULENT_MESH.items() <= cht.parameters.items()
+    cfg = tmp_path / "module.toml"
+    cfg.write_text(
+        MODULE_TOML.read_text() + "\n[flow]\nrans_cells_across_width = 3\nrans_cells_across_height = 2\n"
+        "rans_cell_length_m = 0.008\nrans_wall_cell_m = 0.0\nrans_iterations = 15\n"
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # not converged in 15 iterations; bend end walls
+        p3 = CoolantCHTParticipant(
+            "coolant", cfg, **{k: v for k, v in cht.parameters.items() if k != "config"}
+        )
+    p1 = CoolantChannelParticipant("coolant", MODULE_TOML)
+    assert p3.inputs == p1.inputs and p3.outputs == p1.outputs
+    assert p3.flow.rans is not None and p3.model.wall_function is not None
+    m = p3.model.wall_metrics()
+    assert (
+        m["wall_function"] == 1.0 and m["wall_yplus_max"] > m["wall_yplus_mean"] > m["wall_yplus_min"] >= 0.0
+    )
+    n = p3.n_segments
+    area = p3.model.wall_area_m2
+    p3.set_inputs(
+        {f"wall{i}_temp_k": 303.15 for i in range(n)} | {f"wall{i}_area_m2": area[i] for i in range(n)}
+    )
+    out = p3.get_outputs()
+    t_in = p3.u["inlet_temp_k"]
+    assert out["cooling_power_w"] > 0.0
+    rise = p3.model.capacity_rate_w_k * (out["outlet_temp_k"] - t_in)
+    assert out["cooling_power_w"] == pytest.approx(rise, rel=1e-9)
+    wall, _, _ = p3._inputs()
+    temp, heat = p3.model.solve(wall, t_in)
+    assert p3.model.outlet_temp_k(temp) == pytest.approx(out["outlet_temp_k"], abs=1e-6)  # field vs response
+    assert heat.sum() == pytest.approx(out["cooling_power_w"], rel=1e-6)

@@ -84,6 +84,11 @@ def build_slab(model: CoolantThermal, geometry: ModuleGeometry) -> Slab:
     boxes = model.channel.boxes
     if len(boxes) != 1 or g.channel_passes != 1:
         raise ConfigError(f"{where}: needs one straight channel pass (channel_passes = 1); got {len(boxes)}.")
+    if model.wall_function is not None:
+        raise ConfigError(
+            f"{where}: shares the wall nodes of coolant and plate, so it needs the wall resolved; the "
+            "coolant uses the thermal wall function (a film at the wall): use flow.thermal_wall = 'resolved'."
+        )
     cm = model.flow.mesh
     xs, ys, zs = (np.unique(np.round(cm.p[i], 12)) for i in range(3))
     lx, ly, t = g.length_x_m, g.length_y_m, g.plate_thickness_m

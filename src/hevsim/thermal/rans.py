@@ -1037,7 +1037,7 @@ def read_rans_case(
             "flow.rans_iterations or flow.rans_tolerance, or accept the result if that change is small "
             "(steady RANS in the bends may not settle further).",
             RuntimeWarning,
-            stacklevel=2,
+            stacklevel=3,
         )
     wall_pts, inlet_pts = boundary_points(grid, channel)
     u_in = np.array((channel.inlet[3] * u_mean, 0.0, 0.0))
