@@ -626,8 +626,9 @@ def _lmtd_k(t_w: float, t_in: float, t_out: float) -> float:
 
 
 def plot_nusselt(res: ChtResult, path: Any) -> None:
-    """Local Nusselt number along the channel: 3-D laminar vs the 1-D model's correlation and
-    the Shah & London developed value, as a PNG (Agg canvas, no pyplot)."""
+    """Local Nusselt number along the channel: 3-D (laminar or RANS) vs the 1-D model's
+    correlation and, laminar, the Shah & London developed value, as a PNG (Agg canvas, no
+    pyplot)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -638,8 +639,9 @@ def plot_nusselt(res: ChtResult, path: Any) -> None:
     kind = _flow_kind(res)
     ax.plot(s, res.segments["nusselt"], "o-", ms=3, label=f"3-D {kind} (CHT), local")
     ax.plot(s, res.segments["nusselt_1d"], "--", label="1-D model correlation")
-    ax.axhline(res.metrics["nusselt_developed_shah_london"], color="k", lw=0.8, ls=":",
-               label="developed, Shah & London")  # fmt: skip
+    if res.model.flow.rans is None:  # the laminar developed value
+        ax.axhline(res.metrics["nusselt_developed_shah_london"], color="k", lw=0.8, ls=":",
+                   label="developed, Shah & London")  # fmt: skip
     ax.set_xlabel("distance along the channel [mm]")
     ax.set_ylabel("Nusselt number [-]")
     ax.set_yscale("log")
