@@ -349,12 +349,15 @@ def _assist_throttle(w_wheel, g, t_req, thr_grid, monotone, dpar, etab):
     (:attr:`ControllerConstants.thr_monotone`): the engine torque does not fall as the
     throttle rises along the grid, so a bisection on the torque alone skips the throttles
     below the answer, and the last throttle is the answer when none reaches ``t_req`` and
-    its torque is strictly the largest. The scan of every throttle decides the other cases."""
+    its torque is strictly the largest; an engine speed outside the running window makes
+    every throttle ``bad``. The scan of every throttle decides the other cases."""
     n = thr_grid.shape[0]
     gf = float(g)
     if monotone and n >= 2:
         w_fd = P.final_drive_point(w_wheel, 0.0, dpar)[0]
         w_e = w_fd * dpar.gear_ratio[g - 1]  # as P.driveline_point
+        if thr_grid[0] > 0.0 and not P.engine_torque_point(w_e, thr_grid[0], dpar, etab)[1]:
+            return 0.0  # every throttle fires the engine outside its running window: all bad
         lo, hi = 0, n
         while lo < hi:  # the first throttle whose torque reaches t_req
             mid = (lo + hi) // 2
