@@ -754,6 +754,20 @@ class _VersionAction(argparse.Action):
         parser.exit()
 
 
+def _cmd_compile(args: argparse.Namespace) -> int:
+    from hevsim.warmup import GROUPS, compile_groups, format_groups
+
+    if args.list:
+        print(format_groups(GROUPS))
+        return 0
+    done = compile_groups(args.group or None, jobs=args.jobs, examples=args.examples)
+    failed = [r.name for r in done if r.error]
+    if failed:
+        print(f"hevsim compile: {len(failed)} group(s) failed: {', '.join(failed)}", file=sys.stderr)
+        return 1
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``hevsim`` command."""
     parser = argparse.ArgumentParser(prog="hevsim", description=__doc__.splitlines()[0])
@@ -998,6 +1012,17 @@ def build_parser() -> argparse.ArgumentParser:
     p = rom_sub.add_parser("info", help="order, error estimate and provenance of a ROM file")
     p.add_argument("rom", help="ROM file (.npz) written by `hevsim rom build`")
     p.set_defaults(func=_cmd_rom_info)
+
+    p = sub.add_parser(
+        "compile",
+        help="compile hevsim's numba kernels ahead of use (once per install or update), in parallel",
+    )
+    p.add_argument("--group", action="append", help="only this kernel group (repeatable; --list names them)")
+    p.add_argument("--jobs", type=int, help="processes compiling at once (default: the cores)")
+    p.add_argument("--examples", help="folder of the example vehicles the warm-up runs drive (default: the "
+                   "repository's examples/)")  # fmt: skip
+    p.add_argument("--list", action="store_true", help="list the kernel groups, their state and compile time")
+    p.set_defaults(func=_cmd_compile)
 
     p = sub.add_parser("study", help="design-space study: sample parameters, run every case on Dask")
     p.add_argument("study", help="study file (TOML), e.g. examples/study_series_sizing.toml")

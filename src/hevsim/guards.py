@@ -171,8 +171,8 @@ def check_simulation(n_steps: int, label: str, available_bytes: int | None = Non
 def simulation_preflight(cfg: object, cycle: object, dt_s: float | None) -> None:
     """Before ``hevsim simulate``: refuse a run that would not fit in memory
     (:func:`check_simulation`), say what a long run will take, and warn before numba compiles
-    the forward kernel on a cold cache."""
-    from hevsim.progress import compile_notice, format_duration, stage
+    the kernels this run uses (:func:`hevsim.warmup.run_groups`) on a cold cache."""
+    from hevsim.progress import format_duration, stage
 
     c: object = cycle
     t = getattr(c, "time_s", None)
@@ -186,6 +186,7 @@ def simulation_preflight(cfg: object, cycle: object, dt_s: float | None) -> None
         stage(
             f"simulating {label}: {n_steps:,} steps, about {format_duration(seconds)} and {need / MB:,.0f} MB"
         )
-    from hevsim.sim import kernel
+    from hevsim.sim.forward import use_compiled
+    from hevsim.warmup import compile_notice_for, run_groups
 
-    compile_notice("simulation", [kernel.run_series])
+    compile_notice_for(run_groups(cfg, python_loop=not use_compiled(None)))

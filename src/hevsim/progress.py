@@ -8,7 +8,8 @@ Everything goes to standard error, so standard output keeps only results.
   ETA while it runs, and one line with the elapsed time at the end. Short loops stay silent
   until the end line.
 * :func:`compile_notice` warns once per process before numba compiles kernels whose on-disk
-  cache is missing or older than their source ("compiling kernels, once: about 20 s").
+  cache is missing or older than their source ("compiling kernels, once: about 20 s");
+  :mod:`hevsim.warmup` says which kernels a run needs and how long they take.
 
 ``HEVSIM_PROGRESS=0`` silences all of it (``1`` forces lines even where they would be
 skipped); the library stays quiet unless a caller asks for progress.
@@ -181,15 +182,22 @@ def cache_is_cold(dispatchers: Sequence[Any]) -> bool:
 
 
 def compile_notice(
-    what: str, dispatchers: Sequence[Any], seconds: float = 20.0, stream: IO[str] | None = None
+    what: str,
+    dispatchers: Sequence[Any],
+    seconds: float = 20.0,
+    stream: IO[str] | None = None,
+    hint: str = "",
 ) -> bool:
-    """Print ``compiling <what> kernels, once: about <seconds> s`` when the numba cache of
-    ``dispatchers`` is cold, once per process and ``what``; return whether it printed."""
+    """Print ``compiling <what> kernels, once: about <seconds>`` (:func:`format_duration`)
+    when the numba cache of ``dispatchers`` is cold, once per process and ``what``; ``hint``
+    ends the parenthesis. Return whether it printed."""
     if what in _noticed or not cache_is_cold(dispatchers):
         return False
     _noticed.add(what)
     stage(
-        f"compiling {what} kernels, once: about {seconds:.0f} s (later runs load them from the cache)", stream
+        f"compiling {what} kernels, once: about {format_duration(seconds)} "
+        f"(later runs load them from the cache{hint})",
+        stream,
     )
     return True
 
