@@ -370,23 +370,24 @@ def test_a_value_that_is_not_a_float_is_sent_pickled(integrator: Path) -> None:
 
 
 def test_polling_backs_off_while_it_is_not_answered_in_time() -> None:
-    """Spin: a poll that runs out of time counts a miss and the next 2**misses waits do not
-    poll; a poll answered in time takes a miss off; polling stays on while answered more
-    often than not; spin_s 0 never polls."""
+    """Spin: a poll that runs out of time counts SPIN_MISS_WEIGHT misses and the next
+    2**misses waits do not poll; a poll answered in time takes one miss off; the misses
+    saturate; spin_s 0 never polls."""
     import mmap
 
-    from hevsim.cosim._worker import SPIN_BACKOFF_MAX, Spin, write_seq
+    from hevsim.cosim._worker import SPIN_BACKOFF_MAX, SPIN_MISS_WEIGHT, Spin, write_seq
 
+    w = SPIN_MISS_WEIGHT
     mm = mmap.mmap(-1, 16)
     s = Spin(mm, 8, limit_s=1e-5)
     s.poll(1)  # the counter is 0: runs out of time
-    assert (s.misses, s.skip) == (1, 2)
-    s.poll(1)
-    s.poll(1)  # two waits without polling
-    assert (s.misses, s.skip) == (1, 0)
+    assert (s.misses, s.skip) == (w, 2**w)
+    for _ in range(2**w):
+        s.poll(1)  # waits without polling
+    assert (s.misses, s.skip) == (w, 0)
     write_seq(mm, 8, 1)
     s.poll(1)  # answered
-    assert (s.misses, s.skip) == (0, 0)
+    assert (s.misses, s.skip) == (w - 1, 0)
     for _ in range(3 * SPIN_BACKOFF_MAX):
         while s.skip:
             s.poll(2)

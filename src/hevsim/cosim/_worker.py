@@ -131,6 +131,10 @@ def write_seq(mm: Any, at: int, seq: int) -> None:
 SPIN_MAX_S = 50e-6
 """Longest a side polls the shared memory for the other's token before it blocks on the pipe
 [s] by default (:attr:`hevsim.cosim.worker.WorkerFMUParticipant.spin_s`)."""
+SPIN_MISS_WEIGHT = 4
+"""A poll that runs out of time counts this many misses in :class:`Spin`, one answered in
+time takes one off: polling goes on while at least 4 in 5 polls are answered (a miss costs
+the whole polling time, a hit saves a wake-up of some 10 µs)."""
 SPIN_BACKOFF_MAX = 8
 """At most this many misses counted by :class:`Spin` (then 256 waits block between polls)."""
 
@@ -141,10 +145,10 @@ class Spin:
     once when it has come, else blocking as without the polling). The poll keeps the core: a
     yield would hand it to whatever else is runnable there for a whole time slice. A poll
     that runs out of time (the other side is slow, or waits for the very core this side
-    holds) counts a miss, a poll answered in time takes one off, and after ``k`` misses the
-    next ``2**k`` waits block at once (``k`` at most :data:`SPIN_BACKOFF_MAX`): the polling
-    goes on while it is answered more often than not. So on a free core a round trip costs
-    no process wake-up, and on a loaded machine the polling soon stops costing anything."""
+    holds) counts :data:`SPIN_MISS_WEIGHT` misses, a poll answered in time takes one off,
+    and after ``k`` misses the next ``2**k`` waits block at once (``k`` at most
+    :data:`SPIN_BACKOFF_MAX`). So on a free core a round trip costs no process wake-up, and
+    on a loaded machine the polling soon stops costing anything."""
 
     def __init__(self, mm: Any, at: int, limit_s: float = SPIN_MAX_S):
         self.mm, self.at, self.limit_s = mm, at, float(limit_s)
@@ -163,7 +167,7 @@ class Spin:
         t0 = clock()
         while unpack(mm, at)[0] != seq:
             if clock() - t0 > limit:
-                self.misses = min(self.misses + 1, SPIN_BACKOFF_MAX)
+                self.misses = min(self.misses + SPIN_MISS_WEIGHT, SPIN_BACKOFF_MAX)
                 self.skip = 1 << self.misses
                 return
         if self.misses:
