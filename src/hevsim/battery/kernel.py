@@ -129,11 +129,20 @@ RECORD = (
 RV, RVAVG, ROCV, RSOC, RTEMP, RHEAT, RPORT, RCAP, RRS, REEL, RECH, REHEAT, REPORT = range(len(RECORD))
 
 
+@njit(cache=True, inline="always")
+def capacity_c(c0_c, k_cqabs, alpha_c_per_k, t_ref_k, qabs_c, temp_k, factor):
+    """Capacity C [C] per eq (35) from the cell's parameters (C0 [C], k [-], alpha [1/K],
+    T_ref [K]), its throughput ``qabs_c`` [C] and temperature [K], times the capacity factor
+    [-] of the capacity-vs-temperature table at ``temp_k``."""
+    return (c0_c + k_cqabs * qabs_c) * (1.0 + alpha_c_per_k * (temp_k - t_ref_k)) * factor
+
+
 @njit(cache=True)
 def cell_capacity(prm, t_ax, capf, qabs, temp_k):
     """Capacity C [C] per eq (35), times the optional capacity-vs-temperature factor table."""
-    c = (prm[C0] + prm[KCQ] * qabs) * (1.0 + prm[ALPHAC] * (temp_k - prm[TREF]))
-    return c * interp1(t_ax, capf, temp_k, False)
+    return capacity_c(
+        prm[C0], prm[KCQ], prm[ALPHAC], prm[TREF], qabs, temp_k, interp1(t_ax, capf, temp_k, False)
+    )
 
 
 @njit(cache=True)

@@ -46,12 +46,14 @@ from numba import njit
 
 from hevsim.battery.cooling import ControllerSection, CoolingLoop, CoolingSection, LoopStep, check_cooling
 from hevsim.battery.kernel import (
+    ALPHAC,
     ALPHARS,
     C0,
     CHEAT,
     CTI0,
     HMAX,
     IBAND,
+    KCQ,
     N_FIXED_STATES,
     NRC,
     OCVSTEP,
@@ -79,7 +81,7 @@ from hevsim.battery.kernel import (
     VMAX,
     VMIN,
     branch_affine,
-    cell_capacity,
+    capacity_c,
     cell_step,
     rc_element,
     rc_energy,
@@ -375,7 +377,7 @@ def pack_pass(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, 
             _record_cell(c, i_b[b], rec, out_cells, energy)
             v_end += rec[RV] / n_p
             v_avg += rec[RVAVG] / n_p
-        _group_pairs(prm, tabs, x, dt, g, cells, ez, ez, np.zeros((2, 1, 5)), False, pairs, totals)
+        _group_pairs(prm, tabs, x, dt, g, n_p, ez, ez, np.zeros((2, 1, 5)), False, pairs, totals)
     return v_end, v_avg
 
 
@@ -402,6 +404,27 @@ def rc_constants(p, rc_d, rc_c, dt):
 
 
 @njit(cache=True, inline="always")
+def _axis_location(ax, v):
+    """Where :func:`hevsim.tables.interp1` (``linear=False``) reads a table on the axis ``ax`` at
+    ``v``: (k, w); :func:`_axis_value` gives the value (the same bit for bit: the edges
+    exactly)."""
+    n = ax.shape[0]
+    k, w = 0, 0.0
+    if n > 1 and v >= ax[n - 1]:
+        k = n - 1
+    elif n > 1 and v > ax[0]:
+        k = _segment(ax, v)
+        w = (v - ax[k]) / (ax[k + 1] - ax[k])
+    return k, w
+
+
+@njit(cache=True, inline="always")
+def _axis_value(fp, k, w):
+    """1-D table ``fp`` at an :func:`_axis_location`."""
+    return fp[k] if w == 0.0 else fp[k] + w * (fp[k + 1] - fp[k])
+
+
+@njit(cache=True, inline="always")
 def _table_location(xp, yp, x, y):
     """Where :func:`hevsim.tables.interp2` (``linear=False``) reads a table on the axes ``xp``,
     ``yp`` at ``(x, y)``: (kind, i, j, wx, wy); kind 0 bilinear, 1 along ``x`` only (one ``y``
@@ -412,17 +435,11 @@ def _table_location(xp, yp, x, y):
     ny = yp.shape[0]
     x = min(max(x, xp[0]), xp[nx - 1])
     y = min(max(y, yp[0]), yp[ny - 1])
-    if nx == 1 or ny == 1:  # interp1 (linear=False) along the other axis: edges exactly
-        ax, v = (yp, y) if nx == 1 else (xp, x)
-        n = ax.shape[0]
-        k, w = 0, 0.0
-        if n > 1 and v >= ax[n - 1]:
-            k = n - 1
-        elif n > 1 and v > ax[0]:
-            k = _segment(ax, v)
-            w = (v - ax[k]) / (ax[k + 1] - ax[k])
-        if nx == 1:
-            return 2, 0, k, 0.0, w
+    if nx == 1:  # interp1 (linear=False) along the other axis: edges exactly
+        k, w = _axis_location(yp, y)
+        return 2, 0, k, 0.0, w
+    if ny == 1:
+        k, w = _axis_location(xp, x)
         return 1, k, 0, w, 0.0
     i = _segment(xp, x)
     j = _segment(yp, y)
@@ -441,50 +458,70 @@ def _table_value(fp, kind, i, j, wx, wy):
     return f0 + wx * (f1 - f0)
 
 
+# The linear pass's cell functions below index the pack's 2-D arrays by cell (``x[c, k]``) and
+# take no row views or table arrays chosen at run time: in compiled code each array view or
+# non-inlined call with array arguments costs reference-count updates (atomic operations) that
+# were most of a cell's step before (bench_pack_vehicle.py).
+
+
 @njit(cache=True, inline="always")
-def _affine_linear(p, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rcc, xc, ez_c, oc_c):
-    """:func:`hevsim.battery.kernel.branch_affine` of both directions of a linear cell (the same
-    operations, one capacity and one table location for both; ``rcc`` from
-    :func:`rc_constants`): ``ez_c`` = (E_dis, Z_dis, E_chg, Z_chg) [V, ohm]; ``oc_c`` = (capacity
-    [C], OCV_dis, R_s dis, OCV_chg, R_s chg) [V, ohm] for its next step (:func:`_step_linear`)."""
-    temp = xc[STEMP]
-    cap = cell_capacity(p, t_ax, capf, xc[SQABS], temp)
-    soc = p[SOCINI] - xc[SQ] / cap
-    oc_c[0] = cap
+def _affine_direction(rcc, d, x, c, r_scale, u, r_s, ez, oc):
+    """Direction ``d`` (0 discharge, 1 charge) of :func:`_affine_linear` from the cell's OCV
+    ``u`` [V] and R_s [ohm]: stores them in ``oc[c]`` and the pair (E, Z) in ``ez[c]``."""
+    oc[c, 1 + 2 * d] = u
+    oc[c, 2 + 2 * d] = r_s
+    for k in range(rcc.shape[1]):
+        if rcc[d, k, 0] > 0.0:
+            u -= x[c, N_FIXED_STATES + k] * rcc[d, k, 3]
+            r_s += rcc[d, k, 1] * r_scale * (1.0 - rcc[d, k, 3])
+    ez[c, 2 * d] = u
+    ez[c, 2 * d + 1] = r_s
+
+
+@njit(cache=True, inline="always")
+def _affine_linear(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rcc, x, ez, oc, c):
+    """:func:`hevsim.battery.kernel.branch_affine` of both directions of linear cell ``c`` (the
+    same operations, one capacity and one table location for both; ``rcc`` from
+    :func:`rc_constants`): ``ez[c]`` = (E_dis, Z_dis, E_chg, Z_chg) [V, ohm]; ``oc[c]`` =
+    (capacity [C], OCV_dis, R_s dis, OCV_chg, R_s chg) [V, ohm] for its next step
+    (:func:`_step_linear`)."""
+    temp = x[c, STEMP]
+    k, w = _axis_location(t_ax, temp)
+    cap = capacity_c(prm[c, C0], prm[c, KCQ], prm[c, ALPHAC], prm[c, TREF], x[c, SQABS], temp,
+                     _axis_value(capf, k, w))  # fmt: skip
+    soc = prm[c, SOCINI] - x[c, SQ] / cap
+    oc[c, 0] = cap
     kind, i, j, wx, wy = _table_location(soc_ax, t_ax, soc, temp)
-    for d in range(2):
-        u = min(max(_table_value(ocv_d if d == 0 else ocv_c, kind, i, j, wx, wy), p[VMIN]), p[VMAX])
-        r_tab = _table_value(rs_d if d == 0 else rs_c, kind, i, j, wx, wy)
-        r_s = series_resistance(r_tab, p[RSCALE], p[ALPHARS], temp, p[TREF])
-        oc_c[1 + 2 * d] = u
-        oc_c[2 + 2 * d] = r_s
-        for k in range(rcc.shape[1]):
-            if rcc[d, k, 0] > 0.0:
-                u -= xc[N_FIXED_STATES + k] * rcc[d, k, 3]
-                r_s += rcc[d, k, 1] * p[RSCALE] * (1.0 - rcc[d, k, 3])
-        ez_c[2 * d] = u
-        ez_c[2 * d + 1] = r_s
+    v_min, v_max, r_scale = prm[c, VMIN], prm[c, VMAX], prm[c, RSCALE]
+    alpha, t_ref = prm[c, ALPHARS], prm[c, TREF]
+    u = min(max(_table_value(ocv_d, kind, i, j, wx, wy), v_min), v_max)
+    r_s = series_resistance(_table_value(rs_d, kind, i, j, wx, wy), r_scale, alpha, temp, t_ref)
+    _affine_direction(rcc, 0, x, c, r_scale, u, r_s, ez, oc)
+    u = min(max(_table_value(ocv_c, kind, i, j, wx, wy), v_min), v_max)
+    r_s = series_resistance(_table_value(rs_c, kind, i, j, wx, wy), r_scale, alpha, temp, t_ref)
+    _affine_direction(rcc, 1, x, c, r_scale, u, r_s, ez, oc)
 
 
 @njit(cache=True, inline="always")
-def _step_linear(p, rcc, xc, oc_c, i_a, dt, t_port, out_c, energy):
-    """:func:`hevsim.battery.kernel.cell_step` of a linear cell from the capacity, OCV and R_s
-    :func:`_affine_linear` kept (the same operations); fills ``out_c`` as :func:`pack_step`
+def _step_linear(prm, rcc, x, oc, c, i_a, dt, t_port, out, energy):
+    """:func:`hevsim.battery.kernel.cell_step` of linear cell ``c`` from the capacity, OCV and
+    R_s :func:`_affine_linear` kept (the same operations); fills ``out[c]`` as :func:`pack_step`
     and adds the step's energies. Returns (end voltage, step-average voltage) [V]."""
-    sign = step_direction(i_a, xc[SDIR], p[IBAND])
+    sign = step_direction(i_a, x[c, SDIR], prm[c, IBAND])
     k = 1 if sign >= 0.0 else 3
     d = 0 if sign > 0.0 else 1  # rc_element's test
-    cap, ocv, rs = oc_c[0], oc_c[k], oc_c[k + 1]
+    cap, ocv, rs = oc[c, 0], oc[c, k], oc[c, k + 1]
+    r_scale = prm[c, RSCALE]
     rc_end = 0.0
     rc_avg = 0.0
     rc_heat = 0.0
     for j in range(rcc.shape[1]):
         on = rcc[d, j, 0] > 0.0
-        r_el = rcc[d, j, 1] * p[RSCALE]
+        r_el = rcc[d, j, 1] * r_scale
         tau = rcc[d, j, 2]
         decay = rcc[d, j, 4]
         v_inf = r_el * i_a if on else 0.0
-        dv = xc[N_FIXED_STATES + j] - v_inf
+        dv = x[c, N_FIXED_STATES + j] - v_inf
         v_new = v_inf + dv * decay
         sq = (
             v_inf * v_inf * dt
@@ -495,31 +532,38 @@ def _step_linear(p, rcc, xc, oc_c, i_a, dt, t_port, out_c, energy):
         if on:
             rc_end += v_new
             rc_avg += (v_inf * dt + dv * tau * (1.0 - decay)) / dt
-        xc[N_FIXED_STATES + j] = v_new
+        x[c, N_FIXED_STATES + j] = v_new
     heat_j = rs * i_a * i_a * dt + rc_heat
     q_heat = heat_j / dt
-    t_inf = t_port + q_heat * p[RSKIN]
-    temp0 = xc[STEMP]
-    temp1 = t_inf + (temp0 - t_inf) * oc_c[5]  # exp(-dt / (C_heat R_skin)) (pack_pairs)
-    port_j = heat_j - p[CHEAT] * (temp1 - temp0)
-    xc[SQ] += i_a * dt
-    xc[SQABS] += abs(i_a) * dt
-    xc[SCYC] += abs(i_a) * dt / (2.0 * cap)
-    xc[STEMP] = temp1
-    xc[SDIR] = sign
-    xc[SILAST] = i_a
+    t_inf = t_port + q_heat * prm[c, RSKIN]
+    temp0 = x[c, STEMP]
+    temp1 = t_inf + (temp0 - t_inf) * oc[c, 5]  # exp(-dt / (C_heat R_skin)) (pack_pairs)
+    port_j = heat_j - prm[c, CHEAT] * (temp1 - temp0)
+    x[c, SQ] += i_a * dt
+    x[c, SQABS] += abs(i_a) * dt
+    x[c, SCYC] += abs(i_a) * dt / (2.0 * cap)
+    x[c, STEMP] = temp1
+    x[c, SDIR] = sign
+    x[c, SILAST] = i_a
     v_avg = ocv - rs * i_a - rc_avg
     v_end = ocv - rs * i_a - rc_end
-    out_c[0] = i_a
-    out_c[1] = p[SOCINI] - xc[SQ] / cap
-    out_c[2] = temp1
-    out_c[3] = port_j / dt
-    out_c[4] = v_end
+    out[c, 0] = i_a
+    out[c, 1] = prm[c, SOCINI] - x[c, SQ] / cap
+    out[c, 2] = temp1
+    out[c, 3] = port_j / dt
+    out[c, 4] = v_end
     energy[0] += v_avg * i_a * dt
     energy[1] += -ocv * i_a * dt
     energy[2] += heat_j
     energy[3] += port_j
     return v_end, v_avg
+
+
+#: options of the compiled loops that allocate nothing: no reference counting of arrays
+#: (numba's ``_nrt=False``, as numba's own sort and string kernels use it). In a loop over
+#: cells every array a helper receives or views otherwise costs a pair of atomic reference
+#: updates: they were ~85 % of a cell's step (bench_pack_vehicle.py, before/after rows).
+NO_REFCOUNT: dict[str, Any] = {"cache": True, "_nrt": False}
 
 
 @njit(cache=True)
@@ -528,10 +572,15 @@ def pack_pass_linear(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc
     """:func:`pack_pass` for a pack of linear cells (none of the nonlinear options), from the
     pairs, capacities, OCVs and resistances :func:`pack_pairs` (or the previous pass) stored in
     ``ez``/``oc``: each cell's tables are read once per direction and step."""
-    tabs = (soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c)
-    i_b = np.empty(n_p)
-    dirs = np.empty(n_p)
-    cells = np.empty(n_p, dtype=np.int64)
+    return _pass_linear(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, x, n_groups, n_p, i_a, dt, t_port,
+                        out_cells, energy, ez, oc, rcc, pairs, totals, np.empty(n_p), np.empty(n_p),
+                        np.empty(n_p, dtype=np.int64))  # fmt: skip
+
+
+@njit(**NO_REFCOUNT)
+def _pass_linear(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, x, n_groups, n_p, i_a, dt, t_port,
+                 out_cells, energy, ez, oc, rcc, pairs, totals, i_b, dirs, cells):  # fmt: skip
+    """:func:`pack_pass_linear` with its work arrays ``i_b``, ``dirs``, ``cells`` (n_p,)."""
     energy[:] = 0.0
     totals[:] = 0.0
     v_end = 0.0
@@ -541,30 +590,25 @@ def pack_pass_linear(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc
             cells[b] = g * n_p + b
         _share_affine(prm, x, ez, cells, i_a, i_b, dirs)
         for b in range(n_p):
-            c = cells[b]
-            ve, va = _step_linear(prm[c], rcc, x[c], oc[c], i_b[b], dt, t_port[c], out_cells[c], energy)
+            c = g * n_p + b
+            ve, va = _step_linear(prm, rcc, x, oc, c, i_b[b], dt, t_port[c], out_cells, energy)
             v_end += ve / n_p
             v_avg += va / n_p
-        _group_pairs(prm, tabs, x, dt, g, cells, ez, oc, rcc, True, pairs, totals)
+        for c in range(g * n_p, (g + 1) * n_p):
+            _affine_linear(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rcc, x, ez, oc, c)
+        _group_sums(ez, g, n_p, pairs, totals)
     return v_end, v_avg
 
 
 @njit(cache=True, inline="always")
-def _group_pairs(prm, tabs, x, dt, g, cells, ez, oc, rcc, linear, pairs, totals):
-    """Affine pairs of both directions (:func:`pack_pass`) of group ``g``'s ``cells`` (``linear``:
-    by :func:`_affine_linear`, which also fills ``oc``); adds the group's to ``totals``."""
-    if linear:
-        soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf = tabs[:7]
-        for c in cells:
-            _affine_linear(prm[c], soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rcc, x[c], ez[c], oc[c])
-    else:
-        for c in cells:
-            for d in range(2):
-                ez[c, 2 * d], ez[c, 2 * d + 1] = branch_affine(prm[c], *tabs, x[c], dt, 1.0 - 2.0 * d)  # type: ignore[call-arg]
+def _group_sums(ez, g, n_p, pairs, totals):
+    """From the cells' pairs ``ez[c, :4]`` of group ``g`` (cells ``g n_p`` to ``(g+1) n_p - 1``):
+    their ``1/Z`` and ``E/Z`` (``ez[c, 4:]``), the group's pair (parallel branches) in
+    ``pairs[g]``, added to ``totals``."""
     for d in range(2):
         inv_z = 0.0
         e_over_z = 0.0
-        for c in cells:
+        for c in range(g * n_p, (g + 1) * n_p):
             e, z = ez[c, 2 * d], ez[c, 2 * d + 1]
             ez[c, 4 + 2 * d] = 1.0 / z
             ez[c, 5 + 2 * d] = e / z
@@ -576,6 +620,21 @@ def _group_pairs(prm, tabs, x, dt, g, cells, ez, oc, rcc, linear, pairs, totals)
         totals[2 * d + 1] += pairs[g, 2 * d + 1]
 
 
+@njit(cache=True, inline="always")
+def _group_pairs(prm, tabs, x, dt, g, n_p, ez, oc, rcc, linear, pairs, totals):
+    """Affine pairs of both directions (:func:`pack_pass`) of group ``g``'s cells (``linear``:
+    by :func:`_affine_linear`, which also fills ``oc``); adds the group's to ``totals``."""
+    if linear:
+        soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf = tabs[:7]
+        for c in range(g * n_p, (g + 1) * n_p):
+            _affine_linear(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rcc, x, ez, oc, c)
+    else:
+        for c in range(g * n_p, (g + 1) * n_p):
+            for d in range(2):
+                ez[c, 2 * d], ez[c, 2 * d + 1] = branch_affine(prm[c], *tabs, x[c], dt, 1.0 - 2.0 * d)  # type: ignore[call-arg]
+    _group_sums(ez, g, n_p, pairs, totals)
+
+
 @njit(cache=True)
 def pack_pairs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, n_groups, n_p, dt, ez, oc,
                rcc, linear, pairs, totals):  # fmt: skip
@@ -585,9 +644,7 @@ def pack_pairs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x,
     tabs = (soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c)
     totals[:] = 0.0
     for g in range(n_groups):
-        _group_pairs(
-            prm, tabs, x, dt, g, np.arange(g * n_p, (g + 1) * n_p), ez, oc, rcc, linear, pairs, totals
-        )
+        _group_pairs(prm, tabs, x, dt, g, n_p, ez, oc, rcc, linear, pairs, totals)
     if linear:  # the cells' thermal decay over a step (constant: their heat capacity and skin)
         for c in range(x.shape[0]):
             oc[c, 5] = math.exp(-dt / (prm[c, CHEAT] * prm[c, RSKIN]))
