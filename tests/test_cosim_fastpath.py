@@ -369,13 +369,18 @@ def test_a_value_that_is_not_a_float_is_sent_pickled(integrator: Path) -> None:
         p.terminate()
 
 
-def test_polling_backs_off_while_it_is_not_answered_in_time() -> None:
+def test_polling_backs_off_while_it_is_not_answered_in_time(monkeypatch: pytest.MonkeyPatch) -> None:
     """Spin: a poll that runs out of time counts SPIN_MISS_WEIGHT misses and the next
     2**misses waits do not poll; a poll answered in time takes one miss off; the misses
-    saturate; spin_s 0 never polls."""
+    saturate; spin_s 0 never polls, nor does a machine with more runnable processes than
+    cores."""
     import mmap
 
+    import hevsim.cosim._worker as W
     from hevsim.cosim._worker import SPIN_BACKOFF_MAX, SPIN_MISS_WEIGHT, Spin, write_seq
+
+    real = W.runnable_processes
+    monkeypatch.setattr(W, "runnable_processes", lambda: 1)  # a free machine
 
     w = SPIN_MISS_WEIGHT
     mm = mmap.mmap(-1, 16)
@@ -396,3 +401,11 @@ def test_polling_backs_off_while_it_is_not_answered_in_time() -> None:
     off = Spin(mm, 8, limit_s=0.0)
     off.poll(5)
     assert (off.misses, off.skip) == (0, 0)
+    monkeypatch.setattr(W, "runnable_processes", lambda: 64)  # a crowded machine
+    crowded = Spin(mm, 8, limit_s=1e-5)
+    crowded.cores = 2
+    for _ in range(3):
+        crowded.poll(5)  # returns at once: no poll, no miss
+    assert (crowded.misses, crowded.skip) == (0, 0) and crowded.crowded()
+    n = real()
+    assert n is None or n >= 1  # this process at least (Linux)

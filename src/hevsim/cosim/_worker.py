@@ -137,16 +137,43 @@ time takes one off: polling goes on while at least 4 in 5 polls are answered (a 
 the whole polling time, a hit saves a wake-up of some 10 µs)."""
 SPIN_BACKOFF_MAX = 8
 """At most this many misses counted by :class:`Spin` (then 256 waits block between polls)."""
+SPIN_SAMPLE = 32
+"""Waits between two looks of :class:`Spin` at the number of runnable processes."""
+_LOADAVG = "/proc/loadavg"  # its 4th field: runnable / all scheduling entities (Linux)
+
+
+def runnable_processes() -> int | None:
+    """Processes (threads) runnable on the machine right now, this one included (None when
+    the system does not say)."""
+    try:
+        fd = os.open(_LOADAVG, os.O_RDONLY)
+        try:
+            data = os.read(fd, 128)
+        finally:
+            os.close(fd)
+        return int(data.split()[3].split(b"/")[0])
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+def _cores() -> int:
+    """Cores this process may run on."""
+    affinity = getattr(os, "sched_getaffinity", None)
+    return len(affinity(0)) if affinity is not None else os.cpu_count() or 1
 
 
 class Spin:
     """Waits for a counter in the shared memory ``mm`` at offset ``at`` to reach a value by
     polling it for at most ``limit_s`` [s]; the caller then reads the token from the pipe (at
-    once when it has come, else blocking as without the polling). The poll keeps the core: a
-    yield would hand it to whatever else is runnable there for a whole time slice. A poll
-    that runs out of time (the other side is slow, or waits for the very core this side
-    holds) counts :data:`SPIN_MISS_WEIGHT` misses, a poll answered in time takes one off,
-    and after ``k`` misses the next ``2**k`` waits block at once (``k`` at most
+    once when it has come, else blocking as without the polling). Polling pays only when the
+    other side runs on another core meanwhile, so it is done only while the machine's
+    runnable processes (both sides included, looked at every :data:`SPIN_SAMPLE` waits,
+    averaged) do not outnumber its cores: on a busy machine, the scheduler favours
+    processes that sleep, and a polling side would only lose its turn later. The poll keeps
+    the core (a yield would hand it to whatever else is runnable there for a whole time
+    slice). A poll that runs out of time (the other side is slow, or waits for the very core
+    this side holds) counts :data:`SPIN_MISS_WEIGHT` misses, a poll answered in time takes
+    one off, and after ``k`` misses the next ``2**k`` waits block at once (``k`` at most
     :data:`SPIN_BACKOFF_MAX`). So on a free core a round trip costs no process wake-up, and
     on a loaded machine the polling soon stops costing anything."""
 
@@ -154,11 +181,24 @@ class Spin:
         self.mm, self.at, self.limit_s = mm, at, float(limit_s)
         self.misses = 0  # polls that ran out of time, less those answered in time
         self.skip = 0  # waits left to block without polling
+        self.cores = _cores()
+        self.runnable = 0.0  # runnable processes, recent average
+        self.count = 0  # waits since the last look at them
+
+    def crowded(self) -> bool:
+        """Whether the machine has more runnable processes than cores (looked at every
+        :data:`SPIN_SAMPLE` calls)."""
+        if self.count == 0:
+            n = runnable_processes()
+            if n is not None:
+                self.runnable += (n - self.runnable) * 0.5
+        self.count = (self.count + 1) % SPIN_SAMPLE
+        return self.runnable > self.cores + 0.5
 
     def poll(self, seq: int) -> None:
         """Poll until the counter is ``seq`` or the time is up (see the class)."""
         limit = self.limit_s
-        if limit <= 0.0:
+        if limit <= 0.0 or self.crowded():
             return
         if self.skip:
             self.skip -= 1
