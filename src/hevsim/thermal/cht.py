@@ -36,6 +36,12 @@ spurious wall heat per bend segment) and for a divergence-free velocity, and it 
 (of order ``h^2 |T|_2 |div u_h|``). ``divergence_correction=False`` gives the plain advective
 form.
 
+On a turbulent (RANS) flow the eddy diffusivity ``nu_t / Pr_t`` adds to ``alpha``; where the
+FEM wall cells are too thick for the conduction sublayer, the thermal wall function
+(:mod:`hevsim.thermal.wall_function`, ``flow.thermal_wall``) bridges the wall layer: the
+wall temperature then enters through a film ``int h (T_w - T) v`` on the wall facets (from the
+law of the wall) instead of the Dirichlet rows, and the wall heat is that film's heat.
+
 The coupling to conduction in the plate is partitioned: the plate's FEM gives the wall
 temperature per segment, the coolant returns the heat per segment
 (:class:`hevsim.cosim.coolant_cht.CoolantCHTParticipant`).
@@ -140,6 +146,9 @@ class CoolantThermal:
         where: prefix of error messages.
         divergence_correction: add the term that closes the energy balance on a flow that
             is divergence-free only weakly (module docstring); False = plain advective form.
+        thermal_wall: wall treatment on a RANS flow, ``auto``, ``resolved`` or
+            ``wall_function`` (:meth:`_wall_treatment`, :mod:`hevsim.thermal.wall_function`:
+            the wall temperature then enters through a film instead of the wall rows).
     """
 
     flow: FlowResult

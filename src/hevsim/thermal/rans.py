@@ -41,6 +41,10 @@ turbulent (eddy) diffusivity ``nu_t / Pr_t`` [m^2/s] at its vertices (``Pr_t`` =
 ``flow.prandtl_turbulent``, default 0.85, the usual value for water-like liquids, e.g.
 W. M. Kays, J. Heat Transfer 116 (1994) 284-295), which the coolant heat transfer
 (:mod:`hevsim.thermal.cht`) adds to the molecular one. The flow is frozen for the thermal run.
+:func:`on_fem_mesh` reads one solution onto another FEM mesh and :func:`read_rans_case` a
+finished case folder (``openfoam/`` of ``hevsim flow --out``) without solving again. FEM wall
+cells too thick for the conduction sublayer (:func:`wall_cells_resolve_sublayer`) take the
+thermal wall function (:mod:`hevsim.thermal.wall_function`) or are refused.
 
 **Finding OpenFOAM.** :func:`find_openfoam`: ``$HEVSIM_OPENFOAM`` (an installation folder with
 ``etc/bashrc``), an already sourced environment (``$WM_PROJECT_DIR`` and ``simpleFoam`` on the

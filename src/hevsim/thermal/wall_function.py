@@ -32,7 +32,7 @@ Below y+ about 5 (the viscous sublayer) Kader's law tends to ``T+ = Pr y+``: the
 resistance becomes molecular conduction across ``y_P``, the element's own conduction is then
 all of it, the film tends to infinity (floored at :data:`FILM_RESISTANCE_FLOOR`) and the wall
 temperature is imposed as in the resolved model; a fine wall mesh so gives the resolved
-answer (``tests/test_wall_function.py``). The law holds in the viscous, buffer and log layers,
+answer (``tests/test_rans.py``). The law holds in the viscous, buffer and log layers,
 up to y+ about 300 (:data:`YPLUS_LOG_MAX`) and a node no farther from the wall than about a
 quarter of the hydraulic diameter (:data:`OUTER_FRACTION_MAX` of ``D_h / 2``): beyond, P lies
 in the channel's core, where the velocity and temperature depart from the log laws (the
