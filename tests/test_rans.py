@@ -265,16 +265,35 @@ def test_cli_flow_at_the_shipped_10_l_min_runs_rans_and_keeps_the_case(
     )
     out = tmp_path / "res"
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # not converged in 15 iterations
-        assert main(["flow", str(cfg), "--out", str(out)]) == 0
+        warnings.simplefilter("ignore")  # not converged in 15 iterations; wall node on the centre line
+        assert main(["flow", str(cfg), "--thermal", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "RANS k-omega SST" in text and "y+" in text and "Re = 3451" in text
+    assert "thermal wall function: y+ of the wall cells" in text
     summary = json.loads((out / "summary.json").read_text())
     assert summary["metadata"]["model"] == "rans"
     assert summary["metrics"]["iterations"] == 15 and summary["metrics"]["pressure_drop_pa"] > 0
     assert (out / "openfoam" / "log.simpleFoam").is_file()
     assert (out / "openfoam" / "constant" / "polyMesh" / "faces").is_file()
     assert (out / "openfoam" / "15" / "U").is_file()
+    # the coolant heat transfer at 10 L/min: the wall function on the default coolant mesh
+    cht = json.loads((out / "cht_summary.json").read_text())["metrics"]
+    assert cht["wall_function"] == 1.0 and cht["energy_imbalance_rel"] < 1e-6 and cht["heat_w"] > 0
+    for name in ("cht_segments.csv", "nusselt.png", "temperature.vtu", "coolant_temperature.png", "flow.vtu"):
+        assert (out / name).is_file(), name
+    # the kept case reads back without OpenFOAM to the same flow
+    from hevsim.thermal.flow import load_flow_config
+
+    fc = load_flow_config(cfg)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        again = rans.read_rans_case(
+            out / "openfoam", config_channel(fc), fc.coolant, fc.flow_m3_s, section=fc.flow
+        )
+    assert again.metrics["pressure_drop_pa"] == pytest.approx(
+        summary["metrics"]["pressure_drop_pa"], rel=1e-12
+    )
+    assert again.metrics["elements"] == summary["metrics"]["elements"]
 
 
 @pytest.mark.slow  # OpenFOAM solve (the duct fixture: ~15 s CPU)
