@@ -642,6 +642,15 @@ def run_hev(
 
 
 # ------------------------------------------------------------------------- Python side
+def writable(tab: Any) -> Any:
+    """``tab`` (a named tuple of arrays and scalars) with its read-only arrays copied: a
+    read-only array is another numba type, so a machine whose map arrays are read-only would
+    compile :func:`run_hev` a second time (about 20 s) for the same architecture."""
+    if all(a.flags.writeable for a in tab if isinstance(a, np.ndarray)):
+        return tab
+    return type(tab)(*(a.copy() if isinstance(a, np.ndarray) and not a.flags.writeable else a for a in tab))
+
+
 def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_max: float) -> tuple[Any, ...]:
     """One compiled run: (channel names, channels (names x n + 1), audit names, audit [J],
     summary, final speed [m/s]); the controller left as the Python loop leaves it."""
@@ -653,29 +662,23 @@ def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_m
     mod = P if parallel else PS
     dpar, dps = None, None  # the other architecture's: None (run_hev)
     if parallel:
-        dpar = P.kernel_tables(model)
-        gtab = model.motor.kernel_tables()
+        dpar = writable(P.kernel_tables(model))
+        gtab = writable(model.motor.kernel_tables())
     else:
-        dps = PS.kernel_tables(model)
-        gtab = model.generator.kernel_tables()
+        dps = writable(PS.kernel_tables(model))
+        gtab = writable(model.generator.kernel_tables())
     ctl.reset(float(soc0))
-    t, v_des, gr = (
-        np.ascontiguousarray(a, dtype=np.float64) for a in (grid.time_s, grid.speed_mps, grid.grade)
-    )
+    t, v_des, gr = (np.require(a, np.float64, ("C", "W")) for a in (grid.time_s, grid.speed_mps, grid.grade))
     names = (*BASE_COLUMNS, *mod.DETAILS, *TAIL_COLUMNS)
     cols = np.zeros((len(names), t.size))
     audit_names = (*AUDIT_BASE, *mod.LOSS_TERMS[1:-1], "battery_loss")
     audit = np.zeros(len(audit_names))
     summary = np.zeros(len(K.SUMMARY))
     state = np.zeros(4)
-    cand0, cand1 = (np.ascontiguousarray(c, dtype=np.float64) for c in (ctl.controls[0], ctl.controls[-1]))
-    thr = np.ascontiguousarray(getattr(ctl, "thr_grid", np.zeros(0)), dtype=np.float64)
+    cand0, cand1 = (np.require(c, np.float64, ("C", "W")) for c in (ctl.controls[0], ctl.controls[-1]))
+    thr = np.require(getattr(ctl, "thr_grid", np.zeros(0)), np.float64, ("C", "W"))
     h = constants(model, soc_min, soc_max)
-    etab, mtab, ptab = (
-        model.engine.kernel_tables(),
-        model.motor.kernel_tables(),
-        model.battery.kernel_tables(),
-    )
+    etab, mtab, ptab = (writable(c.kernel_tables()) for c in (model.engine, model.motor, model.battery))
     nc = cand0.size
     e_flags, e_floats = np.zeros((3, nc), np.bool_), np.zeros((3, nc))
     p_cand, order = np.zeros(nc), np.arange(nc)
