@@ -41,13 +41,22 @@ openfoam:
 			"as root, or openfoam.com/.org packages; the RANS tests will be skipped)"; \
 	fi
 
+# The numba kernels are compiled first (`hevsim compile`, one process per core, while the
+# linters run), then pytest runs on every core (pytest-xdist; one test file per worker at a
+# time, so a module's fixtures are built once). JOBS=1: one compile process, one test worker.
+JOBS ?= $(shell nproc 2>/dev/null || echo 2)
+
 test: $(STAMP) openfoam
-	$(BIN)/ruff check src tests benchmarks examples
-	$(BIN)/ruff format --check src tests benchmarks examples
-	$(BIN)/mypy
-	$(BIN)/pylint --disable=all --enable=duplicate-code --min-similarity-lines=7 src/hevsim
-	$(BIN)/python -m sphinx -W -q -b html docs/api build/api-html
-	$(BIN)/python -m pytest -q
+	@mkdir -p build
+	$(BIN)/hevsim compile --jobs $(JOBS) 2>build/compile.log & compile=$$!; \
+	  $(BIN)/ruff check src tests benchmarks examples && \
+	  $(BIN)/ruff format --check src tests benchmarks examples && \
+	  $(BIN)/mypy && \
+	  $(BIN)/pylint --disable=all --enable=duplicate-code --min-similarity-lines=7 src/hevsim && \
+	  $(BIN)/python -m sphinx -W -q -b html docs/api build/api-html; lint=$$?; \
+	  wait $$compile; built=$$?; cat build/compile.log; \
+	  [ $$lint = 0 ] && [ $$built = 0 ]
+	$(BIN)/python -m pytest -q -n $(JOBS) --dist loadfile
 
 docs: $(STAMP)
 	$(BIN)/python -m sphinx -W --keep-going -b html docs/api build/api-html
