@@ -68,14 +68,19 @@ class WorkerFMUParticipant(Participant):
         self._fd = os.memfd_create(f"hevsim-worker-{name}") if shm else -1
         self._mm: Any = None
         self._awaiting = 0  # counter of the step in shared memory whose reply is due
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "hevsim.cosim._worker"],
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=None,  # the FMU's own output and its logger lines from log_level up
-            bufsize=0,
-            pass_fds=(self._fd,) if self._fd >= 0 else (),
-        )
+        try:
+            self.proc = subprocess.Popen(
+                [sys.executable, "-m", "hevsim.cosim._worker"],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=None,  # the FMU's own output and its logger lines from log_level up
+                bufsize=0,
+                pass_fds=(self._fd,) if self._fd >= 0 else (),
+            )
+        except BaseException:
+            if self._fd >= 0:
+                os.close(self._fd)
+            raise
         assert self.proc.stdin is not None and self.proc.stdout is not None
         self._wfd = self.proc.stdin.fileno()
         self._reader = FrameReader(self.proc.stdout.fileno())
