@@ -782,21 +782,26 @@ def threaded_batch(
     """Every variant (:func:`_variant`) a compiled run on its own thread of a pool (the
     compiled loops release the GIL): ``run(variant model, its controller, initial SOC)``
     returns (channel names, channels (names x n + 1), audit names, audit [J], summary) of one
-    run. None when a variant's keys cannot be varied on the built model."""
+    run. None when a variant's keys cannot be varied on the built model (the keys decide it:
+    the first variant tells; the threads build the others, overlapping one variant's Python
+    set-up with another's compiled run)."""
     import os
     from concurrent.futures import ThreadPoolExecutor
 
     n = int(np.size(soc_initial))
-    runs = []
-    for i in range(n):
-        pair = _variant(model, controller.name, {k: float(v[i]) for k, v in variants.items()})
-        if pair is None:
-            return None
-        runs.append(pair)
+
+    def pair(i: int) -> tuple[Any, Any] | None:
+        return _variant(model, controller.name, {k: float(v[i]) for k, v in variants.items()})
+
+    first = pair(0) if n else None
+    if first is None:
+        return None
     dt = float(grid.time_s[1] - grid.time_s[0])
 
     def one(i: int) -> tuple[Any, ...]:
-        vm, ctl = runs[i]
+        built = first if i == 0 else pair(i)
+        assert built is not None  # the keys of variant 0
+        vm, ctl = built
         names, cols, audit_names, audit, summary = run(vm, ctl, float(soc_initial[i]))
         wheel = cols[names.index("wheel_power_w")][:-1]
         return (
