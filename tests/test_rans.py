@@ -219,21 +219,18 @@ def test_turbulent_duct_friction_factor_against_blasius(duct_rans: tuple[FlowCon
 @pytest.mark.slow  # OpenFOAM solve (the duct fixture: ~15 s CPU)
 @needs_openfoam
 def test_turbulent_duct_nusselt_on_the_frozen_rans_flow_against_gnielinski(
-    duct_rans: tuple[FlowConfig, object],
+    duct_rans: tuple[FlowConfig, object], duct_resolved_cht: object
 ) -> None:
     from hevsim.thermal.cht import run_cht
 
     cfg, res = duct_rans
-    pr = cfg.coolant.prandtl
-    f = (0.79 * math.log(RE_DUCT) - 1.64) ** -2
-    gnielinski = (f / 8) * (RE_DUCT - 1000) * pr / (1 + 12.7 * math.sqrt(f / 8) * (pr ** (2 / 3) - 1))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the thermal-mesh warning counts laminar layers
-        cht = run_cht(cfg, res)  # type: ignore[arg-type]
+    gnielinski = _gnielinski(cfg.coolant.prandtl)
+    cht = duct_resolved_cht
+    assert cht.metrics["wall_function"] == 0.0  # type: ignore[attr-defined]  # auto: cells resolve it
     # the read-back velocity is projected to be discretely divergence-free: exact energy balance
-    assert cht.metrics["energy_imbalance_rel"] < 1e-6
-    assert cht.metrics["heat_w"] > 0
-    nu = cht.segments["nusselt"]
+    assert cht.metrics["energy_imbalance_rel"] < 1e-6  # type: ignore[attr-defined]
+    assert cht.metrics["heat_w"] > 0  # type: ignore[attr-defined]
+    nu = cht.segments["nusselt"]  # type: ignore[attr-defined]
     developed = float(np.mean(nu[-4:]))  # x = 72-120 mm, 13-22 D_h
     assert developed == pytest.approx(gnielinski, rel=0.15), (nu, gnielinski)
     assert nu[0] > developed  # thermal entry
@@ -346,14 +343,18 @@ def _on_mesh(duct_rans: tuple[FlowConfig, object], **mesh: object) -> tuple[Flow
 
 
 @pytest.fixture(scope="module")
-def duct_resolved_nusselt(duct_rans: tuple[FlowConfig, object]) -> float:
-    """Developed Nusselt number of the resolved CHT (50 um FEM wall cells) on the duct."""
+def duct_resolved_cht(duct_rans: tuple[FlowConfig, object]) -> object:
+    """The resolved CHT (50 um FEM wall cells) on the duct's RANS flow (~30 s CPU, once)."""
     from hevsim.thermal.cht import run_cht
 
     cfg, res = duct_rans
-    cht = run_cht(cfg, res)  # type: ignore[arg-type]
-    assert cht.metrics["wall_function"] == 0.0  # auto: these cells resolve the sublayer
-    return float(np.mean(cht.segments["nusselt"][-4:]))
+    return run_cht(cfg, res)  # type: ignore[arg-type]
+
+
+@pytest.fixture(scope="module")
+def duct_resolved_nusselt(duct_resolved_cht: object) -> float:
+    """Developed Nusselt number of the resolved CHT on the duct (last 4 of 10 segments)."""
+    return float(np.mean(duct_resolved_cht.segments["nusselt"][-4:]))  # type: ignore[attr-defined]
 
 
 @pytest.mark.slow  # OpenFOAM solve (the duct fixture) + the resolved CHT (~30 s CPU)
