@@ -187,6 +187,13 @@ def main() -> int:
         pcfg, _ = vehicle_pack_config(cfgs["a"], 1.0)
         alone = timed("pack alone (Pack.simulate, same 1200 cells, same current)",
                       lambda: Pack(pcfg).simulate(current), 1)  # fmt: skip
+        from hevsim.battery.pack_run import F_HSROWS
+
+        kept = Pack(pcfg)
+        kept.simulate(current)
+        n_rows = kept.arrays.rom_cand.shape[0]
+        print(f"  hot spot: {kept._f[F_HSROWS] / (current.size * pcfg.pack.n_modules):.1f} of {n_rows} "
+              "candidate rows evaluated per module-step (screened, exact)")  # fmt: skip
         kernel_before_after(vehicle_pack_config(cfgs["b"], 1.0)[0], current)  # coolant: no ROM to load
         n_cells = res.metadata["pack"]["n_cells"]
         print(f"pack of {n_cells} cells, thermal {res.metadata['pack']['thermal']}; energy balance residual "

@@ -39,7 +39,7 @@ from numba import njit
 
 from hevsim.battery.cooling import LP_INF, LP_PFLOW, LP_RHOCP, LP_ZEROC, LS_TEMP, loop_begin, loop_end
 from hevsim.battery.kernel import STEMP
-from hevsim.battery.pack import pack_pairs, pack_pass, pack_pass_linear
+from hevsim.battery.pack import NO_REFCOUNT, pack_pairs, pack_pass, pack_pass_linear
 from hevsim.tables import FloatArray
 
 #: scalar entries of :attr:`PackArrays.f` (sizes, flags and the run's running values)
@@ -48,11 +48,11 @@ F_NAMES = (
     "weight", "n_modules", "sim_per_module", "max_current_a", "ambient_k", "linear", "ez_valid", "rom",
     "h_plate", "time_s", "step", "soc", "soc_min", "soc_max", "stress", "v_min", "v_max", "base_aux_w",
     "rom_b_amb_w_k", "rom_f_const_w", "activation_k", "hot_spot_started",
-    "hot_spot_rows",
+    "hot_spot_rows", "hot_spot_rebase_k",
 )  # fmt: skip
 (F_DT, F_NG, F_NP, F_REP, F_NS, F_NPAR, F_WEIGHT, F_NMOD, F_SIMPM, F_IMAX, F_AMB, F_LINEAR, F_EZVALID,
  F_ROM, F_H, F_TIME, F_STEP, F_SOC, F_SOCMIN, F_SOCMAX, F_STRESS, F_VMIN, F_VMAX, F_BASEAUX, F_BAMB,
- F_FCONST, F_ACT, F_HSINIT, F_HSROWS) = range(
+ F_FCONST, F_ACT, F_HSINIT, F_HSROWS, F_HSREBASE) = range(
     len(F_NAMES))  # fmt: skip
 
 #: the step vector :attr:`PackArrays.sv` that :func:`pack_begin` fills
@@ -115,8 +115,8 @@ class PackArrays(NamedTuple):
     per module. Derating tables (``[derating]``). ROM (empty without one): modal decay
     ``1 / (1/dt + lambda)`` ``rom_decay`` (r,), inputs ``rom_in`` (m_in, r) (``(Q^T B_r(h))^T``),
     outputs ``rom_out`` (r, n_cells + n_seg + 1) (cell means, wall integrals, film row, times Q),
-    candidate rows ``rom_cand`` (n_cells * n_candidates, r) with the hot-spot screening's
-    arrays (``hs_*``, :func:`_module_hot_spots`), modal states ``rom_w`` (n_modules, r),
+    candidate rows ``rom_cand`` (n_rows, r; each cell's distinct candidates) with the hot-spot
+    screening's arrays (``hs_*``, :func:`_module_hot_spots`), modal states ``rom_w`` (n_modules, r),
     input rows ``rom_u`` (n_modules, m_in), last outputs ``rom_y``, the channel's segment mean and
     exit factors and the wall areas [m^2]. Records: ``acc``, ``sv``, ``rec``, ``hot``, ``stress``
     (8, n_cells) and ``stress_n`` (steps, duration [s]).
@@ -160,6 +160,9 @@ class PackArrays(NamedTuple):
     hs_energy: FloatArray
     hs_ub: FloatArray
     hs_prev: FloatArray
+    hs_blk: FloatArray
+    hs_block: FloatArray
+    hs_gmax: FloatArray
     rom_w: FloatArray
     rom_u: FloatArray
     rom_y: FloatArray
@@ -235,6 +238,11 @@ def pack_begin(s):
 
 #: absolute slack [K] added to the hot-spot bounds per step (the rounding of the products)
 HOT_SPOT_SLACK_K = 1e-10
+#: the bounds' running sums [K] beyond which every row is evaluated afresh and the sums restart
+#: (their rounding, ~1e-16 of them, stays far below the slack): ``f[F_HSREBASE]``'s default
+HOT_SPOT_REBASE_K = 1e3
+#: columns of :attr:`PackArrays.hs_prev` after the modal deviation ``d`` (r columns)
+HP_TREF, HP_BEST, HP_RISE, HP_GROW = range(4)
 
 
 @njit(cache=True, fastmath=True)
@@ -246,7 +254,19 @@ def _dot(a, b):
     return acc
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
+def _deviation_change(wm, unit, t_ref, d_prev):
+    """``|d - d_prev|^2`` for the deviation ``d = wm - t_ref unit`` (:func:`_module_hot_spots`),
+    which replaces ``d_prev`` (vectorised, as :func:`_dot`: it only sizes a bound)."""
+    acc = 0.0
+    for i in range(wm.shape[0]):
+        d = wm[i] - t_ref * unit[i]
+        acc += (d - d_prev[i]) ** 2
+        d_prev[i] = d
+    return acc
+
+
+@njit(**NO_REFCOUNT)
 def _module_hot_spots(s, w, hot):
     """Per-module hot spot [K]: the largest candidate-node temperature ``G_j w`` of each
     module's cells (``G = rom_cand``, modal), exact (to rounding) with few rows evaluated.
@@ -254,50 +274,71 @@ def _module_hot_spots(s, w, hot):
     Every candidate row satisfies ``G_j u = 1`` for the modal state ``u`` of the uniform 1 K
     field, so with ``T_ref = e.w / e.u`` (the module's mean, ``e`` the stored-heat row) and
     ``d = w - T_ref u``, a row changes over a step by ``dT_ref + G_j dd`` and
-    ``|G_j dd| <= |G_j| |dd|``. Each row keeps an upper bound ``hs_ub`` (its value when last
-    evaluated plus those increments); a step evaluates the row that was the hottest, then
-    every row whose bound exceeds the largest value found so far: the rows skipped are below
-    it, so the maximum is the maximum of all rows. The first step evaluates every row."""
+    ``|G_j dd| <= |G_j| |dd|``. With the running sums ``R`` of ``dT_ref`` (plus a slack for
+    rounding) and ``S`` of ``|dd|`` since the module's last full evaluation, row ``j``
+    evaluated to ``y`` keeps the offset ``a_j = y - R - |G_j| S`` and stays below
+    ``a_j + R + |G_j| S`` (no per-step update). The rows come in blocks (one per cell,
+    ``hs_block`` offsets) with the largest ``|G_j|`` of each (``hs_gmax``): a block keeps the
+    offset ``b = B - R - gmax S`` of the largest row bound ``B`` when it was last scanned, so
+    ``b + R + gmax S`` bounds all its rows. A step evaluates the row that was the hottest, then
+    scans the blocks whose bound exceeds the largest value found so far and, in them, evaluates
+    the rows whose own bound exceeds it: every row skipped is below it, so the maximum is the
+    maximum of all rows. The first step (and one whose sums passed ``f[F_HSREBASE]``, by default
+    :data:`HOT_SPOT_REBASE_K`) evaluates every row."""
     g, gn, unit, en = s.rom_cand, s.hs_norm, s.hs_unit, s.hs_energy
-    ub, prev = s.hs_ub, s.hs_prev
+    a, prev, blk, start, gmax = s.hs_ub, s.hs_prev, s.hs_blk, s.hs_block, s.hs_gmax
     r = w.shape[1]
     n_rows = g.shape[0]
-    e_u = 0.0
-    for i in range(r):
-        e_u += en[i] * unit[i]
+    n_blocks = gmax.shape[0]
+    e_u = _dot(en, unit)
     first = s.f[F_HSINIT] == 0.0
+    rebase = s.f[F_HSREBASE]
+    evaluated = 0
     for m in range(w.shape[0]):
         wm = w[m]
-        e_w = 0.0
-        for i in range(r):
-            e_w += en[i] * wm[i]
-        t_ref = e_w / e_u
-        dd2 = 0.0
-        for i in range(r):
-            d = wm[i] - t_ref * unit[i]
-            dd2 += (d - prev[m, i]) ** 2
-            prev[m, i] = d
-        grow = math.sqrt(dd2) * (1.0 + 1e-12)
-        rise = t_ref - prev[m, r] + HOT_SPOT_SLACK_K
-        prev[m, r] = t_ref
-        best = -np.inf
-        j_best = int(prev[m, r + 1])
-        if not first:
-            for j in range(n_rows):
-                ub[m, j] += rise + gn[j] * grow
-            y = _dot(g[j_best], wm)
-            ub[m, j_best] = y
-            best = y
-            s.f[F_HSROWS] += 1.0
-        for j in range(n_rows):
-            if ub[m, j] > best or first:
-                s.f[F_HSROWS] += 1.0
-                y = _dot(g[j], wm)
-                ub[m, j] = y
-                if y > best:
-                    best, j_best = y, j
-        prev[m, r + 1] = j_best
+        t_ref = _dot(en, wm) / e_u
+        dd2 = _deviation_change(wm, unit, t_ref, prev[m, :r])
+        rise = prev[m, r + HP_RISE] + (t_ref - prev[m, r + HP_TREF] + HOT_SPOT_SLACK_K)
+        grow = prev[m, r + HP_GROW] + math.sqrt(dd2) * (1.0 + 1e-12)
+        prev[m, r + HP_TREF] = t_ref
+        j_best = int(prev[m, r + HP_BEST])
+        if first or grow > rebase or abs(rise) > rebase:
+            rise = grow = 0.0
+            best = -np.inf
+            for k in range(n_blocks):
+                top = -np.inf
+                for j in range(int(start[k]), int(start[k + 1])):
+                    y = _dot(g[j], wm)
+                    a[m, j] = y
+                    top = max(top, y)
+                    if y > best:
+                        best, j_best = y, j
+                blk[m, k] = top + HOT_SPOT_SLACK_K
+            evaluated += n_rows
+        else:
+            best = _dot(g[j_best], wm)
+            a[m, j_best] = best - rise - gn[j_best] * grow
+            evaluated += 1
+            for k in range(n_blocks):
+                if blk[m, k] + rise + gmax[k] * grow <= best:
+                    continue
+                top = -np.inf
+                for j in range(int(start[k]), int(start[k + 1])):
+                    bound = a[m, j] + rise + gn[j] * grow
+                    if bound > best:
+                        y = _dot(g[j], wm)
+                        a[m, j] = y - rise - gn[j] * grow
+                        bound = y
+                        evaluated += 1
+                        if y > best:
+                            best, j_best = y, j
+                    top = max(top, bound)
+                blk[m, k] = top + HOT_SPOT_SLACK_K - rise - gmax[k] * grow
+        prev[m, r + HP_RISE] = rise
+        prev[m, r + HP_GROW] = grow
+        prev[m, r + HP_BEST] = j_best
         hot[m] = best
+    s.f[F_HSROWS] += evaluated
     s.f[F_HSINIT] = 1.0
 
 
@@ -495,12 +536,18 @@ def pack_simulate(s, request_a, cells_out):
 def modal_rom(rom, dt_s: float, wall_h_w_m2k: float) -> dict[str, np.ndarray]:
     """The modal arrays of a :class:`~hevsim.thermal.rom.ThermalRom` at step ``dt_s`` [s] and wall
     film ``wall_h_w_m2k`` [W/(m^2 K)] (module docstring): ``q`` (r, r) the eigenvectors, and the
-    :class:`PackArrays` entries ``rom_decay``, ``rom_in``, ``rom_out``, ``rom_cand``, ``hs_norm``,
-    ``hs_unit``; plus
+    :class:`PackArrays` entries ``rom_decay``, ``rom_in``, ``rom_out``, ``rom_cand`` (each cell's
+    candidate rows without repeats, in blocks from ``hs_block``), ``hs_norm``, ``hs_block``,
+    ``hs_gmax``, ``hs_unit``; plus
     ``energy`` (r,) the stored-heat row and ``film`` the film row, both times ``q``."""
     h = rom.check_wall_h(float(wall_h_w_m2k))
     lam, q = np.linalg.eigh(rom.stiffness(h))
-    cand = rom.out_candidates @ q
+    # the candidate rows, each cell's block without the repeated rows that pad it
+    per_cell = np.asarray(rom.out_candidates).reshape(rom.n_cells, -1, rom.order)
+    blocks = [np.unique(rows, axis=0, return_index=True)[1] for rows in per_cell]
+    cand = np.vstack([rows[np.sort(keep)] for rows, keep in zip(per_cell, blocks, strict=True)]) @ q
+    norm = np.sqrt(np.einsum("ij,ij->i", cand, cand))
+    start = np.concatenate([[0], np.cumsum([b.size for b in blocks])])
     out_rows = np.vstack([rom.out_mean, rom.out_wall, rom.film_row[None, :]])
     return {
         "q": q,
@@ -508,7 +555,9 @@ def modal_rom(rom, dt_s: float, wall_h_w_m2k: float) -> dict[str, np.ndarray]:
         "rom_in": np.ascontiguousarray((q.T @ rom.inputs(h)).T),
         "rom_out": np.ascontiguousarray((out_rows @ q).T),
         "rom_cand": np.ascontiguousarray(cand),
-        "hs_norm": np.sqrt(np.einsum("ij,ij->i", cand, cand)),
+        "hs_norm": norm,
+        "hs_block": start.astype(float),
+        "hs_gmax": np.array([norm[start[k] : start[k + 1]].max() for k in range(rom.n_cells)]),
         "hs_unit": rom.unit_state @ q,
         "energy": rom.energy @ q,
     }
