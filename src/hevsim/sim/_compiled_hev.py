@@ -227,8 +227,8 @@ def _feasible(infeasible, others, cur, t_em, p_bat, p_el, soc, h):
     return ok
 
 
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _point(dpar, dps, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want, det, loss):
+@njit(cache=True, inline="always", error_model="numpy")
+def _point_body(dpar, dps, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want, det, loss):
     """The power flow of one candidate control (``c0``, ``c1``) at one step: (feasible, fuel
     [kg] over the step, SOC change [-], engine power [W]). ``dpar``, ``dps``: the parallel
     or the power-split tables, the other None (the architecture: numba compiles the one
@@ -280,6 +280,14 @@ def _point(dpar, dps, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md,
     return False, 0.0, 0.0, 0.0  # no architecture's tables (run_hev always gives one)
 
 
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
+def _point(dpar, dps, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want, det, loss):
+    """:func:`_point_body` compiled once, for one point with its details (``want``); the
+    loops over candidates inline it once (:func:`_scan`): a call per candidate, with every
+    table passed, costs more than the point."""
+    return _point_body(dpar, dps, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want, det, loss)
+
+
 NO_ENGINE = (False, False, False, 0.0, 0.0, 0.0)
 """The ``eng`` argument of :func:`_point` for the parallel HEV (unused)."""
 
@@ -323,13 +331,39 @@ def _argmin(cost, feasible, n):
     return best
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def _candidate(dpar, dps, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf):
-    """:func:`_point` of candidate ``i`` of ``cands`` at one step (no details), its engine
-    operating point from ``ecache`` (:func:`engine_cache`)."""
-    eng = _engine(ecache[0], ecache[1], i)
-    return _point(dpar, dps, cands[0][i], cands[1][i], eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md,
-                  False, buf[6], buf[7])  # fmt: skip
+SCAN_ALL, SCAN_EV, SCAN_NEAR = 0, 1, 2
+"""Modes of :func:`_scan`, passed as ``np.int64(mode)``: numba compiles a function once per
+literal constant argument, a run-time integer once for all."""
+
+
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
+def _scan(dpar, dps, mode, target, band, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf):
+    """:func:`_point_body` (no details) of the candidates ``cands`` at one step, the power
+    split's engine points from ``buf[8:10]`` (:func:`engine_cache`). ``SCAN_ALL``: every
+    candidate's feasibility, fuel [kg], engine power [W] and SOC change [-] into
+    ``buf[3]``, ``buf[1]``, ``buf[2]``, ``buf[0]``; returns -1. ``SCAN_EV``: the first
+    feasible candidate with the engine off (second control 0); ``SCAN_NEAR``: in the order
+    ``buf[5]``, the first feasible one with the engine on whose engine power ``buf[4]`` [W]
+    lies within ``band`` of ``target`` [W]; their index, -1 for none."""
+    cand0, cand1, _ = cands
+    d_soc, fuel, p_eng, feas, p_cand, order, det, loss, e_flags, e_floats = buf
+    n = cand0.shape[0]
+    for k in range(n):
+        i = order[k] if mode == SCAN_NEAR else k
+        if mode == SCAN_EV and cand1[i] != 0.0:
+            continue
+        if mode == SCAN_NEAR and (cand1[i] == 0.0 or abs(p_cand[i] - target) > band):
+            continue
+        eng = _engine(e_flags, e_floats, i)
+        c0, c1 = cand0[i], cand1[i]
+        r = _point_body(
+            dpar, dps, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
+        )
+        if mode == SCAN_ALL:
+            feas[i], fuel[i], d_soc[i], p_eng[i] = r
+        elif r[0]:
+            return i
+    return -1
 
 
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
@@ -398,8 +432,8 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
     candidate, the electric assist's throttle grid); ``buf``: work arrays."""
     cand0, cand1, thr_grid = cands
     h, etab, _, _ = md
-    cost, fuel, p_eng, feas, p_cand, order, det, loss = buf[:8]
-    ecache = (buf[8], buf[9])
+    cost, fuel, p_eng, feas = buf[:4]
+    det, loss = buf[6], buf[7]
     regen_ok = v_mid > 0.0
     n = cand0.shape[0]
     p_dem = t_wheel * w_wheel
@@ -431,13 +465,11 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
     elif cc.code == ECMS:
         s = cc.s0
     elif p_dem <= 0.0 or (soc > cc.soc_low and low_load):  # power follower: the first feasible EV candidate
-        for i in range(n):
-            if cand1[i] == 0.0:
-                pt = _candidate(
-                    dpar, dps, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
-                )
-                if pt[0]:
-                    return True, cand0[i], cand1[i], False, 0.0, 0.0
+        i = _scan(
+            dpar, dps, np.int64(SCAN_EV), 0.0, 0.0, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
+        )
+        if i >= 0:
+            return True, cand0[i], cand1[i], False, 0.0, 0.0
     if cc.code == POWER_FOLLOWER:
         # The least fuel of the feasible candidates whose engine power (known per run: p_cand)
         # is near the target: candidates in the order of their fuel (``order``, ties by index;
@@ -446,26 +478,36 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
         # is feasible.
         target = max(p_dem, 0.0) + frac * cc.charge_power_w
         band = max(PS_POWER_BAND * target, PS_POWER_BAND_MIN_W)
-        for j in range(n):
-            i = order[j]
-            if cand1[i] != 0.0 and abs(p_cand[i] - target) <= band:
-                pt = _candidate(
-                    dpar, dps, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
-                )
-                if pt[0]:
-                    return True, cand0[i], cand1[i], False, 0.0, 0.0
+        i = _scan(
+            dpar,
+            dps,
+            np.int64(SCAN_NEAR),
+            target,
+            band,
+            cands,
+            w_wheel,
+            t_wheel,
+            regen_ok,
+            soc,
+            dt,
+            bat,
+            md,
+            buf,
+        )
+        if i >= 0:
+            return True, cand0[i], cand1[i], False, 0.0, 0.0
+        _scan(
+            dpar, dps, np.int64(SCAN_ALL), 0.0, 0.0, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
+        )
         for i in range(n):
-            feas[i], fuel[i], d_soc, p_eng[i] = _candidate(
-                dpar, dps, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
-            )
             cost[i] = abs(p_eng[i] - target)
         i = _argmin(cost, feas, n)
     else:
-        for i in range(n):  # every candidate: ECMS score, fuel, engine power
-            feas[i], fuel[i], d_soc, p_eng[i] = _candidate(
-                dpar, dps, i, cands, ecache, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
-            )
-            cost[i] = fuel[i] / dt * h.lhv_jpkg + s * (-d_soc / dt * e_soc)
+        _scan(
+            dpar, dps, np.int64(SCAN_ALL), 0.0, 0.0, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
+        )
+        for i in range(n):  # every candidate: ECMS score from its fuel and SOC change (in cost)
+            cost[i] = fuel[i] / dt * h.lhv_jpkg + s * (-cost[i] / dt * e_soc)
         i = _argmin(cost, feas, n)
     if i < 0:
         return False, 0.0, 0.0, False, 0.0, 0.0
