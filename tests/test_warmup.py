@@ -15,7 +15,7 @@ from hevsim.cli import main
 from hevsim.config import load_vehicle_config
 from hevsim.cycles import load_cycle
 from hevsim.guards import simulation_preflight
-from hevsim.warmup import GROUPS, cache_probe, group, run_groups
+from hevsim.warmup import GROUPS, cache_probe, group, run_groups, specialisation_probe
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
@@ -35,6 +35,29 @@ def test_every_group_probes_cached_numba_kernels() -> None:
         assert g.cold_compile_s > 0.0
 
 
+def test_one_kernel_compiled_per_architecture_is_probed_per_architecture() -> None:
+    """run_hev is compiled once for the parallel HEV (dps None) and once for the power split
+    (dpar None): a cache holding only the parallel one is cold for the power split."""
+    from numba import types
+
+    parallel_only = {((types.float64, types.none, types.int64), ("magic",)): "run_hev-1.nbc"}
+
+    class CacheFile:
+        _index_path = __file__  # exists
+
+        @staticmethod
+        def _load_index() -> dict[object, str]:
+            return parallel_only
+
+    class Dispatcher:
+        class _cache:
+            _cache_file = CacheFile
+
+    assert not progress.cache_is_cold([specialisation_probe(Dispatcher, 1)])  # parallel: compiled
+    assert progress.cache_is_cold([specialisation_probe(Dispatcher, 0)])  # power split: cold
+    assert [g.none_arg for g in (group("parallel"), group("power_split"))] == [1, 0]
+
+
 def test_every_architecture_has_its_forward_kernels() -> None:
     served = {s for g in GROUPS for s in g.serves}
     assert set(ARCHITECTURES) <= served
@@ -44,8 +67,8 @@ def test_every_architecture_has_its_forward_kernels() -> None:
     ("example", "python_loop", "expected"),
     [
         ("series_hev.toml", False, ["series"]),
-        ("parallel_hev.toml", False, ["hev"]),
-        ("prius_like_power_split.toml", False, ["hev"]),
+        ("parallel_hev.toml", False, ["parallel"]),
+        ("prius_like_power_split.toml", False, ["power_split"]),
         ("conventional_sedan.toml", False, ["conventional"]),
         ("bev.toml", False, ["bev"]),
         ("parallel_hev.toml", True, ["power_flow"]),
@@ -88,7 +111,10 @@ def test_notice_names_the_run_kernels_only_when_cold(
     for k in kernels:
         assert f"{k}" in err
     used = run_groups(cfg)
-    others = {e.partition(":")[2] for g in GROUPS if g not in used for e in g.entries}
+    mine = {e.partition(":")[2] for g in used for e in g.entries}
+    others = {e.partition(":")[2] for g in GROUPS if g not in used for e in g.entries} - mine
+    assert all(g.description in err for g in used)
+    assert not [g.name for g in GROUPS if g not in used and f"compiling {g.description} " in err], err
     assert not [k for k in others if f"({k}" in err or f", {k}" in err], err
     expected_s = sum(g.cold_compile_s for g in used)
     assert f"about {progress.format_duration(expected_s)} " in err
@@ -99,7 +125,7 @@ def test_notice_names_the_run_kernels_only_when_cold(
 def test_compile_options_are_checked(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["compile", "--group", "nonsense"]) == 2
     err = capsys.readouterr().err
-    assert "nonsense" in err and "series" in err and "hev" in err
+    assert "nonsense" in err and "series" in err and "power_split" in err
     assert main(["compile", "--jobs", "0", "--group", "bev"]) == 2
     assert "--jobs = 0" in capsys.readouterr().err
     assert main(["compile", "--examples", str(ROOT / "docs"), "--group", "bev"]) == 2
@@ -130,7 +156,7 @@ def test_compile_fills_an_empty_cache_and_the_run_then_loads_it(tmp_path: Path) 
     assert "kernel group(s) in 1 process(es): bev" in done.stderr
     listed = _hevsim(["compile", "--list"], cache, tmp_path)
     row = {line.split()[0]: line.split()[1] for line in listed.stdout.splitlines()[1:]}
-    assert row["bev"] == "compiled" and row["hev"] == "cold"
+    assert row["bev"] == "compiled" and row["parallel"] == "cold"
     run = _hevsim(
         [
             "simulate",
