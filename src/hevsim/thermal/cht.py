@@ -67,7 +67,7 @@ import numpy as np
 
 from hevsim.errors import ConfigError
 from hevsim.thermal.coolant import Coolant, segments_along_path
-from hevsim.thermal.flow import Channel, FlowResult
+from hevsim.thermal.flow import Channel, FlowResult, port_facets
 
 #: Cells of the mesh wanted across the thermal boundary layer [-]: 0.5 = one node spacing of
 #: the P2 temperature (two per cell); fewer gives the coarse-mesh warning
@@ -177,16 +177,9 @@ class CoolantThermal:
         eddy = fl.eddy_diffusivity_m2_s if fl.eddy_diffusivity_m2_s is not None else np.zeros(mesh.p.shape[1])
         a_t = fl.basis_u.with_element(ElementTetP1()).interpolate(eddy)
         use_wall_function = self._wall_treatment()
-        tol = 1e-9 * max(max(b[1] for b in self.channel.boxes), self.channel.width_m)
         mid = mesh.p[:, mesh.facets].mean(axis=1)
         bnd = mesh.boundary_facets()
-
-        def plane(spec: tuple[float, float, float, int]) -> np.ndarray:
-            x, y0, y1, _ = spec
-            on = (np.abs(mid[0, bnd] - x) < tol) & (mid[1, bnd] > y0 - tol) & (mid[1, bnd] < y1 + tol)
-            return bnd[on]
-
-        f_in, f_out = plane(self.channel.inlet), plane(self.channel.outlet)
+        f_in, f_out = port_facets(mesh, self.channel)
         f_wall = np.setdiff1d(bnd, np.union1d(f_in, f_out))
         self.wall_dofs = self.basis.get_dofs(f_wall).all()
         # total diffusivity alpha + nu_t / Pr_t [m^2/s] at the quadrature points; with the wall

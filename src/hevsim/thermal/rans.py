@@ -883,6 +883,32 @@ def project_solenoidal(
     return u
 
 
+def _inlet_figures(
+    channel: Any, coolant: Coolant, flow_m3_s: float, sec: Any
+) -> tuple[float, float, float, float, float]:
+    """The bulk figures of the flow through ``channel``: kinematic viscosity [m^2/s], mean
+    velocity [m/s], hydraulic diameter [m], Reynolds number and the inlet turbulence length
+    scale [m] (``flow.turbulence_length_m``, default a fraction of the hydraulic diameter)."""
+    nu = coolant.viscosity_pa_s / coolant.density_kg_m3
+    w, h = channel.width_m, channel.height_m
+    dh = 2 * w * h / (w + h)
+    u_mean = flow_m3_s / (w * h)
+    length = sec.turbulence_length_m or LENGTH_SCALE_FRACTION * dh
+    return nu, u_mean, dh, u_mean * dh / nu, length
+
+
+def _grid(channel: Any, sec: Any) -> Any:
+    """The graded hexahedral OpenFOAM grid of ``channel`` from the ``[flow]`` section ``sec``."""
+    return channel_grid(
+        channel,
+        sec.rans_cells_across_width,
+        sec.rans_cells_across_height,
+        sec.rans_cell_length_m,
+        sec.rans_wall_cell_m,
+        sec.growth,
+    )
+
+
 def solve_rans(
     channel: Any,
     coolant: Coolant,
@@ -913,24 +939,12 @@ def solve_rans(
         raise ConfigError(f"{where}: flow rate {flow_m3_s!r} m^3/s; expected a finite positive flow rate.")
     check_channel_mesh(channel_mesh(channel, 1, 1, max(b[1] - b[0] for b in channel.boxes)), channel, where)
     of = find_openfoam()
-    rho, mu = coolant.density_kg_m3, coolant.viscosity_pa_s
-    nu = mu / rho
-    w, h = channel.width_m, channel.height_m
-    area, dh = w * h, 2 * w * h / (w + h)
-    u_mean = flow_m3_s / area
-    reynolds = u_mean * dh / nu
-    length = sec.turbulence_length_m or LENGTH_SCALE_FRACTION * dh
+    rho = coolant.density_kg_m3
+    nu, u_mean, _dh, reynolds, length = _inlet_figures(channel, coolant, flow_m3_s, sec)
     k_in = 1.5 * (sec.turbulence_intensity * u_mean) ** 2
     omega_in = math.sqrt(k_in) / (C_MU**0.25 * length)
     t0 = time.perf_counter()
-    grid = channel_grid(
-        channel,
-        sec.rans_cells_across_width,
-        sec.rans_cells_across_height,
-        sec.rans_cell_length_m,
-        sec.rans_wall_cell_m,
-        sec.growth,
-    )
+    grid = _grid(channel, sec)
     rc = RansCase(
         (channel.inlet[3] * u_mean, 0.0, 0.0),
         nu,
@@ -998,20 +1012,9 @@ def read_rans_case(
     sec = section or FlowSection()
     t0 = time.perf_counter() if started is None else started
     case = Path(case_dir)
-    rho, nu = coolant.density_kg_m3, coolant.viscosity_pa_s / coolant.density_kg_m3
-    w, h = channel.width_m, channel.height_m
-    area, dh = w * h, 2 * w * h / (w + h)
-    u_mean = flow_m3_s / area
-    reynolds = u_mean * dh / nu
-    length = sec.turbulence_length_m or LENGTH_SCALE_FRACTION * dh
-    grid = channel_grid(
-        channel,
-        sec.rans_cells_across_width,
-        sec.rans_cells_across_height,
-        sec.rans_cell_length_m,
-        sec.rans_wall_cell_m,
-        sec.growth,
-    )
+    rho = coolant.density_kg_m3
+    nu, u_mean, dh, reynolds, length = _inlet_figures(channel, coolant, flow_m3_s, sec)
+    grid = _grid(channel, sec)
     n = grid.n_cells
     log_file = case / "log.simpleFoam"
     if not log_file.is_file():
