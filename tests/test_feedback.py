@@ -383,3 +383,38 @@ def test_dp_runs_the_serial_kernels_with_one_thread(monkeypatch: pytest.MonkeyPa
             assert two.total_cost == one.total_cost
     finally:
         numba.set_num_threads(before)
+
+
+def test_dp_notice_comes_before_the_kernels_compile(tmp_path: Path) -> None:
+    """The DP's first-compile notice is decided without importing the DP kernels (importing
+    ``optimal._kernels`` compiles them at once, so a notice after it would come too late) and
+    states the ``dp`` group's measured compile time (hevsim.warmup), not a fixed guess."""
+    import ast
+    import subprocess
+    import sys
+
+    code = f"""
+import sys
+import hevsim.optimal._feedback as fb
+import hevsim.progress as progress
+import hevsim.warmup as warmup
+seen = []
+real = progress.compile_notice
+def spy(what, dispatchers, seconds=20.0, stream=None, **kw):
+    seen.append(("hevsim.optimal._kernels" in sys.modules, what, seconds))
+    return real(what, dispatchers, seconds, stream, **kw)
+progress.compile_notice = spy
+warmup.KernelGroup.is_cold = lambda self: self.name == "dp"
+fb.STAGE_LINES_MIN_PAIRS = 0
+from hevsim.optimal import optimize
+optimize({str(EXAMPLES / "parallel_hev.toml")!r}, "fu505", soc_grid_points=21, input_grid_points=11)
+print(repr(seen))
+"""
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=tmp_path
+    )
+    seen = ast.literal_eval(out.stdout.strip().splitlines()[-1])
+    from hevsim.warmup import group
+
+    assert seen == [(False, group("dp").label(), group("dp").cold_compile_s)]
+    assert "compiling dynamic-programming" in out.stderr

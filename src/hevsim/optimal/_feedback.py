@@ -22,10 +22,6 @@ STAGE_LINES_MIN_PAIRS = 2_000_000
 """Steps x input combinations from which :func:`hevsim.optimal.hev.optimize` prints its
 stage lines (unless ``progress=False``): about a second of table building [-]."""
 
-COMPILE_SECONDS = 20.0
-"""Time numba takes to compile the DP kernels on a cold cache [s] (the reference 2-core
-machine; printed in the first-compile notice)."""
-
 
 @dataclass
 class DPFeedback:
@@ -45,13 +41,6 @@ class DPFeedback:
 
         with timed_stage(label):
             yield
-
-
-def _dp_dispatchers() -> list[Any]:
-    from hevsim.optimal import _hull, _kernels
-    from hevsim.progress import module_dispatchers
-
-    return module_dispatchers(_kernels) + module_dispatchers(_hull)
 
 
 def dp_feedback(
@@ -77,11 +66,13 @@ def dp_feedback(
     choice = apply_threads(threads, work=float(pairs) * form.soc_grid.size)
     talk = progress is not False and pairs >= STAGE_LINES_MIN_PAIRS
     if talk:
-        from hevsim.progress import compile_notice, stage
+        from hevsim.progress import stage
+        from hevsim.warmup import compile_notice_for, group
 
         stage(
             f"DP of {label}: {form.steps.n_steps} steps x {form.soc_grid.size} SOC points x "
             f"{form.input_description()} inputs, about {mem['total'] / 1e6:,.0f} MB; {choice.describe()}"
         )
-        compile_notice("DP", _dp_dispatchers(), COMPILE_SECONDS)
+        # probed without importing the kernels (importing them compiles them at once)
+        compile_notice_for([group("dp")])
     return DPFeedback(choice, talk, mem)
