@@ -75,7 +75,7 @@ def test_cli_refuses_the_series_hev_and_bad_options(
     out = tmp_path / "o"
     assert main(["performance", str(ROOT / "examples" / "series_hev.toml"), "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert "series_hev" in err and "'series'" in err and "parallel, conventional, bev" in err
+    assert "series_hev" in err and "'series'" in err and "parallel, conventional, bev, power_split" in err
     assert not out.exists()
     assert main(["performance", str(ROOT / "examples" / "bev.toml"), "--soc", "1.5", "--out", str(out)]) == 2
     assert "--soc = 1.5" in capsys.readouterr().err

@@ -311,9 +311,12 @@ def performance(
     cfg = getattr(model, "config", model)
     arch = architecture(cfg.architecture)
     if not hasattr(arch.power_module(), "capability_controls"):
+        from hevsim.architectures import ARCHITECTURES
+
+        have = [n for n, a in ARCHITECTURES.items() if hasattr(a.power_module(), "capability_controls")]
         raise ConfigError(
             f"{cfg.name}: key 'powertrain.architecture' = {cfg.architecture!r} has no performance "
-            "envelope here; expected one of parallel, conventional, bev."
+            f"envelope yet; the performance tests run for: {', '.join(have)}."
         )
     if model is cfg:
         model = arch.build(cfg)
