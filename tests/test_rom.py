@@ -121,6 +121,28 @@ def test_energy_balance_and_uniform_state(case: dict[str, Any]) -> None:
     assert np.all(np.abs(total_in - total_out - stored) < 1e-9 * total_in)
 
 
+def test_step_matrix_is_the_step(case: dict[str, Any]) -> None:
+    """RomStepper.step_matrix (the public accessor the native ROM FMU embeds) is the implicit-Euler
+    step [inv/dt | inv B(h)]^T of the current wall film, read-only, and one step is [z, u] @ it."""
+    rom: ThermalRom = case["rom"]
+    dt = 2.0
+    h_lo, h_hi = rom.wall_h_range_w_m2k
+    st = RomStepper(rom, dt, h_hi, 300.0)
+    for h in (h_hi, h_lo):
+        st.set_wall_h(h)
+        inv = np.linalg.inv(np.eye(rom.order) / dt + rom.stiffness(h))
+        expected = np.vstack([(inv / dt).T, (inv @ rom.inputs(h)).T])
+        m = st.step_matrix
+        assert m.shape == (rom.order + rom.n_cells + rom.n_segments + 2, rom.order)
+        assert np.allclose(m, expected, rtol=1e-10, atol=1e-14 * np.abs(expected).max())
+        assert not m.flags.writeable
+        q, tf = np.full((1, rom.n_cells), 3.0), np.full((1, rom.n_segments), 290.0)
+        zu = np.concatenate([st.z[0], q[0], tf[0], [305.0, 1.0]])
+        assert np.array_equal(st.step(q, tf, 305.0)[0], zu @ m)
+    with pytest.raises(ValueError):
+        st.step_matrix[0, 0] = 1.0
+
+
 def test_roundtrip_fields_and_refusals(case: dict[str, Any], tmp_path: Path) -> None:
     import meshio
 

@@ -660,6 +660,16 @@ class RomStepper:
         """Reduced states (n_modules, r) (a view)."""
         return self._zu[:, : self.rom.order]
 
+    @property
+    def step_matrix(self) -> np.ndarray:
+        """The step matrix ``[A_d; B_d]^T = [inv/dt | inv B(h)]^T`` for the current wall film,
+        shape ``(r + n_cells + n_segments + 2, r)``, with ``inv = (I/dt + K(h))^-1``: one step is
+        ``z_1 = [z_0, cell heat [W], fluid [K], ambient [K], 1] @ step_matrix`` (a read-only view
+        of the cached matrix)."""
+        view = self._step_t.view()
+        view.flags.writeable = False
+        return view
+
     def set_wall_h(self, h: float) -> None:
         h = self.rom.check_wall_h(float(h))
         self.h = h

@@ -120,7 +120,7 @@ def rom_model_data(
     from hevsim.thermal.rom import RomStepper
 
     # the stepper's own (r + m, r) matrix, so that the FMU's product uses the same numbers
-    step_t = RomStepper(rom, dt_s, wall_h_w_m2k, 0.0)._step_t
+    step_t = RomStepper(rom, dt_s, wall_h_w_m2k, 0.0).step_matrix
     n_cells = rom.n_cells
     n_cand = rom.out_candidates.shape[0] // n_cells
     lines = [
