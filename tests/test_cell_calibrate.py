@@ -280,3 +280,77 @@ def test_full_calibration_cli_with_validation(tmp_path: Path, capsys: pytest.Cap
     assert main([*args[:5], "--fit", "c_heat_j_per_k=60,10,500", "--validate", str(files["drive"]),
                  "--out", str(tmp_path / "y")]) == 2  # fmt: skip
     assert "--validate needs the full calibration" in capsys.readouterr().err
+
+
+def test_written_parameter_set_is_accepted_by_export_fmu_the_vehicle_and_the_pack(
+    identified, tmp_path: Path
+) -> None:
+    """The written cell.toml as it is (issue 14 item 2): `hevsim export-fmu` builds a native FMU of
+    it that equals Cell.simulate, the series HEV's battery.model = "cell" runs UDDS on it with the
+    energy audit closed, and a pack file's [cells] parameters takes it."""
+    import dataclasses
+    import shutil
+
+    from hevsim.battery import Cell
+    from hevsim.battery.pack import Pack, load_pack_config
+    from hevsim.cli import main
+    from hevsim.config import load_config
+    from hevsim.sim.model import build_series_hev
+    from hevsim.sim.simulator import simulate
+
+    _, res = identified
+    out = res.save(tmp_path / "cal")
+    p = load_cell_parameters(out / "cell.toml")
+    root = Path(__file__).resolve().parents[1]
+    cur = np.concatenate([np.full(60, 10.0), np.full(30, -8.0), np.zeros(30), np.full(20, 15.0)])
+
+    if shutil.which("cc") or shutil.which("gcc"):  # the native FMU (needs a C compiler and FMPy)
+        pytest.importorskip("fmpy")
+        from fmpy import extract, read_model_description
+        from fmpy.fmi2 import FMU2Slave
+
+        cfg = tmp_path / "run.toml"
+        cfg.write_text(
+            f'[cell]\nparameters = "{out / "cell.toml"}"\nsoc_initial = 0.8\ntemp_c = 25.0\n'
+            '[profile]\nkind = "constant"\ncurrent_a = 10.0\nduration_s = 60.0\ndt_s = 1.0\n'
+            "[thermal]\nport_temp_c = 25.0\n"
+        )
+        fmu = tmp_path / "cal.fmu"
+        assert main(["export-fmu", str(cfg), "-o", str(fmu)]) == 0
+        md = read_model_description(str(fmu))
+        vr = {v.name: v.valueReference for v in md.modelVariables}
+        slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu)),
+                          modelIdentifier=md.coSimulation.modelIdentifier, instanceName="cal")  # fmt: skip
+        slave.instantiate()
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        v_fmu = np.empty(cur.size)
+        for k, i in enumerate(cur):
+            slave.setReal([vr["current_a"], vr["port_temp_k"]], [float(i), 298.15])
+            slave.doStep(float(k), 1.0)
+            v_fmu[k] = slave.getReal([vr["voltage_v"]])[0]
+        slave.terminate()
+        slave.freeInstance()
+        ref = Cell(p, soc_initial=0.8, temp_k=298.15).simulate(cur, 1.0, 298.15).timeseries["voltage_v"]
+        np.testing.assert_allclose(v_fmu, ref.to_numpy(), rtol=0, atol=1e-12)
+
+    text = (root / "examples" / "series_hev.toml").read_text()
+    start, end = text.index("[battery]"), text.index("[driver]")
+    battery = (
+        f'[battery]\nmodel = "cell"\ndata = "{out / "cell.toml"}"\nn_series = 96\nn_parallel = 1\n'
+        "max_discharge_current_a = 100.0\nmax_charge_current_a = 100.0\nsoc_min = 0.3\nsoc_max = 0.9\n\n"
+    )
+    (tmp_path / "car.toml").write_text(text[:start] + battery + text[end:])
+    hev = build_series_hev(load_config(tmp_path / "car.toml"))
+    assert hev.cell is not None and hev.cell.charge_transfer == p.charge_transfer
+    run = simulate(hev, "udds")
+    assert run.value("energy_audit_residual_pct") < 1e-6 and 0.3 < run.value("soc_final") < 0.9
+
+    pack_cfg = load_pack_config(root / "examples" / "pack_coolant.toml")
+    pack_cfg = dataclasses.replace(
+        pack_cfg, cells=dataclasses.replace(pack_cfg.cells, parameters=str(out / "cell.toml"))
+    )
+    pack = Pack(pack_cfg)  # (a run compiles the pack's kernels: minutes on a cold cache)
+    assert pack.params.model == p.model and pack.params.charge_transfer == p.charge_transfer
+    np.testing.assert_array_equal(pack.params.ocv_discharge_v, p.ocv_discharge_v)
