@@ -69,14 +69,24 @@ def test_cli_writes_the_table_and_plot(tmp_path: Path, capsys: pytest.CaptureFix
         assert (out / f).is_file(), f
 
 
-def test_cli_refuses_the_series_hev_and_bad_options(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+def test_cli_refuses_an_architecture_without_an_envelope_and_bad_options(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    """Every shipped architecture has a performance envelope (``capability_controls``); one
+    registered without it (here: the series entry pointed at a module without one) is refused
+    with the list of those that have it, taken from the registry."""
+    import dataclasses
+
+    from hevsim.architectures import ARCHITECTURES
+
+    no_envelope = dataclasses.replace(ARCHITECTURES["series"], module="hevsim.architectures._common")
+    monkeypatch.setitem(ARCHITECTURES, "series", no_envelope)
     out = tmp_path / "o"
     assert main(["performance", str(ROOT / "examples" / "series_hev.toml"), "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "series_hev" in err and "'series'" in err and "parallel, conventional, bev, power_split" in err
     assert not out.exists()
+    monkeypatch.undo()
     assert main(["performance", str(ROOT / "examples" / "bev.toml"), "--soc", "1.5", "--out", str(out)]) == 2
     assert "--soc = 1.5" in capsys.readouterr().err
     assert not out.exists()

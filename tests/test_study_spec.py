@@ -82,7 +82,7 @@ solvers = ["simulate"]
         ({"sampling": {"method": "sobol", "samples": 6}}, ["sampling.samples", "power of 2", "4 or 8"]),
         ({"sampling": {"method": "random"}}, ["sampling.method", "random", "lhs", "saltelli"]),
         ({"solvers": [{"name": "fuzzy_logic"}]}, ["fuzzy_logic", "optimize", "performance", "simulate"]),
-        ({"solvers": [{"name": "performance"}]}, ["performance", "parallel", "'series'"]),
+        ({"solvers": [{"name": "performance", "dt_s": 20.0}]}, ["solvers[0]", "dt_s = 20.0", "(0, 10]"]),
         (
             {"solvers": [{"name": "simulate", "controller": "ecms"}]},
             ["controller", "'ecms'", "series", "rule_based"],

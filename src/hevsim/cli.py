@@ -840,7 +840,7 @@ def build_parser() -> argparse.ArgumentParser:
         "performance",
         help="0-60 mph, 0-100 km/h, 50-80 mph, quarter mile, top speed, gradeability (binding limits)",
     )
-    p.add_argument("config", help="vehicle configuration (TOML): parallel, conventional or bev")
+    p.add_argument("config", help="vehicle configuration (TOML), any architecture")
     p.add_argument("--out", help="results folder (default results/<config>_performance)")
     _add_force(p, "folder at --out")
     p.add_argument("--dt", type=float, help="time step of the acceleration runs [s] (default 0.2)")

@@ -15,14 +15,263 @@ line (DP). Controllers: ``"thermostat"`` (rule-based) and ``"schedule"`` (a gens
 with cranking and speed loop); a :class:`~hevsim.sim.simulator.GensetSchedule` with
 ``quasi_static=True`` selects the kernel's ``"replay"`` supervisor, which applies a DP
 optimum's decisions exactly.
+
+**Quasi-static power flow** (:func:`power_flow`; the performance tests of
+:mod:`hevsim.sim.performance` drive it through the generic loop of :mod:`hevsim.sim.forward`).
+Control ``genset_power_w``: the electrical power the genset delivers to the bus [W], as in the
+DP. An engine genset sits at the fuel-optimal point of that power on the DP's optimal
+operating line (:func:`hevsim.optimal._series_dp.genset_operating_points`; no cranking, no
+shaft dynamics: a genset already running); a current-source genset is on for any request > 0
+and then delivers ``OCV x current_a`` (as the kernel's); without a genset only 0 is
+admissible. The traction motor gives the wheel torque through the final drive and
+regenerates above ``brakes.regen_min_speed_mps`` (the friction brakes take the rest); the
+battery closes the bus through :func:`hevsim.optimal._hev_common.electric_flow` (the DP's bus
+balance, on the same :mod:`hevsim.components.bus` kernels as the forward kernel).
+:func:`quasi_static_model` puts the traction motor's rotor inertia into the effective mass as
+the kernel does (``m_eff = m delta + J (ratio / r)^2``). Limits flagged: those of the bus
+balance (motor torque, battery power, discharge and charge current), ``motor_speed`` (beyond
+the motor map's last speed) and ``genset_power`` (the genset at its largest power while the
+bus is short: the battery at its power or discharge-current limit; or a request the genset
+cannot deliver).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import weakref
+from typing import Any
+
+import numpy as np
+
+from hevsim.architectures._common import battery_details, machine_details, max_machine_speed_radps
+from hevsim.sim import kernel as K
 from hevsim.sim.kernel import run_series, run_series_batch
 from hevsim.sim.model import SeriesHEV, build_series_hev
 
 ARCHITECTURE = "series"
 CONTROLS: tuple[str, ...] = ("genset_state", "engine_throttle")
+"""Controls of the forward kernel's supervisors (the quasi-static :func:`power_flow` takes the
+genset's electrical power instead, as the DP)."""
+MODES: tuple[str, ...] = K.POWER_MODES
+"""Power modes (thesis Table 2.1), as the kernel's."""
+LOSSES: tuple[str, ...] = (
+    "fuel", "genset_source", "engine_loss", "generator_loss", "motor_loss", "friction_brakes",
+    "final_drive_loss", "aux", "wheel",
+)  # fmt: skip
+"""Energy-audit terms of :func:`loss_powers` [W] (``fuel`` and ``genset_source`` are sources)."""
+CAPABILITY_POINTS = 11
+"""Genset powers, from its largest down to 0, among the performance tests' candidates [-]."""
+GENSET_MAX_RTOL = 1e-9
+"""The candidates' top genset power lies this fraction below the largest (as the DP's grid:
+the largest is the edge of the optimal-line search) [-]."""
+GENSET_AT_MAX_RTOL = 1e-6
+"""A genset request within this fraction of the largest power is "at its maximum" [-]."""
 
-__all__ = ["ARCHITECTURE", "CONTROLS", "SeriesHEV", "build_series_hev", "run_series", "run_series_batch"]
+__all__ = [
+    "ARCHITECTURE", "CONTROLS", "LOSSES", "MODES", "SeriesHEV", "build_series_hev", "capability_controls",
+    "genset_max_power_w", "loss_powers", "power_flow", "power_mode", "quasi_static_model", "run_series",
+    "run_series_batch",
+]  # fmt: skip
+
+_GENSET: weakref.WeakKeyDictionary[SeriesHEV, dict[str, Any]] = weakref.WeakKeyDictionary()
+"""Per model: its engine genset's largest power and the optimal-line points found so far (by
+power), so that a forward run searches the engine map once per power, not once per step."""
+
+
+def _genset_cache(hev: SeriesHEV) -> dict[str, Any]:
+    cache = _GENSET.get(hev)
+    if cache is None:
+        cache = {}
+        _GENSET[hev] = cache
+    return cache
+
+
+def genset_max_power_w(hev: SeriesHEV, ocv_v: Any = 0.0) -> Any:
+    """Largest electrical power [W] the genset delivers to the bus: an engine genset's
+    (:func:`hevsim.optimal._series_dp.genset_max_power_w`), a current source's
+    ``OCV x current_a`` at the battery OCV ``ocv_v`` [V], 0 without a genset."""
+    kind = hev.config.genset.kind
+    if kind == "current_source":
+        return np.asarray(ocv_v, np.float64) * hev.config.genset.current_a
+    if kind != "engine" or hev.engine is None:
+        return 0.0
+    cache = _genset_cache(hev)
+    if "p_max_w" not in cache:
+        from hevsim.optimal._series_dp import genset_max_power_w as engine_generator_max_w
+
+        cache["p_max_w"] = engine_generator_max_w(hev.engine, hev.generator)
+    return cache["p_max_w"]
+
+
+def _engine_points(hev: SeriesHEV, power_w: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(delivered power [W], engine speed [rad/s], torque [N·m], fuel rate [kg/s], feasible
+    as 0/1) of the engine genset's optimal-line points at ``power_w`` [W], each power
+    searched once (:func:`hevsim.optimal._series_dp.genset_operating_points`)."""
+    from hevsim.optimal._series_dp import genset_operating_points
+
+    assert hev.engine is not None
+    cache = _genset_cache(hev)
+    keys, rows = cache.get("keys", np.zeros(0)), cache.get("rows", np.zeros((5, 0)))
+    flat = np.ravel(power_w)
+    idx = np.minimum(np.searchsorted(keys, flat), max(keys.size - 1, 0))
+    if keys.size == 0 or not np.array_equal(keys[idx], flat):
+        new = np.unique(flat if keys.size == 0 else flat[keys[idx] != flat])
+        pts = genset_operating_points(hev.engine, hev.generator, new)
+        got = np.array([pts.power_w, pts.speed_radps, pts.torque_nm, pts.fuel_kgps, pts.feasible], np.float64)
+        keys, order = np.unique(np.concatenate([keys, new]), return_index=True)
+        rows = np.concatenate([rows, got], axis=1)[:, order]
+        cache["keys"], cache["rows"] = keys, rows
+        idx = np.searchsorted(keys, flat)
+    return tuple(rows[j, idx].reshape(np.shape(power_w)) for j in range(5))
+
+
+def quasi_static_model(hev: SeriesHEV) -> SeriesHEV:
+    """The model the quasi-static loop drives: the traction motor's rotor inertia ``J``
+    [kg·m²] put into the body's rotating-mass factor, ``delta + J (ratio / r)^2 / m``, so
+    that the effective mass is the compiled kernel's ``m_eff``."""
+    b, ratio, r = hev.body, hev.gear.ratio, hev.tire.radius_m
+    extra = hev.traction_motor.inertia_kgm2 * (ratio / r) ** 2 / b.mass_kg
+    if extra == 0.0:
+        return hev
+    return dataclasses.replace(hev, body=dataclasses.replace(b, mass_factor=b.mass_factor + extra))
+
+
+def power_flow(
+    hev: SeriesHEV,
+    wheel_speed_radps: Any,
+    wheel_torque_nm: Any,
+    genset_power_w: Any,
+    soc: Any,
+    dt_s: Any,
+    regen_ok: Any,
+    battery_state: Any = None,
+    *,
+    detail: bool = False,
+) -> Any:
+    """(wheel speed [rad/s] and torque [N·m], genset electrical power request [W], SOC [-])
+    -> genset, motor and battery operating points, fuel, SOC change over ``dt_s`` [s] and the
+    limits: a :class:`~hevsim.optimal._hev_common.Stage` (module docstring). ``regen_ok``:
+    the car moves (regeneration also needs ``brakes.regen_min_speed_mps``);
+    ``battery_state``: the pack at ``soc`` when known."""
+    from hevsim.optimal._hev_common import BatteryState, Stage, electric_flow
+
+    cfg = hev.config
+    bs = battery_state if battery_state is not None else BatteryState.at(hev.battery, soc)
+    w_wh, t_wh, moving, p_req = (  # own copies: numba reads no broadcast views
+        np.array(a)
+        for a in np.broadcast_arrays(
+            *(
+                np.asarray(a, np.float64)
+                for a in (wheel_speed_radps, wheel_torque_nm, regen_ok, genset_power_w)
+            )
+        )
+    )
+    w_m = w_wh * hev.gear.ratio
+    t_fd = np.asarray(hev.gear.input_torque(t_wh), np.float64)
+    ok = (moving > 0.0) & (w_wh * hev.tire.radius_m > cfg.brakes.regen_min_speed_mps)
+    zero = np.zeros(np.shape(p_req))
+    p_gen, speed, torque, fuel, source = zero, zero, zero, zero, zero
+    kind = cfg.genset.kind
+    if kind == "engine" and hev.engine is not None:
+        p_gen, speed, torque, fuel, feasible = _engine_points(hev, p_req)
+        gs_ok = (feasible > 0.0) | (p_req <= 0.0)
+        at_max = p_req >= genset_max_power_w(hev) * (1.0 - GENSET_AT_MAX_RTOL)
+    elif kind == "current_source":
+        source = np.where(p_req > 0.0, genset_max_power_w(hev, bs.ocv_v), 0.0)
+        gs_ok, at_max = p_req >= 0.0, p_req > 0.0
+    else:
+        gs_ok, at_max = p_req <= 0.0, p_req > 0.0
+    flow = electric_flow(
+        hev.traction_motor, hev.battery, t_fd, w_m, cfg.controller.aux_power_w - p_gen - source, soc, dt_s,
+        ok, bs,
+    )  # fmt: skip
+    shape = np.shape(flow.torque_nm)
+    over_speed = np.broadcast_to(w_m > max_machine_speed_radps(hev.traction_motor), shape)
+    short = flow.flags["battery_power"] | flow.flags["battery_discharge_current"]
+    gs_bad = np.broadcast_to(~gs_ok, shape)
+    flags = {
+        **flow.flags,
+        "motor_speed": over_speed,
+        "genset_power": (np.broadcast_to(at_max, shape) & short) | gs_bad,
+    }
+    fuel = np.where(gs_ok, fuel, 0.0)
+    st = Stage(
+        d_soc=flow.d_soc,
+        cost_kg=np.broadcast_to(fuel * dt_s, shape),
+        infeasible=flow.infeasible | over_speed | gs_bad,
+        flags=flags,
+    )
+    st.flow = flow
+    st.mech = {"w_m": w_m, "t_fd": t_fd, "p_gen": p_gen, "source": source, "speed": speed,
+               "torque": torque, "fuel": fuel}  # fmt: skip
+    if detail:
+        eng = hev.engine
+        on = (p_gen > 0.0) & gs_ok
+        t_cap = eng.max_torque_nm(np.where(on, speed, eng.stall_speed_radps)) if eng is not None else 1.0
+        supply = p_gen + source
+        st.details = {
+            "engine_on": np.broadcast_to(on.astype(np.float64), shape),
+            "engine_speed_radps": np.broadcast_to(speed, shape),
+            "engine_torque_nm": np.broadcast_to(torque, shape),
+            "engine_throttle": np.broadcast_to(np.where(on, torque / t_cap, 0.0), shape),
+            "engine_power_w": np.broadcast_to(torque * speed, shape),
+            "fuel_rate_gps": np.broadcast_to(fuel * 1e3, shape),
+            "genset_power_w": np.broadcast_to(supply, shape),
+            **machine_details(flow, w_m, shape),
+            **battery_details(flow),
+            "friction_brake_power_w": loss_powers(hev, st, w_wh, t_wh)["friction_brakes"],
+        }
+    return st
+
+
+def loss_powers(hev: SeriesHEV, stage: Any, wheel_speed_radps: Any, wheel_torque_nm: Any) -> dict[str, Any]:
+    """Power [W] of every energy-audit term (:data:`LOSSES`) of a :func:`power_flow` result:
+    the fuel's chemical power and a current source's power (the sources), the engine's and
+    the generator's losses, and the motor, friction-brake, final-drive, auxiliary and wheel
+    terms of the same single-reduction drive as the BEV's
+    (:func:`hevsim.architectures.bev.point_losses`)."""
+    from hevsim.architectures.bev import LOSSES as DRIVE_LOSSES
+    from hevsim.architectures.bev import _losses_many
+
+    m, flow = stage.mech, stage.flow
+    shape = np.shape(flow.torque_nm)
+    w, wm, tfd, tm, pel = (
+        np.ascontiguousarray(np.broadcast_to(np.asarray(a, np.float64), shape).ravel())
+        for a in (wheel_speed_radps, m["w_m"], m["t_fd"], flow.torque_nm, flow.power_elec_w)
+    )
+    rows = np.empty((len(DRIVE_LOSSES), w.size))
+    g, aux = hev.gear, float(hev.config.controller.aux_power_w)
+    _losses_many(w, wm, tfd, tm, pel, float(g.ratio), float(g.efficiency), aux, rows)
+    out = {name: row.reshape(shape) for name, row in zip(DRIVE_LOSSES, rows, strict=True)}
+    lhv = hev.engine.fuel_lhv_jpkg if hev.engine is not None else 0.0
+    p_fuel = m["fuel"] * lhv
+    p_engine = m["torque"] * m["speed"]
+    out["fuel"] = np.broadcast_to(p_fuel, shape)
+    out["engine_loss"] = np.broadcast_to(p_fuel - p_engine, shape)
+    out["generator_loss"] = np.broadcast_to(p_engine - m["p_gen"], shape)
+    out["genset_source"] = np.broadcast_to(m["source"], shape)
+    return {name: out[name] for name in LOSSES}
+
+
+def power_mode(details: dict[str, float], wheel_force_n: float, v_mid_mps: float) -> int:
+    """Index in :data:`MODES` of one operating point (``details`` of :func:`power_flow`, wheel
+    force [N], mid-step speed [m/s]) by the kernel's :func:`~hevsim.sim.kernel.mode_step`
+    (thesis Table 2.1; the pure-ICE band is not part of ``details``: 0 here)."""
+    p = np.zeros(len(K.PARAMS))
+    braking = -1.0 if wheel_force_n < 0.0 else 1.0
+    mode, _ = K.mode_step(p, -1, 0, -1, braking, v_mid_mps, details["motor_power_elec_w"],
+                          -details["genset_power_w"], 0.0)  # fmt: skip
+    return int(mode)
+
+
+def capability_controls(hev: SeriesHEV) -> tuple[np.ndarray, ...]:
+    """Candidate genset powers [W] spanning the powertrain's capability (performance tests),
+    largest first: an engine genset's from its largest power down to 0
+    (:data:`CAPABILITY_POINTS`), a current source on then off, no genset 0."""
+    kind = hev.config.genset.kind
+    if kind == "engine" and hev.engine is not None:
+        p_max = float(genset_max_power_w(hev)) * (1.0 - GENSET_MAX_RTOL)
+        return (np.linspace(p_max, 0.0, CAPABILITY_POINTS),)
+    if kind == "current_source":
+        return (np.array([1.0, 0.0]),)
+    return (np.zeros(1),)

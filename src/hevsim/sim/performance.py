@@ -27,8 +27,16 @@ distance from the CG to the other axle, ``L`` the wheelbase, ``h`` the CG height
 
 The **binding limit** of a test is the component limit that stops the candidates feasible
 just below the limit when asked for a little more (tire adhesion, machine torque, engine
-torque, engine speed, battery power or current); for an acceleration, the most frequent one
-over its steps.
+torque, engine speed, battery power or current, a series HEV's genset power); for an
+acceleration, the most frequent one over its steps.
+
+A **series HEV** runs on its quasi-static power flow (:mod:`hevsim.architectures.series`):
+the candidates are genset electrical powers from the engine-generator's largest down to 0,
+the genset already running on the DP's optimal operating line (no cranking: the figures are
+those of a car whose genset is warm and on, as a series HEV is when it is driven hard). The
+traction motor's rotor inertia counts in the effective mass as in the compiled kernel
+(``quasi_static_model``). Where the battery reaches its power or current limit with the genset
+at its largest power, the binding limit names both.
 """
 
 from __future__ import annotations
@@ -69,6 +77,7 @@ LIMIT_NAMES = {
     "battery_power": "battery power (OCV^2/4R)",
     "battery_discharge_current": "battery discharge current",
     "battery_charge_current": "battery charge current",
+    "genset_power": "genset power (at its maximum)",
 }
 """Human names of the power-flow limit flags."""
 
@@ -321,6 +330,8 @@ def performance(
     if model is cfg:
         model = arch.build(cfg)
     mod = arch.power_module()
+    if hasattr(mod, "quasi_static_model"):  # series: the motor's rotor inertia in the effective mass
+        model = mod.quasi_static_model(model)
     cap = _Capability(mod.capability_controls(model), Adhesion.of(cfg, model.body, model.tire.radius_m))
     soc0 = float(cfg.simulation.soc_initial if soc is None else soc)
     n = round(duration_s / dt_s)

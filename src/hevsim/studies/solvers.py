@@ -708,7 +708,7 @@ register_solver(Solver(
     description="fuel-optimal energy management by dynamic programming",
 ))  # fmt: skip
 register_solver(Solver(
-    "performance", ("parallel", "conventional", "bev", "power_split"), _performance_options,
+    "performance", ("series", "parallel", "conventional", "bev", "power_split"), _performance_options,
     _performance_metrics, _optimize_prepare, lambda ctx, row: (), _performance_run, default_batch=1,
     description="0-60 mph, 0-100 km/h, quarter mile, 50-80 mph, top speed, gradeability", cycle_free=True,
 ))  # fmt: skip
