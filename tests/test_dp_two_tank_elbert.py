@@ -108,6 +108,18 @@ def test_two_tank_level_set_dp_close_to_optimum() -> None:
     assert np.mean(res.inputs[:, 1] == 0.5) > 0.9
 
 
+@pytest.mark.parametrize(("n_x", "target"), [(101, 0.003), (201, 0.001)])
+def test_two_tank_meets_the_issue_targets(n_x: int, target: float) -> None:
+    """Issue 15 item 6: at most 0.3 % above the optimum at 101 x 101 nodes and 0.1 % at
+    201 x 201 (0.027 % and 0.085 %; before the level-set fixes 1.51 % and 0.99 %). A real
+    trajectory that meets the target, never below the optimum. The time target is the
+    benchmark's (benchmarks/bench_dp_two_tank.py), not asserted here."""
+    res = solve_dp(two_tank(n_x), [0.0, 0.0])
+    assert np.all(res.states[-1] >= TARGET - 1e-9)
+    err = res.total_cost / J_STAR - 1.0
+    assert 0.0 <= err <= target, err
+
+
 # ----------------------------------------------------------------- exact final targets
 T_INT = 1.0  # [s]
 N_INT = 20
