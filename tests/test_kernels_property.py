@@ -41,7 +41,13 @@ from hevsim.components.electric_machine import (
     machine_power,
     torque_limits,
 )
-from hevsim.components.engine import Engine, engine_fuel_rate, engine_torque, fired_fuel_rate
+from hevsim.components.engine import (
+    Engine,
+    engine_fuel_rate,
+    engine_torque,
+    fired_fuel_rate,
+    scaled_max_torque,
+)
 from hevsim.sim.model import resolve_component
 from hevsim.tables import Table1D, Table2D
 from hevsim.units import STANDARD_GRAVITY
@@ -173,8 +179,27 @@ def test_engine_methods_are_their_kernels(name: str, scale: float, seed: int) ->
     ref_raw = scale * np.maximum(fmap(w, t / scale), 0.0)
     assert close(raw, ref_raw)
     assert close(tmax, scale * e.max_torque(w))
+    assert close(scaled_max_torque(e.max_torque, scale, w), tmax)  # what the map plots draw
     bad = (w < e.stall_speed_radps) | (w > e.redline_radps) | (t > tmax * (1 + 1e-9))
     assert close(fuel, np.where(bad, np.nan, ref_raw))
+
+
+def test_torque_scale_is_applied_only_in_the_component_kernels() -> None:
+    """The sizing of a map (``torque_scale`` times a curve or map value) is written once, in
+    ``hevsim.components``; every other module calls those kernels (the plots once drew the
+    max-torque curve from their own ``torque_scale * max_torque(w)``)."""
+    import re
+
+    src = Path(__file__).resolve().parent.parent / "src" / "hevsim"
+    scaling = re.compile(r"torque_scale\)?\s*\*|\*\s*(float\()?[\w.]*torque_scale\b")
+    found = [
+        f"{path.relative_to(src)}:{no}: {line.strip()}"
+        for path in sorted(src.rglob("*.py"))
+        if path.relative_to(src).parts[0] != "components"
+        for no, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+        if scaling.search(line)
+    ]
+    assert found == [], found
 
 
 def test_ideal_engine_burns_its_brake_power() -> None:

@@ -208,6 +208,24 @@ def scaled_fuel_map_rate(fuel_map: Table2D, torque_scale: float, torque_nm, omeg
     return _fuel_map_rate_many(t, w, float(torque_scale), tab).reshape(shape)
 
 
+def scaled_max_torque(max_torque: Table1D, torque_scale: float, omega_radps):
+    """Max brake torque [N·m] of an engine sized by ``torque_scale`` from its unscaled
+    ``max_torque`` curve [N·m over rad/s], at speeds [rad/s] of any shape
+    (:func:`max_torque_from_curve`, the kernel :meth:`Engine.max_torque_nm` uses)."""
+    shape, (w,) = _flat(omega_radps)
+    return _max_torque_many(w, float(torque_scale), _curve_tables(max_torque)).reshape(shape)
+
+
+def _curve_tables(max_torque: Table1D) -> EngineTables:
+    """An :class:`EngineTables` holding only a max-torque curve (the other tables dummies)."""
+    z1 = np.zeros(1)
+    z2 = np.zeros((1, 1))
+    return EngineTables(
+        tmax_x=max_torque.x, tmax_y=max_torque.y, tct_x=z1, tct_y=z1, tmap_x=z1, tmap_y=z1, tmap_z=z2,
+        fuel_x=z1, fuel_y=z1, fuel_z=z2,
+    )  # fmt: skip
+
+
 def _flat(*arrays: object) -> tuple[tuple[int, ...], list[FloatArray]]:
     """Broadcast arrays, return the shape and contiguous flat float64 copies."""
     b = np.broadcast_arrays(*(np.asarray(a, np.float64) for a in arrays))

@@ -134,7 +134,10 @@ def plot_operating_points_by_gear(ts: pd.DataFrame, engine: Any, path: str | Pat
         levels = _bsfc_levels(bsfc)
         cs = ax.contour(rpm, trq, bsfc, levels=levels, colors="0.45", linewidths=0.6)
         ax.clabel(cs, levels=cs.levels[::2], fmt="%.0f", fontsize="x-small", inline=True)
-    ax.plot(rpm, float(engine.torque_scale) * engine.max_torque(w), color="k", lw=2.0, label="max torque")
+    from hevsim.components.engine import scaled_max_torque
+
+    tmax_w = scaled_max_torque(engine.max_torque, engine.torque_scale, w)
+    ax.plot(rpm, tmax_w, color="k", lw=2.0, label="max torque")
     fuel = fuel_rate_kgps(ts)
     fired = (fuel > 0) if fuel is not None else np.zeros(len(ts), bool)
     gear = _col(ts, "gear")

@@ -431,12 +431,13 @@ def bsfc_grid(
         w = np.linspace(float(tmax.x[0]), float(tmax.x[-1]), n_speed)
     else:
         w = np.linspace(float(fuel_map.x[0]), float(fuel_map.x[-1]), n_speed)
-    tmax_w = scale * tmax(w)
+    from hevsim.components.engine import scaled_fuel_map_rate, scaled_max_torque  # the engine's kernels
+
+    tmax_w = scaled_max_torque(tmax, scale, w)
     trq = np.linspace(0.0, float(np.max(tmax_w)), n_torque)
     ww, tt = np.meshgrid(w, trq)
     if fuel_map is None:
         return w, trq, np.full(ww.shape, np.nan)
-    from hevsim.components.engine import scaled_fuel_map_rate  # the engine's own kernel
 
     fuel_kgps = scaled_fuel_map_rate(fuel_map, scale, tt, ww)
     power_w = tt * ww
@@ -444,7 +445,7 @@ def bsfc_grid(
     with np.errstate(divide="ignore", invalid="ignore"):
         bsfc = fuel_kgps * G_PER_KG * S_PER_H * W_PER_KW / power_w
     bad = (
-        (tt > scale * tmax(ww) * (1.0 + 1e-9))
+        (tt > scaled_max_torque(tmax, scale, ww) * (1.0 + 1e-9))
         | (tt < BSFC_MIN_LOAD_FRACTION * float(np.max(tmax_w)))
         | (power_w < BSFC_MIN_LOAD_FRACTION * peak_power)
         | ~np.isfinite(bsfc)
@@ -535,7 +536,9 @@ def plot_engine_operating_points(
             ls="none",
             label=f"best BSFC {bsfc[i_best]:.0f} g/kWh",
         )
-    tmax_w = float(engine.torque_scale) * engine.max_torque(w)
+    from hevsim.components.engine import scaled_max_torque
+
+    tmax_w = scaled_max_torque(engine.max_torque, engine.torque_scale, w)
     ax.plot(rpm, tmax_w, color="k", lw=2.2, label="max torque")
 
     summary = ""
