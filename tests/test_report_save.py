@@ -60,3 +60,17 @@ def test_failed_save_keeps_the_old_picture(name: str, tmp_path: Path) -> None:
     assert target.read_bytes() == b"old picture"
     assert [p.name for p in tmp_path.iterdir()] == ["picture.png"]
     assert fig.cleared
+
+
+def test_every_picture_goes_through_the_one_atomic_save() -> None:
+    """No module of the package writes a figure itself: ``savefig`` is called only inside
+    :func:`save_png` (a direct call would leave a half-written PNG behind on a failure)."""
+    src = Path(__file__).resolve().parent.parent / "src" / "hevsim"
+    direct = [
+        f"{path.relative_to(src)}:{no}"
+        for path in sorted(src.rglob("*.py"))
+        if path.relative_to(src).as_posix() != "report/save.py"
+        for no, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+        if ".savefig(" in line
+    ]
+    assert direct == [], direct

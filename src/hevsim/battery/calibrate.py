@@ -118,6 +118,8 @@ class CalibrationResult:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
+        from hevsim.report.save import save_png
+
         ts = self.timeseries
         fig, ax = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
         ax[0].plot(ts["time_s"], ts["voltage_measured_v"], ".", ms=2, label="measured")
@@ -129,8 +131,7 @@ class CalibrationResult:
         ax[1].set_ylabel("temperature [°C]")
         ax[1].set_xlabel("time [s]")
         fig.tight_layout()
-        out = Path(path)
-        fig.savefig(out, dpi=100)
+        out = save_png(fig, path, 100)
         plt.close(fig)
         return out
 

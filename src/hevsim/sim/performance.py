@@ -128,6 +128,8 @@ def plot_speed_power(runs: dict[str, pd.DataFrame], path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from hevsim.report.save import save_png
+
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
     for name, ts in runs.items():
         ax1.plot(ts["time_s"], ts["speed_mph"], label=name)
@@ -139,7 +141,7 @@ def plot_speed_power(runs: dict[str, pd.DataFrame], path: Path) -> Path:
     ax1.grid(True)
     ax2.grid(True)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    save_png(fig, path, 100)
     plt.close(fig)
     return path
 

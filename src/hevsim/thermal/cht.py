@@ -634,6 +634,8 @@ def plot_nusselt(res: ChtResult, path: Any) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    from hevsim.report.save import save_png
+
     fig = Figure(figsize=(7, 4))
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
@@ -649,7 +651,7 @@ def plot_nusselt(res: ChtResult, path: Any) -> None:
     ax.set_yscale("log")
     ax.legend()
     ax.set_title(f"wall {res.metrics['wall_temp_k'] - 273.15:g} degC, Pe {res.metrics['peclet']:.0f}")
-    fig.savefig(str(path), dpi=100)
+    save_png(fig, path, 100)
 
 
 def _flow_kind(res: ChtResult) -> str:

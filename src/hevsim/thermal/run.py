@@ -940,6 +940,7 @@ def _pictures(
     """cells_temperature.png, plate_temperature.png, cells_section.png (final field) and timeseries.png."""
     from matplotlib.figure import Figure
 
+    from hevsim.report.save import save_png
     from hevsim.thermal.pictures import plot_fields
 
     ts = result.timeseries
@@ -957,7 +958,7 @@ def _pictures(
     a2.set_ylabel("W")
     a2.set_xlabel("time [s]")
     a2.legend()
-    fig.savefig(tmp / "timeseries.png")
+    save_png(fig, tmp / "timeseries.png", 100)
 
 
 __all__ = [
