@@ -282,6 +282,28 @@ def test_body_and_gear_methods_are_their_kernels(seed: int, mass: float, crr: fl
     assert close(gear.input_torque(out), t)
 
 
+def test_cycle_current_profile_uses_the_body_road_load() -> None:
+    """The drive-cycle cell current of the battery examples takes its road load from the
+    vehicle body's eq 32 (it had its own copy with g = 9.80665 m/s^2, the body 9.81)."""
+    from hevsim.battery.profiles import RoadLoadVehicle, cycle_cell_current
+    from hevsim.cycles import load_cycle
+
+    veh = RoadLoadVehicle()
+    current = cycle_cell_current("udds", duration_s=300.0, dt_s=1.0, vehicle=veh)
+    cyc = load_cycle("udds")
+    v = cyc.speed_at(cyc.time_s[0] + np.arange(301.0))
+    v_mid = 0.5 * (v[1:] + v[:-1])
+    body = VehicleBody(
+        mass_kg=veh.mass_kg, drag_coefficient=veh.cd, frontal_area_m2=veh.area_m2,
+        rolling_resistance=veh.crr, air_density_kgpm3=veh.rho_kgpm3,
+    )  # fmt: skip
+    p_wheel = body.road_load_force(v_mid, np.diff(v)) * v_mid
+    p_bat = np.where(p_wheel > 0, p_wheel / veh.drive_efficiency, p_wheel * veh.regen_fraction)
+    expected = (p_bat + veh.aux_power_w) / (veh.n_cells * veh.cell_voltage_v)
+    assert np.any(v_mid > 0) and np.any(p_wheel < 0)
+    assert close(current, expected)
+
+
 # --------------------------------------------------------------------------------- bus
 @SETTINGS
 @given(scale=scales, seed=seeds, i_chg=st.floats(5.0, 200.0), i_dis=st.floats(5.0, 400.0))

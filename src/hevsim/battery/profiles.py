@@ -13,10 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hevsim.components.body import VehicleBody
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.tables import FloatArray
-
-GRAVITY_MPS2 = 9.80665  # standard gravity [m/s^2]
 
 
 @dataclass(frozen=True)
@@ -34,6 +33,17 @@ class RoadLoadVehicle:
     n_cells: int = 1200  # 100 modules x 2s6p
     cell_voltage_v: float = 3.6  # nominal cell voltage [V]
 
+    def body(self) -> VehicleBody:
+        """The vehicle body whose road load (:func:`hevsim.components.body.road_load_force`,
+        eq 32, level road, no headwind) the profile uses."""
+        return VehicleBody(
+            mass_kg=self.mass_kg,
+            drag_coefficient=self.cd,
+            frontal_area_m2=self.area_m2,
+            rolling_resistance=self.crr,
+            air_density_kgpm3=self.rho_kgpm3,
+        )
+
 
 def cycle_cell_current(
     cycle: DriveCycle | str = "udds",
@@ -44,7 +54,8 @@ def cycle_cell_current(
     """Per-cell current [A] (discharge > 0) over ``duration_s`` [s] at step ``dt_s`` [s].
 
     The cycle is repeated as needed and truncated; the wheel power is the road load
-    ``(m a + ½ ρ C_d A v² + m g C_rr) v``, divided by the drive efficiency when positive and
+    ``(m a + ½ ρ C_d A v² + m g C_rr) v`` (the vehicle body's eq 32, at the mid-step speed,
+    rolling resistance while moving), divided by the drive efficiency when positive and
     scaled by the regenerated fraction when negative, plus auxiliaries; the cell current is
     that power over ``n_cells x cell_voltage_v``.
     """
@@ -57,8 +68,7 @@ def cycle_cell_current(
     v = cyc.speed_at(t)
     a = np.diff(v) / dt_s
     v_mid = 0.5 * (v[1:] + v[:-1])
-    force = veh.mass_kg * a + 0.5 * veh.rho_kgpm3 * veh.cd * veh.area_m2 * v_mid**2
-    force += np.where(v_mid > 0, veh.mass_kg * GRAVITY_MPS2 * veh.crr, 0.0)
+    force = veh.body().road_load_force(v_mid, a)
     p_wheel = force * v_mid
     p_bat = (
         np.where(p_wheel > 0, p_wheel / veh.drive_efficiency, p_wheel * veh.regen_fraction) + veh.aux_power_w
