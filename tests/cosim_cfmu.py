@@ -26,6 +26,7 @@ from __future__ import annotations
 import shutil
 import subprocess
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 
 C_SOURCE = r"""
@@ -196,8 +197,14 @@ def model_description(ident: str) -> str:
 """
 
 
-def build_c_fmu(out_fmu: Path, ident: str = "CTestModel") -> Path:
-    """Compile the C model and package it as ``out_fmu`` (Linux x86-64 binary)."""
+def build_c_fmu(
+    out_fmu: Path,
+    ident: str = "CTestModel",
+    source: str = C_SOURCE,
+    description: Callable[[str], str] = model_description,
+) -> Path:
+    """Compile the C model (``source``, this module's by default) and package it with
+    ``description(ident)`` as ``out_fmu`` (Linux x86-64 binary)."""
     import fmpy
 
     cc = shutil.which("cc") or shutil.which("gcc")
@@ -205,14 +212,14 @@ def build_c_fmu(out_fmu: Path, ident: str = "CTestModel") -> Path:
     include = Path(fmpy.__file__).parent / "c-code"
     work = out_fmu.parent / f"{ident}_build"
     work.mkdir(parents=True, exist_ok=True)
-    (work / f"{ident}.c").write_text(C_SOURCE)
+    (work / f"{ident}.c").write_text(source)
     so = work / f"{ident}.so"
     subprocess.run(
-        [cc, "-shared", "-fPIC", "-O1", f"-I{include}", "-o", str(so), str(work / f"{ident}.c")],
+        [cc, "-shared", "-fPIC", "-O1", f"-I{include}", "-o", str(so), str(work / f"{ident}.c"), "-lm"],
         check=True,
         capture_output=True,
     )
     with zipfile.ZipFile(out_fmu, "w") as z:
-        z.writestr("modelDescription.xml", model_description(ident))
+        z.writestr("modelDescription.xml", description(ident))
         z.write(so, f"binaries/linux64/{ident}.so")
     return out_fmu
