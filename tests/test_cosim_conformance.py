@@ -451,6 +451,59 @@ def test_written_ssp_runs_in_fmpys_ssp_reader(cfmu: Path, tmp_path: Path) -> Non
     assert np.abs(res["b.y"][-1] - (-0.1 * sum(2.0 * 0.1 * j for j in range(10)))) <= 1e-12
 
 
+LIBCOSIM_SSP = """
+import json, sys
+from libcosimpy.CosimExecution import CosimExecution
+from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+from libcosimpy.CosimObserver import CosimObserver
+
+log_output_level(CosimLogLevel.ERROR)
+ex = CosimExecution.from_ssp_file(sys.argv[1])  # step size: the OSP annotation
+obs = CosimObserver.create_last_value()
+ex.add_observer(observer=obs)
+index = {s.name.decode(): s.index for s in ex.slave_infos()}
+vr = {n: {v.name.decode(): v.reference for v in ex.slave_variables(i)} for n, i in index.items()}
+rows = []
+for _ in range(int(sys.argv[2])):
+    ex.step()
+    rows.append([obs.last_real_values(index[n], [vr[n]["y"]])[0] for n in ("a", "b")])
+print(json.dumps(rows))
+"""
+
+
+def test_written_ssp_runs_in_libcosim(cfmu: Path, tmp_path: Path) -> None:
+    """libcosim (the C++ master of the Open Simulation Platform, through libcosimpy) loads the
+    ``.ssp`` hevsim writes: step size from the OSP annotation, parameters from the inline
+    parameter bindings, connections; its fixed-step (Jacobi) results equal hevsim's default."""
+    pytest.importorskip("libcosimpy")
+    import json
+    import subprocess
+    import sys
+
+    from hevsim.cosim.ssd import read_ssp
+    from hevsim.cosim.ssp_write import write_ssp
+    from hevsim.cosim.system import run_system
+
+    params = {"a": {"u": 1.0, "k": 2.0}, "b": {"k": -1.0}}
+    comps = [
+        Component(n, "application/x-fmu-sharedlibrary", cfmu.name, parameters=p) for n, p in params.items()
+    ]
+    conns = [Connection("a", "y", "b", "u"), Connection("b", "y", "a", "x")]
+    desc = SystemDescription("t", comps, conns, stop_time_s=1.0, master={"step_s": 0.1}, base_dir=cfmu.parent)
+    ssp = write_ssp(desc, tmp_path / "t.ssp")
+    proc = subprocess.run([sys.executable, "-c", LIBCOSIM_SSP, str(ssp), "10"], capture_output=True,
+                          text=True, timeout=120, check=False)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    ref = np.array(json.loads(proc.stdout.strip().splitlines()[-1]))
+    with read_ssp(ssp) as d:
+        res = run_system(d)
+    assert np.array_equal(res.time_s, np.arange(11) * 0.1)
+    for j, col in enumerate(("a.y", "b.y")):
+        assert np.abs(res[col][1:] - ref[:, j]).max() <= 1e-12, col
+    assert ref[-1, 0] == pytest.approx(2.0, abs=1e-12)  # the parameters were applied (u k t)
+    assert ref[-1, 1] == pytest.approx(-0.1 * sum(2.0 * 0.1 * j for j in range(10)), abs=1e-12)
+
+
 def test_osp_step_size_ssv_and_ssm(cfmu: Path, tmp_path: Path) -> None:
     from hevsim.cosim.load import load_system
     from hevsim.cosim.system import run_system
@@ -535,3 +588,27 @@ def test_check_refuses_what_the_run_would(cfmu: Path) -> None:
     datacheck(ok)
     res = run_system(ok)
     assert np.all(res["a.z"] == 0.0) and len(res.time_s) == 11
+
+
+def test_check_refuses_an_fmu_without_a_co_simulation_interface(tmp_path: Path) -> None:
+    """A model-exchange-only FMU (the C model with a ``ModelExchange`` element instead of
+    ``CoSimulation``) is refused by ``--check`` and by the run, naming the component."""
+    import re
+
+    from tests.cosim_cfmu import model_description
+
+    from hevsim.cosim.datacheck import datacheck
+    from hevsim.cosim.system import run_system
+
+    def me_only(ident: str) -> str:
+        return re.sub(r"<CoSimulation [^>]*/>", f'<ModelExchange modelIdentifier="{ident}"/>',
+                      model_description(ident))  # fmt: skip
+
+    fmu = build_c_fmu(tmp_path / "me.fmu", "CMeModel", description=me_only)
+    desc = SystemDescription("t", [Component("m", "application/x-fmu-sharedlibrary", fmu.name)], [],
+                             stop_time_s=1.0, master={"step_s": 0.1}, base_dir=tmp_path)  # fmt: skip
+    msg = r"component 'm': FMU me.fmu has no co-simulation interface \(model exchange only\)"
+    with pytest.raises(ConfigError, match=msg):
+        datacheck(desc)
+    with pytest.raises(ConfigError, match="has no co-simulation interface"):
+        run_system(desc)
