@@ -14,6 +14,7 @@ from hevsim.architectures import architecture
 from hevsim.architectures import power_split as ps
 from hevsim.cli import main
 from hevsim.control.parallel import ControlSchedule, ecms_from_dp
+from hevsim.cycles import load_cycle
 from hevsim.optimal.hev import OptimizationResult, optimize
 from hevsim.sim.forward import simulate_power_split
 from hevsim.sim.performance import performance
@@ -91,6 +92,15 @@ def test_rule_based_power_follower(hev: ps.PowerSplitHEV) -> None:
     c = hev.config.controller
     assert c.soc_low - 0.05 <= r.value("soc_final") <= c.soc_high
     assert set(r.timeseries["power_mode_name"]) >= {"ev", "regen"}
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_no_clutch_channel(hev: ps.PowerSplitHEV, compiled: bool) -> None:
+    """The planetary set has no clutch: no ``clutch_closed`` channel in either loop (both used
+    to copy engine_on into it, as for the parallel HEV)."""
+    r = simulate_power_split(hev, load_cycle("udds").truncated(60.0), compiled=compiled)
+    assert "engine_on" in r.timeseries
+    assert "clutch_closed" not in r.timeseries
 
 
 @pytest.mark.parametrize(

@@ -61,6 +61,8 @@ __all__ = ["ARCHITECTURE", "ParallelHEV", "ParallelHEVConfig", "build_parallel_h
 
 ARCHITECTURE = "parallel"
 """Value of ``[powertrain] architecture`` of a parallel-HEV configuration file."""
+HAS_CLUTCH = True
+"""An engine clutch: the forward results carry ``clutch_closed`` (closed iff the engine is on)."""
 
 
 def parallel_from_dict(

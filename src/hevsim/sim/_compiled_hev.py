@@ -756,6 +756,8 @@ def simulate(
         model, grid, ctl, soc_initial, soc_min, soc_max
     )
     columns = {name: cols[j] for j, name in enumerate(names)}
+    if not isinstance(model, P.ParallelHEV):  # clutch_closed is the parallel HEV's; the power split has none
+        del columns["clutch_closed"]
     return ForwardRecord(columns, dict(zip(audit_names, audit.tolist(), strict=True)), summary, v_end)
 
 

@@ -599,7 +599,7 @@ def _run(
             "wheel_power_w": loss["wheel"], "road_load_force_n": f - m_eff * a, "fuel_kg": fuel, "soc": soc,
             **det, "power_mode": mod.power_mode(det, f, v_mid), "traction_limited": limited,
         }  # fmt: skip
-        if "engine_on" in det and "clutch_closed" not in det:  # parallel: clutch closed iff engine on
+        if getattr(mod, "HAS_CLUTCH", False) and "clutch_closed" not in det:  # parallel: closed iff engine on
             row["clutch_closed"] = det["engine_on"]
         if battery is not None:
             i_bat = det["battery_current_a"]
