@@ -437,6 +437,31 @@ def test_sources_compile_with_strict_warnings(
         compile_strict(fmu, version, tmp_path, cc)
 
 
+MINGW = shutil.which("x86_64-w64-mingw32-gcc") or ""
+"""MinGW-w64's cross compiler to Windows x86-64, if installed (Debian: gcc-mingw-w64-x86-64)."""
+
+
+@pytest.mark.skipif(not MINGW, reason="MinGW-w64 (x86_64-w64-mingw32-gcc) is not installed")
+@pytest.mark.parametrize("version", VERSIONS)
+def test_sources_cross_compile_to_a_windows_dll(
+    cli_cell_fmus: dict[int, Path], module_fmus: dict[int, Path], tmp_path: Path, version: int
+) -> None:
+    """What an FMI tool on Windows rebuilds from sources/: the cell and module sources compile to a
+    Windows x86-64 DLL (strict C99) that imports only the C runtime and exports the FMI calls."""
+    for fmu in (cli_cell_fmus[version], module_fmus[version]):
+        compile_strict(fmu, version, tmp_path, MINGW)
+        dll = tmp_path / f"{fmu.stem}_{Path(MINGW).name}" / "m.so"
+        dump = subprocess.run([MINGW.replace("-gcc", "-objdump"), "-p", str(dll)], capture_output=True,
+                              text=True, check=True).stdout  # fmt: skip
+        assert "file format pei-x86-64" in dump, dump[:300]
+        imported = {
+            line.split(":", 1)[1].strip().lower() for line in dump.splitlines() if "DLL Name:" in line
+        }
+        assert imported and imported <= {"kernel32.dll", "msvcrt.dll"}, imported
+        for call in ("Instantiate", "DoStep", "GetFMUstate" if version == 2 else "GetFMUState"):
+            assert f"fmi{version}{call}" in dump, call
+
+
 @pytest.mark.skipif(not shutil.which("clang"), reason="clang is not installed")
 @pytest.mark.parametrize("version", VERSIONS)
 def test_fmu_built_by_clang_equals_in_process_model(
