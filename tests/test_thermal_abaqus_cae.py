@@ -267,7 +267,11 @@ def test_inverted_element_names_deck_numbers(tmp_path: Path) -> None:
             "",
             r"\*Conductivity, type=ORTHO \[1.0, 2.0, 3.0\] is anisotropic",
         ),
-        ("", "*Sfilm, amplitude=Ramp\nPlate-1.Bottom, F, 20., 10.", "amplitude= is not supported"),
+        (
+            "",
+            "*Sfilm, amplitude=NoSuch\nPlate-1.Bottom, F, 20., 10.",
+            "film amplitude 'NOSUCH' is not defined",
+        ),
         ("", "*Dflux\nNoSuchSet, BF, 1.", "elset 'NoSuchSet' is not defined"),
         ("", "*Dflux\n7, BF, 1.", "number 7 is ambiguous with 2 instances"),
     ],

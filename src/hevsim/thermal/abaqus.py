@@ -34,14 +34,18 @@ Read and applied:
 - loads and conditions: *Initial Conditions, type=TEMPERATURE (node set or node number),
   *Dflux BF (body flux per element set or element; each becomes one heat-source "cell"; with
   ``amplitude=``), *Amplitude (tabular, linear between points, last value held),
-  *Film (element faces F1-F4) and *Sfilm (surfaces) with constant film coefficient and sink
-  temperature, one *Step with *Heat Transfer (transient: initial increment and time period).
+  *Film (element faces F1-F4) and *Sfilm (surfaces) with a film coefficient and a sink
+  temperature, each constant or scaled in time by an amplitude (Abaqus Keywords Reference,
+  *FILM / *SFILM: ``amplitude=`` - ``sink amplitude=`` on *Sfilm in recent releases - scales
+  the sink temperature as written in the deck, ``film amplitude=`` the film coefficient;
+  CalculiX *FILM reads the same two), one *Step with *Heat Transfer (transient: initial
+  increment and time period). :meth:`AbaqusModel.set_loads` applies the loads of a time to a
+  :class:`~hevsim.thermal.solver.HeatModel`.
 
 Refused (they change the physics and the solver has no equivalent here): *Boundary (fixed
 temperature), *Cflux, *Dsflux, *Dflux face fluxes (S1-S4), *Radiate/*Sradiate, *Tie,
-*Heat Generation, *Latent Heat, *Gap Conductance with pressure, films and fluxes with
-amplitudes other than *Dflux BF, *Heat Transfer steady state, more than one *Step, elements
-other than linear tetrahedra.
+*Heat Generation, *Latent Heat, *Gap Conductance with pressure, films with a time delay,
+*Heat Transfer steady state, more than one *Step, elements other than linear tetrahedra.
 """
 
 from __future__ import annotations
@@ -190,7 +194,9 @@ class AbaqusModel:
     named surfaces (deck surfaces by their upper-case name, films as ``FILM_<line>``).
     ``contact_w_m2k``: contact conductance per interface ``"partA|partB"`` from the contact
     pairs; ``bonded_interfaces``: interfaces where two sections share nodes (perfect contact in
-    Abaqus). ``films``: surface -> (h [W/(m^2 K)], sink [°C]). ``node_temp_c``: initial
+    Abaqus). ``films``: surface -> (h [W/(m^2 K)], sink [°C]) as written in the deck (the
+    reference values); ``film_amplitude``: surface -> (amplitude of the sink temperature,
+    amplitude of the film coefficient), ``None`` where constant. ``node_temp_c``: initial
     temperature per mesh node (NaN where no *Initial Conditions). ``amplitudes``: name ->
     (time [s], factor) table; ``flux_amplitude``: *Dflux set -> amplitude name.
     """
@@ -212,6 +218,7 @@ class AbaqusModel:
     node_labels: list[str] = field(default_factory=list)
     element_labels: list[str] = field(default_factory=list)
     surface_contacts: list[SurfaceContact] = field(default_factory=list)
+    film_amplitude: dict[str, tuple[str | None, str | None]] = field(default_factory=dict)
 
     def amplitude(self, name: str | None, time_s: float) -> float:
         """Factor of amplitude ``name`` at ``time_s`` (1 without amplitude)."""
@@ -228,6 +235,27 @@ class AbaqusModel:
         ]
         return np.asarray(flux, dtype=float) * np.asarray(cell_volume_m3, dtype=float)
 
+    def films_at(self, time_s: float) -> dict[str, tuple[float, float]]:
+        """Every film at ``time_s``: surface -> (h [W/(m^2 K)], sink [°C]), the deck's values
+        times their amplitudes (the sink temperature is scaled as written, in °C)."""
+        out = {}
+        for name, (h, sink) in self.films.items():
+            a_sink, a_film = self.film_amplitude.get(name, (None, None))
+            out[name] = (h * self.amplitude(a_film, time_s), sink * self.amplitude(a_sink, time_s))
+        return out
+
+    def set_loads(self, model: Any, time_s: float) -> None:
+        """Give ``model`` (a :class:`~hevsim.thermal.solver.HeatModel` of :meth:`discretise`)
+        the deck's loads at ``time_s`` [s]: the *Dflux heat of every cell and the films that
+        have an amplitude. Call it with the time at the end of the next step (implicit Euler
+        evaluates the loads there): ``set_loads(model, model.time_s + model.dt_s)``."""
+        if self.body_flux_w_m3:
+            model.set_cell_heat_w(self.cell_heat_w(model.disc.cell_volume_m3, time_s))
+        now = self.films_at(time_s)
+        for name in self.film_amplitude:
+            h, sink_c = now[name]
+            model.set_surface_film(name, h, sink_c + 273.15)
+
     def discretise(self, *, bonded_w_m2k: float | None = None, **kw: Any) -> Any:
         """:func:`hevsim.thermal.solver.discretise` of the deck: its materials, contact pairs,
         films (temperatures in K) and no film elsewhere (adiabatic, as in Abaqus).
@@ -243,7 +271,7 @@ class AbaqusModel:
             )
         import dataclasses
 
-        films = {k: (h, t + 273.15) for k, (h, t) in self.films.items()}
+        films = {k: (h, t + 273.15) for k, (h, t) in self.films_at(0.0).items()}
         disc = discretise(
             self.mesh,
             self.materials,
@@ -541,7 +569,8 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
     pairs: list[tuple[str, str, str, str]] = []  # slave, master, interaction, where
     initial: list[tuple[str, float, str]] = []
     dflux: list[tuple[str, float, str | None, str]] = []
-    films: list[tuple[str, str, float, float, str]] = []  # kind, ref/face, sink, h, where
+    # ref, face, sink, h, where, sink amplitude, film amplitude
+    films: list[tuple[str, str, float, float, str, str | None, str | None]] = []
     amplitudes: dict[str, tuple[list[float], str]] = {}
     unsupported: list[str] = []
     steps: list[str] = []
@@ -676,11 +705,13 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
                     )
             elif kw == "initial conditions" and opts.get("TYPE", "").upper() != "TEMPERATURE":
                 unsupported.append(f"line {ln.no}: *Initial Conditions type={opts.get('TYPE')} (ignored)")
-            elif kw in ("film", "sfilm") and "AMPLITUDE" in opts:
-                raise InputError(
-                    f"{where}: *{title}, amplitude= is not supported (the film is constant); "
-                    "expected a constant film coefficient and sink temperature."
-                )
+            elif kw in ("film", "sfilm"):
+                delayed = sorted(k for k in opts if "TIME DELAY" in k)
+                if delayed:
+                    raise InputError(
+                        f"{where}: *{title}, {delayed[0].lower()}= is not supported; expected the "
+                        "amplitudes to start at the step's start."
+                    )
             continue
         vals = _fields(ln.text)
         try:
@@ -777,11 +808,11 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
                     raise InputError(
                         f"{where}: *Film load type {vals[1]}; expected F1-F4 (constant film on a face)."
                     )
-                films.append((vals[0], "S" + face[1], _num(vals[2]), _num(vals[3]), where))
+                films.append((vals[0], "S" + face[1], _num(vals[2]), _num(vals[3]), where, *_film_amps(opts)))
             elif kw == "sfilm":
                 if vals[1].upper() != "F":
                     raise InputError(f"{where}: *Sfilm load type {vals[1]}; expected F (constant film).")
-                films.append((vals[0], "", _num(vals[2]), _num(vals[3]), where))
+                films.append((vals[0], "", _num(vals[2]), _num(vals[3]), where, *_film_amps(opts)))
         except (ValueError, IndexError) as exc:
             raise InputError(f"{where}: cannot read data line {ln.text!r} of *{kw} ({exc}).") from exc
 
@@ -920,7 +951,11 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
             gname = shown if n_inst == 1 else f"{inst.name}.{shown}"
             groups[gname] = deck.surface(f"{ikey}.{skey}" if ikey else skey, src)
     film_of: dict[str, tuple[float, float]] = {}
-    for ref, face, sink, h, w in films:
+    film_amp: dict[str, tuple[str | None, str | None]] = {}
+    for ref, face, sink, h, w, a_sink, a_film in films:
+        for a in (a_sink, a_film):
+            if a is not None and a not in amplitudes:
+                raise InputError(f"{w}: film amplitude '{a}' is not defined; expected an *Amplitude name.")
         line = w.rsplit(" ", 1)[-1]
         if face:
             tris = deck.tets[np.asarray(deck.resolve("elset", ref, w), dtype=np.int64)][
@@ -931,6 +966,8 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
         gname = f"FILM_{line}_{len(film_of)}"
         groups[gname] = tris
         film_of[gname] = (h, sink)
+        if a_sink is not None or a_film is not None:
+            film_amp[gname] = (a_sink, a_film)
     node_temp = np.full(pts.shape[0], np.nan)
     initial_c: dict[str, float] = {}
     for ref, value, w in initial:
@@ -1010,8 +1047,17 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
         node_labels,
         element_labels,
         surface_contacts,
+        film_amp,
     )
     return model
+
+
+def _film_amps(opts: dict[str, str]) -> tuple[str | None, str | None]:
+    """(sink temperature amplitude, film coefficient amplitude) of a *Film / *Sfilm line:
+    ``amplitude=`` (``sink amplitude=`` on *Sfilm) and ``film amplitude=``, upper case."""
+    sink = opts.get("AMPLITUDE") or opts.get("SINK AMPLITUDE")
+    film = opts.get("FILM AMPLITUDE")
+    return (sink.upper() if sink else None, film.upper() if film else None)
 
 
 def _gap_at_zero(rows: list[tuple[float, float, float | None, str]]) -> float:

@@ -22,7 +22,7 @@ coolant heat-transfer coefficients stay fixed.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
@@ -198,6 +198,11 @@ class Discretisation:
     interfaces: dict[str, float]  # contact interface name -> area [m^2]
     cell_volume_m3: np.ndarray  # (n_cells,)
     tet_volume_m3: np.ndarray  # (M,)
+    #: ``surface_films`` as assembled: group -> (h [W/(m^2 K)], T_inf [K]) ...
+    surface_films: dict[str, tuple[float, float]] = field(default_factory=dict)
+    #: ... and the facet matrices of the faces each group's film is on (a face in two groups
+    #: belongs to the last), for :meth:`HeatModel.set_surface_film`
+    surface_film_mass: dict[str, FacetMass] = field(default_factory=dict)
 
 
 def discretise(
@@ -340,16 +345,21 @@ def discretise(
     is_ambient = np.ones(bnd.size, dtype=bool)
     if CHANNEL_WALL in group_rows:
         is_ambient[group_rows[CHANNEL_WALL]] = False
-    for gname, (h, t_inf) in surface_films.items():
+    film_owner = np.full(bnd.size, -1)
+    for gi, (gname, (h, t_inf)) in enumerate(surface_films.items()):
         film_w[group_rows[gname]] = h
         film_t[group_rows[gname]] = t_inf
         is_ambient[group_rows[gname]] = False
+        film_owner[group_rows[gname]] = gi
     film_w[is_ambient] = film_w_m2k
     film_t[is_ambient] = ambient_k
     bnd_mass = FacetMass.assemble(skm, bnd_facets)
     stiffness = stiffness + bnd_mass.matrix(film_w)
     film_load = bnd_mass.load(film_w * film_t)
     film_area = bnd_mass.load(is_ambient.astype(float))
+    film_mass = {
+        gname: bnd_mass.subset(np.flatnonzero(film_owner == gi)) for gi, gname in enumerate(surface_films)
+    }
 
     # ---- channel wall (coolant film per segment) ------------------------------------------
     wall_rows = group_rows.get(CHANNEL_WALL, np.zeros(0, dtype=np.int64))
@@ -401,6 +411,8 @@ def discretise(
         interfaces,
         cell_vol,
         vol,
+        {k: (float(h), float(t)) for k, (h, t) in surface_films.items()},
+        film_mass,
     )
 
 
@@ -440,6 +452,8 @@ class HeatModel:
     On the channel wall, segment j loses ``h_j (T - T_fluid,j) + q_j`` per unit area: the film
     ``wall_h`` (:meth:`set_wall_film`) towards ``fluid_k`` plus :attr:`wall_flux_w_m2`, a
     prescribed heat flux [W/m^2] (zero unless an external coolant model gives flux only).
+    The films of the discretisation's ``surface_films`` can be changed between steps with
+    :meth:`set_surface_film` (a sink temperature or film coefficient varying in time).
     """
 
     def __init__(
@@ -467,6 +481,12 @@ class HeatModel:
         self.theta = float(theta)
         self.coolant = coolant
         self.coupling_iterations = max(1, int(coupling_iterations))
+        # conduction, contact and external films [W/K] and the films' load [W]; they differ from
+        # the discretisation's only after set_surface_film
+        self._stiffness: sp.csr_matrix = disc.stiffness
+        self._film_load_w: np.ndarray = disc.film_load_w
+        #: current (h [W/(m^2 K)], T_inf [K]) of every surface film of the discretisation
+        self.surface_films: dict[str, tuple[float, float]] = dict(disc.surface_films)
         n = disc.points_m.shape[0]
         t0 = np.broadcast_to(np.asarray(initial_temp_k, dtype=float), (n,)).copy()
         if not np.all(np.isfinite(t0)) or t0.min() <= 0.0:
@@ -494,7 +514,7 @@ class HeatModel:
     def _factorise(self) -> None:
         """Assemble ``K`` (with the wall film ``wall_h``) and factorise ``C/dt + theta K``."""
         d = self.disc
-        k = d.stiffness
+        k = self._stiffness
         if np.any(self.wall_h):
             k = k + d.wall_mass.matrix(self.wall_h[d.wall_segment])
         self.k = k.tocsr()
@@ -517,6 +537,39 @@ class HeatModel:
             )
         if not np.array_equal(h, self.wall_h):
             self.wall_h = h.copy()
+            self._factorise()
+
+    def set_surface_film(self, name: str, h_w_m2k: float, sink_k: float) -> None:
+        """Film coefficient [W/(m^2 K)] and sink temperature [K] of the surface film ``name``
+        (a group of the discretisation's ``surface_films``) from the end of the next step on:
+        the sink changes the load only, a new coefficient refactorises. With theta < 1 the new
+        coefficient applies to the whole step (as :meth:`set_wall_film`)."""
+        d = self.disc
+        if name not in d.surface_film_mass:
+            raise ConfigError(
+                f"heat model: surface film '{name}' is not one of the discretisation's films "
+                f"{sorted(d.surface_film_mass) or '(none)'}."
+            )
+        h, t = float(h_w_m2k), float(sink_k)
+        if not (np.isfinite(h) and h >= 0.0 and np.isfinite(t) and t > 0.0):
+            raise SimulationError(
+                f"heat model: surface film '{name}' h = {h!r} W/(m^2 K), sink = {t!r} K; expected "
+                "finite h >= 0 and a sink temperature > 0 K."
+            )
+        old_h = self.surface_films[name][0]
+        self.surface_films[name] = (h, t)
+        load = d.film_load_w
+        stiffness = d.stiffness
+        for g, (hg, tg) in self.surface_films.items():
+            h0, t0 = d.surface_films[g]
+            mass = d.surface_film_mass[g]
+            if (hg, tg) != (h0, t0):
+                load = load + mass.load(np.full(mass.n_facets, hg * tg - h0 * t0))
+            if hg != h0:
+                stiffness = stiffness + mass.matrix(np.full(mass.n_facets, hg - h0))
+        self._film_load_w = load
+        if h != old_h:
+            self._stiffness = stiffness.tocsr()
             self._factorise()
 
     # -- inputs -------------------------------------------------------------------------------
@@ -545,7 +598,7 @@ class HeatModel:
     def report(self) -> StepReport:
         """Heat flows at the current state."""
         d, t = self.disc, self.temp_k
-        film_total = float(t @ (d.stiffness @ np.ones_like(t))) - float(d.film_load_w.sum())
+        film_total = float(t @ (self._stiffness @ np.ones_like(t))) - float(self._film_load_w.sum())
         wall = float(
             np.sum(d.wall_area_m2 * (self.wall_h * (self.wall_temp_k() - self.fluid_k) + self.wall_flux_w_m2))
         )
@@ -556,7 +609,7 @@ class HeatModel:
     # -- stepping --------------------------------------------------------------------------------
     def _load(self) -> np.ndarray:
         d = self.disc
-        f = d.film_load_w + d.cell_load @ self.cell_heat_w
+        f = self._film_load_w + d.cell_load @ self.cell_heat_w
         if self.coolant is not None:
             w = d.wall_weights[:, : self.fluid_k.size]
             f = f + w @ (self.wall_h * self.fluid_k - self.wall_flux_w_m2)
