@@ -94,6 +94,20 @@ def test_rule_based_power_follower(hev: ps.PowerSplitHEV) -> None:
     assert set(r.timeseries["power_mode_name"]) >= {"ev", "regen"}
 
 
+def test_cli_ecms_from_a_dp_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--ecms-from turns the configured rule-based controller (power_follower here) into ECMS
+    with the DP's s (it passed equivalence_factor to the power follower: exit 2)."""
+    dp_dir, out, csv = tmp_path / "dp", tmp_path / "sim", tmp_path / "hwfet_200s.csv"
+    cyc = load_cycle("hwfet").truncated(200.0)
+    np.savetxt(csv, np.c_[cyc.time_s, cyc.speed_mps], delimiter=",", header="time_s,speed_mps", comments="")
+    common = ["--cycle", str(csv), "--no-plots", "--out"]
+    grid = ["--soc-points", "41", "--input-points", "21", "--final-soc", "sustain"]
+    assert main(["optimize", str(PRIUS), *grid, *common, str(dp_dir)]) == 0
+    assert main(["simulate", str(PRIUS), "--ecms-from", str(dp_dir), *common, str(out)]) == 0
+    assert "controller: ecms (s = " in capsys.readouterr().out
+    assert '"controller": "ecms"' in (out / "metadata.json").read_text()
+
+
 @pytest.mark.parametrize("compiled", [True, False])
 def test_no_clutch_channel(hev: ps.PowerSplitHEV, compiled: bool) -> None:
     """The planetary set has no clutch: no ``clutch_closed`` channel in either loop (both used

@@ -88,9 +88,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         from hevsim.control.parallel import ecms_from_costate_csv
 
         overrides = dict(ecms_from_costate_csv(args.ecms_from))
-    kind = args.controller or (
-        "ecms" if args.ecms_from and cfg.controller.kind == "electric_assist" else None
-    )
+    kind = args.controller or ("ecms" if args.ecms_from else None)  # whatever rule-based kind is configured
     if not series:
         from hevsim.architectures import check_controller
 
@@ -803,7 +801,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--controller",
-        help="supervisory controller, overriding [controller] kind (parallel: electric_assist, ecms, aecms)",
+        help="supervisory controller, overriding [controller] kind (parallel: electric_assist, ecms, aecms; "
+        "power split: power_follower, ecms, aecms; conventional: shift_schedule; BEV: direct)",
     )
     p.add_argument(
         "--ecms-from",
