@@ -261,6 +261,19 @@ def test_participant_same_interface_and_heat_balance(tmp_path: Path) -> None:
     assert pt.get_outputs()["cooling_power_w"] == pytest.approx(o3["cooling_power_w"], rel=1e-3)
     with pytest.raises(ConfigError, match=r"flow_l_min = 0\.0; expected a positive"):
         CoolantCHTParticipant("coolant", cfg, flow_l_min=0.0)
+    # the flow is frozen at construction: a run cannot change the flow rate (no such input)
+    from hevsim.cosim import Connection, FunctionParticipant, simulate
+
+    pump = FunctionParticipant(
+        "pump", lambda t, h, x, u: (x, {"flow_l_min": 0.001}), 0, {"flow_l_min": 0.0005}, {}
+    )
+    with pytest.raises(ConfigError, match=r"participant 'coolant' has no input 'flow_l_min'; inputs: \["):
+        simulate(
+            [pump, p3],
+            [Connection("pump", "flow_l_min", "coolant", "flow_l_min")],
+            stop_time_s=1.0,
+            step_s=1.0,
+        )
     p3.set_inputs({"wall2_temp_k": -1.0})
     with pytest.raises(ConfigError, match=r"segment 2 has wall temperature -1\.0 K"):
         p3.get_outputs()
