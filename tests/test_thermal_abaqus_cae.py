@@ -258,9 +258,9 @@ def test_inverted_element_names_deck_numbers(tmp_path: Path) -> None:
         ("*Tie, name=T\nBlock-Bottom, Plate-1.Top", "", r"\*Tie \(tied surfaces\)"),
         ("", "*End Step\n*Step, name=Two\n*Heat Transfer\n1., 5.", "a second \\*Step"),
         (
-            "*Material, name=Hot\n*Conductivity\n1., 20.\n2., 80.\n*Density\n1.,\n*Specific Heat\n1.,",
+            "*Material, name=Hot\n*Conductivity\n1., 20.\n2., 20.\n*Density\n1.,\n*Specific Heat\n1.,",
             "",
-            "line \\d+: material 'Hot' \\*Conductivity depends on temperature",
+            "line \\d+: material 'Hot' \\*Conductivity lists a temperature twice",
         ),
         (
             "*Material, name=Ani\n*Conductivity, type=ORTHO\n1., 2., 3.\n*Density\n1.,\n*Specific Heat\n1.,",

@@ -20,9 +20,13 @@ Read and applied:
   a part-level name is local to its part and reached from the assembly as ``INSTANCE.NAME``
   (``PLATE-1._BOT_S1``), an element of an instance as ``INSTANCE.12``.
 - materials: *Solid Section (one thermal part per instance and section), *Material with
-  *Conductivity (isotropic), *Density, *Specific Heat: constant, or tables whose rows all give
-  the same value; temperature-dependent values and ``type=ORTHO/ANISO`` with unequal
-  components are refused (the FEM solver is linear with isotropic constant properties).
+  *Conductivity (isotropic), *Density, *Specific Heat: constant, or tables of (value,
+  temperature) rows, linear between rows and constant beyond them (Abaqus's interpolation;
+  :class:`~hevsim.thermal.materials.Material` tables, temperatures in K). A deck with
+  temperature-dependent properties runs with
+  :class:`~hevsim.thermal.solver.NonlinearHeatModel`; the linear
+  :class:`~hevsim.thermal.solver.HeatModel` refuses it. ``type=ORTHO/ANISO`` with unequal
+  components are refused (the FEM solver is isotropic).
 - contact: *Contact Pair, interaction=NAME (slave, master surfaces) with the *Surface
   Interaction's *Gap Conductance table of (conductance, clearance[, temperature]) rows (a blank
   field is zero, as in Abaqus). Surfaces that coincide node for node (parts meshed with
@@ -542,18 +546,35 @@ class _Deck:
         return np.vstack(tris) if tris else np.zeros((0, 3), dtype=np.int64)
 
 
-def _single_value(rows: list[tuple[list[str], str]], what: str, material: str) -> float:
-    """A material property: one row, or rows that all give the same value (refused otherwise)."""
+def _property(
+    rows: list[tuple[list[str], str]], what: str, material: str
+) -> tuple[float, tuple[tuple[float, float], ...]]:
+    """A material property: ``(value, ())`` for one row or rows that all give the same value,
+    else ``(value at the lowest temperature, ((T [K], value), ...))`` from rows (value,
+    temperature [°C]) - linear between rows and constant beyond them, as in Abaqus."""
     if not rows:
         raise ValueError(what)
     values = {_num(r[0]) for r, _ in rows}
-    if len(values) > 1:
+    if len(values) == 1:
+        return values.pop(), ()
+    table: list[tuple[float, float]] = []
+    for r, w in rows:
+        if len(r) < 2 or r[1] == "":
+            raise InputError(
+                f"{w}: material '{material}' *{what} row {r} has no temperature; expected "
+                "'value, temperature' on every row of a temperature-dependent table."
+            )
+        table.append((_num(r[1]) + 273.15, _num(r[0])))
+    table.sort()
+    temps = [t for t, _ in table]
+    if len(set(temps)) < len(temps):
         raise InputError(
-            f"{rows[1][1]}: material '{material}' *{what} depends on temperature "
-            f"({len(rows)} rows, values {sorted(values)}); expected one value: the FEM solver has "
-            "constant properties."
+            f"{rows[0][1]}: material '{material}' *{what} lists a temperature twice; expected one "
+            "value per temperature."
         )
-    return values.pop()
+    if any(v <= 0.0 for _, v in table):
+        raise InputError(f"{rows[0][1]}: material '{material}' *{what} values {values}; expected > 0.")
+    return table[0][1], tuple(table)
 
 
 def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusModel:
@@ -724,6 +745,10 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
                         + "; expected unique node numbers."
                     )
                 scope.nodes[label] = (float(vals[1]), float(vals[2]), float(vals[3]))
+                if "NSET" in opts:  # *Node, nset=NAME (as *Element, elset=)
+                    name = opts["NSET"]
+                    scope.nsets.setdefault(name.upper(), []).append((str(label), "", where))
+                    scope.display.setdefault(name.upper(), name)
             elif kw == "instance":
                 assert instance is not None
                 if len(instance.data) >= 2:
@@ -892,8 +917,8 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
                 f"{src}: material '{mname}' has no {', '.join(missing)}; expected *Conductivity, "
                 "*Density and *Specific Heat for a transient heat analysis."
             )
-        k, rho, cp = (
-            _single_value(props[x], x.title(), mname) for x in ("conductivity", "density", "specific heat")
+        (k, cond_tab), (rho, rho_tab), (cp, cp_tab) = (
+            _property(props[x], x.title(), mname) for x in ("conductivity", "density", "specific heat")
         )
         rows = np.asarray(deck.resolve("elset", ref, w), dtype=np.int64)
         if (part[rows] >= 0).any():
@@ -909,7 +934,7 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
             raise InputError(f"{w}: thermal part name '{name}' is used twice; expected unique section sets.")
         part[rows] = len(part_names)
         part_names.append(name)
-        mats[name] = Material(mat_display[mname.upper()], k, rho, cp)
+        mats[name] = Material(mat_display[mname.upper()], k, rho, cp, cond_tab, rho_tab, cp_tab)
     if (part < 0).any():
         first = element_labels[int(np.flatnonzero(part < 0)[0])]
         raise InputError(

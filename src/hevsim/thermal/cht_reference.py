@@ -123,6 +123,11 @@ def _plate_matrices(slab: Slab, plate: Material) -> tuple[Any, Any]:
     from skfem import Basis, BilinearForm, ElementTetP2
     from skfem.helpers import dot, grad
 
+    if plate.temperature_dependent:
+        raise ConfigError(
+            f"CHT reference: plate material '{plate.name}' depends on temperature; the conjugate "
+            "heat-transfer model is linear: expected constant properties."
+        )
     k, rc = plate.conductivity_w_mk, plate.volumetric_heat_capacity_j_m3k
     b = Basis(slab.mesh, ElementTetP2(), intorder=4, elements=slab.solid)
 

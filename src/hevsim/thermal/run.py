@@ -708,7 +708,9 @@ def run_thermal(
     metadata = {
         "config": to_dict(dataclasses.replace(cfg, materials={}, contact={}, boundary=())),
         "boundary": [dataclasses.asdict(b) for b in cfg.boundary],
-        "materials": {k: dataclasses.asdict(v) for k, v in cfg.materials.items()},
+        "materials": {  # without the (empty) temperature tables of constant materials
+            k: {f: x for f, x in dataclasses.asdict(v).items() if x != ()} for k, v in cfg.materials.items()
+        },
         "contact_w_m2k": cfg.contact,
         "interfaces_m2": disc.interfaces,
         "timings_s": timings,
@@ -984,6 +986,13 @@ def module_model(cfg: ThermalConfig, mesh: Any, external_coolant: bool = False) 
     from hevsim.thermal.mesh import CHANNEL_WALL
     from hevsim.thermal.solver import HeatModel, discretise
 
+    for part, mat in cfg.materials.items():
+        if mat.temperature_dependent:  # only through the API: TOML [materials] have no tables
+            raise ConfigError(
+                f"{cfg.name}: part '{part}' material '{mat.name}' depends on temperature; the module "
+                "model (thermal run, ROM build, FEM co-simulation participant, CHT) is linear: expected "
+                "constant properties (NonlinearHeatModel runs a deck with temperature tables)."
+            )
     sim, cool = cfg.simulation, cfg.coolant
     bcs = {b.surface: b for b in cfg.boundary}
     k_max = max(m.conductivity_w_mk for m in cfg.materials.values()) if cfg.materials else 1.0

@@ -203,6 +203,8 @@ class Discretisation:
     #: ... and the facet matrices of the faces each group's film is on (a face in two groups
     #: belongs to the last), for :meth:`HeatModel.set_surface_film`
     surface_film_mass: dict[str, FacetMass] = field(default_factory=dict)
+    #: the material of every part (name -> Material) the operators were assembled with
+    materials: dict[str, Material] = field(default_factory=dict)
 
 
 def discretise(
@@ -413,6 +415,7 @@ def discretise(
         vol,
         {k: (float(h), float(t)) for k, (h, t) in surface_films.items()},
         film_mass,
+        {nm: materials[nm] for nm in mesh.part_names},
     )
 
 
@@ -473,6 +476,7 @@ class HeatModel:
             raise ConfigError(
                 f"heat model: theta = {theta!r}; expected 0.5 (Crank-Nicolson) to 1 (implicit Euler)."
             )
+        self._check_materials(disc)
         self.disc = disc
         # row-sum lumping: same total heat capacity (energy), no over/undershoot at fronts
         row_sums = np.asarray(disc.capacity.sum(axis=1)).ravel()
@@ -510,6 +514,18 @@ class HeatModel:
             self.fluid_k = coolant.fluid_temperature_k(self.wall_temp_k(), disc.wall_area_m2)
         self._factorise()
         self._f_old = self._load()
+
+    def _check_materials(self, disc: Discretisation) -> None:
+        """The linear stepper refuses temperature-dependent materials (it would use the first
+        row of their tables)."""
+        for part, mat in disc.materials.items():
+            if mat.temperature_dependent:
+                raise ConfigError(
+                    f"heat model: part '{part}' material '{mat.name}' depends on temperature; the linear "
+                    "HeatModel (used by the thermal run, the ROM build, the FEM co-simulation "
+                    "participant and CHT) needs constant properties: expected constant properties, or "
+                    "NonlinearHeatModel for a deck."
+                )
 
     def _factorise(self) -> None:
         """Assemble ``K`` (with the wall film ``wall_h``) and factorise ``C/dt + theta K``."""
@@ -639,3 +655,158 @@ class HeatModel:
 
         self.temp_k = np.asarray(spsolve(self.k.tocsc(), self._load()))
         return self.temp_k
+
+
+def _unit_conduction(points_m: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """Element conduction matrices for k = 1, ``V grad(phi_i) . grad(phi_j)`` [m], shape (M, 4, 4)."""
+    x = points_m[tets]  # (M, 4, 3)
+    jac = (x[:, 1:, :] - x[:, :1, :]).transpose(0, 2, 1)  # columns x1 - x0, x2 - x0, x3 - x0
+    inv = np.linalg.inv(jac)  # rows: gradients of phi_1..phi_3
+    grads = np.concatenate([-inv.sum(axis=1, keepdims=True), inv], axis=1)  # (M, 4, 3)
+    vol = np.abs(np.linalg.det(jac)) / 6.0
+    return vol[:, None, None] * np.einsum("mik,mjk->mij", grads, grads)
+
+
+class NonlinearHeatModel(HeatModel):
+    """Implicit Euler with temperature-dependent properties (materials with tables).
+
+    Per step it solves ``V_i (h(T_i) - h(T_i^n)) / dt + (K(T) T)_i = f_i`` for the new nodal
+    temperatures: ``h`` the volumetric enthalpy of the node's part (:meth:`Material.enthalpy_j_m3`,
+    the integral of rho c_p), ``V_i`` the node's lumped volume (the row sums of the P1 mass
+    matrix, as the linear solver's lumped capacity), ``K(T)`` the conduction with every
+    element's conductivity at its mean (centroid) temperature plus the contact and film terms
+    (linear). Newton on the capacity term and Picard on the conductivity: the update solves
+    ``(diag(V rho c(T^m)) / dt + K(T^m)) dT = -R(T^m)`` until the largest update is below
+    ``tolerance_k`` [K]. The stored heat is the enthalpy change, so heat in - stored - to the
+    films closes to the residual left (conduction's rows sum to zero for any conductivity).
+    Lumped capacity and implicit Euler only; no coolant (films and cell heat as
+    :class:`HeatModel`, :meth:`set_surface_film` included). With constant properties it solves
+    the same equations as :class:`HeatModel` (to rounding).
+    """
+
+    def __init__(
+        self,
+        disc: Discretisation,
+        *,
+        dt_s: float,
+        initial_temp_k: float | np.ndarray = 303.15,
+        tolerance_k: float = 1e-10,
+        max_iterations: int = 50,
+    ) -> None:
+        super().__init__(disc, dt_s=dt_s, initial_temp_k=initial_temp_k)
+        n = disc.points_m.shape[0]
+        self.node_volume_m3 = np.bincount(
+            disc.tets.ravel(), weights=np.repeat(disc.tet_volume_m3 / 4.0, 4), minlength=n
+        )
+        names = list(disc.materials)
+        self._mats = [disc.materials[nm] for nm in names]
+        self._node_part = disc.node_part
+        tet_part = disc.node_part[disc.tets[:, 0]]
+        # conduction of the temperature-dependent parts: K(T) = K(disc) + sum_e (k_e(T) - k_p) K1_e
+        self._var_tets = np.flatnonzero(
+            [
+                bool(self._mats[p].conductivity_table) and len(self._mats[p].conductivity_table) > 1
+                for p in tet_part
+            ]
+        )
+        self._tet_part = tet_part[self._var_tets]
+        self._k1 = _unit_conduction(disc.points_m, disc.tets[self._var_tets])
+        tv = disc.tets[self._var_tets]
+        self._rows = np.repeat(tv, 4, axis=1).ravel()
+        self._cols = np.tile(tv, (1, 4)).ravel()
+        self.tolerance_k = float(tolerance_k)
+        self.max_iterations = int(max_iterations)
+        self.iterations = 0  # Newton-Picard iterations of the last step
+
+    def _check_materials(self, disc: Discretisation) -> None:
+        for part, mat in disc.materials.items():
+            mat.check(f"nonlinear heat model: part '{part}'")
+
+    def _factorise(self) -> None:
+        """No fixed factorisation: each iteration factorises its own matrix."""
+        self.k = self._stiffness
+
+    def _per_node(self, what: str, temp_k: np.ndarray) -> np.ndarray:
+        out = np.empty_like(temp_k)
+        for p, mat in enumerate(self._mats):
+            sel = self._node_part == p
+            out[sel] = getattr(mat, what)(temp_k[sel])
+        return out
+
+    def enthalpy_j(self, temp_k: np.ndarray | None = None) -> float:
+        """Stored heat [J]: the sum of the nodal enthalpies ``V_i h(T_i)``."""
+        t = self.temp_k if temp_k is None else temp_k
+        return float(np.sum(self.node_volume_m3 * self._per_node("enthalpy_j_m3", t)))
+
+    def conduction(self, temp_k: np.ndarray) -> sp.csr_matrix:
+        """``K(T)`` [W/K]: films, contact and conduction at the elements' mean temperatures."""
+        if self._var_tets.size == 0:
+            return self._stiffness
+        tbar = temp_k[self.disc.tets[self._var_tets]].mean(axis=1)
+        dk = np.empty(self._var_tets.size)
+        for p in np.unique(self._tet_part):
+            sel = self._tet_part == p
+            mat = self._mats[int(p)]
+            dk[sel] = mat.conductivity_at(tbar[sel]) - mat.conductivity_w_mk
+        n = temp_k.size
+        delta = sp.csr_matrix(
+            ((dk[:, None, None] * self._k1).ravel(), (self._rows, self._cols)), shape=(n, n)
+        )
+        return (self._stiffness + delta).tocsr()
+
+    def residual_w(self, temp_k: np.ndarray) -> np.ndarray:
+        """Implicit-Euler residual [W] of the next step at ``temp_k``."""
+        h0 = self._per_node("enthalpy_j_m3", self.temp_k)
+        h1 = self._per_node("enthalpy_j_m3", temp_k)
+        return self.node_volume_m3 * (h1 - h0) / self.dt_s + self.conduction(temp_k) @ temp_k - self._load()
+
+    def step(self) -> np.ndarray:
+        """Advance one step of ``dt_s``; returns the new nodal temperatures [K]."""
+        new = self.temp_k.copy()
+        for it in range(1, self.max_iterations + 1):
+            k = self.conduction(new)
+            cap = self.node_volume_m3 * self._per_node("heat_capacity_at", new) / self.dt_s
+            r = self.residual_w(new)
+            lu = splu((sp.diags(cap) + k).tocsc(), permc_spec="MMD_AT_PLUS_A")
+            self.factorisations += 1
+            dt = lu.solve(-r)
+            new = new + dt
+            if not np.all(np.isfinite(new)):
+                break
+            if np.abs(dt).max() <= self.tolerance_k:
+                self.iterations = it
+                break
+        else:
+            raise SimulationError(
+                f"nonlinear heat model: no convergence in {self.max_iterations} iterations at "
+                f"t = {self.time_s + self.dt_s} s (last update {np.abs(dt).max():.3g} K > "
+                f"{self.tolerance_k:g} K); expected a smaller dt_s."
+            )
+        if not np.all(np.isfinite(new)):
+            raise SimulationError(
+                f"nonlinear heat model: temperature became non-finite at t = {self.time_s + self.dt_s} s."
+            )
+        self.temp_k = new
+        self.k = self.conduction(new)
+        self.time_s += self.dt_s
+        return new
+
+    def report(self) -> StepReport:
+        """Heat flows at the current state; ``stored_energy_j`` is the enthalpy."""
+        rep = super().report()
+        return StepReport(rep.time_s, rep.heat_in_w, rep.film_w, rep.wall_w, self.enthalpy_j())
+
+    def steady(self) -> np.ndarray:
+        """Steady state for the current inputs [K]: Picard on ``K(T) T = f``."""
+        from scipy.sparse.linalg import spsolve
+
+        t = self.temp_k.copy()
+        for _ in range(self.max_iterations):
+            new = np.asarray(spsolve(self.conduction(t).tocsc(), self._load()))
+            if np.abs(new - t).max() <= self.tolerance_k:
+                self.temp_k = new
+                return new
+            t = new
+        raise SimulationError(
+            f"nonlinear heat model: steady state not converged in {self.max_iterations} iterations."
+        )
