@@ -170,6 +170,18 @@ def test_bad_film_amplitudes_are_refused(tmp_path: Path, options: str, match: st
         read_abaqus_inp(_deck(tmp_path, options), length_scale_m=1e-3)
 
 
+def test_step_amplitude_ramp_is_refused(tmp_path: Path) -> None:
+    """Abaqus ramps the loads without an amplitude over a step with amplitude=RAMP (the default
+    of a transient *Heat Transfer is STEP, what the importer applies): refused, not ignored."""
+    deck = _deck(tmp_path, "")
+    text = deck.read_text()
+    deck.write_text(text.replace("*Step, name=Heat,", "*Step, name=Heat, amplitude=RAMP,"))
+    with pytest.raises(InputError, match=r"line \d+: \*Step, amplitude=RAMP: loads without their own"):
+        read_abaqus_inp(deck, length_scale_m=1e-3)
+    deck.write_text(text.replace("*Step, name=Heat,", "*Step, name=Heat, amplitude=STEP,"))
+    assert read_abaqus_inp(deck, length_scale_m=1e-3).films
+
+
 def test_unknown_surface_film_is_refused(tmp_path: Path) -> None:
     model = read_abaqus_inp(_deck(tmp_path, ""), length_scale_m=1e-3)
     heat = HeatModel(model.discretise(), dt_s=1.0, initial_temp_k=298.15)

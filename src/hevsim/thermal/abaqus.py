@@ -49,7 +49,7 @@ Read and applied:
 Refused (they change the physics and the solver has no equivalent here): *Boundary (fixed
 temperature), *Cflux, *Dsflux, *Dflux face fluxes (S1-S4), *Radiate/*Sradiate, *Tie,
 *Heat Generation, *Latent Heat, *Gap Conductance with pressure, films with a time delay,
-*Heat Transfer steady state, more than one *Step, elements other than linear tetrahedra.
+*Step amplitude=RAMP, *Heat Transfer steady state, more than one *Step, elements other than linear tetrahedra.
 """
 
 from __future__ import annotations
@@ -713,6 +713,13 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
                 amplitudes[amp] = ([], where)
             elif kw == "step":
                 steps.append(where)
+                if opts.get("AMPLITUDE", "STEP").upper() != "STEP":
+                    raise InputError(
+                        f"{where}: *Step, amplitude={opts['AMPLITUDE']}: loads without their own "
+                        "amplitude would ramp over the step from zero; expected amplitude=STEP (the "
+                        "default of a transient *Heat Transfer: loads applied at the step's start) or "
+                        "an *Amplitude on each load."
+                    )
                 if len(steps) > 1:
                     raise InputError(
                         f"{where}: a second *Step; expected one heat-transfer step (the loads of the "
