@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo examples test docs lint refinement bench clean openfoam
+.PHONY: setup demo examples test docs lint refinement bench clean openfoam calculix
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -41,12 +41,27 @@ openfoam:
 			"as root, or openfoam.com/.org packages; the RANS tests will be skipped)"; \
 	fi
 
+# CalculiX (ccx), the independent FEM reference of the nonlinear Abaqus-deck tests
+# (tests/test_thermal_nonlinear.py): Debian's package when missing, as for OpenFOAM.
+calculix:
+	@if command -v ccx >/dev/null 2>&1; then \
+		echo "calculix: found ($$(command -v ccx))"; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+		echo "calculix: installing Debian's package: apt-get install -y calculix-ccx"; \
+		DEBIAN_FRONTEND=noninteractive apt-get install -y calculix-ccx || \
+		{ apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y calculix-ccx; } || \
+		echo "calculix: apt-get install calculix-ccx failed: the CalculiX comparisons will be skipped"; \
+	else \
+		echo "calculix: ccx not found and not root with apt-get: skipping (the CalculiX comparisons" \
+			"will be skipped)"; \
+	fi
+
 # The numba kernels are compiled first (`hevsim compile`, one process per core, while the
 # linters run), then pytest runs on every core (pytest-xdist; one test file per worker at a
 # time, so a module's fixtures are built once). JOBS=1: one compile process, one test worker.
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 
-test: $(STAMP) openfoam
+test: $(STAMP) openfoam calculix
 	@mkdir -p build
 	$(BIN)/hevsim compile --jobs $(JOBS) 2>build/compile.log & compile=$$!; \
 	  $(BIN)/ruff check src tests benchmarks examples && \
