@@ -3,8 +3,11 @@ parameters of an FMI 2.0 or 3.0 model description, arrays expanded to one elemen
 the connection type rules (:func:`type_conversion`).
 
 Types are grouped in classes: ``Real`` (FMI 2.0 Real; FMI 3.0 Float64, Float32), ``Integer``
-(FMI 2.0 Integer; FMI 3.0 Int8 .. UInt64), ``Enumeration``, ``Boolean`` and ``String``.
-Values travel as Python ``float`` / ``int`` / ``bool`` / ``str``. An FMI 3.0 array variable
+(FMI 2.0 Integer; FMI 3.0 Int8 .. UInt64), ``Enumeration``, ``Boolean``, ``String`` and
+``Binary`` (FMI 3.0). Values travel as Python ``float`` / ``int`` / ``bool`` / ``str``; a
+Binary value travels and is recorded as its bytes in hexadecimal text (``"01ff"``). An
+integer outside its FMI 3.0 type's range (an Int64 output into an Int8 input, a parameter)
+is refused naming the variable, not wrapped around. An FMI 3.0 array variable
 ``a`` with dimensions (n) is exchanged and recorded as ``a[1]`` .. ``a[n]`` (1-based, as
 FMI 2.0 names scalarised array elements; ``a[i,j]`` for two dimensions, row-major).
 """
@@ -27,13 +30,21 @@ TYPE_CLASS = {
     "Enumeration": "Enumeration",
     "Boolean": "Boolean",
     "String": "String",
+    "Binary": "Binary",
 }
+INT_RANGE = {
+    t: ((-(2 ** (b - 1)), 2 ** (b - 1) - 1) if t[0] == "I" else (0, 2**b - 1))
+    for t, b in (("Int8", 8), ("UInt8", 8), ("Int16", 16), ("UInt16", 16), ("Int32", 32), ("UInt32", 32),
+                 ("Int64", 64), ("UInt64", 64))
+}  # fmt: skip
+"""Smallest and largest value of each FMI 3.0 integer type."""
 PY_TYPE: dict[str, Callable[[Any], Any]] = {
     "Real": float,
     "Integer": int,
     "Enumeration": int,
     "Boolean": bool,
     "String": str,
+    "Binary": str,
 }
 
 # Conversions applied on a connection between different type classes: only lossless ones
@@ -250,6 +261,9 @@ class FmuVariables:
         for g in groups:
             fn = getattr(slave, self._call("get", g.fmi_type))
             vals = fn(g.vrs, len(g.names)) if self.fmi3 else fn(g.vrs)
+            if g.fmi_type == "Binary":
+                out.update(zip(g.names, (bytes(v).hex() for v in vals), strict=True))
+                continue
             for n, val in zip(g.names, vals, strict=True):
                 out[n] = g.convert(val.decode() if isinstance(val, bytes) else val)
         return out
@@ -284,8 +298,11 @@ class FmuVariables:
             var = self._in_element.get(e)
             if var is None:
                 raise ConfigError(f"FMU {self.fmu_name} has no input {e!r}; inputs: {sorted(self.inputs)}.")
-            names = self._in_vars[var][2]
-            self._in_values[var][names.index(e) if len(names) > 1 else 0] = PY_TYPE[self.types[e]](val)
+            ftype, _, names = self._in_vars[var]
+            val = PY_TYPE[self.types[e]](val)
+            if ftype in INT_RANGE:
+                self._in_range(ftype, e, val, "input")
+            self._in_values[var][names.index(e) if len(names) > 1 else 0] = val
             touched[var] = None
         by_type: dict[str, tuple[list[int], list[Any]]] = {}
         for var in touched:
@@ -294,7 +311,16 @@ class FmuVariables:
             refs.append(vr)
             vals.extend(self._in_values[var])
         for ftype, (refs, vals) in by_type.items():
+            if ftype == "Binary":
+                vals = [_hex_bytes(v, self.fmu_name, "input") for v in vals]
             getattr(slave, self._call("set", ftype))(refs, vals)
+
+    def _in_range(self, ftype: str, name: str, value: int, what: str) -> None:
+        lo, hi = INT_RANGE[ftype]
+        if not lo <= value <= hi:
+            raise ConfigError(
+                f"FMU {self.fmu_name}: {what} {name!r} is an {ftype} ({lo} .. {hi}), got {value}."
+            )
 
     def set_parameter(self, slave: Any, var: Any, value: Any) -> None:
         """Set the scalar variable ``var`` (a model variable) to ``value`` (checked against
@@ -302,7 +328,10 @@ class FmuVariables:
         self.check_parameter(var, value)
         ftype = _fmi_type(var)
         cls = TYPE_CLASS[ftype]
-        getattr(slave, self._call("set", ftype))([var.valueReference], [PY_TYPE[cls](value)])
+        v = PY_TYPE[cls](value)
+        if ftype == "Binary":
+            v = _hex_bytes(v, self.fmu_name, f"parameter {var.name!r}")
+        getattr(slave, self._call("set", ftype))([var.valueReference], [v])
 
     def check_parameter(self, var: Any, value: Any) -> None:
         """:class:`ConfigError` unless ``value`` suits the scalar variable ``var``."""
@@ -317,21 +346,42 @@ class FmuVariables:
             )
         if cls == "String" and not isinstance(value, str):
             raise ConfigError(f"FMU {self.fmu_name}: parameter {var.name!r} is a String, got {value!r}.")
+        if cls == "Binary":
+            if not isinstance(value, str):
+                raise ConfigError(
+                    f"FMU {self.fmu_name}: parameter {var.name!r} is a Binary (hexadecimal text), "
+                    f"got {value!r}."
+                )
+            _hex_bytes(value, self.fmu_name, f"parameter {var.name!r}")
+            return
         if cls in ("Integer", "Enumeration") and (isinstance(value, float) and value != int(value)):
             raise ConfigError(f"FMU {self.fmu_name}: parameter {var.name!r} is an {cls}, got {value!r}.")
         if cls != "String" and isinstance(value, str):
             raise ConfigError(
                 f"FMU {self.fmu_name}: parameter {var.name!r} is a {cls}, got the text {value!r}."
             )
+        if ftype in INT_RANGE:
+            self._in_range(ftype, var.name, int(value), "parameter")
+
+
+def _hex_bytes(text: str, fmu: str, what: str) -> bytes:
+    """The bytes of the hexadecimal ``text`` (a Binary value); :class:`ConfigError` naming
+    ``what`` of FMU ``fmu`` if it is not hexadecimal."""
+    try:
+        return bytes.fromhex(text)
+    except ValueError:
+        raise ConfigError(
+            f"FMU {fmu}: {what} is a Binary: expected hexadecimal bytes such as '01ff', got {text!r}."
+        ) from None
 
 
 def _starts(v: Any, cls: str, n: int) -> list[Any]:
     """Start values of the ``n`` elements of ``v`` (the type's zero without one)."""
     s = getattr(v, "start", None)
-    if s in (None, ""):
-        return [PY_TYPE[cls]("" if cls == "String" else 0)] * n
-    if cls == "String":
-        return [str(s)] * n
+    if s in (None, "", b""):
+        return [PY_TYPE[cls]("" if cls in ("String", "Binary") else 0)] * n
+    if cls in ("String", "Binary"):
+        return [s.hex() if isinstance(s, bytes) else str(s)] * n
     items = str(s).split()
     items = items if len(items) == n else [items[0]] * n
     if cls == "Boolean":

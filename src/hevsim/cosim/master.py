@@ -146,10 +146,15 @@ class CosimResult:
     text: dict[str, list[str]] = field(default_factory=dict)
     """String outputs ("participant.variable" -> one value per row); ``data`` holds the
     numeric ones (Integer, Enumeration as numbers, Boolean as 0 / 1)."""
+    integers: dict[str, list[int]] = field(default_factory=dict)
+    """Integer and Enumeration outputs exactly (FMI 3.0 Int64 / UInt64 beyond 2**53 included;
+    their ``data`` columns are the nearest float64); indexing and :meth:`write_csv` use these."""
 
     def __getitem__(self, key: str) -> np.ndarray:
         if key in self.text:
             return np.array(self.text[key], dtype=object)
+        if key in self.integers:
+            return _int_array(self.integers[key])
         try:
             return self.data[:, self.columns.index(key)]
         except ValueError:
@@ -161,7 +166,11 @@ class CosimResult:
 
         text = list(self.text.values())
         lines = [",".join(["time_s", *self.columns, *self.text])]
-        table = np.column_stack([self.time_s, self.data]).tolist()  # Python floats: repr round-trips
+        table: list[list[Any]] = np.column_stack([self.time_s, self.data]).tolist()  # repr round-trips
+        for j, c in enumerate(self.columns, start=1):
+            if c in self.integers:  # exact integers, written as such
+                for row, v in zip(table, self.integers[c], strict=True):
+                    row[j] = v
         if text:
             lines += [
                 ",".join([*map(repr, row), *(_csv_field(c[i]) for c in text)]) for i, row in enumerate(table)
@@ -169,6 +178,15 @@ class CosimResult:
         else:
             lines += [",".join(map(repr, row)) for row in table]
         write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+def _int_array(values: list[int]) -> np.ndarray:
+    """``values`` exactly: int64, else uint64 (all >= 0), else Python ints (object)."""
+    if all(-(2**63) <= v < 2**63 for v in values):
+        return np.array(values, dtype=np.int64)
+    if all(0 <= v < 2**64 for v in values):
+        return np.array(values, dtype=np.uint64)
+    return np.array(values, dtype=object)
 
 
 def _csv_field(s: str) -> str:
@@ -362,7 +380,9 @@ class Master:
 
     def _record(self, t: float, y: dict[str, dict[str, Any]]) -> None:
         row = [float(y[n][v]) for n, v in self._cols]
-        trow = [y[n][v] for n, v in self._tcols]
+        trow = [y[n][v] for n, v in self._tcols]  # String, then Integer / Enumeration: exact
+        if len(trow) > self._ntext:
+            trow[self._ntext :] = map(int, trow[self._ntext :])
         if self._replay is not None and len(self._rows) < len(self._replay):
             i = len(self._rows)
             ref = self._replay[i]
@@ -387,9 +407,11 @@ class Master:
     def _result(self, stopped_by: str | None) -> CosimResult:
         cols = [f"{n}.{v}" for n, v in self._cols]
         data = np.array(self._rows, float).reshape(len(self._rows), len(cols))
-        text = {f"{n}.{v}": [r[i] for r in self._trows] for i, (n, v) in enumerate(self._tcols)}
+        exact = {f"{n}.{v}": [r[i] for r in self._trows] for i, (n, v) in enumerate(self._tcols)}
+        text = {c: exact[c] for c in list(exact)[: self._ntext]}
+        ints = {c: exact[c] for c in list(exact)[self._ntext :]}
         return CosimResult(
-            np.array(self._times), cols, data, dict(self.stats), stopped_by, dict(self.p), text
+            np.array(self._times), cols, data, dict(self.stats), stopped_by, dict(self.p), text, ints
         )
 
     # -- checkpoints: the state only; the rows stream append-only to <checkpoint>.rows ------
@@ -404,7 +426,7 @@ class Master:
         self._stream.flush()
         self._tstream.flush()
         blob = {
-            "version": 2,
+            "version": 3,
             "t": t,
             "h": h,
             "y": y,
@@ -427,7 +449,7 @@ class Master:
             blob = pickle.loads(ck.read_bytes())
         except Exception as exc:
             raise ConfigError(f"{ck}: not a readable checkpoint ({type(exc).__name__}: {exc}).") from None
-        if not isinstance(blob, dict) or blob.get("version") != 2:
+        if not isinstance(blob, dict) or blob.get("version") != 3:
             raise ConfigError(f"{ck}: checkpoint of an older hevsim version; run again without resume.")
         if blob["columns"] != self._cols or blob["text_columns"] != self._tcols:
             raise ConfigError(f"{ck}: checkpoint of a different system (other outputs); run without resume.")
@@ -485,9 +507,9 @@ class Master:
         self.stats: dict[str, Any] = {"steps": 0, "iterations": 0, "rejected": 0, "max_residual": 0.0}
         self._times: list[float] = []
         self._rows: list[list[float]] = []
-        self._trows: list[list[str]] = []
+        self._trows: list[list[Any]] = []  # String, Integer columns
         self._replay: np.ndarray | None = None
-        self._treplay: list[list[str]] = []
+        self._treplay: list[list[Any]] = []
         self._stream: Any = None
         self._tstream: Any = None
         for n in self.order:
@@ -517,6 +539,12 @@ class Master:
         y = self._initial_exchange(t)
         self._cols = [(n, v) for n in self.listing for v in y[n] if not isinstance(y[n][v], str)]
         self._tcols = [(n, v) for n in self.listing for v in y[n] if isinstance(y[n][v], str)]
+        self._ntext = len(self._tcols)
+        # Integer / Enumeration outputs are also kept exactly in the text rows (JSON: any int)
+        self._tcols += [
+            (n, v) for n in self.listing for v in y[n]
+            if self.p[n].types.get(v) in ("Integer", "Enumeration") and not isinstance(y[n][v], str)
+        ]  # fmt: skip
         self._pack = struct.Struct(f"={1 + len(self._cols)}d").pack  # one row of the stream
         nsteps = 0
         ck = Path(o.checkpoint_path) if o.checkpoint_path else None

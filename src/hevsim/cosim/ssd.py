@@ -125,7 +125,7 @@ _CONNECTOR_TYPES = {
     "Real": "Real", "Float64": "Real", "Float32": "Real", "Integer": "Integer", "Int8": "Integer",
     "UInt8": "Integer", "Int16": "Integer", "UInt16": "Integer", "Int32": "Integer", "UInt32": "Integer",
     "Int64": "Integer", "UInt64": "Integer", "Boolean": "Boolean", "String": "String",
-    "Enumeration": "Enumeration",
+    "Enumeration": "Enumeration", "Binary": "Binary",
 }  # fmt: skip
 """Type elements of an ``ssd:Connector`` (SSP 1.0 ``ssc:Real`` ..., SSP 2.0 ``ssc:Float64`` ...)."""
 
@@ -155,7 +155,7 @@ def _typed(tag: str, text: str, where: str) -> Any:
             return text.strip().lower() in ("true", "1")
     except ValueError:
         raise ConfigError(f"{where}: value {text!r} is not a valid {tag}.") from None
-    if tag == "String":
+    if tag in ("String", "Binary"):  # Binary: hexadecimal text, as SSV writes it
         return text
     return _value(text)
 

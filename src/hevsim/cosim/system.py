@@ -122,7 +122,10 @@ def run_cosim(
     def write(res: CosimResult, error: str | None) -> None:
         with atomic_directory(out) as tmp:
             res.write_csv(tmp / "results.csv")
-            final = {c: float(res.data[-1, i]) for i, c in enumerate(res.columns)} if len(res.data) else {}
+            final = {
+                c: res.integers[c][-1] if c in res.integers else float(res.data[-1, i])
+                for i, c in enumerate(res.columns)
+            } if len(res.data) else {}  # fmt: skip
             fields: dict[str, Any] = {}
             if len(res.data):
                 from hevsim.cosim.plots import plot_cosim
