@@ -29,7 +29,25 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
-C_SOURCE = r"""
+FMI2_NO_STATE_STUBS = r"""
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *s) { return fmi2Error; }
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate s) { return fmi2Error; }
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *s) { return fmi2Error; }
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate s, size_t *n) { return fmi2Error; }
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte b[], size_t n) { return fmi2Error; }
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate *s) { return fmi2Error; }
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference a[], size_t na,
+    const fmi2ValueReference b[], size_t nb, const fmi2Real dv[], fmi2Real d[]) { return fmi2Error; }
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+    const fmi2Integer o[], const fmi2Real v[]) { return fmi2Error; }
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+    const fmi2Integer o[], fmi2Real v[]) { return fmi2Error; }
+"""
+"""C definitions of the FMU-state and derivative functions of an FMI 2.0 FMU without them (each
+returns fmi2Error), shared by the test FMUs."""
+
+C_SOURCE = (
+    r"""
 #include <stdlib.h>
 #include <string.h>
 #include <stdio.h>
@@ -101,19 +119,9 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[]) {
     M *m = c; for (size_t k = 0; k < n; k++) { if (vr[k] != 0) return fmi2Error; strncpy(m->s, v[k], 255); } return fmi2OK; }
 
-fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *s) { return fmi2Error; }
-fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate s) { return fmi2Error; }
-fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *s) { return fmi2Error; }
-fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate s, size_t *n) { return fmi2Error; }
-fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte b[], size_t n) { return fmi2Error; }
-fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate *s) { return fmi2Error; }
-fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference a[], size_t na,
-    const fmi2ValueReference b[], size_t nb, const fmi2Real dv[], fmi2Real d[]) { return fmi2Error; }
-fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
-    const fmi2Integer o[], const fmi2Real v[]) { return fmi2Error; }
-fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
-    const fmi2Integer o[], fmi2Real v[]) { return fmi2Error; }
-
+"""
+    + FMI2_NO_STATE_STUBS
+    + r"""
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noset) {
     M *m = c;
     if (m->terminated) return fmi2Error;
@@ -144,6 +152,7 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
     if (s != fmi2Terminated) return fmi2Error; *v = ((M*)c)->terminated; return fmi2OK; }
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *v) { return fmi2Error; }
 """
+)
 
 _VARS = """
     <ScalarVariable name="u" valueReference="0" causality="input" variability="continuous"><Real start="0"/></ScalarVariable>

@@ -19,13 +19,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from tests.cosim_cfmu import build_c_fmu
+from tests.cosim_cfmu import FMI2_NO_STATE_STUBS, build_c_fmu
 
 from hevsim.cosim import Connection, FunctionParticipant, simulate
 from hevsim.cosim.participant import FMUParticipant
 from hevsim.cosim.worker import WorkerFMUParticipant
 
-STIFF_SOURCE = r"""
+STIFF_SOURCE = (
+    r"""
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -61,19 +62,9 @@ fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[]) { return fmi2Error; }
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]) { return fmi2Error; }
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[]) { return fmi2Error; }
-fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *s) { return fmi2Error; }
-fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate s) { return fmi2Error; }
-fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *s) { return fmi2Error; }
-fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate s, size_t *n) { return fmi2Error; }
-fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte b[], size_t n) { return fmi2Error; }
-fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate *s) { return fmi2Error; }
-fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference a[], size_t na,
-    const fmi2ValueReference b[], size_t nb, const fmi2Real dv[], fmi2Real d[]) { return fmi2Error; }
-fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
-    const fmi2Integer o[], const fmi2Real v[]) { return fmi2Error; }
-fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
-    const fmi2Integer o[], fmi2Real v[]) { return fmi2Error; }
-
+"""
+    + FMI2_NO_STATE_STUBS
+    + r"""
 /* implicit Euler in ceil(h / dt_max) equal steps */
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noset) {
     M *m = c;
@@ -93,6 +84,7 @@ fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Int
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *v) { return fmi2Error; }
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *v) { return fmi2Error; }
 """
+)
 
 
 def stiff_description(ident: str) -> str:
