@@ -303,3 +303,40 @@ def test_integers_out_of_range_are_refused_not_wrapped(
     with pytest.raises(ConfigError, match=r"parameter 'p_Binary' is a Binary: expected hexadecimal"):
         run_cosim(write_system(tmp_path, fmu, [], process="inprocess", params={"src.p_Binary": "xyz"}),
                   tmp_path / "out2")  # fmt: skip
+
+
+def test_clock_variables_are_refused_by_name_not_dropped(
+    fmu: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """An FMI 3.0 Clock cannot be exchanged (event mode): a connection naming one is refused at
+    ``--check`` and by the run, saying why (a clock-to-clock link used to pass the check as a
+    same-type link), and an unconnected clock output is reported as not recorded (it vanished)."""
+    import shutil
+    import warnings
+    import zipfile
+
+    from hevsim.cli import main
+    from hevsim.cosim.participant import FMUParticipant
+    from hevsim.cosim.system import run_cosim
+
+    clocked = tmp_path / "clocked.fmu"
+    with zipfile.ZipFile(fmu) as zin, zipfile.ZipFile(clocked, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item.filename)
+            if item.filename == "modelDescription.xml":
+                clock = '    <Clock name="tick" valueReference="9001" causality="output" intervalVariability="triggered"/>\n'
+                data = data.decode().replace("  </ModelVariables>", clock + "  </ModelVariables>").encode()
+            zout.writestr(item, data)
+    ssd = write_system(tmp_path, clocked, [("tick", "u_Float64")], process="inprocess")
+    capsys.readouterr()
+    assert main(["cosim", str(ssd), "--check"]) == 2
+    err = capsys.readouterr().err
+    assert "src.tick is an FMI Clock variable" in err and "event mode" in err
+    with pytest.raises(ConfigError, match=r"src\.tick is an FMI Clock variable"):
+        run_cosim(ssd, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+    shutil.copy(clocked, tmp_path / "alone.fmu")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        FMUParticipant("src", tmp_path / "alone.fmu")
+    assert any("tick" in str(w.message) and "not exchanged or recorded" in str(w.message) for w in caught)

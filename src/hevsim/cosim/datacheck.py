@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from hevsim.cosim import units as U
-from hevsim.cosim.fmi_vars import TYPE_CLASS, FmuVariables, type_conversion
+from hevsim.cosim.fmi_vars import TYPE_CLASS, UNSUPPORTED_WHY, FmuVariables, type_conversion
 from hevsim.cosim.load import load_system
 from hevsim.cosim.master import Connection, Options, state_needs
 from hevsim.cosim.ssd import COMPONENT_TYPES, FMU_TYPE, Component, Connector, SystemDescription
@@ -29,6 +29,10 @@ def datacheck(
         return _check(path_or_desc)
     with load_system(path_or_desc, bindings) as desc:
         return _check(desc)
+
+
+EXCHANGED_CLASSES = frozenset(TYPE_CLASS.values())
+"""Type classes a connection can carry (FMI 3.0 Clock variables cannot)."""
 
 
 def _check(desc: SystemDescription) -> SystemDescription:
@@ -64,6 +68,13 @@ def _check(desc: SystemDescription) -> SystemDescription:
         du = k.dst_unit if k.dst_unit is not None else getattr(kinds[k.dst].get(k.dst_var), "unit", "")
         st = getattr(kinds[k.src].get(k.src_var), "type", "Real")
         dt = getattr(kinds[k.dst].get(k.dst_var), "type", "Real")
+        for comp, var, typ in ((k.src, k.src_var, st), (k.dst, k.dst_var, dt)):
+            if typ not in EXCHANGED_CLASSES:
+                raise ConfigError(
+                    f"{what}: {comp}.{var} is an FMI {typ} variable; hevsim exchanges "
+                    f"{', '.join(sorted(EXCHANGED_CLASSES))} variables only "
+                    f"({UNSUPPORTED_WHY.get(typ, 'not supported')})."
+                )
         type_conversion(st, dt, f"{what} ({k.src}.{k.src_var} is {st}, {k.dst}.{k.dst_var} is {dt})")
         if st == dt == "Real":
             U.conversion(su, du, desc.units, what)

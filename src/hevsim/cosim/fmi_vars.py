@@ -32,6 +32,10 @@ TYPE_CLASS = {
     "String": "String",
     "Binary": "Binary",
 }
+UNSUPPORTED_WHY = {
+    "Clock": "an FMI 3.0 clock ticks in event mode, which hevsim's fixed-step master does not run",
+}
+"""Why a variable type is neither exchanged nor recorded (the message of a refused connection)."""
 INT_RANGE = {
     t: ((-(2 ** (b - 1)), 2 ** (b - 1) - 1) if t[0] == "I" else (0, 2**b - 1))
     for t, b in (("Int8", 8), ("UInt8", 8), ("Int16", 16), ("UInt16", 16), ("Int32", 32), ("UInt32", 32),

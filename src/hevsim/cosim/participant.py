@@ -19,6 +19,7 @@ import collections
 import contextlib
 import copy
 import sys
+import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
@@ -27,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from hevsim._pythonfmu_exit import release_pythonfmu_state
-from hevsim.cosim.fmi_vars import FmuVariables
+from hevsim.cosim.fmi_vars import UNSUPPORTED_WHY, FmuVariables
 from hevsim.errors import ConfigError, SimulationError
 
 
@@ -389,6 +390,16 @@ class FMUParticipant(Participant):
         except ConfigError as exc:
             raise ConfigError(f"participant {name!r}: FMU {self.fmu.name}: {exc}") from None
         self.inputs, self.outputs = self.vars.inputs, self.vars.outputs
+        if self.vars.unsupported:
+            warnings.warn(
+                f"participant {name!r}: FMU {self.fmu.name}: "
+                + "; ".join(
+                    f"{typ} variable(s) {sorted(v for v, t in self.vars.unsupported.items() if t == typ)} "
+                    f"are not exchanged or recorded ({UNSUPPORTED_WHY.get(typ, 'not supported')})"
+                    for typ in sorted(set(self.vars.unsupported.values()))
+                ),
+                stacklevel=2,
+            )
         self.types = {k: t for k, t in self.vars.types.items() if t != "Real"}
         self.parameters = dict(parameters or {})
         for k, val in self.parameters.items():
