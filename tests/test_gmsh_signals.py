@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 import pytest
+from tests.proc_helpers import sigint_default
 
 PROBE = """
 import signal, threading
@@ -30,6 +31,6 @@ print(sigpipe_ignored())
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
 def test_meshing_keeps_sigpipe_ignored_and_sigint_python() -> None:
     proc = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, timeout=600,
-                          check=False)  # fmt: skip
+                          check=False, preexec_fn=sigint_default)  # fmt: skip
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout.split() == ["True", "True", "True"], proc.stdout

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
+from tests.proc_helpers import sigint_default
 
 from hevsim.cli import main
 from hevsim.config import build_vehicle
@@ -213,7 +214,12 @@ run_study(t.slow_study(8, 0.15), {out!r}, scheduler="in-process", progress=False
 def test_sigint_then_resume_gives_every_case_once(tmp_path: Path) -> None:
     out = tmp_path / "out"
     code = _INTERRUPTED.format(tests=str(Path(__file__).parent), out=str(out))
-    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(  # Ctrl-C acts even if this run inherited SIGINT ignored
+        [sys.executable, "-c", code],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        preexec_fn=sigint_default,
+    )
     try:
         deadline = time.monotonic() + 120
         while len(list((out / "results").glob("part-*.parquet"))) < 4:
