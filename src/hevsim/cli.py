@@ -230,12 +230,14 @@ def _cmd_performance(args: argparse.Namespace) -> int:
 
 
 def _cmd_refinement(args: argparse.Namespace) -> int:
-    from hevsim.refinement import format_table, run_refinement
+    from hevsim.refinement import format_energy_table, format_table, run_refinement
 
     if args.out:
         _prepare(args, args.out, args.cycle, kind="file", ours=_is_refinement_table)
-    rows = run_refinement(cycle=args.cycle)
-    text = format_table(rows, args.cycle)
+    rows = run_refinement(args.cycle, calibration=args.calibration)
+    text = format_table(rows, args.cycle, args.calibration)
+    if args.energy:
+        text += "\n\nEnergy per level [MJ] (hevsim energy audit)\n\n" + format_energy_table(rows)
     print(text)
     if args.out:
         from hevsim.io import write_text_atomic
@@ -851,7 +853,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "refinement", help="run the tutorial's sequential-refinement levels and tabulate MPGGE"
     )
-    p.add_argument("--cycle", default="udds", help="cycle name or CSV (default udds)")
+    p.add_argument("--cycle", default="fu505", help="cycle name or CSV (default fu505, the thesis's cycle)")
+    p.add_argument(
+        "--calibration",
+        choices=("public", "thesis"),
+        default="public",
+        help="level configurations: shipped public data (default) or the thesis's stated and inferred values",
+    )
+    p.add_argument("--energy", action="store_true", help="also print the energy audit of every level")
     p.add_argument("--out", help="also write the table (Markdown) to this file")
     _add_force(p, "file at --out")
     p.set_defaults(func=_cmd_refinement)

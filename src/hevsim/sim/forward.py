@@ -72,7 +72,7 @@ from hevsim.errors import ConfigError, DomainError, InputError
 from hevsim.fuels import config_fuel
 from hevsim.sim import kernel as K
 from hevsim.sim._compiled_common import AUDIT_ROAD, add_road_audit, track_step, write_summary
-from hevsim.sim.metrics import compute_metrics
+from hevsim.sim.metrics import compute_metrics, soc_correction_ocv
 from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
 
 BISECTION_STEPS = 40
@@ -356,7 +356,8 @@ def run_metrics(
     f = config_fuel(cfg, getattr(model, "engine", None))
     socf = summary[K.S_SOCF]
     capacity = battery.capacity_ah if battery is not None else 0.0
-    ocv_mean = float(battery.ocv(0.5 * (soc0 + socf))) if battery is not None else 0.0
+    ocv_override = cfg.metrics.soc_correction_ocv_v
+    ocv_mean = soc_correction_ocv(ocv_override, battery, soc0, socf) if battery is not None else 0.0
     metrics = compute_metrics(summary, audit, soc0, capacity, ocv_mean, f.density_kg_per_m3,
                               f.heating_value_btu_per_us_gal, f.co2_kg_per_kg,
                               cfg.metrics.conversion_efficiency)  # fmt: skip

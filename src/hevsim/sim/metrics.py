@@ -63,6 +63,14 @@ def audit_residual_fraction(audit: dict[str, float]) -> float:
     return abs(audit["residual"]) / gross if gross > 0 else 0.0
 
 
+def soc_correction_ocv(ocv_override_v: float, battery: Any, soc_initial: float, soc_final: float) -> float:
+    """Open-circuit voltage [V] of eq (15): ``ocv_override_v`` if > 0 (``[metrics]
+    soc_correction_ocv_v``), else the battery's OCV at the mean of initial and final SOC."""
+    if ocv_override_v > 0.0:
+        return float(ocv_override_v)
+    return float(np.asarray(battery.ocv(0.5 * (soc_initial + soc_final))))
+
+
 def fuel_economy(
     distance_m: float,
     fuel_kg: float,
