@@ -162,3 +162,19 @@ def test_cli_refinement_default_is_fu505_with_thesis_figures(capsys: pytest.Capt
     assert out.startswith("Sequential refinement on fu505") and "thesis configurations" in out
     assert "| 5 | mpg [mi/gal] | 123.393 | 123.4" in out and "| 8 | mpgge [mi/gal] | 65.4 |" in out
     assert "engine η" in out
+
+
+def test_soc_correction_ocv_replaces_the_battery_ocv_in_eq_15() -> None:
+    from hevsim.sim.simulator import simulate, simulate_batch
+
+    cfg = load_config(level_files("thesis")[4])  # ideal 336 V battery, the post file's 366 V
+    assert cfg.metrics.soc_correction_ocv_v == 366.0 and cfg.battery.ocv_v == 336.0
+    own = cfg.replace(**{"metrics.soc_correction_ocv_v": 0.0})
+    r366, r336 = simulate(cfg, "fu505"), simulate(own, "fu505")
+    assert r366.value("soc_final") == r336.value("soc_final") < 0.7
+    assert r366.value("battery_energy_wh") == pytest.approx(
+        r336.value("battery_energy_wh") * 366 / 336, rel=1e-12
+    )
+    assert r366.value("mpgge") < r336.value("mpgge")
+    batch = simulate_batch(cfg, {"soc_initial": [0.7]}, "fu505")
+    assert batch.table["mpgge"].iloc[0] == pytest.approx(r366.value("mpgge"), rel=1e-12)

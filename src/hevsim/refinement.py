@@ -246,7 +246,13 @@ def format_table(rows: list[dict[str, Any]], cycle: str, calibration: str = "pub
     return "\n".join(lines)
 
 
+def _wheel_j(a: dict[str, float]) -> float:
+    """Net work the powertrain does at the wheels [J]: road load, kinetic energy left, friction brakes."""
+    return a["aero"] + a["rolling"] + a["grade"] + a["kinetic_vehicle"] + a["friction_brakes"]
+
+
 ENERGY_COLUMNS: tuple[tuple[str, str, Callable[[dict[str, Any]], float]], ...] = (
+    ("wheel", "net work at the wheels", _wheel_j),
     ("aero", "aerodynamic drag", lambda a: a["aero"]),
     ("rolling", "rolling resistance", lambda a: a["rolling"]),
     ("inertia", "kinetic energy left", lambda a: a["kinetic_vehicle"] + a["kinetic_genset"]),
@@ -325,14 +331,18 @@ def _simulate_fu505(cfg: SeriesHEVConfig) -> Any:
     return simulate(cfg, DEFAULT_CYCLE)
 
 
-def _bisect(fn: Callable[[float], float], lo: float, hi: float, tol: float) -> float:
-    """Root of a monotonic ``fn`` on [lo, hi] by bisection (sign change required)."""
-    f_lo = fn(lo)
-    if f_lo * fn(hi) > 0:
+def _bisect(fn: Callable[[float], float], target: float, lo: float, hi: float, tol: float) -> float:
+    """Where the monotonic ``fn`` equals ``target`` on [lo, hi], by bisection (to ``tol``)."""
+
+    def f(x: float) -> float:
+        return fn(x) - target
+
+    f_lo = f(lo)
+    if f_lo * f(hi) > 0:
         raise ValueError(f"no sign change on [{lo}, {hi}]")
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
-        f_mid = fn(mid)
+        f_mid = f(mid)
         if (f_mid > 0) == (f_lo > 0):
             lo, f_lo = mid, f_mid
         else:
@@ -375,9 +385,8 @@ def infer_thesis_quantities() -> dict[str, dict[str, Any]]:
 
     target7 = figs[(7, "mpgge")]
     out["battery_resistance_ohm"] = {
-        "value": _bisect(lambda x: mpgge7(x) - target7, 0.05, 1.5, 1e-4),
-        "range": tuple(_bisect(lambda x, t=t: mpgge7(x) - t, 0.05, 1.5, 1e-4)
-                       for t in (target7 + 0.5, target7 - 0.5)),
+        "value": _bisect(mpgge7, target7, 0.05, 1.5, 1e-4),
+        "range": tuple(_bisect(mpgge7, t, 0.05, 1.5, 1e-4) for t in (target7 + 0.5, target7 - 0.5)),
         "figure": "level 7 mpgge",
     }  # fmt: skip
 
@@ -389,9 +398,8 @@ def infer_thesis_quantities() -> dict[str, dict[str, Any]]:
 
     target8 = figs[(8, "mpgge")]
     out["machine_efficiency"] = {
-        "value": _bisect(lambda x: mpgge8(x) - target8, 0.6, 1.0, 1e-4),
-        "range": tuple(_bisect(lambda x, t=t: mpgge8(x) - t, 0.6, 1.0, 1e-4)
-                       for t in (target8 - 0.05, target8 + 0.05)),
+        "value": _bisect(mpgge8, target8, 0.6, 1.0, 1e-4),
+        "range": tuple(_bisect(mpgge8, t, 0.6, 1.0, 1e-4) for t in (target8 - 0.05, target8 + 0.05)),
         "figure": "level 8 mpgge",
     }  # fmt: skip
     return out

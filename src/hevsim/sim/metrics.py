@@ -20,8 +20,10 @@ has MPGGE = MPG, and two vehicles using the same fuel energy have the same MPGGE
 they burn.
 
 A depleted battery (SOC_f < SOC_i) adds energy and lowers MPGGE; a charged one subtracts.
-(The tutorial's printed example adds a negative "electrical energy consumed" with the
-opposite sign; we follow the equations.)
+(The tutorial's printed example shows its "electrical energy consumed" as -151.694 BTU but its
+MPGGE adds +151.694: its battery was depleted, as in hevsim's thesis-calibrated level 5, and
+the equations reproduce its 102.221 MPGGE; docs/refinement.md.) The OCV of step 2 is
+``[metrics] soc_correction_ocv_v`` instead when that is > 0 (:func:`soc_correction_ocv`).
 """
 
 from __future__ import annotations
