@@ -19,6 +19,7 @@ from hevsim.config import load_config
 from hevsim.refinement import (
     figure_comparison,
     format_energy_table,
+    format_table,
     gap_bridge,
     infer_thesis_quantities,
     level_files,
@@ -26,6 +27,7 @@ from hevsim.refinement import (
     parameter_value,
     run_refinement,
     thesis_figures,
+    thesis_implied,
     thesis_parameters,
 )
 from hevsim.tables import Table2D, read_meta
@@ -55,6 +57,16 @@ def test_thesis_calibrated_levels_reproduce_every_reported_figure(thesis_rows: l
     by = {(c["figure"].level, c["figure"].metric): c["diff_pct"] for c in compared}
     assert abs(by[(5, "distance_mi")]) < 0.1 and abs(by[(6, "mpg")]) < 1.0
     assert abs(by[(5, "electrical_energy_btu")]) < 2.0
+
+
+def test_implied_energies_and_other_cycles(thesis_rows: list[dict]) -> None:
+    implied = {i["level"]: i for i in thesis_implied(thesis_rows)}
+    assert sorted(implied) == [5, 6, 7, 8]
+    for lv in (5, 7, 8):  # fuel + SOC correction the thesis's MPGGE implies, vs hevsim's
+        assert implied[lv]["hevsim_total_mj"] == pytest.approx(implied[lv]["thesis_total_mj"], rel=0.01)
+    assert implied[6]["hevsim_fuel_mj"] == pytest.approx(implied[6]["thesis_fuel_mj"], rel=0.01)
+    text = format_table(thesis_rows, "udds", "thesis")
+    assert "run --cycle fu505 to compare" in text and "| level | figure |" not in text
 
 
 def test_public_levels_still_miss_the_thesis_as_documented(public_rows: list[dict]) -> None:
