@@ -255,13 +255,13 @@ def test_typed_connections_and_conversions(cfmu: Path) -> None:
     assert res["a.b"].tolist() == [0.0] * 6 + [1.0] * 5
     assert res["b.bo"].tolist() == [1.0] * 7 + [0.0] * 4
     for src, dst, msg in (
-        (("a", "y"), ("b", "m"), "Real output to a Integer input"),
-        (("a", "y"), ("b", "bi"), "Real output to a Boolean input"),
-        (("a", "so"), ("b", "u"), "String output to a Real input"),
-        (("a", "n"), ("b", "s"), "Integer output to a String input"),
+        (("a", "y"), ("b", "m"), "a Real output to an Integer input"),
+        (("a", "y"), ("b", "bi"), "a Real output to a Boolean input"),
+        (("a", "so"), ("b", "u"), "a String output to a Real input"),
+        (("a", "n"), ("b", "s"), "an Integer output to a String input"),
     ):
         with pytest.raises(ConfigError, match=rf"connection a.{src[1]} -> b.{dst[1]} \(a.{src[1]} is .*: "
-                           rf"cannot connect a {msg}; allowed conversions: Integer -> Real"):  # fmt: skip
+                           rf"cannot connect {msg}; allowed conversions: Integer -> Real"):  # fmt: skip
             simulate(parts(), [Connection(*src, *dst)], stop_time_s=1.0, step_s=0.1)
     with pytest.raises(ConfigError, match=r"parameter 'm' is an Integer, got 2.5"):
         simulate([FMUParticipant("a", cfmu, {"m": 2.5})], [], stop_time_s=1.0, step_s=0.1)
@@ -568,8 +568,10 @@ def test_check_refuses_what_the_run_would(cfmu: Path) -> None:
             "t", comps, conns, stop_time_s=1.0, master=dict(master), base_dir=cfmu.parent
         )
 
-    with pytest.raises(ConfigError, match=r"no communication step size: give step_s"):
-        datacheck(desc([]))
+    datacheck(desc([]))  # the step from the FMUs' DefaultExperiment (tests/test_cosim_defaults.py)
+    py = Component("p", "application/x-hevsim-python", "hevsim.cosim.participant:StepperParticipant")
+    with pytest.raises(ConfigError, match=r"no communication step size: give step_s .*no FMU participant"):
+        datacheck(SystemDescription("t", [py], [], stop_time_s=1.0))
     with pytest.raises(ConfigError, match=r"valid: jacobi, gauss-seidel"):
         datacheck(desc([], step_s=0.1, algorithm="newton"))
     with pytest.raises(ConfigError, match=r"component 'a' cannot save and restore its state \(FMU c.fmu .*"

@@ -362,7 +362,7 @@ def test_a_value_that_is_not_a_float_is_sent_pickled(integrator: Path) -> None:
         assert p.do_step(0.0, 0.5) == (True, None) and p._seq == 1
         assert p.get_outputs() == {"y": 2.0}
         p.set_inputs({"u": "x"})
-        with pytest.raises(SimulationError, match="step failed"):
+        with pytest.raises(SimulationError, match="set_inputs failed"):  # the phase it failed in
             p.do_step(0.5, 0.5)
         assert p._seq == 1  # not through the memory
     finally:

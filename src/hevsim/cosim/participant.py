@@ -40,6 +40,16 @@ def store_inputs(p: Participant, store: dict[str, float], values: Mapping[str, f
         store[k] = float(v)
 
 
+class PhaseError(SimulationError):
+    """A participant failure in the call ``call`` ("set_inputs", "do_step", "get_outputs")
+    when that is not the call the master made: a worker process sets the inputs with the
+    step or the output query, so its failure names the phase it really failed in."""
+
+    def __init__(self, message: str, call: str):
+        super().__init__(message)
+        self.call = call
+
+
 class Participant(ABC):
     """Base class: declares the interface and sensible defaults."""
 
@@ -52,6 +62,9 @@ class Participant(ABC):
     """Type class of a variable that is not Real: "Integer", "Enumeration", "Boolean" or
     "String" (:mod:`hevsim.cosim.fmi_vars`); absent: Real."""
     """Where a participant that asked to stop got to [s] (None: the end of the step)."""
+    fmi_types: Mapping[str, str] = {}
+    """FMI type of an FMU's variable (Float64, Int8, ..): narrowing connections are refused
+    (:func:`hevsim.cosim.fmi_vars.narrowing`); absent: not checked."""
     deterministic: bool = True
     """Same inputs give the same outputs: a run it cannot checkpoint can be resumed by
     replaying from the start (the replay is compared with the stored results)."""
@@ -401,6 +414,7 @@ class FMUParticipant(Participant):
                 stacklevel=2,
             )
         self.types = {k: t for k, t in self.vars.types.items() if t != "Real"}
+        self.fmi_types = dict(self.vars.fmi_types)
         self.parameters = dict(parameters or {})
         for k, val in self.parameters.items():
             if k not in self.vr:

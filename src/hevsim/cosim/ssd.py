@@ -69,6 +69,9 @@ class Connector:
     unit: str = ""
     type: str = "Real"
     """Type class: Real, Integer, Enumeration, Boolean, String (:mod:`hevsim.cosim.fmi_vars`)."""
+    fmi_type: str = ""
+    """The FMI type (Float64, Float32, Int8 .. UInt64, FMI 2.0 Integer ..; "" unknown): narrowing
+    connections (Int64 -> Int8, Float64 -> Float32) are refused (:func:`~hevsim.cosim.fmi_vars.narrowing`)."""
 
 
 @dataclass
@@ -199,7 +202,9 @@ def read_ssd(path: str | Path, text: bytes | None = None, base_dir: Path | None 
             typed = next((t for t in c if local_name(t.tag) in _CONNECTOR_TYPES), None)
             vtype = _CONNECTOR_TYPES[local_name(typed.tag)] if typed is not None else "Real"
             unit = (typed.get("unit") or "") if typed is not None and vtype == "Real" else ""
-            conns.append(Connector(cname, kind, unit, vtype))
+            tag = local_name(typed.tag) if typed is not None else ""
+            sized = tag in ("Float32", "Float64") or (tag[:3] in ("Int", "UIn") and tag != "Integer")
+            conns.append(Connector(cname, kind, unit, vtype, tag if sized else ""))
         params: dict[str, Any] = {}
         for pb in el.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
             params.update(_binding(pb, base_dir if base_dir is not None else path.parent, where))

@@ -9,7 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hevsim.cosim.datacheck import datacheck
+from hevsim.cosim.datacheck import datacheck, default_step
 from hevsim.cosim.load import load_system
 from hevsim.cosim.master import CosimResult, Options, simulate
 from hevsim.cosim.participant import Participant
@@ -78,15 +78,19 @@ def run_system(
             )
     m = dict(desc.master)
     m.pop("fmu_process", None)
+    step_note = ""
     if "step_s" not in m:
-        raise ConfigError(f"{desc.source}: the master settings lack step_s (the communication step [s]).")
+        m["step_s"], step_note = default_step(desc)
     opts = Options(
         stop_time_s=desc.stop_time_s, start_time_s=desc.start_time_s, checkpoint_path=checkpoint_path, **m
     )
     opts.check()
     parts = build_participants(desc, log_level, fmu_log)
-    return simulate(parts, desc.connections, progress=progress, resume=resume, extra_units=desc.units,
-                    **vars(opts))  # fmt: skip
+    res = simulate(parts, desc.connections, progress=progress, resume=resume, extra_units=desc.units,
+                   **vars(opts))  # fmt: skip
+    if step_note:
+        res.stats["step_s"], res.stats["step_from"] = opts.step_s, step_note
+    return res
 
 
 def run_cosim(
@@ -146,5 +150,6 @@ def run_cosim(
             write(exc.partial, str(exc))
         raise
     write(res, None)
-    ck.unlink(missing_ok=True)
+    for f in (ck, ck.with_name(ck.name + ".rows"), ck.with_name(ck.name + ".text")):
+        f.unlink(missing_ok=True)  # (the run is in out_dir: nothing left to resume)
     return res

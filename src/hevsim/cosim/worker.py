@@ -35,11 +35,15 @@ from hevsim.cosim._worker import (
     write_frame,
     write_seq,
 )
-from hevsim.cosim.participant import Participant, fmu_file
+from hevsim.cosim.participant import Participant, PhaseError, fmu_file
 from hevsim.errors import ConfigError, SimulationError
 
 RUN_AHEAD_STEPS = 100
 """Steps per round trip of a worker FMU running ahead (:meth:`WorkerFMUParticipant.run_ahead`)."""
+
+
+_CALLS = {"set": "set_inputs", "get": "get_outputs"}
+"""The participant call a worker request makes (named in failures)."""
 
 
 class WorkerFMUParticipant(Participant):
@@ -99,8 +103,9 @@ class WorkerFMUParticipant(Participant):
         except SimulationError as exc:
             self.close()
             raise ConfigError(str(exc)) from None
-        ins, outs, can_state, note, types, fast = info
+        ins, outs, can_state, note, types, fast, fmi_types = info
         self.inputs, self.outputs = dict(ins), dict(outs)
+        self.fmi_types = dict(fmi_types)
         self._can_state, self._state_note = bool(can_state), str(note)
         self.types = dict(types)
         self._open_channel(fast)
@@ -180,7 +185,11 @@ class WorkerFMUParticipant(Participant):
             raise
         ok, res = msg
         if not ok:
-            raise SimulationError(f"participant {self.name!r}: {cmd} failed: {res}")
+            call = _CALLS.get(cmd)
+            if isinstance(res, tuple):  # failed in another participant call than the request's
+                call, res = res
+            text = f"participant {self.name!r}: {call or cmd} failed: {res}"
+            raise PhaseError(text, call) if call else SimulationError(text)
         return res
 
     def _crashed(self, cmd: str) -> NoReturn:
