@@ -99,15 +99,34 @@ def build_vdp(d: Path) -> Path:
     return Path(FmuBuilder.build_FMU(script, dest=d))
 
 
-def write_system(d: Path, fmu: Path, steps: int) -> Path:
+def write_system(d: Path, fmu: Path, steps: int, process: str | None = None) -> Path:
+    """The SSD of the benchmark: the default path (no ``fmu_process``: a forked worker
+    process per FMU) unless ``process`` ("inprocess", "worker") is given."""
     from hevsim.cosim.ssd import FMU_TYPE, Component, SystemDescription
     from hevsim.cosim.ssp_write import write_ssd
 
+    master: dict[str, Any] = {"step_s": H} | ({"fmu_process": process} if process else {})
     desc = SystemDescription(
-        "bench", [Component("vdp", FMU_TYPE, fmu.name)], [], stop_time_s=steps * H,
-        master={"step_s": H, "fmu_process": "inprocess"}, base_dir=d,
+        "bench", [Component("vdp", FMU_TYPE, fmu.name)], [], stop_time_s=steps * H, master=master, base_dir=d,
     )  # fmt: skip
-    return write_ssd(desc, d / f"bench_{steps}.ssd")
+    return write_ssd(desc, d / f"bench_{steps}_{process or 'default'}.ssd")
+
+
+def start_rows(fmu: Path, runs: int = 5) -> None:
+    """Print the start of a worker process (open the FMU, to the first reply), forked (the
+    default) and spawned (a fresh interpreter)."""
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
+    for method in ("fork", "spawn"):
+        cls = type("Worker", (WorkerFMUParticipant,), {"start_method": method})
+        times = []
+        for _ in range(runs):
+            t0 = time.perf_counter()
+            w = cls("w", fmu)
+            times.append(time.perf_counter() - t0)
+            w.terminate()
+        print(f"  worker start ({method}), {runs} runs: min {min(times):.3f} / median "
+              f"{statistics.median(times):.3f} s (target <= 0.1 s for the default)")  # fmt: skip
 
 
 def t_fmpy(fmu: Path, steps: int) -> float:
@@ -340,11 +359,16 @@ def run_all(d: Path, fmu: Path, ssd: Path, a: argparse.Namespace) -> None:
     t_run_cosim(write_system(d, fmu, 100), d / "warm")
     tf = min(t_fmpy(fmu, a.steps) for _ in range(2))
     th, extra = min((t_run_cosim(ssd, d / f"out{i}") for i in range(2)), key=lambda r: r[0])
-    print(f"Van der Pol FMU (pythonfmu, in process), {a.steps} steps of {H} s")
+    inproc = write_system(d, fmu, a.steps, "inprocess")
+    ti, _ = min((t_run_cosim(inproc, d / f"in{i}") for i in range(2)), key=lambda r: r[0])
+    print(f"Van der Pol FMU (pythonfmu), {a.steps} steps of {H} s")
     print(f"  fmpy.simulate_fmu              : {tf:7.3f} s")
     ms = extra["master_s"]
-    print(f"  hevsim run_cosim (files, plots): {th:7.3f} s   ratio {th / tf:5.2f} (target {TARGET_RATIO})")
-    print(f"    of which the master loop     : {ms:7.3f} s   ratio {ms / tf:5.2f}")
+    print(f"  hevsim run_cosim, default path (forked worker; files, plots): {th:7.3f} s   ratio "
+          f"{th / tf:5.2f} (target {TARGET_RATIO})")  # fmt: skip
+    print(f"    of which the master          : {ms:7.3f} s   ratio {ms / tf:5.2f}")
+    print(f'  hevsim run_cosim, fmu_process="inprocess": {ti:7.3f} s   ratio {ti / tf:5.2f}')
+    start_rows(fmu)
     print("  master overhead (CPU time per step, setup excluded; medians of 5 interleaved runs):")
     for k, what in ((2, "2 FMUs feeding each other"), (0, "1 FMU fed by a Python source")):
         pairs = [(raw_cost_us(fmu, a.steps, max(k, 1)), master_cpu_us(fmu, a.steps, k)) for _ in range(5)]

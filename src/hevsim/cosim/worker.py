@@ -9,11 +9,15 @@ steps per round trip (:meth:`WorkerFMUParticipant.run_ahead`)."""
 from __future__ import annotations
 
 import collections
+import contextlib
 import math
 import os
+import signal
 import struct
 import subprocess
 import sys
+import time
+import weakref
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, NoReturn
@@ -42,6 +46,93 @@ RUN_AHEAD_STEPS = 100
 """Steps per round trip of a worker FMU running ahead (:meth:`WorkerFMUParticipant.run_ahead`)."""
 
 
+START_METHOD = "fork" if sys.platform.startswith("linux") else "spawn"
+"""The default :attr:`WorkerFMUParticipant.start_method`."""
+
+_MASTER_ENDS: weakref.WeakSet[Any] = weakref.WeakSet()
+"""The master's ends of the forked workers' pipes: a worker forked later closes them, so a
+worker sees the end of its input when the master closes it or dies."""
+
+
+class ForkedWorker:
+    """A worker process forked from the master (:func:`hevsim.cosim._worker.serve` on two
+    pipes), with the part of :class:`subprocess.Popen`'s interface the participant uses
+    (``stdin``, ``stdout``, ``pid``, ``poll``, ``wait``, ``kill``, ``returncode``). The
+    fork starts in milliseconds: the master's imports (FMPy, hevsim) are already done. The
+    worker's fd 1 goes to the master's stderr (what the FMU prints), as a spawned worker's."""
+
+    def __init__(self) -> None:
+        r_req, w_req = os.pipe()
+        r_rep, w_rep = os.pipe()
+        for f in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                f.flush()  # (not written twice by the copy)
+        pid = os.fork()
+        if pid == 0:  # the worker: serve, never return into the master's code
+            code = 1
+            try:
+                for f in list(_MASTER_ENDS):
+                    if not f.closed:
+                        with contextlib.suppress(OSError):
+                            os.close(f.fileno())
+                os.close(w_req)
+                os.close(r_rep)
+                os.dup2(2, 1)
+                sys.stdout = sys.stderr
+                from hevsim.cosim._worker import serve
+
+                serve(r_req, w_rep)
+                code = 0
+            except BaseException:
+                import traceback
+
+                with contextlib.suppress(Exception):
+                    traceback.print_exc()
+            finally:
+                os._exit(code)
+        os.close(r_req)
+        os.close(w_rep)
+        self.pid = pid
+        self.returncode: int | None = None
+        self.stdin = os.fdopen(w_req, "wb", buffering=0)
+        self.stdout = os.fdopen(r_rep, "rb", buffering=0)
+        _MASTER_ENDS.add(self.stdin)
+        _MASTER_ENDS.add(self.stdout)
+
+    def poll(self) -> int | None:
+        """The exit code (negative: killed by that signal), None while it runs."""
+        if self.returncode is None:
+            try:
+                pid, status = os.waitpid(self.pid, os.WNOHANG)
+            except ChildProcessError:
+                self.returncode = -1
+                return self.returncode
+            if pid:
+                self.returncode = os.waitstatus_to_exitcode(status)
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        end = None if timeout is None else time.monotonic() + timeout
+        delay = 1e-4
+        while self.poll() is None:
+            if end is not None and time.monotonic() >= end:
+                raise subprocess.TimeoutExpired(f"forked worker {self.pid}", timeout or 0.0)
+            time.sleep(delay)
+            delay = min(2 * delay, 0.02)
+        assert self.returncode is not None
+        return self.returncode
+
+    def kill(self) -> None:
+        if self.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.pid, signal.SIGKILL)
+
+    def __del__(self) -> None:
+        with contextlib.suppress(Exception):
+            if self.poll() is None:
+                self.stdin.close()
+
+
 _CALLS = {"set": "set_inputs", "get": "get_outputs"}
 """The participant call a worker request makes (named in failures)."""
 
@@ -55,6 +146,10 @@ class WorkerFMUParticipant(Participant):
     spin_s = SPIN_MAX_S
     """How long each side polls for the other's reply before blocking on the pipe [s]
     (0: never; see :class:`hevsim.cosim._worker.Spin`)."""
+    start_method = START_METHOD
+    """How the worker process starts: "fork" (a copy of the master, its imports done: a few
+    ms; the default on Linux) or "spawn" (a fresh interpreter that imports FMPy and hevsim's
+    worker: 0.3-0.9 s)."""
 
     def __init__(
         self,
@@ -73,14 +168,18 @@ class WorkerFMUParticipant(Participant):
         self._mm: Any = None
         self._awaiting = 0  # counter of the step in shared memory whose reply is due
         try:
-            self.proc = subprocess.Popen(
-                [sys.executable, "-m", "hevsim.cosim._worker"],
-                stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE,
-                stderr=None,  # the FMU's own output and its logger lines from log_level up
-                bufsize=0,
-                pass_fds=(self._fd,) if self._fd >= 0 else (),
-            )
+            self.proc: Any
+            if self.start_method == "fork":
+                self.proc = ForkedWorker()
+            else:
+                self.proc = subprocess.Popen(
+                    [sys.executable, "-m", "hevsim.cosim._worker"],
+                    stdin=subprocess.PIPE,
+                    stdout=subprocess.PIPE,
+                    stderr=None,  # the FMU's own output and its logger lines from log_level up
+                    bufsize=0,
+                    pass_fds=(self._fd,) if self._fd >= 0 else (),
+                )
         except BaseException:
             if self._fd >= 0:
                 os.close(self._fd)
@@ -303,7 +402,15 @@ class WorkerFMUParticipant(Participant):
             tk = te
         if not schedule:
             raise SimulationError(f"participant {self.name!r}: asked to step from the stop time {t!r} s.")
-        replies, err = self._rpc("steps", tuple(schedule))
+        try:
+            replies, err = self._rpc("steps", tuple(schedule))
+        except SimulationError as exc:  # crashed: in one of the steps, which is not known
+            if self.proc.poll() is None:
+                raise
+            raise SimulationError(
+                f"{str(exc).rstrip('.')} while running {len(schedule)} steps ahead from t = {t:g} s "
+                f"to {tk:g} s (a worker without inputs steps ahead of the exchange)"
+            ) from None
         self._ahead.extend((*step, r) for step, r in zip(schedule, replies, strict=False))
         if err is not None:
             self._ahead.append((*schedule[len(replies)], err))
