@@ -334,6 +334,7 @@ def failure(exc: Exception) -> Any:
 
 def serve(rfd: int, wfd: int) -> None:
     """Answer the requests read from ``rfd`` on ``wfd`` until ``quit`` or end of input."""
+    from hevsim.cosim.me import participant_class
     from hevsim.cosim.participant import FMUParticipant
 
     p: FMUParticipant | None = None
@@ -378,7 +379,7 @@ def serve(rfd: int, wfd: int) -> None:
                 res = st.steps(req[1])
             elif cmd == "open":
                 _, name, fmu, parameters, log_level, fmu_log = req
-                p = FMUParticipant(name, fmu, parameters, log_level=log_level, fmu_log=fmu_log)
+                p = participant_class(fmu)(name, fmu, parameters, log_level=log_level, fmu_log=fmu_log)
                 st = _Stepper(p)
                 fast = p.vars.fast_names()
                 res = (
@@ -417,6 +418,10 @@ def _other(p: Any, cmd: str, args: tuple[Any, ...]) -> Any:
         p.set_state(*args)
     elif cmd == "terminate":
         p.terminate()
+    elif cmd == "window":  # a Model Exchange FMU's run window (its solver's maximum step)
+        window = getattr(p, "run_window", None)
+        if window is not None:
+            window(*args)
     else:
         raise ValueError(f"unknown command {cmd!r}")
     return None

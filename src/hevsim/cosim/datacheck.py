@@ -223,10 +223,10 @@ def _fmu_connectors(desc: SystemDescription, c: Component, info: dict[str, Any])
         md = read_model_description(str(f))
     except Exception as exc:
         raise ConfigError(f"{desc.source}: component {c.name!r}: {f} is not a valid FMU ({exc}).") from None
-    if md.coSimulation is None:
+    if md.coSimulation is None and md.modelExchange is None:
         raise ConfigError(
-            f"{desc.source}: component {c.name!r}: FMU {f.name} has no co-simulation interface "
-            "(model exchange only); hevsim runs co-simulation FMUs."
+            f"{desc.source}: component {c.name!r}: FMU {f.name} has neither a co-simulation nor a "
+            "model exchange interface."
         )
     try:
         fv = FmuVariables(md, f.name)
@@ -236,7 +236,11 @@ def _fmu_connectors(desc: SystemDescription, c: Component, info: dict[str, Any])
     info["can_state"] = bool(getattr(cs, f"canGetAndSet{key}", False)) and bool(
         getattr(cs, f"canSerialize{key}", False)
     )
-    info["state_note"] = f'FMU {f.name} declares canGetAndSet{key}="false" or canSerialize{key}="false"'
+    info["state_note"] = (
+        f'FMU {f.name} declares canGetAndSet{key}="false" or canSerialize{key}="false"'
+        if cs is not None
+        else f"FMU {f.name} is Model Exchange: its state includes the integrator's, which is not saved"
+    )
     inputs = {v.name for v in md.modelVariables if v.causality == "input"}
     info["feedthrough"] = {
         u.variable.name: {d.name for d in u.dependencies if d.name in inputs}

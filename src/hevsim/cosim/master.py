@@ -534,6 +534,9 @@ class Master:
         self._order: list[str] = []
         self._booleans: frozenset[str] = frozenset()
         for n in self.order:
+            window = getattr(self.p[n], "run_window", None)  # (Model Exchange FMUs: the solver's)
+            if window is not None:
+                window(o.start_time_s, o.stop_time_s)
             self._call(n, "setup", t, self.p[n].setup, t)
         # A participant without inputs from others that can run ahead (worker FMUs) steps
         # several steps per exchange where steps are fixed and never redone (checkpoints

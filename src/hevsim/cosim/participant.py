@@ -392,8 +392,8 @@ class FMUParticipant(Participant):
             md = read_model_description(str(self.fmu))
         except Exception as exc:
             raise ConfigError(f"participant {name!r}: {self.fmu} is not a valid FMU ({exc}).") from exc
-        if md.coSimulation is None:
-            raise ConfigError(f"participant {name!r}: {self.fmu} has no co-simulation interface.")
+        if self._interface(md) is None:
+            raise ConfigError(f"participant {name!r}: {self.fmu} has no {self.interface_name} interface.")
         self.md = md
         self.fmi3 = md.fmiVersion.startswith("3")
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
@@ -425,12 +425,19 @@ class FMUParticipant(Participant):
                 self.vars.check_parameter(self._var[k], val)
             except ConfigError as exc:
                 raise ConfigError(f"participant {name!r}: {exc}") from None
-        cs = md.coSimulation
+        cs = self._interface(md)
         self.can_state = bool(getattr(cs, "canGetAndSetFMUstate", False)) and bool(
             getattr(cs, "canSerializeFMUstate", False)
         )
         self.slave: Any = None
         self.terminate_requested = False
+
+    interface_name = "co-simulation"
+
+    @staticmethod
+    def _interface(md: Any) -> Any:
+        """The interface of the model description this class drives (None: it has none)."""
+        return md.coSimulation
 
     def setup(self, t0: float) -> None:
         from fmpy import extract

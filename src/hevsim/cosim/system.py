@@ -33,7 +33,11 @@ def build_participants(
     for c in desc.components:
         if c.type == FMU_TYPE:
             if inproc:
-                cls: type[FMUParticipant] | type[WorkerFMUParticipant] = FMUParticipant
+                from hevsim.cosim.me import participant_class  # (Model Exchange FMUs: MEParticipant)
+
+                cls: type[FMUParticipant] | type[WorkerFMUParticipant] = participant_class(
+                    desc.base_dir / c.source
+                )
             else:
                 from hevsim.cosim.worker import WorkerFMUParticipant  # (a process start anyway)
 

@@ -43,7 +43,9 @@ from hevsim.cosim.participant import Participant, PhaseError, fmu_file
 from hevsim.errors import ConfigError, SimulationError
 
 RUN_AHEAD_STEPS = 100
-"""Steps per round trip of a worker FMU running ahead (:meth:`WorkerFMUParticipant.run_ahead`)."""
+"""Steps of the first round trip of a worker FMU running ahead (:meth:`WorkerFMUParticipant.run_ahead`)."""
+RUN_AHEAD_MAX = 3200
+"""Most steps per round trip of a worker FMU running ahead (the batch doubles up to it)."""
 
 
 START_METHOD = "fork" if sys.platform.startswith("linux") else "spawn"
@@ -79,6 +81,9 @@ class ForkedWorker:
                 os.close(r_rep)
                 os.dup2(2, 1)
                 sys.stdout = sys.stderr
+                import faulthandler
+
+                faulthandler.disable()  # (as a spawned worker: a crash is reported by the master)
                 from hevsim.cosim._worker import serve
 
                 serve(r_req, w_rep)
@@ -193,6 +198,7 @@ class WorkerFMUParticipant(Participant):
         self._step_reply: tuple[bool, Any] = (False, None)
         self._next_end: Callable[[float], float | None] | None = None  # running ahead
         self._batch = RUN_AHEAD_STEPS
+        self._max_batch = RUN_AHEAD_MAX
         self._ahead: collections.deque[tuple[float, float, Any]] = collections.deque()
         self._in_names: tuple[str, ...] | None = None  # input names the worker holds
         self._out_names: tuple[str, ...] = ()
@@ -312,6 +318,11 @@ class WorkerFMUParticipant(Participant):
                 raise
             self._step_reply = (False, exc)
 
+    def run_window(self, start_s: float, stop_s: float) -> None:
+        """Tell the FMU the run's start and stop time (a Model Exchange FMU's solver takes its
+        maximum step from them: :meth:`hevsim.cosim.me.MEParticipant.run_window`)."""
+        self._rpc("window", start_s, stop_s)
+
     # Inputs are sent with the next step (or output query): one round trip per step.
     def setup(self, t0: float) -> None:
         self._fast_names = None  # a new instance: bind the shared memory again
@@ -378,8 +389,15 @@ class WorkerFMUParticipant(Participant):
         return (bool(ok), None if math.isnan(pref) else pref, bool(term), None if math.isnan(tt) else tt,
                 (self._fast_out, outs) if ok else None)  # fmt: skip
 
-    def run_ahead(self, next_end: Callable[[float], float | None], batch: int = RUN_AHEAD_STEPS) -> None:
-        """Step ``batch`` steps per round trip from now on: the master calls this for a
+    def run_ahead(
+        self,
+        next_end: Callable[[float], float | None],
+        batch: int = RUN_AHEAD_STEPS,
+        max_batch: int = RUN_AHEAD_MAX,
+    ) -> None:
+        """Step ``batch`` steps per round trip from now on, twice as many at each round trip up
+        to ``max_batch`` (on a loaded machine each round trip can wait milliseconds for the
+        scheduler, so long runs want few of them): the master calls this for a
         participant without inputs in a run whose steps are fixed and never redone (its
         state is only saved for checkpoints: :meth:`get_state` keeps the steps run ahead);
         ``next_end(t)`` is the end of the step from ``t`` [s] (None: ``t`` is the stop time).
@@ -387,6 +405,7 @@ class WorkerFMUParticipant(Participant):
         requests and failures, in the same steps, as stepping one at a time."""
         self._next_end = next_end
         self._batch = int(batch)
+        self._max_batch = max(int(max_batch), self._batch)
         self._ahead.clear()
 
     def _fetch(self, t: float) -> None:
@@ -411,6 +430,7 @@ class WorkerFMUParticipant(Participant):
                 f"{str(exc).rstrip('.')} while running {len(schedule)} steps ahead from t = {t:g} s "
                 f"to {tk:g} s (a worker without inputs steps ahead of the exchange)"
             ) from None
+        self._batch = min(2 * self._batch, self._max_batch)
         self._ahead.extend((*step, r) for step, r in zip(schedule, replies, strict=False))
         if err is not None:
             self._ahead.append((*schedule[len(replies)], err))
