@@ -103,3 +103,38 @@ def test_a_segfault_while_running_ahead_says_so(segv_fmu: Path) -> None:
         r"\(exit code -11\) while running 10 steps ahead from t = 0 s to 1 s",
     ):
         simulate([bad], [], stop_time_s=1.0, step_s=0.1)
+
+
+def test_auto_runs_trusted_fmus_in_process_and_others_in_forked_workers(
+    segv_fmu: Path, tmp_path: Path
+) -> None:
+    """fmu_process "auto" (the default): a pythonfmu FMU (Python model code) in process, a
+    foreign C FMU in a forked worker; "worker" / "inprocess" put both one way; the summary
+    says where each ran."""
+    from hevsim.cosim.participant import FMUParticipant
+    from hevsim.cosim.ssd import FMU_TYPE, Component, SystemDescription
+    from hevsim.cosim.system import build_participants, run_cosim, trusted_fmu
+    from hevsim.cosim.trivial import build_integrator_fmu
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
+    py = build_integrator_fmu(tmp_path / "py.fmu", name="AutoPy", y0=1.0)
+    (tmp_path / "c.fmu").write_bytes(segv_fmu.read_bytes())
+    assert trusted_fmu(py) and not trusted_fmu(tmp_path / "c.fmu")
+    comps = [Component("py", FMU_TYPE, "py.fmu"), Component("c", FMU_TYPE, "c.fmu")]
+    for mode, kinds in (
+        (None, (FMUParticipant, WorkerFMUParticipant)),
+        ("worker", (WorkerFMUParticipant, WorkerFMUParticipant)),
+        ("inprocess", (FMUParticipant, FMUParticipant)),
+    ):
+        master = {"step_s": 0.1} | ({"fmu_process": mode} if mode else {})
+        desc = SystemDescription("auto", comps, [], stop_time_s=0.5, master=master, base_dir=tmp_path)
+        parts = build_participants(desc)
+        try:
+            assert [type(p) for p in parts] == list(kinds), mode
+        finally:
+            for p in parts:
+                p.terminate()
+    desc = SystemDescription("auto", comps, [], stop_time_s=0.5, master={"step_s": 0.1}, base_dir=tmp_path)
+    run_cosim(desc, tmp_path / "out")
+    stats = json.loads((tmp_path / "out" / "summary.json").read_text())["stats"]
+    assert stats["fmu_process"] == {"py": "in process", "c": "worker process"}

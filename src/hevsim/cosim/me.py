@@ -61,11 +61,11 @@ def _method(solver: str) -> Iterator[None]:
     from fmpy.sundials.cvode import CV_ADAMS
 
     create = sundials.CVodeCreate
-    sundials.CVodeCreate = lambda _lmm, ctx: create(CV_ADAMS, ctx)  # type: ignore[assignment]
+    sundials.CVodeCreate = lambda _lmm, ctx: create(CV_ADAMS, ctx)
     try:
         yield
     finally:
-        sundials.CVodeCreate = create  # type: ignore[assignment]
+        sundials.CVodeCreate = create
 
 
 class MEParticipant(FMUParticipant):
@@ -181,7 +181,7 @@ class MEParticipant(FMUParticipant):
         if self.fmi3:  # (fmi3Boolean is a C bool: a byte)
             from fmpy.fmi3 import fmi3Boolean
 
-            enter, term = fmi3Boolean(), fmi3Boolean()  # type: ignore[assignment]
+            enter, term = fmi3Boolean(), fmi3Boolean()
         args = (comp, 1, byref(enter), byref(term))
 
         def set_t(t: float) -> None:

@@ -6,8 +6,10 @@ the SIMULIA CSE import in :mod:`hevsim.cosim.cse`.
 Component types in an SSD:
 
 * ``application/x-fmu-sharedlibrary`` (SSP's FMU type): ``source`` is the FMU path relative
-  to the SSD (or inside the ``.ssp``); run in a worker process unless the master annotation
-  says ``fmu_process="inprocess"``;
+  to the SSD (or inside the ``.ssp``); where it runs follows the master annotation's
+  ``fmu_process``: ``"auto"`` (default: pythonfmu FMUs and FMUs hevsim generated in
+  process, others in a worker process forked from the master), ``"worker"``, ``"inprocess"``
+  (:func:`hevsim.cosim.system.build_participants`);
 * ``application/x-hevsim-python``: ``source`` is ``"package.module:factory"``; the factory is
   called with ``name=`` and the component's parameters as keyword arguments (a string
   parameter starting with ``./`` or ``../`` is a path relative to the SSD) and returns a
@@ -332,8 +334,8 @@ def _master_options(attrs: dict[str, str], where: str) -> dict[str, Any]:
                     "wall-clock interval in seconds ('30s')."
                 ) from None
         elif k == "fmu_process":
-            if v not in ("worker", "inprocess"):
-                raise ConfigError(f"{where}: fmu_process {v!r}; valid: worker, inprocess.")
+            if v not in ("auto", "worker", "inprocess"):
+                raise ConfigError(f"{where}: fmu_process {v!r}; valid: auto, worker, inprocess.")
             out[k] = v
         elif k in OPTION_TYPES:
             try:

@@ -24,22 +24,24 @@ if TYPE_CHECKING:
 def build_participants(
     desc: SystemDescription, log_level: str = "error", fmu_log: str | Path | None = None
 ) -> list[Participant]:
-    """Instantiate the participants of ``desc`` (FMUs in worker processes by default; their
-    logger messages from ``log_level`` up on stderr, all of them in ``fmu_log``)."""
+    """Instantiate the participants of ``desc`` (their FMUs' logger messages from ``log_level``
+    up on stderr, all of them in ``fmu_log``). Where an FMU runs follows the master setting
+    ``fmu_process``: "auto" (the default) runs the FMUs :func:`trusted_fmu` names in process
+    and every other one in a worker process forked from the master (a crash in its native
+    code ends only the worker); "worker" runs every FMU in a worker, "inprocess" none."""
     from hevsim.cosim.participant import FMUParticipant
 
-    inproc = desc.master.get("fmu_process", "worker") == "inprocess"
+    mode = desc.master.get("fmu_process", "auto")
     parts: list[Participant] = []
     for c in desc.components:
         if c.type == FMU_TYPE:
-            if inproc:
+            path = desc.base_dir / c.source
+            if mode == "inprocess" or (mode == "auto" and trusted_fmu(path)):
                 from hevsim.cosim.me import participant_class  # (Model Exchange FMUs: MEParticipant)
 
-                cls: type[FMUParticipant] | type[WorkerFMUParticipant] = participant_class(
-                    desc.base_dir / c.source
-                )
+                cls: type[FMUParticipant] | type[WorkerFMUParticipant] = participant_class(path)
             else:
-                from hevsim.cosim.worker import WorkerFMUParticipant  # (a process start anyway)
+                from hevsim.cosim.worker import WorkerFMUParticipant
 
                 cls = WorkerFMUParticipant
             parts.append(cls(c.name, desc.base_dir / c.source, c.parameters, log_level, fmu_log))
@@ -63,6 +65,25 @@ def build_participants(
                 f"{desc.source}: component {c.name!r} is not bound to an implementation (type {c.type!r})."
             )
     return parts
+
+
+def trusted_fmu(path: str | Path) -> str:
+    """Why the FMU ``path`` runs in process under ``fmu_process="auto"`` ("": it does not, it
+    runs in a forked worker process): a pythonfmu FMU (its model is Python code run by this
+    interpreter: a failure is a Python exception the FMU returns as an FMI error, not a crash)
+    or an FMU hevsim generated (:func:`hevsim.battery.native.is_native_fmu`: C code from
+    hevsim's own generator, tested with it)."""
+    import zipfile
+
+    from hevsim.battery.native import is_native_fmu
+
+    try:
+        with zipfile.ZipFile(path) as z:
+            if "resources/slavemodule.txt" in z.namelist():
+                return "a pythonfmu FMU (Python model code)"
+    except (OSError, zipfile.BadZipFile):
+        return ""  # (reported by the participant)
+    return "an FMU hevsim generated (native C99)" if is_native_fmu(path) else ""
 
 
 def run_system(
@@ -92,6 +113,9 @@ def run_system(
     parts = build_participants(desc, log_level, fmu_log)
     res = simulate(parts, desc.connections, progress=progress, resume=resume, extra_units=desc.units,
                    **vars(opts))  # fmt: skip
+    res.stats["fmu_process"] = {
+        p.name: "worker process" if hasattr(p, "proc") else "in process" for p in parts if hasattr(p, "fmu")
+    }
     if step_note:
         res.stats["step_s"], res.stats["step_from"] = opts.step_s, step_note
     return res
