@@ -18,6 +18,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import copy
+import math
 import sys
 import warnings
 from abc import ABC, abstractmethod
@@ -363,9 +364,11 @@ class FMUParticipant(Participant):
     sets :attr:`terminate_requested` and :attr:`terminate_time` (the last successful time):
     the master records that point and ends the run cleanly. Any other discarded step is
     rejected (the master redoes it with a shorter step: ``lastSuccessfulTime - t`` when the
-    FMU got part way, else half). The FMU is instantiated without early return
-    or event mode, and stepped with ``noSetFMUStatePriorToCurrentPoint = false`` (the master
-    may restore earlier states when iterating or rejecting steps).
+    FMU got part way, else half). An FMI 3.0 FMU declaring ``hasEventMode`` is instantiated
+    with event mode and early return: its events inside a step are handled in event mode
+    (:meth:`_do_step3`); others without. Steps are taken with
+    ``noSetFMUStatePriorToCurrentPoint = false`` (the master may restore earlier states when
+    iterating or rejecting steps).
     """
 
     def __init__(
@@ -455,10 +458,22 @@ class FMUParticipant(Participant):
                     guid=self.md.guid, unzipDirectory=self._dir, modelIdentifier=ident, instanceName=self.name
                 )
                 self._log_cb = lambda env, status, cat, msg: self._on_log(status, cat, msg)
-                self.slave.instantiate(loggingOn=logging_on, logMessage=self._log_cb)
+                # FMI 3.0 event mode where the FMU has it (its events: early return, event mode)
+                self._event_mode = bool(getattr(self.md.coSimulation, "hasEventMode", False))
+                self.slave.instantiate(
+                    loggingOn=logging_on, logMessage=self._log_cb, eventModeUsed=self._event_mode,
+                    earlyReturnAllowed=self._event_mode,
+                )  # fmt: skip
                 self.slave.enterInitializationMode(startTime=t0)
                 self._set_params()
                 self.slave.exitInitializationMode()
+                self.events = 0
+                if self._event_mode:  # (in event mode after initialisation)
+                    if self._update_discrete_states():
+                        raise SimulationError(
+                            f"FMU {self.fmu.name} requested termination during initialisation."
+                        )
+                    self.slave.enterStepMode()
             else:
                 from ctypes import byref
 
@@ -612,10 +627,43 @@ class FMUParticipant(Participant):
         self.terminate_requested = False
         return False, (last - t if last is not None and t < last < t + h else None)
 
+    def _update_discrete_states(self) -> bool:
+        """The event iteration of an FMI 3.0 FMU in event mode (``fmi3UpdateDiscreteStates``
+        until no discrete state needs an update); returns whether it asked to terminate."""
+        need, terminate = True, False
+        while need and not terminate:
+            need, terminate, *_ = self.slave.updateDiscreteStates()
+        return bool(terminate)
+
     def _do_step3(self, t: float, h: float) -> tuple[bool, float | None]:
+        """The communication step from ``t`` by ``h`` of an FMI 3.0 FMU: with event mode (the
+        FMU has it), an early return at an event (``eventHandlingNeeded``) is followed by the
+        event iteration in event mode and the rest of the step, as often as the FMU returns
+        early (:attr:`events` counts them), so the master sees the step end as without events."""
+        t_end, t_cur = t + h, t
+        while True:
+            ok, pref, event, early, reached = self._do_step3_once(t_cur, t_end - t_cur)
+            if not ok or self.terminate_requested:
+                return ok, pref
+            if event and self._event_mode:
+                self.events += 1
+                self.slave.enterEventMode()
+                if self._update_discrete_states():
+                    self.terminate_requested, self.terminate_time = True, reached
+                    return True, None
+                self.slave.enterStepMode()
+            if not early or reached >= t_end or math.isclose(reached, t_end):
+                return True, None
+            if not reached > t_cur:
+                raise SimulationError(
+                    f"FMU {self.fmu.name} returned early at t = {reached!r} s, not after {t_cur!r} s."
+                )
+            t_cur = reached
+
+    def _do_step3_once(self, t: float, h: float) -> tuple[bool, float | None, bool, bool, float]:
         """fmi3DoStep with its status and out-arguments (FMPy's ``doStep`` raises on
         fmi3Discard before returning them, and defaults noSetFMUStatePriorToCurrentPoint to
-        true)."""
+        true): (accepted, preferred step, eventHandlingNeeded, earlyReturn, lastSuccessfulTime)."""
         from ctypes import byref
 
         from fmpy.fmi1 import FMICallException
@@ -638,23 +686,22 @@ class FMUParticipant(Participant):
             if exc.status != fmi3Discard:
                 raise
             discarded = True
+        lt = float(last.value)
         if discarded:
             if term.value:  # stop where it got to, as an FMI 2.0 discard + fmi2Terminated
                 self.terminate_requested = True
-                lt = float(last.value)
                 self.terminate_time = lt if t <= lt <= t + h else t
-                return True, None
-            reached = float(last.value)
+                return True, None, False, False, lt
             self.terminate_requested = False
-            return False, (reached - t if t < reached < t + h else None)
+            return False, (lt - t if t < lt < t + h else None), False, False, lt
         # per step: a request from a step the master then redid (restored state) is void
         self.terminate_requested = bool(term.value)
-        if not term.value and early.value:  # not allowed at instantiation: a non-conforming FMU
+        if not term.value and early.value and not self._event_mode:  # not allowed: non-conforming
             raise SimulationError(
                 f"FMU {self.fmu.name} returned early at t = {last.value:g} s although early return "
                 "was not allowed."
             )
-        return True, None
+        return True, None, bool(event.value), bool(early.value), (lt if early.value else t + h)
 
     def get_outputs(self) -> dict[str, Any]:
         mark = self._log_count
