@@ -120,6 +120,16 @@ def test_auto_runs_trusted_fmus_in_process_and_others_in_forked_workers(
     py = build_integrator_fmu(tmp_path / "py.fmu", name="AutoPy", y0=1.0)
     (tmp_path / "c.fmu").write_bytes(segv_fmu.read_bytes())
     assert trusted_fmu(py) and not trusted_fmu(tmp_path / "c.fmu")
+    import zipfile
+
+    from hevsim.battery.native import is_native_fmu
+
+    native = tmp_path / "native.fmu"  # what trusted_fmu reads of an FMU hevsim generated
+    with zipfile.ZipFile(native, "w") as z:
+        z.writestr(
+            "modelDescription.xml", '<fmiModelDescription generationTool="hevsim 9 (native C99 FMU)"/>'
+        )
+    assert trusted_fmu(native) == "an FMU hevsim generated (native C99)" and is_native_fmu(native)
     comps = [Component("py", FMU_TYPE, "py.fmu"), Component("c", FMU_TYPE, "c.fmu")]
     for mode, kinds in (
         (None, (FMUParticipant, WorkerFMUParticipant)),

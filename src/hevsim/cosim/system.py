@@ -71,19 +71,22 @@ def trusted_fmu(path: str | Path) -> str:
     """Why the FMU ``path`` runs in process under ``fmu_process="auto"`` ("": it does not, it
     runs in a forked worker process): a pythonfmu FMU (its model is Python code run by this
     interpreter: a failure is a Python exception the FMU returns as an FMI error, not a crash)
-    or an FMU hevsim generated (:func:`hevsim.battery.native.is_native_fmu`: C code from
-    hevsim's own generator, tested with it)."""
+    or an FMU hevsim generated (its ``generationTool`` names hevsim's native C99 generator,
+    as :func:`hevsim.battery.native.is_native_fmu` reads it; not imported here: that package
+    imports numba and pandas, a second of start-up)."""
     import zipfile
-
-    from hevsim.battery.native import is_native_fmu
+    from xml.etree import ElementTree as ET
 
     try:
         with zipfile.ZipFile(path) as z:
             if "resources/slavemodule.txt" in z.namelist():
                 return "a pythonfmu FMU (Python model code)"
-    except (OSError, zipfile.BadZipFile):
+            root = ET.fromstring(z.read("modelDescription.xml"))
+    except (OSError, KeyError, zipfile.BadZipFile, ET.ParseError):
         return ""  # (reported by the participant)
-    return "an FMU hevsim generated (native C99)" if is_native_fmu(path) else ""
+    return (
+        "an FMU hevsim generated (native C99)" if "(native C99 FMU)" in root.get("generationTool", "") else ""
+    )
 
 
 def run_system(
