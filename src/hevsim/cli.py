@@ -556,7 +556,8 @@ def format_cosim_summary(res: Any, out: Path) -> str:
     from hevsim.units import KELVIN_OFFSET
 
     st = res.stats
-    lines = [
+    lines = [st[k] for k in ("resume", "step_from") if st.get(k)]  # where --resume went on from; the step
+    lines += [
         f"{st['steps']} communication steps to t = {res.time_s[-1]:g} s in {st.get('wall_s', 0.0):.1f} s"
         + (f"; stopped: {res.stopped_by}" if res.stopped_by else "")
     ]
