@@ -495,7 +495,8 @@ class HeatModel:
                 f"heat model: coupling = {coupling!r}; expected one of {', '.join(COUPLING_KINDS)}."
             )
         self.coupling = coupling
-        self._wall_response: np.ndarray | None = None  # LU^-1 W diag(h) (implicit coupling)
+        #: (Y = LU^-1 W diag(h), P Y) of the implicit coupling, per factorisation
+        self._wall_response: tuple[np.ndarray, np.ndarray] | None = None
         # conduction, contact and external films [W/K] and the films' load [W]; they differ from
         # the discretisation's only after set_surface_film
         self._stiffness: sp.csr_matrix = disc.stiffness
@@ -665,11 +666,9 @@ class HeatModel:
         area = np.where(d.wall_area_m2 > 0, d.wall_area_m2, 1.0)[:n]
         if self._wall_response is None:
             w = d.wall_weights[:, :n].toarray() if sp.issparse(d.wall_weights) else d.wall_weights[:, :n]
-            self._wall_response = np.asarray(
-                self._lu.solve(np.asarray(w, dtype=float) * self.wall_h[None, :n])
-            )
-        y = self._wall_response
-        py = np.asarray(d.wall_weights.T @ y)[:n] / area[:, None]
+            y = np.asarray(self._lu.solve(np.asarray(w, dtype=float) * self.wall_h[None, :n]))
+            self._wall_response = (y, np.asarray(d.wall_weights.T @ y)[:n] / area[:, None])
+        y, py = self._wall_response
         e = np.linalg.solve(np.eye(n) - self.theta * py @ sens, self.wall_temp_k(predicted) - wall0_k)
         return predicted + self.theta * (y @ (sens @ e))
 
@@ -696,6 +695,7 @@ class HeatModel:
             raise SimulationError(
                 f"heat model: temperature became non-finite at t = {self.time_s + self.dt_s} s."
             )
+        assert f_new is not None  # coupling_iterations >= 1
         self.temp_k = new
         self._f_old = f_new
         self.time_s += self.dt_s
