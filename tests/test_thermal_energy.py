@@ -70,14 +70,14 @@ def test_default_coupling_gives_the_coolant_the_heat_the_solid_lost() -> None:
     """Issue 26 item 7: the default (implicit) plate-coolant coupling takes the fluid of the
     end-of-step wall, so the coolant's m c_p dT equals the heat that left the solid (lag <= 1 %,
     in fact rounding); the staggered coupling (fluid of the wall at the start of the step, the
-    default before) gives the coolant 17 % more on this cooling-down module, and its lag is still
-    reported; the two runs' solids agree within the lag's effect."""
+    default before) gives the coolant more than 5 % more on this cooling-down module, and its lag
+    is still reported."""
     implicit = _run(cell_heat_w=[0.0], film_w_m2k=0.0)
-    staggered = _run(cell_heat_w=[0.0], film_w_m2k=0.0, coupling="staggered")
     removed = _value(implicit, "heat_removed_j")
     assert removed > 100.0
     assert abs(_value(implicit, "coupling_lag_j")) <= 0.01 * removed
     assert abs(_value(implicit, "coupling_lag_j")) <= 1e-9 * removed  # exact: an affine coolant
+    staggered = _run(cell_heat_w=[0.0], film_w_m2k=0.0, coupling="staggered")
     assert _value(staggered, "coupling_lag_j") > 0.05 * _value(staggered, "heat_removed_j")
     assert "coupling_lag_j" in format_summary(implicit)
     np.testing.assert_allclose(
