@@ -580,9 +580,27 @@ def format_cosim_summary(res: Any, out: Path) -> str:
 
 
 def _cmd_thermal(args: argparse.Namespace) -> int:
+    from hevsim.errors import ConfigError
     from hevsim.thermal.run import format_summary, run_thermal
 
     out = Path(args.out) if args.out else Path("results") / Path(args.config).stem
+    if Path(args.config).suffix.lower() == ".inp":  # an Abaqus / CalculiX deck
+        from hevsim.thermal.deck import check_deck_options, format_deck, run_deck
+
+        if args.boundary:
+            raise ConfigError(
+                f"{args.config}: --boundary applies to a module configuration (TOML); a deck's "
+                "conditions are its own *Film / *Sfilm keywords."
+            )
+        check_deck_options(args.length_scale, args.bonded_w_m2k)
+        _prepare(args, out, args.config)
+        print(format_deck(run_deck(args.config, out, length_scale_m=args.length_scale,
+                                   bonded_w_m2k=args.bonded_w_m2k)))  # fmt: skip
+        return 0
+    if args.length_scale != 1.0 or args.bonded_w_m2k is not None:
+        raise ConfigError(
+            f"{args.config}: --length-scale and --bonded-w-m2k apply to an Abaqus/CalculiX deck (.inp)."
+        )
     _prepare(args, out, args.config)
     config: Any = args.config
     if args.boundary:  # fixed conditions given on the command line, after the file's [[boundary]]
@@ -972,7 +990,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_cosim)
 
     p = sub.add_parser("thermal", help="3D FEM heat model of a battery module with cooling plate and coolant")
-    p.add_argument("config", help="module thermal configuration (TOML), e.g. examples/module_thermal.toml")
+    p.add_argument(
+        "config",
+        help="module thermal configuration (TOML), e.g. examples/module_thermal.toml, or an "
+        "Abaqus/CalculiX heat-transfer deck (.inp), run as written (docs/thermal.md)",
+    )
+    p.add_argument("--length-scale", type=float, default=1.0,
+                   help="deck only: metres per deck length unit (1e-3 for mm; default 1)")  # fmt: skip
+    p.add_argument("--bonded-w-m2k", type=float, default=None,
+                   help="deck only: contact conductance where sections share nodes [W/(m^2 K)]")  # fmt: skip
     p.add_argument("--out", help="results folder (default results/<config>)")
     p.add_argument(
         "--boundary",
