@@ -140,3 +140,24 @@ def test_clock_connection_to_a_worker_is_refused(fmus: dict[str, Path]) -> None:
 def test_input_clock_of_another_interval_variability_is_refused(fmus: dict[str, Path]) -> None:
     with pytest.raises(ConfigError, match="input clock 'tick' has intervalVariability=\"tunable\""):
         FMUParticipant("t", fmus["tunable"])
+
+
+def test_system_description_with_clock_connections_runs_them_in_process(fmus: dict[str, Path]) -> None:
+    # the run an SSD gives (datacheck, fmu_process "auto"): FMUs with a connected clock run in
+    # process (other C FMUs in workers), the static check passes Clock -> Clock only
+    from hevsim.cosim.datacheck import datacheck
+    from hevsim.cosim.ssd import FMU_TYPE, Component, SystemDescription
+    from hevsim.cosim.system import run_system
+
+    comps = [Component("c", FMU_TYPE, fmus["counter"].name), Component("s", FMU_TYPE, fmus["source"].name)]
+    desc = SystemDescription("clocks", comps, connections(), 0.0, STOP_S, {"step_s": STEP_S},
+                             base_dir=fmus["counter"].parent)  # fmt: skip
+    res = run_system(desc)
+    assert res.stats["fmu_process"] == {"c": "in process", "s": "in process"}
+    got = list(
+        zip(res["c.count"].tolist(), res["c.trig_count"].tolist(), res["c.last_k"].tolist(), strict=True)
+    )
+    assert got == [SCHEDULE[t] for t in TIMES]
+    desc.connections = [Connection("s", "out", "c", "k_in")]
+    with pytest.raises(ConfigError, match=r"s\.out is an FMI Clock variable.*connects only to a clock"):
+        datacheck(desc)

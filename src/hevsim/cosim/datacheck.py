@@ -39,7 +39,8 @@ def datacheck(
 
 
 EXCHANGED_CLASSES = frozenset(TYPE_CLASS.values())
-"""Type classes a connection can carry (FMI 3.0 Clock variables cannot)."""
+"""Type classes a connection can carry as values (FMI 3.0 Clock variables connect only to
+each other: a clock connection, :class:`hevsim.cosim.master.Master`)."""
 
 
 def _check(desc: SystemDescription) -> SystemDescription:
@@ -77,12 +78,15 @@ def _check(desc: SystemDescription) -> SystemDescription:
         du = k.dst_unit if k.dst_unit is not None else getattr(kinds[k.dst].get(k.dst_var), "unit", "")
         st = getattr(kinds[k.src].get(k.src_var), "type", "Real")
         dt = getattr(kinds[k.dst].get(k.dst_var), "type", "Real")
+        if st == dt == "Clock":  # a clock connection (the master checks the clocks' kinds)
+            continue
         for comp, var, typ in ((k.src, k.src_var, st), (k.dst, k.dst_var, dt)):
             if typ not in EXCHANGED_CLASSES:
                 raise ConfigError(
                     f"{what}: {comp}.{var} is an FMI {typ} variable; hevsim exchanges "
                     f"{', '.join(sorted(EXCHANGED_CLASSES))} variables only "
                     f"({UNSUPPORTED_WHY.get(typ, 'not supported')})."
+                    + (" A clock connects only to a clock." if "Clock" in (st, dt) else "")
                 )
         type_conversion(st, dt, f"{what} ({k.src}.{k.src_var} is {st}, {k.dst}.{k.dst_var} is {dt})")
         sf = getattr(kinds[k.src].get(k.src_var), "fmi_type", "")
