@@ -82,6 +82,21 @@ def test_periodic_and_triggered_clocks_follow_the_schedule(fmus: dict[str, Path]
     assert [(round(t, 9), k) for t, k in s.clock_log] == [(0.7, "out"), (1.4, "out")]
 
 
+def test_ticks_on_communication_points(fmus: dict[str, Path]) -> None:
+    # step 0.35 s: the source's ticks (0.7, 1.4) end its steps (eventHandlingNeeded at the step's
+    # end, no early return) and the counter's ticks at 0.7 and 1.0 .. fall on or between the
+    # points; the last step is 0.25 s (stop 2.0)
+    c, s = FMUParticipant("c", fmus["counter"]), FMUParticipant("s", fmus["source"])
+    res = simulate([c, s], connections(), stop_time_s=STOP_S, step_s=0.35)
+    times = [0.35 * i for i in range(6)] + [STOP_S]
+    assert np.allclose(res.time_s, times, rtol=0, atol=1e-12)
+    got = list(
+        zip(res["c.count"].tolist(), res["c.trig_count"].tolist(), res["c.last_k"].tolist(), strict=True)
+    )
+    assert got == [closed_form(t) for t in times]
+    assert [(round(t, 9), k) for t, k in s.clock_log] == [(0.7, "out"), (1.4, "out")]
+
+
 def test_interval_from_fmi3GetIntervalDecimal_and_a_tick_at_the_start(fmus: dict[str, Path]) -> None:
     # intervalVariability="fixed", no interval in the model description: 0.3 s from the FMU,
     # no shift: ticks at 0 (in the initial event mode), 0.3, .., 1.8; nothing connected to trig
