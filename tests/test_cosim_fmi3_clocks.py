@@ -173,6 +173,9 @@ def test_system_description_with_clock_connections_runs_them_in_process(fmus: di
         zip(res["c.count"].tolist(), res["c.trig_count"].tolist(), res["c.last_k"].tolist(), strict=True)
     )
     assert got == [SCHEDULE[t] for t in TIMES]
+    desc.connections = [Connection("s", "out", "c", "tick")]  # refused by the static check too
+    with pytest.raises(ConfigError, match=r"c\.tick: input clock, constant"):
+        datacheck(desc)
     desc.connections = [Connection("s", "out", "c", "k_in")]
     with pytest.raises(ConfigError, match=r"s\.out is an FMI Clock variable.*connects only to a clock"):
         datacheck(desc)
