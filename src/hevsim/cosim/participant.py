@@ -826,9 +826,8 @@ class FMUParticipant(Participant):
         Clock ticks in the step (periodic input clocks, ticks delivered by clock connections)
         end sub-steps there: event mode, the clocks activated (:meth:`_event`)."""
         t_end, t_cur = t + h, t
-        if not self._event_mode:
-            t_stop, ticks = t_end, []
-        else:
+        ticks: list[float] = []
+        if self._event_mode:
             self.clock_ticks = {}
             ticks = self._ticks_in(t, t_end)
         while True:
