@@ -179,3 +179,19 @@ def test_system_description_with_clock_connections_runs_them_in_process(fmus: di
     desc.connections = [Connection("s", "out", "c", "k_in")]
     with pytest.raises(ConfigError, match=r"s\.out is an FMI Clock variable.*connects only to a clock"):
         datacheck(desc)
+
+
+def test_variable_of_several_clocks_is_refused(fmus: dict[str, Path], tmp_path: Path) -> None:
+    import zipfile
+
+    bad = tmp_path / "TwoClocks.fmu"
+    with zipfile.ZipFile(fmus["counter"]) as z, zipfile.ZipFile(bad, "w") as out:
+        for item in z.namelist():
+            data = z.read(item)
+            if item == "modelDescription.xml":
+                count = b'name="count" valueReference="11" causality="output" variability="discrete" '
+                data = data.replace(count + b'clocks="10"', count + b'clocks="10 20"')
+                assert b'clocks="10 20"' in data
+            out.writestr(item, data)
+    with pytest.raises(ConfigError, match=r"clocked variable 'count' \(clocks \['tick', 'trig'\]\)"):
+        FMUParticipant("two", bad)
