@@ -39,7 +39,8 @@ def datacheck(
 
 
 EXCHANGED_CLASSES = frozenset(TYPE_CLASS.values())
-"""Type classes a connection can carry (FMI 3.0 Clock variables cannot)."""
+"""Type classes a connection can carry as values (FMI 3.0 Clock variables connect only to
+each other: a clock connection, :class:`hevsim.cosim.master.Master`)."""
 
 
 def _check(desc: SystemDescription) -> SystemDescription:
@@ -77,12 +78,16 @@ def _check(desc: SystemDescription) -> SystemDescription:
         du = k.dst_unit if k.dst_unit is not None else getattr(kinds[k.dst].get(k.dst_var), "unit", "")
         st = getattr(kinds[k.src].get(k.src_var), "type", "Real")
         dt = getattr(kinds[k.dst].get(k.dst_var), "type", "Real")
+        if st == dt == "Clock":  # a clock connection: an output clock to a triggered input clock
+            _check_clocks(what, k, info)
+            continue
         for comp, var, typ in ((k.src, k.src_var, st), (k.dst, k.dst_var, dt)):
             if typ not in EXCHANGED_CLASSES:
                 raise ConfigError(
                     f"{what}: {comp}.{var} is an FMI {typ} variable; hevsim exchanges "
                     f"{', '.join(sorted(EXCHANGED_CLASSES))} variables only "
                     f"({UNSUPPORTED_WHY.get(typ, 'not supported')})."
+                    + (" A clock connects only to a clock." if "Clock" in (st, dt) else "")
                 )
         type_conversion(st, dt, f"{what} ({k.src}.{k.src_var} is {st}, {k.dst}.{k.dst_var} is {dt})")
         sf = getattr(kinds[k.src].get(k.src_var), "fmi_type", "")
@@ -97,6 +102,25 @@ def _check(desc: SystemDescription) -> SystemDescription:
     if all(c.type in COMPONENT_TYPES for c in desc.components):  # runnable: what the run would refuse
         _check_run(desc, info)
     return desc
+
+
+def _check_clocks(what: str, k: Connection, info: dict[str, dict[str, Any]]) -> None:
+    """What the master refuses of a Clock -> Clock connection, statically: the source's clock
+    must be an output clock, the destination's a triggered input clock, both FMUs co-simulation
+    FMUs with event mode."""
+    for comp in (k.src, k.dst):
+        if comp in info and not info[comp]["event_mode"]:
+            raise ConfigError(
+                f"{what}: {comp}'s FMU has no co-simulation interface with event mode "
+                '(hasEventMode="true"): its clocks are not run.'
+            )
+    src = info.get(k.src, {}).get("clocks", {}).get(k.src_var)
+    dst = info.get(k.dst, {}).get("clocks", {}).get(k.dst_var)
+    if src is not None and dst is not None and (src[0] != "output" or dst != ("input", "triggered")):
+        raise ConfigError(
+            f"{what}: a clock connection goes from an output clock to a triggered input clock "
+            f"({k.src}.{k.src_var}: {src[0]} clock, {src[1]}; {k.dst}.{k.dst_var}: {dst[0]} clock, {dst[1]})."
+        )
 
 
 def _check_run(desc: SystemDescription, info: dict[str, dict[str, Any]]) -> None:
@@ -241,6 +265,12 @@ def _fmu_connectors(desc: SystemDescription, c: Component, info: dict[str, Any])
         if cs is not None
         else f"FMU {f.name} is Model Exchange: its state includes the integrator's, which is not saved"
     )
+    info["event_mode"] = bool(md.fmiVersion.startswith("3") and getattr(cs, "hasEventMode", False))
+    info["clocks"] = {
+        v.name: (str(v.causality), str(v.intervalVariability or "triggered"))
+        for v in md.modelVariables
+        if str(v.type) == "Clock"
+    }
     inputs = {v.name for v in md.modelVariables if v.causality == "input"}
     info["feedthrough"] = {
         u.variable.name: {d.name for d in u.dependencies if d.name in inputs}

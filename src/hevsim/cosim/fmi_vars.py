@@ -33,7 +33,8 @@ TYPE_CLASS = {
     "Binary": "Binary",
 }
 UNSUPPORTED_WHY = {
-    "Clock": "an FMI 3.0 clock ticks in event mode, which hevsim's fixed-step master does not run",
+    "Clock": "an FMI 3.0 clock is not a value: it ticks in event mode, run for co-simulation FMUs with "
+    "hasEventMode",
 }
 """Why a variable type is neither exchanged nor recorded (the message of a refused connection)."""
 INT_RANGE = {

@@ -247,8 +247,13 @@ class Master:
         # connections, grouped by destination: (dst_var, src, src_var, factor, offset)
         self.feeds: dict[str, list[Feed]] = {n: [] for n in self.p}
         seen: set[tuple[str, str]] = set()
+        # clock connections by destination: (input clock, src, output clock, clocked data)
+        self.clock_feeds: dict[str, list[tuple[str, str, str, list[tuple[str, str, Any]]]]] = {}
+        clocked: list[tuple[Connection, str]] = []
         for c in connections:
             what = f"connection {c.src}.{c.src_var} -> {c.dst}.{c.dst_var}"
+            if self._clock_connection(c, what, clocked):
+                continue
             for part, var, kind in ((c.src, c.src_var, "outputs"), (c.dst, c.dst_var, "inputs")):
                 if part not in self.p:
                     raise ConfigError(f"{what}: no participant {part!r}; participants: {sorted(self.p)}.")
@@ -276,11 +281,93 @@ class Master:
             elif conv is None:
                 conv = _identity
             self.feeds[c.dst].append((c.dst_var, c.src, c.src_var, f, o, conv))
+        self._clocked_data(clocked)
         fixed = list(options.order or ())
-        self.order = fixed + [n for n in graph_order(self.feeds) if n not in fixed]
+        deps = {
+            n: [*f, *((None, src) for _, src, _, _ in self.clock_feeds.get(n, ()))]
+            for n, f in self.feeds.items()
+        }
+        self.order = fixed + [n for n in graph_order(deps) if n not in fixed]
+        for n, cf in self.clock_feeds.items():
+            for _, src, _, _ in cf:
+                if self.order.index(src) > self.order.index(n):
+                    raise ConfigError(
+                        f"clock connection {src} -> {n}: {src!r} must step before {n!r} (its ticks "
+                        "are run in the receiver's step); the order or a feedback loop puts it after."
+                    )
         self._jacobi = options.algorithm == "jacobi"
         self._multirate = [n for n in self.order if self.rates[n] > 1]
-        self._plain = options.max_iterations == 1 and not self._multirate
+        self._plain = options.max_iterations == 1 and not self._multirate and not self.clock_feeds
+
+    def _clock_connection(self, c: Connection, what: str, clocked: list[tuple[Connection, str]]) -> bool:
+        """Take ``c`` if it connects FMI 3.0 clocks (an output clock to a triggered input clock)
+        or a clocked input (kept in ``clocked`` for :meth:`_clocked_data`); False: an ordinary one."""
+        if c.src not in self.p or c.dst not in self.p:
+            return False
+        sp, dp = self.p[c.src], self.p[c.dst]
+        src_clock, dst_clock = c.src_var in sp.clock_outputs, c.dst_var in dp.clock_inputs
+        if c.dst_var in dp.clocked_inputs:
+            clocked.append((c, what))
+            return True
+        if not (src_clock or dst_clock):
+            return False
+        if not hasattr(dp, "deliver_ticks") or not hasattr(sp, "clock_ticks"):
+            raise ConfigError(
+                f"{what}: clock connections need both FMUs in process (fmu_process 'inprocess'); "
+                f"{c.src if not hasattr(sp, 'clock_ticks') else c.dst!r} is not."
+            )
+        if not (src_clock and dst_clock):
+            raise ConfigError(
+                f"{what}: a clock connects only an output clock to an input clock "
+                f"({c.src}.{c.src_var} is {'an output clock' if src_clock else 'not an output clock'}, "
+                f"{c.dst}.{c.dst_var} is {'an input clock' if dst_clock else 'not an input clock'})."
+            )
+        iv = dp.clock_inputs[c.dst_var]
+        if iv != "triggered":
+            raise ConfigError(
+                f'{what}: input clock {c.dst}.{c.dst_var} is periodic (intervalVariability="{iv}", '
+                'ticked by its FMU\'s interval); only a "triggered" input clock can be connected.'
+            )
+        if any(int(self.opt.rates.get(n, 1)) > 1 for n in (c.src, c.dst)):
+            raise ConfigError(f"{what}: clock connections between multi-rate participants are not supported.")
+        for _, _, other, _ in self.clock_feeds.get(c.dst, ()):
+            if other == c.dst_var:
+                raise ConfigError(f"{what}: input clock {c.dst}.{c.dst_var} is already connected.")
+        self.clock_feeds.setdefault(c.dst, []).append((c.dst_var, c.src, c.src_var, []))
+        return True
+
+    def _clocked_data(self, clocked: list[tuple[Connection, str]]) -> None:
+        """Clocked inputs: delivered with the ticks of their clock, from an output of the same
+        source clocked by the output clock connected to that clock."""
+        for c, what in clocked:
+            dp, clock = self.p[c.dst], self.p[c.dst].clocked_inputs[c.dst_var]
+            feed = [f for f in self.clock_feeds.get(c.dst, ()) if f[0] == clock]
+            src_clock = self.p[c.src].clocked_outputs.get(c.src_var) if c.src in self.p else None
+            if not feed or feed[0][1] != c.src or src_clock != feed[0][2]:
+                raise ConfigError(
+                    f"{what}: {c.dst}.{c.dst_var} is clocked by input clock {clock!r}: it is set "
+                    "only when that clock ticks, from an output of the participant whose output "
+                    f"clock is connected to {c.dst}.{clock} and clocked by that output clock "
+                    f"({c.src}.{c.src_var} is clocked by {src_clock!r})."
+                )
+            st = self.p[c.src].types.get(c.src_var, "Real")
+            dt = dp.types.get(c.dst_var, "Real")
+            conv = type_conversion(
+                st, dt, f"{what} ({c.src}.{c.src_var} is {st}, {c.dst}.{c.dst_var} is {dt})"
+            )
+            sf, df = self.p[c.src].fmi_types.get(c.src_var, ""), dp.fmi_types.get(c.dst_var, "")
+            narrowing(sf, df, f"{what} ({c.src}.{c.src_var} is {sf}, {c.dst}.{c.dst_var} is {df})")
+            if any(d == c.dst_var for f in feed for d, _, _ in f[3]):
+                raise ConfigError(f"{what}: input {c.dst}.{c.dst_var} is already connected.")
+            feed[0][3].append((c.dst_var, c.src_var, conv or _identity))
+
+    def _deliver_ticks(self, n: str) -> None:
+        """Give participant ``n`` the ticks its connected output clocks had in this step."""
+        for dst_clock, src, src_clock, data in self.clock_feeds[n]:
+            ticks = self.p[src].clock_ticks.get(src_clock, [])  # type: ignore[attr-defined]
+            self.p[n].deliver_ticks(  # type: ignore[attr-defined]
+                dst_clock, [(tk, {d: conv(vals[s]) for d, s, conv in data}) for tk, vals in ticks]
+            )
 
     # -- helpers ---------------------------------------------------------------------------
     def _call(self, name: str, call: str, t: float, fn: Callable[..., Any], *args: Any) -> Any:
@@ -333,6 +420,8 @@ class Master:
                 self._send(n, sent, t)
             else:
                 self._send(n, cur, t)
+            if n in self.clock_feeds:
+                self._call(n, "set_inputs", t, self._deliver_ticks, n)
             ok, pref = self._call(n, "do_step", t_n, self.p[n].do_step, t_n, h_n)
             if not ok:
                 return new, (pref if pref and pref < h else h / 2), prefs

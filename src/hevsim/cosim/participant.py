@@ -66,6 +66,16 @@ class Participant(ABC):
     fmi_types: Mapping[str, str] = {}
     """FMI type of an FMU's variable (Float64, Int8, ..): narrowing connections are refused
     (:func:`hevsim.cosim.fmi_vars.narrowing`); absent: not checked."""
+    clock_inputs: Mapping[str, str] = {}
+    """FMI 3.0 input clocks a clock connection can tick (name -> intervalVariability)."""
+    clock_outputs: Mapping[str, str] = {}
+    """FMI 3.0 output clocks (name -> intervalVariability); their ticks in the last step are
+    ``clock_ticks[name]``: [(time [s], {clocked output: value at the tick})]."""
+    clocked_outputs: Mapping[str, str] = {}
+    """Output variables clocked by an output clock (name -> clock name)."""
+    clocked_inputs: Mapping[str, str] = {}
+    """Input variables set only when their clock ticks (name -> clock name): not in
+    :attr:`inputs`, delivered with the ticks of their clock (:meth:`deliver_ticks`)."""
     deterministic: bool = True
     """Same inputs give the same outputs: a run it cannot checkpoint can be resumed by
     replaying from the start (the replay is compared with the stored results)."""
@@ -406,6 +416,9 @@ class FMUParticipant(Participant):
         except ConfigError as exc:
             raise ConfigError(f"participant {name!r}: FMU {self.fmu.name}: {exc}") from None
         self.inputs, self.outputs = self.vars.inputs, self.vars.outputs
+        if self._event_capable(md):  # clocks are run (below): not "unsupported"
+            for k in [k for k, t in self.vars.unsupported.items() if t == "Clock"]:
+                del self.vars.unsupported[k]
         if self.vars.unsupported:
             warnings.warn(
                 f"participant {name!r}: FMU {self.fmu.name}: "
@@ -416,6 +429,7 @@ class FMUParticipant(Participant):
                 ),
                 stacklevel=2,
             )
+        self._init_clocks(md)
         self.types = {k: t for k, t in self.vars.types.items() if t != "Real"}
         self.fmi_types = dict(self.vars.fmi_types)
         self.parameters = dict(parameters or {})
@@ -436,6 +450,81 @@ class FMUParticipant(Participant):
         self.terminate_requested = False
 
     interface_name = "co-simulation"
+
+    def _event_capable(self, md: Any) -> bool:
+        """Whether the FMU runs in event mode here (FMI 3.0 co-simulation with hasEventMode)."""
+        return (
+            md.fmiVersion.startswith("3")
+            and type(self)._interface is FMUParticipant._interface
+            and bool(getattr(md.coSimulation, "hasEventMode", False))
+        )
+
+    def _init_clocks(self, md: Any) -> None:
+        """The FMU's clocks (FMI 3.0 co-simulation in event mode): periodic input clocks
+        (intervalVariability constant / fixed: ticked by this participant at their interval),
+        triggered input clocks (ticked through clock connections), output clocks (read with
+        fmi3GetClock at every event) and the clocked variables. Anything else is refused."""
+        self.clock_inputs, self.clock_outputs, self.clocked_inputs = {}, {}, {}
+        self.clocked_outputs = {}
+        self._clock_vr: dict[str, int] = {}
+        self._clocked_outputs: dict[str, list[str]] = {}  # output clock -> its clocked outputs
+        self._periodic: list[tuple[str, int]] = []  # (input clock, value reference)
+        self.clock_ticks: dict[str, list[tuple[float, dict[str, Any]]]] = {}
+        self._pending: list[tuple[float, str, dict[str, Any]]] = []  # delivered ticks
+        self.clock_log: list[tuple[float, str]] = []  # (time, clock) of every tick run
+        clocks = [v for v in md.modelVariables if str(v.type) == "Clock"]
+        if not clocks or not self._event_capable(md):
+            return  # (without event mode clock variables are reported as not exchanged)
+        fmu = self.fmu.name
+        for v in clocks:
+            iv = str(v.intervalVariability or "triggered")
+            if v.causality == "input":
+                if iv not in ("constant", "fixed", "triggered"):
+                    raise ConfigError(
+                        f"participant {self.name!r}: FMU {fmu}: input clock {v.name!r} has "
+                        f'intervalVariability="{iv}"; hevsim runs input clocks that are periodic '
+                        '("constant", "fixed") or "triggered" (through a clock connection).'
+                    )
+                self.clock_inputs[v.name] = iv
+                if iv != "triggered":
+                    self._periodic.append((v.name, v.valueReference))
+            elif v.causality == "output":
+                self.clock_outputs[v.name] = iv
+                self._clocked_outputs[v.name] = []
+            else:
+                continue
+            self._clock_vr[v.name] = v.valueReference
+        for v in md.modelVariables:
+            cl = getattr(v, "clocks", None) or []
+            if not cl or v.causality not in ("input", "output"):
+                continue
+            if len(cl) != 1 or v.name not in self.vars.types:
+                raise ConfigError(
+                    f"participant {self.name!r}: FMU {fmu}: clocked variable {v.name!r} "
+                    f"(clocks {[c.name for c in cl]}): hevsim exchanges scalar clocked variables "
+                    "of one clock."
+                )
+            if v.causality == "input":
+                self.clocked_inputs[v.name] = cl[0].name
+                self.inputs = {k: u for k, u in self.inputs.items() if k != v.name}
+            elif cl[0].name in self._clocked_outputs:
+                self._clocked_outputs[cl[0].name].append(v.name)
+                self.clocked_outputs[v.name] = cl[0].name
+
+    def deliver_ticks(self, clock: str, ticks: list[tuple[float, dict[str, Any]]]) -> None:
+        """Ticks of the triggered input clock ``clock`` in the coming step: (time [s], values
+        of its clocked inputs) each, run in event mode at that time (by a clock connection)."""
+        if clock not in self.clock_inputs:
+            raise ConfigError(f"participant {self.name!r} has no input clock {clock!r}.")
+        for _, vals in ticks:
+            for k in vals:
+                if self.clocked_inputs.get(k) != clock:
+                    raise ConfigError(
+                        f"participant {self.name!r}: {k!r} is not an input clocked by {clock!r}."
+                    )
+        self._pending = [e for e in self._pending if e[1] != clock]  # (a step redone: anew)
+        for tk, vals in ticks:
+            self._pending.append((float(tk), clock, dict(vals)))
 
     @staticmethod
     def _interface(md: Any) -> Any:
@@ -468,7 +557,12 @@ class FMUParticipant(Participant):
                 self._set_params()
                 self.slave.exitInitializationMode()
                 self.events = 0
+                self._t0 = t0
+                self._schedule = self._clock_schedule() if self._periodic else []
+                self._pending, self.clock_log = [], []
                 if self._event_mode:  # (in event mode after initialisation)
+                    first = [c for c, t1, _ in self._schedule if t1 <= t0 + 1e-9 * max(1.0, abs(t0))]
+                    self._tick_inputs(t0, first, [])
                     if self._update_discrete_states():
                         raise SimulationError(
                             f"FMU {self.fmu.name} requested termination during initialisation."
@@ -635,23 +729,127 @@ class FMUParticipant(Participant):
             need, terminate, *_ = self.slave.updateDiscreteStates()
         return bool(terminate)
 
+    def _clock_schedule(self) -> list[tuple[str, float, float]]:
+        """(clock, first tick [s], interval [s]) of each periodic input clock: interval and
+        shift from the model description (intervalDecimal, shiftDecimal), else the interval
+        from fmi3GetIntervalDecimal (after initialisation) and no shift."""
+        import zipfile
+
+        from hevsim.cosim._xml import local_name, number, parse_xml
+
+        with zipfile.ZipFile(self.fmu) as z:
+            root = parse_xml(self.fmu, z.read("modelDescription.xml"))
+        attrs = {el.get("name"): el.attrib for el in root.iter() if local_name(el.tag) == "Clock"}
+        out = []
+        for name, vr in self._periodic:
+            a = attrs.get(name, {})
+            where = f"{self.fmu.name}: clock {name!r}"
+            interval = (
+                number(a["intervalDecimal"], f"{where} intervalDecimal") if "intervalDecimal" in a else None
+            )
+            if interval is None:
+                from ctypes import c_double, c_int
+
+                from fmpy.fmi3 import fmi3ValueReference
+
+                iv, q = (c_double * 1)(), (c_int * 1)()
+                self.slave.getIntervalDecimal((fmi3ValueReference * 1)(vr), iv, q)
+                interval = float(iv[0]) if q[0] != 0 else None  # 0: fmi3IntervalNotYetKnown
+            if interval is None or not interval > 0 or not math.isfinite(interval):
+                raise ConfigError(
+                    f"participant {self.name!r}: {where}: interval {interval!r}; a periodic input "
+                    "clock needs an intervalDecimal > 0 (model description or fmi3GetIntervalDecimal)."
+                )
+            shift = number(a["shiftDecimal"], f"{where} shiftDecimal") if "shiftDecimal" in a else 0.0
+            out.append((name, self._t0 + shift, interval))
+        return out
+
+    def _ticks_in(self, t0: float, t1: float) -> list[float]:
+        """Times of the clock ticks (periodic and delivered) in (t0, t1] [s], ascending."""
+        eps = 1e-9 * max(1.0, abs(t1))
+        times = [tk for tk, _, _ in self._pending if t0 + eps < tk <= t1 + eps]
+        for _, first, dt in self._schedule:
+            k = max(0, math.ceil((t0 + eps - first) / dt))
+            while first + k * dt <= t1 + eps:
+                if first + k * dt > t0 + eps:
+                    times.append(first + k * dt)
+                k += 1
+        out: list[float] = []
+        for tk in sorted(times):
+            if not out or tk - out[-1] > eps:
+                out.append(tk)
+        return out
+
+    def _tick_inputs(
+        self, t: float, periodic: list[str], delivered: list[tuple[str, dict[str, Any]]]
+    ) -> None:
+        """In event mode at ``t``: activate the input clocks ticking now (fmi3SetClock) and set
+        the clocked inputs they bring (the FMU deactivates them in fmi3UpdateDiscreteStates)."""
+        names = list(dict.fromkeys([*periodic, *(c for c, _ in delivered)]))
+        if not names:
+            return
+        self.slave.setClock([self._clock_vr[c] for c in names], [True] * len(names))
+        for c in names:
+            self.clock_log.append((t, c))
+        for _, vals in delivered:
+            if vals:
+                self.vars.set_inputs(self.slave, vals)
+
+    def _event(self, t: float) -> bool:
+        """Event mode at ``t`` (the FMU entered it): read the output clocks (fmi3GetClock) and
+        the clocked outputs of those ticking, tick the input clocks due at ``t``, run the
+        event iteration; returns whether the FMU asked to terminate."""
+        if self.clock_outputs:
+            names = list(self.clock_outputs)
+            active = self.slave.getClock([self._clock_vr[c] for c in names])
+            for c, on in zip(names, active, strict=True):
+                if on:
+                    out = self.vars.get_outputs(self.slave) if self._clocked_outputs[c] else {}
+                    vals = {k: out[k] for k in self._clocked_outputs[c]}
+                    self.clock_ticks.setdefault(c, []).append((t, vals))
+                    self.clock_log.append((t, c))
+        eps = 1e-9 * max(1.0, abs(t))
+        periodic = [
+            c for c, first, dt in self._schedule
+            if t >= first - eps and abs(t - first - round((t - first) / dt) * dt) <= eps
+        ]  # fmt: skip
+        due = [(c, v) for tk, c, v in self._pending if abs(tk - t) <= eps]
+        self._pending = [e for e in self._pending if abs(e[0] - t) > eps]
+        self._tick_inputs(t, periodic, due)
+        return self._update_discrete_states()
+
     def _do_step3(self, t: float, h: float) -> tuple[bool, float | None]:
         """The communication step from ``t`` by ``h`` of an FMI 3.0 FMU: with event mode (the
         FMU has it), an early return at an event (``eventHandlingNeeded``) is followed by the
         event iteration in event mode and the rest of the step, as often as the FMU returns
-        early (:attr:`events` counts them), so the master sees the step end as without events."""
+        early (:attr:`events` counts them), so the master sees the step end as without events.
+        Clock ticks in the step (periodic input clocks, ticks delivered by clock connections)
+        end sub-steps there: event mode, the clocks activated (:meth:`_event`)."""
         t_end, t_cur = t + h, t
+        ticks: list[float] = []
+        if self._event_mode:
+            self.clock_ticks = {}
+            ticks = self._ticks_in(t, t_end)
         while True:
-            ok, pref, event, early, reached = self._do_step3_once(t_cur, t_end - t_cur)
+            while ticks and ticks[0] <= t_cur + 1e-9 * max(1.0, abs(t_cur)):
+                ticks.pop(0)
+            t_stop = ticks[0] if ticks else t_end
+            ok, pref, event, early, reached = self._do_step3_once(t_cur, t_stop - t_cur)
             if not ok or self.terminate_requested:
                 return ok, pref
-            if event and self._event_mode:
+            at_tick = bool(ticks) and (
+                not early or math.isclose(reached, t_stop, rel_tol=1e-12, abs_tol=1e-12)
+            )
+            if self._event_mode and (event or at_tick):
                 self.events += 1
                 self.slave.enterEventMode()
-                if self._update_discrete_states():
+                if self._event(reached):
                     self.terminate_requested, self.terminate_time = True, reached
                     return True, None
                 self.slave.enterStepMode()
+            if t_stop < t_end and not early:
+                t_cur = t_stop
+                continue
             if not early or reached >= t_end or math.isclose(reached, t_end):
                 return True, None
             if not reached > t_cur:

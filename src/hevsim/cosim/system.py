@@ -32,11 +32,12 @@ def build_participants(
     from hevsim.cosim.participant import FMUParticipant
 
     mode = desc.master.get("fmu_process", "auto")
+    clocked = clock_connected(desc) if mode == "auto" else set()
     parts: list[Participant] = []
     for c in desc.components:
         if c.type == FMU_TYPE:
             path = desc.base_dir / c.source
-            if mode == "inprocess" or (mode == "auto" and trusted_fmu(path)):
+            if mode == "inprocess" or (mode == "auto" and (c.name in clocked or trusted_fmu(path))):
                 from hevsim.cosim.me import participant_class  # (Model Exchange FMUs: MEParticipant)
 
                 cls: type[FMUParticipant] | type[WorkerFMUParticipant] = participant_class(path)
@@ -65,6 +66,31 @@ def build_participants(
                 f"{desc.source}: component {c.name!r} is not bound to an implementation (type {c.type!r})."
             )
     return parts
+
+
+def clock_connected(desc: SystemDescription) -> set[str]:
+    """FMU components of ``desc`` with an FMI 3.0 Clock variable in a connection: under
+    ``fmu_process="auto"`` they run in process (clock connections need it)."""
+    import zipfile
+    from xml.etree import ElementTree as ET
+
+    named: dict[str, set[str]] = {}
+    for k in desc.connections:
+        named.setdefault(k.src, set()).add(k.src_var)
+        named.setdefault(k.dst, set()).add(k.dst_var)
+    out = set()
+    for c in desc.components:
+        if c.type != FMU_TYPE or c.name not in named:
+            continue
+        try:
+            with zipfile.ZipFile(desc.base_dir / c.source) as z:
+                root = ET.fromstring(z.read("modelDescription.xml"))
+        except (OSError, KeyError, zipfile.BadZipFile, ET.ParseError):
+            continue  # (reported by the participant)
+        clocks = {el.get("name") for el in root.iter() if el.tag.rsplit("}", 1)[-1] == "Clock"}
+        if clocks & named[c.name]:
+            out.add(c.name)
+    return out
 
 
 def trusted_fmu(path: str | Path) -> str:
