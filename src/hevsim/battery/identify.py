@@ -976,8 +976,10 @@ def parameter_toml(p: CellParameters, meta: dict[str, Any]) -> str:
         lines += [f"    {_fmt(list(row))}," for row in z]
         lines.append("]")
     for key in ("rc_discharge", "rc_charge"):
-        for r, tau in getattr(p, key):
-            lines += ["", f"[[{key}]]", f"r_ohm = {_fmt(r)}", f"tau_s = {_fmt(tau)}"]
+        for row in getattr(p, key):
+            lines += ["", f"[[{key}]]", f"r_ohm = {_fmt(row[0])}", f"tau_s = {_fmt(row[1])}"]
+            if row.size > 2:  # Arrhenius laws (issue 27)
+                lines += [f"ea_r_j_per_mol = {_fmt(row[2])}", f"ea_tau_j_per_mol = {_fmt(row[3])}"]
     return "\n".join(lines) + "\n"
 
 
