@@ -1127,7 +1127,9 @@ def fit_temperature_laws(
             ),
         )
 
-    runs = [(ref, float(result.metadata.get("soc_initial", 1.0)), t_ref)]
+    runs: list[tuple[CellTestRecord, float | None, float]] = [
+        (ref, float(result.metadata.get("soc_initial", 1.0)), t_ref)
+    ]
     runs += [(r, None, float(r.temp_k[0])) for r in records]
 
     def simulate_all(theta: FloatArray) -> list[tuple[FloatArray, FloatArray]]:
