@@ -206,8 +206,10 @@ def test_module_of_parallel_cells_uses_the_same_laws() -> None:
 
 
 def test_tables_not_covering_the_run_warn_and_clamp() -> None:
+    from hevsim.battery import params as P
     from hevsim.battery.params import TemperatureRangeWarning
 
+    P._WARNED.clear()
     p = laws(entropic_slope=4e-4, reversible="ocv_table")
     with pytest.warns(
         TemperatureRangeWarning, match=r"tables\.temperature_k.*263\.15\.\.318\.15 K.*253\.15 K"
@@ -215,6 +217,9 @@ def test_tables_not_covering_the_run_warn_and_clamp() -> None:
         cold = Cell(p, soc_initial=0.6, temp_k=253.15).simulate(np.zeros(5), 1.0, 253.15).timeseries
     edge = Cell(p, soc_initial=0.6, temp_k=263.15).simulate(np.zeros(5), 1.0, 263.15).timeseries
     np.testing.assert_array_equal(cold["ocv_v"], edge["ocv_v"])  # clamped at the 263.15 K column
+    with warnings.catch_warnings():  # once per set and side: a run repeated in a loop warns once
+        warnings.simplefilter("error")
+        Cell(p, soc_initial=0.6, temp_k=250.0).simulate(np.zeros(5), 1.0, 250.0)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         Cell("thesis_table_4_1").simulate(np.ones(3), 1.0, 233.15)  # one column: no temperature data

@@ -247,6 +247,10 @@ class CellParameters:
         lo, hi = float(np.min(t)), float(np.max(t))
         if lo < ax[0] or hi > ax[-1]:
             bad = lo if lo < ax[0] else hi
+            key = (self.source, float(ax[0]), float(ax[-1]), what, bad < ax[0])
+            if key in _WARNED:  # once per set, axis and side (a run repeated in a loop)
+                return
+            _WARNED.add(key)
             warnings.warn(
                 f"{self.source}: key 'tables.temperature_k' covers {ax[0]:g}..{ax[-1]:g} K but {what} "
                 f"reaches {bad:g} K; the tables are clamped there (held at the {ax[0]:g} or {ax[-1]:g} K "
@@ -285,6 +289,10 @@ class CellParameters:
 
 class TemperatureRangeWarning(UserWarning):
     """A simulation runs at temperatures outside a parameter set's temperature axis (clamped)."""
+
+
+_WARNED: set[tuple[str, float, float, str, bool]] = set()
+"""Temperature-coverage warnings given (:meth:`CellParameters.check_temperature_coverage`)."""
 
 
 def _err(src: str, key: str, msg: str) -> InputError:
