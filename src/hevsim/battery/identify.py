@@ -743,7 +743,8 @@ def fit_temperature(
     ``result`` is the identification at the reference ambient (its test's steps count too);
     each of ``records`` is a pulse test at one ambient (the temperature of its first row,
     which should be at rest; the column ``temp_k`` is required), starting at rest (its SOC is
-    the fitted OCV's inverse of the first voltage). From every current step larger than
+    the fitted OCV's inverse of the first voltage, or the reference test's initial SOC where the
+    fitted OCV is flat and has no inverse, e.g. on an LFP plateau). From every current step larger than
     ``min_step_fraction`` times the record's largest current: ``R0 = -dV/dI`` over one
     sample, the SOC and the cell temperature ``T`` [K] before the step. Then
 
@@ -785,9 +786,10 @@ def fit_temperature(
         else:
             if not rec.temperature_measured:
                 raise InputError(f"{rec.source}: column 'temp_k' is required for a test at another ambient.")
-            if np.any(np.diff(ocv) <= 0):
-                raise InputError("calibrate --data: the fitted OCV is not strictly increasing.")
-            soc0 = float(np.clip(np.interp(rec.voltage_v[0], ocv, axis), 0.0, 1.0))
+            if np.any(np.diff(ocv) <= 0):  # a flat OCV (LFP plateau) has no inverse: the reference's
+                soc0 = float(result.metadata.get("soc_initial", 1.0))  # start SOC (refined jointly later)
+            else:
+                soc0 = float(np.clip(np.interp(rec.voltage_v[0], ocv, axis), 0.0, 1.0))
             soc = coulomb_soc(rec, soc0, cap_c)
             ambients.append(float(rec.temp_k[0]))
         i_max = float(np.max(np.abs(rec.current_a)))
