@@ -87,7 +87,14 @@ def test_cli_data_writes_temperature_tables(tmp_path: Path, capsys: pytest.Captu
     assert "r0_ea_j_per_mol" in capsys.readouterr().out
     p = load_cell_parameters(out / "cell.toml")
     assert p.temperature_k.size == 3 and p.rs_discharge_ohm.shape == (p.soc.size, 3)
-    assert np.all(p.rs_discharge_ohm[:, 0] > 1.5 * p.rs_discharge_ohm[:, 1])  # 10 degC vs 25 degC
+    from hevsim.battery import kernel as K
+
+    def r_s(c: int) -> np.ndarray:  # R_s at the column's temperature (tables times the law, issue 27)
+        return p.rs_discharge_ohm[:, c] * K.arrhenius(
+            p.resistance.ea_j_per_mol, p.temperature_k[c], p.capacity.t_ref_k
+        )
+
+    assert np.all(r_s(0) > 1.5 * r_s(1))  # 10 degC vs 25 degC
     assert (out / "r0_temperature.csv").is_file()
     meta = tomllib.loads((out / "cell.toml").read_text())["source"]
     assert len(meta["temperature_sha256"]) == 2 and meta["ambient_temperatures_k"][0] == pytest.approx(283.15)

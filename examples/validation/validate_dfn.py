@@ -10,6 +10,13 @@ DFN drive-cycle current (``dfn_udds.csv``), for two model structures:
 
 Run ``python examples/validation/validate_dfn.py [OUT_DIR]``: prints the error table per
 current range and, with ``OUT_DIR``, writes both calibrations (``cell.toml``, plots, tables).
+
+``python examples/validation/validate_dfn.py ambients [CELL ...]`` (issue 27): per cell (``nmc``,
+``lfp``; the data of ``make_dfn_data.py ambients``) and validation ambient (-10, 10, 35,
+45 degC), the UDDS errors per current band of the cell calibrated at 25 degC alone (before:
+``calibrate pulse_25c.csv``) and calibrated over the three pulse tests at 0, 25 and 45 degC
+(after: ``calibrate pulse_25c.csv --data pulse_0c.csv --data pulse_45c.csv``, the joint
+temperature laws).
 """
 
 from __future__ import annotations
@@ -20,7 +27,14 @@ from pathlib import Path
 import pandas as pd
 
 from hevsim.battery.calibrate import CellTestRecord
-from hevsim.battery.identify import FIDELITY_MODEL, Identification, identify, validate
+from hevsim.battery.identify import (
+    FIDELITY_MODEL,
+    Identification,
+    fit_temperature,
+    fit_temperature_laws,
+    identify,
+    validate,
+)
 from hevsim.battery.params import ModelSection
 
 HERE = Path(__file__).resolve().parent
@@ -72,5 +86,66 @@ def main(out_dir: str | None = None) -> pd.DataFrame:
     return out
 
 
+AMBIENT_CELLS = {"nmc": 5.0, "lfp": 2.3}
+"""Cells of the ambient study and their capacities [A h] (make_dfn_data.CELLS)."""
+CAL_AMBIENTS_C = (0, 25, 45)
+VAL_AMBIENTS_C = (-10, 10, 35, 45)
+
+
+def _name(cell: str, kind: str, t_c: int) -> str:
+    return f"dfn_{cell}_{kind}_{'m' if t_c < 0 else ''}{abs(t_c)}c.csv"
+
+
+def ambient_calibrations(cell: str, n_rc: int = 2, rows: int | None = None) -> dict[str, Identification]:
+    """The cell calibrated at 25 degC alone (``before``) and over 0, 25 and 45 degC
+    (``after``); ``rows``: only the first rows of each pulse test (a reduced data set)."""
+
+    def rec(kind: str, t_c: int) -> CellTestRecord:
+        r = CellTestRecord.from_csv(HERE / _name(cell, kind, t_c))
+        if rows is None:
+            return r
+        return CellTestRecord(
+            r.time_s[:rows], r.current_a[:rows], r.voltage_v[:rows], r.temp_k[:rows], r.source
+        )
+
+    ref = identify(
+        "thesis_table_4_1",
+        rec("pulse", 25),
+        soc_initial=SOC_INITIAL,
+        capacity_ah=AMBIENT_CELLS[cell],
+        port_temp_k=298.15,
+        n_rc=n_rc,
+        **STRUCTURES["fidelity"],  # type: ignore[arg-type]
+    )
+    others = [rec("pulse", t) for t in CAL_AMBIENTS_C if t != 25]
+    return {"before": ref, "after": fit_temperature_laws(fit_temperature(ref, others), others)}
+
+
+def ambient_table(cell: str, fits: dict[str, Identification] | None = None) -> pd.DataFrame:
+    """Voltage RMS / max / mean per current band [mV] and temperature RMS [K] on the UDDS at
+    each validation ambient, before and after."""
+    fits = fits or ambient_calibrations(cell)
+    out = []
+    for t_c in VAL_AMBIENTS_C:
+        udds = CellTestRecord.from_csv(HERE / _name(cell, "udds", t_c))
+        for label, res in fits.items():
+            val = validate(res, udds, soc_initial=UDDS_SOC_INITIAL, port_temp_k=273.15 + t_c)
+            assert val.validation_errors is not None
+            tab = val.validation_errors.copy()
+            tab.insert(0, "cell", cell)
+            tab.insert(1, "ambient_c", t_c)
+            tab.insert(2, "calibration", label)
+            out.append(tab)
+    table = pd.concat(out, ignore_index=True)
+    for col in ("rmse_v", "max_abs_v", "mean_v"):
+        table[col.replace("_v", "_mv")] = 1e3 * table.pop(col)
+    return table
+
+
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else None)
+    if len(sys.argv) > 1 and sys.argv[1] == "ambients":
+        pd.set_option("display.width", 200)
+        for c in sys.argv[2:] or list(AMBIENT_CELLS):
+            print(ambient_table(c).to_string(index=False, float_format=lambda x: f"{x:.2f}"))
+    else:
+        main(sys.argv[1] if len(sys.argv) > 1 else None)

@@ -392,10 +392,11 @@ def _calibrate_full(args: argparse.Namespace, record: Any, out: Path) -> int:
         n_rc=args.n_rc,
         charge_transfer=not args.no_charge_transfer,
     )
-    if args.data:  # tests at other ambients: R0(SOC, T) and the activation energy
-        from hevsim.battery.identify import fit_temperature
+    if args.data:  # tests at other ambients: R0(SOC, T), then the temperature laws jointly (issue 27)
+        from hevsim.battery.identify import fit_temperature, fit_temperature_laws
 
-        result = fit_temperature(result, [CellTestRecord.from_csv(f) for f in args.data])
+        others = [CellTestRecord.from_csv(f) for f in args.data]
+        result = fit_temperature_laws(fit_temperature(result, others), others)
     if args.validate is not None:
         ambient_k = c_to_k(args.ambient_c) if args.ambient_c is not None else None
         val = CellTestRecord.from_csv(args.validate, temperature_k=ambient_k)
@@ -931,7 +932,8 @@ def build_parser() -> argparse.ArgumentParser:
         action="append",
         metavar="FILE",
         help="full calibration: a pulse test at another ambient (repeatable; temp_k column required, "
-        "first row at rest at the ambient): R0(SOC, T) tables and an Arrhenius activation energy",
+        "first row at rest at the ambient): the temperature laws fitted jointly over the ambients "
+        "(Arrhenius R_s, RC, charge transfer; entropic coefficient; capacity factor; thermal)",
     )
     p.add_argument(
         "--validate-soc", type=float, help="SOC at the start of --validate (default: from its first voltage)"

@@ -31,14 +31,12 @@ from hevsim.io import atomic_directory, write_json
 from hevsim.tables import FloatArray, read_csv_columns
 
 TEST_COLUMNS = ("time_s", "current_a", "voltage_v", "temp_k")
-_SCALARS = K.TUNABLE_SCALARS
-_RC = re.compile(r"^(rc_discharge|rc_charge)\[(\d+)\]\.(r_ohm|tau_s)$")
+_SCALARS = {**K.TUNABLE_SCALARS, **K.MODEL_SCALARS}
+_RC_FIELDS = ("r_ohm", "tau_s", "ea_r_j_per_mol", "ea_tau_j_per_mol")
+_RC = re.compile(r"^(rc_discharge|rc_charge)\[(\d+)\]\.(" + "|".join(_RC_FIELDS) + ")$")
 FITTABLE = (
     *_SCALARS,
-    "rc_discharge[i].r_ohm",
-    "rc_discharge[i].tau_s",
-    "rc_charge[i].r_ohm",
-    "rc_charge[i].tau_s",
+    *(f"{s}[i].{f}" for s in ("rc_discharge", "rc_charge") for f in _RC_FIELDS),
 )
 
 
@@ -158,7 +156,7 @@ def _setter(name: str, p: CellParameters) -> tuple[str, int, int]:
             raise InputError(
                 f"calibrate: parameter {name!r}: the set has {p.n_rc} RC element(s) per direction."
             )
-        return (m.group(1), i, 0 if m.group(3) == "r_ohm" else 1)
+        return (m.group(1), i, _RC_FIELDS.index(m.group(3)))
     raise InputError(f"calibrate: parameter {name!r} is not fittable; expected one of {', '.join(FITTABLE)}.")
 
 
@@ -222,7 +220,9 @@ def calibrate(
 
     def apply(theta: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         vec = base.copy()
-        rc_d, rc_c = p.rc_discharge.copy(), p.rc_charge.copy()
+        rc_d, rc_c = (
+            np.c_[rc, np.zeros((rc.shape[0], 4 - rc.shape[1]))] for rc in (p.rc_discharge, p.rc_charge)
+        )
         for (kind, i, j), val in zip(setters, theta, strict=True):
             if kind == "scalar":
                 vec[i] = val

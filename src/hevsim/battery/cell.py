@@ -176,6 +176,7 @@ class Cell:
             raise InputError(f"current_profile: expected a non-empty 1-D array [A], got shape {i.shape}.")
         i = as_profile(i, i.size, "current_profile", "A")
         tp = as_profile(port_temperature, i.size, "port_temperature", "K")
+        self.params.check_temperature_coverage(np.r_[tp, self.state[K.STEMP]], "the port temperature")
         x = self.state.copy()
         e_rc0 = self.stored_energy_j()
         out = np.empty((i.size, len(K.RECORD)))

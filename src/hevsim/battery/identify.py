@@ -743,7 +743,8 @@ def fit_temperature(
     ``result`` is the identification at the reference ambient (its test's steps count too);
     each of ``records`` is a pulse test at one ambient (the temperature of its first row,
     which should be at rest; the column ``temp_k`` is required), starting at rest (its SOC is
-    the fitted OCV's inverse of the first voltage). From every current step larger than
+    the fitted OCV's inverse of the first voltage, or the reference test's initial SOC where the
+    fitted OCV is flat and has no inverse, e.g. on an LFP plateau). From every current step larger than
     ``min_step_fraction`` times the record's largest current: ``R0 = -dV/dI`` over one
     sample, the SOC and the cell temperature ``T`` [K] before the step. Then
 
@@ -785,9 +786,10 @@ def fit_temperature(
         else:
             if not rec.temperature_measured:
                 raise InputError(f"{rec.source}: column 'temp_k' is required for a test at another ambient.")
-            if np.any(np.diff(ocv) <= 0):
-                raise InputError("calibrate --data: the fitted OCV is not strictly increasing.")
-            soc0 = float(np.clip(np.interp(rec.voltage_v[0], ocv, axis), 0.0, 1.0))
+            if np.any(np.diff(ocv) <= 0):  # a flat OCV (LFP plateau) has no inverse: the reference's
+                soc0 = float(result.metadata.get("soc_initial", 1.0))  # start SOC (refined jointly later)
+            else:
+                soc0 = float(np.clip(np.interp(rec.voltage_v[0], ocv, axis), 0.0, 1.0))
             soc = coulomb_soc(rec, soc0, cap_c)
             ambients.append(float(rec.temp_k[0]))
         i_max = float(np.max(np.abs(rec.current_a)))
@@ -884,6 +886,339 @@ def fit_temperature(
     )
 
 
+def _unfitted(name: str, unit: str, flag: str) -> dict[str, Any]:
+    """A parameter-table row for a parameter the data cannot identify (not fitted)."""
+    nan = float("nan")
+    return {"name": name, "value": nan, "unit": unit, "std_error": nan, "ci95_low": nan, "ci95_high": nan,
+            "flag": flag, "note": ""}  # fmt: skip
+
+
+MIN_AMBIENT_SPREAD_K = 5.0
+"""Ambients closer than this [K] (highest minus lowest) cannot separate an activation energy:
+:func:`fit_temperature_laws` then holds every activation energy at 0 and flags it."""
+EA_BOUNDS_J_PER_MOL = (-5e4, 1.5e5)
+"""Search range of the activation energies [J/mol] (:func:`fit_temperature_laws`)."""
+
+
+def fit_temperature_laws(
+    result: Identification,
+    records: list[CellTestRecord],
+    sigma_v: float = 0.001,
+    sigma_t: float = 0.1,
+    min_ambient_spread_k: float = MIN_AMBIENT_SPREAD_K,
+    min_rest_s: float = 300.0,
+) -> Identification:
+    """The temperature-dependent parameter set, fitted jointly to the reference test and the
+    tests at other ambients (issue 27; ``hevsim calibrate --data``).
+
+    ``result`` is :func:`identify` at the reference ambient (one temperature column; the
+    result of :func:`fit_temperature` is accepted too: its step-resistance activation energy
+    is the initial guess); each of ``records`` is a test at one ambient (its first
+    ``temp_k`` sample; the column is required). One weighted least-squares fit over every
+    record's voltage (``sigma_v`` [V]) and temperature (``sigma_t`` [K]) of:
+
+    * the reference parameters at T_ref (the reference ambient): OCV and log R_s at the tested
+      SOC breakpoints, log R and log tau of each RC pair, log i0 and log scale of the charge
+      transfer (when the set has it);
+    * the laws: Arrhenius activation energies of R_s, of each RC pair's R and tau and of i0
+      [J/mol]; the entropic coefficient dU/dT [V/K] at the tested breakpoints when the other
+      ambients have rests (at least ``min_rest_s``), giving OCV(SOC, T) = OCV_ref + dU/dT
+      (T - T_ref) and the entropic heat; the capacity factor at each other ambient;
+    * the lumped thermal parameters (log C_heat, log R_skin, when temperatures are measured)
+      and the initial SOC of each other test.
+
+    Every parameter is reported with its standard error and 95 % interval from the Jacobian
+    and flagged as :func:`identify` does. Ambients spanning less than
+    ``min_ambient_spread_k`` cannot separate an activation energy from the reference values:
+    the activation energies are then held at 0, reported as NaN and flagged, not fitted.
+    """
+    p_in = result.params
+    ts = result.timeseries
+    if not records:
+        raise InputError("calibrate --data: no tests at other temperatures given.")
+    if not np.array_equal(p_in.rc_discharge[:, :2], p_in.rc_charge[:, :2]):
+        raise InputError(
+            "calibrate --data: the temperature laws are fitted for one RC set (rc_mode = 'persistent', "
+            "equal rc_discharge and rc_charge); this identification has two different sets."
+        )
+    t_ref = float(result.metadata.get("port_temp_k", p_in.capacity.t_ref_k))
+    # the reference parameters: the identified set's column at the reference ambient
+    c_ref = int(np.argmin(np.abs(p_in.temperature_k - t_ref)))
+    ea0 = float(result.metadata.get("r0_activation_energy_j_per_mol", 0.0))
+    if not np.isfinite(ea0):
+        ea0 = 0.0
+    t_meas_ref = ts["temp_measured_k"].to_numpy(dtype=float)
+    ref = CellTestRecord(
+        ts["time_s"].to_numpy(dtype=float),
+        ts["current_a"].to_numpy(dtype=float),
+        ts["voltage_measured_v"].to_numpy(dtype=float),
+        np.where(np.isfinite(t_meas_ref), t_meas_ref, t_ref),
+        source=str(result.metadata.get("source_file", "<reference>")),
+        temperature_measured=bool(np.all(np.isfinite(t_meas_ref))),
+    )
+    axis = p_in.soc
+    ocv_ref = p_in.ocv_discharge_v[:, c_ref].copy()
+    rs_ref = p_in.rs_discharge_ohm[:, c_ref].copy()
+    lim = p_in.limits
+    n_rc = p_in.n_rc
+    ct_on = p_in.charge_transfer.i0_a > 0
+    fitted = result.metadata.get("fitted_soc_range", [float(axis[0]), float(axis[-1])])
+    idx = np.flatnonzero((axis >= fitted[0] - 1e-9) & (axis <= fitted[1] + 1e-9))
+    if idx.size == 0:
+        idx = np.arange(axis.size)
+    ambients = []
+    soc0 = []
+    for rec in records:
+        if not rec.temperature_measured:
+            raise InputError(f"{rec.source}: column 'temp_k' is required for a test at another ambient.")
+        ambients.append(float(rec.temp_k[0]))
+        ocv_mono = np.maximum.accumulate(ocv_ref)
+        soc0.append(float(np.clip(np.interp(rec.voltage_v[0], ocv_mono, axis), 0.0, 1.0)))
+    amb = np.array(ambients)
+    spread = float(max(amb.max(), t_ref) - min(amb.min(), t_ref))
+    fit_ea = spread >= min_ambient_spread_k
+    i_max = max(float(np.max(np.abs(r.current_a))) for r in records)
+    has_rests = all(find_rests(r, 1e-3 * max(i_max, 1e-9), min_rest_s) for r in records)
+    t_axis = np.unique(np.round(np.r_[t_ref, amb], 2))
+    if t_axis.size < 2:
+        raise InputError(
+            f"calibrate --data: every test is at the ambient {t_ref:.2f} K: the temperature laws need "
+            "tests at two ambients or more."
+        )
+    col_of = {float(t): k for k, t in enumerate(t_axis)}
+    c_ref_new = col_of[float(np.round(t_ref, 2))]
+
+    specs: list[_Param] = []
+    theta0: list[float] = []
+
+    def add(name: str, unit: str, log: bool, lo: float, hi: float, x0: float) -> slice:
+        specs.append(_Param(name, unit, log, lo, hi))
+        theta0.append(float(np.clip(x0, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))))
+        return slice(len(specs) - 1, len(specs))
+
+    def block(names: list[tuple[str, str, bool, float, float, float]]) -> slice:
+        start = len(specs)
+        for item in names:
+            add(*item)
+        return slice(start, len(specs))
+
+    s_ocv = block(
+        [(f"ocv_v[soc={axis[k]:.3f}]", "V", False, lim.v_min_v, lim.v_max_v, ocv_ref[k]) for k in idx]
+    )
+    s_rs = block(
+        [
+            (f"rs_ohm[soc={axis[k]:.3f}]", "ohm", True, np.log(1e-5), np.log(10.0), np.log(rs_ref[k]))
+            for k in idx
+        ]
+    )
+    rc0 = p_in.rc_discharge
+    s_rc = block(
+        [
+            item
+            for j in range(n_rc)
+            for item in (
+                (f"rc[{j}].r_ohm", "ohm", True, np.log(1e-6), np.log(1.0), np.log(rc0[j, 0])),
+                (f"rc[{j}].tau_s", "s", True, np.log(0.5), np.log(1e5), np.log(rc0[j, 1])),
+            )
+        ]
+    )
+    ct = p_in.charge_transfer
+    s_ct = (
+        block(
+            [
+                ("ct_i0_a", "A", True, np.log(1e-3 * i_max), np.log(1e3 * i_max), np.log(ct.i0_a)),
+                ("ct_scale", "-", True, np.log(0.05), np.log(20.0), np.log(ct.scale)),
+            ]
+        )
+        if ct_on
+        else slice(0, 0)
+    )
+    lo_ea, hi_ea = EA_BOUNDS_J_PER_MOL
+    ea_names = ["rs_ea_j_per_mol"]
+    ea_names += [f"rc[{j}].ea_{w}_j_per_mol" for j in range(n_rc) for w in ("r", "tau")]
+    if ct_on:
+        ea_names.append("ct_ea_j_per_mol")
+    s_ea = (
+        block(
+            [
+                (n, "J/mol", False, lo_ea, hi_ea, ea0 if not n.endswith("tau_j_per_mol") else 0.0)
+                for n in ea_names
+            ]
+        )
+        if fit_ea
+        else slice(0, 0)
+    )
+    s_dudt = (
+        block([(f"dudt_v_per_k[soc={axis[k]:.3f}]", "V/K", False, -2e-3, 2e-3, 0.0) for k in idx])
+        if has_rests
+        else slice(0, 0)
+    )
+    other_cols = [k for k in range(t_axis.size) if k != c_ref_new]
+    s_cap = block(
+        [
+            (f"capacity_factor[T={t_axis[k]:.2f} K]", "-", True, np.log(0.5), np.log(1.5), 0.0)
+            for k in other_cols
+        ]
+    )
+    s_soc = block(
+        [
+            (f"soc_initial[{Path(r.source).name}]", "-", False, 0.0, 1.0, s0)
+            for r, s0 in zip(records, soc0, strict=True)
+        ]
+    )
+    all_meas = ref.temperature_measured and all(r.temperature_measured for r in records)
+    th = p_in.thermal
+    s_th = (
+        block(
+            [
+                ("c_heat_j_per_k", "J/K", True, np.log(1e-2), np.log(1e6), np.log(th.c_heat_j_per_k)),
+                ("r_skin_k_per_w", "K/W", True, np.log(1e-3), np.log(1e4), np.log(th.r_skin_k_per_w)),
+            ]
+        )
+        if all_meas
+        else slice(0, 0)
+    )
+    ocv_map = _OcvMap(ocv_ref, idx, axis, lim.v_min_v, lim.v_max_v, extrapolate=idx.size >= 2)
+
+    def build(theta: FloatArray) -> CellParameters:
+        ocv, _ = ocv_map(theta[s_ocv])
+        rs = np.interp(axis, axis[idx], np.exp(theta[s_rs]))
+        ea = dict(zip(ea_names, theta[s_ea], strict=True)) if fit_ea else dict.fromkeys(ea_names, 0.0)
+        rc = np.zeros((n_rc, 4))
+        if n_rc:
+            rc[:, :2] = np.exp(theta[s_rc]).reshape(n_rc, 2)
+            rc[:, 2] = [ea[f"rc[{j}].ea_r_j_per_mol"] for j in range(n_rc)]
+            rc[:, 3] = [ea[f"rc[{j}].ea_tau_j_per_mol"] for j in range(n_rc)]
+        dudt = np.zeros(axis.size)
+        if has_rests:
+            dudt = np.interp(axis, axis[idx], theta[s_dudt])
+        ocv_t = np.clip(ocv[:, None] + dudt[:, None] * (t_axis[None, :] - t_ref), lim.v_min_v, lim.v_max_v)
+        ocv_t = np.maximum.accumulate(ocv_t, axis=0)
+        capf = np.ones(t_axis.size)
+        capf[other_cols] = np.exp(theta[s_cap])
+        thermal = p_in.thermal
+        if all_meas:
+            c_h, r_sk = np.exp(theta[s_th])
+            thermal = dataclasses.replace(thermal, c_heat_j_per_k=float(c_h), r_skin_k_per_w=float(r_sk))
+        if has_rests:
+            thermal = dataclasses.replace(thermal, reversible_heat="ocv_table")
+        ct_new = p_in.charge_transfer
+        if ct_on:
+            i0, m = np.exp(theta[s_ct])
+            ct_new = dataclasses.replace(
+                ct_new, i0_a=float(i0), scale=float(m), ea_j_per_mol=float(ea["ct_ea_j_per_mol"])
+            )
+        n_t = t_axis.size
+        rs_t = np.repeat(rs[:, None], n_t, axis=1)
+        return _with(
+            p_in,
+            soc=axis,
+            temperature_k=t_axis,
+            ocv_charge_v=ocv_t.copy(),
+            ocv_discharge_v=ocv_t,
+            rs_charge_ohm=rs_t.copy(),
+            rs_discharge_ohm=rs_t,
+            capacity_factor=capf,
+            rc_discharge=rc if n_rc else p_in.rc_discharge,
+            rc_charge=rc.copy() if n_rc else p_in.rc_charge,
+            charge_transfer=ct_new,
+            thermal=thermal,
+            capacity=dataclasses.replace(p_in.capacity, t_ref_k=t_ref, alpha_c_per_k=0.0),
+            resistance=dataclasses.replace(
+                p_in.resistance, alpha_rs_per_k=0.0, ea_j_per_mol=float(ea["rs_ea_j_per_mol"])
+            ),
+        )
+
+    runs: list[tuple[CellTestRecord, float | None, float]] = [
+        (ref, float(result.metadata.get("soc_initial", 1.0)), t_ref)
+    ]
+    runs += [(r, None, float(r.temp_k[0])) for r in records]
+
+    def simulate_all(theta: FloatArray) -> list[tuple[FloatArray, FloatArray]]:
+        p = build(theta)
+        socs = theta[s_soc]
+        out = []
+        for k, (rec, s_ini, t_amb) in enumerate(runs):
+            s0 = s_ini if s_ini is not None else float(socs[k - 1])
+            out.append(_simulate(p, rec, s0, t_amb, float(rec.temp_k[0]) if k else t_ref))
+        return out
+
+    def residuals(theta: FloatArray) -> FloatArray:
+        parts = []
+        for (rec, _, _), (v, t) in zip(runs, simulate_all(theta), strict=True):
+            parts.append((v - rec.voltage_v) / sigma_v)
+            if all_meas:
+                parts.append((t - rec.temp_k) / sigma_t)
+        return np.concatenate(parts)
+
+    lo = np.array([s.lo for s in specs])
+    hi = np.array([s.hi for s in specs])
+    threads = choose_threads().threads
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        sol = _least_squares(
+            residuals,
+            np.array(theta0),
+            bounds=(lo, hi),
+            x_scale="jac",
+            ftol=1e-10,
+            xtol=1e-10,
+            max_nfev=200,
+            workers=pool.map if threads > 1 else map,
+        )
+    longest = max(_longest_segment_s(r) for r, _, _ in runs)
+    table = _stats(sol, specs, longest)
+    extra = []
+    if not fit_ea:
+        why = (
+            f"ambients {min(amb.min(), t_ref):.2f}..{max(amb.max(), t_ref):.2f} K span {spread:.2f} K "
+            f"< {min_ambient_spread_k:g} K: too close to separate an activation energy "
+            "(held at 0, not fitted)"
+        )
+        extra += [_unfitted(n, "J/mol", why) for n in ea_names]
+    if not has_rests:
+        why = (
+            f"no rests of {min_rest_s:g} s in every test at another ambient: the entropic coefficient is "
+            "not identifiable (the OCV is kept the same at every temperature)"
+        )
+        extra.append(_unfitted("dudt_v_per_k", "V/K", why))
+    if extra:
+        table = pd.concat([table, pd.DataFrame(extra)], ignore_index=True)
+    if result.parameters is not None and "name" in result.parameters:  # fit_temperature's step Ea
+        table = pd.concat(
+            [table, result.parameters[result.parameters["name"] == "r0_ea_j_per_mol"]], ignore_index=True
+        )
+    p_fit = build(sol.x)
+    sims = simulate_all(sol.x)
+    v, t = sims[0]
+    ts_new = _fit_series(ref, v, t, t_meas_ref, soc=ts["soc"].to_numpy(dtype=float))
+    err_all = np.concatenate([sv - r.voltage_v for (r, _, _), (sv, _) in zip(runs, sims, strict=True)])
+    per_file = {
+        r.source: float(np.sqrt(np.mean((sv - r.voltage_v) ** 2)))
+        for (r, _, _), (sv, _) in zip(runs, sims, strict=True)
+    }
+    rmse = {
+        "voltage_v": float(np.sqrt(np.mean((v - ref.voltage_v) ** 2))),
+        "voltage_max_v": float(np.max(np.abs(v - ref.voltage_v))),
+        "temp_k": float(np.sqrt(np.mean((t - t_meas_ref) ** 2)))
+        if ref.temperature_measured
+        else float("nan"),
+        "all_tests_voltage_v": float(np.sqrt(np.mean(err_all**2))),
+    }
+    meta = {
+        **result.metadata,
+        "temperature_files": [rec.source for rec in records],
+        "temperature_sha256": [_sha256(rec.source) for rec in records],
+        "ambient_temperatures_k": [float(x) for x in t_axis],
+        "temperature_laws": "joint fit over the ambients (issue 27)",
+        "temperature_laws_nfev": int(sol.nfev),
+        "temperature_laws_success": bool(sol.success),
+        "voltage_rmse_per_file_v": per_file,
+    }
+    return dataclasses.replace(
+        result, params=p_fit, parameters=table, rmse=rmse, timeseries=ts_new, metadata=meta
+    )
+
+
 def error_table(ts: pd.DataFrame, capacity_ah: float) -> pd.DataFrame:
     """Voltage RMSE / max error [V] per |current| range [C-rate] (:data:`CURRENT_BINS_C`) and
     overall, and the temperature RMSE [K] overall."""
@@ -976,8 +1311,10 @@ def parameter_toml(p: CellParameters, meta: dict[str, Any]) -> str:
         lines += [f"    {_fmt(list(row))}," for row in z]
         lines.append("]")
     for key in ("rc_discharge", "rc_charge"):
-        for r, tau in getattr(p, key):
-            lines += ["", f"[[{key}]]", f"r_ohm = {_fmt(r)}", f"tau_s = {_fmt(tau)}"]
+        for row in getattr(p, key):
+            lines += ["", f"[[{key}]]", f"r_ohm = {_fmt(row[0])}", f"tau_s = {_fmt(row[1])}"]
+            if row.size > 2:  # Arrhenius laws (issue 27)
+                lines += [f"ea_r_j_per_mol = {_fmt(row[2])}", f"ea_tau_j_per_mol = {_fmt(row[3])}"]
     return "\n".join(lines) + "\n"
 
 

@@ -44,6 +44,23 @@ bit for bit — see ``docs/battery.md``, "Cell model options"):
   relaxing toward ``-M sign(i)`` with charge throughput:
   ``dh/dt = -gamma |i| / C (h + M sign(i))`` (Plett's one-state model), exact for the step;
   its work ``-h i`` counts as heat.
+
+Temperature laws (issue 27; all off by default, which keeps the model above bit for bit):
+every law is evaluated at the start-of-step cell temperature ``T`` [K] with the reference
+``T_ref`` = ``t_ref_k``, as the Arrhenius factor ``A(Ea, T) = exp(Ea / R_gas (1/T - 1/T_ref))``
+(> 1 below ``T_ref`` for ``Ea`` > 0; :func:`arrhenius`).
+
+* OCV(SOC, T), R_s(SOC, T) and the capacity factor (T) are tables (clamped outside their
+  temperature axis); ``rs_ea_j_per_mol`` multiplies R_s by ``A(Ea_Rs, T)`` on top of eq (36).
+* RC elements: an RC set with four columns ``(R, tau, Ea_R, Ea_tau)`` has
+  ``R_i(T) = R_i A(Ea_R, T)`` and ``tau_i(T) = tau_i A(Ea_tau, T)`` (two columns: constant).
+* ``hyst_ea_j_per_mol``: hysteresis amplitude ``M(T) = M A(Ea_M, T)``.
+* ``entropic_heat`` = 1: reversible (entropic) heat ``-i T dU/dT`` [W] (discharge > 0) adds to
+  the heat, with ``dU/dT`` the temperature slope of the OCV table of the step's direction at the
+  step's SOC (start of step; mid-step with ``ocv_in_step``) and ``T``; zero outside the table's
+  temperature axis, where the OCV is clamped, and where the OCV is clamped to the voltage
+  limits. The chemical energy of the step is then the enthalpy ``-(OCV - T dU/dT) i dt``, so
+  the energy balance still closes.
 """
 
 from __future__ import annotations
@@ -54,7 +71,7 @@ from typing import Any
 import numpy as np
 from numba import njit, prange
 
-from hevsim.tables import interp1, interp2
+from hevsim.tables import _segment, interp1, interp2
 
 # --- parameter vector layout (one row per cell) ---------------------------------------------
 PARAMS = (
@@ -79,9 +96,13 @@ PARAMS = (
     "ct_ea_j_per_mol",
     "hyst_max_v",
     "hyst_gamma",
+    # temperature laws (issue 27; module docstring, "Temperature laws"); zeros: none
+    "rs_ea_j_per_mol",
+    "hyst_ea_j_per_mol",
+    "entropic_heat",
 )
 C0, KCQ, ALPHAC, TREF, ALPHARS, CHEAT, RSKIN, VMIN, VMAX, SOCINI, RSCALE, NRC, IBAND = range(13)
-RCPERS, OCVSTEP, CTI0, CTM, CTEA, HMAX, HGAMMA = range(13, len(PARAMS))
+RCPERS, OCVSTEP, CTI0, CTM, CTEA, HMAX, HGAMMA, EARS, HEA, ENTROPIC = range(13, len(PARAMS))
 
 MODEL_SCALARS = {
     "ct_i0_a": CTI0,
@@ -89,11 +110,36 @@ MODEL_SCALARS = {
     "ct_ea_j_per_mol": CTEA,
     "hyst_max_v": HMAX,
     "hyst_gamma": HGAMMA,
+    "rs_ea_j_per_mol": EARS,
+    "hyst_ea_j_per_mol": HEA,
 }
 """Scalar parameters of the model options that calibration fits: name -> index in the vector."""
 
 R_GAS_J_PER_MOL_K = 8.314462618  # molar gas constant [J/(mol K)], CODATA 2018 (exact)
 FARADAY_C_PER_MOL = 96485.33212  # Faraday constant [C/mol], CODATA 2018 (exact)
+
+
+@njit(cache=True, inline="always")
+def arrhenius(ea_j_per_mol, temp_k, t_ref_k):
+    """Arrhenius factor ``exp(Ea / R_gas (1/T - 1/T_ref))`` [-] of a resistance-like quantity
+    (activation energy [J/mol], temperatures [K]): 1 at ``T_ref``, > 1 below it for Ea > 0."""
+    return math.exp(ea_j_per_mol / R_GAS_J_PER_MOL_K * (1.0 / temp_k - 1.0 / t_ref_k))
+
+
+@njit(cache=True, inline="always")
+def rc_values(rc, jj, temp_k, t_ref_k):
+    """(R [ohm, before r_scale], tau [s]) of RC element row ``jj`` of the set ``rc`` at
+    ``temp_k`` [K]: the table's values, times their Arrhenius factors when the set has the
+    activation-energy columns ``(R, tau, Ea_R, Ea_tau)`` (module docstring)."""
+    r = rc[jj, 0]
+    tau = rc[jj, 1]
+    if rc.shape[1] > 2:
+        if rc[jj, 2] != 0.0:
+            r *= arrhenius(rc[jj, 2], temp_k, t_ref_k)
+        if rc[jj, 3] != 0.0:
+            tau *= arrhenius(rc[jj, 3], temp_k, t_ref_k)
+    return r, tau
+
 
 TUNABLE_SCALARS = {
     "c0_c": C0,
@@ -155,6 +201,8 @@ def cell_ocv_rs(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, soc, temp_k, direct
         ocv = interp2(soc_ax, t_ax, ocv_c, soc, temp_k, False)
         r = interp2(soc_ax, t_ax, rs_c, soc, temp_k, False)
     ocv = min(max(ocv, prm[VMIN]), prm[VMAX])
+    if prm[EARS] != 0.0:
+        r *= arrhenius(prm[EARS], temp_k, prm[TREF])
     return ocv, series_resistance(r, prm[RSCALE], prm[ALPHARS], temp_k, prm[TREF])
 
 
@@ -183,6 +231,26 @@ def cell_ocv(prm, soc_ax, t_ax, ocv_c, ocv_d, soc, temp_k, direction):
     else:
         ocv = interp2(soc_ax, t_ax, ocv_c, soc, temp_k, False)
     return min(max(ocv, prm[VMIN]), prm[VMAX])
+
+
+@njit(cache=True)
+def ocv_dudt(prm, soc_ax, t_ax, ocv_c, ocv_d, soc, temp_k, direction):
+    """Entropic coefficient dU/dT [V/K] of a direction's OCV table at ``soc`` [-], ``temp_k``
+    [K]: the temperature slope of the bilinear table (the segment above a breakpoint at a
+    breakpoint); 0 with one temperature column, outside the temperature axis (clamped) and
+    where the OCV is clamped to the voltage limits."""
+    nt = t_ax.shape[0]
+    if nt < 2 or temp_k < t_ax[0] or temp_k >= t_ax[nt - 1]:
+        return 0.0
+    raw = interp2(soc_ax, t_ax, ocv_d if direction >= 0.0 else ocv_c, soc, temp_k, False)
+    if not prm[VMIN] < raw < prm[VMAX]:
+        return 0.0
+    j = _segment(t_ax, temp_k)
+    s = min(max(soc, soc_ax[0]), soc_ax[soc_ax.shape[0] - 1])
+    tab = ocv_d if direction >= 0.0 else ocv_c
+    lo = interp1(soc_ax, tab[:, j], s, False)
+    hi = interp1(soc_ax, tab[:, j + 1], s, False)
+    return (hi - lo) / (t_ax[j + 1] - t_ax[j])
 
 
 @njit(cache=True)
@@ -222,11 +290,15 @@ def ct_overpotential(prm, i_a, temp_k):
 
 
 @njit(cache=True)
-def hysteresis_step(prm, h0, i_a, dt, cap):
-    """One-state hysteresis over a step at constant ``i_a`` [A]: (end value [V], step mean [V])."""
+def hysteresis_step(prm, h0, i_a, dt, cap, temp_k):
+    """One-state hysteresis over a step at constant ``i_a`` [A] at ``temp_k`` [K]: (end value
+    [V], step mean [V])."""
     if prm[HMAX] <= 0.0 or i_a == 0.0:
         return h0, h0
-    target = -prm[HMAX] if i_a > 0.0 else prm[HMAX]
+    m = prm[HMAX]
+    if prm[HEA] != 0.0:
+        m *= arrhenius(prm[HEA], temp_k, prm[TREF])
+    target = -m if i_a > 0.0 else m
     k = prm[HGAMMA] * abs(i_a) / cap  # decay rate [1/s]
     if k <= 0.0:
         return h0, h0
@@ -292,17 +364,17 @@ def branch_affine_at(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc
     persistent = prm[RCPERS] > 0.0
     for j in range(n if persistent else 2 * n):
         rc, jj, active = rc_element(j, n, persistent, direction, rc_d, rc_c)
-        tau = rc[jj, 1]
+        r_el, tau = rc_values(rc, jj, temp, prm[TREF])
         g = tau * (1.0 - math.exp(-dt / tau)) / dt  # mean of exp(-t/tau) over the step
         if active:
             e -= x[N_FIXED_STATES + j] * g
-            z += rc[jj, 0] * prm[RSCALE] * (1.0 - g)
+            z += r_el * prm[RSCALE] * (1.0 - g)
     if prm[CTI0] > 0.0:
         eta, d_eta = ct_overpotential(prm, i_lin, temp)
         e -= eta - d_eta * i_lin
         z += d_eta
     if prm[HMAX] > 0.0:
-        _, h_avg = hysteresis_step(prm, x[SHYST], i_lin, dt, cap)
+        _, h_avg = hysteresis_step(prm, x[SHYST], i_lin, dt, cap, temp)
         e += h_avg
     return e, z
 
@@ -334,8 +406,8 @@ def cell_step(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, 
     persistent = prm[RCPERS] > 0.0
     for j in range(n if persistent else 2 * n):
         rc, jj, active = rc_element(j, n, persistent, direction, rc_d, rc_c)
-        r_j = rc[jj, 0] * prm[RSCALE]
-        tau = rc[jj, 1]
+        r_el, tau = rc_values(rc, jj, temp0, prm[TREF])
+        r_j = r_el * prm[RSCALE]
         a = r_j * i_a if active else 0.0
         v0 = x[N_FIXED_STATES + j]
         e1 = math.exp(-dt / tau)
@@ -349,10 +421,15 @@ def cell_step(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, 
             v_sum_avg += int_v / dt
         x[N_FIXED_STATES + j] = v1
     eta, _ = ct_overpotential(prm, i_a, temp0)
-    h1, h_avg = hysteresis_step(prm, x[SHYST], i_a, dt, cap)
+    h1, h_avg = hysteresis_step(prm, x[SHYST], i_a, dt, cap, temp0)
     heat_j = rs * i_a * i_a * dt + rc_heat_j
     if prm[CTI0] > 0.0 or prm[HMAX] > 0.0:
         heat_j += (eta - h_avg) * i_a * dt
+    t_dudt = 0.0  # T dU/dT [V] (entropic heat, module docstring)
+    if prm[ENTROPIC] > 0.0:
+        s_rev = soc - 0.5 * i_a * dt / cap if prm[OCVSTEP] > 0.0 else soc
+        t_dudt = temp0 * ocv_dudt(prm, soc_ax, t_ax, ocv_c, ocv_d, s_rev, temp0, direction)
+        heat_j -= i_a * t_dudt * dt
     q_heat = heat_j / dt
     # lumped temperature, eq (41) with a skin resistance to the port: exact exponential
     tau_th = prm[CHEAT] * prm[RSKIN]
@@ -382,7 +459,7 @@ def cell_step(prm, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, capf, rc_d, rc_c, x, 
     rec[RCAP] = cap
     rec[RRS] = rs
     rec[REEL] = v_avg * i_a * dt
-    rec[RECH] = -ocv_avg * i_a * dt
+    rec[RECH] = -(ocv_avg - t_dudt) * i_a * dt if prm[ENTROPIC] > 0.0 else -ocv_avg * i_a * dt
     rec[REHEAT] = heat_j
     rec[REPORT] = port_j
 
@@ -396,7 +473,8 @@ def rc_energy(prm, rc_d, rc_c, x):
     persistent = prm[RCPERS] > 0.0
     for j in range(n if persistent else 2 * n):
         rc, jj, _ = rc_element(j, n, persistent, x[SDIR], rc_d, rc_c)
-        c = rc[jj, 1] / (rc[jj, 0] * prm[RSCALE])
+        r_el, tau = rc_values(rc, jj, x[STEMP], prm[TREF])
+        c = tau / (r_el * prm[RSCALE])
         v = x[N_FIXED_STATES + j]
         e += 0.5 * c * v * v
     return e

@@ -128,6 +128,7 @@ class Module:
             tp = np.ascontiguousarray(tp_in)
         else:
             tp = np.repeat(as_profile(tp_in, i.size, "port_temperature", "K")[:, None], self.n_cells, axis=1)
+        self.params.check_temperature_coverage(tp, "the port temperature")
         out_m = np.empty((i.size, 4))
         out_c = np.empty((i.size, self.n_cells, len(CELL_CHANNELS)))
         tabs = self.params.tables()

@@ -1081,7 +1081,9 @@ class Pack:
             p = self.prm
             nonlinear = (p[:, OCVSTEP] > 0.0) | (p[:, CTI0] > 0.0) | (p[:, HMAX] > 0.0)
             same_rc = np.all(p[:, NRC] == p[0, NRC]) and np.all(p[:, RCPERS] == p[0, RCPERS])
-            self._is_linear = bool(same_rc and not nonlinear.any())
+            # temperature laws (issue 27): R_s, RC and entropic heat vary with each cell's temperature
+            laws = self.params.has_temperature_laws
+            self._is_linear = bool(same_rc and not nonlinear.any() and not laws)
             self._rcc = rc_constants(p[0], self._tabs[7], self._tabs[8], self.cfg.pack.dt_s)
         return self._is_linear
 

@@ -9,6 +9,7 @@ See ``docs/battery.md`` for the file format.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -34,7 +35,8 @@ class CapacitySection:
 
 @dataclass(frozen=True)
 class ResistanceSection:
-    """Eq (36): ``R_s = R_table(SOC, T) (1 + alphaRs (T - T_ref))`` [ohm].
+    """Eq (36): ``R_s = R_table(SOC, T) (1 + alphaRs (T - T_ref))`` [ohm], times the Arrhenius
+    factor ``exp(Ea/R_gas (1/T - 1/T_ref))`` of ``ea_j_per_mol`` (0: none; issue 27).
 
     ``switch_band_a`` [A]: dead band of the charge/discharge switch (see
     :mod:`hevsim.battery.kernel`).
@@ -42,14 +44,21 @@ class ResistanceSection:
 
     alpha_rs_per_k: float = 0.0
     switch_band_a: float = 0.01
+    ea_j_per_mol: float = field(default=0.0, metadata={"bounds": (-2e5, 2e5), "unit": "J/mol"})
 
 
 @dataclass(frozen=True)
 class ThermalSection:
-    """Lumped thermal model, eq (41): heat capacity and skin resistance to the heat port."""
+    """Lumped thermal model, eq (41): heat capacity and skin resistance to the heat port.
+
+    ``reversible_heat``: ``"off"`` (thesis: Joule and polarisation heat only) or
+    ``"ocv_table"``: the entropic heat ``-i T dU/dT`` with ``dU/dT`` the temperature slope of
+    the OCV tables (which then need two temperature columns or more; issue 27).
+    """
 
     c_heat_j_per_k: float
     r_skin_k_per_w: float
+    reversible_heat: str = field(default="off", metadata={"choices": ("off", "ocv_table")})
 
 
 @dataclass(frozen=True)
@@ -108,6 +117,7 @@ class HysteresisSection:
 
     max_v: float = field(default=0.0, metadata={"bounds": (0.0, 1.0), "unit": "V"})
     gamma: float = field(default=0.0, metadata={"bounds": (0.0, 1e6)})
+    ea_j_per_mol: float = field(default=0.0, metadata={"bounds": (-2e5, 2e5), "unit": "J/mol"})
 
 
 _BOUNDS = {
@@ -143,7 +153,8 @@ class CellParameters:
 
     Tables are stored as ``[soc index, temperature index]`` over ``soc`` [-] and
     ``temperature_k`` [K]; ``rc_discharge`` / ``rc_charge`` are ``(n_rc, 2)`` arrays of
-    (R [ohm], tau [s]).
+    (R [ohm], tau [s]) at ``capacity.t_ref_k``, or ``(n_rc, 4)`` with the activation energies
+    (Ea_R, Ea_tau) [J/mol] of their Arrhenius laws (:func:`hevsim.battery.kernel.rc_values`).
     """
 
     name: str
@@ -207,7 +218,46 @@ class CellParameters:
         p[K.CTEA] = self.charge_transfer.ea_j_per_mol
         p[K.HMAX] = self.hysteresis.max_v
         p[K.HGAMMA] = self.hysteresis.gamma
+        p[K.EARS] = self.resistance.ea_j_per_mol
+        p[K.HEA] = self.hysteresis.ea_j_per_mol
+        p[K.ENTROPIC] = 1.0 if self.thermal.reversible_heat == "ocv_table" else 0.0
         return p
+
+    @property
+    def has_temperature_laws(self) -> bool:
+        """Whether any Arrhenius law or the entropic heat is on (issue 27)."""
+        rc_ea = self.rc_discharge.shape[1] > 2 and bool(
+            np.any(self.rc_discharge[:, 2:] != 0) or np.any(self.rc_charge[:, 2:] != 0)
+        )
+        return (
+            rc_ea
+            or self.resistance.ea_j_per_mol != 0.0
+            or self.hysteresis.ea_j_per_mol != 0.0
+            or (self.thermal.reversible_heat != "off")
+        )
+
+    def check_temperature_coverage(self, temps_k: Any, what: str) -> None:
+        """Warn (:class:`TemperatureRangeWarning`) when ``temps_k`` [K] leave the tables'
+        temperature axis: beyond it the tables are clamped (held at the edge column) and the
+        entropic coefficient is zero; the Arrhenius laws hold at any temperature."""
+        t = np.asarray(temps_k, dtype=float)
+        ax = self.temperature_k
+        if ax.size < 2 or t.size == 0:
+            return
+        lo, hi = float(np.min(t)), float(np.max(t))
+        if lo < ax[0] or hi > ax[-1]:
+            bad = lo if lo < ax[0] else hi
+            key = (self.source, float(ax[0]), float(ax[-1]), what, bad < ax[0])
+            if key in _WARNED:  # once per set, axis and side (a run repeated in a loop)
+                return
+            _WARNED.add(key)
+            warnings.warn(
+                f"{self.source}: key 'tables.temperature_k' covers {ax[0]:g}..{ax[-1]:g} K but {what} "
+                f"reaches {bad:g} K; the tables are clamped there (held at the {ax[0]:g} or {ax[-1]:g} K "
+                "column, no entropic heat); give a column at that temperature to model it.",
+                TemperatureRangeWarning,
+                stacklevel=3,
+            )
 
     def tables(self) -> tuple[FloatArray, ...]:
         """Kernel table tuple: (soc, T, ocv_chg, ocv_dis, rs_chg, rs_dis, cap factor, rc_dis, rc_chg)."""
@@ -235,6 +285,14 @@ class CellParameters:
         c = K.cell_capacity(p, self.temperature_k, self.capacity_factor, q_ini_c, temp_k)
         x[K.SCYC] = q_ini_c / (self.capacity.c0_c + c)  # eq (39)
         return x
+
+
+class TemperatureRangeWarning(UserWarning):
+    """A simulation runs at temperatures outside a parameter set's temperature axis (clamped)."""
+
+
+_WARNED: set[tuple[str, float, float, str, bool]] = set()
+"""Temperature-coverage warnings given (:meth:`CellParameters.check_temperature_coverage`)."""
 
 
 def _err(src: str, key: str, msg: str) -> InputError:
@@ -331,15 +389,33 @@ def validate(c: CellParameters) -> None:
             raise _err(src, f"thermal.{name}", f"{v!r} must be > 0.")
     for name in ("rc_discharge", "rc_charge"):
         rc = getattr(c, name)
-        if rc.ndim != 2 or rc.shape[1] != 2:
+        if rc.ndim != 2 or rc.shape[1] not in (2, 4):
             raise _err(src, name, f"expected a list of {{r_ohm, tau_s}} elements, got shape {rc.shape}.")
-        if np.any(rc <= 0) or not np.all(np.isfinite(rc)):
-            i = int(np.argwhere((rc <= 0) | ~np.isfinite(rc))[0][0])
+        bad = (rc[:, :2] <= 0).any(axis=1) | ~np.isfinite(rc).all(axis=1)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            ea = f", activation energies {rc[i, 2]!r}, {rc[i, 3]!r} J/mol" if rc.shape[1] > 2 else ""
             raise _err(
                 src,
                 f"{name}[{i}]",
-                f"r_ohm = {rc[i, 0]!r}, tau_s = {rc[i, 1]!r}: both must be finite and > 0.",
+                f"r_ohm = {rc[i, 0]!r}, tau_s = {rc[i, 1]!r}{ea}: both must be finite and > 0"
+                + (" (the activation energies finite)." if ea else "."),
             )
+        if rc.shape[1] > 2 and np.any(np.abs(rc[:, 2:]) > 2e5):
+            i, j = (int(v) for v in np.argwhere(np.abs(rc[:, 2:]) > 2e5)[0])
+            key = ("ea_r_j_per_mol", "ea_tau_j_per_mol")[j]
+            raise _err(
+                src,
+                f"{name}[{i}].{key}",
+                f"value {rc[i, 2 + j]!r} J/mol is outside [-200000, 200000] J/mol (an activation energy).",
+            )
+    if c.thermal.reversible_heat != "off" and c.temperature_k.size < 2:
+        raise _err(
+            src,
+            "thermal.reversible_heat",
+            f"{c.thermal.reversible_heat!r} takes dU/dT from the OCV tables' temperature slope, but "
+            f"tables.temperature_k has one column ({c.temperature_k[0]!r} K); expected two or more.",
+        )
     if c.rc_discharge.shape != c.rc_charge.shape:
         raise _err(
             src,
@@ -367,6 +443,11 @@ def _table(tables: dict[str, Any], key: str, src: str, n_t: int, n_soc: int) -> 
     return np.ascontiguousarray(z.T)
 
 
+RC_KEYS = ("r_ohm", "tau_s", "ea_r_j_per_mol", "ea_tau_j_per_mol")
+"""Keys of an RC element: R [ohm] and tau [s] at ``capacity.t_ref_k``, optional activation
+energies [J/mol] of their Arrhenius laws (issue 27; 0 = constant)."""
+
+
 def _rc(data: Any, key: str, src: str) -> FloatArray:
     if data is None:
         return np.zeros((0, 2))
@@ -374,10 +455,21 @@ def _rc(data: Any, key: str, src: str) -> FloatArray:
         raise _err(src, key, f"expected an array of tables [[{key}]], got {data!r}.")
     rows = []
     for i, el in enumerate(data):
-        if not isinstance(el, dict) or set(el) != {"r_ohm", "tau_s"}:
-            raise _err(src, f"{key}[{i}]", f"{el!r}: expected exactly the keys r_ohm and tau_s.")
-        rows.append([float(el["r_ohm"]), float(el["tau_s"])])
-    return np.array(rows, dtype=float).reshape(-1, 2)
+        if not isinstance(el, dict) or not {"r_ohm", "tau_s"} <= set(el) or not set(el) <= set(RC_KEYS):
+            raise _err(
+                src,
+                f"{key}[{i}]",
+                f"{el!r}: expected the keys r_ohm and tau_s, optionally ea_r_j_per_mol and ea_tau_j_per_mol.",
+            )
+        row = []
+        for k in RC_KEYS:
+            v = el.get(k, 0.0)
+            if isinstance(v, bool) or not isinstance(v, int | float):
+                raise _err(src, f"{key}[{i}].{k}", f"value {v!r} has the wrong type; expected a number.")
+            row.append(float(v))
+        rows.append(row)
+    arr = np.array(rows, dtype=float).reshape(-1, 4)
+    return arr if np.any(arr[:, 2:] != 0.0) else np.ascontiguousarray(arr[:, :2])
 
 
 def parameters_from_dict(data: dict[str, Any], source: str) -> CellParameters:
@@ -410,6 +502,10 @@ def parameters_from_dict(data: dict[str, Any], source: str) -> CellParameters:
     ocv_d = _table(tables, "ocv_discharge_v", source, n_t, n_soc)
     rs_c = _table(tables, "rs_charge_ohm", source, n_t, n_soc)
     rs_d = _table(tables, "rs_discharge_ohm", source, n_t, n_soc)
+    rc_d = _rc(data.get("rc_discharge"), "rc_discharge", source)
+    rc_c = _rc(data.get("rc_charge"), "rc_charge", source)
+    if rc_d.shape[1] != rc_c.shape[1]:  # Arrhenius columns in one set only: both get them
+        rc_d, rc_c = (np.c_[a, np.zeros((a.shape[0], 2))] if a.shape[1] == 2 else a for a in (rc_d, rc_c))
     return CellParameters(
         name=str(data.get("name", "cell")),
         description=str(data.get("description", "")),
@@ -425,8 +521,8 @@ def parameters_from_dict(data: dict[str, Any], source: str) -> CellParameters:
         rs_charge_ohm=rs_c,
         rs_discharge_ohm=rs_d,
         capacity_factor=capf,
-        rc_discharge=_rc(data.get("rc_discharge"), "rc_discharge", source),
-        rc_charge=_rc(data.get("rc_charge"), "rc_charge", source),
+        rc_discharge=rc_d,
+        rc_charge=rc_c,
         source=source,
         model=section(ModelSection, "model"),
         charge_transfer=section(ChargeTransferSection, "charge_transfer"),

@@ -138,10 +138,16 @@ def quasi_static_pack(
     prm = p.vector(1.0)
 
     def r_s(table: FloatArray) -> FloatArray:  # eq 36 on the table's temperature axis
-        return K.series_resistance(table, prm[K.RSCALE], prm[K.ALPHARS], t[None, :], prm[K.TREF])
+        r = K.series_resistance(table, prm[K.RSCALE], prm[K.ALPHARS], t[None, :], prm[K.TREF])
+        if prm[K.EARS] != 0.0:  # its Arrhenius law (issue 27)
+            r = r * np.array([K.arrhenius(prm[K.EARS], tk, prm[K.TREF]) for tk in t])[None, :]
+        return r
 
-    r_d = r_s(p.rs_discharge_ohm) + p.rc_discharge[:, 0].sum()
-    r_c = r_s(p.rs_charge_ohm) + p.rc_charge[:, 0].sum()
+    def r_rc(rc: FloatArray) -> FloatArray:  # sum of the RC resistances at each table temperature
+        return np.array([sum(K.rc_values(rc, j, tk, prm[K.TREF])[0] for j in range(rc.shape[0])) for tk in t])
+
+    r_d = r_s(p.rs_discharge_ohm) + r_rc(p.rc_discharge)[None, :]
+    r_c = r_s(p.rs_charge_ohm) + r_rc(p.rc_charge)[None, :]
     ocv = 0.5 * (p.ocv_charge_v + p.ocv_discharge_v)
     cap_c = K.cell_capacity(p.vector(1.0), t, p.capacity_factor, 0.0, temp_k)
 

@@ -15,7 +15,8 @@
 
 /* parameter vector of one cell (hevsim.battery.kernel.PARAMS without n_rc, a compile-time NRC) */
 enum { P_C0, P_KCQ, P_ALPHAC, P_TREF, P_ALPHARS, P_CHEAT, P_RSKIN, P_VMIN, P_VMAX, P_SOCINI,
-       P_RSCALE, P_BAND, P_RCPERS, P_OCVSTEP, P_CTI0, P_CTM, P_CTEA, P_HMAX, P_HGAMMA, N_PRM };
+       P_RSCALE, P_BAND, P_RCPERS, P_OCVSTEP, P_CTI0, P_CTM, P_CTEA, P_HMAX, P_HGAMMA, P_EARS, P_HEA,
+       P_ENTROPIC, N_PRM };
 
 #define HV_R_GAS 8.314462618   /* molar gas constant [J/(mol K)], CODATA 2018 (kernel.R_GAS_J_PER_MOL_K) */
 #define HV_FARADAY 96485.33212 /* Faraday constant [C/mol], CODATA 2018 (kernel.FARADAY_C_PER_MOL) */
@@ -27,6 +28,12 @@ enum { R_V, R_VAVG, R_OCV, R_SOC, R_TEMP, R_HEAT, R_PORT, R_CAP, R_RS, N_REC };
 
 static double hv_min(double a, double b) { return a < b ? a : b; }
 static double hv_max(double a, double b) { return a > b ? a : b; }
+
+/* Arrhenius factor exp(Ea / R_gas (1/T - 1/T_ref)) [-] (kernel.arrhenius) */
+static double hv_arrhenius(double ea, double temp_k, double t_ref_k)
+{
+    return exp(ea / HV_R_GAS * (1.0 / temp_k - 1.0 / t_ref_k));
+}
 
 /* index i of the segment [xp[i], xp[i+1]] holding x (edge segments outside the range) */
 static int hv_segment(const double *xp, int n, double x)
@@ -91,6 +98,7 @@ static void hv_ocv_rs(const double *p, double soc, double temp_k, double directi
         r = hv_interp2(RS_C, soc, temp_k);
     }
     *ocv = hv_min(hv_max(o, p[P_VMIN]), p[P_VMAX]);
+    if (p[P_EARS] != 0.0) r *= hv_arrhenius(p[P_EARS], temp_k, p[P_TREF]);
     *rs = r * p[P_RSCALE] * (1.0 + p[P_ALPHARS] * (temp_k - p[P_TREF]));
 }
 
@@ -99,6 +107,22 @@ static double hv_cell_ocv(const double *p, double soc, double temp_k, double dir
 {
     double o = direction >= 0.0 ? hv_interp2(OCV_D, soc, temp_k) : hv_interp2(OCV_C, soc, temp_k);
     return hv_min(hv_max(o, p[P_VMIN]), p[P_VMAX]);
+}
+
+/* entropic coefficient dU/dT [V/K]: temperature slope of a direction's OCV table (kernel.ocv_dudt) */
+static double hv_ocv_dudt(const double *p, double soc, double temp_k, double direction)
+{
+    const double(*tab)[NT] = direction >= 0.0 ? OCV_D : OCV_C;
+    double raw, s, lo, hi;
+    int j;
+    if (NT < 2 || temp_k < T_AX[0] || temp_k >= T_AX[NT - 1]) return 0.0;
+    raw = hv_interp2(tab, soc, temp_k);
+    if (!(p[P_VMIN] < raw && raw < p[P_VMAX])) return 0.0;
+    j = hv_segment(T_AX, NT, temp_k);
+    s = hv_min(hv_max(soc, SOC_AX[0]), SOC_AX[NSOC - 1]);
+    lo = hv_interp1(SOC_AX, NSOC, &tab[0][j], NT, s);
+    hi = hv_interp1(SOC_AX, NSOC, &tab[0][j + 1], NT, s);
+    return (hi - lo) / (T_AX[j + 1] - T_AX[j]);
 }
 
 /* mean OCV [V] over the linear SOC path soc0 -> soc1 with end OCVs f0, f1 (kernel.ocv_step_mean) */
@@ -146,14 +170,16 @@ static void hv_ct_overpotential(const double *p, double i_a, double temp_k, doub
 }
 
 /* one-state hysteresis over a step at constant i_a: end value and step mean [V] (kernel.hysteresis_step) */
-static void hv_hysteresis_step(const double *p, double h0, double i_a, double dt, double cap, double *h1,
-                               double *h_avg)
+static void hv_hysteresis_step(const double *p, double h0, double i_a, double dt, double cap, double temp_k,
+                               double *h1, double *h_avg)
 {
-    double target, k, e1, d;
+    double target, k, e1, d, m;
     *h1 = h0;
     *h_avg = h0;
     if (p[P_HMAX] <= 0.0 || i_a == 0.0) return;
-    target = i_a > 0.0 ? -p[P_HMAX] : p[P_HMAX];
+    m = p[P_HMAX];
+    if (p[P_HEA] != 0.0) m *= hv_arrhenius(p[P_HEA], temp_k, p[P_TREF]);
+    target = i_a > 0.0 ? -m : m;
     k = p[P_HGAMMA] * fabs(i_a) / cap;
     if (k <= 0.0) return;
     e1 = exp(-k * dt);
@@ -173,23 +199,25 @@ static double hv_direction(double i_a, double last, double band)
 /* number of RC states in use: NRC with a persistent set, else 2 NRC (switched sets) */
 #define HV_N_RC_STATES(p) ((p)[P_RCPERS] > 0.0 ? NRC : 2 * NRC)
 
-/* RC state j: resistance [ohm, unscaled], time constant [s], connected? (kernel.rc_element) */
-static void hv_rc(const double *p, int j, double direction, double *r, double *tau, int *active)
+/* RC state j at temp_k: resistance [ohm, unscaled], time constant [s] with their Arrhenius laws,
+ * connected? (kernel.rc_element, kernel.rc_values) */
+static void hv_rc(const double *p, int j, double direction, double temp_k, double *r, double *tau, int *active)
 {
+    const double *row;
     if (p[P_RCPERS] > 0.0) {
-        const double *row = direction > 0.0 ? RC_D[j] : RC_C[j];
-        *r = row[0];
-        *tau = row[1];
+        row = direction > 0.0 ? RC_D[j] : RC_C[j];
         *active = 1;
     } else if (j < NRC) {
-        *r = RC_D[j][0];
-        *tau = RC_D[j][1];
+        row = RC_D[j];
         *active = direction > 0.0;
     } else {
-        *r = RC_C[j - NRC][0];
-        *tau = RC_C[j - NRC][1];
+        row = RC_C[j - NRC];
         *active = direction < 0.0;
     }
+    *r = row[0];
+    *tau = row[1];
+    if (row[2] != 0.0) *r *= hv_arrhenius(row[2], temp_k, p[P_TREF]);
+    if (row[3] != 0.0) *tau *= hv_arrhenius(row[3], temp_k, p[P_TREF]);
 }
 
 /* advance cell state x by dt [s] at constant current i_a [A], port temperature t_port [K] */
@@ -215,7 +243,7 @@ static void hv_cell_step(const double *p, double *x, double i_a, double dt, doub
     }
     for (j = 0; j < HV_N_RC_STATES(p); j++) {
         double r0, tau, r_j, a, v0, e1, d, v1, int_v, int_v2;
-        hv_rc(p, j, direction, &r0, &tau, &active);
+        hv_rc(p, j, direction, temp0, &r0, &tau, &active);
         r_j = r0 * p[P_RSCALE];
         a = active ? r_j * i_a : 0.0;
         v0 = x[N_FIXED + j];
@@ -232,9 +260,13 @@ static void hv_cell_step(const double *p, double *x, double i_a, double dt, doub
         x[N_FIXED + j] = v1;
     }
     hv_ct_overpotential(p, i_a, temp0, &eta, &d_eta);
-    hv_hysteresis_step(p, x[S_HYST], i_a, dt, cap, &h1, &h_avg);
+    hv_hysteresis_step(p, x[S_HYST], i_a, dt, cap, temp0, &h1, &h_avg);
     heat_j = rs * i_a * i_a * dt + rc_heat_j;
     if (p[P_CTI0] > 0.0 || p[P_HMAX] > 0.0) heat_j += (eta - h_avg) * i_a * dt;
+    if (p[P_ENTROPIC] > 0.0) { /* reversible heat -i T dU/dT (kernel.cell_step) */
+        double s_rev = p[P_OCVSTEP] > 0.0 ? soc - 0.5 * i_a * dt / cap : soc;
+        heat_j -= i_a * (temp0 * hv_ocv_dudt(p, s_rev, temp0, direction)) * dt;
+    }
     q_heat = heat_j / dt;
     /* lumped temperature, eq (41) with a skin resistance to the port: exact exponential */
     tau_th = p[P_CHEAT] * p[P_RSKIN];
@@ -299,7 +331,7 @@ static void hv_branch_affine(const double *p, const double *x, double dt, double
     }
     for (j = 0; j < HV_N_RC_STATES(p); j++) {
         double r0, tau, g;
-        hv_rc(p, j, direction, &r0, &tau, &active);
+        hv_rc(p, j, direction, temp, &r0, &tau, &active);
         g = tau * (1.0 - exp(-dt / tau)) / dt;
         if (active) {
             *e -= x[N_FIXED + j] * g;
@@ -314,7 +346,7 @@ static void hv_branch_affine(const double *p, const double *x, double dt, double
     }
     if (p[P_HMAX] > 0.0) {
         double h1, h_avg;
-        hv_hysteresis_step(p, x[S_HYST], i_lin, dt, cap, &h1, &h_avg);
+        hv_hysteresis_step(p, x[S_HYST], i_lin, dt, cap, temp, &h1, &h_avg);
         *e += h_avg;
     }
 }

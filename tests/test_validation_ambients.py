@@ -1,0 +1,46 @@
+"""Validation at ambients the calibration never saw (issue 27, item 3): hevsim's cell calibrated
+on PyBaMM DFN pulse tests (lumped thermal) at 0, 25 and 45 degC with the joint temperature
+laws holds the targets on the DFN's UDDS current at -10, 10, 35 and 45 degC (<= 12 mV RMS,
+<= 40 mV max, <= 0.5 K RMS), where the same cell calibrated at 25 degC alone does not.
+Reduced data set: the first three SOC levels of each pulse test (SOC 0.95 -> 0.65; the UDDS
+runs from SOC 0.8). The full table: ``python examples/validation/validate_dfn.py ambients``."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+DATA = Path(__file__).resolve().parents[1] / "examples" / "validation"
+sys.path.insert(0, str(DATA))
+import validate_dfn as V  # noqa: E402
+
+ROWS = 600 + 3 * 1560  # the first rest and three SOC levels of the pulse test (make_dfn_data.py)
+TARGET_RMS_MV, TARGET_MAX_MV, TARGET_TEMP_K = 12.0, 40.0, 0.5
+
+
+@pytest.mark.parametrize("cell", ["nmc"])
+def test_calibration_over_ambients_holds_the_targets_at_unseen_ambients(cell: str) -> None:
+    fits = V.ambient_calibrations(cell, rows=ROWS)
+    tab = V.ambient_table(cell, fits)
+    after = tab[(tab["calibration"] == "after") & (tab["range"] == "all")]
+    before = tab[(tab["calibration"] == "before") & (tab["range"] == "all")]
+    assert sorted(after["ambient_c"]) == sorted(V.VAL_AMBIENTS_C)
+    for _, row in after.iterrows():
+        where = f"{cell} at {row['ambient_c']} degC: {row.to_dict()}"
+        assert row["rmse_mv"] <= TARGET_RMS_MV, where
+        assert row["max_abs_mv"] <= TARGET_MAX_MV, where
+        assert row["temp_rmse_k"] <= TARGET_TEMP_K, where
+    cold = before[before["ambient_c"] == -10].iloc[0]
+    assert cold["rmse_mv"] > 3 * TARGET_RMS_MV  # the single-ambient calibration fails in the cold
+
+
+def test_ambient_data_match_their_provenance() -> None:
+    import hashlib
+    import tomllib
+
+    prov = tomllib.loads((DATA / "PROVENANCE_ambients.toml").read_text())["sha256"]
+    assert len(prov) == 14  # two cells x (3 pulse tests + 4 drive cycles)
+    for name, digest in prov.items():
+        assert "sha256:" + hashlib.sha256((DATA / name).read_bytes()).hexdigest() == digest, name
