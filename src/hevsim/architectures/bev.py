@@ -159,7 +159,7 @@ def power_flow(
 ) -> Any:
     """(wheel demand, SOC) -> machine and battery operating points, SOC change, limits
     (broadcast :func:`wheel_point` and the shared bus balance)."""
-    from hevsim.optimal._hev_common import Stage, electric_flow
+    from hevsim.components.flow import Stage, electric_flow
 
     arrays = np.broadcast_arrays(
         *(np.asarray(a, np.float64) for a in (wheel_speed_radps, wheel_torque_nm, regen_ok))

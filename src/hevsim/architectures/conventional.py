@@ -310,7 +310,7 @@ def power_flow(
     ``mech`` (:data:`MECH` arrays, plus ``w_wheel``) and, with ``detail``, ``details``
     (:data:`DETAILS`).
     """
-    from hevsim.optimal._hev_common import Stage
+    from hevsim.components.flow import Stage
 
     arrays = np.broadcast_arrays(
         *(np.asarray(a, np.float64) for a in (wheel_speed_radps, wheel_torque_nm, gear, dt_s))

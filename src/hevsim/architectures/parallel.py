@@ -439,7 +439,7 @@ def electrical(
     step, infeasibility, limit flags) whose ``details`` (with ``detail``) hold the operating
     points; the bus balance is attached as ``stage.flow`` for :func:`loss_powers`.
     """
-    from hevsim.optimal._hev_common import Stage, electric_flow
+    from hevsim.components.flow import Stage, electric_flow
 
     m = mech
     flow = electric_flow(hev.motor, hev.battery, m["t_em_req"], m["w_em"], hev.aux_power_w, soc, dt_s,

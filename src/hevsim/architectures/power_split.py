@@ -308,7 +308,7 @@ def electrical(
 ) -> Any:
     """The SOC-dependent half: MG2 and the battery (bus balance with MG1's power on the bus),
     SOC change, fuel [kg over ``dt_s``], limits; ``details`` with ``detail``."""
-    from hevsim.optimal._hev_common import Stage, electric_flow
+    from hevsim.components.flow import Stage, electric_flow
 
     m = mech
     flow = electric_flow(hev.motor, hev.battery, m["t_em_req"], m["w_em"], m["p_gen"] + hev.aux_power_w, soc,

@@ -153,7 +153,7 @@ def power_flow(
     limits: a :class:`~hevsim.optimal._hev_common.Stage` (module docstring). ``regen_ok``:
     the car moves (regeneration also needs ``brakes.regen_min_speed_mps``);
     ``battery_state``: the pack at ``soc`` when known."""
-    from hevsim.optimal._hev_common import BatteryState, Stage, electric_flow
+    from hevsim.components.flow import BatteryState, Stage, electric_flow
 
     cfg = hev.config
     bs = battery_state if battery_state is not None else BatteryState.at(hev.battery, soc)

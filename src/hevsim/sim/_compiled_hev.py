@@ -36,9 +36,9 @@ from hevsim.components.battery import pack_ocv_r, soc_rate
 from hevsim.components.body import road_load_force
 from hevsim.components.bus import battery_power_limits, bus_balance, machine_request
 from hevsim.components.driveline import gear_input_torque
+from hevsim.components.flow import LIMIT_RTOL
 from hevsim.control.parallel import PowerFollower
 from hevsim.control.simple import shift_gear
-from hevsim.optimal._hev_common import LIMIT_RTOL
 from hevsim.sim import kernel as K
 from hevsim.sim._compiled_common import add_road_audit, track_step, write_summary
 from hevsim.sim.forward import BISECTION_STEPS, REGEN_CURRENT_RTOL, BatchRecord, ForwardRecord

@@ -195,7 +195,7 @@ class Step:
 
 
 def _battery_state(model: Any, soc: float, soc_max: float) -> Any:
-    from hevsim.optimal._hev_common import BatteryState
+    from hevsim.components.flow import BatteryState
 
     bs = BatteryState.at(model.battery, np.asarray(soc))
     if soc >= soc_max:  # full: no charging (regeneration goes to the friction brakes)
