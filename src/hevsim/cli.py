@@ -104,7 +104,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         from hevsim.sim.simulator import GensetSchedule
 
         schedule = GensetSchedule.from_csv(args.schedule, quasi_static=args.replay)
-    from hevsim.guards import simulation_preflight
+    from hevsim.warmup import simulation_preflight
 
     simulation_preflight(cfg, cycle, args.dt)  # memory refusal, long-run line, compile notice
     age = _age_state_option(cfg, args.age_state, bool(overrides))
