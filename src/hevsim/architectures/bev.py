@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from hevsim.architectures._build import build_battery, build_machine
 from hevsim.architectures._common import (
     NamedModel,
     battery_details,
@@ -38,7 +39,6 @@ from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire, gear_input_torque, gear_output_torque
 from hevsim.components.electric_machine import ElectricMachine
 from hevsim.config import BEVConfig
-from hevsim.sim.model import build_battery, build_machine
 
 ARCHITECTURE = "bev"
 CONTROLS: tuple[str, ...] = ()

@@ -37,6 +37,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from hevsim.architectures._build import build_engine
 from hevsim.architectures._common import GearboxModel, chassis
 from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire, gear_input_torque, gear_output_torque
@@ -48,7 +49,6 @@ from hevsim.components.engine import (
 )
 from hevsim.config import ConventionalConfig
 from hevsim.fuels import with_config_fuel
-from hevsim.sim.model import build_engine
 from hevsim.units import rpm_to_radps
 
 ARCHITECTURE = "conventional"

@@ -36,6 +36,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from hevsim.architectures._build import build_battery, build_engine, build_machine
 from hevsim.architectures._common import (
     NO_REFCOUNT,
     GearboxModel,
@@ -54,7 +55,6 @@ from hevsim.components.engine import Engine, fired_fuel_from_maps, torque_from_m
 from hevsim.config import ParallelHEVConfig, config_from_dict, load_vehicle_config
 from hevsim.errors import ConfigError
 from hevsim.fuels import with_config_fuel
-from hevsim.sim.model import build_battery, build_engine, build_machine
 
 __all__ = ["ARCHITECTURE", "ParallelHEV", "ParallelHEVConfig", "build_parallel_hev", "load_parallel_config",
            "parallel_from_dict"]  # fmt: skip

@@ -34,6 +34,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from hevsim.architectures._build import build_battery, build_engine, build_machine
 from hevsim.architectures._common import (
     NO_REFCOUNT,
     NamedModel,
@@ -51,7 +52,6 @@ from hevsim.components.electric_machine import ElectricMachine, limits_from_curv
 from hevsim.components.engine import Engine, fired_fuel_from_maps, torque_from_maps
 from hevsim.config import PowerSplitConfig
 from hevsim.fuels import with_config_fuel
-from hevsim.sim.model import build_battery, build_engine, build_machine
 
 ARCHITECTURE = "power_split"
 CONTROLS: tuple[str, ...] = ("engine_speed_radps", "throttle")
