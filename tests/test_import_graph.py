@@ -21,20 +21,8 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src" / "hevsim"
 
 KNOWN_CYCLES = {
-    # the architectures hand their forward run to their compiled loop in sim/, which calls their
-    # point kernels back: gone with the one compiled loop (issue 24 item 2)
-    frozenset({"hevsim.architectures.bev", "hevsim.sim._compiled_bev"}),
-    frozenset({"hevsim.architectures.conventional", "hevsim.sim._compiled_conventional"}),
-    frozenset(
-        {
-            "hevsim.architectures._common",
-            "hevsim.architectures.parallel",
-            "hevsim.architectures.power_split",
-            "hevsim.control.parallel",
-            "hevsim.sim._compiled_hev",
-        }
-    ),
-    # the series HEV's own path and the pack's Python loop call each other (one loop, item 2)
+    # the series HEV's own path, the other architectures' loop and the pack's Python loop hand a
+    # run to each other (one entry point and one compiled loop, issue 24 items 1-2)
     frozenset({"hevsim.sim.forward", "hevsim.sim.pack_vehicle", "hevsim.sim.simulator"}),
     # within a physics package (function-level imports between sibling modules)
     frozenset({"hevsim.battery.life", "hevsim.battery.pack", "hevsim.battery.pack_run"}),

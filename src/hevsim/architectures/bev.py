@@ -209,21 +209,3 @@ def power_mode(details: dict[str, float], wheel_force_n: float, v_mid_mps: float
 def capability_controls(bev: BEV) -> tuple[np.ndarray, ...]:
     """No control input."""
     return ()
-
-
-def simulate_compiled(model: BEV, grid: Any, controller: Any, **options: Any) -> Any:
-    """The compiled forward run (:mod:`hevsim.sim._compiled_bev`; the hook of
-    :mod:`hevsim.sim.forward`)."""
-    from hevsim.sim._compiled_bev import simulate_compiled as run
-
-    return run(model, grid, controller, **options)
-
-
-def simulate_batch_compiled(
-    model: BEV, variants: dict[str, Any], grid: Any, controller: Any, **options: Any
-) -> Any:
-    """The compiled batch (:func:`hevsim.sim._compiled_bev.simulate_batch_compiled`; the hook
-    of :mod:`hevsim.sim.forward`)."""
-    from hevsim.sim._compiled_bev import simulate_batch_compiled as run
-
-    return run(model, variants, grid, controller, **options)

@@ -369,21 +369,3 @@ def power_mode(details: dict[str, float], wheel_force_n: float, v_mid_mps: float
 def capability_controls(veh: ConventionalVehicle) -> tuple[np.ndarray, ...]:
     """Candidate controls that span the powertrain's capability: every gear."""
     return (np.arange(1, len(veh.gears) + 1, dtype=np.float64),)
-
-
-def simulate_compiled(model: ConventionalVehicle, grid: Any, controller: Any, **options: Any) -> Any:
-    """The compiled forward run (:mod:`hevsim.sim._compiled_conventional`; the hook of
-    :mod:`hevsim.sim.forward`)."""
-    from hevsim.sim._compiled_conventional import simulate_compiled as run
-
-    return run(model, grid, controller, **options)
-
-
-def simulate_batch_compiled(
-    model: ConventionalVehicle, variants: dict[str, Any], grid: Any, controller: Any, **options: Any
-) -> Any:
-    """The compiled batch run (:mod:`hevsim.sim._compiled_conventional`; the hook of
-    :mod:`hevsim.sim.forward`)."""
-    from hevsim.sim._compiled_conventional import simulate_batch_compiled as run
-
-    return run(model, variants, grid, controller, **options)

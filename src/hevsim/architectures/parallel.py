@@ -43,8 +43,6 @@ from hevsim.architectures._common import (
     broadcast_loop,
     chassis,
     fixed_gear,
-    hev_simulate_batch_compiled,
-    hev_simulate_compiled,
     max_machine_speed_radps,
 )
 from hevsim.components.battery import BatteryPack
@@ -548,9 +546,3 @@ is on the grid: the envelope needs only the extremes)."""
 def capability_controls(hev: ParallelHEV) -> tuple[np.ndarray, ...]:
     """Candidate controls that span the powertrain's capability (performance tests)."""
     return candidate_controls(hev, CAPABILITY_THROTTLE_POINTS)
-
-
-simulate_compiled = hev_simulate_compiled
-"""The compiled forward run (hook of :mod:`hevsim.sim.forward`; electric assist, ECMS, A-ECMS)."""
-simulate_batch_compiled = hev_simulate_batch_compiled
-"""The compiled batch (hook of :mod:`hevsim.sim.forward`)."""

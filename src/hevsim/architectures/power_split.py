@@ -41,8 +41,6 @@ from hevsim.architectures._common import (
     broadcast_loop,
     chassis,
     fixed_gear,
-    hev_simulate_batch_compiled,
-    hev_simulate_compiled,
 )
 from hevsim.architectures._common import max_machine_speed_radps as _max_speed
 from hevsim.components.battery import BatteryPack
@@ -517,9 +515,3 @@ def power_mode_point(engine_on, battery_power_w, wheel_force_n, v_mid_mps):
     if engine_on <= 0.0:
         return 4 if wheel_force_n < 0.0 else 1
     return 3 if battery_power_w < 0.0 else 2
-
-
-simulate_compiled = hev_simulate_compiled
-"""The compiled forward run (hook of :mod:`hevsim.sim.forward`; power follower, ECMS, A-ECMS)."""
-simulate_batch_compiled = hev_simulate_batch_compiled
-"""The compiled batch (hook of :mod:`hevsim.sim.forward`)."""
