@@ -290,12 +290,17 @@ def compiled_loop(architecture: str) -> Any:
     ``simulate_batch_compiled``), None where it has none. One compiled loop per family of
     architectures (each declares the ones it runs in ``ARCHITECTURES``) until the one compiled
     loop of issue 24; the loops live here in sim/, so an architecture module never imports them."""
-    from hevsim.sim import _compiled_bev, _compiled_conventional, _compiled_hev
+    from hevsim.sim import _compiled_hev  # imported one by one: a run loads only its own loop
 
-    for loop in (_compiled_hev, _compiled_bev, _compiled_conventional):
-        if architecture in loop.ARCHITECTURES:
-            return loop
-    return None
+    if architecture in _compiled_hev.ARCHITECTURES:
+        return _compiled_hev
+    from hevsim.sim import _compiled_bev
+
+    if architecture in _compiled_bev.ARCHITECTURES:
+        return _compiled_bev
+    from hevsim.sim import _compiled_conventional
+
+    return _compiled_conventional if architecture in _compiled_conventional.ARCHITECTURES else None
 
 
 def use_compiled(compiled: bool | None) -> bool:
