@@ -99,15 +99,34 @@ def build_vdp(d: Path) -> Path:
     return Path(FmuBuilder.build_FMU(script, dest=d))
 
 
-def write_system(d: Path, fmu: Path, steps: int) -> Path:
+def write_system(d: Path, fmu: Path, steps: int, process: str | None = None) -> Path:
+    """The SSD of the benchmark: the default path (no ``fmu_process``: a forked worker
+    process per FMU) unless ``process`` ("inprocess", "worker") is given."""
     from hevsim.cosim.ssd import FMU_TYPE, Component, SystemDescription
     from hevsim.cosim.ssp_write import write_ssd
 
+    master: dict[str, Any] = {"step_s": H} | ({"fmu_process": process} if process else {})
     desc = SystemDescription(
-        "bench", [Component("vdp", FMU_TYPE, fmu.name)], [], stop_time_s=steps * H,
-        master={"step_s": H, "fmu_process": "inprocess"}, base_dir=d,
+        "bench", [Component("vdp", FMU_TYPE, fmu.name)], [], stop_time_s=steps * H, master=master, base_dir=d,
     )  # fmt: skip
-    return write_ssd(desc, d / f"bench_{steps}.ssd")
+    return write_ssd(desc, d / f"bench_{steps}_{process or 'default'}.ssd")
+
+
+def start_rows(fmu: Path, runs: int = 5) -> None:
+    """Print the start of a worker process (open the FMU, to the first reply), forked (the
+    default) and spawned (a fresh interpreter)."""
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
+    for method in ("fork", "spawn"):
+        cls = type("Worker", (WorkerFMUParticipant,), {"start_method": method})
+        times = []
+        for _ in range(runs):
+            t0 = time.perf_counter()
+            w = cls("w", fmu)
+            times.append(time.perf_counter() - t0)
+            w.terminate()
+        print(f"  worker start ({method}), {runs} runs: min {min(times):.3f} / median "
+              f"{statistics.median(times):.3f} s (target <= 0.1 s for the default)")  # fmt: skip
 
 
 def t_fmpy(fmu: Path, steps: int) -> float:
@@ -315,18 +334,62 @@ def worker_rows(fmu: Path, steps: int, runs: int = 5) -> None:
                   f"max {w[-1]:6.1f} µs{cpu}")  # fmt: skip
 
 
+def me_rows(d: Path, steps: int, runs: int = 3) -> None:
+    """Model Exchange Van der Pol (the C FMU of tests/cosim_cme.py, CVODE BDF, rtol 1e-5) for
+    ``steps`` communication steps of H: ``fmpy.simulate_fmu`` (output interval H, no event
+    rows) against ``simulate`` with an in-process :class:`MEParticipant` and against
+    ``run_cosim`` on the default path (a forked worker, files and plots), mins of ``runs``."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from fmpy import simulate_fmu
+    from tests.cosim_cme import build_me_fmu
+
+    from hevsim.cosim.master import simulate
+    from hevsim.cosim.me import MEParticipant
+    from hevsim.cosim.ssd import FMU_TYPE, Component, SystemDescription
+    from hevsim.cosim.ssp_write import write_ssd
+
+    fmu = build_me_fmu("VanDerPol", d / "me")
+    stop = steps * H
+    comps = [Component("vdp", FMU_TYPE, "VanDerPol.fmu")]
+    desc = SystemDescription("me", comps, [], stop_time_s=stop, master={"step_s": H}, base_dir=fmu.parent)
+    ssd = write_ssd(desc, fmu.parent / "me.ssd")
+
+    def fmpy_s() -> float:
+        t0 = time.perf_counter()
+        simulate_fmu(
+            str(fmu), stop_time=stop, output_interval=H, relative_tolerance=1e-5, record_events=False
+        )
+        return time.perf_counter() - t0
+
+    def master_s() -> float:
+        t0 = time.perf_counter()
+        simulate([MEParticipant("vdp", fmu)], [], stop_time_s=stop, step_s=H)
+        return time.perf_counter() - t0
+
+    fmpy_s(), master_s()  # warm up
+    rows = [(fmpy_s(), master_s(), t_run_cosim(ssd, d / f"me_out{i}")[0]) for i in range(runs)]
+    tf, tm, tr = (min(r[k] for r in rows) for k in range(3))
+    print(f"  Model Exchange Van der Pol (C, CVODE BDF rtol 1e-5), {steps} steps of {H} s, min of {runs}:")
+    print(f"    fmpy.simulate_fmu: {tf:.3f} s; hevsim simulate (in process): {tm:.3f} s, ratio {tm / tf:.2f}")
+    print(f"    run_cosim default path (forked worker, files, plots): {tr:.3f} s, ratio {tr / tf:.2f} "
+          f"(target {TARGET_RATIO})")  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     ap.add_argument("--steps", type=int, default=10_000)
     ap.add_argument("--skip-cli", action="store_true", help="skip the fresh-process CLI comparison")
     ap.add_argument("--worker-only", action="store_true", help="only the worker-process FMU rows")
+    ap.add_argument("--me-only", action="store_true", help="only the Model Exchange rows")
     a = ap.parse_args()
     print("load average at start: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg()))
     with tempfile.TemporaryDirectory() as tmp, OtherLoad() as load:
         d = Path(tmp)
         fmu = build_vdp(d)
         ssd = write_system(d, fmu, a.steps)
-        if a.worker_only:
+        if a.me_only:
+            me_rows(d, a.steps)
+        elif a.worker_only:
             worker_us(fmu, 100)
             worker_rows(fmu, a.steps)
         else:
@@ -340,11 +403,16 @@ def run_all(d: Path, fmu: Path, ssd: Path, a: argparse.Namespace) -> None:
     t_run_cosim(write_system(d, fmu, 100), d / "warm")
     tf = min(t_fmpy(fmu, a.steps) for _ in range(2))
     th, extra = min((t_run_cosim(ssd, d / f"out{i}") for i in range(2)), key=lambda r: r[0])
-    print(f"Van der Pol FMU (pythonfmu, in process), {a.steps} steps of {H} s")
+    inproc = write_system(d, fmu, a.steps, "inprocess")
+    ti, _ = min((t_run_cosim(inproc, d / f"in{i}") for i in range(2)), key=lambda r: r[0])
+    print(f"Van der Pol FMU (pythonfmu), {a.steps} steps of {H} s")
     print(f"  fmpy.simulate_fmu              : {tf:7.3f} s")
     ms = extra["master_s"]
-    print(f"  hevsim run_cosim (files, plots): {th:7.3f} s   ratio {th / tf:5.2f} (target {TARGET_RATIO})")
-    print(f"    of which the master loop     : {ms:7.3f} s   ratio {ms / tf:5.2f}")
+    print(f"  hevsim run_cosim, default path (forked worker; files, plots): {th:7.3f} s   ratio "
+          f"{th / tf:5.2f} (target {TARGET_RATIO})")  # fmt: skip
+    print(f"    of which the master          : {ms:7.3f} s   ratio {ms / tf:5.2f}")
+    print(f'  hevsim run_cosim, fmu_process="inprocess": {ti:7.3f} s   ratio {ti / tf:5.2f}')
+    start_rows(fmu)
     print("  master overhead (CPU time per step, setup excluded; medians of 5 interleaved runs):")
     for k, what in ((2, "2 FMUs feeding each other"), (0, "1 FMU fed by a Python source")):
         pairs = [(raw_cost_us(fmu, a.steps, max(k, 1)), master_cpu_us(fmu, a.steps, k)) for _ in range(5)]
@@ -359,20 +427,22 @@ def run_all(d: Path, fmu: Path, ssd: Path, a: argparse.Namespace) -> None:
     import hevsim.cosim.worker as worker
 
     batch = getattr(worker, "RUN_AHEAD_STEPS", None)
-    how = f"runs ahead, {batch} steps per exchange" if batch else "one exchange per step"
+    most = getattr(worker, "RUN_AHEAD_MAX", batch)
+    how = f"runs ahead, {batch} doubling to {most} steps per exchange" if batch else "one exchange per step"
     alone = min(worker_us(fmu, a.steps, -1)[0] for _ in range(2))
     print(f"  worker FMU without inputs ({how}): {alone:7.2f} µs per step")
     par = min(worker_us(fmu, a.steps // 2, 2)[0] for _ in range(2))
     seq = min(worker_us(fmu, a.steps // 2, 2, parallel=False)[0] for _ in range(2))
     print(f"  2 worker FMUs feeding each other (Jacobi): {par:7.2f} µs per step stepping together, "
           f"{seq:7.2f} µs one after the other")  # fmt: skip
-    print("  scaling (run_cosim, in process):")
+    print("  scaling (run_cosim, default path):")
     print("     steps   hevsim [s]   fmpy [s]   ratio   hevsim per 1k steps [s]")
     for n in (1000, 2000, 4000, 8000):
         s_n = write_system(d, fmu, n)
         h_n = min(t_run_cosim(s_n, d / f"s{n}_{i}")[0] for i in range(2))
         f_n = min(t_fmpy(fmu, n) for _ in range(2))
         print(f"    {n:6d}   {h_n:10.3f}   {f_n:8.3f}   {h_n / f_n:5.2f}   {h_n / n * 1000:10.3f}")
+    me_rows(d, a.steps)
     if not a.skip_cli:
         cli_rows(d, fmu, ssd, a.steps)
 

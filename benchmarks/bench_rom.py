@@ -17,7 +17,14 @@ baseline), and compares ROM and FEM (both implicit Euler, the same 1-D coolant c
     thesis cell (``Module``, 3 % capacity and 5 % resistance spread, port at 30 degC) under the
     US06 road-load current (:func:`hevsim.battery.profiles.cycle_cell_current`, repeated).
 
-It prints the largest per-cell mean and hot-spot error of each load (bound: 0.2 K). The script
+and (issue 26) on the load families the ROM is not built or tuned with,
+:func:`hevsim.thermal.rom.validation_loads` (per-cell heat of both signs within the 5 W design
+amplitude, moving the hot spot inside the cells): a random multi-sine per cell, a checkerboard
+swapping every 20 s, random steps held 15 s, a travelling wave, and random heats under a
++-10 K inlet sine.
+
+It prints the largest per-cell mean and hot-spot error of each load (bound: 0.2 K for (a)-(c);
+the ROM's stated tolerance ``tol_k``, 0.05 K, for the validation families). The script
 only reports: it always exits 0.
 """
 
@@ -63,7 +70,14 @@ def main() -> int:
     args = ap.parse_args()
 
     from hevsim.thermal.geometry import build_module_mesh
-    from hevsim.thermal.rom import RomStepper, build_rom, compare_with_fem, full_model, mesh_hash
+    from hevsim.thermal.rom import (
+        RomStepper,
+        build_rom,
+        compare_with_fem,
+        full_model,
+        mesh_hash,
+        validation_loads,
+    )
     from hevsim.thermal.run import KELVIN, load_thermal_config
 
     cfg = load_thermal_config(ROOT / "examples" / "module_thermal.toml")
@@ -81,8 +95,9 @@ def main() -> int:
         t_build = time.perf_counter() - t0
     print(f"mesh: {full.n_nodes} FEM nodes (meshing {t_mesh:.1f} s, assembly {t_asm:.1f} s)")
     print(f"ROM build: {t_build:.2f} s (target <= {TARGET_BUILD_S:g} s); {load.text()}")
-    print(f"ROM order {rom.order}, error estimate {rom.metadata['error_estimate_k']:.4f} K, "
-          f"{rom.metadata['candidates_per_cell']} hot-spot candidates per cell")  # fmt: skip
+    print(f"ROM order {rom.order}, error estimate {rom.metadata['error_estimate_k']:.4f} K, hot spot over "
+          f"{rom.metadata['candidates_per_cell']} nodes per cell, its error estimate "
+          f"{rom.hot_spot_error_k:.4f} K")  # fmt: skip
 
     # step time: one module, and a batch of 100 modules (per module)
     h = rom.wall_h_range_w_m2k[1]
@@ -124,11 +139,17 @@ def main() -> int:
                 len(heat),
             )
         )
+    tol = float(rom.metadata["options"]["tol_k"])
+    bounds = {name: BOUND_K for name, *_ in loads}
+    for name, (hf, inf, steps) in validation_loads(rom.n_cells).items():
+        loads.append((f"({name}) {steps} s", hf, inf, steps))
+        bounds[f"({name}) {steps} s"] = tol
     head = ("load", "mean err K", "hot-spot err K", "peak FEM degC", "FEM step ms", "ROM step us", "ratio")
     print(f"{head[0]:<26}" + "".join(f"{h:>15}" for h in head[1:]))
     for name, hf, inf, steps in loads:
         c = compare_with_fem(cfg, mesh, rom, hf, inf, steps)
-        ok = "ok" if max(c.mean_error_k, c.max_error_k) < BOUND_K else "ABOVE 0.2 K"
+        bound = bounds[name]
+        ok = "ok" if max(c.mean_error_k, c.max_error_k) <= bound else f"ABOVE {bound:g} K"
         vals = (c.mean_error_k, c.max_error_k, c.fem_max_k.max() - KELVIN, 1e3 * c.fem_step_s,
                 1e6 * c.rom_step_s, c.fem_step_s / c.rom_step_s)  # fmt: skip
         print(f"{name:<26}" + "".join(f"{v:>15.4f}" for v in vals) + f"  {ok}")

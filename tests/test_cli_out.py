@@ -273,7 +273,7 @@ def test_refinement_replaces_its_own_table_only(
         {"level": 1, "name": "a", "description": "d", "mpg": 50.0, "mpgge": 40.0, "soc_final": 0.6,
          "speed_error_rms_mph": 0.1, "energy_audit_residual_pct": 1e-12},
     ]  # fmt: skip
-    monkeypatch.setattr("hevsim.refinement.run_refinement", lambda cycle: rows)
+    monkeypatch.setattr("hevsim.refinement.run_refinement", lambda cycle, **_: rows)
     assert main(["refinement", "--cycle", "fu505", "--out", "levels.md"]) == 0
     text = (site / "levels.md").read_text()
     assert text.startswith("Sequential refinement on fu505") and "| 1 | a: d |" in text
@@ -281,8 +281,8 @@ def test_refinement_replaces_its_own_table_only(
     assert (site / "levels.md").read_text().startswith("Sequential refinement on udds")
     capsys.readouterr()
     _refused(capsys, ["refinement", "--out", "table.md"], "was not written by hevsim")
-    assert main(["refinement", "--out", "table.md", "--force"]) == 0
-    assert (site / "table.md").read_text().startswith("Sequential refinement on udds")
+    assert main(["refinement", "--out", "table.md", "--force"]) == 0  # the default cycle: the thesis's FU505
+    assert (site / "table.md").read_text().startswith("Sequential refinement on fu505")
 
 
 def test_export_fmu_to_another_file_system_and_rerun(tmp_path: Path) -> None:

@@ -49,7 +49,7 @@ def test_cosim_command_imports_only_what_it_uses(tmp_path: Path) -> None:
     fmu = build_integrator_fmu(tmp_path / "i.fmu", name="ImportsInt", y0=1.0)
     desc = SystemDescription(
         "imports", [Component("i", FMU_TYPE, fmu.name)], [], stop_time_s=1.0,
-        master={"step_s": 0.1, "fmu_process": "inprocess"}, base_dir=tmp_path,
+        master={"step_s": 0.1}, base_dir=tmp_path,  # the default path: a pythonfmu FMU runs in process
     )  # fmt: skip
     ssd = write_ssd(desc, tmp_path / "imports.ssd")
     out = tmp_path / "out"

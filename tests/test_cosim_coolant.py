@@ -47,6 +47,17 @@ def _coupled(duration: float, fluid: bool = False, **options: object) -> tuple[o
     return res, n
 
 
+def _staggered() -> object:
+    """The example with the internal coolant coupled staggered (fluid from the wall at the start
+    of the step), as a plate stepped before a separate coolant participant."""
+    from dataclasses import replace
+
+    from hevsim.thermal.run import load_thermal_config
+
+    cfg = load_thermal_config(CONFIG)
+    return replace(cfg, simulation=replace(cfg.simulation, coupling="staggered"))
+
+
 @pytest.mark.parametrize("fluid", [False, True], ids=["flux-and-film", "fluid-temperature"])
 def test_separate_coolant_reproduces_internal_coupling(fluid: bool) -> None:
     """Plate stepped before the coolant, 1 s exchange = the FEM's step: the separate coolant
@@ -54,7 +65,7 @@ def test_separate_coolant_reproduces_internal_coupling(fluid: bool) -> None:
     the heat flux and film (thesis) or the fluid temperature and film."""
     duration = 12.0
     res, n = _coupled(duration, fluid)
-    ref = simulate([_heat(), FemModuleParticipant("fem", CONFIG, mesh_size_m=MESH)],
+    ref = simulate([_heat(), FemModuleParticipant("fem", _staggered(), mesh_size_m=MESH)],
                    [Connection("heat", "cell_heat_w", "fem", "cell_heat_w")],
                    stop_time_s=duration, step_s=1.0, algorithm="gauss-seidel",
                    order=["heat", "fem"])  # fmt: skip
@@ -82,6 +93,12 @@ def test_iterated_coupling_closes_the_wall_energy_balance() -> None:
     assert lag > 1e-3
     res, _ = _coupled(6.0, fluid=True, max_iterations=40, tolerance=1e-12, hold="end")
     np.testing.assert_allclose(res["fem.wall_heat_w"][1:], res["coolant.cooling_power_w"][1:], rtol=1e-6)
+    # and it converges to the internal coolant's default (implicit) coupling
+    ref = simulate([_heat(), FemModuleParticipant("fem", CONFIG, mesh_size_m=MESH)],
+                   [Connection("heat", "cell_heat_w", "fem", "cell_heat_w")],
+                   stop_time_s=6.0, step_s=1.0, algorithm="gauss-seidel", order=["heat", "fem"])  # fmt: skip
+    np.testing.assert_allclose(res["fem.wall_heat_w"][1:], ref["fem.wall_heat_w"][1:], rtol=1e-6)
+    np.testing.assert_allclose(ref["fem.wall_heat_w"][1:], ref["fem.cooling_power_w"][1:], rtol=1e-9)
 
 
 def test_segments_without_wall_exchange_nothing() -> None:

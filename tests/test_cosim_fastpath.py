@@ -218,8 +218,9 @@ def cfmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return build_c_fmu(tmp_path_factory.mktemp("fast_c") / "c.fmu")
 
 
-def _ahead(fmu: Path, params: dict[str, float], batch: int | None) -> tuple[Any, list[int]]:
-    """The C FMU in a worker, running ahead ``batch`` steps per exchange (None: one at a time);
+def _ahead(fmu: Path, params: dict[str, float], batch: tuple[int, int] | None) -> tuple[Any, list[int]]:
+    """The C FMU in a worker, running ahead ``batch`` = (first, most) steps per exchange (None:
+    one at a time);
     also (steps asked for, steps run, whether none failed) per exchange."""
     from hevsim.cosim.worker import WorkerFMUParticipant
 
@@ -229,7 +230,7 @@ def _ahead(fmu: Path, params: dict[str, float], batch: int | None) -> tuple[Any,
         p.run_ahead = None  # type: ignore[assignment,method-assign]
     else:
         real_run_ahead, real_rpc = p.run_ahead, p._rpc
-        p.run_ahead = lambda next_end: real_run_ahead(next_end, batch)  # type: ignore[method-assign]
+        p.run_ahead = lambda next_end: real_run_ahead(next_end, *batch)  # type: ignore[method-assign]
 
         def rpc(cmd: str, *args: Any) -> Any:
             res = real_rpc(cmd, *args)
@@ -246,11 +247,17 @@ def test_worker_without_inputs_runs_ahead_with_the_same_results(cfmu: Path) -> N
 
     params = {"k": 2.0, "u": 1.5, "y0": 0.25}
     runs = []
-    for batch in (4, None):
+    for batch in ((4, 4), None, (2, 4)):
         p, sizes = _ahead(cfmu, params, batch)
         runs.append(simulate([p], [], stop_time_s=1.05, step_s=0.1))
-        assert sizes == ([(4, 4, True), (4, 4, True), (3, 3, True)] if batch else [])  # the last 0.05 s
-    a, b = runs
+        expect = {
+            (4, 4): [(4, 4, True), (4, 4, True), (3, 3, True)],
+            None: [],  # the last 0.05 s
+            (2, 4): [(2, 2, True), (4, 4, True), (4, 4, True), (1, 1, True)],
+        }  # doubling up to 4
+        assert sizes == expect[batch]  # fmt: skip
+    a, b, c = runs
+    assert np.array_equal(a.data, c.data)
     assert np.array_equal(a.time_s, b.time_s) and np.array_equal(a.data, b.data)
     assert a.time_s[-1] == 1.05 and list(a["c.n"]) == list(range(12))
     assert np.abs(a["c.y"] - (0.25 + 3.0 * a.time_s)).max() < 1e-12
@@ -259,12 +266,12 @@ def test_worker_without_inputs_runs_ahead_with_the_same_results(cfmu: Path) -> N
 def test_worker_running_ahead_stops_and_fails_in_the_right_step(cfmu: Path) -> None:
     from hevsim.cosim import simulate
 
-    p, sizes = _ahead(cfmu, {"terminate_at": 0.55, "k": 2.0, "u": 1.5, "y0": 0.25}, 4)
+    p, sizes = _ahead(cfmu, {"terminate_at": 0.55, "k": 2.0, "u": 1.5, "y0": 0.25}, (4, 4))
     res = simulate([p], [], stop_time_s=1.0, step_s=0.1)
     assert sizes == [(4, 4, True), (4, 2, True)]  # no step after the one that asked to terminate
     assert res.stopped_by == "participant 'c' requested termination at t = 0.55 s"
     assert res.time_s[-1] == 0.55 and res["c.y"][-1] == pytest.approx(0.25 + 3.0 * 0.55, abs=1e-12)
-    p, sizes = _ahead(cfmu, {"fail_at": 0.35, "u": 1.0}, 2)
+    p, sizes = _ahead(cfmu, {"fail_at": 0.35, "u": 1.0}, (2, 2))
     msg = r"participant 'c' failed in do_step at t = 0.3 s: .*integrator blew up"
     with pytest.raises(CosimFault, match=msg) as ei:
         simulate([p], [], stop_time_s=1.0, step_s=0.1)
@@ -285,7 +292,7 @@ def test_checkpoint_of_a_worker_running_ahead_resumes_identically(integrator: Pa
     def run(**kw: Any) -> Any:
         p = WorkerFMUParticipant("i", integrator, {"k": 2.0, "u": 0.75})
         real = p.run_ahead
-        p.run_ahead = lambda next_end: real(next_end, 4)  # type: ignore[method-assign]
+        p.run_ahead = lambda next_end: real(next_end, 4, 4)  # type: ignore[method-assign]
         return simulate([p], [], stop_time_s=1.0, step_s=0.1, **kw)
 
     ck = tmp_path / "ck.pkl"
@@ -362,7 +369,7 @@ def test_a_value_that_is_not_a_float_is_sent_pickled(integrator: Path) -> None:
         assert p.do_step(0.0, 0.5) == (True, None) and p._seq == 1
         assert p.get_outputs() == {"y": 2.0}
         p.set_inputs({"u": "x"})
-        with pytest.raises(SimulationError, match="step failed"):
+        with pytest.raises(SimulationError, match="set_inputs failed"):  # the phase it failed in
             p.do_step(0.5, 0.5)
         assert p._seq == 1  # not through the memory
     finally:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -206,9 +207,19 @@ def check_csv(path: Path) -> None:
     head, last = rows[0], dict(zip(rows[0], rows[-1], strict=True))
     assert len(rows) == ROWS + 1
     assert set(head) == {"time_s", *e, "src.steps", "snk.steps"}
+    # the components' listing order, each FMU's outputs in its model description's order (String
+    # and Binary among them, not moved to the end)
+    from fmpy import read_model_description
+
+    from hevsim.cosim.fmi_vars import FmuVariables
+
+    fmu = next(path.parent.parent.glob("*.fmu"))
+    outs = list(FmuVariables(read_model_description(str(fmu)), fmu.name).outputs)
+    assert head == ["time_s", *(f"{n}.{v}" for n in ("src", "snk") for v in outs)]
+    assert outs.index("y_String") < outs.index("y_Enumeration") < outs.index("y_Binary") < outs.index("steps")
     for col, v in e.items():
         if isinstance(v, bool):
-            assert float(last[col]) == float(v), col
+            assert last[col] == ("true" if v else "false"), col  # not 1.0 / 0.0
         elif isinstance(v, int):
             assert last[col] == str(v), col  # not "1.8446744073709552e+19"
         elif isinstance(v, float):
@@ -244,7 +255,7 @@ def test_every_fmi3_type_through_the_cli(fmu: Path, tmp_path: Path, capsys: pyte
 @pytest.mark.parametrize(
     ("src", "dst", "msg"),
     [
-        ("y_Float32", "u_Int8", "src.y_Float32 is Real, snk.u_Int8 is Integer.*cannot connect a Real output to a Integer"),
+        ("y_Float32", "u_Int8", "src.y_Float32 is Real, snk.u_Int8 is Integer.*cannot connect a Real output to an Integer"),
         ("y_String", "u_Float64", "src.y_String is String, snk.u_Float64 is Real.*cannot connect a String output"),
         ("y_Binary", "u_String", "src.y_Binary is Binary, snk.u_String is String.*cannot connect a Binary output"),
         ("y_Float64", "u_Boolean", "src.y_Float64 is Real, snk.u_Boolean is Boolean"),
@@ -291,15 +302,22 @@ def test_integers_out_of_range_are_refused_not_wrapped(
     ssd = write_system(tmp_path, fmu, [], process="inprocess", params={"snk.p_UInt8": 256})
     capsys.readouterr()
     assert main(["cosim", str(ssd), "--check"]) == 2
-    assert "parameter 'p_UInt8' is an UInt8 (0 .. 255), got 256" in capsys.readouterr().err
-    # a value on a connection within the Integer class (Int64 -> Int8): at run time
-    ssd = write_system(tmp_path, fmu, [("y_Int64", "u_Int8")], process="inprocess")
-    with pytest.raises(
-        CosimFault,
-        match=r"participant 'snk' failed in set_inputs at t = 0 s: .*input 'u_Int8' is an Int8 "
-        rf"\(-128 .. 127\), got {-(2**63) + 1}",
-    ):
-        run_cosim(ssd, tmp_path / "out")
+    assert "parameter 'p_UInt8' is a UInt8 (0 .. 255), got 256" in capsys.readouterr().err
+    # a narrowing connection within the Integer class (Int64 -> Int8): at --check and at the run
+    for a, b, msg in (
+        ("y_Int64", "u_Int8", r"an Int64 output \(-9223372036854775808 .. 9223372036854775807\) into an Int8"),
+        ("y_UInt8", "u_Int8", r"a UInt8 output \(0 .. 255\) into an Int8 input \(-128 .. 127\)"),
+        ("y_Float64", "u_Float32", "a Float64 output into a Float32 input loses precision"),
+    ):  # fmt: skip
+        ssd = write_system(tmp_path, fmu, [(a, b)], process="inprocess")
+        capsys.readouterr()
+        assert main(["cosim", str(ssd), "--check"]) == 2
+        err = capsys.readouterr().err
+        assert f"connection src.{a} -> snk.{b}" in err and "narrowing connection" in err, err
+        assert re.search(msg, err), err
+        with pytest.raises(ConfigError, match=rf"connection src.{a} -> snk.{b} .*narrowing connection: {msg}"):
+            run_cosim(ssd, tmp_path / "out")
+        assert not (tmp_path / "out").exists()
     with pytest.raises(ConfigError, match=r"parameter 'p_Binary' is a Binary: expected hexadecimal"):
         run_cosim(write_system(tmp_path, fmu, [], process="inprocess", params={"src.p_Binary": "xyz"}),
                   tmp_path / "out2")  # fmt: skip
@@ -340,3 +358,33 @@ def test_clock_variables_are_refused_by_name_not_dropped(
         warnings.simplefilter("always")
         FMUParticipant("src", tmp_path / "alone.fmu")
     assert any("tick" in str(w.message) and "not exchanged or recorded" in str(w.message) for w in caught)
+
+
+@pytest.mark.parametrize("process", ["inprocess", "worker"])
+def test_a_value_out_of_range_names_the_phase_it_failed_in(fmu: Path, process: str) -> None:
+    """An Integer source without an FMI type (a Python participant: not checked statically)
+    feeding an Int8 input: the value out of range fails in set_inputs, also where a worker
+    process sets the inputs with the output query (initial values) or with the step (before:
+    "failed in get_outputs" / "failed in do_step")."""
+    from hevsim.cosim.master import Connection, simulate
+    from hevsim.cosim.participant import FMUParticipant, FunctionParticipant
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
+    cls = FMUParticipant if process == "inprocess" else WorkerFMUParticipant
+    for first, at in ((1000, "0"), (100, "0.1")):  # out of range at once / from the second step on
+
+        def step(t: float, h: float, s: Any, u: dict[str, float]) -> tuple[Any, dict[str, float]]:
+            return s, {"y": 1000}
+
+        src = FunctionParticipant("src", step, None, {"y": first}, {})
+        src.types = {"y": "Integer"}
+        snk = cls("snk", fmu)
+        try:
+            with pytest.raises(
+                CosimFault,
+                match=rf"participant 'snk' failed in set_inputs at t = {at} s: .*input 'u_Int8' is an Int8 "
+                r"\(-128 .. 127\), got 1000",
+            ):
+                simulate([src, snk], [Connection("src", "y", "snk", "u_Int8")], stop_time_s=0.3, step_s=0.1)
+        finally:
+            snk.terminate()

@@ -3,7 +3,8 @@ as they were before its split into step functions and the SOC-floor fix (issue 1
 2, 3): fuel [kg], final SOC [-] and MPGGE on UDDS to 1e-9 relative (the kernel reproduced
 them bit for bit on the machine that recorded them; the tolerance allows another CPU's last
 bits). Recorded with hevsim at commit 06168a8 (the values equal those of 8e3763a, before the
-split)."""
+split). Configurations: the example and the PUBLIC-DATA refinement levels
+(src/hevsim/data/refinement/level*.toml), not the thesis-calibrated ones (issue 31)."""
 
 from __future__ import annotations
 

@@ -232,12 +232,14 @@ def _cmd_performance(args: argparse.Namespace) -> int:
 
 
 def _cmd_refinement(args: argparse.Namespace) -> int:
-    from hevsim.refinement import format_table, run_refinement
+    from hevsim.refinement import format_energy_table, format_table, run_refinement
 
     if args.out:
         _prepare(args, args.out, args.cycle, kind="file", ours=_is_refinement_table)
-    rows = run_refinement(cycle=args.cycle)
-    text = format_table(rows, args.cycle)
+    rows = run_refinement(args.cycle, calibration=args.calibration)
+    text = format_table(rows, args.cycle, args.calibration)
+    if args.energy:
+        text += "\n\nEnergy per level [MJ] (hevsim energy audit)\n\n" + format_energy_table(rows)
     print(text)
     if args.out:
         from hevsim.io import write_text_atomic
@@ -556,7 +558,8 @@ def format_cosim_summary(res: Any, out: Path) -> str:
     from hevsim.units import KELVIN_OFFSET
 
     st = res.stats
-    lines = [
+    lines = [st[k] for k in ("resume", "step_from") if st.get(k)]  # where --resume went on from; the step
+    lines += [
         f"{st['steps']} communication steps to t = {res.time_s[-1]:g} s in {st.get('wall_s', 0.0):.1f} s"
         + (f"; stopped: {res.stopped_by}" if res.stopped_by else "")
     ]
@@ -579,9 +582,27 @@ def format_cosim_summary(res: Any, out: Path) -> str:
 
 
 def _cmd_thermal(args: argparse.Namespace) -> int:
+    from hevsim.errors import ConfigError
     from hevsim.thermal.run import format_summary, run_thermal
 
     out = Path(args.out) if args.out else Path("results") / Path(args.config).stem
+    if Path(args.config).suffix.lower() == ".inp":  # an Abaqus / CalculiX deck
+        from hevsim.thermal.deck import check_deck_options, format_deck, run_deck
+
+        if args.boundary:
+            raise ConfigError(
+                f"{args.config}: --boundary applies to a module configuration (TOML); a deck's "
+                "conditions are its own *Film / *Sfilm keywords."
+            )
+        check_deck_options(args.length_scale, args.bonded_w_m2k)
+        _prepare(args, out, args.config)
+        print(format_deck(run_deck(args.config, out, length_scale_m=args.length_scale,
+                                   bonded_w_m2k=args.bonded_w_m2k)))  # fmt: skip
+        return 0
+    if args.length_scale != 1.0 or args.bonded_w_m2k is not None:
+        raise ConfigError(
+            f"{args.config}: --length-scale and --bonded-w-m2k apply to an Abaqus/CalculiX deck (.inp)."
+        )
     _prepare(args, out, args.config)
     config: Any = args.config
     if args.boundary:  # fixed conditions given on the command line, after the file's [[boundary]]
@@ -853,7 +874,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "refinement", help="run the tutorial's sequential-refinement levels and tabulate MPGGE"
     )
-    p.add_argument("--cycle", default="udds", help="cycle name or CSV (default udds)")
+    p.add_argument("--cycle", default="fu505", help="cycle name or CSV (default fu505, the thesis's cycle)")
+    p.add_argument(
+        "--calibration",
+        choices=("public", "thesis"),
+        default="public",
+        help="level configurations: shipped public data (default) or the thesis's stated and inferred values",
+    )
+    p.add_argument("--energy", action="store_true", help="also print the energy audit of every level")
     p.add_argument("--out", help="also write the table (Markdown) to this file")
     _add_force(p, "file at --out")
     p.set_defaults(func=_cmd_refinement)
@@ -964,7 +992,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_cosim)
 
     p = sub.add_parser("thermal", help="3D FEM heat model of a battery module with cooling plate and coolant")
-    p.add_argument("config", help="module thermal configuration (TOML), e.g. examples/module_thermal.toml")
+    p.add_argument(
+        "config",
+        help="module thermal configuration (TOML), e.g. examples/module_thermal.toml, or an "
+        "Abaqus/CalculiX heat-transfer deck (.inp), run as written (docs/thermal.md)",
+    )
+    p.add_argument("--length-scale", type=float, default=1.0,
+                   help="deck only: metres per deck length unit (1e-3 for mm; default 1)")  # fmt: skip
+    p.add_argument("--bonded-w-m2k", type=float, default=None,
+                   help="deck only: contact conductance where sections share nodes [W/(m^2 K)]")  # fmt: skip
     p.add_argument("--out", help="results folder (default results/<config>)")
     p.add_argument(
         "--boundary",

@@ -353,9 +353,13 @@ class SustainingOptimizationSection(OptimizationSection):
 
 @dataclass(frozen=True)
 class MetricsSection:
-    """Fuel-economy settings: fuel-to-battery conversion efficiency of eq (16) [-]."""
+    """Fuel-economy settings: fuel-to-battery conversion efficiency of eq (16) [-]; the open-circuit
+    voltage of eq (15) [V] (0: the battery's OCV at the mean of initial and final SOC; a value
+    > 0 replaces it, as the tutorial's post file used 366 V while its ideal battery held 336 V;
+    forward simulations only, dynamic programming always uses the battery's OCV)."""
 
     conversion_efficiency: float = param(0.25, 0.01, 1.0, "-")
+    soc_correction_ocv_v: float = param(0.0, 0.0, 1e5, "V")
 
 
 # ------------------------------------------------------------------------------------------

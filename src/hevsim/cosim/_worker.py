@@ -26,12 +26,14 @@ Leaves with ``os._exit`` so a crash in an FMU's teardown cannot hang or fail the
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import pickle
 import struct
 import sys
 import time
+from collections.abc import Iterator
 from typing import Any
 
 _HEADER = struct.Struct("<I")  # payload length [bytes]
@@ -245,10 +247,12 @@ class StepChannel:
         mm = self.mm
         t, h = STEP.unpack_from(mm, self.step_at)
         if self.set_inputs is not None:
-            self.set_inputs()
+            with phase("set_inputs"):
+                self.set_inputs()
         ok, pref = p.do_step(t, h)
         if ok and self.get_outputs is not None:
-            self.get_outputs()
+            with phase("get_outputs"):
+                self.get_outputs()
         tt = p.terminate_time
         nan = math.nan
         _OUTCOME.pack_into(mm, OUTCOME_AT, ok, p.terminate_requested, nan if pref is None else pref,
@@ -282,11 +286,13 @@ class _Stepper:
         if names is not None:
             self.in_names = names
         if values:
-            p.set_inputs(dict(zip(self.in_names, values, strict=True)))
+            with phase("set_inputs"):
+                p.set_inputs(dict(zip(self.in_names, values, strict=True)))
         ok, pref = p.do_step(t, h)
         outs: Any = None
         if ok:
-            o = p.get_outputs()
+            with phase("get_outputs"):
+                o = p.get_outputs()
             keys = tuple(o)
             outs = (None if keys == self.out_names else keys, tuple(o.values()))
             self.out_names = keys
@@ -308,8 +314,27 @@ class _Stepper:
         return replies, None
 
 
+@contextlib.contextmanager
+def phase(call: str) -> Iterator[None]:
+    """Mark an exception raised inside as a failure of the participant call ``call``."""
+    try:
+        yield
+    except Exception as exc:
+        exc.hevsim_call = call  # type: ignore[attr-defined]
+        raise
+
+
+def failure(exc: Exception) -> Any:
+    """The reply text of a failed request: "Type: message", as (call, text) when the failure
+    happened in another participant call than the request's (:func:`phase`)."""
+    text = f"{type(exc).__name__}: {exc}"
+    call = getattr(exc, "hevsim_call", None)
+    return (call, text) if call else text
+
+
 def serve(rfd: int, wfd: int) -> None:
     """Answer the requests read from ``rfd`` on ``wfd`` until ``quit`` or end of input."""
+    from hevsim.cosim.me import participant_class
     from hevsim.cosim.participant import FMUParticipant
 
     p: FMUParticipant | None = None
@@ -337,7 +362,7 @@ def serve(rfd: int, wfd: int) -> None:
                 ch.step(p)
                 frame = TOKEN_FRAME
             except Exception as exc:
-                frame = encode_frame((False, f"{type(exc).__name__}: {exc}"))
+                frame = encode_frame((False, failure(exc)))
             if ch is not None:
                 ch.seq = read_seq(ch.mm, REQUEST_SEQ_AT)
                 write_seq(ch.mm, REPLY_SEQ_AT, ch.seq)
@@ -354,10 +379,18 @@ def serve(rfd: int, wfd: int) -> None:
                 res = st.steps(req[1])
             elif cmd == "open":
                 _, name, fmu, parameters, log_level, fmu_log = req
-                p = FMUParticipant(name, fmu, parameters, log_level=log_level, fmu_log=fmu_log)
+                p = participant_class(fmu)(name, fmu, parameters, log_level=log_level, fmu_log=fmu_log)
                 st = _Stepper(p)
                 fast = p.vars.fast_names()
-                res = (p.inputs, p.outputs, p.can_save_state, p.state_note, dict(p.types), fast)
+                res = (
+                    p.inputs,
+                    p.outputs,
+                    p.can_save_state,
+                    p.state_note,
+                    dict(p.types),
+                    fast,
+                    dict(p.fmi_types),
+                )
             elif cmd == "quit":
                 return
             elif cmd == "crash":  # for tests of fault containment
@@ -367,7 +400,7 @@ def serve(rfd: int, wfd: int) -> None:
                 res = _other(p, cmd, req[1:])
             reply: tuple[bool, Any] = (True, res)
         except Exception as exc:
-            reply = (False, f"{type(exc).__name__}: {exc}")
+            reply = (False, failure(exc))
         send_frame(wfd, reply)
 
 
@@ -385,6 +418,10 @@ def _other(p: Any, cmd: str, args: tuple[Any, ...]) -> Any:
         p.set_state(*args)
     elif cmd == "terminate":
         p.terminate()
+    elif cmd == "window":  # a Model Exchange FMU's run window (its solver's maximum step)
+        window = getattr(p, "run_window", None)
+        if window is not None:
+            window(*args)
     else:
         raise ValueError(f"unknown command {cmd!r}")
     return None

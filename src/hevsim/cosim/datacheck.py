@@ -7,7 +7,14 @@ from pathlib import Path
 from typing import Any
 
 from hevsim.cosim import units as U
-from hevsim.cosim.fmi_vars import TYPE_CLASS, UNSUPPORTED_WHY, FmuVariables, type_conversion
+from hevsim.cosim.fmi_vars import (
+    TYPE_CLASS,
+    UNSUPPORTED_WHY,
+    FmuVariables,
+    article,
+    narrowing,
+    type_conversion,
+)
 from hevsim.cosim.load import load_system
 from hevsim.cosim.master import Connection, Options, state_needs
 from hevsim.cosim.ssd import COMPONENT_TYPES, FMU_TYPE, Component, Connector, SystemDescription
@@ -60,7 +67,9 @@ def _check(desc: SystemDescription) -> SystemDescription:
                     f"{what}: component {comp!r} has no variable {var!r}; variables: {sorted(declared)}."
                 )
             if var in declared and declared[var].kind not in (want, "inout"):
-                raise ConfigError(f"{what}: {comp}.{var} is an {declared[var].kind}, expected an {want}.")
+                raise ConfigError(
+                    f"{what}: {comp}.{var} is {article(declared[var].kind)}, expected {article(want)}."
+                )
         if (k.dst, k.dst_var) in fed:
             raise ConfigError(f"{what}: input {k.dst}.{k.dst_var} is connected more than once.")
         fed.add((k.dst, k.dst_var))
@@ -76,6 +85,9 @@ def _check(desc: SystemDescription) -> SystemDescription:
                     f"({UNSUPPORTED_WHY.get(typ, 'not supported')})."
                 )
         type_conversion(st, dt, f"{what} ({k.src}.{k.src_var} is {st}, {k.dst}.{k.dst_var} is {dt})")
+        sf = getattr(kinds[k.src].get(k.src_var), "fmi_type", "")
+        df = getattr(kinds[k.dst].get(k.dst_var), "fmi_type", "")
+        narrowing(sf, df, f"{what} ({k.src}.{k.src_var} is {sf}, {k.dst}.{k.dst_var} is {df})")
         if st == dt == "Real":
             U.conversion(su, du, desc.units, what)
     if desc.stop_time_s <= desc.start_time_s:
@@ -93,10 +105,7 @@ def _check_run(desc: SystemDescription, info: dict[str, dict[str, Any]]) -> None
     src = desc.source
     m = {k: v for k, v in desc.master.items() if k != "fmu_process"}
     if "step_s" not in m:
-        raise ConfigError(
-            f"{src}: no communication step size: give step_s in the hevsim master annotation or "
-            "the OSP annotation (osp:FixedStepAlgorithm baseStepSize) of ssd:DefaultExperiment."
-        )
+        m["step_s"] = default_step(desc)[0]
     try:
         opts = Options(stop_time_s=desc.stop_time_s, start_time_s=desc.start_time_s, **m)
     except TypeError as exc:
@@ -120,6 +129,38 @@ def _check_run(desc: SystemDescription, info: dict[str, dict[str, Any]]) -> None
                 "no order can give every participant its inputs at the end of the step. Use "
                 "algorithm 'jacobi' (one step of lag per connection) or max_iterations > 1."
             )
+
+
+def default_step(desc: SystemDescription) -> tuple[float, str]:
+    """The communication step [s] when the system description gives none, as other masters
+    take it (FMPy: the FMU's ``DefaultExperiment stepSize``): the largest step every FMU
+    participant accepts, i.e. the smallest of their ``stepSize`` values, with a note saying
+    where it comes from. :class:`ConfigError` when no FMU states one."""
+    from fmpy import read_model_description
+
+    steps: dict[str, float] = {}
+    for c in desc.components:
+        if c.type != FMU_TYPE or not (desc.base_dir / c.source).is_file():
+            continue
+        try:
+            de = read_model_description(str(desc.base_dir / c.source)).defaultExperiment
+        except Exception:  # (an unreadable FMU is reported by the data check)
+            continue
+        size = getattr(de, "stepSize", None) if de is not None else None
+        if size not in (None, "") and float(size) > 0:
+            steps[c.name] = float(size)
+    if not steps:
+        raise ConfigError(
+            f"{desc.source}: no communication step size: give step_s in the hevsim master annotation or "
+            "the OSP annotation (osp:FixedStepAlgorithm baseStepSize) of ssd:DefaultExperiment "
+            "(no FMU participant states a DefaultExperiment stepSize either)."
+        )
+    h = min(steps.values())
+    each = ", ".join(f"{n} {v:g} s" for n, v in steps.items())
+    return h, (
+        f"step_s = {h:g} s from the FMUs' DefaultExperiment stepSize ({each}): the largest step "
+        "every participant accepts (no step_s in the system description)"
+    )
 
 
 def algebraic_loop(
@@ -182,10 +223,10 @@ def _fmu_connectors(desc: SystemDescription, c: Component, info: dict[str, Any])
         md = read_model_description(str(f))
     except Exception as exc:
         raise ConfigError(f"{desc.source}: component {c.name!r}: {f} is not a valid FMU ({exc}).") from None
-    if md.coSimulation is None:
+    if md.coSimulation is None and md.modelExchange is None:
         raise ConfigError(
-            f"{desc.source}: component {c.name!r}: FMU {f.name} has no co-simulation interface "
-            "(model exchange only); hevsim runs co-simulation FMUs."
+            f"{desc.source}: component {c.name!r}: FMU {f.name} has neither a co-simulation nor a "
+            "model exchange interface."
         )
     try:
         fv = FmuVariables(md, f.name)
@@ -195,7 +236,11 @@ def _fmu_connectors(desc: SystemDescription, c: Component, info: dict[str, Any])
     info["can_state"] = bool(getattr(cs, f"canGetAndSet{key}", False)) and bool(
         getattr(cs, f"canSerialize{key}", False)
     )
-    info["state_note"] = f'FMU {f.name} declares canGetAndSet{key}="false" or canSerialize{key}="false"'
+    info["state_note"] = (
+        f'FMU {f.name} declares canGetAndSet{key}="false" or canSerialize{key}="false"'
+        if cs is not None
+        else f"FMU {f.name} is Model Exchange: its state includes the integrator's, which is not saved"
+    )
     inputs = {v.name for v in md.modelVariables if v.causality == "input"}
     info["feedthrough"] = {
         u.variable.name: {d.name for d in u.dependencies if d.name in inputs}
@@ -209,10 +254,12 @@ def _fmu_connectors(desc: SystemDescription, c: Component, info: dict[str, Any])
             or (v.declaredType.unit if getattr(v, "declaredType", None) else None)
             or ""
         )
-        out[v.name] = Connector(v.name, v.causality, unit, TYPE_CLASS.get(str(v.type), str(v.type)))
+        out[v.name] = Connector(
+            v.name, v.causality, unit, TYPE_CLASS.get(str(v.type), str(v.type)), str(v.type)
+        )
     for kind, table in (("input", fv.inputs), ("output", fv.outputs)):
         for e, u in table.items():
-            out[e] = Connector(e, kind, u, fv.types[e])
+            out[e] = Connector(e, kind, u, fv.types[e], fv.fmi_types[e])
     by_name = {v.name: v for v in md.modelVariables}
     for p, val in c.parameters.items():
         if p not in out:

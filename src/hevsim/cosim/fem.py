@@ -13,7 +13,8 @@ the cooling plate], ``wall_heat_w`` [W, heat through the channel wall into the c
 ``stored_energy_j`` [J].
 
 Coolant, ``coolant="internal"`` (default): the quasi-steady 1-D channel is solved inside the
-participant, iterated with the wall temperature every sub-step (``coupling_iterations``);
+participant, coupled implicitly to the wall temperature every sub-step (``[simulation]
+coupling``; ``"staggered"`` with ``coupling_iterations`` as before);
 extra outputs ``outlet_temp_k`` [K] and ``cooling_power_w`` [W].
 ``coolant="external"``: the channel is another participant
 (:class:`hevsim.cosim.coolant.CoolantChannelParticipant`, or any fluid model with the same
@@ -24,9 +25,10 @@ and optionally ``wall<j>_fluid_temp_k`` [K]. The thesis's exchange (heat flux an
 heat capacitance): the plate applies ``q(T) = q* + h (T - T*)`` linearised around its
 current wall temperature ``T*``, i.e. a film ``h`` to the sink temperature ``T* - q*/h`` (a
 pure heat flux where h = 0); with the coolant stepped after the plate this reproduces the
-internal coupling (``coupling_iterations = 1``) exactly. With the fluid temperature
-connected the film acts towards it instead, which stays exact when the master iterates a
-step (``max_iterations``) and so converges to the implicit plate-coolant coupling.
+internal staggered coupling (``coupling = "staggered"``, ``coupling_iterations = 1``) exactly.
+With the fluid temperature connected the film acts towards it instead, which stays exact when
+the master iterates a step (``max_iterations``) and so converges to the implicit plate-coolant
+coupling (the internal default).
 
 Temperature fields are kept every ``[output] field_every_s`` of the configuration and at the
 end; :meth:`FemModuleParticipant.write_fields` writes them (VTU/PVD), the pictures of the

@@ -64,6 +64,34 @@ _CONVERSIONS: dict[tuple[str, str], Callable[[Any], Any]] = {
 }
 
 
+def article(word: str) -> str:
+    """``word`` with its indefinite article: "an Integer", "an Int8", "a UInt8", "a Real"."""
+    return f"{'an' if word[:1].upper() in 'AEIO' else 'a'} {word}"
+
+
+def narrowing(src_fmi: str, dst_fmi: str, what: str) -> None:
+    """:class:`ConfigError` naming ``what`` when a connection from an output of FMI type
+    ``src_fmi`` to an input of FMI type ``dst_fmi`` can lose values: an integer type whose
+    range does not hold the source's (Int64 -> Int8, UInt8 -> Int8, FMI 2.0 Integer is Int32),
+    an Enumeration (Int64 in FMI 3.0) into a shorter integer, or Float64 -> Float32.
+    Unknown types ("" or a Python participant's class) are not checked."""
+    ranges = {**INT_RANGE, "Integer": INT_RANGE["Int32"], "Enumeration": INT_RANGE["Int64"],
+              "Boolean": (0, 1)}  # fmt: skip
+    if src_fmi in ranges and (dst_fmi in INT_RANGE or dst_fmi == "Integer"):
+        (slo, shi), (dlo, dhi) = ranges[src_fmi], ranges[dst_fmi]
+        if slo < dlo or shi > dhi:
+            raise ConfigError(
+                f"{what}: narrowing connection: {article(src_fmi)} output ({slo} .. {shi}) into "
+                f"{article(dst_fmi)} input ({dlo} .. {dhi}) can lose values; connect it to an input "
+                "whose type holds every value of the output's, or change the output's type."
+            )
+    if src_fmi == "Float64" and dst_fmi == "Float32":
+        raise ConfigError(
+            f"{what}: narrowing connection: a Float64 output into a Float32 input loses precision "
+            "and range; connect it to a Float64 input, or make the output a Float32."
+        )
+
+
 def type_conversion(src_type: str, dst_type: str, what: str) -> Callable[[Any], Any] | None:
     """The conversion a connection from a ``src_type`` output to a ``dst_type`` input applies
     (None: none needed, same class); :class:`ConfigError` naming ``what`` if not allowed."""
@@ -73,7 +101,7 @@ def type_conversion(src_type: str, dst_type: str, what: str) -> Callable[[Any], 
     if conv is None:
         allowed = ", ".join(f"{a} -> {b}" for a, b in _CONVERSIONS)
         raise ConfigError(
-            f"{what}: cannot connect a {src_type} output to a {dst_type} input; "
+            f"{what}: cannot connect {article(src_type)} output to {article(dst_type)} input; "
             f"allowed conversions: {allowed} (and any type to itself)."
         )
     return conv
@@ -126,6 +154,8 @@ class FmuVariables:
         self.inputs: dict[str, str] = {}
         self.outputs: dict[str, str] = {}
         self.types: dict[str, str] = {}
+        self.fmi_types: dict[str, str] = {}
+        """Each element's FMI type (Float64, Int8, .., FMI 2.0 Real, Integer ..)."""
         self.unsupported: dict[str, str] = {}  # variable -> its FMI type (Binary, Clock)
         out_groups: dict[str, _Group] = {}
         self._in_vars: dict[str, tuple[str, int, list[str]]] = {}  # variable -> (type, vr, elements)
@@ -143,6 +173,7 @@ class FmuVariables:
             unit = _unit(v) if cls == "Real" else ""
             for e in names:
                 self.types[e] = cls
+                self.fmi_types[e] = ftype
                 (self.inputs if v.causality == "input" else self.outputs)[e] = unit
             if v.causality == "output":
                 g = out_groups.setdefault(ftype, _Group(ftype, [], [], PY_TYPE[cls]))
@@ -323,7 +354,7 @@ class FmuVariables:
         lo, hi = INT_RANGE[ftype]
         if not lo <= value <= hi:
             raise ConfigError(
-                f"FMU {self.fmu_name}: {what} {name!r} is an {ftype} ({lo} .. {hi}), got {value}."
+                f"FMU {self.fmu_name}: {what} {name!r} is {article(ftype)} ({lo} .. {hi}), got {value}."
             )
 
     def set_parameter(self, slave: Any, var: Any, value: Any) -> None:
@@ -359,10 +390,12 @@ class FmuVariables:
             _hex_bytes(value, self.fmu_name, f"parameter {var.name!r}")
             return
         if cls in ("Integer", "Enumeration") and (isinstance(value, float) and value != int(value)):
-            raise ConfigError(f"FMU {self.fmu_name}: parameter {var.name!r} is an {cls}, got {value!r}.")
+            raise ConfigError(
+                f"FMU {self.fmu_name}: parameter {var.name!r} is {article(cls)}, got {value!r}."
+            )
         if cls != "String" and isinstance(value, str):
             raise ConfigError(
-                f"FMU {self.fmu_name}: parameter {var.name!r} is a {cls}, got the text {value!r}."
+                f"FMU {self.fmu_name}: parameter {var.name!r} is {article(cls)}, got the text {value!r}."
             )
         if ftype in INT_RANGE:
             self._in_range(ftype, var.name, int(value), "parameter")

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 
 from hevsim.cosim import units as U
-from hevsim.cosim.fmi_vars import type_conversion
+from hevsim.cosim.fmi_vars import narrowing, type_conversion
 from hevsim.cosim.participant import Participant
 from hevsim.errors import ConfigError, HevsimError, SimulationError
 
@@ -149,6 +149,13 @@ class CosimResult:
     integers: dict[str, list[int]] = field(default_factory=dict)
     """Integer and Enumeration outputs exactly (FMI 3.0 Int64 / UInt64 beyond 2**53 included;
     their ``data`` columns are the nearest float64); indexing and :meth:`write_csv` use these."""
+    order: list[str] = field(default_factory=list)
+    """Every output column ("participant.variable", numeric and String alike) in the order the
+    participants are listed and, within one, the order it declares its outputs (an FMU: its
+    model description): the columns of :meth:`write_csv` ([]: :attr:`columns`, then :attr:`text`)."""
+    booleans: frozenset[str] = frozenset()
+    """Boolean output columns (``data`` holds them as 0 / 1; :meth:`write_csv` writes
+    ``true`` / ``false``)."""
 
     def __getitem__(self, key: str) -> np.ndarray:
         if key in self.text:
@@ -161,22 +168,24 @@ class CosimResult:
             raise KeyError(f"no result column {key!r}; columns: {self.columns + list(self.text)}") from None
 
     def write_csv(self, path: str | Path) -> None:
-        """Write the time series as CSV (atomically)."""
+        """Write the time series as CSV (atomically): ``time_s``, then the columns in
+        :attr:`order`; floats as ``repr`` (round-trips), integers exactly, Booleans as
+        ``true`` / ``false``, Strings (and Binary as hexadecimal text) quoted where needed."""
         from hevsim.io import write_text_atomic
 
-        text = list(self.text.values())
-        lines = [",".join(["time_s", *self.columns, *self.text])]
-        table: list[list[Any]] = np.column_stack([self.time_s, self.data]).tolist()  # repr round-trips
-        for j, c in enumerate(self.columns, start=1):
-            if c in self.integers:  # exact integers, written as such
-                for row, v in zip(table, self.integers[c], strict=True):
-                    row[j] = v
-        if text:
-            lines += [
-                ",".join([*map(repr, row), *(_csv_field(c[i]) for c in text)]) for i, row in enumerate(table)
-            ]
-        else:
-            lines += [",".join(map(repr, row)) for row in table]
+        order = self.order or [*self.columns, *self.text]
+        index = {c: j for j, c in enumerate(self.columns)}
+        fields: list[list[str]] = [list(map(repr, np.asarray(self.time_s, float).tolist()))]
+        for c in order:
+            if c in self.text:
+                fields.append([_csv_field(v) for v in self.text[c]])
+            elif c in self.integers:  # exact integers, written as such
+                fields.append(list(map(str, self.integers[c])))
+            elif c in self.booleans:
+                fields.append(["true" if v else "false" for v in self.data[:, index[c]].tolist()])
+            else:
+                fields.append(list(map(repr, self.data[:, index[c]].tolist())))
+        lines = [",".join(["time_s", *order]), *map(",".join, zip(*fields, strict=True))]
         write_text_atomic(path, "\n".join(lines) + "\n")
 
 
@@ -257,6 +266,8 @@ class Master:
             conv = type_conversion(
                 st, dt, f"{what} ({c.src}.{c.src_var} is {st}, {c.dst}.{c.dst_var} is {dt})"
             )
+            sf, df = self.p[c.src].fmi_types.get(c.src_var, ""), self.p[c.dst].fmi_types.get(c.dst_var, "")
+            narrowing(sf, df, f"{what} ({c.src}.{c.src_var} is {sf}, {c.dst}.{c.dst_var} is {df})")
             f, o = 1.0, 0.0
             if st == dt == "Real":
                 su = c.src_unit if c.src_unit is not None else self.p[c.src].outputs[c.src_var]
@@ -411,8 +422,15 @@ class Master:
         text = {c: exact[c] for c in list(exact)[: self._ntext]}
         ints = {c: exact[c] for c in list(exact)[self._ntext :]}
         return CosimResult(
-            np.array(self._times), cols, data, dict(self.stats), stopped_by, dict(self.p), text, ints
-        )
+            np.array(self._times), cols, data, dict(self.stats), stopped_by, dict(self.p), text, ints,
+            list(self._order), self._booleans,
+        )  # fmt: skip
+
+    def _listed_outputs(self, n: str, y: Mapping[str, Any]) -> list[str]:
+        """The outputs ``y`` of participant ``n`` in the order it declares them (then any
+        others it reports, in their order)."""
+        declared = self.p[n].outputs
+        return [v for v in declared if v in y] + [v for v in y if v not in declared]
 
     # -- checkpoints: the state only; the rows stream append-only to <checkpoint>.rows ------
     def _rows_path(self) -> Path:
@@ -443,6 +461,7 @@ class Master:
         tmp.write_bytes(pickle.dumps(blob))
         tmp.replace(path)
         self._last_ck = _time.monotonic()
+        self._ck_step = nsteps
 
     def _load_checkpoint(self, ck: Path) -> dict[str, Any]:
         try:
@@ -512,7 +531,12 @@ class Master:
         self._treplay: list[list[Any]] = []
         self._stream: Any = None
         self._tstream: Any = None
+        self._order: list[str] = []
+        self._booleans: frozenset[str] = frozenset()
         for n in self.order:
+            window = getattr(self.p[n], "run_window", None)  # (Model Exchange FMUs: the solver's)
+            if window is not None:
+                window(o.start_time_s, o.stop_time_s)
             self._call(n, "setup", t, self.p[n].setup, t)
         # A participant without inputs from others that can run ahead (worker FMUs) steps
         # several steps per exchange where steps are fixed and never redone (checkpoints
@@ -537,12 +561,15 @@ class Master:
                 feeds = ()  # sent before the start
             self._plan.append((n, p.set_inputs, p.do_step, p.get_outputs, feeds))
         y = self._initial_exchange(t)
-        self._cols = [(n, v) for n in self.listing for v in y[n] if not isinstance(y[n][v], str)]
-        self._tcols = [(n, v) for n in self.listing for v in y[n] if isinstance(y[n][v], str)]
+        listed = [(n, v) for n in self.listing for v in self._listed_outputs(n, y[n])]
+        self._order = [f"{n}.{v}" for n, v in listed]
+        self._booleans = frozenset(f"{n}.{v}" for n, v in listed if self.p[n].types.get(v) == "Boolean")
+        self._cols = [(n, v) for n, v in listed if not isinstance(y[n][v], str)]
+        self._tcols = [(n, v) for n, v in listed if isinstance(y[n][v], str)]
         self._ntext = len(self._tcols)
         # Integer / Enumeration outputs are also kept exactly in the text rows (JSON: any int)
         self._tcols += [
-            (n, v) for n in self.listing for v in y[n]
+            (n, v) for n, v in listed
             if self.p[n].types.get(v) in ("Integer", "Enumeration") and not isinstance(y[n][v], str)
         ]  # fmt: skip
         self._pack = struct.Struct(f"={1 + len(self._cols)}d").pack  # one row of the stream
@@ -553,11 +580,20 @@ class Master:
             self._stream = open(self._rows_path(), "ab" if blob is not None else "wb")
             self._tstream = open(self._rows_path().with_suffix(".text"), "ab" if blob is not None else "wb")
         self._last_ck = _time.monotonic()
+        self._ck_step = -1  # the step of the last checkpoint written
+        self._last_y = y
         stopped_by = None
         try:
+            if resume and blob is None:
+                self.stats["resume"] = f"no checkpoint {ck}: started from t = {t:g} s"
             if blob is not None and blob["states"] is None:
                 self._refuse_replay(ck)  # type: ignore[arg-type]
                 self._replay, self._treplay = blob["table"], blob["text_table"]
+                self.stats["resume"] = (
+                    f"replayed from t = {t:g} s (participants that cannot save their state), checked "
+                    f"against the {len(self._replay)} rows stored up to t = {blob['t']:g} s "
+                    f"(step {blob['nsteps']})"
+                )
                 # the replay rewrites the rows from the start
                 for f in (self._stream, self._tstream):
                     f.seek(0)
@@ -566,16 +602,22 @@ class Master:
                 t, h, y, nsteps = blob["t"], blob["h"], blob["y"], blob["nsteps"]
                 self._window_start = dict(blob["window_start"])
                 self.stats = blob["stats"]
+                self.stats["resume"] = f"resumed from the checkpoint at t = {t:g} s (step {nsteps})"
                 table = blob["table"]
                 self._times = [float(v) for v in table[:, 0]]
                 self._rows = table[:, 1:].tolist()
                 self._trows = blob["text_table"]
                 self._restore(blob["states"], t)
+                self._last_y = y
             else:
                 self._record(t, y)
             t_loop = _time.perf_counter()
             stopped_by = self._loop(t, h, y, nsteps, ck, progress)
             self.stats["loop_s"] = _time.perf_counter() - t_loop
+            if ck is not None and stopped_by is None and self._ck_step != self.stats["steps"]:
+                # the end as a checkpoint too (a run shorter than the interval has one; resuming
+                # a finished run gives its results without stepping)
+                self._checkpoint(self._times[-1], self.opt.step_s, self._last_y, self.stats["steps"])
         except CosimFault as exc:
             exc.partial = self._result(f"fault: {exc}")
             self._terminate_all(t)
@@ -586,7 +628,7 @@ class Master:
             raise
         self._terminate_all(self._times[-1] if self._times else t)
         self._close_stream()
-        if ck is not None:
+        if ck is not None and stopped_by is not None:  # (no final checkpoint: nothing to resume)
             self._rows_path().unlink(missing_ok=True)
             self._rows_path().with_suffix(".text").unlink(missing_ok=True)
         return self._result(stopped_by)
@@ -664,7 +706,7 @@ class Master:
             for n in self._multirate:
                 if self._exchanges(n, t_end):
                     self._window_start[n] = t_end
-            y = new
+            y = self._last_y = new
             t = t_end
             nsteps += 1
             self.stats["steps"] = nsteps
@@ -761,6 +803,7 @@ def _fault(name: str, call: str, t: float, exc: Exception) -> CosimFault:
     """``exc`` raised by participant ``name`` in ``call`` at ``t`` [s] as a :class:`CosimFault`
     naming them."""
     what = str(exc) if isinstance(exc, HevsimError) else f"{type(exc).__name__}: {exc}"
+    call = getattr(exc, "call", None) or call  # (a worker sets inputs with the step: PhaseError)
     return CosimFault(f"participant {name!r} failed in {call} at t = {t:g} s: {what}")
 
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import copy
+import math
 import sys
 import warnings
 from abc import ABC, abstractmethod
@@ -40,6 +41,16 @@ def store_inputs(p: Participant, store: dict[str, float], values: Mapping[str, f
         store[k] = float(v)
 
 
+class PhaseError(SimulationError):
+    """A participant failure in the call ``call`` ("set_inputs", "do_step", "get_outputs")
+    when that is not the call the master made: a worker process sets the inputs with the
+    step or the output query, so its failure names the phase it really failed in."""
+
+    def __init__(self, message: str, call: str):
+        super().__init__(message)
+        self.call = call
+
+
 class Participant(ABC):
     """Base class: declares the interface and sensible defaults."""
 
@@ -52,6 +63,9 @@ class Participant(ABC):
     """Type class of a variable that is not Real: "Integer", "Enumeration", "Boolean" or
     "String" (:mod:`hevsim.cosim.fmi_vars`); absent: Real."""
     """Where a participant that asked to stop got to [s] (None: the end of the step)."""
+    fmi_types: Mapping[str, str] = {}
+    """FMI type of an FMU's variable (Float64, Int8, ..): narrowing connections are refused
+    (:func:`hevsim.cosim.fmi_vars.narrowing`); absent: not checked."""
     deterministic: bool = True
     """Same inputs give the same outputs: a run it cannot checkpoint can be resumed by
     replaying from the start (the replay is compared with the stored results)."""
@@ -350,9 +364,11 @@ class FMUParticipant(Participant):
     sets :attr:`terminate_requested` and :attr:`terminate_time` (the last successful time):
     the master records that point and ends the run cleanly. Any other discarded step is
     rejected (the master redoes it with a shorter step: ``lastSuccessfulTime - t`` when the
-    FMU got part way, else half). The FMU is instantiated without early return
-    or event mode, and stepped with ``noSetFMUStatePriorToCurrentPoint = false`` (the master
-    may restore earlier states when iterating or rejecting steps).
+    FMU got part way, else half). An FMI 3.0 FMU declaring ``hasEventMode`` is instantiated
+    with event mode and early return: its events inside a step are handled in event mode
+    (:meth:`_do_step3`); others without. Steps are taken with
+    ``noSetFMUStatePriorToCurrentPoint = false`` (the master may restore earlier states when
+    iterating or rejecting steps).
     """
 
     def __init__(
@@ -379,8 +395,8 @@ class FMUParticipant(Participant):
             md = read_model_description(str(self.fmu))
         except Exception as exc:
             raise ConfigError(f"participant {name!r}: {self.fmu} is not a valid FMU ({exc}).") from exc
-        if md.coSimulation is None:
-            raise ConfigError(f"participant {name!r}: {self.fmu} has no co-simulation interface.")
+        if self._interface(md) is None:
+            raise ConfigError(f"participant {name!r}: {self.fmu} has no {self.interface_name} interface.")
         self.md = md
         self.fmi3 = md.fmiVersion.startswith("3")
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
@@ -401,6 +417,7 @@ class FMUParticipant(Participant):
                 stacklevel=2,
             )
         self.types = {k: t for k, t in self.vars.types.items() if t != "Real"}
+        self.fmi_types = dict(self.vars.fmi_types)
         self.parameters = dict(parameters or {})
         for k, val in self.parameters.items():
             if k not in self.vr:
@@ -411,12 +428,19 @@ class FMUParticipant(Participant):
                 self.vars.check_parameter(self._var[k], val)
             except ConfigError as exc:
                 raise ConfigError(f"participant {name!r}: {exc}") from None
-        cs = md.coSimulation
+        cs = self._interface(md)
         self.can_state = bool(getattr(cs, "canGetAndSetFMUstate", False)) and bool(
             getattr(cs, "canSerializeFMUstate", False)
         )
         self.slave: Any = None
         self.terminate_requested = False
+
+    interface_name = "co-simulation"
+
+    @staticmethod
+    def _interface(md: Any) -> Any:
+        """The interface of the model description this class drives (None: it has none)."""
+        return md.coSimulation
 
     def setup(self, t0: float) -> None:
         from fmpy import extract
@@ -434,10 +458,22 @@ class FMUParticipant(Participant):
                     guid=self.md.guid, unzipDirectory=self._dir, modelIdentifier=ident, instanceName=self.name
                 )
                 self._log_cb = lambda env, status, cat, msg: self._on_log(status, cat, msg)
-                self.slave.instantiate(loggingOn=logging_on, logMessage=self._log_cb)
+                # FMI 3.0 event mode where the FMU has it (its events: early return, event mode)
+                self._event_mode = bool(getattr(self.md.coSimulation, "hasEventMode", False))
+                self.slave.instantiate(
+                    loggingOn=logging_on, logMessage=self._log_cb, eventModeUsed=self._event_mode,
+                    earlyReturnAllowed=self._event_mode,
+                )  # fmt: skip
                 self.slave.enterInitializationMode(startTime=t0)
                 self._set_params()
                 self.slave.exitInitializationMode()
+                self.events = 0
+                if self._event_mode:  # (in event mode after initialisation)
+                    if self._update_discrete_states():
+                        raise SimulationError(
+                            f"FMU {self.fmu.name} requested termination during initialisation."
+                        )
+                    self.slave.enterStepMode()
             else:
                 from ctypes import byref
 
@@ -591,10 +627,43 @@ class FMUParticipant(Participant):
         self.terminate_requested = False
         return False, (last - t if last is not None and t < last < t + h else None)
 
+    def _update_discrete_states(self) -> bool:
+        """The event iteration of an FMI 3.0 FMU in event mode (``fmi3UpdateDiscreteStates``
+        until no discrete state needs an update); returns whether it asked to terminate."""
+        need, terminate = True, False
+        while need and not terminate:
+            need, terminate, *_ = self.slave.updateDiscreteStates()
+        return bool(terminate)
+
     def _do_step3(self, t: float, h: float) -> tuple[bool, float | None]:
+        """The communication step from ``t`` by ``h`` of an FMI 3.0 FMU: with event mode (the
+        FMU has it), an early return at an event (``eventHandlingNeeded``) is followed by the
+        event iteration in event mode and the rest of the step, as often as the FMU returns
+        early (:attr:`events` counts them), so the master sees the step end as without events."""
+        t_end, t_cur = t + h, t
+        while True:
+            ok, pref, event, early, reached = self._do_step3_once(t_cur, t_end - t_cur)
+            if not ok or self.terminate_requested:
+                return ok, pref
+            if event and self._event_mode:
+                self.events += 1
+                self.slave.enterEventMode()
+                if self._update_discrete_states():
+                    self.terminate_requested, self.terminate_time = True, reached
+                    return True, None
+                self.slave.enterStepMode()
+            if not early or reached >= t_end or math.isclose(reached, t_end):
+                return True, None
+            if not reached > t_cur:
+                raise SimulationError(
+                    f"FMU {self.fmu.name} returned early at t = {reached!r} s, not after {t_cur!r} s."
+                )
+            t_cur = reached
+
+    def _do_step3_once(self, t: float, h: float) -> tuple[bool, float | None, bool, bool, float]:
         """fmi3DoStep with its status and out-arguments (FMPy's ``doStep`` raises on
         fmi3Discard before returning them, and defaults noSetFMUStatePriorToCurrentPoint to
-        true)."""
+        true): (accepted, preferred step, eventHandlingNeeded, earlyReturn, lastSuccessfulTime)."""
         from ctypes import byref
 
         from fmpy.fmi1 import FMICallException
@@ -617,23 +686,22 @@ class FMUParticipant(Participant):
             if exc.status != fmi3Discard:
                 raise
             discarded = True
+        lt = float(last.value)
         if discarded:
             if term.value:  # stop where it got to, as an FMI 2.0 discard + fmi2Terminated
                 self.terminate_requested = True
-                lt = float(last.value)
                 self.terminate_time = lt if t <= lt <= t + h else t
-                return True, None
-            reached = float(last.value)
+                return True, None, False, False, lt
             self.terminate_requested = False
-            return False, (reached - t if t < reached < t + h else None)
+            return False, (lt - t if t < lt < t + h else None), False, False, lt
         # per step: a request from a step the master then redid (restored state) is void
         self.terminate_requested = bool(term.value)
-        if not term.value and early.value:  # not allowed at instantiation: a non-conforming FMU
+        if not term.value and early.value and not self._event_mode:  # not allowed: non-conforming
             raise SimulationError(
                 f"FMU {self.fmu.name} returned early at t = {last.value:g} s although early return "
                 "was not allowed."
             )
-        return True, None
+        return True, None, bool(event.value), bool(early.value), (lt if early.value else t + h)
 
     def get_outputs(self) -> dict[str, Any]:
         mark = self._log_count

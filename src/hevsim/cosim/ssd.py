@@ -6,8 +6,10 @@ the SIMULIA CSE import in :mod:`hevsim.cosim.cse`.
 Component types in an SSD:
 
 * ``application/x-fmu-sharedlibrary`` (SSP's FMU type): ``source`` is the FMU path relative
-  to the SSD (or inside the ``.ssp``); run in a worker process unless the master annotation
-  says ``fmu_process="inprocess"``;
+  to the SSD (or inside the ``.ssp``); where it runs follows the master annotation's
+  ``fmu_process``: ``"auto"`` (default: pythonfmu FMUs and FMUs hevsim generated in
+  process, others in a worker process forked from the master), ``"worker"``, ``"inprocess"``
+  (:func:`hevsim.cosim.system.build_participants`);
 * ``application/x-hevsim-python``: ``source`` is ``"package.module:factory"``; the factory is
   called with ``name=`` and the component's parameters as keyword arguments (a string
   parameter starting with ``./`` or ``../`` is a path relative to the SSD) and returns a
@@ -69,6 +71,9 @@ class Connector:
     unit: str = ""
     type: str = "Real"
     """Type class: Real, Integer, Enumeration, Boolean, String (:mod:`hevsim.cosim.fmi_vars`)."""
+    fmi_type: str = ""
+    """The FMI type (Float64, Float32, Int8 .. UInt64, FMI 2.0 Integer ..; "" unknown): narrowing
+    connections (Int64 -> Int8, Float64 -> Float32) are refused (:func:`~hevsim.cosim.fmi_vars.narrowing`)."""
 
 
 @dataclass
@@ -199,7 +204,9 @@ def read_ssd(path: str | Path, text: bytes | None = None, base_dir: Path | None 
             typed = next((t for t in c if local_name(t.tag) in _CONNECTOR_TYPES), None)
             vtype = _CONNECTOR_TYPES[local_name(typed.tag)] if typed is not None else "Real"
             unit = (typed.get("unit") or "") if typed is not None and vtype == "Real" else ""
-            conns.append(Connector(cname, kind, unit, vtype))
+            tag = local_name(typed.tag) if typed is not None else ""
+            sized = tag in ("Float32", "Float64") or (tag[:3] in ("Int", "UIn") and tag != "Integer")
+            conns.append(Connector(cname, kind, unit, vtype, tag if sized else ""))
         params: dict[str, Any] = {}
         for pb in el.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
             params.update(_binding(pb, base_dir if base_dir is not None else path.parent, where))
@@ -327,8 +334,8 @@ def _master_options(attrs: dict[str, str], where: str) -> dict[str, Any]:
                     "wall-clock interval in seconds ('30s')."
                 ) from None
         elif k == "fmu_process":
-            if v not in ("worker", "inprocess"):
-                raise ConfigError(f"{where}: fmu_process {v!r}; valid: worker, inprocess.")
+            if v not in ("auto", "worker", "inprocess"):
+                raise ConfigError(f"{where}: fmu_process {v!r}; valid: auto, worker, inprocess.")
             out[k] = v
         elif k in OPTION_TYPES:
             try:

@@ -9,7 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hevsim.cosim.datacheck import datacheck
+from hevsim.cosim.datacheck import datacheck, default_step
 from hevsim.cosim.load import load_system
 from hevsim.cosim.master import CosimResult, Options, simulate
 from hevsim.cosim.participant import Participant
@@ -24,18 +24,24 @@ if TYPE_CHECKING:
 def build_participants(
     desc: SystemDescription, log_level: str = "error", fmu_log: str | Path | None = None
 ) -> list[Participant]:
-    """Instantiate the participants of ``desc`` (FMUs in worker processes by default; their
-    logger messages from ``log_level`` up on stderr, all of them in ``fmu_log``)."""
+    """Instantiate the participants of ``desc`` (their FMUs' logger messages from ``log_level``
+    up on stderr, all of them in ``fmu_log``). Where an FMU runs follows the master setting
+    ``fmu_process``: "auto" (the default) runs the FMUs :func:`trusted_fmu` names in process
+    and every other one in a worker process forked from the master (a crash in its native
+    code ends only the worker); "worker" runs every FMU in a worker, "inprocess" none."""
     from hevsim.cosim.participant import FMUParticipant
 
-    inproc = desc.master.get("fmu_process", "worker") == "inprocess"
+    mode = desc.master.get("fmu_process", "auto")
     parts: list[Participant] = []
     for c in desc.components:
         if c.type == FMU_TYPE:
-            if inproc:
-                cls: type[FMUParticipant] | type[WorkerFMUParticipant] = FMUParticipant
+            path = desc.base_dir / c.source
+            if mode == "inprocess" or (mode == "auto" and trusted_fmu(path)):
+                from hevsim.cosim.me import participant_class  # (Model Exchange FMUs: MEParticipant)
+
+                cls: type[FMUParticipant] | type[WorkerFMUParticipant] = participant_class(path)
             else:
-                from hevsim.cosim.worker import WorkerFMUParticipant  # (a process start anyway)
+                from hevsim.cosim.worker import WorkerFMUParticipant
 
                 cls = WorkerFMUParticipant
             parts.append(cls(c.name, desc.base_dir / c.source, c.parameters, log_level, fmu_log))
@@ -61,6 +67,28 @@ def build_participants(
     return parts
 
 
+def trusted_fmu(path: str | Path) -> str:
+    """Why the FMU ``path`` runs in process under ``fmu_process="auto"`` ("": it does not, it
+    runs in a forked worker process): a pythonfmu FMU (its model is Python code run by this
+    interpreter: a failure is a Python exception the FMU returns as an FMI error, not a crash)
+    or an FMU hevsim generated (its ``generationTool`` names hevsim's native C99 generator,
+    as :func:`hevsim.battery.native.is_native_fmu` reads it; not imported here: that package
+    imports numba and pandas, a second of start-up)."""
+    import zipfile
+    from xml.etree import ElementTree as ET
+
+    try:
+        with zipfile.ZipFile(path) as z:
+            if "resources/slavemodule.txt" in z.namelist():
+                return "a pythonfmu FMU (Python model code)"
+            root = ET.fromstring(z.read("modelDescription.xml"))
+    except (OSError, KeyError, zipfile.BadZipFile, ET.ParseError):
+        return ""  # (reported by the participant)
+    return (
+        "an FMU hevsim generated (native C99)" if "(native C99 FMU)" in root.get("generationTool", "") else ""
+    )
+
+
 def run_system(
     desc: SystemDescription,
     progress: Callable[[float, float], None] | None = None,
@@ -78,15 +106,22 @@ def run_system(
             )
     m = dict(desc.master)
     m.pop("fmu_process", None)
+    step_note = ""
     if "step_s" not in m:
-        raise ConfigError(f"{desc.source}: the master settings lack step_s (the communication step [s]).")
+        m["step_s"], step_note = default_step(desc)
     opts = Options(
         stop_time_s=desc.stop_time_s, start_time_s=desc.start_time_s, checkpoint_path=checkpoint_path, **m
     )
     opts.check()
     parts = build_participants(desc, log_level, fmu_log)
-    return simulate(parts, desc.connections, progress=progress, resume=resume, extra_units=desc.units,
-                    **vars(opts))  # fmt: skip
+    res = simulate(parts, desc.connections, progress=progress, resume=resume, extra_units=desc.units,
+                   **vars(opts))  # fmt: skip
+    res.stats["fmu_process"] = {
+        p.name: "worker process" if hasattr(p, "proc") else "in process" for p in parts if hasattr(p, "fmu")
+    }
+    if step_note:
+        res.stats["step_s"], res.stats["step_from"] = opts.step_s, step_note
+    return res
 
 
 def run_cosim(
@@ -146,5 +181,6 @@ def run_cosim(
             write(exc.partial, str(exc))
         raise
     write(res, None)
-    ck.unlink(missing_ok=True)
+    for f in (ck, ck.with_name(ck.name + ".rows"), ck.with_name(ck.name + ".text")):
+        f.unlink(missing_ok=True)  # (the run is in out_dir: nothing left to resume)
     return res

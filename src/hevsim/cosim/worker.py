@@ -9,11 +9,15 @@ steps per round trip (:meth:`WorkerFMUParticipant.run_ahead`)."""
 from __future__ import annotations
 
 import collections
+import contextlib
 import math
 import os
+import signal
 import struct
 import subprocess
 import sys
+import time
+import weakref
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, NoReturn
@@ -35,11 +39,107 @@ from hevsim.cosim._worker import (
     write_frame,
     write_seq,
 )
-from hevsim.cosim.participant import Participant, fmu_file
+from hevsim.cosim.participant import Participant, PhaseError, fmu_file
 from hevsim.errors import ConfigError, SimulationError
 
 RUN_AHEAD_STEPS = 100
-"""Steps per round trip of a worker FMU running ahead (:meth:`WorkerFMUParticipant.run_ahead`)."""
+"""Steps of the first round trip of a worker FMU running ahead (:meth:`WorkerFMUParticipant.run_ahead`)."""
+RUN_AHEAD_MAX = 3200
+"""Most steps per round trip of a worker FMU running ahead (the batch doubles up to it)."""
+
+
+START_METHOD = "fork" if sys.platform.startswith("linux") else "spawn"
+"""The default :attr:`WorkerFMUParticipant.start_method`."""
+
+_MASTER_ENDS: weakref.WeakSet[Any] = weakref.WeakSet()
+"""The master's ends of the forked workers' pipes: a worker forked later closes them, so a
+worker sees the end of its input when the master closes it or dies."""
+
+
+class ForkedWorker:
+    """A worker process forked from the master (:func:`hevsim.cosim._worker.serve` on two
+    pipes), with the part of :class:`subprocess.Popen`'s interface the participant uses
+    (``stdin``, ``stdout``, ``pid``, ``poll``, ``wait``, ``kill``, ``returncode``). The
+    fork starts in milliseconds: the master's imports (FMPy, hevsim) are already done. The
+    worker's fd 1 goes to the master's stderr (what the FMU prints), as a spawned worker's."""
+
+    def __init__(self) -> None:
+        r_req, w_req = os.pipe()
+        r_rep, w_rep = os.pipe()
+        for f in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                f.flush()  # (not written twice by the copy)
+        pid = os.fork()
+        if pid == 0:  # the worker: serve, never return into the master's code
+            code = 1
+            try:
+                for f in list(_MASTER_ENDS):
+                    if not f.closed:
+                        with contextlib.suppress(OSError):
+                            os.close(f.fileno())
+                os.close(w_req)
+                os.close(r_rep)
+                os.dup2(2, 1)
+                sys.stdout = sys.stderr
+                import faulthandler
+
+                faulthandler.disable()  # (as a spawned worker: a crash is reported by the master)
+                from hevsim.cosim._worker import serve
+
+                serve(r_req, w_rep)
+                code = 0
+            except BaseException:
+                import traceback
+
+                with contextlib.suppress(Exception):
+                    traceback.print_exc()
+            finally:
+                os._exit(code)
+        os.close(r_req)
+        os.close(w_rep)
+        self.pid = pid
+        self.returncode: int | None = None
+        self.stdin = os.fdopen(w_req, "wb", buffering=0)
+        self.stdout = os.fdopen(r_rep, "rb", buffering=0)
+        _MASTER_ENDS.add(self.stdin)
+        _MASTER_ENDS.add(self.stdout)
+
+    def poll(self) -> int | None:
+        """The exit code (negative: killed by that signal), None while it runs."""
+        if self.returncode is None:
+            try:
+                pid, status = os.waitpid(self.pid, os.WNOHANG)
+            except ChildProcessError:
+                self.returncode = -1
+                return self.returncode
+            if pid:
+                self.returncode = os.waitstatus_to_exitcode(status)
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        end = None if timeout is None else time.monotonic() + timeout
+        delay = 1e-4
+        while self.poll() is None:
+            if end is not None and time.monotonic() >= end:
+                raise subprocess.TimeoutExpired(f"forked worker {self.pid}", timeout or 0.0)
+            time.sleep(delay)
+            delay = min(2 * delay, 0.02)
+        assert self.returncode is not None
+        return self.returncode
+
+    def kill(self) -> None:
+        if self.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.pid, signal.SIGKILL)
+
+    def __del__(self) -> None:
+        with contextlib.suppress(Exception):
+            if self.poll() is None:
+                self.stdin.close()
+
+
+_CALLS = {"set": "set_inputs", "get": "get_outputs"}
+"""The participant call a worker request makes (named in failures)."""
 
 
 class WorkerFMUParticipant(Participant):
@@ -51,6 +151,10 @@ class WorkerFMUParticipant(Participant):
     spin_s = SPIN_MAX_S
     """How long each side polls for the other's reply before blocking on the pipe [s]
     (0: never; see :class:`hevsim.cosim._worker.Spin`)."""
+    start_method = START_METHOD
+    """How the worker process starts: "fork" (a copy of the master, its imports done: a few
+    ms; the default on Linux) or "spawn" (a fresh interpreter that imports FMPy and hevsim's
+    worker: 0.3-0.9 s)."""
 
     def __init__(
         self,
@@ -69,14 +173,18 @@ class WorkerFMUParticipant(Participant):
         self._mm: Any = None
         self._awaiting = 0  # counter of the step in shared memory whose reply is due
         try:
-            self.proc = subprocess.Popen(
-                [sys.executable, "-m", "hevsim.cosim._worker"],
-                stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE,
-                stderr=None,  # the FMU's own output and its logger lines from log_level up
-                bufsize=0,
-                pass_fds=(self._fd,) if self._fd >= 0 else (),
-            )
+            self.proc: Any
+            if self.start_method == "fork":
+                self.proc = ForkedWorker()
+            else:
+                self.proc = subprocess.Popen(
+                    [sys.executable, "-m", "hevsim.cosim._worker"],
+                    stdin=subprocess.PIPE,
+                    stdout=subprocess.PIPE,
+                    stderr=None,  # the FMU's own output and its logger lines from log_level up
+                    bufsize=0,
+                    pass_fds=(self._fd,) if self._fd >= 0 else (),
+                )
         except BaseException:
             if self._fd >= 0:
                 os.close(self._fd)
@@ -90,6 +198,7 @@ class WorkerFMUParticipant(Participant):
         self._step_reply: tuple[bool, Any] = (False, None)
         self._next_end: Callable[[float], float | None] | None = None  # running ahead
         self._batch = RUN_AHEAD_STEPS
+        self._max_batch = RUN_AHEAD_MAX
         self._ahead: collections.deque[tuple[float, float, Any]] = collections.deque()
         self._in_names: tuple[str, ...] | None = None  # input names the worker holds
         self._out_names: tuple[str, ...] = ()
@@ -99,8 +208,9 @@ class WorkerFMUParticipant(Participant):
         except SimulationError as exc:
             self.close()
             raise ConfigError(str(exc)) from None
-        ins, outs, can_state, note, types, fast = info
+        ins, outs, can_state, note, types, fast, fmi_types = info
         self.inputs, self.outputs = dict(ins), dict(outs)
+        self.fmi_types = dict(fmi_types)
         self._can_state, self._state_note = bool(can_state), str(note)
         self.types = dict(types)
         self._open_channel(fast)
@@ -180,7 +290,11 @@ class WorkerFMUParticipant(Participant):
             raise
         ok, res = msg
         if not ok:
-            raise SimulationError(f"participant {self.name!r}: {cmd} failed: {res}")
+            call = _CALLS.get(cmd)
+            if isinstance(res, tuple):  # failed in another participant call than the request's
+                call, res = res
+            text = f"participant {self.name!r}: {call or cmd} failed: {res}"
+            raise PhaseError(text, call) if call else SimulationError(text)
         return res
 
     def _crashed(self, cmd: str) -> NoReturn:
@@ -203,6 +317,11 @@ class WorkerFMUParticipant(Participant):
             if self.proc.poll() is not None:
                 raise
             self._step_reply = (False, exc)
+
+    def run_window(self, start_s: float, stop_s: float) -> None:
+        """Tell the FMU the run's start and stop time (a Model Exchange FMU's solver takes its
+        maximum step from them: :meth:`hevsim.cosim.me.MEParticipant.run_window`)."""
+        self._rpc("window", start_s, stop_s)
 
     # Inputs are sent with the next step (or output query): one round trip per step.
     def setup(self, t0: float) -> None:
@@ -270,8 +389,15 @@ class WorkerFMUParticipant(Participant):
         return (bool(ok), None if math.isnan(pref) else pref, bool(term), None if math.isnan(tt) else tt,
                 (self._fast_out, outs) if ok else None)  # fmt: skip
 
-    def run_ahead(self, next_end: Callable[[float], float | None], batch: int = RUN_AHEAD_STEPS) -> None:
-        """Step ``batch`` steps per round trip from now on: the master calls this for a
+    def run_ahead(
+        self,
+        next_end: Callable[[float], float | None],
+        batch: int = RUN_AHEAD_STEPS,
+        max_batch: int = RUN_AHEAD_MAX,
+    ) -> None:
+        """Step ``batch`` steps per round trip from now on, twice as many at each round trip up
+        to ``max_batch`` (on a loaded machine each round trip can wait milliseconds for the
+        scheduler, so long runs want few of them): the master calls this for a
         participant without inputs in a run whose steps are fixed and never redone (its
         state is only saved for checkpoints: :meth:`get_state` keeps the steps run ahead);
         ``next_end(t)`` is the end of the step from ``t`` [s] (None: ``t`` is the stop time).
@@ -279,6 +405,7 @@ class WorkerFMUParticipant(Participant):
         requests and failures, in the same steps, as stepping one at a time."""
         self._next_end = next_end
         self._batch = int(batch)
+        self._max_batch = max(int(max_batch), self._batch)
         self._ahead.clear()
 
     def _fetch(self, t: float) -> None:
@@ -294,7 +421,16 @@ class WorkerFMUParticipant(Participant):
             tk = te
         if not schedule:
             raise SimulationError(f"participant {self.name!r}: asked to step from the stop time {t!r} s.")
-        replies, err = self._rpc("steps", tuple(schedule))
+        try:
+            replies, err = self._rpc("steps", tuple(schedule))
+        except SimulationError as exc:  # crashed: in one of the steps, which is not known
+            if self.proc.poll() is None:
+                raise
+            raise SimulationError(
+                f"{str(exc).rstrip('.')} while running {len(schedule)} steps ahead from t = {t:g} s "
+                f"to {tk:g} s (a worker without inputs steps ahead of the exchange)"
+            ) from None
+        self._batch = min(2 * self._batch, self._max_batch)
         self._ahead.extend((*step, r) for step, r in zip(schedule, replies, strict=False))
         if err is not None:
             self._ahead.append((*schedule[len(replies)], err))

@@ -79,7 +79,7 @@ from hevsim.sim._records import (  # re-exported: the records every forward loop
     REGEN_CURRENT_RTOL,
     ForwardRecord,
 )
-from hevsim.sim.metrics import compute_metrics
+from hevsim.sim.metrics import compute_metrics, soc_correction_ocv
 from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
 
 SOURCES = ("fuel", "genset_source", "battery_chemical")
@@ -327,7 +327,8 @@ def run_metrics(
     f = config_fuel(cfg, getattr(model, "engine", None))
     socf = summary[K.S_SOCF]
     capacity = battery.capacity_ah if battery is not None else 0.0
-    ocv_mean = float(battery.ocv(0.5 * (soc0 + socf))) if battery is not None else 0.0
+    ocv_override = cfg.metrics.soc_correction_ocv_v
+    ocv_mean = soc_correction_ocv(ocv_override, battery, soc0, socf) if battery is not None else 0.0
     metrics = compute_metrics(summary, audit, soc0, capacity, ocv_mean, f.density_kg_per_m3,
                               f.heating_value_btu_per_us_gal, f.co2_kg_per_kg,
                               cfg.metrics.conversion_efficiency)  # fmt: skip

@@ -20,8 +20,10 @@ has MPGGE = MPG, and two vehicles using the same fuel energy have the same MPGGE
 they burn.
 
 A depleted battery (SOC_f < SOC_i) adds energy and lowers MPGGE; a charged one subtracts.
-(The tutorial's printed example adds a negative "electrical energy consumed" with the
-opposite sign; we follow the equations.)
+(The tutorial's printed example shows its "electrical energy consumed" as -151.694 BTU but its
+MPGGE adds +151.694: its battery was depleted, as in hevsim's thesis-calibrated level 5, and
+the equations reproduce its 102.221 MPGGE; docs/refinement.md.) The OCV of step 2 is
+``[metrics] soc_correction_ocv_v`` instead when that is > 0 (:func:`soc_correction_ocv`).
 """
 
 from __future__ import annotations
@@ -61,6 +63,14 @@ def audit_residual_fraction(audit: dict[str, float]) -> float:
     """``|residual|`` relative to the gross energy throughput (sum of ``|terms|``) [-]."""
     gross = sum(abs(v) for k, v in audit.items() if k != "residual") / 2.0
     return abs(audit["residual"]) / gross if gross > 0 else 0.0
+
+
+def soc_correction_ocv(ocv_override_v: float, battery: Any, soc_initial: float, soc_final: float) -> float:
+    """Open-circuit voltage [V] of eq (15): ``ocv_override_v`` if > 0 (``[metrics]
+    soc_correction_ocv_v``), else the battery's OCV at the mean of initial and final SOC."""
+    if ocv_override_v > 0.0:
+        return float(ocv_override_v)
+    return float(np.asarray(battery.ocv(0.5 * (soc_initial + soc_final))))
 
 
 def fuel_economy(

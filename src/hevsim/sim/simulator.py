@@ -28,7 +28,7 @@ from hevsim.sim.checks import (
     check_metrics,
     tracking_message,
 )
-from hevsim.sim.metrics import compute_metrics, energy_audit
+from hevsim.sim.metrics import compute_metrics, energy_audit, soc_correction_ocv
 from hevsim.sim.model import SeriesHEV, build_series_hev
 from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
 
@@ -360,7 +360,7 @@ def _assemble(
     audit = energy_audit(energy)
     socf = summary[K.S_SOCF]
     soc0 = p[K.SOC0]
-    ocv_mean = float(hev.battery.ocv(0.5 * (soc0 + socf)))
+    ocv_mean = soc_correction_ocv(hev.config.metrics.soc_correction_ocv_v, hev.battery, soc0, socf)
     density, heating, co2, _lhv = _energy_keys(hev)
     metrics = compute_metrics(summary, audit, soc0, hev.battery.capacity_ah, ocv_mean, density,
                               heating, co2, hev.config.metrics.conversion_efficiency)  # fmt: skip
@@ -498,7 +498,9 @@ def simulate_batch(
     for i in range(n):
         audit = energy_audit(energy[i])
         soc0 = pmat[i, K.SOC0]
-        ocv_mean = float(hev.battery.ocv(0.5 * (soc0 + summary[i, K.S_SOCF])))
+        ocv_mean = soc_correction_ocv(
+            hev.config.metrics.soc_correction_ocv_v, hev.battery, soc0, summary[i, K.S_SOCF]
+        )
         m = compute_metrics(summary[i], audit, soc0, hev.battery.capacity_ah, ocv_mean, density,
                             heating, co2, hev.config.metrics.conversion_efficiency)  # fmt: skip
         row = {k: float(pmat[i, K.P[k]]) for k in arrays}

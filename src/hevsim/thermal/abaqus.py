@@ -223,6 +223,31 @@ class AbaqusModel:
     element_labels: list[str] = field(default_factory=list)
     surface_contacts: list[SurfaceContact] = field(default_factory=list)
     film_amplitude: dict[str, tuple[str | None, str | None]] = field(default_factory=dict)
+    deltmx_k: float | None = None  # automatic incrementation: largest change of an increment [K]
+    min_increment_s: float | None = None
+    max_increment_s: float | None = None
+    heat_transfer_where: str = ""  # "file:line" of *Heat Transfer
+
+    def check_increments(self) -> tuple[float, float, float, float]:
+        """``(initial, period, minimum, maximum)`` increments [s] of the step (Abaqus's defaults:
+        minimum ``min(initial, 1e-5 period)``, maximum the period); InputError naming the
+        *Heat Transfer line when they are missing or inconsistent."""
+        where = self.heat_transfer_where or self.mesh.source
+        initial, period = self.initial_increment_s, self.time_period_s
+        if initial is None or period is None:
+            raise InputError(
+                f"{where}: *Heat Transfer has no data line 'initial increment, time period'; expected "
+                "both [s]."
+            )
+        lo = self.min_increment_s if self.min_increment_s is not None else min(initial, 1e-5 * period)
+        hi = self.max_increment_s if self.max_increment_s is not None else period
+        if not (0.0 < lo <= initial <= hi and 0.0 < period and np.isfinite(hi)):
+            raise InputError(
+                f"{where}: *Heat Transfer increments initial {initial:g} s, period {period:g} s, minimum "
+                f"{lo:g} s, maximum {hi:g} s; expected 0 < minimum <= initial <= maximum and a positive "
+                "period."
+            )
+        return initial, period, lo, hi
 
     def amplitude(self, name: str | None, time_s: float) -> float:
         """Factor of amplitude ``name`` at ``time_s`` (1 without amplitude)."""
@@ -596,6 +621,8 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
     unsupported: list[str] = []
     steps: list[str] = []
     heat_transfer: list[float] = []
+    heat_transfer_where = ""
+    deltmx_k: float | None = None
     scope: _Scope = deck.top
     instance: _Instance | None = None
     opts: dict[str, str] = {}
@@ -731,6 +758,30 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
                         f"{where}: *Heat Transfer, steady state; expected a transient step "
                         "(use HeatModel.steady for a steady solution)."
                     )
+                heat_transfer_where = where
+                if opts.get("END", "PERIOD").upper() != "PERIOD":
+                    raise InputError(
+                        f"{where}: *Heat Transfer, end={opts['END']} (end at a steady state) is not "
+                        "supported; expected end=PERIOD (the step runs its time period)."
+                    )
+                unknown = sorted(k for k in opts if k not in _HEAT_TRANSFER_OPTIONS)
+                if unknown:
+                    raise InputError(
+                        f"{where}: *Heat Transfer, {unknown[0].lower()}= is not supported; expected "
+                        f"only {', '.join(o.lower() for o in _HEAT_TRANSFER_OPTIONS)}."
+                    )
+                direct = "DIRECT" in opts
+                if "DELTMX" in opts and not direct:
+                    try:
+                        deltmx = float(opts["DELTMX"].replace("d", "e").replace("D", "e"))
+                    except ValueError:
+                        deltmx = float("nan")
+                    if not (np.isfinite(deltmx) and deltmx >= 0.0):
+                        raise InputError(
+                            f"{where}: *Heat Transfer, deltmx={opts['DELTMX']}; expected the largest "
+                            "temperature change of an increment [K], a number >= 0."
+                        )
+                    deltmx_k = deltmx if deltmx > 0.0 else None  # 0: fixed increments, as Abaqus
             elif kw == "initial conditions" and opts.get("TYPE", "").upper() != "TEMPERATURE":
                 unsupported.append(f"line {ln.no}: *Initial Conditions type={opts.get('TYPE')} (ignored)")
             elif kw in ("film", "sfilm"):
@@ -1080,8 +1131,19 @@ def read_abaqus_inp(path: str | Path, *, length_scale_m: float = 1.0) -> AbaqusM
         element_labels,
         surface_contacts,
         film_amp,
+        deltmx_k,
+        heat_transfer[2] if len(heat_transfer) > 2 else None,
+        heat_transfer[3] if len(heat_transfer) > 3 else None,
+        heat_transfer_where,
     )
+    if deltmx_k is not None:
+        model.check_increments()
     return model
+
+
+#: options of *Heat Transfer that are read (DELTMX: automatic incrementation; DIRECT: fixed
+#: increments; END=PERIOD; MXDEM only limits radiation, which decks here cannot have)
+_HEAT_TRANSFER_OPTIONS = ("DELTMX", "DIRECT", "END", "MXDEM")
 
 
 def _film_amps(opts: dict[str, str]) -> tuple[str | None, str | None]:

@@ -170,6 +170,23 @@ class ChannelModel:
         self.heat_w = self.capacity_rate_w_k * (self.outlet_temp_k - self.inlet_temp_k)
         return mean
 
+    def fluid_sensitivity(self, wall_area_m2: np.ndarray) -> np.ndarray:
+        """``d T_f,i / d T_w,j`` (n_segments, n_segments), lower triangular: the segment-mean fluid
+        temperatures of :meth:`fluid_temperature_k` are affine in the wall temperatures, so
+        ``T_f(T_w) = T_f(T_w0) + M (T_w - T_w0)`` exactly (the solver's implicit coupling)."""
+        ntu = self.h_w_m2k * np.asarray(wall_area_m2, dtype=float) / self.capacity_rate_w_k
+        decay = np.exp(-ntu)
+        mean_factor = np.where(ntu > 1e-12, (1.0 - decay) / np.where(ntu > 1e-12, ntu, 1.0), 1.0)
+        n = self.n_segments
+        sens = np.zeros((n, n))
+        inlet = np.zeros(n)  # d (inlet of segment i) / d T_w
+        for i in range(n):
+            sens[i] = mean_factor[i] * inlet
+            sens[i, i] += 1.0 - mean_factor[i]
+            inlet = decay[i] * inlet
+            inlet[i] += 1.0 - decay[i]
+        return sens
+
 
 def segments_along_path(centroids_m: np.ndarray, path_m: np.ndarray, n_segments: int) -> np.ndarray:
     """Segment index of each point: nearest point on the polyline ``path_m``, arc length binned."""

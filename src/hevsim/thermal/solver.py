@@ -35,6 +35,10 @@ from hevsim.thermal.mesh import CHANNEL_WALL, ThermalMesh, mesh_faces, tet_volum
 
 #: heat capacity matrix kinds of :class:`HeatModel` (``lumped_capacity`` true / false)
 CAPACITY_KINDS = ("lumped", "consistent")
+#: plate-coolant coupling of :class:`HeatModel`: "implicit" (the fluid of the end-of-step wall,
+#: exact for a coolant with ``fluid_sensitivity``) or "staggered" (the fluid of the wall at the
+#: start of the step, ``coupling_iterations`` fixed-point passes)
+COUPLING_KINDS = ("implicit", "staggered")
 
 
 class WallCoolant(Protocol):
@@ -469,6 +473,7 @@ class HeatModel:
         coolant: WallCoolant | None = None,
         coupling_iterations: int = 1,
         lumped_capacity: bool = True,
+        coupling: str = "implicit",
     ) -> None:
         if not (np.isfinite(dt_s) and dt_s > 0.0):
             raise ConfigError(f"heat model: dt_s = {dt_s!r} is not valid; expected a positive step [s].")
@@ -485,6 +490,13 @@ class HeatModel:
         self.theta = float(theta)
         self.coolant = coolant
         self.coupling_iterations = max(1, int(coupling_iterations))
+        if coupling not in COUPLING_KINDS:
+            raise ConfigError(
+                f"heat model: coupling = {coupling!r}; expected one of {', '.join(COUPLING_KINDS)}."
+            )
+        self.coupling = coupling
+        #: (Y = LU^-1 W diag(h), P Y) of the implicit coupling, per factorisation
+        self._wall_response: tuple[np.ndarray, np.ndarray] | None = None
         # conduction, contact and external films [W/K] and the films' load [W]; they differ from
         # the discretisation's only after set_surface_film
         self._stiffness: sp.csr_matrix = disc.stiffness
@@ -542,6 +554,15 @@ class HeatModel:
             options={"SymmetricMode": True},
         )
         self.factorisations += 1
+        self._wall_response = None
+
+    def set_dt(self, dt_s: float) -> None:
+        """Step size [s] of the next steps; refactorises only when it changes."""
+        if not (np.isfinite(dt_s) and dt_s > 0.0):
+            raise ConfigError(f"heat model: dt_s = {dt_s!r} is not valid; expected a positive step [s].")
+        if float(dt_s) != self.dt_s:
+            self.dt_s = float(dt_s)
+            self._factorise()
 
     def set_wall_film(self, h_w_m2k: np.ndarray) -> None:
         """Film coefficient [W/(m^2 K)] per wall segment; refactorises only when it changes."""
@@ -631,11 +652,41 @@ class HeatModel:
             f = f + w @ (self.wall_h * self.fluid_k - self.wall_flux_w_m2)
         return np.asarray(f)
 
+    def _implicit_wall(self, predicted: np.ndarray, wall0_k: np.ndarray, sens: np.ndarray) -> np.ndarray:
+        """The step's temperatures with the fluid at the end-of-step wall (implicit coupling).
+
+        The coolant's segment-mean fluid temperature is affine in the segment-mean wall
+        temperatures, ``T_f = T_f0 + M (w - w0)`` (``M`` = ``sens``), and the wall film enters
+        the load as ``W h T_f``; so the step is ``T = T_p + theta Y M e`` with the predictor
+        ``T_p`` (fluid from the wall ``w0`` at the start of the step), ``Y = LU^-1 W h`` and the
+        wall change ``e = w(T) - w0`` from the small system ``(I - theta P Y M) e = w(T_p) - w0``
+        (``P``: the wall means), a low-rank update of the factorised step (no iteration)."""
+        d = self.disc
+        n = self.fluid_k.size
+        area = np.where(d.wall_area_m2 > 0, d.wall_area_m2, 1.0)[:n]
+        if self._wall_response is None:
+            w = d.wall_weights[:, :n].toarray() if sp.issparse(d.wall_weights) else d.wall_weights[:, :n]
+            y = np.asarray(self._lu.solve(np.asarray(w, dtype=float) * self.wall_h[None, :n]))
+            self._wall_response = (y, np.asarray(d.wall_weights.T @ y)[:n] / area[:, None])
+        y, py = self._wall_response
+        e = np.linalg.solve(np.eye(n) - self.theta * py @ sens, self.wall_temp_k(predicted) - wall0_k)
+        return predicted + self.theta * (y @ (sens @ e))
+
     def step(self) -> np.ndarray:
         """Advance one step of ``dt_s``; returns the new nodal temperatures [K]."""
         base = self._rhs_matrix @ self.temp_k + (1.0 - self.theta) * self._f_old
         new = self.temp_k
-        for _ in range(self.coupling_iterations):
+        f_new: np.ndarray | None = None
+        sens_of = getattr(self.coolant, "fluid_sensitivity", None)
+        if self.coupling == "implicit" and self.coolant is not None and sens_of is not None:
+            area = self.disc.wall_area_m2
+            wall0 = self.wall_temp_k(new)
+            self.fluid_k = self.coolant.fluid_temperature_k(wall0, area)
+            predicted = self._lu.solve(base + self.theta * self._load())
+            new = self._implicit_wall(predicted, wall0, np.asarray(sens_of(area), dtype=float))
+            self.fluid_k = self.coolant.fluid_temperature_k(self.wall_temp_k(new), area)
+            f_new = self._load()
+        for _ in range(self.coupling_iterations if f_new is None else 0):
             if self.coolant is not None:
                 self.fluid_k = self.coolant.fluid_temperature_k(self.wall_temp_k(new), self.disc.wall_area_m2)
             f_new = self._load()
@@ -644,6 +695,7 @@ class HeatModel:
             raise SimulationError(
                 f"heat model: temperature became non-finite at t = {self.time_s + self.dt_s} s."
             )
+        assert f_new is not None  # coupling_iterations >= 1
         self.temp_k = new
         self._f_old = f_new
         self.time_s += self.dt_s
