@@ -22,6 +22,7 @@ demo: $(STAMP)
 examples: $(STAMP)
 	$(BIN)/python examples/cosim_module/run_module.py --build-fmu
 
+# test also checks the layers of DESIGN.md (lint-imports, the contract in pyproject.toml; issue 24).
 # test also runs a duplicate-code scan (issue 18): no block of 7+ lines twice in src/hevsim; at
 # 4-6 lines two remain, neither physics: optimal/__init__ vs optimal/dp (__all__), battery/cell
 # vs battery/module (current-profile checks).
@@ -67,6 +68,7 @@ test: $(STAMP) openfoam calculix
 	  $(BIN)/ruff check src tests benchmarks examples && \
 	  $(BIN)/ruff format --check src tests benchmarks examples && \
 	  $(BIN)/mypy && \
+	  $(BIN)/lint-imports && \
 	  $(BIN)/pylint --disable=all --enable=duplicate-code --min-similarity-lines=7 src/hevsim && \
 	  $(BIN)/python -m sphinx -W -q -b html docs/api build/api-html; lint=$$?; \
 	  wait $$compile; built=$$?; cat build/compile.log; \

@@ -11,9 +11,9 @@ per second of wall time (validation of every variant included) and of the batch'
 and the ratio to the same batch run variant by variant through the Python loop
 (``compiled=False``, ``--baseline`` variants) measured in the same run. The issue's target
 is >= 1000 variant-cycles/s on UDDS for the conventional and parallel vehicles on an idle
-2-core machine. Whether an architecture has a compiled batch is shown (``compiled``: the
-architecture module defines ``simulate_batch_compiled``). The script only reports: it
-always exits 0.
+2-core machine. Whether an architecture has a compiled batch is shown (``compiled``: it has a
+compiled loop, :func:`hevsim.sim.forward.compiled_loop`). The script only reports: it always
+exits 0.
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ def main() -> int:
     ap.add_argument("--baseline", type=int, default=20, help="variants of the Python-loop baseline")
     a = ap.parse_args()
     from hevsim import config as C
-    from hevsim.architectures import architecture
+    from hevsim.sim.forward import compiled_loop
 
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     print(f"cores available: {cores}")
@@ -63,7 +63,7 @@ def main() -> int:
     with OtherLoad() as load:
         for label, path in VEHICLES.items():
             cfg = C.load_vehicle_config(REPO / path)
-            compiled = hasattr(architecture(cfg.architecture).power_module(), "simulate_batch_compiled")
+            compiled = hasattr(compiled_loop(cfg.architecture), "simulate_batch_compiled")
             _rate(cfg, 4, None)  # warm-up (compilation)
             wall, cpu = _rate(cfg, a.variants, None)
             base, _ = _rate(cfg, a.baseline, False)

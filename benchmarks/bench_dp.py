@@ -117,7 +117,8 @@ def main() -> int:
     ap.add_argument("--cycle", default="udds", help="drive cycle (default udds)")
     args = ap.parse_args()
 
-    from hevsim.config import build_vehicle, load_vehicle_config
+    from hevsim.architectures import build_vehicle
+    from hevsim.config import load_vehicle_config
     from hevsim.optimal import optimize
     from hevsim.optimal._parallel_dp import ParallelFormulation
     from hevsim.optimal.hev import _final_target, _parallel_settings

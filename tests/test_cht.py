@@ -328,8 +328,8 @@ def test_partitioned_cht_converges_to_the_monolithic_reference(tmp_path: Path) -
     +0.19 %, outlet +0.008 K: one wall temperature per segment instead of node-by-node
     continuity); energy over 2 s off by 1.5, 0.86, 0.47 J at coupling steps 0.4, 0.2, 0.1 s
     (first order in the step)."""
+    from hevsim.cosim.cht_reference import MonolithicCHT, build_slab, run_partitioned
     from hevsim.cosim.coolant_cht import CoolantCHTParticipant
-    from hevsim.thermal.cht_reference import MonolithicCHT, build_slab, run_partitioned
     from hevsim.thermal.materials import Material
 
     cfg = _small_module(tmp_path)  # 1 x 2 module, one straight pass, 6 segments

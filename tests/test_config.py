@@ -305,12 +305,13 @@ def test_unknown_architecture_lists_the_valid_names(
 
 
 def test_registry_builds_each_architecture() -> None:
+    from hevsim.architectures import build_vehicle
     from hevsim.sim.model import SeriesHEV
 
-    assert isinstance(C.build_vehicle(C.load_config(SERIES)), SeriesHEV)
-    assert isinstance(C.build_vehicle(C.load_vehicle_config(PARALLEL)), hevsim.parallel.ParallelHEV)
+    assert isinstance(build_vehicle(C.load_config(SERIES)), SeriesHEV)
+    assert isinstance(build_vehicle(C.load_vehicle_config(PARALLEL)), hevsim.parallel.ParallelHEV)
     with pytest.raises(ConfigError, match="not a vehicle configuration"):
-        C.build_vehicle(42)
+        build_vehicle(42)
 
 
 def test_cell_files_use_celsius_and_reject_kelvin_keys(tmp_path: Path) -> None:

@@ -76,13 +76,15 @@ def test_compiled_batch_equals_single_runs(cfg: Any, cycle: str) -> None:
     from hevsim.architectures import bev as B
     from hevsim.control import make_controller
     from hevsim.cycles import load_cycle
+    from hevsim.sim.forward import compiled_loop
     from hevsim.sim.simulator import simulate_batch
 
     model = B.build_bev(cfg)
     grid = load_cycle(cycle).resampled(cfg.simulation.dt_s)
     arrays = {k: np.asarray(v) for k, v in BATCH.items()}
-    rec = B.simulate_batch_compiled(model, arrays, grid, make_controller(model), soc_initial=arrays[
-        "simulation.soc_initial"], soc_min=cfg.battery.soc_min, soc_max=cfg.battery.soc_max)  # fmt: skip
+    run = compiled_loop("bev").simulate_batch_compiled
+    rec = run(model, arrays, grid, make_controller(model), soc_initial=arrays["simulation.soc_initial"],
+              soc_min=cfg.battery.soc_min, soc_max=cfg.battery.soc_max)  # fmt: skip
     assert rec is not None and rec.summary.shape[0] == 3
     batch = simulate_batch(cfg, BATCH, cycle)
     for i in range(3):

@@ -275,7 +275,7 @@ def test_bms_limits_are_exact_at_the_voltage_window() -> None:
 def test_life_checkpoint_resume(tmp_path: Path) -> None:
     """hevsim life's blocks: a run stopped after two blocks resumes from its checkpoint and
     continues the same table (the first blocks unchanged, the repetitions growing)."""
-    from hevsim.battery.life import run_life
+    from hevsim.sim.life import run_life
 
     cfg = load_vehicle_config(EX / "series_hev_pack.toml")
     cyc = tmp_path / "short.csv"

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from hevsim import config as C
-from hevsim.architectures import architecture
+from hevsim.architectures import architecture, build_vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
 BATTERIES = ROOT / "src" / "hevsim" / "data" / "components" / "batteries"
@@ -82,7 +82,7 @@ def test_full_battery_takes_no_charge_from_any_source() -> None:
 
     ecms = {"controller.kind": "ecms", "controller.equivalence_factor": 3.5}
     cfg = C.load_vehicle_config(PRIUS).replace(**ecms)
-    model = C.build_vehicle(cfg)
+    model = build_vehicle(cfg)
     runs = [simulate_architecture("power_split", model, "hwfet", compiled=c) for c in (True, False)]
     socs = [r.timeseries["soc"].to_numpy() for r in runs]
     assert socs[0].max() >= 0.95  # the case reaches the full battery

@@ -20,8 +20,8 @@ import pandas as pd
 import pytest
 from tests.proc_helpers import sigint_default
 
+from hevsim.architectures import build_vehicle
 from hevsim.cli import main
-from hevsim.config import build_vehicle
 from hevsim.optimal import optimize
 from hevsim.sim.simulator import simulate
 from hevsim.studies.report import study_report

@@ -195,7 +195,7 @@ def test_linear_paths_refuse_temperature_tables() -> None:
         ConfigError, match=r"part 'plate' material 'HotAlu' depends on temperature.*ROM build"
     ):
         module_model(cfg, None)  # refused before the mesh is used
-    from hevsim.thermal.cht_reference import _plate_matrices
+    from hevsim.cosim.cht_reference import _plate_matrices
 
     with pytest.raises(ConfigError, match="plate material 'HotAlu' depends on temperature"):
         _plate_matrices(None, hot)  # type: ignore[arg-type]

@@ -14,8 +14,7 @@ from hevsim.architectures import ARCHITECTURES
 from hevsim.cli import main
 from hevsim.config import load_vehicle_config
 from hevsim.cycles import load_cycle
-from hevsim.guards import simulation_preflight
-from hevsim.warmup import GROUPS, cache_probe, group, run_groups, specialisation_probe
+from hevsim.warmup import GROUPS, cache_probe, group, run_groups, simulation_preflight, specialisation_probe
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"

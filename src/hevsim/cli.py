@@ -104,7 +104,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         from hevsim.sim.simulator import GensetSchedule
 
         schedule = GensetSchedule.from_csv(args.schedule, quasi_static=args.replay)
-    from hevsim.guards import simulation_preflight
+    from hevsim.warmup import simulation_preflight
 
     simulation_preflight(cfg, cycle, args.dt)  # memory refusal, long-run line, compile notice
     age = _age_state_option(cfg, args.age_state, bool(overrides))
@@ -150,8 +150,9 @@ def _age_state_option(cfg: Any, path: str | None, ecms_overrides: bool) -> Any:
     """The pack age state of ``--age-state FILE`` (new cells when the file does not exist yet)."""
     if not path:
         return None
-    from hevsim.battery.life import _pack_config, load_or_new_age_state
+    from hevsim.battery.life import load_or_new_age_state
     from hevsim.errors import ConfigError
+    from hevsim.sim.life import _pack_config
 
     if cfg.battery.model != "pack" or ecms_overrides:
         raise ConfigError(
@@ -162,16 +163,17 @@ def _age_state_option(cfg: Any, path: str | None, ecms_overrides: bool) -> Any:
 
 
 def _eol(cfg: Any) -> tuple[float, float]:
-    from hevsim.battery.life import _eol_fractions
+    from hevsim.sim.life import _eol_fractions
 
     return _eol_fractions(cfg)
 
 
 def _cmd_life(args: argparse.Namespace) -> int:
     from hevsim.battery.ageing import SOH_DEFINITION
-    from hevsim.battery.life import PackAgeState, plot_life, run_life
+    from hevsim.battery.life import PackAgeState
     from hevsim.config import load_vehicle_config
     from hevsim.io import atomic_directory, write_json
+    from hevsim.sim.life import plot_life, run_life
 
     cfg = load_vehicle_config(args.config)
     cycle = args.cycle or cfg.simulation.cycle

@@ -28,7 +28,6 @@ required sections); :func:`register_architecture` adds one.
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -243,7 +242,7 @@ CONTROLLER_KINDS: tuple[str, ...] = (
     "power_follower",
 )  # fmt: skip
 """Every ``[controller] kind``; which ones an architecture admits is in
-:data:`hevsim.architectures.ARCHITECTURES` (``controllers``)."""
+:data:`ARCHITECTURES` (``controllers``)."""
 
 
 @dataclass(frozen=True)
@@ -528,10 +527,18 @@ def _get(cfg: Any, dotted: str) -> Any:
     return getattr(getattr(cfg, sec), name)
 
 
-def _check_controller(cfg: Any, source: str) -> None:
-    from hevsim.architectures import check_controller
+def check_controller(cfg: Any, source: str) -> None:
+    """ConfigError unless ``cfg.controller.kind`` is admitted by ``cfg``'s architecture."""
+    spec = ARCHITECTURES.get(cfg.architecture)
+    kind = cfg.controller.kind
+    if spec is not None and kind not in spec.controllers:
+        raise ConfigError(
+            f"{source}: key 'controller.kind' = {kind!r} is not defined for the {spec.name} "
+            f"architecture; expected one of {', '.join(spec.controllers)}."
+        )
 
-    check_controller(cfg, source)
+
+_check_controller = check_controller
 
 
 def _check_optimization(cfg: Any, source: str) -> None:
@@ -649,26 +656,21 @@ def _series_required(data: dict[str, Any]) -> tuple[str, ...]:
 # ------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class ArchitectureSpec:
-    """One registered architecture.
+    """What a vehicle file of one architecture holds (the file schema; what the file becomes,
+    its builder, lives in the one registry :data:`hevsim.architectures.ARCHITECTURES`).
 
     Attributes:
         name: value of ``[powertrain] architecture``. config_type: its configuration class.
-        builder: ``"module:function"`` that builds the vehicle model from a configuration
-            (imported on use, so this module imports no component code).
+        controllers: the ``[controller] kind`` values it admits, the rule-based one first.
         required: the component sections a file must hold, from the parsed file mapping.
         check: cross-key checks of a validated configuration (raise ConfigError).
     """
 
     name: str
     config_type: type
-    builder: str
+    controllers: tuple[str, ...]
     required: Callable[[dict[str, Any]], tuple[str, ...]]
     check: Callable[[Any, str], None]
-
-    def build(self, cfg: Any) -> Any:
-        """The vehicle model of ``cfg``."""
-        module, _, func = self.builder.partition(":")
-        return getattr(importlib.import_module(module), func)(cfg)
 
 
 ARCHITECTURES: dict[str, ArchitectureSpec] = {}
@@ -681,27 +683,27 @@ def register_architecture(spec: ArchitectureSpec) -> None:
 
 
 register_architecture(ArchitectureSpec(
-    "series", SeriesHEVConfig, "hevsim.sim.model:build_series_hev", _series_required, _check_series,
+    "series", SeriesHEVConfig, ("thermostat", "schedule"), _series_required, _check_series,
 ))  # fmt: skip
 register_architecture(ArchitectureSpec(
-    "parallel", ParallelHEVConfig, "hevsim.architectures.parallel:build_parallel_hev",
+    "parallel", ParallelHEVConfig, ("electric_assist", "ecms", "aecms"),
     lambda data: ("body", "tire", "final_drive", "gearbox", "engine", "motor", "motor_coupling", "battery"),
     _check_parallel,
 ))  # fmt: skip
 
 
 register_architecture(ArchitectureSpec(
-    "conventional", ConventionalConfig, "hevsim.architectures.conventional:build_conventional",
+    "conventional", ConventionalConfig, ("shift_schedule",),
     lambda data: ("body", "tire", "final_drive", "gearbox", "engine"), _check_conventional,
 ))  # fmt: skip
 register_architecture(ArchitectureSpec(
-    "bev", BEVConfig, "hevsim.architectures.bev:build_bev",
+    "bev", BEVConfig, ("direct",),
     lambda data: ("body", "tire", "final_drive", "motor", "battery"), _check_bev,
 ))  # fmt: skip
 
 
 register_architecture(ArchitectureSpec(
-    "power_split", PowerSplitConfig, "hevsim.architectures.power_split:build_power_split",
+    "power_split", PowerSplitConfig, ("power_follower", "ecms", "aecms"),
     lambda data: ("body", "tire", "final_drive", "planetary", "engine", "generator", "motor", "battery"),
     _check_power_split,
 ))  # fmt: skip
@@ -718,9 +720,17 @@ def architecture_of(cfg: Any) -> ArchitectureSpec:
     )
 
 
-def build_vehicle(cfg: Any) -> Any:
-    """Build the vehicle model of a configuration through its architecture's builder."""
-    return architecture_of(cfg).build(cfg)
+def with_overrides(cfg: Any, overrides: dict[str, Any], source: str = "study case") -> Any:
+    """Copy of ``cfg`` with ``section.field`` overrides (values already range-checked) and the
+    architecture's cross-key checks applied (ConfigError on a violation)."""
+    by_section: dict[str, dict[str, Any]] = {}
+    for key, value in overrides.items():
+        sec, _, name = key.partition(".")
+        by_section.setdefault(sec, {})[name] = value
+    changes = {sec: dataclasses.replace(getattr(cfg, sec), **kw) for sec, kw in by_section.items()}
+    new = dataclasses.replace(cfg, **changes)
+    architecture_of(new).check(new, source)
+    return new
 
 
 # ------------------------------------------------------------------------------------------

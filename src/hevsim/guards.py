@@ -72,75 +72,6 @@ def check_memory(
     )
 
 
-def check_dp_memory(
-    form: object,
-    final_constraint: str,
-    forward: str,
-    store_cost_to_go: bool,
-    label: str,
-    available_bytes: int | None = None,
-) -> dict[str, int]:
-    """Refuse a vehicle DP before its stage table is built (issue 15.9).
-
-    ``form`` is an HEV formulation (:mod:`hevsim.optimal._hev_common`). The estimate is the
-    solver's (:func:`hevsim.optimal.dp.estimate_memory`: cost-to-go, level set, policy, one
-    step's block) plus the SOC-invariant stage table, ``N x M x 17`` bytes (two float64
-    arrays and a mask). Raises :class:`~hevsim.errors.DPSetupError` when the solver's part
-    exceeds its ``memory_limit_bytes`` default (the refusal :func:`~hevsim.optimal.solve_dp`
-    would give after the table) or the whole exceeds the free memory. Returns the items.
-    """
-    import numpy as np
-
-    from hevsim.errors import DPSetupError
-    from hevsim.optimal.dp import DEFAULT_MEMORY_LIMIT_BYTES, estimate_memory
-
-    problem = form.dp_problem()  # type: ignore[attr-defined]
-    items = estimate_memory(problem, final_constraint=final_constraint, forward=forward)
-    dp_total = items.pop("total")
-    n_steps = int(problem.space.n_steps)
-    m_inputs = int(np.prod(form.input_shape))  # type: ignore[attr-defined]
-    items["stage_table"] = n_steps * m_inputs * 17 if form.soc_invariant else 0  # type: ignore[attr-defined]
-    hint = (
-        "use fewer SOC or input grid points (--soc-points, --input-points) or a shorter cycle "
-        f"({n_steps} steps x {int(problem.space.S)} SOC points x {m_inputs} inputs here)."
-    )
-    if dp_total > DEFAULT_MEMORY_LIMIT_BYTES:
-        raise DPSetupError(
-            f"{label}: the DP solution needs about {dp_total / MB:,.0f} MB ({format_items(items)}), "
-            f"more than the solver's limit of {DEFAULT_MEMORY_LIMIT_BYTES / MB:,.0f} MB; {hint}"
-        )
-    total = dp_total + items["stage_table"]
-    check_memory(total, f"{label}: the DP", hint, DPSetupError, items, available_bytes)
-    items["total"] = total
-    return items
-
-
-def check_dp_size(
-    label: str, n_steps: int, soc_points: int, input_points: int, available_bytes: int | None = None
-) -> float:
-    """A lower bound of a vehicle DP's memory [B] from its sizes alone, refused like
-    :func:`check_dp_memory`: the float64 cost-to-go ``(N+1) x S x 8`` plus a stage table of
-    at least ``N x input_points x 17``. For checks before anything is formulated (every
-    pair of ``hevsim compare`` before the first solve)."""
-    from hevsim.errors import DPSetupError
-    from hevsim.optimal.dp import DEFAULT_MEMORY_LIMIT_BYTES
-
-    items = {"cost_to_go": (n_steps + 1) * soc_points * 8.0, "stage_table": n_steps * input_points * 17.0}
-    hint = (
-        "use fewer SOC or input grid points (--soc-points, --input-points) or a shorter cycle "
-        f"({n_steps} steps x {soc_points} SOC points x at least {input_points} inputs here)."
-    )
-    if items["cost_to_go"] > DEFAULT_MEMORY_LIMIT_BYTES:
-        raise DPSetupError(
-            f"{label}: the DP solution needs at least {items['cost_to_go'] / MB:,.0f} MB for the "
-            f"cost-to-go alone, more than the solver's limit of {DEFAULT_MEMORY_LIMIT_BYTES / MB:,.0f} MB; "
-            f"{hint}"
-        )
-    total = sum(items.values())
-    check_memory(total, f"{label}: the DP", hint, DPSetupError, items, available_bytes)
-    return total
-
-
 SIM_BYTES_PER_STEP = 1000.0
 """Memory of a forward simulation per recorded step [B]: 630 B measured (peak RSS growth
 of a 1 000 000-step series-HEV run: kernel outputs, the 37-column time series, events,
@@ -166,27 +97,3 @@ def check_simulation(n_steps: int, label: str, available_bytes: int | None = Non
         available_bytes=available_bytes,
     )
     return need, SIM_SECONDS_PER_STEP * n_steps
-
-
-def simulation_preflight(cfg: object, cycle: object, dt_s: float | None) -> None:
-    """Before ``hevsim simulate``: refuse a run that would not fit in memory
-    (:func:`check_simulation`), say what a long run will take, and warn before numba compiles
-    the kernels this run uses (:func:`hevsim.warmup.run_groups`) on a cold cache."""
-    from hevsim.progress import format_duration, stage
-
-    c: object = cycle
-    t = getattr(c, "time_s", None)
-    dt = float(dt_s if dt_s is not None else getattr(getattr(cfg, "simulation", None), "dt_s", 0.0) or 0.0)
-    if t is None or dt <= 0.0 or len(t) < 2:
-        return
-    n_steps = int((float(t[-1]) - float(t[0])) / dt) + 1
-    label = f"{getattr(cfg, 'name', 'vehicle')} on {getattr(c, 'name', 'cycle')}"
-    need, seconds = check_simulation(n_steps, label)
-    if n_steps >= SIM_TALK_STEPS:
-        stage(
-            f"simulating {label}: {n_steps:,} steps, about {format_duration(seconds)} and {need / MB:,.0f} MB"
-        )
-    from hevsim.sim.forward import use_compiled
-    from hevsim.warmup import compile_notice_for, run_groups
-
-    compile_notice_for(run_groups(cfg, python_loop=not use_compiled(None)))

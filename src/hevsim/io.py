@@ -404,3 +404,22 @@ def copy_file_atomic(src: str | Path, path: str | Path) -> Path:
     with atomic_file(path) as tmp:
         shutil.copyfile(src, tmp)
     return Path(path)
+
+
+def save_png(fig: Any, path: str | Path, dpi: float, **savefig_kwargs: Any) -> Path:
+    """Write the matplotlib figure ``fig`` to ``path`` as PNG at ``dpi`` [dots per inch]
+    atomically (to ``<name>.tmp`` beside it, then renamed: a reader never sees a half-written
+    picture, and an existing one stays as it was if drawing fails) and release the figure.
+
+    ``savefig_kwargs`` go to :meth:`matplotlib.figure.Figure.savefig` (e.g.
+    ``bbox_inches="tight"``). Returns the path written."""
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = target.with_name(target.name + ".tmp")
+    try:
+        fig.savefig(tmp, format="png", dpi=dpi, **savefig_kwargs)
+        os.replace(tmp, target)
+    finally:
+        tmp.unlink(missing_ok=True)
+        fig.clear()
+    return target

@@ -2,10 +2,12 @@
 
 Each architecture is a module here (:mod:`~hevsim.architectures.series`,
 :mod:`~hevsim.architectures.parallel`, :mod:`~hevsim.architectures.conventional`,
-:mod:`~hevsim.architectures.bev`) and one :class:`Architecture` entry in
-:data:`ARCHITECTURES`, holding together its configuration type and builder (from
-:data:`hevsim.config.ARCHITECTURES`), its control inputs, its forward simulation, its DP
-formulation and the supervisory controllers it admits. The power-flow function of an
+:mod:`~hevsim.architectures.bev`, :mod:`~hevsim.architectures.power_split`) and one
+:class:`Architecture` entry in :data:`ARCHITECTURES`, the only place that says what a vehicle
+file becomes: its builder, its control inputs, its forward simulation and its DP formulation
+(:mod:`hevsim.optimal` looks it up here), with its configuration type, required sections and
+admitted supervisory controllers read from the file schema :data:`hevsim.config.ARCHITECTURES`
+(the ground layer: what a file may hold, not what it becomes). The power-flow function of an
 architecture is written once in its module and called by the forward simulator (one point
 per step), by ECMS (the candidate controls of a step) and by the DP (the whole grid).
 
@@ -21,7 +23,10 @@ from typing import Any
 
 from hevsim.errors import ConfigError
 
-__all__ = ["ARCHITECTURES", "Architecture", "architecture", "check_controller", "register"]
+__all__ = [
+    "ARCHITECTURES", "Architecture", "architecture", "architecture_of", "build_vehicle", "check_controller",
+    "register",
+]  # fmt: skip
 
 
 def _load(ref: str) -> Any:
@@ -36,8 +41,8 @@ class Architecture:
     Attributes:
         name: value of ``[powertrain] architecture``.
         module: the module holding its model and power flow.
+        builder: ``"module:function"`` building the vehicle model from a configuration.
         controls: names of its control inputs (what a supervisory controller chooses).
-        controllers: the ``[controller] kind`` values it admits, the rule-based one first.
         forward: ``"module:function"`` simulating a configuration or model forward,
             ``f(model, cycle, dt_s=..., soc_initial=..., ...) -> SimulationResult``.
         dp_formulation: ``"module:Class"`` of its DP problem (:mod:`hevsim.optimal`); empty
@@ -46,14 +51,15 @@ class Architecture:
 
     name: str
     module: str
+    builder: str
     controls: tuple[str, ...]
-    controllers: tuple[str, ...]
     forward: str
     dp_formulation: str
 
     @property
     def spec(self) -> Any:
-        """Its :class:`hevsim.config.ArchitectureSpec` (config type, builder, required sections)."""
+        """Its :class:`hevsim.config.ArchitectureSpec` (config type, admitted controllers,
+        required sections, cross-key checks)."""
         from hevsim.config import ARCHITECTURES as CONFIG_ARCHITECTURES
 
         return CONFIG_ARCHITECTURES[self.name]
@@ -63,9 +69,14 @@ class Architecture:
         """Its configuration class."""
         return self.spec.config_type
 
+    @property
+    def controllers(self) -> tuple[str, ...]:
+        """The ``[controller] kind`` values it admits, the rule-based one first."""
+        return tuple(self.spec.controllers)
+
     def build(self, cfg: Any) -> Any:
-        """The vehicle model of a configuration."""
-        return self.spec.build(cfg)
+        """The vehicle model of a configuration (its ``builder``)."""
+        return _load(self.builder)(cfg)
 
     def simulate(self, model: Any, *args: Any, **kwargs: Any) -> Any:
         """Forward simulation (see ``forward``)."""
@@ -92,31 +103,33 @@ def register(arch: Architecture) -> None:
 
 
 register(Architecture(
-    name="series", module="hevsim.architectures.series", controls=("genset_state", "engine_throttle"),
-    controllers=("thermostat", "schedule"), forward="hevsim.sim.simulator:simulate",
+    name="series", module="hevsim.architectures.series", builder="hevsim.sim.model:build_series_hev",
+    controls=("genset_state", "engine_throttle"), forward="hevsim.sim.simulator:simulate",
     dp_formulation="hevsim.optimal._series_dp:SeriesFormulation",
 ))  # fmt: skip
 register(Architecture(
-    name="parallel", module="hevsim.architectures.parallel", controls=("gear", "throttle"),
-    controllers=("electric_assist", "ecms", "aecms"), forward="hevsim.sim.forward:simulate_parallel",
+    name="parallel", module="hevsim.architectures.parallel",
+    builder="hevsim.architectures.parallel:build_parallel_hev", controls=("gear", "throttle"),
+    forward="hevsim.sim.forward:simulate_parallel",
     dp_formulation="hevsim.optimal._parallel_dp:ParallelFormulation",
 ))  # fmt: skip
 
 
 register(Architecture(
-    name="conventional", module="hevsim.architectures.conventional", controls=("gear",),
-    controllers=("shift_schedule",), forward="hevsim.sim.forward:simulate_conventional", dp_formulation="",
+    name="conventional", module="hevsim.architectures.conventional",
+    builder="hevsim.architectures.conventional:build_conventional", controls=("gear",),
+    forward="hevsim.sim.forward:simulate_conventional", dp_formulation="",
 ))  # fmt: skip
 register(Architecture(
-    name="bev", module="hevsim.architectures.bev", controls=(), controllers=("direct",),
+    name="bev", module="hevsim.architectures.bev", builder="hevsim.architectures.bev:build_bev", controls=(),
     forward="hevsim.sim.forward:simulate_bev", dp_formulation="",
 ))  # fmt: skip
 
 
 register(Architecture(
     name="power_split", module="hevsim.architectures.power_split",
-    controls=("engine_speed_radps", "throttle"),
-    controllers=("power_follower", "ecms", "aecms"), forward="hevsim.sim.forward:simulate_power_split",
+    builder="hevsim.architectures.power_split:build_power_split", controls=("engine_speed_radps", "throttle"),
+    forward="hevsim.sim.forward:simulate_power_split",
     dp_formulation="hevsim.optimal._power_split_dp:PowerSplitFormulation",
 ))  # fmt: skip
 
@@ -133,11 +146,22 @@ def architecture(name: str, source: str = "<config>") -> Architecture:
 
 
 def check_controller(cfg: Any, source: str) -> None:
-    """ConfigError unless ``cfg.controller.kind`` is admitted by ``cfg``'s architecture."""
-    arch = ARCHITECTURES.get(cfg.architecture)
-    kind = cfg.controller.kind
-    if arch is not None and kind not in arch.controllers:
-        raise ConfigError(
-            f"{source}: key 'controller.kind' = {kind!r} is not defined for the {arch.name} "
-            f"architecture; expected one of {', '.join(arch.controllers)}."
-        )
+    """ConfigError unless ``cfg.controller.kind`` is admitted by ``cfg``'s architecture (the
+    check :func:`hevsim.config.load_vehicle_config` makes, for a configuration changed since)."""
+    from hevsim.config import check_controller as check
+
+    check(cfg, source)
+
+
+def architecture_of(cfg: Any) -> Architecture:
+    """The registered architecture of a configuration object (ConfigError naming the
+    configuration types otherwise)."""
+    from hevsim.config import architecture_of as spec_of
+
+    return ARCHITECTURES[spec_of(cfg).name]
+
+
+def build_vehicle(cfg: Any) -> Any:
+    """Build the vehicle model of a configuration through its architecture's builder (formerly
+    ``hevsim.config.build_vehicle``)."""
+    return architecture_of(cfg).build(cfg)

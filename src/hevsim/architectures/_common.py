@@ -90,21 +90,3 @@ def broadcast_loop(kernel: Any, names: tuple[str, ...], arrays: list[Any], *cons
     out = np.empty((len(names), flat[0].size))
     kernel(*flat, *constants, out)
     return {k: out[j].reshape(b[0].shape) for j, k in enumerate(names)}
-
-
-def hev_simulate_compiled(model: Any, grid: Any, controller: Any, *, soc_initial: float, soc_min: float,
-                          soc_max: float) -> Any:  # fmt: skip
-    """The compiled forward run of a parallel or power-split HEV (the ``simulate_compiled``
-    hook of :mod:`hevsim.sim.forward`): :func:`hevsim.sim._compiled_hev.simulate`."""
-    from hevsim.sim._compiled_hev import simulate
-
-    return simulate(model, grid, controller, soc_initial=soc_initial, soc_min=soc_min, soc_max=soc_max)
-
-
-def hev_simulate_batch_compiled(model: Any, variants: dict[str, Any], grid: Any, controller: Any,
-                                **options: Any) -> Any:  # fmt: skip
-    """The compiled batch of a parallel or power-split HEV (the ``simulate_batch_compiled``
-    hook of :mod:`hevsim.sim.forward`): :func:`hevsim.sim._compiled_hev.simulate_batch`."""
-    from hevsim.sim._compiled_hev import simulate_batch
-
-    return simulate_batch(model, variants, grid, controller, **options)

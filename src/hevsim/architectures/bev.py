@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from hevsim.architectures._build import build_battery, build_machine
 from hevsim.architectures._common import (
     NamedModel,
     battery_details,
@@ -38,7 +39,6 @@ from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire, gear_input_torque, gear_output_torque
 from hevsim.components.electric_machine import ElectricMachine
 from hevsim.config import BEVConfig
-from hevsim.sim.model import build_battery, build_machine
 
 ARCHITECTURE = "bev"
 CONTROLS: tuple[str, ...] = ()
@@ -159,7 +159,7 @@ def power_flow(
 ) -> Any:
     """(wheel demand, SOC) -> machine and battery operating points, SOC change, limits
     (broadcast :func:`wheel_point` and the shared bus balance)."""
-    from hevsim.optimal._hev_common import Stage, electric_flow
+    from hevsim.components.flow import Stage, electric_flow
 
     arrays = np.broadcast_arrays(
         *(np.asarray(a, np.float64) for a in (wheel_speed_radps, wheel_torque_nm, regen_ok))
@@ -209,21 +209,3 @@ def power_mode(details: dict[str, float], wheel_force_n: float, v_mid_mps: float
 def capability_controls(bev: BEV) -> tuple[np.ndarray, ...]:
     """No control input."""
     return ()
-
-
-def simulate_compiled(model: BEV, grid: Any, controller: Any, **options: Any) -> Any:
-    """The compiled forward run (:mod:`hevsim.sim._compiled_bev`; the hook of
-    :mod:`hevsim.sim.forward`)."""
-    from hevsim.sim._compiled_bev import simulate_compiled as run
-
-    return run(model, grid, controller, **options)
-
-
-def simulate_batch_compiled(
-    model: BEV, variants: dict[str, Any], grid: Any, controller: Any, **options: Any
-) -> Any:
-    """The compiled batch (:func:`hevsim.sim._compiled_bev.simulate_batch_compiled`; the hook
-    of :mod:`hevsim.sim.forward`)."""
-    from hevsim.sim._compiled_bev import simulate_batch_compiled as run
-
-    return run(model, variants, grid, controller, **options)

@@ -37,6 +37,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from hevsim.architectures._build import build_engine
 from hevsim.architectures._common import GearboxModel, chassis
 from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire, gear_input_torque, gear_output_torque
@@ -48,7 +49,6 @@ from hevsim.components.engine import (
 )
 from hevsim.config import ConventionalConfig
 from hevsim.fuels import with_config_fuel
-from hevsim.sim.model import build_engine
 from hevsim.units import rpm_to_radps
 
 ARCHITECTURE = "conventional"
@@ -310,7 +310,7 @@ def power_flow(
     ``mech`` (:data:`MECH` arrays, plus ``w_wheel``) and, with ``detail``, ``details``
     (:data:`DETAILS`).
     """
-    from hevsim.optimal._hev_common import Stage
+    from hevsim.components.flow import Stage
 
     arrays = np.broadcast_arrays(
         *(np.asarray(a, np.float64) for a in (wheel_speed_radps, wheel_torque_nm, gear, dt_s))
@@ -369,21 +369,3 @@ def power_mode(details: dict[str, float], wheel_force_n: float, v_mid_mps: float
 def capability_controls(veh: ConventionalVehicle) -> tuple[np.ndarray, ...]:
     """Candidate controls that span the powertrain's capability: every gear."""
     return (np.arange(1, len(veh.gears) + 1, dtype=np.float64),)
-
-
-def simulate_compiled(model: ConventionalVehicle, grid: Any, controller: Any, **options: Any) -> Any:
-    """The compiled forward run (:mod:`hevsim.sim._compiled_conventional`; the hook of
-    :mod:`hevsim.sim.forward`)."""
-    from hevsim.sim._compiled_conventional import simulate_compiled as run
-
-    return run(model, grid, controller, **options)
-
-
-def simulate_batch_compiled(
-    model: ConventionalVehicle, variants: dict[str, Any], grid: Any, controller: Any, **options: Any
-) -> Any:
-    """The compiled batch run (:mod:`hevsim.sim._compiled_conventional`; the hook of
-    :mod:`hevsim.sim.forward`)."""
-    from hevsim.sim._compiled_conventional import simulate_batch_compiled as run
-
-    return run(model, variants, grid, controller, **options)

@@ -36,14 +36,13 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from hevsim.architectures._build import build_battery, build_engine, build_machine
 from hevsim.architectures._common import (
     NO_REFCOUNT,
     GearboxModel,
     broadcast_loop,
     chassis,
     fixed_gear,
-    hev_simulate_batch_compiled,
-    hev_simulate_compiled,
     max_machine_speed_radps,
 )
 from hevsim.components.battery import BatteryPack
@@ -54,7 +53,6 @@ from hevsim.components.engine import Engine, fired_fuel_from_maps, torque_from_m
 from hevsim.config import ParallelHEVConfig, config_from_dict, load_vehicle_config
 from hevsim.errors import ConfigError
 from hevsim.fuels import with_config_fuel
-from hevsim.sim.model import build_battery, build_engine, build_machine
 
 __all__ = ["ARCHITECTURE", "ParallelHEV", "ParallelHEVConfig", "build_parallel_hev", "load_parallel_config",
            "parallel_from_dict"]  # fmt: skip
@@ -439,7 +437,7 @@ def electrical(
     step, infeasibility, limit flags) whose ``details`` (with ``detail``) hold the operating
     points; the bus balance is attached as ``stage.flow`` for :func:`loss_powers`.
     """
-    from hevsim.optimal._hev_common import Stage, electric_flow
+    from hevsim.components.flow import Stage, electric_flow
 
     m = mech
     flow = electric_flow(hev.motor, hev.battery, m["t_em_req"], m["w_em"], hev.aux_power_w, soc, dt_s,
@@ -548,9 +546,3 @@ is on the grid: the envelope needs only the extremes)."""
 def capability_controls(hev: ParallelHEV) -> tuple[np.ndarray, ...]:
     """Candidate controls that span the powertrain's capability (performance tests)."""
     return candidate_controls(hev, CAPABILITY_THROTTLE_POINTS)
-
-
-simulate_compiled = hev_simulate_compiled
-"""The compiled forward run (hook of :mod:`hevsim.sim.forward`; electric assist, ECMS, A-ECMS)."""
-simulate_batch_compiled = hev_simulate_batch_compiled
-"""The compiled batch (hook of :mod:`hevsim.sim.forward`)."""

@@ -34,14 +34,13 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from hevsim.architectures._build import build_battery, build_engine, build_machine
 from hevsim.architectures._common import (
     NO_REFCOUNT,
     NamedModel,
     broadcast_loop,
     chassis,
     fixed_gear,
-    hev_simulate_batch_compiled,
-    hev_simulate_compiled,
 )
 from hevsim.architectures._common import max_machine_speed_radps as _max_speed
 from hevsim.components.battery import BatteryPack
@@ -51,7 +50,6 @@ from hevsim.components.electric_machine import ElectricMachine, limits_from_curv
 from hevsim.components.engine import Engine, fired_fuel_from_maps, torque_from_maps
 from hevsim.config import PowerSplitConfig
 from hevsim.fuels import with_config_fuel
-from hevsim.sim.model import build_battery, build_engine, build_machine
 
 ARCHITECTURE = "power_split"
 CONTROLS: tuple[str, ...] = ("engine_speed_radps", "throttle")
@@ -308,7 +306,7 @@ def electrical(
 ) -> Any:
     """The SOC-dependent half: MG2 and the battery (bus balance with MG1's power on the bus),
     SOC change, fuel [kg over ``dt_s``], limits; ``details`` with ``detail``."""
-    from hevsim.optimal._hev_common import Stage, electric_flow
+    from hevsim.components.flow import Stage, electric_flow
 
     m = mech
     flow = electric_flow(hev.motor, hev.battery, m["t_em_req"], m["w_em"], m["p_gen"] + hev.aux_power_w, soc,
@@ -517,9 +515,3 @@ def power_mode_point(engine_on, battery_power_w, wheel_force_n, v_mid_mps):
     if engine_on <= 0.0:
         return 4 if wheel_force_n < 0.0 else 1
     return 3 if battery_power_w < 0.0 else 2
-
-
-simulate_compiled = hev_simulate_compiled
-"""The compiled forward run (hook of :mod:`hevsim.sim.forward`; power follower, ECMS, A-ECMS)."""
-simulate_batch_compiled = hev_simulate_batch_compiled
-"""The compiled batch (hook of :mod:`hevsim.sim.forward`)."""

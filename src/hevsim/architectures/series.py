@@ -20,7 +20,7 @@ optimum's decisions exactly.
 :mod:`hevsim.sim.performance` drive it through the generic loop of :mod:`hevsim.sim.forward`).
 Control ``genset_power_w``: the electrical power the genset delivers to the bus [W], as in the
 DP. An engine genset sits at the fuel-optimal point of that power on the DP's optimal
-operating line (:func:`hevsim.optimal._series_dp.genset_operating_points`; no cranking, no
+operating line (:func:`hevsim.components.genset.genset_operating_points`; no cranking, no
 shaft dynamics: a genset already running); a current-source genset is on for any request > 0
 and then delivers ``OCV x current_a`` (as the kernel's); without a genset only 0 is
 admissible. The traction motor gives the wheel torque through the final drive and
@@ -88,7 +88,7 @@ def _genset_cache(hev: SeriesHEV) -> dict[str, Any]:
 
 def genset_max_power_w(hev: SeriesHEV, ocv_v: Any = 0.0) -> Any:
     """Largest electrical power [W] the genset delivers to the bus: an engine genset's
-    (:func:`hevsim.optimal._series_dp.genset_max_power_w`), a current source's
+    (:func:`hevsim.components.genset.genset_max_power_w`), a current source's
     ``OCV x current_a`` at the battery OCV ``ocv_v`` [V], 0 without a genset."""
     kind = hev.config.genset.kind
     if kind == "current_source":
@@ -97,7 +97,7 @@ def genset_max_power_w(hev: SeriesHEV, ocv_v: Any = 0.0) -> Any:
         return 0.0
     cache = _genset_cache(hev)
     if "p_max_w" not in cache:
-        from hevsim.optimal._series_dp import genset_max_power_w as engine_generator_max_w
+        from hevsim.components.genset import genset_max_power_w as engine_generator_max_w
 
         cache["p_max_w"] = engine_generator_max_w(hev.engine, hev.generator)
     return cache["p_max_w"]
@@ -106,8 +106,8 @@ def genset_max_power_w(hev: SeriesHEV, ocv_v: Any = 0.0) -> Any:
 def _engine_points(hev: SeriesHEV, power_w: np.ndarray) -> tuple[np.ndarray, ...]:
     """(delivered power [W], engine speed [rad/s], torque [N·m], fuel rate [kg/s], feasible
     as 0/1) of the engine genset's optimal-line points at ``power_w`` [W], each power
-    searched once (:func:`hevsim.optimal._series_dp.genset_operating_points`)."""
-    from hevsim.optimal._series_dp import genset_operating_points
+    searched once (:func:`hevsim.components.genset.genset_operating_points`)."""
+    from hevsim.components.genset import genset_operating_points
 
     assert hev.engine is not None
     cache = _genset_cache(hev)
@@ -153,7 +153,7 @@ def power_flow(
     limits: a :class:`~hevsim.optimal._hev_common.Stage` (module docstring). ``regen_ok``:
     the car moves (regeneration also needs ``brakes.regen_min_speed_mps``);
     ``battery_state``: the pack at ``soc`` when known."""
-    from hevsim.optimal._hev_common import BatteryState, Stage, electric_flow
+    from hevsim.components.flow import BatteryState, Stage, electric_flow
 
     cfg = hev.config
     bs = battery_state if battery_state is not None else BatteryState.at(hev.battery, soc)

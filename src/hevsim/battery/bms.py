@@ -166,12 +166,12 @@ class PackRun:
         """Begin a step of the forward simulator (:mod:`hevsim.sim.forward`): returns the
         model with this step's battery limits and bus load (``battery`` current limits =
         the BMS's, ``aux_power_w`` = the model's own + the cooling) and the
-        :class:`~hevsim.optimal._hev_common.BatteryState` (OCV = ``E`` of discharge,
+        :class:`~hevsim.components.flow.BatteryState` (OCV = ``E`` of discharge,
         resistances = ``Z`` of each direction; no charging at ``soc_max``). The flow's
         terminal power then goes to :meth:`finish_power`, which solves the current with the
         direction's own pair."""
         from hevsim.components.bus import battery_power_limits_many
-        from hevsim.optimal._hev_common import BatteryState
+        from hevsim.components.flow import BatteryState
 
         if self.base_aux_w is None:
             self.base_aux_w = float(getattr(model, "aux_power_w", 0.0))

@@ -116,7 +116,7 @@ class CalibrationResult:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        from hevsim.report.save import save_png
+        from hevsim.io import save_png
 
         ts = self.timeseries
         fig, ax = plt.subplots(2, 1, sharex=True, figsize=(8, 6))

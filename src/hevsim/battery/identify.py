@@ -1325,7 +1325,7 @@ def plot_fit(ts: pd.DataFrame, path: Path, title: str) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from hevsim.report.save import save_png
+    from hevsim.io import save_png
 
     fig, ax = plt.subplots(3, 1, sharex=True, figsize=(9, 7))
     t = ts["time_s"].to_numpy()

@@ -285,13 +285,13 @@ def pack_kernel_tables(run: Any, p: FloatArray, dt_s: float) -> Any:
     (:class:`hevsim.battery.bms.PackRun`): its pack's arrays, with the kernel's auxiliary load
     ``p[PAUX]`` as the base the cooling adds to each step."""
     from hevsim.battery.pack_run import F_BASEAUX
-    from hevsim.sim import kernel as SK
+    from hevsim.components.kernel_params import PAUX
 
     pack = run.pack
     m = pack.cfg.module
     bat = ecm_kernel_tables(pack.params, pack.cfg.pack.n_modules * m.n_series, m.n_parallel,
                             float(pack.prm[0, K.SOCINI]), float(pack.x[0, K.STEMP]), dt_s)  # fmt: skip
-    pack._f[F_BASEAUX] = p[SK.PAUX]
+    pack._f[F_BASEAUX] = p[PAUX]
     return PackKernelTables(*bat, pack.arrays)  # type: ignore[call-arg]
 
 
@@ -322,7 +322,7 @@ def _battery_pack_begin(p, bat):
     if not _is_pack_tuple(bat):
         return lambda p, bat: None
     from hevsim.battery.pack_run import F_BASEAUX, SV_COOLW, SV_LIMC, SV_LIMD, pack_begin
-    from hevsim.sim.kernel import BICHG, BIDIS, PAUX
+    from hevsim.components.kernel_params import BICHG, BIDIS, PAUX
 
     def impl(p, bat):
         s = bat.pack

@@ -42,14 +42,14 @@ def compare(
 
     Every configuration and cycle is loaded and validated, the thread count chosen once
     (:mod:`hevsim.threads`) and every pair's DP size checked against the free memory
-    (:func:`hevsim.guards.check_dp_size`) before the first solve, so bad input is refused
+    (:func:`hevsim.optimal._feedback.check_dp_size`) before the first solve, so bad input is refused
     in about a second rather than after the earlier pairs are solved (issue 15.9).
     """
     from tqdm import tqdm
 
     from hevsim.cycles import DriveCycle, load_cycle
     from hevsim.errors import DPInfeasibleError
-    from hevsim.guards import check_dp_size
+    from hevsim.optimal._feedback import check_dp_size
     from hevsim.optimal.hev import optimize, resolve_model
     from hevsim.threads import choose_threads
 

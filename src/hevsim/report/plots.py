@@ -187,8 +187,8 @@ def thin_line(
 
 
 def _save(fig: Figure, path: str | Path) -> Path:
-    """Write ``fig`` to ``path`` as PNG atomically and release it (:func:`hevsim.report.save.save_png`)."""
-    from hevsim.report.save import save_png
+    """Write ``fig`` to ``path`` as PNG atomically and release it (:func:`hevsim.io.save_png`)."""
+    from hevsim.io import save_png
 
     return save_png(fig, path, DPI)
 

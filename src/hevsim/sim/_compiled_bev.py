@@ -35,7 +35,7 @@ from hevsim.sim._compiled_hev import (
     constants,
     threaded_batch,
 )
-from hevsim.sim.forward import BISECTION_STEPS, BatchRecord, ForwardRecord
+from hevsim.sim._records import BISECTION_STEPS, BatchRecord, ForwardRecord
 
 DETAILS: tuple[str, ...] = (
     "motor_speed_radps", "motor_torque_nm", "motor_power_elec_w", "battery_current_a", "battery_power_w",
@@ -48,6 +48,9 @@ COLUMNS: tuple[str, ...] = (
 """Time-series channels of a run (:class:`~hevsim.sim.forward.ForwardRecord`), in order."""
 AUDIT: tuple[str, ...] = (*AUDIT_BASE, *B.LOSSES[1:-1], "battery_loss")
 """Energy-audit terms of a run [J], in the Python loop's order."""
+
+ARCHITECTURES = ("bev",)
+"""The architectures this compiled loop runs (:func:`hevsim.sim.forward.compiled_loop`)."""
 
 
 class WheelData(NamedTuple):

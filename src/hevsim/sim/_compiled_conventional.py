@@ -33,7 +33,7 @@ from hevsim.control.simple import ShiftSchedule, kickdown_gear, shift_gear
 from hevsim.errors import DomainError
 from hevsim.sim import kernel as K
 from hevsim.sim._compiled_common import add_road_audit, track_step, write_summary
-from hevsim.sim.forward import BISECTION_STEPS, BatchRecord, ForwardRecord
+from hevsim.sim._records import BISECTION_STEPS, BatchRecord, ForwardRecord
 from hevsim.units import RADPS_PER_RPM
 
 COLUMNS: tuple[str, ...] = (
@@ -47,6 +47,9 @@ AUDIT: tuple[str, ...] = (
 )  # fmt: skip
 """Energy-audit terms of a run [J], in the Python loop's order."""
 _LOSS_SLOT = tuple(AUDIT.index(term) if term != "wheel" else -1 for term in LOSSES)
+
+ARCHITECTURES = ("conventional",)
+"""The architectures this compiled loop runs (:func:`hevsim.sim.forward.compiled_loop`)."""
 
 
 class RunScalars(NamedTuple):

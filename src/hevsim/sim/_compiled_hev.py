@@ -36,12 +36,12 @@ from hevsim.components.battery import pack_ocv_r, soc_rate
 from hevsim.components.body import road_load_force
 from hevsim.components.bus import battery_power_limits, bus_balance, machine_request
 from hevsim.components.driveline import gear_input_torque
+from hevsim.components.flow import LIMIT_RTOL
 from hevsim.control.parallel import PowerFollower
 from hevsim.control.simple import shift_gear
-from hevsim.optimal._hev_common import LIMIT_RTOL
 from hevsim.sim import kernel as K
 from hevsim.sim._compiled_common import add_road_audit, track_step, write_summary
-from hevsim.sim.forward import BISECTION_STEPS, REGEN_CURRENT_RTOL, BatchRecord, ForwardRecord
+from hevsim.sim._records import BISECTION_STEPS, REGEN_CURRENT_RTOL, BatchRecord, ForwardRecord
 
 ELECTRIC_ASSIST, ECMS, AECMS, POWER_FOLLOWER = 0, 1, 2, 3
 """Controller codes of the compiled loop (:func:`controller_code`)."""
@@ -64,6 +64,9 @@ PS_POWER_BAND, PS_POWER_BAND_MIN_W = PowerFollower.POWER_BAND, PowerFollower.POW
 """The power follower's band around its target engine power [-], [W]."""
 ERR_NONE, ERR_STUCK = 0, 1
 """Status codes of the compiled loop: fine; no feasible control even when stopping."""
+
+ARCHITECTURES = ("parallel", "power_split")
+"""The architectures this compiled loop runs (:func:`hevsim.sim.forward.compiled_loop`)."""
 
 
 class HEVConstants(NamedTuple):
@@ -858,3 +861,9 @@ def threaded_batch(
         out = list(pool.map(one, range(n)))
     return BatchRecord([o[0] for o in out], np.array([o[1] for o in out]).reshape(n, len(K.SUMMARY)),
                        np.array([o[2] for o in out]))  # fmt: skip
+
+
+simulate_compiled = simulate
+"""The compiled forward run (:func:`hevsim.sim.forward.compiled_loop`'s ``simulate_compiled``)."""
+simulate_batch_compiled = simulate_batch
+"""The compiled batch (:func:`hevsim.sim.forward.compiled_loop`'s ``simulate_batch_compiled``)."""

@@ -24,12 +24,14 @@ follows the trace, so replaying a DP optimum reproduces its fuel.
 
 An architecture module used here provides ``power_flow(model, wheel_speed_radps,
 wheel_torque_nm, *controls, soc, dt_s, regen_ok, battery_state, detail=False)`` (a
-:class:`~hevsim.optimal._hev_common.Stage` with ``details``), ``loss_powers(model, stage,
+:class:`~hevsim.components.flow.Stage` with ``details``), ``loss_powers(model, stage,
 wheel_speed_radps, wheel_torque_nm)`` (W per audit term, with ``fuel`` and ``wheel``),
 ``MODES`` and ``power_mode(details, wheel_force_n, v_mid_mps)``.
 
-**Compiled runs (optional hooks).** The Python loop above is the reference. An architecture
-module may also define
+**Compiled runs (optional hooks).** The Python loop above is the reference. A compiled loop
+of this package (``hevsim.sim._compiled_*``, found by :func:`compiled_loop` from the
+architectures it declares in ``ARCHITECTURES``; the architecture modules never import it)
+defines
 
 ``simulate_compiled(model, grid, controller, *, soc_initial, soc_min, soc_max)``
     one run on ``grid`` (the cycle resampled to the time step: ``time_s`` [s],
@@ -72,18 +74,14 @@ from hevsim.errors import ConfigError, DomainError, InputError
 from hevsim.fuels import config_fuel
 from hevsim.sim import kernel as K
 from hevsim.sim._compiled_common import AUDIT_ROAD, add_road_audit, track_step, write_summary
+from hevsim.sim._records import (  # re-exported: the records every forward loop fills
+    BISECTION_STEPS,
+    REGEN_CURRENT_RTOL,
+    ForwardRecord,
+)
 from hevsim.sim.metrics import compute_metrics, soc_correction_ocv
 from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
 
-BISECTION_STEPS = 40
-"""Bisection steps on the end speed when the powertrain cannot follow the trace [-]."""
-REGEN_CURRENT_RTOL = 1e-3
-"""Relative excess [-] of the charge current over its limit accepted while regenerating. The
-shared bus balance scales regeneration to the charge limit by a fixed number of fixed-point
-iterations (:data:`hevsim.components.bus.REGEN_ITERATIONS`), exact for ideal and
-constant-efficiency machines but leaving ~1e-5 with a map machine and an SOC-dependent pack;
-the DP marks those pairs infeasible (tolerance 1e-6), but for the forward driver that would
-make "brake a little" infeasible while "brake hard" is not."""
 SOURCES = ("fuel", "genset_source", "battery_chemical")
 """Energy sources of the audit; every other term is a sink."""
 INT_COLUMNS = ("gear", "power_mode", "traction_limited")
@@ -93,51 +91,6 @@ BOOL_COLUMNS = ("engine_on", "clutch_closed", "clutch_slipping", "fuel_cut")
 FORWARD_ENV = "HEVSIM_FORWARD"
 """Environment variable: ``python`` makes :func:`simulate_architecture` default to the Python
 loop even where the architecture has a compiled run (tests compare the two)."""
-
-
-@dataclass
-class ForwardRecord:
-    """Raw output of one forward run (Python loop or ``simulate_compiled``), before the
-    time-series frame is built.
-
-    Attributes:
-        columns: name -> float64 array of ``n + 1`` rows, row ``k`` the step from ``t_k`` to
-            ``t_k + dt`` (row ``n`` is overwritten by :func:`finish_record`), in this order:
-            ``speed_desired_mps``, ``speed_mps`` (at ``t_k``) [m/s], ``accel_mps2`` [m/s²],
-            ``wheel_force_n`` [N], ``wheel_power_w`` [W] (the audit's ``wheel`` term),
-            ``road_load_force_n`` [N] (wheel force - m_eff a), ``fuel_kg`` (cumulative to
-            ``t_k + dt``) [kg], ``soc`` (at ``t_k``) [-], then the power flow's ``details``
-            in their order, ``power_mode`` (index in ``MODES``), ``traction_limited``
-            (0/1), ``clutch_closed`` (0/1, parallel only: engine on), and with a battery
-            ``battery_ocv_v``, ``battery_voltage_v`` [V]. Integer and boolean channels are
-            floats here (:data:`INT_COLUMNS`, :data:`BOOL_COLUMNS`).
-        audit: energy [J] per audit term over the run: the sources of :data:`SOURCES` and the
-            sinks (``aero``, ``rolling``, ``grade``, ``kinetic_vehicle``, ``battery_loss``,
-            the ``loss_powers`` terms x dt), without ``residual``.
-        summary: float64 array indexed by :data:`hevsim.sim.kernel.SUMMARY` (distance [m],
-            fuel [kg], final SOC, RMS and max speed error [m/s], engine-on time [s], engine
-            starts, traction-limited time [s], duration [s]).
-        speed_final_mps: speed at the end of the run [m/s].
-    """
-
-    columns: dict[str, np.ndarray]
-    audit: dict[str, float]
-    summary: np.ndarray
-    speed_final_mps: float
-
-
-@dataclass
-class BatchRecord:
-    """Raw output of ``simulate_batch_compiled`` for ``n`` variants.
-
-    Attributes: audits: one :attr:`ForwardRecord.audit` dict per variant [J]; summary:
-    ``(n, len(SUMMARY))`` float64 array as :attr:`ForwardRecord.summary`; traction_j: (n,)
-    positive wheel energy [J] (sum over steps of ``max(wheel_power_w, 0) dt``).
-    """
-
-    audits: list[dict[str, float]]
-    summary: np.ndarray
-    traction_j: np.ndarray
 
 
 @dataclass
@@ -195,7 +148,7 @@ class Step:
 
 
 def _battery_state(model: Any, soc: float, soc_max: float) -> Any:
-    from hevsim.optimal._hev_common import BatteryState
+    from hevsim.components.flow import BatteryState
 
     bs = BatteryState.at(model.battery, np.asarray(soc))
     if soc >= soc_max:  # full: no charging (regeneration goes to the friction brakes)
@@ -285,7 +238,7 @@ def simulate_architecture(
     t_k0 = time.perf_counter()
     window = (b.soc_min, b.soc_max) if b is not None else (0.0, 1.0)
     compiled_ok = use_compiled(compiled) and pack_run is None  # a pack runs in the Python loop
-    hook = getattr(mod, "simulate_compiled", None) if compiled_ok else None
+    hook = getattr(compiled_loop(name), "simulate_compiled", None) if compiled_ok else None
     rec = hook(model, grid, ctl, soc_initial=soc0, soc_min=window[0], soc_max=window[1]) if hook else None
     ran_compiled = rec is not None
     if rec is None:
@@ -330,6 +283,24 @@ simulate_bev = functools.partial(simulate_architecture, "bev")
 """Simulate a battery-electric vehicle forward (see :func:`simulate_architecture`)."""
 simulate_power_split = functools.partial(simulate_architecture, "power_split")
 """Simulate a power-split HEV forward (see :func:`simulate_architecture`)."""
+
+
+def compiled_loop(architecture: str) -> Any:
+    """The module of ``architecture``'s compiled forward loop (its ``simulate_compiled`` and
+    ``simulate_batch_compiled``), None where it has none. One compiled loop per family of
+    architectures (each declares the ones it runs in ``ARCHITECTURES``) until the one compiled
+    loop of issue 24; the loops live here in sim/, so an architecture module never imports them."""
+    from hevsim.sim import _compiled_hev  # imported one by one: a run loads only its own loop
+
+    if architecture in _compiled_hev.ARCHITECTURES:
+        return _compiled_hev
+    from hevsim.sim import _compiled_bev
+
+    if architecture in _compiled_bev.ARCHITECTURES:
+        return _compiled_bev
+    from hevsim.sim import _compiled_conventional
+
+    return _compiled_conventional if architecture in _compiled_conventional.ARCHITECTURES else None
 
 
 def use_compiled(compiled: bool | None) -> bool:
@@ -436,8 +407,8 @@ def simulate_batch_architecture(
     arch = architecture(cfg.architecture, cfg.name)
     sections: dict[str, dict[str, Any]] = {}
     cfgs = [variant_config(cfg, v, arch.spec, sections) for v in values]
-    mod = arch.power_module()
-    hook = getattr(mod, "simulate_batch_compiled", None) if use_compiled(compiled) else None
+    loop = compiled_loop(arch.name) if use_compiled(compiled) else None
+    hook = getattr(loop, "simulate_batch_compiled", None)
     rec = None
     if hook is not None and all(np.issubdtype(a.dtype, np.number) for a in arrays.values()):
         base = model if getattr(model, "config", None) is cfg else arch.build(cfg)

@@ -45,24 +45,10 @@ from hevsim.components.electric_machine import (
     torque_limits,
 )
 from hevsim.components.engine import engine_fuel_rate, engine_torque
+from hevsim.components.kernel_params import PARAMS as PARAMS  # re-exported: the layout K.PARAMS
+from hevsim.components.kernel_params import P as P
 
-# --- scalar parameter vector layout --------------------------------------------------------
-PARAMS = (
-    "mass_kg", "mass_factor", "cd", "area_m2", "rho_kgpm3", "headwind_mps", "crr",
-    "tire_radius_m", "gear_ratio", "gear_efficiency", "max_brake_force_n",
-    "driver_gain_per_mps", "driver_feedforward",
-    "motor_kind", "motor_eff", "motor_scale", "motor_inertia",
-    "gen_kind", "gen_eff", "gen_scale", "gen_inertia",
-    "engine_present", "engine_use_tmap", "engine_use_fuel_map", "engine_stall_radps",
-    "engine_redline_radps", "engine_scale", "engine_inertia", "engine_lhv_jpkg",
-    "bat_ns", "bat_np", "bat_r_extra", "bat_capacity_ah", "bat_coulombic_eff",
-    "bat_max_dis_a", "bat_max_chg_a", "bat_temp_k", "soc_initial", "soc_min", "soc_max",
-    "genset_kind", "soc_low", "soc_high", "soc_boost", "genset_speed_radps",
-    "genset_start_speed_radps", "throttle_run", "throttle_boost", "genset_gain_per_radps",
-    "genset_current_a", "regen_min_speed_mps", "aux_power_w", "pure_ice_band_w",
-    "driver_kind", "supervisor_kind", "battery_kind",
-)  # fmt: skip
-P = {name: i for i, name in enumerate(PARAMS)}
+# --- scalar parameter vector layout (hevsim.components.kernel_params: the battery roles write it too)
 # Index constants by name: a reordered PARAMS cannot mis-assign them.
 MASS = P["mass_kg"]
 MFACT = P["mass_factor"]

@@ -8,47 +8,30 @@ settings; :meth:`SeriesHEV.param_vector` packs every scalar into the kernel's ve
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from hevsim.architectures._build import COMPONENT_KINDS as COMPONENT_KINDS  # re-exported below too
+from hevsim.architectures._build import (  # re-exported: the component builders of every architecture
+    build_battery,
+    build_engine,
+    build_machine,
+)
+from hevsim.architectures._build import resolve_component as resolve_component
+from hevsim.architectures._build import shipped_components as shipped_components
 from hevsim.components.battery import BatteryPack
 from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
 from hevsim.components.electric_machine import ElectricMachine
 from hevsim.components.engine import Engine, EngineTables
-from hevsim.config import BatterySection, EngineSection, MachineSection, SeriesHEVConfig
-from hevsim.errors import ConfigError
+from hevsim.config import SeriesHEVConfig
 from hevsim.fuels import with_config_fuel
 from hevsim.sim import kernel as K
-from hevsim.tables import FloatArray, Table1D
-from hevsim.units import MPS_PER_MPH, c_to_k, rpm_to_radps
-
-COMPONENT_KINDS = {"engine": "engines", "motor": "motors", "battery": "batteries"}
-
-
-def shipped_components(kind: str) -> list[str]:
-    """Names of the shipped component folders of ``kind`` ("engine", "motor", "battery")."""
-    root = resources.files("hevsim") / "data" / "components" / COMPONENT_KINDS[kind]
-    return sorted(p.name for p in root.iterdir() if p.is_dir())
-
-
-def resolve_component(name: str, kind: str, base_dir: Path, key: str) -> Path:
-    """Folder for component data ``name``: a path relative to the config, or a shipped name."""
-    candidate = (base_dir / name).expanduser()
-    if candidate.is_dir():
-        return candidate
-    shipped = resources.files("hevsim") / "data" / "components" / COMPONENT_KINDS[kind] / name
-    if shipped.is_dir():
-        return Path(str(shipped))
-    raise ConfigError(
-        f"key '{key}' = {name!r}: no folder {candidate} and no shipped {kind} of that name; "
-        f"shipped {kind}s are: {', '.join(shipped_components(kind))}."
-    )
+from hevsim.tables import FloatArray
+from hevsim.units import MPS_PER_MPH, rpm_to_radps
 
 
 @dataclass(frozen=True, eq=False)
@@ -182,95 +165,6 @@ class SeriesHEV:
             self.generator.kernel_tables(),
             bat,
         )
-
-
-def build_machine(sec: MachineSection, label: str, base: Path) -> ElectricMachine:
-    """Electric machine of a ``[motor]``/``[generator]`` section (any architecture).
-
-    ``torque_scale`` scales the torque limits of every model (map, ideal, constant efficiency).
-    """
-    if sec.model == "map":
-        folder = resolve_component(sec.data, "motor", base, f"{label}.data")
-        return ElectricMachine.from_directory(
-            folder,
-            rating=sec.rating,
-            torque_scale=sec.torque_scale,
-            inertia_kgm2=sec.inertia_kgm2,
-            name=f"{label}: {folder.name}",
-        )
-    eff = sec.efficiency if sec.model == "constant_efficiency" else 1.0
-    m = ElectricMachine.constant_torque(
-        f"{label}: constant {sec.max_torque_nm:g} N·m", sec.max_torque_nm, efficiency=eff,
-        inertia_kgm2=sec.inertia_kgm2,
-    )  # fmt: skip
-    if sec.torque_scale != 1.0 or (sec.model == "constant_efficiency" and eff == 1.0):
-        return dataclasses.replace(m, kind=sec.model, torque_scale=sec.torque_scale)
-    return m
-
-
-def build_engine(e: EngineSection, base: Path) -> Engine:
-    """Engine of an ``[engine]`` section: measured maps, or a constant-torque ideal-fuel engine."""
-    common = {
-        "inertia_kgm2": e.inertia_kgm2,
-        "stall_speed_radps": rpm_to_radps(e.stall_speed_rpm),
-        "redline_radps": rpm_to_radps(e.redline_rpm),
-        "torque_scale": e.torque_scale,
-    }
-    if e.model == "map":
-        folder = resolve_component(e.data, "engine", base, "engine.data")
-        return Engine.from_directory(folder, **common)
-    x = np.array([0.0])
-    return Engine(
-        name=f"constant {e.max_torque_nm:g} N·m engine (ideal fuel)",
-        max_torque=Table1D(x, np.array([e.max_torque_nm])),
-        closed_throttle_torque=Table1D(x, np.array([0.0])),
-        fuel_map=None,
-        **common,  # type: ignore[arg-type]
-    )
-
-
-def build_battery(bs: BatterySection, base: Path) -> tuple[BatteryPack, Any]:
-    """(pack, cell parameters or None) of a ``[battery]`` section; temperatures in K inside."""
-    limits = {
-        "max_discharge_current_a": bs.max_discharge_current_a,
-        "max_charge_current_a": bs.max_charge_current_a,
-        "temperature_k": c_to_k(bs.temperature_c),
-        "r_extra_ohm": bs.r_extra_ohm,
-        "n_series": bs.n_series,
-        "n_parallel": bs.n_parallel,
-    }
-    if bs.model == "table":
-        folder = resolve_component(bs.data, "battery", base, "battery.data")
-        return BatteryPack.from_directory(folder, **limits), None
-    if bs.model == "pack":  # the vehicle's view of it; the pack itself: hevsim.sim.pack_vehicle
-        from hevsim.sim.pack_vehicle import nominal_battery
-
-        return nominal_battery(bs, base), None
-    if bs.model == "cell":
-        from hevsim.battery import load_cell_parameters
-        from hevsim.battery.vehicle import quasi_static_pack
-
-        path = base / bs.data
-        cell = load_cell_parameters(path if path.suffix == ".toml" and path.is_file() else bs.data)
-        pack = quasi_static_pack(
-            cell,
-            bs.n_series,
-            bs.n_parallel,
-            c_to_k(bs.temperature_c),
-            max_discharge_current_a=bs.max_discharge_current_a,
-            max_charge_current_a=bs.max_charge_current_a,
-            r_extra_ohm=bs.r_extra_ohm,
-        )
-        return pack, cell
-    pack = BatteryPack.constant(
-        f"{bs.model} {bs.ocv_v:g} V {bs.capacity_ah:g} Ah",
-        bs.model,
-        bs.ocv_v,
-        bs.capacity_ah,
-        bs.resistance_ohm if bs.model == "rint" else 0.0,
-        **limits,
-    )
-    return pack, None
 
 
 def build_series_hev(cfg: SeriesHEVConfig) -> SeriesHEV:

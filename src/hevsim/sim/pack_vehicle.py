@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from hevsim.architectures._build import nominal_battery, pack_file  # re-exported
 from hevsim.battery.bms import LIMIT_NAMES, PackRun
 from hevsim.battery.pack import Pack, PackConfig, load_pack_config
 from hevsim.cycles import DriveCycle
@@ -43,37 +44,6 @@ from hevsim.errors import ConfigError
 from hevsim.sim.metrics import metric
 
 LOG = logging.getLogger("hevsim")
-
-
-def pack_file(bs: Any, base: Path) -> Path:
-    """The pack file of a ``[battery] model = "pack"`` section (ConfigError when missing)."""
-    if not bs.pack:
-        raise ConfigError("key 'battery.pack' is empty; expected a pack TOML file for model = 'pack'.")
-    path = Path(bs.pack) if Path(bs.pack).is_absolute() else base / bs.pack
-    if not path.is_file():
-        raise ConfigError(f"key 'battery.pack' = {bs.pack!r}: no such file {path}; expected a pack TOML.")
-    return path
-
-
-def nominal_battery(bs: Any, base: Path) -> Any:
-    """The vehicle's nominal view of the pack (a quasi-static :class:`BatteryPack` of its cells,
-    all modules' series groups in series): capacity and OCV for the SOC correction of the
-    fuel economy; the run itself uses the pack (:class:`~hevsim.battery.bms.PackRun`)."""
-    from hevsim.battery.params import load_cell_parameters
-    from hevsim.battery.vehicle import quasi_static_pack
-    from hevsim.units import c_to_k
-
-    path = pack_file(bs, base)
-    cfg = load_pack_config(path)
-    par = cfg.cells.parameters
-    params = load_cell_parameters(str(path.parent / par) if (path.parent / par).is_file() else par)
-    n_s = cfg.pack.n_modules * cfg.module.n_series
-    i_max = cfg.pack.max_current_a
-    t0 = c_to_k(cfg.pack.initial_temp_c)
-    qs = quasi_static_pack(
-        params, n_s, cfg.module.n_parallel, t0, max_discharge_current_a=i_max, max_charge_current_a=i_max
-    )
-    return replace(qs, name=f"pack {cfg.name} ({path.name})")
 
 
 def vehicle_pack_config(

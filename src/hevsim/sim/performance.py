@@ -128,7 +128,7 @@ def plot_speed_power(runs: dict[str, pd.DataFrame], path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from hevsim.report.save import save_png
+    from hevsim.io import save_png
 
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
     for name, ts in runs.items():

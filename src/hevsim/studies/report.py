@@ -193,7 +193,7 @@ def study_report(out: str | Path, plots: bool = True) -> dict[str, Any]:
     files.append("sensitivity.csv")
     pictures: list[str] = []
     if plots:
-        from hevsim.report.save import save_png
+        from hevsim.io import save_png
 
         cols = [*keys, *info["metrics"]][:SCATTER_MAX_COLUMNS]
         ok = results[results["status"] == "ok"]

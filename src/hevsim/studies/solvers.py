@@ -202,7 +202,7 @@ def _simulate_options(cfg: Any, options: dict[str, Any], where: str) -> dict[str
                 f"{where}: key 'controller' = {options['controller']!r} is not admitted by the "
                 f"{cfg.architecture} architecture; expected one of {', '.join(valid)}."
             )
-        from hevsim.studies.spec import with_overrides
+        from hevsim.config import with_overrides
 
         kind = controller_kind(cfg, options["controller"])
         with_overrides(cfg, {"controller.kind": kind}, where)  # the architecture's rules
@@ -282,8 +282,8 @@ def _model_fingerprint(hev: Any) -> bytes:
 
 
 def _probe_model(base: Any, key: str, value: float, integer: bool) -> tuple[bytes, np.ndarray] | None:
-    from hevsim.config import build_vehicle
-    from hevsim.studies.spec import with_overrides
+    from hevsim.architectures import build_vehicle
+    from hevsim.config import with_overrides
 
     try:
         hev = build_vehicle(with_overrides(base, {key: int(value) if integer else float(value)}))
@@ -398,10 +398,10 @@ def _variants(ctx: SimulateContext, rows: np.ndarray) -> dict[str, np.ndarray]:
 def _simulate_run(
     ctx: SimulateContext, cycle: Any, values: np.ndarray, metrics: tuple[str, ...], threads: int | None
 ) -> list[Outcome]:
-    from hevsim.config import build_vehicle
+    from hevsim.architectures import build_vehicle
+    from hevsim.config import with_overrides
     from hevsim.sim import kernel as K
     from hevsim.sim.simulator import simulate_batch
-    from hevsim.studies.spec import with_overrides
 
     if ctx.base.architecture != "series":
         return _architecture_run(ctx, cycle, values, metrics, threads)
@@ -495,8 +495,8 @@ def _architecture_run(
     """``simulate`` for the architectures other than the series HEV: the batch's cases as
     configuration-key variants of one :func:`~hevsim.sim.simulator.simulate_batch` call."""
     from hevsim.architectures import architecture
+    from hevsim.config import with_overrides
     from hevsim.sim.simulator import simulate_batch
-    from hevsim.studies.spec import with_overrides
 
     t0 = time.perf_counter()
     m = values.shape[0]
@@ -560,7 +560,7 @@ def _optimize_options(cfg: Any, options: dict[str, Any], where: str) -> dict[str
 
 
 def _optimize_metrics(cfg: Any) -> tuple[str, ...]:
-    from hevsim.config import build_vehicle
+    from hevsim.architectures import build_vehicle
     from hevsim.optimal._hev_common import hev_metrics
 
     hev = build_vehicle(cfg)
@@ -598,8 +598,8 @@ def _optimize_prepare(study: Any, solver: Any) -> OptimizeContext:
 def _optimize_run(
     ctx: OptimizeContext, cycle: Any, values: np.ndarray, metrics: tuple[str, ...], threads: int | None
 ) -> list[Outcome]:
+    from hevsim.config import with_overrides
     from hevsim.optimal import optimize
-    from hevsim.studies.spec import with_overrides
 
     out: list[Outcome] = []
     for row in values:
@@ -673,8 +673,8 @@ def performance_metrics(result: Any) -> dict[str, float]:
 def _performance_run(
     ctx: OptimizeContext, cycle: Any, values: np.ndarray, metrics: tuple[str, ...], threads: int | None
 ) -> list[Outcome]:
+    from hevsim.config import with_overrides
     from hevsim.sim.performance import performance
-    from hevsim.studies.spec import with_overrides
     from hevsim.units import MPS_PER_MPH
 
     opts = dict(ctx.options)

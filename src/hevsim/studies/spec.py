@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from hevsim import schema
+from hevsim.config import with_overrides as with_overrides  # re-exported: studies import it from here
 from hevsim.errors import ConfigError, HevsimError
 from hevsim.studies import sampling
 from hevsim.studies.sampling import Axis
@@ -212,21 +213,6 @@ def resolve_key(cfg: Any, key: str, where: str) -> tuple[type, dict[str, Any]]:
         )
     tp, meta = schema.field_of(type(sections[sec]), name)
     return tp, dict(meta)
-
-
-def with_overrides(cfg: Any, overrides: dict[str, Any], source: str = "study case") -> Any:
-    """Copy of ``cfg`` with ``section.field`` overrides (values already range-checked) and the
-    architecture's cross-key checks applied (ConfigError on a violation)."""
-    from hevsim.config import architecture_of
-
-    by_section: dict[str, dict[str, Any]] = {}
-    for key, value in overrides.items():
-        sec, _, name = key.partition(".")
-        by_section.setdefault(sec, {})[name] = value
-    changes = {sec: dataclasses.replace(getattr(cfg, sec), **kw) for sec, kw in by_section.items()}
-    new = dataclasses.replace(cfg, **changes)
-    architecture_of(new).check(new, source)
-    return new
 
 
 # ------------------------------------------------------------------------------------------

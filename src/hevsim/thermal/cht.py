@@ -634,7 +634,7 @@ def plot_nusselt(res: ChtResult, path: Any) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from hevsim.report.save import save_png
+    from hevsim.io import save_png
 
     fig = Figure(figsize=(7, 4))
     FigureCanvasAgg(fig)

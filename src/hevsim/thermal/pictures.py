@@ -250,7 +250,7 @@ def raster_triangles(
 
 def _save(fig: Any, path: str | Path) -> Path:
     """Write ``fig`` to ``path`` (PNG, tight bounding box) through the package's one atomic save."""
-    from hevsim.report.save import save_png
+    from hevsim.io import save_png
 
     return save_png(fig, path, _DPI, bbox_inches="tight")
 

@@ -1028,7 +1028,7 @@ def _pictures(
     """cells_temperature.png, plate_temperature.png, cells_section.png (final field) and timeseries.png."""
     from matplotlib.figure import Figure
 
-    from hevsim.report.save import save_png
+    from hevsim.io import save_png
     from hevsim.thermal.pictures import plot_fields
 
     ts = result.timeseries

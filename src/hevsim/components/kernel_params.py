@@ -1,0 +1,29 @@
+"""The layout of the vehicle kernel's scalar parameter vector ``p`` (one float per name).
+
+The series forward kernel (:mod:`hevsim.sim.kernel`) reads it, and the pack's battery role
+(:mod:`hevsim.battery.vehicle`) writes its slots of the step's BMS limits and bus load, so the
+layout lives here, below both (issue 24: constants shared across layers live in the lower one).
+"""
+
+PARAMS = (
+    "mass_kg", "mass_factor", "cd", "area_m2", "rho_kgpm3", "headwind_mps", "crr",
+    "tire_radius_m", "gear_ratio", "gear_efficiency", "max_brake_force_n",
+    "driver_gain_per_mps", "driver_feedforward",
+    "motor_kind", "motor_eff", "motor_scale", "motor_inertia",
+    "gen_kind", "gen_eff", "gen_scale", "gen_inertia",
+    "engine_present", "engine_use_tmap", "engine_use_fuel_map", "engine_stall_radps",
+    "engine_redline_radps", "engine_scale", "engine_inertia", "engine_lhv_jpkg",
+    "bat_ns", "bat_np", "bat_r_extra", "bat_capacity_ah", "bat_coulombic_eff",
+    "bat_max_dis_a", "bat_max_chg_a", "bat_temp_k", "soc_initial", "soc_min", "soc_max",
+    "genset_kind", "soc_low", "soc_high", "soc_boost", "genset_speed_radps",
+    "genset_start_speed_radps", "throttle_run", "throttle_boost", "genset_gain_per_radps",
+    "genset_current_a", "regen_min_speed_mps", "aux_power_w", "pure_ice_band_w",
+    "driver_kind", "supervisor_kind", "battery_kind",
+)  # fmt: skip
+P = {name: i for i, name in enumerate(PARAMS)}
+BIDIS = P["bat_max_dis_a"]
+"""Slot of the pack's discharge-current limit [A] (the BMS's, step by step)."""
+BICHG = P["bat_max_chg_a"]
+"""Slot of the pack's charge-current limit [A] (the BMS's, step by step)."""
+PAUX = P["aux_power_w"]
+"""Slot of the bus's auxiliary load [W] (the pack's cooling adds to it)."""

@@ -1,0 +1,156 @@
+"""The package's import graph (issue 24 items 5 and 6).
+
+* No import cycle between modules of ``src/hevsim`` beyond the known ones below, each waiting
+  for the one compiled loop or a split of its package (the list can only shrink: a cycle that
+  is gone fails too, so its entry is removed with the fix). The layers themselves are the
+  import-linter contract in ``pyproject.toml`` (``lint-imports``, run by ``make test``).
+* One registry: only :data:`hevsim.architectures.ARCHITECTURES` maps ``[powertrain]
+  architecture`` to a builder (no second ``"module:build_..."`` table, no dict or if-chain over
+  architecture names that picks a builder).
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import grimp
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src" / "hevsim"
+
+KNOWN_CYCLES = {
+    # the series HEV's own path, the other architectures' loop and the pack's Python loop hand a
+    # run to each other (one entry point and one compiled loop, issue 24 items 1-2)
+    frozenset({"hevsim.sim.forward", "hevsim.sim.pack_vehicle", "hevsim.sim.simulator"}),
+    # within a physics package (function-level imports between sibling modules)
+    frozenset({"hevsim.battery.life", "hevsim.battery.pack", "hevsim.battery.pack_run"}),
+    frozenset({"hevsim.thermal.cht", "hevsim.thermal.flow", "hevsim.thermal.rans"}),
+}
+
+
+def _cycles() -> set[frozenset[str]]:
+    """Strongly connected sets of more than one module (a package importing its own
+    submodules is not a cycle: importing ``hevsim.x.y`` runs ``hevsim.x`` first anyway)."""
+    g = grimp.build_graph("hevsim")
+    edges = {
+        m: {t for t in g.find_modules_directly_imported_by(m) if not t.startswith(m + ".")} for m in g.modules
+    }
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: set[frozenset[str]] = set()
+
+    def visit(v: str) -> None:  # Tarjan, iterative enough for a graph of ~150 modules
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in edges.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = set()
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.add(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.add(frozenset(comp))
+
+    for m in sorted(edges):
+        if m not in index:
+            visit(m)
+    return out
+
+
+def test_no_import_cycles_but_the_known_ones() -> None:
+    found = _cycles()
+    new = [sorted(c) for c in found - KNOWN_CYCLES]
+    gone = [sorted(c) for c in KNOWN_CYCLES - found]
+    assert not new, f"new import cycle(s) in src/hevsim: {new}"
+    assert not gone, f"cycle(s) fixed: remove them from KNOWN_CYCLES: {gone}"
+
+
+def test_battery_and_thermal_import_no_vehicle_layer() -> None:
+    """``battery/`` and ``thermal/`` import nothing from sim/, optimal/, control/, architectures/
+    (function-level imports included: grimp reads every import statement)."""
+    g = grimp.build_graph("hevsim")
+    bad = []
+    for m in sorted(g.modules):
+        if m.startswith(("hevsim.battery", "hevsim.thermal")):
+            for t in g.find_modules_directly_imported_by(m):
+                if t.startswith(("hevsim.sim", "hevsim.optimal", "hevsim.control", "hevsim.architectures")):
+                    bad.append(f"{m} -> {t}")
+    assert bad == []
+
+
+REGISTRY = SRC / "architectures" / "__init__.py"
+BUILDER_REF = re.compile(r"^hevsim(\.\w+)+:build_\w+$")
+
+
+def _names() -> tuple[set[str], set[str]]:
+    from hevsim.architectures import ARCHITECTURES
+
+    refs = [getattr(a, "builder", None) or a.spec.builder for a in ARCHITECTURES.values()]  # (older entries)
+    return set(ARCHITECTURES), {r.partition(":")[2] for r in refs}
+
+
+def _mentions(node: ast.AST, builders: set[str]) -> bool:
+    for n in ast.walk(node):
+        if (isinstance(n, ast.Name) and n.id in builders) or (
+            isinstance(n, ast.Attribute) and n.attr in builders
+        ):
+            return True
+        if isinstance(n, ast.Constant) and isinstance(n.value, str) and BUILDER_REF.match(n.value):
+            return True
+    return False
+
+
+def second_registries(path: Path, source: str | None = None) -> list[str]:
+    """Places in ``path`` (outside the registry) that map architecture names to builders: a
+    ``"module:build_..."`` reference, a dict literal keyed by two or more architecture names
+    whose values name builders, or an ``if``/``elif`` on an architecture name that calls a
+    builder."""
+    names, builders = _names()
+    tree = ast.parse(source if source is not None else path.read_text(encoding="utf-8"))
+    hits = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and BUILDER_REF.match(node.value):
+            hits.append(f"{path.name}:{node.lineno}: builder reference {node.value!r}")
+        elif isinstance(node, ast.Dict):
+            keys = {k.value for k in node.keys if isinstance(k, ast.Constant)}
+            if len(keys & names) >= 2 and any(_mentions(v, builders) for v in node.values):
+                hits.append(f"{path.name}:{node.lineno}: dict from architecture names to builders")
+        elif isinstance(node, ast.If):
+            consts = {n.value for n in ast.walk(node.test) if isinstance(n, ast.Constant)}
+            if consts & names and any(_mentions(s, builders) for s in node.body):
+                hits.append(f"{path.name}:{node.lineno}: if on an architecture name picking a builder")
+    return hits
+
+
+def test_one_registry_maps_architectures_to_builders() -> None:
+    hits = []
+    for path in sorted(SRC.rglob("*.py")):
+        if path != REGISTRY:
+            hits += [f"{path.relative_to(SRC)}: {h}" for h in second_registries(path)]
+    assert hits == []
+    assert second_registries(REGISTRY) != []  # the registry itself is what the scan finds
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        'SPECS = {"series": "hevsim.sim.model:build_series_hev"}',
+        'B = {"parallel": build_parallel_hev, "bev": build_bev}',
+        'if cfg.architecture == "bev":\n    m = build_bev(cfg)',
+    ],
+)
+def test_the_scan_finds_a_second_registry(source: str) -> None:
+    assert second_registries(Path("x.py"), source)
