@@ -315,7 +315,9 @@ def test_integers_out_of_range_are_refused_not_wrapped(
         err = capsys.readouterr().err
         assert f"connection src.{a} -> snk.{b}" in err and "narrowing connection" in err, err
         assert re.search(msg, err), err
-        with pytest.raises(ConfigError, match=rf"connection src.{a} -> snk.{b} .*narrowing connection: {msg}"):
+        with pytest.raises(
+            ConfigError, match=rf"connection src.{a} -> snk.{b} .*narrowing connection: {msg}"
+        ):
             run_cosim(ssd, tmp_path / "out")
         assert not (tmp_path / "out").exists()
     with pytest.raises(ConfigError, match=r"parameter 'p_Binary' is a Binary: expected hexadecimal"):

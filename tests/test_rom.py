@@ -86,9 +86,10 @@ def test_moving_hot_spot_within_the_stated_tolerance(case: dict[str, Any], load:
     """Issue 26 item 5: per-cell heat of both signs that moves the hot spot inside the cells (a
     random multi-sine per cell; a heat wave travelling along the cells; a per-cell chirp held out
     from setting the build's margin), load families the ROM was not built with: the reported hot
-    spot (the maximum of the reconstructed field over every node of the cell) is within the ROM's stated tolerance of the FEM's at every step, and its
-    error estimate is stated. Before, the maximum over 34 fixed candidate nodes per cell was up
-    to 0.77 K below the FEM's on the multi-sine."""
+    spot (the maximum of the reconstructed field over every node of the cell) is within the ROM's
+    stated tolerance of the FEM's at every step, and its error estimate is stated. Before, the
+    maximum over 34 fixed candidate nodes per cell was up to 0.77 K below the FEM's on the
+    multi-sine."""
     from hevsim.thermal.rom import validation_loads
 
     rom: ThermalRom = case["rom"]
