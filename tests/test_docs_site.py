@@ -120,6 +120,8 @@ def test_site_has_its_sections(site: Path) -> None:
         "auto_tutorials/plot_01_refinement.html",
         "auto_tutorials/plot_02_dp_benchmark.html",
         "auto_tutorials/plot_03_cell_calibration.html",
+        "auto_tutorials/plot_04_pack_ambient.html",
+        "auto_tutorials/plot_05_design_study.html",
     ):
         assert (site / page).is_file(), page
     landing = _parse(site / "index.html").refs
@@ -186,6 +188,40 @@ def test_calibration_tutorial_recovers_the_known_parameters(site: Path) -> None:
     m = re.search(r"voltage error RMS ([\d.]+) mV, max ([\d.]+) mV; temperature error max ([\d.]+) K", text)
     assert m is not None
     assert float(m.group(2)) < 1.0 and float(m.group(3)) < 0.1
+
+
+def test_pack_tutorial_shows_cold_derating_and_hot_derating_without_cooling(site: Path) -> None:
+    text = _page_text(site / "auto_tutorials" / "plot_04_pack_ambient.html")
+    rows = {
+        m.group(1).strip(): tuple(map(float, m.groups()[1:]))
+        for m in re.finditer(
+            r"^([+-]\d+ °C(?:, cooling off)?)\s+([\d.]+)\s+(-?[\d.]+)\s+(\d+)\s+(\d+)$", text, re.M
+        )
+    }
+    assert set(rows) == {"-10 °C", "+25 °C", "+40 °C", "+40 °C, cooling off"}, rows
+    _, _, cold_derated, cold_limited = rows["-10 °C"]
+    assert cold_derated == 600 and cold_limited > 0  # derated all US06 long, and it shows
+    assert rows["+25 °C"][2] == 0 and rows["+40 °C"][2] == 0  # the cooled pack is never derated
+    hot_peak, hot_off_peak = rows["+40 °C"][1], rows["+40 °C, cooling off"][1]
+    assert hot_off_peak > hot_peak + 5 and rows["+40 °C, cooling off"][2] > 0
+
+
+def test_study_tutorial_front_is_the_non_dominated_set(site: Path) -> None:
+    text = _page_text(site / "auto_tutorials" / "plot_05_design_study.html")
+    m = re.search(r"vehicles \(torque scale/final drive: MPGGE, RMS speed error mph\): (\{.*?\})\s*\n", text)
+    assert m is not None, "the study tutorial's vehicle table is missing"
+    vehicles: dict[str, tuple[float, float]] = ast.literal_eval(m.group(1))
+    m = re.search(r"on the front: (\[.*?\])", text)
+    assert m is not None
+    shown = ast.literal_eval(m.group(1))
+    assert len(vehicles) == 9
+    # independent brute force: a vehicle is on the front unless another has at least its MPGGE
+    # and at most its speed error, better in one
+    expected = sorted(
+        k for k, (e, t) in vehicles.items()
+        if not any(e2 >= e and t2 <= t and (e2, t2) != (e, t) for e2, t2 in vehicles.values())
+    )  # fmt: skip
+    assert shown == expected and 1 <= len(shown) < 9
 
 
 # --- a real browser ---------------------------------------------------------------------------------
