@@ -61,7 +61,7 @@ for label, res in runs.items():
     ax2.plot(ts["time_s"], ts["derating_factor"], **style)
 ax1.set_ylabel("hottest cell temperature [°C]")
 ax1.set_title("Series HEV with its 600-cell pack on US06, soaked at the ambient")
-ax1.legend(loc="upper left", bbox_to_anchor=(0.0, 0.8), fontsize=8)
+ax1.legend(loc="center right", bbox_to_anchor=(1.0, 0.3), fontsize=8)
 ax2.set_ylabel("BMS derating factor [-]")
 ax2.set_xlabel("time [s]")
 ax2.set_ylim(-0.05, 1.05)
