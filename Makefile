@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo examples test docs lint refinement bench clean openfoam calculix
+.PHONY: setup demo examples test docs lint refinement bench clean openfoam calculix chromium
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -57,27 +57,48 @@ calculix:
 			"will be skipped)"; \
 	fi
 
+# Headless Chromium for the documentation site's browser test (tests/test_docs_site.py renders
+# the built pages to PNG): Debian's package when missing, as for OpenFOAM; the test skips
+# with a message without it.
+chromium:
+	@if command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1; then \
+		echo "chromium: found ($$(command -v chromium || command -v chromium-browser))"; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+		echo "chromium: installing Debian's package: apt-get install -y chromium"; \
+		DEBIAN_FRONTEND=noninteractive apt-get install -y chromium || \
+		{ apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y chromium; } || \
+		echo "chromium: apt-get install chromium failed: the browser test will be skipped"; \
+	else \
+		echo "chromium: not found and not root with apt-get: skipping (install 'chromium' as root;" \
+			"the browser test of the documentation site will be skipped)"; \
+	fi
+
 # The numba kernels are compiled first (`hevsim compile`, one process per core, while the
 # linters run), then pytest runs on every core (pytest-xdist; one test file per worker at a
 # time, so a module's fixtures are built once). JOBS=1: one compile process, one test worker.
+# Between the two, the documentation site is built (warnings as errors): its tutorial gallery
+# runs on the compiled kernels, and tests/test_docs_site.py checks the built pages.
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 
-test: $(STAMP) openfoam calculix
+test: $(STAMP) openfoam calculix chromium
 	@mkdir -p build
 	$(BIN)/hevsim compile --jobs $(JOBS) 2>build/compile.log & compile=$$!; \
-	  $(BIN)/ruff check src tests benchmarks examples && \
-	  $(BIN)/ruff format --check src tests benchmarks examples && \
+	  $(BIN)/ruff check src tests benchmarks examples docs/conf.py docs/tutorials && \
+	  $(BIN)/ruff format --check src tests benchmarks examples docs/conf.py docs/tutorials && \
 	  $(BIN)/mypy && \
 	  $(BIN)/lint-imports && \
-	  $(BIN)/pylint --disable=all --enable=duplicate-code --min-similarity-lines=7 src/hevsim && \
-	  $(BIN)/python -m sphinx -W -q -b html docs/api build/api-html; lint=$$?; \
+	  $(BIN)/pylint --disable=all --enable=duplicate-code --min-similarity-lines=7 src/hevsim; lint=$$?; \
 	  wait $$compile; built=$$?; cat build/compile.log; \
 	  [ $$lint = 0 ] && [ $$built = 0 ]
+	$(BIN)/python -m sphinx -W -q -b html docs docs/_build/html
 	$(BIN)/python -m pytest -q -n $(JOBS) --dist loadfile
 
+# The documentation site (issue 28): user guides, the executed tutorial gallery (its scripts run
+# at every build, short cases on the cached kernels), how-to guides and the API reference.
+# Offline; `make test` builds it too (warnings as errors) before the tests that check it.
 docs: $(STAMP)
-	$(BIN)/python -m sphinx -W --keep-going -b html docs/api build/api-html
-	@echo "API reference: build/api-html/index.html"
+	$(BIN)/python -m sphinx -W --keep-going -b html docs docs/_build/html
+	@echo "documentation site: docs/_build/html/index.html"
 
 refinement: $(STAMP)
 	$(BIN)/hevsim refinement --cycle udds
@@ -86,4 +107,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_simulate.py
 
 clean:
-	rm -rf $(VENV) results build .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) results build docs/_build docs/auto_tutorials .pytest_cache .mypy_cache .ruff_cache

@@ -1,11 +1,12 @@
 """The documentation runs as written.
 
-Every fenced ```python block in ``docs/*.md`` and ``README.md`` is executed, one file's blocks in
-order in one namespace, the way a reader would paste them into one session. Each file runs in
-its own temporary working directory holding a copy of ``examples/`` (so the snippets use the
-same relative paths as a reader in the repository checkout, and whatever they write lands in
-the temporary directory, never in the checkout). ```toml blocks must parse, and every fence
-must say what it holds: shell commands are ```bash, file trees and listings ```text.
+Every fenced ```python block in ``docs/*.md``, ``docs/howto/*.md`` and ``README.md`` is
+executed, one file's blocks in order in one namespace, the way a reader would paste them into
+one session. Each file runs in its own temporary working directory holding a copy of
+``examples/`` (so the snippets use the same relative paths as a reader in the repository
+checkout, and whatever they write lands in the temporary directory, never in the checkout).
+```toml blocks must parse, and every fence must say what it holds: shell commands are
+```bash, file trees and listings ```text.
 """
 
 from __future__ import annotations
@@ -19,7 +20,11 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-DOC_FILES = [*sorted((ROOT / "docs").glob("*.md")), ROOT / "README.md"]
+DOC_FILES = [
+    *sorted((ROOT / "docs").glob("*.md")),
+    *sorted((ROOT / "docs" / "howto").glob("*.md")),  # the documentation site's how-to guides
+    ROOT / "README.md",
+]
 
 #: Fence languages a doc may use; anything else (including a bare fence) is an error, so that
 #: code cannot slip past this test under an unexpected tag.
