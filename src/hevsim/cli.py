@@ -34,6 +34,7 @@ def _prepare(
 
     protect = [p for p in inputs if p is not None and Path(p).exists()]
     prepare_output(out, kind=kind, force=args.force, option=option, protect=protect, ours=ours)
+    args.prepared_out = Path(out)  # named by the Ctrl-C line (main)
     return Path(out)
 
 
@@ -662,13 +663,9 @@ def _cmd_study(args: argparse.Namespace) -> int:
 
     study = load_study(args.study)
     out = Path(args.out) if args.out else Path("results") / study.name
-    try:
-        rows = run_study(study, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
-                         force=args.force)  # fmt: skip
-    except KeyboardInterrupt:
-        print(f"hevsim: study interrupted; the finished cases are in {out}/results/ "
-              f"(continue with --resume --out {out})", file=sys.stderr)  # fmt: skip
-        return 130
+    args.prepared_out = out  # (run_study checks the folder itself) named by the Ctrl-C line (main)
+    rows = run_study(study, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
+                     force=args.force)  # fmt: skip
     ok = int((rows["status"] == "ok").sum())
     print(f"study {study.name}: {len(rows)} of {study.n_cases} cases, {ok} ok, {len(rows) - ok} failed")
     if not args.no_report:
@@ -1044,9 +1041,30 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+RESUMABLE = {
+    "life": "the finished blocks are in {out}.checkpoint.json",
+    "cosim": "the run so far is in the checkpoint .{name}.checkpoint next to {out}",
+    "study": "the finished cases are in {out}/results/",
+}
+"""Commands that keep their finished work on Ctrl-C, and where (continued with ``--resume``)."""
+
+
+def interrupted_message(args: argparse.Namespace) -> str:
+    """The one line a command ends with on Ctrl-C: what was kept and how to go on."""
+    name = " ".join(str(getattr(args, k)) for k in ("command", "rom_command") if getattr(args, k, None))
+    out: Path | None = getattr(args, "prepared_out", None)
+    if out is None:
+        return f"hevsim: {name} interrupted (Ctrl-C); nothing was written."
+    if args.command in RESUMABLE:
+        kept = RESUMABLE[args.command].format(out=out, name=out.name)
+        return f"hevsim: {name} interrupted (Ctrl-C); {kept}: continue with the same command and --resume."
+    return (f"hevsim: {name} interrupted (Ctrl-C); nothing was written to {out} (results are written "
+            "only when a run completes; what was there is unchanged); run the command again.")  # fmt: skip
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit status (0 ok, 2 bad input or physical domain left, 3 the
-    vehicle could not follow the cycle)."""
+    vehicle could not follow the cycle, 130 interrupted by Ctrl-C: one line, no traceback)."""
     from hevsim.io import output_session
 
     args = build_parser().parse_args(argv)
@@ -1056,6 +1074,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except HevsimError as exc:
         print(f"hevsim: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except KeyboardInterrupt:
+        print(interrupted_message(args), file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover
