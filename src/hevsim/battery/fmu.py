@@ -416,7 +416,7 @@ class CellSlaveMixin:
         except DomainError as exc:  # the message logged, the step refused, the state as before it
             from pythonfmu.enums import Fmi2Status
 
-            self.log(str(exc), Fmi2Status.error)
+            self.log(str(exc), Fmi2Status.error)  # type: ignore[attr-defined]
             return False
         self._set_outputs(outputs)
         self.terminal_current_a = self.current_a
