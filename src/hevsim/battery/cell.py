@@ -98,9 +98,9 @@ def check_cell_domain(
             | ~np.isfinite(socs).all(axis=1),
             "a state is not finite",
         ),
-        (soc_bad.any(axis=1), "{cell}state of charge {s:.6g} outside [0, 1]"),
         (voltage_v <= 0.0, "terminal voltage {v:g} V <= 0"),
         (hot.any(axis=1), f"{{cell}}temperature {{T:g}} K outside {t_lo:g}..{t_hi:g} K"),
+        (soc_bad.any(axis=1), "{cell}state of charge {s:.6g} outside [0, 1]"),
         (cap <= 0.0, "capacity {C:g} C <= 0 (eq 35)"),
     )  # fmt: skip
     first = [(int(np.flatnonzero(mask)[0]), j, text) for j, (mask, text) in enumerate(checks) if mask.any()]
@@ -108,14 +108,14 @@ def check_cell_domain(
         return
     k, j, text = min(first)
     multi = temps.shape[1] > 1 or socs.shape[1] > 1
-    col = int(np.flatnonzero(soc_bad[k])[0]) if j == 1 else int(np.flatnonzero(hot[k])[0]) if j == 3 else 0
+    col = int(np.flatnonzero(soc_bad[k])[0]) if j == 3 else int(np.flatnonzero(hot[k])[0]) if j == 2 else 0
     name = (cell_names[col] if cell_names is not None else f"cell {col}") if multi else ""
     bad_t = temps[k][hot[k]] if hot[k].any() else temps[k]
     fault = text.format(
         v=float(voltage_v[k]), T=float(bad_t[0]), C=float(cap[k]), s=float(socs[k, col]),
         cell=f"{name}: " if name else "",
     )  # fmt: skip
-    if j == 1:  # a cell run empty (or overfilled): the current is the cause, not the model
+    if j == 3:  # a cell run empty (or overfilled): the current is the cause, not the model
         raise DomainError(
             f"{what}: at t = {float(time_s[k]):g} s with a current of {float(current_a[k]):g} A the "
             f"cell left its model's domain: {fault}: the "
