@@ -289,6 +289,11 @@ def test_refinement_replaces_its_own_table_only(
     _refused(capsys, ["refinement", "--out", "table.md"], "was not written by hevsim")
     assert main(["refinement", "--out", "table.md", "--force"]) == 0
     assert (site / "table.md").read_text().startswith("Sequential refinement on udds")
+    (kept,) = site.glob("table.md.replaced-*")  # the user's table moved aside (issue 26 item 4)
+    assert kept.read_text() == "# my own table\n"
+    assert f"was moved to {kept}" in capsys.readouterr().err
+    assert main(["refinement", "--out", "table.md", "--force"]) == 0  # now its own: replaced
+    assert len(list(site.glob("table.md.replaced-*"))) == 1
 
 
 def test_export_fmu_to_another_file_system_and_rerun(tmp_path: Path) -> None:

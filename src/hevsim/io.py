@@ -39,6 +39,7 @@ MARKER = ".hevsim-results"
 """Name of the marker file of a hevsim results folder."""
 
 _FORCED: ContextVar[set[Path] | None] = ContextVar("hevsim_forced_outputs", default=None)
+_ASIDE: ContextVar[set[Path] | None] = ContextVar("hevsim_files_to_move_aside", default=None)
 
 
 def _abs(path: str | Path) -> Path:
@@ -50,11 +51,12 @@ def _abs(path: str | Path) -> Path:
 def output_session() -> Iterator[None]:
     """Scope in which :func:`prepare_output` with ``force=True`` lets :func:`atomic_directory`
     replace a foreign folder at that path (the command line runs each command in one)."""
-    token = _FORCED.set(set())
+    token, aside = _FORCED.set(set()), _ASIDE.set(set())
     try:
         yield
     finally:
         _FORCED.reset(token)
+        _ASIDE.reset(aside)
 
 
 def _forced(out: Path) -> bool:
@@ -173,7 +175,8 @@ def _check(
     if force or (ours is not None and ours(out)):
         return
     raise OutputError(
-        f"{option} {name}: exists and was not written by hevsim; choose another {option} or pass --force."
+        f"{option} {name}: exists and was not written by hevsim; choose another {option} or pass --force "
+        f"(which moves it aside to {name}{REPLACED}<time>)."
     )
 
 
@@ -213,8 +216,9 @@ def prepare_output(
     a hevsim results folder. ``kind="file"``: refused: an existing folder, a protected input,
     a path under a file, an unwritable location and, unless ``force``, an existing file for
     which ``ours`` is not true. Inside :func:`output_session`, ``force`` also lets the later
-    :func:`atomic_directory` replace the folder. Nothing is created or removed (apart from a
-    probe file in the nearest existing ancestor).
+    :func:`atomic_directory` replace the folder, and :func:`atomic_file` the file (either
+    moved aside to ``<path>.replaced-<UTC timestamp>`` when hevsim did not write it). Nothing
+    is created or removed (apart from a probe file in the nearest existing ancestor).
     """
     out = _abs(path)
     anc = _existing_ancestor(out, option, path)
@@ -224,6 +228,10 @@ def prepare_output(
     allowed = _FORCED.get()
     if force and allowed is not None:
         allowed.add(out)
+        aside = _ASIDE.get()
+        theirs = os.path.isfile(out) and not (ours is not None and ours(out))
+        if kind == "file" and aside is not None and theirs:
+            aside.add(out)  # the user's file: atomic_file moves it aside, never overwrites it
     return out
 
 
@@ -359,7 +367,7 @@ def _ours_to_replace(out: Path) -> bool:
 
 
 def _aside(out: Path) -> Path:
-    """A free sibling name ``<out>.replaced-<UTC timestamp>[-n]`` (called under the lock)."""
+    """A free sibling name ``<out>.replaced-<UTC timestamp>[-n]`` (a folder's: under the lock)."""
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     for n in range(1000):
         p = out.parent / f"{out.name}{REPLACED}{stamp}{f'-{n}' if n else ''}"
@@ -419,7 +427,16 @@ def atomic_file(path: str | Path) -> Iterator[Path]:
     tmp = _unique(target.parent, f".{target.name}.", _new_file)
     try:
         yield tmp
+        aside = _ASIDE.get()
+        kept = None
+        if aside is not None and target in aside and os.path.isfile(target):  # forced over the user's file
+            kept = _aside(target)
+            os.rename(target, kept)
+            aside.discard(target)
         os.replace(tmp, target)
+        if kept is not None:
+            print(f"hevsim: {path} was not written by hevsim: it was moved to {kept} (--force moves such "
+                  "files aside; it never deletes them).", file=sys.stderr)  # fmt: skip
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
