@@ -96,3 +96,25 @@ def test_study_ctrl_c(tmp_path: Path, scheduler: list[str]) -> None:
     assert code == 130, err[-3000:]
     line = _last_line(err, "study")
     assert f"the finished cases are in {out}/results/" in line and "--resume" in line
+
+
+def test_ctrl_c_inside_a_compiler_callback_is_retried_not_lost() -> None:
+    """A SIGINT landing in llvmlite's callback into Python (numba compiling) would be "ignored"
+    by ctypes, losing the Ctrl-C (seen: a traceback fragment and exit 0): it is retried shortly
+    after by SIGALRM; anywhere else it is KeyboardInterrupt."""
+    import types
+
+    from hevsim.cli import _sigint
+
+    code = compile("pass", os.path.join(os.sep, "x", "llvmlite", "binding", "executionengine.py"), "exec")
+    frame = types.SimpleNamespace(f_code=code)
+    previous = signal.getsignal(signal.SIGALRM)
+    try:
+        _sigint(signal.SIGINT, frame)  # no exception here
+        assert signal.getsignal(signal.SIGALRM) is _sigint
+        assert 0.0 < signal.getitimer(signal.ITIMER_REAL)[0] <= 0.05
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, previous)
+    with pytest.raises(KeyboardInterrupt):
+        _sigint(signal.SIGINT, types.SimpleNamespace(f_code=compile("pass", __file__, "exec")))

@@ -1062,12 +1062,48 @@ def interrupted_message(args: argparse.Namespace) -> str:
             "only when a run completes; what was there is unchanged); run the command again.")  # fmt: skip
 
 
+def _sigint(signum: int, frame: Any) -> None:
+    """SIGINT (and its retry): KeyboardInterrupt, except inside a C library's callback into
+    Python (llvmlite's object cache while numba compiles), where the exception would be
+    "ignored" by ctypes and the Ctrl-C lost: retried 50 ms later (SIGALRM)."""
+    import os
+    import signal
+
+    if frame is not None and f"{os.sep}llvmlite{os.sep}" in frame.f_code.co_filename:
+        signal.signal(signal.SIGALRM, _sigint)
+        signal.setitimer(signal.ITIMER_REAL, 0.05)
+        return
+    raise KeyboardInterrupt
+
+
+def _catch_sigint() -> Callable[[], None]:
+    """Install :func:`_sigint` where Python would raise KeyboardInterrupt (not when SIGINT is
+    ignored, nor outside the main thread); returns the undo."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        return lambda: None
+    alarm = signal.getsignal(signal.SIGALRM)
+    signal.signal(signal.SIGINT, _sigint)
+
+    def undo() -> None:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGALRM, alarm)
+
+    return undo
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit status (0 ok, 2 bad input or physical domain left, 3 the
     vehicle could not follow the cycle, 130 interrupted by Ctrl-C: one line, no traceback)."""
     from hevsim.io import output_session
 
     args = build_parser().parse_args(argv)
+    undo = _catch_sigint()
     try:
         with output_session():
             return int(args.func(args))
@@ -1077,6 +1113,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(interrupted_message(args), file=sys.stderr)
         return 130
+    finally:
+        undo()
 
 
 if __name__ == "__main__":  # pragma: no cover
