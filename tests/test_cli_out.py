@@ -209,10 +209,14 @@ def test_simulate_rerun_force_empty_folder_and_message(
     capsys.readouterr()
     _refused(capsys, [*argv, "--out", "empty"], "not a hevsim results folder")
     assert (site / "empty" / "my_analysis.py").read_text() == "print(1)\n"
-    # --force replaces a foreign folder; the canary beside it stays
+    # --force replaces a foreign folder, moving it aside (issue 26 item 4); the canary stays
+    capsys.readouterr()
     assert main([*argv, "--out", "mine", "--force"]) == 0
     assert not (site / "mine" / "notes.txt").exists()
     assert (site / "mine" / "metrics.json").is_file()
+    (kept,) = site.glob("mine.replaced-*")
+    assert (kept / "notes.txt").read_text() == "my notes\n"
+    assert f"was moved to {kept}" in capsys.readouterr().err
     assert (site / "beside.txt").read_text() == "canary\n"
     assert not [p for p in site.iterdir() if p.name.startswith(".")]  # no temporary leftovers
 
@@ -249,6 +253,8 @@ def test_python_api_refuses_a_foreign_folder(tmp_path: Path) -> None:
     with atomic_directory(tmp_path / "mine", force=True) as tmp:
         (tmp / "a.txt").write_text("a")
     assert results_files(tmp_path / "mine") == ["a.txt"]
+    (kept,) = tmp_path.glob("mine.replaced-*")  # forced: the user's folder moved aside, not deleted
+    assert _snapshot(kept) == {"notes.txt": b"mine"}
 
 
 def test_prepare_output_files(tmp_path: Path) -> None:
@@ -283,6 +289,11 @@ def test_refinement_replaces_its_own_table_only(
     _refused(capsys, ["refinement", "--out", "table.md"], "was not written by hevsim")
     assert main(["refinement", "--out", "table.md", "--force"]) == 0  # the default cycle: the thesis's FU505
     assert (site / "table.md").read_text().startswith("Sequential refinement on fu505")
+    (kept,) = site.glob("table.md.replaced-*")  # the user's table moved aside (issue 26 item 4)
+    assert kept.read_text() == "# my own table\n"
+    assert f"was moved to {kept}" in capsys.readouterr().err
+    assert main(["refinement", "--out", "table.md", "--force"]) == 0  # now its own: replaced
+    assert len(list(site.glob("table.md.replaced-*"))) == 1
 
 
 def test_export_fmu_to_another_file_system_and_rerun(tmp_path: Path) -> None:

@@ -37,7 +37,7 @@ def test_reduces_to_the_cell_model() -> None:
     pack is today's electro-thermal cell with its port at that temperature (to 1e-6)."""
     cfg = pack_config_from_dict(_pack_dict(), "test")
     pack = Pack(cfg)
-    current = 6.0 * cycle_cell_current("udds", duration_s=600.0)  # up to ~3C
+    current = 6.0 * cycle_cell_current("udds", duration_s=240.0)  # up to ~3C (empty at 257 s)
     res = pack.simulate(current)
     cell = Cell("thesis_table_4_1", soc_initial=0.8, temp_k=c_to_k(25.0))
     ref = cell.simulate(current, 1.0, port_temperature=c_to_k(25.0))
@@ -146,7 +146,10 @@ def test_derating_limits_current(rom_case: dict[str, Any]) -> None:
     derated = ts["derating_factor"] < 1.0
     assert ts["derating_factor"].min() == pytest.approx(0.3)
     assert np.all(ts["current_a"][derated & (200.0 * ts["derating_factor"] < 150.0)] < 150.0)
-    assert np.allclose(ts["current_a"], np.minimum(150.0, 200.0 * ts["derating_factor"]))
+    temp_limit = np.minimum(150.0, 200.0 * ts["derating_factor"])
+    assert np.all(ts["current_a"] <= temp_limit + 1e-9)  # the low-SOC limits act later in the run
+    soc_ok = ts["min_soc"].shift(1, fill_value=1.0) > 0.2  # (the SOC factor is 1 above 0.15)
+    assert soc_ok.sum() > 100 and np.allclose(ts["current_a"][soc_ok], temp_limit[soc_ok])
 
 
 def test_bad_inputs_exit_2(rom_case: dict[str, Any], tmp_path: Path) -> None:

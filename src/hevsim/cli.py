@@ -34,6 +34,7 @@ def _prepare(
 
     protect = [p for p in inputs if p is not None and Path(p).exists()]
     prepare_output(out, kind=kind, force=args.force, option=option, protect=protect, ours=ours)
+    args.prepared_out = Path(out)  # named by the Ctrl-C line (main)
     return Path(out)
 
 
@@ -686,13 +687,9 @@ def _cmd_study(args: argparse.Namespace) -> int:
 
     study = load_study(args.study)
     out = Path(args.out) if args.out else Path("results") / study.name
-    try:
-        rows = run_study(study, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
-                         force=args.force)  # fmt: skip
-    except KeyboardInterrupt:
-        print(f"hevsim: study interrupted; the finished cases are in {out}/results/ "
-              f"(continue with --resume --out {out})", file=sys.stderr)  # fmt: skip
-        return 130
+    args.prepared_out = out  # (run_study checks the folder itself) named by the Ctrl-C line (main)
+    rows = run_study(study, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
+                     force=args.force)  # fmt: skip
     ok = int((rows["status"] == "ok").sum())
     print(f"study {study.name}: {len(rows)} of {study.n_cases} cases, {ok} ok, {len(rows) - ok} failed")
     if not args.no_report:
@@ -1084,18 +1081,80 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+RESUMABLE = {
+    "life": "the finished blocks are in {out}.checkpoint.json",
+    "cosim": "the run so far is in the checkpoint .{name}.checkpoint next to {out}",
+    "study": "the finished cases are in {out}/results/",
+}
+"""Commands that keep their finished work on Ctrl-C, and where (continued with ``--resume``)."""
+
+
+def interrupted_message(args: argparse.Namespace) -> str:
+    """The one line a command ends with on Ctrl-C: what was kept and how to go on."""
+    name = " ".join(str(getattr(args, k)) for k in ("command", "rom_command") if getattr(args, k, None))
+    out: Path | None = getattr(args, "prepared_out", None)
+    if out is None:
+        return f"hevsim: {name} interrupted (Ctrl-C); nothing was written."
+    if args.command in RESUMABLE:
+        kept = RESUMABLE[args.command].format(out=out, name=out.name)
+        return f"hevsim: {name} interrupted (Ctrl-C); {kept}: continue with the same command and --resume."
+    return (f"hevsim: {name} interrupted (Ctrl-C); nothing was written to {out} (results are written "
+            "only when a run completes; what was there is unchanged); run the command again.")  # fmt: skip
+
+
+def _sigint(signum: int, frame: Any) -> None:
+    """SIGINT (and its retry): KeyboardInterrupt, except inside a C library's callback into
+    Python (llvmlite's object cache while numba compiles), where the exception would be
+    "ignored" by ctypes and the Ctrl-C lost: retried 50 ms later (SIGALRM)."""
+    import os
+    import signal
+
+    if frame is not None and f"{os.sep}llvmlite{os.sep}" in frame.f_code.co_filename:
+        signal.signal(signal.SIGALRM, _sigint)
+        signal.setitimer(signal.ITIMER_REAL, 0.05)
+        return
+    raise KeyboardInterrupt
+
+
+def _catch_sigint() -> Callable[[], None]:
+    """Install :func:`_sigint` where Python would raise KeyboardInterrupt (not when SIGINT is
+    ignored, nor outside the main thread); returns the undo."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        return lambda: None
+    alarm = signal.getsignal(signal.SIGALRM)
+    signal.signal(signal.SIGINT, _sigint)
+
+    def undo() -> None:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGALRM, alarm)
+
+    return undo
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit status (0 ok, 2 bad input or physical domain left, 3 the
-    vehicle could not follow the cycle)."""
+    vehicle could not follow the cycle, 130 interrupted by Ctrl-C: one line, no traceback)."""
     from hevsim.io import output_session
 
     args = build_parser().parse_args(argv)
+    undo = _catch_sigint()
     try:
         with output_session():
             return int(args.func(args))
     except HevsimError as exc:
         print(f"hevsim: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except KeyboardInterrupt:
+        print(interrupted_message(args), file=sys.stderr)
+        return 130
+    finally:
+        undo()
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -5,7 +5,9 @@ A results folder written by :func:`atomic_directory` carries a marker file
 :data:`MARKER` (JSON: hevsim version, command, creation time and the list of files written).
 An existing folder at the output path is replaced only if it is empty or is such a folder
 with nothing foreign in it; otherwise :class:`~hevsim.errors.OutputError` is raised unless
-replacing was forced. The current working directory, its ancestors and folders holding an
+replacing was forced, and then the folder is not deleted but moved aside whole to the sibling
+``<out>.replaced-<UTC timestamp>`` (a line on stderr says so): ``--force`` never deletes a
+file hevsim did not write. The current working directory, its ancestors and folders holding an
 input are never replaced, forced or not. The swap (old folder aside, new folder in, old
 folder removed) is serialised between processes by a lock on the parent folder, so two
 concurrent writers to one path never fail and the last complete result wins.
@@ -37,6 +39,7 @@ MARKER = ".hevsim-results"
 """Name of the marker file of a hevsim results folder."""
 
 _FORCED: ContextVar[set[Path] | None] = ContextVar("hevsim_forced_outputs", default=None)
+_ASIDE: ContextVar[set[Path] | None] = ContextVar("hevsim_files_to_move_aside", default=None)
 
 
 def _abs(path: str | Path) -> Path:
@@ -48,11 +51,12 @@ def _abs(path: str | Path) -> Path:
 def output_session() -> Iterator[None]:
     """Scope in which :func:`prepare_output` with ``force=True`` lets :func:`atomic_directory`
     replace a foreign folder at that path (the command line runs each command in one)."""
-    token = _FORCED.set(set())
+    token, aside = _FORCED.set(set()), _ASIDE.set(set())
     try:
         yield
     finally:
         _FORCED.reset(token)
+        _ASIDE.reset(aside)
 
 
 def _forced(out: Path) -> bool:
@@ -153,7 +157,7 @@ def _check(
                 return
             raise OutputError(
                 f"{option} {name}: exists and is a symbolic link, not a hevsim results folder; choose "
-                f"another {option} or pass --force (only the link is replaced)."
+                f"another {option} or pass --force (the link is moved aside to {name}{REPLACED}<time>)."
             )
         if not os.path.isdir(out):
             raise OutputError(
@@ -164,14 +168,15 @@ def _check(
             return
         raise OutputError(
             f"{option} {name}: exists and is not a hevsim results folder; choose another {option} "
-            "or pass --force."
+            f"or pass --force (which moves that folder aside to {name}{REPLACED}<time>, deleting nothing)."
         )
     if os.path.isdir(out):
         raise OutputError(f"{option} {name}: is a folder; {option} names a file to write.")
     if force or (ours is not None and ours(out)):
         return
     raise OutputError(
-        f"{option} {name}: exists and was not written by hevsim; choose another {option} or pass --force."
+        f"{option} {name}: exists and was not written by hevsim; choose another {option} or pass --force "
+        f"(which moves it aside to {name}{REPLACED}<time>)."
     )
 
 
@@ -211,8 +216,9 @@ def prepare_output(
     a hevsim results folder. ``kind="file"``: refused: an existing folder, a protected input,
     a path under a file, an unwritable location and, unless ``force``, an existing file for
     which ``ours`` is not true. Inside :func:`output_session`, ``force`` also lets the later
-    :func:`atomic_directory` replace the folder. Nothing is created or removed (apart from a
-    probe file in the nearest existing ancestor).
+    :func:`atomic_directory` replace the folder, and :func:`atomic_file` the file (either
+    moved aside to ``<path>.replaced-<UTC timestamp>`` when hevsim did not write it). Nothing
+    is created or removed (apart from a probe file in the nearest existing ancestor).
     """
     out = _abs(path)
     anc = _existing_ancestor(out, option, path)
@@ -222,6 +228,10 @@ def prepare_output(
     allowed = _FORCED.get()
     if force and allowed is not None:
         allowed.add(out)
+        aside = _ASIDE.get()
+        theirs = os.path.isfile(out) and not (ours is not None and ours(out))
+        if kind == "file" and aside is not None and theirs:
+            aside.add(out)  # the user's file: atomic_file moves it aside, never overwrites it
     return out
 
 
@@ -290,8 +300,9 @@ def atomic_directory(out_dir: str | Path, *, force: bool = False) -> Iterator[Pa
 
     The folder gets the marker :data:`MARKER` and the user's umask. ``out_dir`` must be
     absent, empty or a hevsim results folder (or, with ``force`` or after
-    :func:`prepare_output` with ``force``, any folder or symbolic link; never a file, the
-    working directory or an ancestor of it); this is checked before the body runs and again
+    :func:`prepare_output` with ``force``, any folder or symbolic link, which is then moved to
+    ``<out>.replaced-<UTC timestamp>`` rather than deleted; never a file, the working directory
+    or an ancestor of it); this is checked before the body runs and again
     at the swap, which is locked between processes. On any error the temporary folder is
     removed and ``out_dir`` is left as it was, so an interrupted run never leaves a partial
     results folder.
@@ -321,17 +332,48 @@ def atomic_directory(out_dir: str | Path, *, force: bool = False) -> Iterator[Pa
         yield tmp
         _write_marker(tmp)
         old: Path | None = None
+        kept: Path | None = None
         with _lock(out.parent):
             _check(out, "dir", forced, "output folder")
             if os.path.lexists(out):
-                old = out.parent / f".{out.name}.old.{secrets.token_hex(8)}"  # unique: swaps are locked
-                os.rename(out, old)
+                if _ours_to_replace(out):
+                    old = out.parent / f".{out.name}.old.{secrets.token_hex(8)}"  # unique: swaps are locked
+                    os.rename(out, old)
+                else:  # forced over something of the user's: moved aside whole, never deleted
+                    kept = _aside(out)
+                    os.rename(out, kept)
             os.rename(tmp, out)
         if old is not None:
             _remove(old)
+        if kept is not None:
+            print(
+                f"hevsim: {out_dir} held files hevsim did not write: that folder, as it was, was moved to "
+                f"{kept} (--force moves such files aside; it never deletes them).",
+                file=sys.stderr,
+            )
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+REPLACED = ".replaced-"
+"""Infix of the sibling ``<out>.replaced-<UTC timestamp>`` that ``--force`` moves a folder
+holding files hevsim did not write to (:func:`atomic_directory`)."""
+
+
+def _ours_to_replace(out: Path) -> bool:
+    """``out`` is an empty folder or a hevsim results folder with nothing foreign in it."""
+    return not out.is_symlink() and out.is_dir() and (not os.listdir(out) or _is_results_folder(out))
+
+
+def _aside(out: Path) -> Path:
+    """A free sibling name ``<out>.replaced-<UTC timestamp>[-n]`` (a folder's: under the lock)."""
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
+    for n in range(1000):
+        p = out.parent / f"{out.name}{REPLACED}{stamp}{f'-{n}' if n else ''}"
+        if not os.path.lexists(p):
+            return p
+    raise OutputError(f"output folder {out}: no free name {out.name}{REPLACED}{stamp}-*.")  # pragma: no cover
 
 
 def _strict(o: Any) -> Any:
@@ -385,7 +427,16 @@ def atomic_file(path: str | Path) -> Iterator[Path]:
     tmp = _unique(target.parent, f".{target.name}.", _new_file)
     try:
         yield tmp
+        aside = _ASIDE.get()
+        kept = None
+        if aside is not None and target in aside and os.path.isfile(target):  # forced over the user's file
+            kept = _aside(target)
+            os.rename(target, kept)
+            aside.discard(target)
         os.replace(tmp, target)
+        if kept is not None:
+            print(f"hevsim: {path} was not written by hevsim: it was moved to {kept} (--force moves such "
+                  "files aside; it never deletes them).", file=sys.stderr)  # fmt: skip
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

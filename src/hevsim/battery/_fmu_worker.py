@@ -10,13 +10,24 @@ from __future__ import annotations
 import json
 import os
 import sys
+from collections import deque
 
 
 def main() -> None:
     """Run the request read from stdin."""
     from fmpy import extract, read_model_description
-    from fmpy.fmi2 import FMU2Slave
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 
+    messages: deque[str] = deque(maxlen=3)  # the last few
+
+    def log(env: object, name: object, status: int, category: object, message: bytes) -> None:
+        messages.append(message.decode(errors="replace"))
+
+    callbacks = fmi2CallbackFunctions()  # the FMU's log messages, to report a failed step
+    callbacks.logger = fmi2CallbackLoggerTYPE(log)
+    callbacks.allocateMemory = defaultCallbacks.allocateMemory
+    callbacks.freeMemory = defaultCallbacks.freeMemory
     req = json.load(sys.stdin)
     md = read_model_description(req["fmu"])
     vr = {v.name: v.valueReference for v in md.modelVariables}
@@ -26,7 +37,7 @@ def main() -> None:
         modelIdentifier=md.coSimulation.modelIdentifier,
         instanceName="hevsim",
     )
-    slave.instantiate()
+    slave.instantiate(callbacks=callbacks, loggingOn=True)
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
     if req["parameters"]:
@@ -40,7 +51,12 @@ def main() -> None:
     t, dt = 0.0, float(req["dt_s"])
     for row in zip(*req["inputs"].values(), strict=True):
         slave.setReal(in_refs, list(row))
-        slave.doStep(currentCommunicationPoint=t, communicationStepSize=dt)
+        try:
+            slave.doStep(currentCommunicationPoint=t, communicationStepSize=dt)
+        except FMICallException as exc:  # one line: the call, its status and the FMU's message
+            sys.stderr.write(f"the step from t = {t:g} s: {exc} {' '.join(messages)}\n")
+            sys.stderr.flush()
+            os._exit(1)
         t += dt
         for k, v in zip(names, slave.getReal([vr[k] for k in names]), strict=True):
             outputs[k].append(v)

@@ -43,6 +43,24 @@ CELL_TEMP_RANGE_K = (150.0, 500.0)
 ``cell.temp_k`` and ``thermal.port_temp_k`` in a cell configuration). Beyond 500 K a
 Li-ion cell is in thermal runaway; the model's tables and eq (35) mean nothing there."""
 
+SOC_TOLERANCE = 1e-6
+"""How far a state of charge may stray outside [0, 1] before a run stops [-]. Covers the
+round-off of the charge integral, not a battery run dry: a cell (or a vehicle's pack) below
+0 or above 1 is a physically impossible state. Shared by every command that steps a battery
+(:func:`check_cell_domain`, :func:`hevsim.sim.checks.check_domain`)."""
+
+
+def soc_outside(soc: npt.ArrayLike) -> tuple[int, int] | None:
+    """The first (row, column) where ``soc`` (a per-step vector, or per step and cell) is
+    outside [0, 1] by more than :data:`SOC_TOLERANCE` (NaN counts as outside), or None."""
+    a = np.asarray(soc, dtype=float)
+    a2 = a.reshape(a.shape[0], -1) if a.ndim else a.reshape(1, 1)
+    bad = ~((a2 >= -SOC_TOLERANCE) & (a2 <= 1.0 + SOC_TOLERANCE))
+    if not bad.any():
+        return None
+    row = int(np.flatnonzero(bad.any(axis=1))[0])
+    return row, int(np.flatnonzero(bad[row])[0])
+
 
 def check_cell_domain(
     what: str,
@@ -52,34 +70,58 @@ def check_cell_domain(
     temp_k: npt.NDArray[Any],
     capacity_c: npt.NDArray[Any] | None = None,
     short_circuit_a: npt.NDArray[Any] | None = None,
+    soc: npt.NDArray[Any] | None = None,
+    cell_names: Any = None,
+    remedy: str | None = None,
 ) -> None:
     """Raise :class:`DomainError` at the first step where a cell left its model's domain.
 
-    The domain: every recorded value finite, terminal voltage > 0 V (a cell is a source: at
-    or below 0 V the current exceeds its short-circuit current OCV / R_s), temperature in
-    :data:`CELL_TEMP_RANGE_K` and capacity (eq 35) > 0. Arguments are per step (row): times
-    [s], currents [A], terminal voltages [V], temperatures [K] (one column per cell for a
-    module), capacities [C] and OCV / R_s [A] when known.
+    The one domain check of every command that steps a battery (cell, module, pack, the
+    pack in a vehicle, co-simulation participants and the Python FMUs). The domain: every
+    recorded value finite, state of charge in [0, 1] (:data:`SOC_TOLERANCE`), terminal
+    voltage > 0 V (a cell is a source: at or below 0 V the current exceeds its
+    short-circuit current OCV / R_s), temperature in :data:`CELL_TEMP_RANGE_K` and capacity
+    (eq 35) > 0. Arguments are per step (row): times [s], currents [A], terminal voltages
+    [V], temperatures [K] and SOCs [-] (one column per cell for a module or pack; the
+    message names the cell as ``cell_names[column]``, default "cell <column>"), capacities
+    [C] and OCV / R_s [A] when known; ``remedy`` replaces the advice of a SOC message.
     """
     t_lo, t_hi = CELL_TEMP_RANGE_K
     temps = temp_k.reshape(temp_k.shape[0], -1)
+    socs = np.zeros((time_s.size, 1)) if soc is None else np.asarray(soc, float).reshape(time_s.size, -1)
     cap = np.ones(time_s.size) if capacity_c is None else capacity_c
     hot = (temps < t_lo) | (temps > t_hi)
+    soc_bad = ~((socs >= -SOC_TOLERANCE) & (socs <= 1.0 + SOC_TOLERANCE))
     checks = (
         (
-            ~np.isfinite(voltage_v) | ~np.isfinite(temps).all(axis=1) | ~np.isfinite(cap),
+            ~np.isfinite(voltage_v) | ~np.isfinite(temps).all(axis=1) | ~np.isfinite(cap)
+            | ~np.isfinite(socs).all(axis=1),
             "a state is not finite",
         ),
         (voltage_v <= 0.0, "terminal voltage {v:g} V <= 0"),
-        (hot.any(axis=1), f"temperature {{T:g}} K outside {t_lo:g}..{t_hi:g} K"),
+        (hot.any(axis=1), f"{{cell}}temperature {{T:g}} K outside {t_lo:g}..{t_hi:g} K"),
+        (soc_bad.any(axis=1), "{cell}state of charge {s:.6g} outside [0, 1]"),
         (cap <= 0.0, "capacity {C:g} C <= 0 (eq 35)"),
-    )
+    )  # fmt: skip
     first = [(int(np.flatnonzero(mask)[0]), j, text) for j, (mask, text) in enumerate(checks) if mask.any()]
     if not first:
         return
-    k, _, text = min(first)
+    k, j, text = min(first)
+    multi = temps.shape[1] > 1 or socs.shape[1] > 1
+    col = int(np.flatnonzero(soc_bad[k])[0]) if j == 3 else int(np.flatnonzero(hot[k])[0]) if j == 2 else 0
+    name = (cell_names[col] if cell_names is not None else f"cell {col}") if multi else ""
     bad_t = temps[k][hot[k]] if hot[k].any() else temps[k]
-    fault = text.format(v=float(voltage_v[k]), T=float(bad_t[0]), C=float(cap[k]))
+    fault = text.format(
+        v=float(voltage_v[k]), T=float(bad_t[0]), C=float(cap[k]), s=float(socs[k, col]),
+        cell=f"{name}: " if name else "",
+    )  # fmt: skip
+    if j == 3:  # a cell run empty (or overfilled): the current is the cause, not the model
+        raise DomainError(
+            f"{what}: at t = {float(time_s[k]):g} s with a current of {float(current_a[k]):g} A the "
+            f"cell left its model's domain: {fault}: the "
+            f"{'current drained the cell' if socs[k, col] < 0 else 'current overcharged the cell'}; "
+            + (remedy or "lower the current (or its scale) or the duration, or start at another SOC.")
+        )
     limit = (
         f"a current below the short-circuit current OCV/R_s = {float(short_circuit_a[k]):.4g} A at that state"
         if short_circuit_a is not None
@@ -192,6 +234,7 @@ class Cell:
             out[:, K.RTEMP],
             out[:, K.RCAP],
             i_short,
+            soc=out[:, K.RSOC],
         )
         e_rc1 = float(K.rc_energy(self.p, tabs[7], tabs[8], x))
         if advance:

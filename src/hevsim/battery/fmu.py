@@ -59,8 +59,9 @@ import numpy as np
 from hevsim._pythonfmu_exit import release_at_exit
 from hevsim.battery import kernel as K
 from hevsim.battery.ageing import soh_of_state
+from hevsim.battery.cell import check_cell_domain
 from hevsim.battery.params import CellParameters, load_cell_parameters, parameters_from_dict
-from hevsim.errors import ConfigError
+from hevsim.errors import ConfigError, DomainError
 
 FMU_PARAMETERS = K.TUNABLE_SCALARS
 """FMU parameter name -> index in the cell parameter vector (the calibration's scalars)."""
@@ -135,6 +136,7 @@ class CellStepper:
         ocv, _ = K.cell_ocv_rs(self.p, soc_ax, t_ax, ocv_c, ocv_d, rs_c, rs_d, soc_initial, temp_k, 1.0)
         self.outputs = {"voltage_v": ocv, "soc": soc_initial, "port_heat_w": 0.0, "temp_k": temp_k}
         self.outputs["soh"] = self._soh()
+        self.time_s = 0.0  # the time stepped so far [s] (for messages)
 
     def _soh(self) -> float:
         """SOH_C (eq 43) at the reference temperature: 1 for a new cell at any temperature."""
@@ -147,9 +149,22 @@ class CellStepper:
         return float(rec[K.RVAVG])
 
     def step(self, current_a: float, port_temp_k: float, dt_s: float) -> dict[str, float]:
-        """Advance by ``dt_s`` [s] at constant current [A] and port temperature [K]."""
-        r = self.rec
-        K.cell_step(self.p, *self.tabs, self.x, current_a, dt_s, port_temp_k, r)  # type: ignore[call-arg]
+        """Advance by ``dt_s`` [s] at constant current [A] and port temperature [K].
+
+        Raises :class:`~hevsim.errors.DomainError` (state unchanged) for a step that leaves
+        the cell's domain (:func:`hevsim.battery.cell.check_cell_domain`)."""
+        r = np.zeros(len(K.RECORD))
+        x = self.x.copy()
+        K.cell_step(self.p, *self.tabs, x, current_a, dt_s, port_temp_k, r)  # type: ignore[call-arg]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            i_short = r[K.ROCV] / r[K.RRS]
+        one = np.ones(1)
+        check_cell_domain(f"cell {self.params.name}", one * (self.time_s + dt_s), one * current_a,
+                          one * r[K.RV], one * r[K.RTEMP], one * r[K.RCAP], one * i_short,
+                          soc=one * r[K.RSOC])  # fmt: skip
+        self.x[:] = x
+        self.rec[:] = r
+        self.time_s += dt_s
         self.outputs = {
             "voltage_v": float(r[K.RV]),
             "soc": float(r[K.RSOC]),
@@ -166,6 +181,7 @@ class CellStepper:
             "x": self.x.tolist(),
             "rec": self.rec.tolist(),
             "outputs": dict(self.outputs),
+            "time_s": self.time_s,
         }
 
     def set_state(self, state: dict[str, Any]) -> None:
@@ -174,6 +190,7 @@ class CellStepper:
         self.x[:] = state["x"]
         self.rec[:] = state["rec"]
         self.outputs = {k: float(v) for k, v in state["outputs"].items()}
+        self.time_s = float(state.get("time_s", 0.0))
 
 
 class ModuleStepper:
@@ -218,6 +235,7 @@ class ModuleStepper:
             "temp_k": temp_k,
             "soh": self._soh(),
         }
+        self.time_s = 0.0  # the time stepped so far [s] (for messages)
 
     def _soh(self) -> float:
         """Lowest SOH_C (eq 43) of the cells, at the reference temperature (1 when new)."""
@@ -244,10 +262,17 @@ class ModuleStepper:
         m = self.m
         tp = np.full((1, m.n_cells), port_temp_k)
         temp0 = m.state[:, K.STEMP].copy()
+        x, out_m, out_c = m.state.copy(), np.zeros_like(self.out_m), np.zeros_like(self.out_c)
         K.run_module(  # type: ignore[call-arg]
-            m.p, *self.tabs, m.state, m.n_series, m.n_parallel, np.array([current_a]), dt_s, tp,
-            self.out_m, self.out_c,
+            m.p, *self.tabs, x, m.n_series, m.n_parallel, np.array([current_a]), dt_s, tp, out_m, out_c,
         )  # fmt: skip
+        one = np.ones(1)
+        check_cell_domain(f"{m.n_series}s{m.n_parallel}p module of {self.params.name}",
+                          one * (self.time_s + dt_s), one * current_a, out_m[:, 0], out_c[:, :, 2],
+                          soc=out_c[:, :, 1])  # fmt: skip
+        m.state[:] = x
+        self.out_m[:], self.out_c[:] = out_m, out_c
+        self.time_s += dt_s
         stored = m.p[:, K.CHEAT] * (m.state[:, K.STEMP] - temp0)
         self.cell_port_heat_w = self.out_c[0, :, 3] - stored / dt_s
         self.outputs = {
@@ -268,6 +293,7 @@ class ModuleStepper:
             "out_c": self.out_c.tolist(),
             "cell_port_heat_w": self.cell_port_heat_w.tolist(),
             "outputs": dict(self.outputs),
+            "time_s": self.time_s,
         }
 
     def set_state(self, state: dict[str, Any]) -> None:
@@ -278,6 +304,7 @@ class ModuleStepper:
         self.out_c[:] = state["out_c"]
         self.cell_port_heat_w = np.array(state["cell_port_heat_w"], dtype=float)
         self.outputs = {k: float(v) for k, v in state["outputs"].items()}
+        self.time_s = float(state.get("time_s", 0.0))
 
 
 class CellSlaveMixin:
@@ -384,7 +411,14 @@ class CellSlaveMixin:
             port = self._cell_port_temp_k.copy()
         if self.power_input:
             self.current_a = current_for_power(self._stepper, self.power_w, port, step_size)
-        self._set_outputs(self._stepper.step(self.current_a, port, step_size))  # type: ignore[arg-type]
+        try:
+            outputs = self._stepper.step(self.current_a, port, step_size)  # type: ignore[arg-type]
+        except DomainError as exc:  # the message logged, the step refused, the state as before it
+            from pythonfmu.enums import Fmi2Status
+
+            self.log(str(exc), Fmi2Status.error)  # type: ignore[attr-defined]
+            return False
+        self._set_outputs(outputs)
         self.terminal_current_a = self.current_a
         return True
 

@@ -141,6 +141,7 @@ class Module:
             i,
             out_m[:, 0],
             out_c[:, :, 2],
+            soc=out_c[:, :, 1],
         )
         ts = pd.DataFrame(
             {

@@ -1051,10 +1051,19 @@ class Pack:
         (current [A], SOC, core temperature [K], port heat [W], voltage [V]). The energy terms
         accumulate in :attr:`acc` (:meth:`energy` closes the balance). The same as
         :meth:`begin_step` then :meth:`finish_step` at the derated current."""
+        from hevsim.battery.pack_run import SV_LIMC, SV_LIMD
+
         start = self.begin_step()
-        lim = start.factor * self.cfg.pack.max_current_a
-        i_a = float(np.clip(current_request_a, -lim, lim))
+        i_a = float(np.clip(current_request_a, -self._sv[SV_LIMC], self._sv[SV_LIMD]))
         return self.finish_step(start, i_a, current_request_a, cells_out)
+
+    def cell_names(self) -> list[str]:
+        """Names of the simulated cells for messages: "module m cell c" (c = series group *
+        n_parallel + branch within the module), or "module m (representative cell)"."""
+        spm = self.sim_per_module
+        if self.representative:
+            return [f"module {m} (representative cell)" for m in range(self.cfg.pack.n_modules)]
+        return [f"module {k // spm} cell {k % spm}" for k in range(self.n_cells)]
 
     def apply_ageing(self, capacity_fraction: np.ndarray, resistance_fraction: np.ndarray) -> None:
         """Scale every cell's capacity C0 and resistances by its ageing state's fractions [-]
@@ -1110,6 +1119,7 @@ class Pack:
     def simulate(self, current_a: Any, *, ambient_temp_c: float | None = None) -> PackResult:
         """Run the pack over the requested pack current [A] (discharge > 0), one value per
         ``pack.dt_s`` step (:meth:`step`); the BMS derates it (module docstring)."""
+        from hevsim.battery.bms import LIMIT_NAMES
         from hevsim.battery.cell import check_cell_domain
 
         t_wall0 = time.perf_counter()
@@ -1136,12 +1146,26 @@ class Pack:
         rec, module_hot = self.records
         rows = {key: rec[:, RECORD_CHANNELS.index(STEP_TO_RECORD[key])].copy() for key in STEP_CHANNELS}
         check_cell_domain(
-            f"pack {cfg.name}", rows["time_s"], rows["current_a"], rows["voltage_v"], out_cells[:, :, 2]
+            f"pack {cfg.name}",
+            rows["time_s"],
+            rows["current_a"],
+            rows["voltage_v"],
+            out_cells[:, :, 2],
+            soc=out_cells[:, :, 1],
+            cell_names=self.cell_names(),
+            remedy="the BMS limits the current by the lowest/highest cell SOC ([derating] soc, "
+            "discharge_soc_factor, charge_soc_factor) and the cells' voltage limits: make these tables "
+            "reach 0 before a cell empties or fills.",
         )
         e = self.energy(s0)
         hot_cols = pd.DataFrame(module_hot, columns=[f"module{j}_hot_spot_temp_k" for j in range(n_mod)])
         ts = pd.concat([pd.DataFrame(rows), hot_cols], axis=1)
         derated = rows["derating_factor"] < 1.0
+        req, cur = rows["current_request_a"], rows["current_a"]
+        held = np.abs(cur) < np.abs(req) * (1.0 - 1e-9)  # the BMS limited the request
+        reason = np.where(req >= 0.0, rec[:, RECORD_CHANNELS.index("bms_discharge_reason")],
+                          rec[:, RECORD_CHANNELS.index("bms_charge_reason")])  # fmt: skip
+        by_soc_v = held & np.isin(reason, [LIMIT_NAMES.index("soc"), LIMIT_NAMES.index("voltage")])
         metrics = {
             "duration_s": steps * cfg.pack.dt_s,
             "peak_cell_temp_k": float(out_cells[:, :, 2].max()),
@@ -1149,6 +1173,13 @@ class Pack:
             "final_soc_spread": float(rows["max_soc"][-1] - rows["min_soc"][-1]),
             "derated_time_s": float(derated.sum() * cfg.pack.dt_s),
             "first_derating_s": float(rows["time_s"][derated][0]) if derated.any() else float("nan"),
+            "bms_limited_s": float(held.sum() * cfg.pack.dt_s),
+            "first_bms_limit_s": float(rows["time_s"][held][0]) if held.any() else float("nan"),
+            "bms_soc_voltage_limited_s": float(by_soc_v.sum() * cfg.pack.dt_s),
+            "discharge_delivered_fraction": float(
+                np.clip(cur, 0.0, None).sum() / max(np.clip(req, 0.0, None).sum(), 1e-300)
+            ),
+            "final_min_soc": float(rows["min_soc"][-1]),
             "cooling_energy_j": e["pump_work_j"] + e["chiller_electric_j"] + e["fan_electric_j"],
             "energy_balance_relative": e["residual_relative"],
         }
@@ -1210,7 +1241,16 @@ def format_pack(res: PackResult) -> str:
             + (f" (ROM order {res.metadata['rom_order']})" if res.metadata.get("rom_order") else ""),
             f"  peak cell {m['peak_cell_temp_k'] - 273.15:.2f} degC, module hot spot "
             f"{m['peak_hot_spot_temp_k'] - 273.15:.2f} degC, final SOC spread {m['final_soc_spread']:.4f}",
-            f"  derated {m['derated_time_s']:g} s, cooling energy {m['cooling_energy_j'] / 3.6e3:.2f} Wh",
+            f"  derated {m['derated_time_s']:g} s for temperature, cooling energy "
+            f"{m['cooling_energy_j'] / 3.6e3:.2f} Wh",
+            f"  BMS held the current below the request {m['bms_limited_s']:g} s"
+            + (
+                f" (first at t = {m['first_bms_limit_s']:g} s; {m['bms_soc_voltage_limited_s']:g} s by "
+                f"low/high cell SOC or voltage), {100 * m['discharge_delivered_fraction']:.1f} % of the "
+                f"requested discharge delivered; lowest cell SOC at the end {m['final_min_soc']:.4f}"
+                if m["bms_limited_s"] > 0
+                else ""
+            ),
             f"  energy balance residual {e['residual_j']:.3e} J ({e['residual_relative']:.2e} of the "
             "throughput)",
         ]

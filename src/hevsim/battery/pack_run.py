@@ -38,7 +38,7 @@ import numpy as np
 from numba import njit
 
 from hevsim.battery.cooling import LP_INF, LP_PFLOW, LP_RHOCP, LP_ZEROC, LS_TEMP, loop_begin, loop_end
-from hevsim.battery.kernel import STEMP
+from hevsim.battery.kernel import SOCINI, SQ, SQABS, STEMP, cell_capacity
 from hevsim.battery.pack import NO_REFCOUNT, pack_pairs, pack_pass, pack_pass_linear
 from hevsim.tables import FloatArray
 
@@ -177,6 +177,15 @@ class PackArrays(NamedTuple):
     stress_n: FloatArray
 
 
+EMPTY_STEP_FRACTION = 0.5
+"""The BMS's hard SOC cut-off [-]: a step may take at most this share of the charge left in
+the emptiest cell (or of the room left in the fullest), at the cell's mean share of the pack
+current, so a cell approaches SOC 0 (1) without crossing it even when ``pack.max_current_a``
+makes the ``[derating] soc`` factors ineffective. A cell of a parallel group carries up to
+twice its mean share before the check (:func:`hevsim.battery.cell.check_cell_domain`) stops
+the run."""
+
+
 @njit(cache=True)
 def _binding(i_max, a, b, c):
     """(smallest of ``i_max, a, b, c`` clipped at 0, its index; the first wins ties)."""
@@ -231,8 +240,19 @@ def pack_begin(s):
         i_v[d] = lim
     f_dis = np.interp(f[F_SOCMIN], s.d_soc, s.d_dis)
     f_chg = np.interp(f[F_SOCMAX], s.d_soc, s.d_chg)
-    sv[SV_LIMD], sv[SV_WHYD] = _binding(i_max, factor * i_max, f_dis * i_max, i_v[0])
-    sv[SV_LIMC], sv[SV_WHYC] = _binding(i_max, factor * i_max, f_chg * i_max, i_v[1])
+    # the hard SOC cut-off: at most EMPTY_STEP_FRACTION of the charge left in (or room left
+    # in) the emptiest (fullest) cell per step, at the cell's mean share of the pack current
+    q_out, q_in = np.inf, np.inf
+    for c in range(s.x.shape[0]):
+        cap = cell_capacity(s.prm[c], s.t_ax, s.capf, s.x[c, SQABS], s.x[c, STEMP])
+        soc = s.prm[c, SOCINI] - s.x[c, SQ] / cap
+        q_out = min(q_out, max(soc, 0.0) * cap)
+        q_in = min(q_in, max(1.0 - soc, 0.0) * cap)
+    share = n_par if rep else f[F_NP]
+    i_dis_soc = min(f_dis * i_max, EMPTY_STEP_FRACTION * share * q_out / dt)
+    i_chg_soc = min(f_chg * i_max, EMPTY_STEP_FRACTION * share * q_in / dt)
+    sv[SV_LIMD], sv[SV_WHYD] = _binding(i_max, factor * i_max, i_dis_soc, i_v[0])
+    sv[SV_LIMC], sv[SV_WHYC] = _binding(i_max, factor * i_max, i_chg_soc, i_v[1])
     sv[SV_COOLW] = sv[SV_PUMP] + sv[SV_FAN] + sv[SV_CHP]
 
 
@@ -523,12 +543,12 @@ def pack_finish(s, current_a, current_request_a):
 @njit(cache=True)
 def pack_simulate(s, request_a, cells_out):
     """:meth:`hevsim.battery.pack.Pack.simulate`'s loop: per step, :func:`pack_begin`, the
-    request clipped to the temperature-derated current limit, :func:`pack_finish`; the cells'
-    records -> ``cells_out[k]``."""
+    request clipped to the BMS's current limits of the step (temperature, SOC and cell voltage,
+    as in a vehicle: :mod:`hevsim.battery.bms`), :func:`pack_finish`; the cells' records ->
+    ``cells_out[k]``."""
     for k in range(request_a.shape[0]):
         pack_begin(s)
-        lim = s.sv[SV_FACTOR] * s.f[F_IMAX]
-        i_a = min(max(request_a[k], -lim), lim)
+        i_a = min(max(request_a[k], -s.sv[SV_LIMC]), s.sv[SV_LIMD])
         pack_finish(s, i_a, request_a[k])
         cells_out[k] = s.cells
 

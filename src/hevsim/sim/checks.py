@@ -14,15 +14,17 @@ from typing import Any
 
 import numpy as np
 
+from hevsim.battery.cell import SOC_TOLERANCE as SOC_TOLERANCE
+from hevsim.battery.cell import soc_outside
 from hevsim.errors import DomainError, SimulationError
 from hevsim.sim import kernel as K
 from hevsim.units import MPS_PER_MPH
 
-SOC_TOLERANCE = 1e-6
-"""How far the state of charge may stray outside [0, 1] before a run stops [-]. Covers the
-round-off of the charge integral, not a battery run dry: the kernel applies its SOC limits at
-the start of a step, so a pack allowed down to ``soc_min = 0`` can overshoot below zero by a
-whole step's charge, which is a physically impossible state."""
+# How far the state of charge may stray outside [0, 1] before a run stops [-]: the battery
+# layer's bound, shared by every command that steps a battery. Covers the round-off of the
+# charge integral, not a battery run dry: the kernel applies its SOC limits at the start of a
+# step, so a pack allowed down to ``soc_min = 0`` can overshoot below zero by a whole step's
+# charge, which is a physically impossible state. (SOC_TOLERANCE is re-exported here.)
 
 
 @dataclass(frozen=True)
@@ -146,10 +148,9 @@ def check_domain(
                 "finite number (a parameter is outside its physical range)."
             )
     soc = out[:, K.CH_SOC]
-    low = np.flatnonzero(soc < -SOC_TOLERANCE)
-    high = np.flatnonzero(soc > 1.0 + SOC_TOLERANCE)
-    if low.size and (not high.size or low[0] < high[0]):
-        k = int(low[0])
+    where = soc_outside(soc)  # the battery layer's SOC domain (hevsim.battery.cell)
+    if where is not None and soc[where[0]] < 0.0:
+        k = where[0]
         source = (
             "the vehicle has no genset and the cycle needs more charge than the pack holds"
             if p[K.GSKIND] == K.GENSET_NONE
@@ -161,8 +162,8 @@ def check_domain(
             f"battery.soc_min = {_fmt(p[K.SOCMIN])} lets the pack empty; raise battery.soc_min or "
             "controller.soc_low, or use a larger battery or genset."
         )
-    if high.size:
-        k = int(high[0])
+    if where is not None:
+        k = where[0]
         raise DomainError(
             f"{label}: channel 'soc' rose to {soc[k]:.4g} at t = {_fmt(time_s[k])} s; expected a "
             f"state of charge in [0, 1]. Likely cause: the battery was overcharged: "

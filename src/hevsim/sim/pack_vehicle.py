@@ -196,7 +196,10 @@ def _limited_column(ts: pd.DataFrame) -> np.ndarray:
 
 
 def _attach(res: Any, run: PackRun, cfg: Any) -> None:
-    """Add the pack's channels, metrics, events and energy terms to a vehicle result."""
+    """Add the pack's channels, metrics, events and energy terms to a vehicle result (after
+    the cells' domain check, :func:`hevsim.battery.cell.check_cell_domain`)."""
+    from hevsim.battery.cell import check_cell_domain
+
     pf = run.frame(len(res.timeseries))
     res.timeseries = ts = pd.concat([res.timeseries, pf.set_index(res.timeseries.index)], axis=1)
     e = run.energy()
@@ -204,6 +207,18 @@ def _attach(res: Any, run: PackRun, cfg: Any) -> None:
     t = ts["time_s"].to_numpy()
     dt = float(t[1] - t[0])
     steps = len(run.rows["derating_factor"])
+    rows = run.rows
+    check_cell_domain(  # every cell of the pack (the vehicle's own check sees the mean SOC)
+        f"{cfg.name}: pack",
+        t[:steps],
+        rows["pack_current_a"],
+        rows["pack_voltage_v"],
+        rows["hottest_cell_temp_k"],
+        soc=np.column_stack([rows["cell_soc_min"], rows["cell_soc_max"]]),
+        cell_names=["the lowest cell", "the highest cell"],
+        remedy="the BMS limits the pack current by the lowest/highest cell SOC ([derating] soc, "
+        "discharge_soc_factor, charge_soc_factor of the pack file) and the cells' voltage limits.",
+    )
     factor = np.asarray(run.rows["derating_factor"])
     derated = factor < 1.0
     lim_d = np.asarray(run.rows["bms_discharge_limit_a"])

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 import hevsim
+from hevsim.battery.cell import soc_outside
 from hevsim.components.engine import Engine
 from hevsim.config import VehicleConfig
 from hevsim.cycles import DriveCycle
@@ -21,7 +22,6 @@ from hevsim.fuels import config_fuel
 from hevsim.io import atomic_directory, write_json
 from hevsim.sim import kernel as K
 from hevsim.sim.checks import (
-    SOC_TOLERANCE,
     TRACKING_BOUND,
     TrackingBound,
     check_domain,
@@ -514,9 +514,9 @@ def simulate_batch(
             "within their physical ranges."
         )
     socf = summary[:, K.S_SOCF]
-    out_of_range = np.flatnonzero((socf < -SOC_TOLERANCE) | (socf > 1.0 + SOC_TOLERANCE))
-    if out_of_range.size:  # a batch records no time series: only the final SOC is checked
-        i = int(out_of_range[0])
+    out_of_range = soc_outside(socf)  # the battery layer's SOC domain (SOC_TOLERANCE)
+    if out_of_range is not None:  # a batch records no time series: only the final SOC is checked
+        i = out_of_range[0]
         values = ", ".join(f"{k} = {float(pmat[i, K.P[k]]):g}" for k in arrays)
         raise DomainError(
             f"batch: variant {i} ({values}) ended with SOC {socf[i]:.4g}; expected a state of "

@@ -230,6 +230,26 @@ def _check_address(address: str) -> None:
 
 
 @contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while child processes start (they inherit the disposition, and Python
+    then installs no KeyboardInterrupt in them): a Ctrl-C at the terminal reaches the whole
+    process group, and only this process is to handle it (the finished cases are kept, the
+    workers are closed by the cluster; no worker prints a traceback). Outside the main
+    thread, where signal handlers cannot be set, nothing changes."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextmanager
 def _dask_client(scheduler: str | None, workers: int | None) -> Iterator[tuple[Any, int, str]]:
     """(client, workers, description); a LocalCluster when ``scheduler`` is None."""
     import dask
@@ -266,10 +286,11 @@ def _dask_client(scheduler: str | None, workers: int | None) -> Iterator[tuple[A
         dashboard: str | None = ":0"
     except ImportError:
         dashboard = None
-    cluster = LocalCluster(
-        n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard,
-        silence_logs=logging.ERROR, env={"NUMBA_NUM_THREADS": "1", "HEVSIM_THREADS": "1"},
-    )  # fmt: skip
+    with _sigint_ignored():  # the worker processes inherit it: Ctrl-C stops the study, not them
+        cluster = LocalCluster(
+            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard,
+            silence_logs=logging.ERROR, env={"NUMBA_NUM_THREADS": "1", "HEVSIM_THREADS": "1"},
+        )  # fmt: skip
     try:
         client = Client(cluster, set_as_default=False)
         try:

@@ -20,7 +20,8 @@ value, a parameter outside its range (``soc_initial`` outside the SOC axis of th
 [0, 1], ``temp_initial_k`` outside 150..500 K, a non-positive capacity, heat capacity, skin
 resistance or resistance scale); at ``DoStep`` a port temperature outside the cell model's
 150..500 K, a non-finite current or power, and a step that leaves the model's domain (terminal
-voltage <= 0, a cell temperature outside 150..500 K) as :func:`hevsim.battery.cell.check_cell_domain`.
+voltage <= 0, a cell's state of charge outside [0, 1], a cell temperature outside 150..500 K) as
+:func:`hevsim.battery.cell.check_cell_domain`.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from hevsim.battery import kernel as K
+from hevsim.battery.cell import CELL_TEMP_RANGE_K, SOC_TOLERANCE
 from hevsim.battery.fmu import (
     CELL_INPUTS,
     CELL_OUTPUTS,
@@ -61,9 +63,10 @@ WRAPPERS = {2: "fmi2_model.c", 3: "fmi3_model.c"}
 """The FMI interface source per FMI major version."""
 FMI_VERSIONS = tuple(WRAPPERS)
 
-CELL_TEMP_DOMAIN_K = (150.0, 500.0)
+CELL_TEMP_DOMAIN_K = CELL_TEMP_RANGE_K
 """Temperature domain of the lumped cell model [K] (:data:`hevsim.battery.cell.CELL_TEMP_RANGE_K`),
-compiled into the FMU as ``HV_T_MIN_K`` / ``HV_T_MAX_K``."""
+compiled into the FMU as ``HV_T_MIN_K`` / ``HV_T_MAX_K``; the SOC domain [0, 1] with
+:data:`hevsim.battery.cell.SOC_TOLERANCE` as ``HV_SOC_TOL``."""
 
 # variable kinds of the generated table VAR_KIND (hevsim_model.h, fmi2_model.c)
 _KINDS = {"input": "K_INPUT", "parameter": "K_PARAMETER", "boolean": "K_BOOLEAN", "output": "K_OUTPUT"}
@@ -241,6 +244,7 @@ def model_data(
         f"static const double R_SCALE[N_CELLS] = {_c_array(r_scale)};",
         f"#define HV_T_MIN_K {_num(CELL_TEMP_DOMAIN_K[0])}",
         f"#define HV_T_MAX_K {_num(CELL_TEMP_DOMAIN_K[1])}",
+        f"#define HV_SOC_TOL {_num(SOC_TOLERANCE)}",
     ]
     return "\n".join(lines + variable_table(vars_)) + "\n"
 

@@ -25,6 +25,18 @@ typedef struct {
 
 /* HV_T_MIN_K, HV_T_MAX_K (model_data.h): temperature domain of the lumped cell model [K] */
 
+/* HV_SOC_TOL (model_data.h): how far a state of charge may stray outside [0, 1] (round-off) */
+static int hv_check_soc(const char *name, double soc, double t, double current, char *msg, size_t n)
+{
+    if (!(soc >= -HV_SOC_TOL && soc <= 1.0 + HV_SOC_TOL)) {
+        snprintf(msg, n, "at t = %.17g s with a current of %.17g A the cell left its model's domain: "
+                 "%s = %.17g outside [0, 1] (the current %s the cell)", t, current, name, soc,
+                 soc < 0.0 ? "drained" : "overcharged");
+        return 1;
+    }
+    return 0;
+}
+
 static double hv_soh(const double *p, const double *x)
 {
     double ratio = (p[P_C0] + p[P_KCQ] * x[S_QABS]) / p[P_C0];
@@ -195,6 +207,8 @@ static int hv_do_step(hv_data *d, hv_cache *cache, double t, double dt, char *ms
         }
         for (c = 0; c < N_CELLS; c++) {
             char name[64];
+            snprintf(name, sizeof(name), "cell%d soc", c);
+            if (hv_check_soc(name, soc_c[c], t + dt, current, msg, n)) return 1;
             snprintf(name, sizeof(name), "cell%d temp_k", c);
             if (hv_check_temp(name, x[c][S_TEMP], msg, n)) return 1;
         }
@@ -222,6 +236,7 @@ static int hv_do_step(hv_data *d, hv_cache *cache, double t, double dt, char *ms
                      t + dt, current, rec[R_V], rec[R_OCV] / rec[R_RS]);
             return 1;
         }
+        if (hv_check_soc("soc", rec[R_SOC], t + dt, current, msg, n)) return 1;
         if (hv_check_temp("temp_k", rec[R_TEMP], msg, n)) return 1;
         if (!(rec[R_CAP] > 0.0)) {
             snprintf(msg, n, "capacity %.17g C <= 0 (eq 35) at t = %.17g s", rec[R_CAP], t + dt);
