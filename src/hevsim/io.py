@@ -33,7 +33,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from hevsim.errors import OutputError
+from hevsim.errors import ConfigError, OutputError
 
 MARKER = ".hevsim-results"
 """Name of the marker file of a hevsim results folder."""
@@ -474,3 +474,33 @@ def save_png(fig: Any, path: str | Path, dpi: float, **savefig_kwargs: Any) -> P
         tmp.unlink(missing_ok=True)
         fig.clear()
     return target
+
+
+def read_text_utf8(path: str | Path, what: str = "TOML", error: type[Exception] = ConfigError) -> str:
+    """The text of ``path`` decoded as UTF-8; ``error`` (default :class:`ConfigError`, exit 2)
+    names the file and the byte offset (with line and column) of a binary file (a NUL byte) or
+    of the first byte that is not UTF-8 (a Latin-1 "°" in a comment, say)."""
+    p = Path(path)
+    try:
+        raw = p.read_bytes()
+    except OSError as exc:
+        raise error(f"{p}: cannot be read ({exc.strerror or exc}).") from exc
+    nul = raw.find(b"\0")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        nul = nul if 0 <= nul < exc.start else -1
+        bad = exc.start if nul < 0 else nul
+    else:
+        if nul < 0:
+            return text
+        bad = nul
+    line = raw.count(b"\n", 0, bad) + 1
+    col = bad - (raw.rfind(b"\n", 0, bad) + 1) + 1
+    where = f"byte 0x{raw[bad]:02x} at offset {bad} (line {line}, column {col})"
+    if raw[bad] == 0:
+        raise error(f"{p}: is a binary file: {where}; expected a {what} text file.")
+    raise error(
+        f"{p}: is not UTF-8 text: {where} is not valid UTF-8; expected a UTF-8 {what} file (save it "
+        "as UTF-8; a '°' or 'µ' written by a Latin-1 / Windows-1252 editor is the usual cause)."
+    )

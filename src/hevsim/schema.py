@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from hevsim.errors import ConfigError
+from hevsim.io import read_text_utf8  # re-exported: the one UTF-8 reader lives in ground
 
 T = TypeVar("T")
 Choices = Mapping[str, tuple[str, ...]]
@@ -168,36 +169,6 @@ def build_config(
         else:
             kwargs[key] = check_value(value, tp, source, key, choices, bounds, fields[key].metadata)
     return cls(**kwargs)
-
-
-def read_text_utf8(path: str | Path, what: str = "TOML", error: type[Exception] = ConfigError) -> str:
-    """The text of ``path`` decoded as UTF-8; ``error`` (default :class:`ConfigError`, exit 2)
-    names the file and the byte offset (with line and column) of a binary file (a NUL byte) or
-    of the first byte that is not UTF-8 (a Latin-1 "°" in a comment, say)."""
-    p = Path(path)
-    try:
-        raw = p.read_bytes()
-    except OSError as exc:
-        raise error(f"{p}: cannot be read ({exc.strerror or exc}).") from exc
-    nul = raw.find(b"\0")
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        nul = nul if 0 <= nul < exc.start else -1
-        bad = exc.start if nul < 0 else nul
-    else:
-        if nul < 0:
-            return text
-        bad = nul
-    line = raw.count(b"\n", 0, bad) + 1
-    col = bad - (raw.rfind(b"\n", 0, bad) + 1) + 1
-    where = f"byte 0x{raw[bad]:02x} at offset {bad} (line {line}, column {col})"
-    if raw[bad] == 0:
-        raise error(f"{p}: is a binary file: {where}; expected a {what} text file.")
-    raise error(
-        f"{p}: is not UTF-8 text: {where} is not valid UTF-8; expected a UTF-8 {what} file (save it "
-        "as UTF-8; a '°' or 'µ' written by a Latin-1 / Windows-1252 editor is the usual cause)."
-    )
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:

@@ -326,7 +326,7 @@ def read_meta(folder: str | Path, what: str) -> dict[str, Any]:
     path = Path(folder) / "meta.toml"
     if not path.is_file():
         raise InputError(f"{path}: {what} metadata file not found; expected a meta.toml file.")
-    from hevsim.schema import read_text_utf8
+    from hevsim.io import read_text_utf8
 
     try:
         return tomllib.loads(read_text_utf8(path, error=InputError))

@@ -58,10 +58,8 @@ import pandas as pd
 
 from hevsim.battery.kernel import SOCINI
 from hevsim.battery.pack import Pack, PackStepStart
-from hevsim.battery.pack_run import VEHICLE_CHANNELS
+from hevsim.battery.pack_run import LIMIT_NAMES, VEHICLE_CHANNELS
 
-LIMIT_NAMES = ("none", "temperature", "soc", "voltage")
-"""What binds a BMS current limit (the ``bms_*_limit_reason`` channel codes)."""
 CHANNELS = VEHICLE_CHANNELS
 """Per-step pack channels of a vehicle run (step k's row: the values over/at the end of step k)."""
 

@@ -1119,8 +1119,8 @@ class Pack:
     def simulate(self, current_a: Any, *, ambient_temp_c: float | None = None) -> PackResult:
         """Run the pack over the requested pack current [A] (discharge > 0), one value per
         ``pack.dt_s`` step (:meth:`step`); the BMS derates it (module docstring)."""
-        from hevsim.battery.bms import LIMIT_NAMES
         from hevsim.battery.cell import check_cell_domain
+        from hevsim.battery.pack_run import LIMIT_NAMES
 
         t_wall0 = time.perf_counter()
         req = np.asarray(current_a, dtype=float)

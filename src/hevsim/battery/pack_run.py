@@ -64,6 +64,9 @@ SV_NAMES = (
 (SV_HOT, SV_FACTOR, SV_EDIS, SV_ZDIS, SV_ECHG, SV_ZCHG, SV_LIMD, SV_LIMC, SV_WHYD, SV_WHYC, SV_COOLW,
  SV_SUPPLY, SV_PFLOW, SV_RAD, SV_CH, SV_CHP, SV_PUMP, SV_FAN, SV_LAMB) = range(len(SV_NAMES))  # fmt: skip
 
+LIMIT_NAMES = ("none", "temperature", "soc", "voltage")
+"""What binds a BMS current limit (the ``bms_*_limit_reason`` channel codes)."""
+
 #: per-step pack channels of a vehicle run (:data:`hevsim.battery.bms.CHANNELS`)
 VEHICLE_CHANNELS = (
     "pack_current_a", "pack_voltage_v", "pack_power_w", "pack_ocv_v", "pack_resistance_ohm",
