@@ -100,9 +100,10 @@ def _di(n_x: int, n_u: int) -> tuple[float, np.ndarray, int]:
 
 def test_double_integrator_point_target_reached_exactly() -> None:
     """Both states end on the target to the stated tolerance (1e-9 of the grid span), no
-    trajectory beats the optimum, and refining the states or the input grid separately does
-    not make the cost worse. On the previous tree the 41 x 41 grid refused the reachable
-    target (DPInfeasibleError calling it the physics) and finer grids missed it."""
+    trajectory beats the optimum, and refining the states (41 -> 61 nodes: +0.43 % ->
+    +0.054 %) or the input grid (51 -> 101 values: +0.066 % -> +0.054 %) separately does
+    not make the cost worse. On the previous tree every one of these grids refused the
+    reachable target (DPInfeasibleError naming the target, i.e. the physics)."""
     errs = {}
     for n_x, n_u in ((41, 101), (61, 101), (61, 51)):
         err, x_end, _ = _di(n_x, n_u)
@@ -111,7 +112,7 @@ def test_double_integrator_point_target_reached_exactly() -> None:
         errs[n_x, n_u] = err
     assert errs[61, 101] <= errs[41, 101] + INTERP_TOL, errs
     assert errs[61, 101] <= errs[61, 51] + INTERP_TOL, errs
-    assert errs[61, 101] <= 0.05, errs
+    assert errs[61, 101] <= 0.002, errs
 
 
 def test_point_target_refusal_says_physics_when_unreachable() -> None:

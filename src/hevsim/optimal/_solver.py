@@ -22,6 +22,8 @@ _MODE = {
     "boundary_line": kn.MODE_BAND,
 }
 REFINE_POINTS = 17  # states evaluated per boundary-line refinement
+LAND_STEPS_PER_STATE = 8  # the landing corrects at most this many final steps per state
+POLISH = True  # re-optimise the landed window for cost (SLSQP)
 PARALLEL_MIN_PAIRS = 20_000  # blocks smaller than this run the serial kernel
 _DUMMY_MASK = np.zeros((1, 1), dtype=np.bool_)
 _DUMMY_X = np.zeros((1, 1))
@@ -1028,13 +1030,13 @@ class DPSolver:
         uhi = np.array([float(sp.inputs[a].max()) for a in cont])
         uspan = np.maximum(uhi - ulo, 1e-300)
         r0 = max(1, -(-sp.d // len(cont)))
+        cap = min(N, LAND_STEPS_PER_STATE * sp.d)
         windows = []
-        r = r0
-        while r <= min(N, 8 * sp.d):
+        r = min(r0, cap)
+        while r < cap:
             windows.append(r)
             r *= 2
-        if not windows:
-            windows = [min(N, r0)]
+        windows.append(cap)
         best: tuple[FloatArray, FloatArray, FloatArray, int] | None = None
         best_total = np.inf
 
@@ -1077,6 +1079,8 @@ class DPSolver:
                 x_all, u_all, g_all, ok = rollout(k0, z)
             if np.any(self.target_miss(x_all[-1])) or not ok:
                 continue
+            if POLISH:
+                z, x_all, u_all, g_all = self._polish(k0, z, x_all, u_all, g_all, rollout)
             nx_, nu_, ng_ = xs.copy(), us.copy(), gs.copy()
             nx_[k0:] = x_all
             nu_[k0:] = u_all
@@ -1085,6 +1089,39 @@ class DPSolver:
             if best is None or total < best_total:
                 best, best_total = (nx_, nu_, ng_, r), total
         return best
+
+    def _polish(self, k0: int, z: FloatArray, x_all: FloatArray, u_all: FloatArray, g_all: FloatArray,
+                rollout: Any) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:  # fmt: skip
+        """The landed window's continuous inputs re-optimised for cost (SLSQP from the landed
+        ones, final state kept in the target box, inputs within their grids); kept only when
+        the result is admissible at every step, lands, and costs less."""
+        from scipy.optimize import minimize
+
+        sp = self.space
+        lo, hi = sp.box_lo, sp.box_hi
+        scale = np.maximum(sp.span, 1e-300)
+        tol = kn.VTOL * sp.span
+
+        def total(zz: FloatArray) -> float:
+            xa, _, ga, ok = rollout(k0, zz)
+            return float(np.sum(ga) + self.terminal_at(xa[-1])[0]) if ok else 1e300
+
+        def cons(zz: FloatArray) -> FloatArray:
+            xe = rollout(k0, zz)[0][-1]
+            return np.r_[(xe - lo + 0.5 * tol) / scale, (hi + 0.5 * tol - xe) / scale]
+
+        c0 = total(z)
+        try:
+            opt = minimize(total, z, method="SLSQP", bounds=[(0.0, 1.0)] * z.size,
+                           constraints={"type": "ineq", "fun": cons},
+                           options={"maxiter": 100, "ftol": 1e-12 * max(abs(c0), 1e-300)})  # fmt: skip
+        except (ValueError, ArithmeticError):
+            return z, x_all, u_all, g_all
+        zn = np.clip(np.asarray(opt.x, dtype=np.float64), 0.0, 1.0)
+        xa, ua, ga, ok = rollout(k0, zn)
+        if not ok or np.any(self.target_miss(xa[-1])) or not total(zn) < c0:
+            return z, x_all, u_all, g_all
+        return zn, xa, ua, ga
 
     def _state_arrays(self, x: FloatArray) -> tuple[np.ndarray, ...]:
         sp = self.space

@@ -353,7 +353,9 @@ def solve_dp(
             if runs:  # admitted by the grid, but no path ends on the target
                 raise solver.miss_error(runs[0][6], bw)
             raise solver.diagnose(x, bw)
-        bw, xs, us, gs, n_fb, n_land, _ = min(ok, key=lambda r: _path_cost(solver, r[1], r[3]))
+        bw, xs_ok, us, gs, n_fb, n_land, _ = min(ok, key=lambda r: _path_cost(solver, r[1], r[3]))
+        assert xs_ok is not None
+        xs = xs_ok
         t2 = time.perf_counter()
         lam = solver.costate(bw, xs)
     finally:
