@@ -26,7 +26,7 @@ scipy's LP solver on the 400 relaxed inflows.
 Before the level-set fixes (Chebyshev level-set function, cost-to-go extended across the
 boundary of the reachable set) the DP was 2.07 % above at 41 x 41 nodes, 1.71 % at 51 x 51
 and 1.51 % at 101 x 101 (issue 15 item 6); ``benchmarks/bench_dp_two_tank.py`` prints the
-101 x 101 (now 0.027 %) and 201 x 201 (0.085 %) figures and timings.
+101 x 101 (0.027 %, 0.012 % since issue 26) and 201 x 201 (0.085 %) figures and timings.
 """
 
 from __future__ import annotations

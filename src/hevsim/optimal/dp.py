@@ -45,6 +45,7 @@ import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -91,6 +92,9 @@ class DPResult:
             fallback was used (policy -> re-optimisation, or the input closest to the
             admissible set).
         n_feasible_nodes: number of grid nodes in the admissible set per step, shape (N+1,).
+        n_landing_steps: final steps whose continuous inputs were corrected so that the
+            final state lies in the target box (0 when the grid path already ends there;
+            see ``docs/dp.md``, "Exact targets in several states").
         boundary_lines: lower and upper boundary lines, shape (N+1, 2) (boundary-line
             method), else None [state unit].
         cost_to_go: (N+1, n1, .., nd) if ``store_cost_to_go``, else None [cost unit].
@@ -117,6 +121,7 @@ class DPResult:
     input_names: tuple[str, ...]
     input_grids: tuple[FloatArray, ...]
     boundary_lines: FloatArray | None = None
+    n_landing_steps: int = 0
     cost_to_go: np.ndarray | None = None
     level_set: np.ndarray | None = None
     policy_index: npt.NDArray[np.int32] | None = None
@@ -193,6 +198,40 @@ def estimate_memory(
     }
     out["total"] = sum(out.values())
     return out
+
+
+def _forward_on_target(
+    solver: DPSolver,
+    x: FloatArray,
+    bw: Any,
+    policy: bool,
+    bar: Any,
+    box: tuple[FloatArray, FloatArray] | None = None,
+) -> tuple[Any, FloatArray | None, FloatArray, FloatArray, int, int, FloatArray]:
+    """Forward pass (towards ``box`` if given), then the realised final state is checked
+    against the target; a path ending outside it is corrected onto it
+    (:meth:`DPSolver.land`). Returns ``(bw, states or None when it cannot be landed,
+    inputs, stage costs, fallback steps, corrected steps, final state of the grid path)``."""
+    saved = solver.box
+    if box is not None:
+        solver.box = box
+    try:
+        xs, us, gs, n_fb = solver.forward(x, bw, policy, bar=bar)
+    finally:
+        solver.box = saved
+    x_end = xs[-1].copy()
+    if solver.method == "penalty" or not np.any(solver.target_miss(x_end)):
+        return bw, xs, us, gs, n_fb, 0, x_end
+    landed = solver.land(xs, us, gs)
+    if landed is None:
+        return bw, None, us, gs, n_fb, 0, x_end
+    xs, us, gs, n_land = landed
+    return bw, xs, us, gs, n_fb, n_land, x_end
+
+
+def _path_cost(solver: DPSolver, xs: FloatArray | None, gs: FloatArray) -> float:
+    assert xs is not None
+    return float(np.sum(gs)) + sum(solver.terminal_at(xs[-1]))
 
 
 def solve_dp(
@@ -300,9 +339,23 @@ def solve_dp(
         t0 = time.perf_counter()
         bw = solver.backward(sp.box_lo, sp.box_hi, store=True, keep_policy=keep_policy, bar=bar)
         t1 = time.perf_counter()
-        if not solver.point_feasible(x, bw):
+        runs = []  # (bw, xs, us, gs, n_fallback, steps corrected onto the target)
+        if solver.point_feasible(x, bw):
+            runs.append(_forward_on_target(solver, x, bw, forward == "policy", bar))
+        capture = solver.capture_box() if method == "levelset" else None
+        if capture is not None:
+            # a point-like target in 2+ states: also solve towards the one-cell capture box
+            bwc = solver.backward(*capture, store=True, keep_policy=keep_policy)
+            if solver.point_feasible(x, bwc):
+                runs.append(_forward_on_target(solver, x, bwc, forward == "policy", None, capture))
+        ok = [r for r in runs if r[1] is not None]
+        if not ok:
+            if runs:  # admitted by the grid, but no path ends on the target
+                raise solver.miss_error(runs[0][6], bw)
             raise solver.diagnose(x, bw)
-        xs, us, gs, n_fb = solver.forward(x, bw, forward == "policy", bar=bar)
+        bw, xs_ok, us, gs, n_fb, n_land, _ = min(ok, key=lambda r: _path_cost(solver, r[1], r[3]))
+        assert xs_ok is not None
+        xs = xs_ok
         t2 = time.perf_counter()
         lam = solver.costate(bw, xs)
     finally:
@@ -322,6 +375,7 @@ def solve_dp(
         final_constraint=method,
         forward=forward,
         n_fallback_steps=n_fb,
+        n_landing_steps=n_land,
         n_feasible_nodes=bw.n_feasible,
         state_names=sp.state_names,
         input_names=sp.input_names,
