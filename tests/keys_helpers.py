@@ -14,7 +14,7 @@ import numpy as np
 from hevsim import config as C
 from hevsim import schema
 from hevsim.cycles import DriveCycle, load_cycle
-from hevsim.errors import ConfigError, HevsimError
+from hevsim.errors import ConfigError, HevsimError, SimulationError
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
@@ -40,11 +40,49 @@ FREE_STRINGS: dict[str, tuple[str, ...]] = {
 
 
 BINDING: dict[str, Any] = {
-    "battery.soc_min": lambda cfg: cfg.simulation.soc_initial - 1e-4,
-    "battery.soc_max": lambda cfg: cfg.simulation.soc_initial + 1e-5,
+    "battery.soc_min": lambda cfg: [cfg.simulation.soc_initial + d for d in (-1e-4, -1e-2)],
+    "battery.soc_max": lambda cfg: [cfg.simulation.soc_initial + d for d in (1e-3, 1e-2, -1e-2)],
+    "engine.redline_rpm": lambda cfg: [0.5 * (cfg.engine.stall_speed_rpm + cfg.controller.upshift_rpm)],
 }
-"""Values that make a limit bind within a short run (the SOC window just around the initial
-SOC: the first discharge or charge reaches it), tried first."""
+"""Values that make a limit bind within a short run, tried first: the SOC window's ends at
+the initial SOC (the first discharge reaches the lower one; the upper one below it stops any
+charging), the redline below the upshift speed."""
+
+
+def scenario(cfg: Any, key: str) -> dict[str, Any]:
+    """Dotted overrides applied to the base and the perturbed file alike so that ``key`` can
+    act in a short run: a controller key the file's kind does not read runs the admitted kind
+    that reads it (``--controller`` would); the series thermostat's keys start with the SOC
+    below ``soc_low`` (the engine starts at once); the parallel rule's shift speeds with no EV
+    speed band (the engine drives from standstill)."""
+    from hevsim.architectures import ARCHITECTURES
+    from hevsim.control import CONTROLLERS
+
+    sec, _, name = key.partition(".")
+    arch = cfg.architecture
+    if key in ("battery.soc_min", "battery.soc_max"):
+        if arch == "series":  # the genset charges from just below soc_low
+            return {"simulation.soc_initial": cfg.controller.soc_low - 0.005}
+        if arch == "parallel":  # the DP's SOC settings stay inside a changed window
+            soc0 = cfg.simulation.soc_initial
+            return {"optimization.final_soc": "sustain", "optimization.soc_initial": soc0}
+        return {}
+    if sec != "controller":
+        return {}
+    if arch == "series":  # the genset starts at once; its cranking, at a step that resolves it
+        fine = {"simulation.dt_s": 0.02} if name == "start_speed_rpm" else {}
+        return {"simulation.soc_initial": cfg.controller.soc_low - 0.005, **fine}
+    out: dict[str, Any] = {}
+    entry = CONTROLLERS.get(cfg.controller.kind)
+    if entry is not None and name not in entry.parameters:
+        for kind in ARCHITECTURES[arch].controllers:
+            if name in CONTROLLERS[kind].parameters:
+                out["controller.kind"] = kind
+                break
+    if name in ("upshift_rpm", "downshift_rpm") and arch == "parallel":  # the engine drives
+        out.update({"controller.ev_speed_mps": 0.0, "controller.ev_power_w": 0.0})
+        out["controller.soc_high"] = 0.99
+    return out
 
 
 def short_cycle(name: str = "udds", seconds: float = SHORT_S) -> DriveCycle:
@@ -54,10 +92,25 @@ def short_cycle(name: str = "udds", seconds: float = SHORT_S) -> DriveCycle:
     return DriveCycle(f"{name}{seconds:g}", np.asarray(c.time_s)[keep], np.asarray(c.speed_mps)[keep])
 
 
-CYCLES = (("udds", SHORT_S), ("us06", 300.0))
+def sawtooth() -> DriveCycle:
+    """200 s between 8 and 25 m/s without stopping (shifts down and up again), then a stop."""
+    t = np.arange(0.0, 201.0)
+    v = 16.5 - 8.5 * np.cos(2 * np.pi * t / 50.0)
+    v[0], v[-1] = 0.0, 0.0
+    return DriveCycle("sawtooth", t, np.minimum(v, 2.0 * t))
+
+
+def downhill() -> DriveCycle:
+    """200 s at 15 m/s down a 6 % grade (regeneration charges the battery)."""
+    t = np.arange(0.0, 201.0)
+    return DriveCycle("downhill", t, np.minimum(15.0, 2.0 * t), -0.06 * np.ones_like(t))
+
+
+CYCLES = (lambda: short_cycle("udds", SHORT_S), lambda: short_cycle("us06", 300.0), sawtooth, downhill)
 """The short cycles a key is tried on, in turn: a limit (a current, the redline, a torque
-rating) acts only where the car reaches it, so a key with no effect on the first 200 s of UDDS
-is tried again on the first 300 s of US06 (hard launches, 129 km/h)."""
+rating, the SOC window) acts only where the car reaches it, so a key with no effect on the
+first 200 s of UDDS is tried again on the first 300 s of US06 (hard launches, 129 km/h), a
+speed sawtooth without stops and a downhill run."""
 
 
 def example_data(name: str) -> dict[str, Any]:
@@ -86,7 +139,7 @@ def candidates(key: str, value: Any, f: dataclasses.Field[Any], tp: Any) -> list
     elif value == 0.0:
         out = [0.05 * min(hi, 1.0), 1.0, 10.0, 100.0, 300.0]
     else:
-        out = [value * 1.1, value * 0.9, value * 1.5, value * 0.5]
+        out = [value * 1.1, value * 0.9, value * 1.5, value * 0.5, value * 3.0]
     if isinstance(value, float) and math.isfinite(value):  # limits act only when they bind: extremes
         top = min(hi, 1e3 * max(abs(value), 1.0))
         out += [value + 0.9 * (top - value), lo + 0.1 * (value - lo), lo + 1e-3 * (value - lo)]
@@ -164,16 +217,23 @@ def probe(name: str, keys: list[str] | None = None, skip: Any = None) -> dict[st
     valid value"`` (no other value loads and runs). ``skip(key)`` true: not tried."""
     data = example_data(name)
     base_cfg = load(data, name)
-    cycles = [short_cycle(*c) for c in CYCLES]
-    bases: dict[int, Any] = {}
+    cycles = [make() for make in CYCLES]
+    plain_bases: dict[int, Any] = {}  # fingerprints of the unmodified example, by cycle
     out: dict[str, str] = {}
-    for key, f, tp in section_keys(type(base_cfg)):
+    plain, plain_cfg = data, base_cfg
+    for key, f, tp in section_keys(type(plain_cfg)):
         if (keys is not None and key not in keys) or (skip is not None and skip(key)):
             continue
+        data, base_cfg, bases = plain, plain_cfg, plain_bases
+        extra = scenario(plain_cfg, key)
+        if extra:
+            for k, v in extra.items():
+                data = with_key(data, k, v)
+            base_cfg, bases = load(data, name), {}
         value = current(base_cfg, key)
         verdict = "no valid value"
         cfgs = []
-        near = [BINDING[key](base_cfg)] if key in BINDING else []
+        near = BINDING[key](base_cfg) if key in BINDING else []
         for cand in near + candidates(key, value, f, tp):
             try:
                 cfgs.append(_load_dropping(with_key(data, key, cand), name, key))
@@ -186,12 +246,15 @@ def probe(name: str, keys: list[str] | None = None, skip: Any = None) -> dict[st
             continue
         for j, cyc in enumerate(cycles):
             for cfg in cfgs:
-                try:
-                    res = run(cfg, cyc)
-                except HevsimError:
-                    continue
                 if j not in bases:
                     bases[j] = fingerprint(run(base_cfg, cyc))
+                try:
+                    res = run(cfg, cyc)
+                except SimulationError:  # the unchanged file runs: the key stops the run
+                    verdict = "changes"
+                    break
+                except HevsimError:
+                    continue
                 verdict = "changes" if differs(bases[j], fingerprint(res)) else "no effect"
                 if verdict == "changes":
                     break

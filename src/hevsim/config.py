@@ -894,6 +894,10 @@ _BATTERY_KEYS: dict[str, tuple[str, ...]] = {
 _BATTERY_MODEL_ONLY = ("ocv_v", "resistance_ohm", "capacity_ah", "data", "pack", "bus_min_v", "bus_max_v")
 
 
+DATA_KEYS = ("motor.rating", "generator.rating", "battery.temperature_c")
+"""Keys whose effect depends on the component data they select (checked when a file sets them)."""
+
+
 def inert_keys(cfg: Any) -> dict[str, str]:
     """Dotted keys of ``cfg``'s sections that do nothing for this vehicle -> why (``"sec.*"``:
     the whole section). A file setting one is refused (:func:`check_inert`)."""
@@ -933,6 +937,8 @@ def inert_keys(cfg: Any) -> dict[str, str]:
             out[f"{sec}.inertia_kgm2"] = _SERIES_ONLY
     if arch != "bev" and hasattr(cfg, "brakes"):
         out.setdefault("brakes.regen_fraction", "only the battery-electric vehicle blends its brakes")
+    if arch not in ("series", "bev") and hasattr(cfg, "brakes"):  # the power split regenerates at any speed
+        out.setdefault("brakes.regen_min_speed_mps", "it regenerates down to standstill")
     for sec in ("motor", "generator"):
         m = getattr(cfg, sec, None)
         if m is not None:
@@ -953,7 +959,42 @@ def inert_keys(cfg: Any) -> dict[str, str]:
         out["fuel.lower_heating_value_j_per_kg"] = "it burns no fuel"
     if arch == "conventional" and cfg.controller.aux_power_w == 0.0:
         out["alternator.efficiency"] = "the alternator carries no load (controller.aux_power_w = 0)"
+    if battery is not None and battery.model in ("ideal", "rint"):
+        out["battery.temperature_c"] = f"the battery model {battery.model!r} does not depend on temperature"
     return out
+
+
+def _data_inert(cfg: Any, key: str) -> str | None:
+    """Why ``key`` does nothing with the component data ``cfg`` names (a map without a peak
+    rating, cell tables equal at every temperature), else None. Read only for keys a file
+    sets."""
+    import numpy as np
+
+    from hevsim.sim.model import resolve_component
+
+    sec, _, name = key.partition(".")
+    part = getattr(cfg, sec, None)
+    base = Path(cfg.base_dir)
+    if name == "rating" and isinstance(part, MachineSection) and part.model == "map":
+        folder = resolve_component(part.data, "motor", base, f"{sec}.data")
+        t = np.genfromtxt(folder / "torque_limits.csv", delimiter=",", names=True)
+        cols = t.dtype.names or ()
+        pairs = [(f"max_{m}_torque_cont_N_m", f"max_{m}_torque_peak_N_m") for m in ("motoring", "generating")]
+        if all(c not in cols or p not in cols or np.array_equal(t[c], t[p]) for c, p in pairs):
+            return f"the map {part.data!r} has the same continuous and peak torque curves"
+    if key == "battery.temperature_c" and isinstance(part, BatterySection) and part.model == "table":
+        folder = resolve_component(part.data, "battery", base, "battery.data")
+        for f in ("ocv.csv", "r_discharge.csv", "r_charge.csv", "capacity.csv"):
+            t = np.genfromtxt(folder / f, delimiter=",", names=True)
+            names = t.dtype.names or ()
+            values = [n for n in names if n not in ("temperature_degC", "soc_fraction")]
+            by_soc = t["soc_fraction"] if "soc_fraction" in names else np.zeros(t.shape)
+            for v in values:
+                for x in np.unique(by_soc):
+                    if np.ptp(t[v][by_soc == x]) > 0.0:
+                        return None
+        return f"the cell tables {part.data!r} are the same at every temperature"
+    return None
 
 
 def check_inert(cfg: Any, keys: list[str], source: str) -> None:
@@ -963,6 +1004,8 @@ def check_inert(cfg: Any, keys: list[str], source: str) -> None:
     label = ARCHITECTURE_LABELS.get(cfg.architecture, f"{cfg.architecture} vehicle")
     for key in keys:
         why = inert.get(key) or inert.get(f"{key.partition('.')[0]}.*")
+        if not why and key in DATA_KEYS:
+            why = _data_inert(cfg, key)
         if why:
             raise ConfigError(
                 f"{source}: key '{key}' does nothing for a {label} ({why}); remove it or change the "
