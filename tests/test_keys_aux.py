@@ -130,3 +130,21 @@ def test_parallel_aux_loads_the_bus(cycle: DriveCycle, example: str) -> None:
     )
     sources = lambda r: r.energy_audit["fuel"] + r.energy_audit["battery_chemical"]  # noqa: E731
     assert sources(aux) - sources(base) > 0.8 * p_w * duration
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "python"])
+def test_parallel_aux_at_the_soc_floor(cycle: DriveCycle, compiled: bool) -> None:
+    """At its SOC floor the battery may not discharge for traction but still feeds the
+    auxiliaries (a P3 parallel HEV cannot charge at a standstill): the run goes on instead of
+    stopping with "no feasible control even when stopping" at the first stop."""
+    p_w = 3000.0
+    cfg = C.load_vehicle_config(ROOT / "examples" / "parallel_hev.toml")
+    cfg = cfg.replace(**{"controller.aux_power_w": p_w, "simulation.soc_initial": cfg.battery.soc_min})
+    res = simulate_architecture("parallel", cfg, cycle, compiled=compiled)
+    duration = float(cycle.time_s[-1] - cycle.time_s[0])
+    assert res.energy_audit["aux"] == pytest.approx(p_w * duration, rel=1e-12)
+    gross = res.energy_audit["fuel"] + abs(res.energy_audit["battery_chemical"])
+    assert abs(res.energy_audit["residual"]) < 1e-8 * gross
+    ts = res.timeseries
+    floor = ts["soc"].to_numpy() < cfg.battery.soc_min
+    assert (ts["battery_power_w"].to_numpy()[floor] <= p_w + 1e-6).all()

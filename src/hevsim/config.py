@@ -970,20 +970,31 @@ def _data_inert(cfg: Any, key: str) -> str | None:
     sets."""
     import numpy as np
 
-    from hevsim.sim.model import resolve_component
+    def folder_of(data: str, kind: str) -> Path | None:  # as hevsim.sim.model.resolve_component
+        for cand in (
+            (base / data).expanduser(),
+            Path(str(resources.files("hevsim") / "data" / "components")) / kind / data,
+        ):
+            if cand.is_dir():
+                return cand
+        return None  # the model's builder names the missing folder
 
     sec, _, name = key.partition(".")
     part = getattr(cfg, sec, None)
     base = Path(cfg.base_dir)
     if name == "rating" and isinstance(part, MachineSection) and part.model == "map":
-        folder = resolve_component(part.data, "motor", base, f"{sec}.data")
+        folder = folder_of(part.data, "motors")
+        if folder is None or not (folder / "torque_limits.csv").is_file():
+            return None
         t = np.genfromtxt(folder / "torque_limits.csv", delimiter=",", names=True)
         cols = t.dtype.names or ()
         pairs = [(f"max_{m}_torque_cont_N_m", f"max_{m}_torque_peak_N_m") for m in ("motoring", "generating")]
         if all(c not in cols or p not in cols or np.array_equal(t[c], t[p]) for c, p in pairs):
             return f"the map {part.data!r} has the same continuous and peak torque curves"
     if key == "battery.temperature_c" and isinstance(part, BatterySection) and part.model == "table":
-        folder = resolve_component(part.data, "battery", base, "battery.data")
+        folder = folder_of(part.data, "batteries")
+        if folder is None:
+            return None
         for f in ("ocv.csv", "r_discharge.csv", "r_charge.csv", "capacity.csv"):
             t = np.genfromtxt(folder / f, delimiter=",", names=True)
             names = t.dtype.names or ()

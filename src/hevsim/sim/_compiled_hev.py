@@ -220,8 +220,8 @@ def _feasible(infeasible, others, cur, t_em, p_bat, p_el, soc, h):
     ok = not infeasible
     if not others and cur >= -h.i_charge_max_a * (1.0 + REGEN_CURRENT_RTOL) and t_em < 0.0:
         ok = True
-    if soc <= h.soc_min:  # empty: no discharge
-        ok = ok and p_bat <= 0.0
+    if soc <= h.soc_min:  # empty: no discharge for traction (the auxiliaries are still supplied)
+        ok = ok and p_bat <= h.aux_power_w
     if soc >= h.soc_max:  # full: no charging, up to the regeneration limiter's round-off
         ok = ok and p_bat >= -REGEN_CURRENT_RTOL * abs(p_el)
     return ok
