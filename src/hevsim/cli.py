@@ -665,6 +665,8 @@ def _cmd_rom_build(args: argparse.Namespace) -> int:
             return False
         return True
 
+    if args.output is None:  # results/<config stem>.rom.npz: never a file inside the checkout's examples
+        args.output = str(Path("results") / f"{Path(args.config).stem}.rom.npz")
     _prepare(args, args.output, args.config, kind="file", option="-o", ours=ours)
     opts = BuildOptions(**({"tol_k": args.tol_k} if args.tol_k is not None else {}))
     rom, _ = build_rom_from_config(args.config, opts)
@@ -1041,7 +1043,10 @@ def build_parser() -> argparse.ArgumentParser:
     rom_sub = p.add_subparsers(dest="rom_command", required=True)
     p = rom_sub.add_parser("build", help="build a module's thermal ROM from its FEM (module_thermal TOML)")
     p.add_argument("config", help="module thermal configuration (TOML), e.g. examples/module_thermal.toml")
-    p.add_argument("-o", "--out", dest="output", required=True, help="ROM file to write (.npz)")
+    p.add_argument(
+        "-o", "--out", dest="output",
+        help="ROM file to write (.npz; default results/<config stem>.rom.npz)",
+    )  # fmt: skip
     p.add_argument("--tol-k", type=float, help="tolerance of the output error estimate [K] (default 0.05)")
     _add_force(p, "file at -o")
     p.set_defaults(func=_cmd_rom_build)

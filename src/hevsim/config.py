@@ -186,6 +186,16 @@ class EngineSection:
 
 
 @dataclass(frozen=True)
+class AlternatorSection:
+    """The conventional vehicle's alternator: it supplies the electrical auxiliary load
+    (``[controller] aux_power_w``) from the crankshaft with this efficiency [-] (electrical
+    out / mechanical in). The default 0.6 is an assumed mid-range value for a claw-pole
+    alternator at part load; set the value of your machine."""
+
+    efficiency: float = param(0.6, 0.01, 1.0, "-")
+
+
+@dataclass(frozen=True)
 class GensetSection:
     """Series genset: kind "none" | "current_source" (ideal constant current) | "engine"."""
 
@@ -384,11 +394,14 @@ class _VehicleConfig:
     def replace(self: T, **changes: Any) -> T:
         """Copy with dotted-key overrides, e.g. ``replace(**{"body.mass_kg": 1500.0})``.
 
-        The copy is validated like a file: an override out of range raises ConfigError.
+        The copy is validated like a file: an override out of range raises ConfigError (a key
+        that does nothing for this vehicle is not refused here, only in files).
         """
         me: Any = self
         data = schema.with_changes(me.to_dict(), changes)
-        out: T = config_from_dict(data, source=f"{me.name} (modified)", base_dir=Path(me.base_dir))
+        out: T = config_from_dict(
+            data, source=f"{me.name} (modified)", base_dir=Path(me.base_dir), inert=False
+        )
         return out
 
 
@@ -460,6 +473,7 @@ class ConventionalConfig(_VehicleConfig):
     gearbox: GearboxSection = field(default_factory=GearboxSection)
     engine: EngineSection = field(default_factory=EngineSection)
     brakes: BrakesSection = field(default_factory=BrakesSection)
+    alternator: AlternatorSection = field(default_factory=AlternatorSection)
     simulation: SimulationSection = field(default_factory=SimulationSection)
     controller: ControllerSection = field(default_factory=lambda: ControllerSection(kind="shift_schedule"))
     metrics: MetricsSection = field(default_factory=MetricsSection)
@@ -799,14 +813,21 @@ def _apply_preset(data: dict[str, Any], source: str) -> dict[str, Any]:
     return _merge(base, data)
 
 
-def config_from_dict(data: dict[str, Any], source: str = "<config>", base_dir: Path | None = None) -> Any:
+def config_from_dict(
+    data: dict[str, Any], source: str = "<config>", base_dir: Path | None = None, *, inert: bool = True
+) -> Any:
     """Validate a parsed vehicle mapping into the configuration of its architecture.
+
+    With ``inert`` (a file, the default), a key of ``data`` that does nothing for this vehicle
+    (:func:`inert_keys`) is refused, and so is a section of another architecture.
 
     Raises:
         ConfigError: old layout (with what to rename), unknown architecture (with the valid
-            names), missing component sections (all listed), or any invalid key.
+            names), missing component sections (all listed), a key that does nothing, or any
+            invalid key.
     """
     _old_layout(data, source)
+    explicit = [f"{sec}.{key}" for sec, keys in data.items() if isinstance(keys, dict) for key in keys]
     data = _apply_preset(data, source)
     pt = data.get("powertrain")
     if pt is None:
@@ -822,6 +843,8 @@ def config_from_dict(data: dict[str, Any], source: str = "<config>", base_dir: P
             f"{source}: key 'powertrain.architecture' = {name!r} is not known; expected one of "
             f"{', '.join(ARCHITECTURES)}."
         )
+    if inert:
+        _foreign_sections(data, spec, source)
     cfg: Any = schema.build_config(spec.config_type, data, source, base_dir, {}, {})
     if not data.get("preset"):
         missing = [s for s in spec.required(data) if s not in data]
@@ -832,7 +855,208 @@ def config_from_dict(data: dict[str, Any], source: str = "<config>", base_dir: P
                 "to take the defaults of every omitted section."
             )
     spec.check(cfg, source)
+    if inert:
+        check_inert(cfg, explicit, source)
     return cfg
+
+
+# ------------------------------------------------------------------------------------------
+# Keys that do nothing for a vehicle (refused in files: issue 26)
+# ------------------------------------------------------------------------------------------
+ARCHITECTURE_LABELS: dict[str, str] = {
+    "series": "series HEV", "parallel": "parallel HEV", "power_split": "power-split HEV",
+    "conventional": "conventional vehicle", "bev": "battery-electric vehicle",
+}  # fmt: skip
+"""How messages name the vehicle of an architecture."""
+
+COMMAND_KEYS: dict[str, str] = {
+    "body.cg_height_m": "hevsim performance (axle loads of the traction limit)",
+    "body.front_axle_to_cg_m": "hevsim performance (axle loads of the traction limit)",
+    "body.rear_axle_to_cg_m": "hevsim performance (axle loads of the traction limit)",
+    "body.wheels_per_axle": "hevsim performance (axle loads of the traction limit)",
+    "tire.friction_coefficient": "hevsim performance (tire adhesion limit)",
+    "tire.driven_axle": "hevsim performance (tire adhesion limit)",
+    "optimization.*": "hevsim optimize (the DP problem)",
+}
+"""Keys that act only in another command than ``simulate``, and where (kept, not refused)."""
+
+SERIES_CONTROLLER_KEYS: dict[str, tuple[str, ...]] = {
+    "thermostat": ("soc_low", "soc_high", "soc_boost", "engine_speed_rpm", "start_speed_rpm", "throttle",
+                   "throttle_boost", "speed_gain_per_rpm", "pure_ice_band_w"),
+    "schedule": ("schedule", "soc_low", "soc_high", "soc_boost", "engine_speed_rpm", "start_speed_rpm",
+                 "throttle", "throttle_boost", "speed_gain_per_rpm", "pure_ice_band_w"),
+}  # fmt: skip
+"""``[controller]`` keys the series HEV's compiled controllers read, by kind."""
+ARCHITECTURE_CONTROLLER_KEYS: dict[str, tuple[str, ...]] = {
+    "conventional": ("stop_start", "fuel_cut_speed_rpm"),
+    "power_split": ("engine_speed_points",),
+}
+"""``[controller]`` keys an architecture reads whatever its controller kind."""
+_SERIES_ONLY = "only the series HEV's driver limits the braking force and models shaft inertia"
+_MACHINE_KEYS: dict[str, tuple[str, ...]] = {
+    "ideal": ("max_torque_nm", "torque_scale", "inertia_kgm2"),
+    "constant_efficiency": ("max_torque_nm", "efficiency", "torque_scale", "inertia_kgm2"),
+    "map": ("data", "rating", "torque_scale", "inertia_kgm2"),
+}
+_BATTERY_KEYS: dict[str, tuple[str, ...]] = {
+    "ideal": ("ocv_v", "capacity_ah"),
+    "rint": ("ocv_v", "resistance_ohm", "capacity_ah"),
+    "table": ("data",),
+    "cell": ("data",),
+}
+"""Battery keys of one model (the shared ones, limits, arrangement, SOC window, apply to all)."""
+_BATTERY_MODEL_ONLY = ("ocv_v", "resistance_ohm", "capacity_ah", "data", "pack", "bus_min_v", "bus_max_v")
+
+
+DATA_KEYS = ("motor.rating", "generator.rating", "battery.temperature_c")
+"""Keys whose effect depends on the component data they select (checked when a file sets them)."""
+
+
+def inert_keys(cfg: Any) -> dict[str, str]:
+    """Dotted keys of ``cfg``'s sections that do nothing for this vehicle -> why (``"sec.*"``:
+    the whole section). A file setting one is refused (:func:`check_inert`)."""
+    from hevsim.architectures import ARCHITECTURES as ARCHS
+    from hevsim.control import CONTROLLERS
+
+    arch = cfg.architecture
+    out: dict[str, str] = {}
+    # --controller chooses any kind the architecture admits (the series HEV: the file's kind only)
+    kinds = ARCHS[arch].controllers if arch in ARCHS and arch != "series" else (cfg.controller.kind,)
+    reads: list[str] = ["kind", "aux_power_w", *ARCHITECTURE_CONTROLLER_KEYS.get(arch, ())]
+    for kind in kinds:
+        entry = CONTROLLERS.get(kind)
+        reads += SERIES_CONTROLLER_KEYS.get(kind, ()) if entry is None else entry.parameters
+    for f in dataclasses.fields(ControllerSection):
+        if f.name not in reads:
+            out[f"controller.{f.name}"] = f"none of its controllers ({', '.join(kinds)}) reads it"
+    battery = getattr(cfg, "battery", None)
+    if battery is None:
+        out["simulation.soc_initial"] = "it has no traction battery"
+        out["metrics.conversion_efficiency"] = "it has no traction battery (no SOC correction)"
+        out["brakes.regen_min_speed_mps"] = out["brakes.regen_fraction"] = "it has no machine to regenerate"
+    else:
+        keep = ("pack", "bus_min_v", "bus_max_v") if battery.model == "pack" else _BATTERY_KEYS[battery.model]
+        for name in _BATTERY_MODEL_ONLY:
+            if name not in keep:
+                out[f"battery.{name}"] = f"the battery model {battery.model!r} does not read it"
+        if battery.model == "pack":
+            for f in dataclasses.fields(BatterySection):
+                if f.name not in (*keep, "model", "soc_min", "soc_max"):
+                    out[f"battery.{f.name}"] = (
+                        "the pack file's arrangement, limits and temperatures replace it"
+                    )
+    if arch != "series":
+        out["brakes.max_decel_mps2"] = _SERIES_ONLY
+        for sec in ("engine", "motor", "generator"):
+            out[f"{sec}.inertia_kgm2"] = _SERIES_ONLY
+    if arch != "bev" and hasattr(cfg, "brakes"):
+        out.setdefault("brakes.regen_fraction", "only the battery-electric vehicle blends its brakes")
+    if arch not in ("series", "bev") and hasattr(cfg, "brakes"):  # the power split regenerates at any speed
+        out.setdefault("brakes.regen_min_speed_mps", "it regenerates down to standstill")
+    for sec in ("motor", "generator"):
+        m = getattr(cfg, sec, None)
+        if m is not None:
+            for f in dataclasses.fields(MachineSection):
+                if f.name not in (*_MACHINE_KEYS[m.model], "model"):
+                    out.setdefault(f"{sec}.{f.name}", f"the machine model {m.model!r} does not read it")
+    e = getattr(cfg, "engine", None)
+    if e is not None:
+        out["engine.max_torque_nm" if e.model == "map" else "engine.data"] = (
+            f"the engine model {e.model!r} does not read it"
+        )
+    if arch == "series":
+        if cfg.genset.kind != "current_source":
+            out["genset.current_a"] = f"the genset kind {cfg.genset.kind!r} does not read it"
+        if cfg.genset.kind != "engine":
+            out["engine.*"] = out["generator.*"] = f"the genset kind {cfg.genset.kind!r} has no engine"
+    if arch == "bev":
+        out["fuel.lower_heating_value_j_per_kg"] = "it burns no fuel"
+    if arch == "conventional" and cfg.controller.aux_power_w == 0.0:
+        out["alternator.efficiency"] = "the alternator carries no load (controller.aux_power_w = 0)"
+    if battery is not None and battery.model in ("ideal", "rint"):
+        out["battery.temperature_c"] = f"the battery model {battery.model!r} does not depend on temperature"
+    return out
+
+
+def _data_inert(cfg: Any, key: str) -> str | None:
+    """Why ``key`` does nothing with the component data ``cfg`` names (a map without a peak
+    rating, cell tables equal at every temperature), else None. Read only for keys a file
+    sets."""
+    import numpy as np
+
+    def folder_of(data: str, kind: str) -> Path | None:  # as hevsim.sim.model.resolve_component
+        for cand in (
+            (base / data).expanduser(),
+            Path(str(resources.files("hevsim") / "data" / "components")) / kind / data,
+        ):
+            if cand.is_dir():
+                return cand
+        return None  # the model's builder names the missing folder
+
+    sec, _, name = key.partition(".")
+    part = getattr(cfg, sec, None)
+    base = Path(cfg.base_dir)
+    if name == "rating" and isinstance(part, MachineSection) and part.model == "map":
+        folder = folder_of(part.data, "motors")
+        if folder is None or not (folder / "torque_limits.csv").is_file():
+            return None
+        t = np.genfromtxt(folder / "torque_limits.csv", delimiter=",", names=True)
+        cols = t.dtype.names or ()
+        pairs = [(f"max_{m}_torque_cont_N_m", f"max_{m}_torque_peak_N_m") for m in ("motoring", "generating")]
+        if all(c not in cols or p not in cols or np.array_equal(t[c], t[p]) for c, p in pairs):
+            return f"the map {part.data!r} has the same continuous and peak torque curves"
+    if key == "battery.temperature_c" and isinstance(part, BatterySection) and part.model == "table":
+        folder = folder_of(part.data, "batteries")
+        if folder is None:
+            return None
+        for f in ("ocv.csv", "r_discharge.csv", "r_charge.csv", "capacity.csv"):
+            t = np.genfromtxt(folder / f, delimiter=",", names=True)
+            names = t.dtype.names or ()
+            values = [n for n in names if n not in ("temperature_degC", "soc_fraction")]
+            by_soc = t["soc_fraction"] if "soc_fraction" in names else np.zeros(t.shape)
+            for v in values:
+                for x in np.unique(by_soc):
+                    if np.ptp(t[v][by_soc == x]) > 0.0:
+                        return None
+        return f"the cell tables {part.data!r} are the same at every temperature"
+    return None
+
+
+def check_inert(cfg: Any, keys: list[str], source: str) -> None:
+    """ConfigError naming the first of the dotted ``keys`` (those a file sets) that does
+    nothing for ``cfg``'s vehicle (:func:`inert_keys`)."""
+    inert = inert_keys(cfg)
+    label = ARCHITECTURE_LABELS.get(cfg.architecture, f"{cfg.architecture} vehicle")
+    for key in keys:
+        why = inert.get(key) or inert.get(f"{key.partition('.')[0]}.*")
+        if not why and key in DATA_KEYS:
+            why = _data_inert(cfg, key)
+        if why:
+            raise ConfigError(
+                f"{source}: key '{key}' does nothing for a {label} ({why}); remove it or change the "
+                "key it depends on."
+            )
+
+
+def _foreign_sections(data: dict[str, Any], spec: ArchitectureSpec, source: str) -> None:
+    """ConfigError for a section of another architecture in a file of ``spec``'s."""
+    own = {f.name for f in dataclasses.fields(spec.config_type)}
+    label = ARCHITECTURE_LABELS.get(spec.name, f"{spec.name} vehicle")
+    for sec, value in data.items():
+        if sec in own or not isinstance(value, dict):
+            continue
+        users = [
+            s.name
+            for s in ARCHITECTURES.values()
+            if sec in {f.name for f in dataclasses.fields(s.config_type)}
+        ]
+        if users:
+            first = next(iter(value), "")
+            key = f"{sec}.{first}" if first else sec
+            raise ConfigError(
+                f"{source}: key '{key}' does nothing for a {label}: section [{sec}] belongs to the "
+                f"{', '.join(users)} architecture(s); remove it."
+            )
 
 
 def _needs() -> str:
@@ -864,11 +1088,12 @@ def from_dict(
     return cfg
 
 
-def load_config(path: str | Path) -> SeriesHEVConfig:
-    """Read and validate a series-HEV TOML file."""
-    p = Path(path)
-    cfg: SeriesHEVConfig = _of_architecture(load_vehicle_config(p), "series", str(p))
-    return cfg
+def load_config(path: str | Path) -> Any:
+    """Read and validate a vehicle TOML file of any registered architecture: the configuration
+    type its ``[powertrain] architecture`` names (:class:`SeriesHEVConfig`,
+    :class:`ParallelHEVConfig`, :class:`PowerSplitConfig`, :class:`ConventionalConfig`,
+    :class:`BEVConfig`); the same as :func:`load_vehicle_config`."""
+    return load_vehicle_config(path)
 
 
 def fields_with_bounds(cls: type) -> list[tuple[str, dataclasses.Field[Any]]]:

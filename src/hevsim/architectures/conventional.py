@@ -26,6 +26,12 @@ forward run (:mod:`hevsim.sim._compiled_conventional`) calls them once per step.
   the drag, standstill): the clutch opens, the engine idles at idle speed with zero torque
   burning the map's idle fuel, or stops with ``[controller] stop_start = "on"``; the friction
   brakes take the braking torque.
+* **Auxiliaries** (``[controller] aux_power_w``, electrical [W]): while the engine turns, an
+  alternator of efficiency ``[alternator] efficiency`` on the crankshaft supplies them, so
+  the engine gives ``P_aux / (eta_alt w_e)`` more torque (and burns the fuel for it; in a
+  fuel cut the drag carries it). With the engine stopped (stop-start) the starter battery
+  supplies them: the audit counts that energy as ``battery_chemical`` (its recharge is not
+  modelled).
 """
 
 from __future__ import annotations
@@ -60,13 +66,14 @@ closed, engine dragging unfired)."""
 
 MECH: tuple[str, ...] = (
     "gi", "w_fd", "t_fd", "w_in", "t_in", "w_e", "t_e", "on", "slipping", "traction", "cut",
-    "fuel", "t_fd_eng", "over_speed", "over_torque", "bad", "t_max",
+    "fuel", "t_fd_eng", "over_speed", "over_torque", "bad", "t_max", "t_alt",
 )  # fmt: skip
 """Fields of :func:`operating_point`, in its order: gear index (0-based), final-drive input
 speed [rad/s] and torque [N·m], gearbox input speed [rad/s] and torque [N·m], engine speed
 [rad/s] and torque [N·m], engine turning, launch clutch slipping, traction, fuel cut, fuel
 rate [kg/s], torque the engine side gives the final-drive input [N·m], over the redline,
-over the max torque, infeasible, max engine torque at its speed [N·m]."""
+over the max torque, infeasible, max engine torque at its speed [N·m], the alternator's
+torque on the crankshaft [N·m] (included in the engine torque)."""
 DETAILS: tuple[str, ...] = (
     "gear", "engine_on", "clutch_closed", "clutch_slipping", "fuel_cut", "engine_speed_radps",
     "engine_torque_nm", "engine_throttle", "engine_power_w", "fuel_rate_gps",
@@ -74,9 +81,11 @@ DETAILS: tuple[str, ...] = (
 )  # fmt: skip
 """Time-series channels of :func:`point_details`, in its order."""
 LOSSES: tuple[str, ...] = (
-    "fuel", "engine_loss", "clutch_loss", "gearbox_loss", "friction_brakes", "final_drive_loss", "wheel",
+    "fuel", "engine_loss", "clutch_loss", "gearbox_loss", "friction_brakes", "final_drive_loss",
+    "alternator_loss", "aux", "battery_chemical", "wheel",
 )  # fmt: skip
-"""Energy-audit terms of :func:`point_losses`, in its order [W]."""
+"""Energy-audit terms of :func:`point_losses`, in its order [W] (sources: ``fuel`` and
+``battery_chemical``, the starter battery supplying the auxiliaries with the engine stopped)."""
 
 
 class DrivelineData(NamedTuple):
@@ -84,7 +93,8 @@ class DrivelineData(NamedTuple):
 
     ``fd_ratio`` [-], ``fd_efficiency`` [-]; ``idle_radps`` idle (= stall) speed,
     ``fuel_cut_radps``, ``redline_radps`` [rad/s]; ``stop_start`` (bool); ``use_fuel_map``
-    (bool), ``lhv_jpkg`` [J/kg], ``torque_scale`` [-] of the engine. The gear ratios and
+    (bool), ``lhv_jpkg`` [J/kg], ``torque_scale`` [-] of the engine; ``aux_power_w`` [W]
+    electrical auxiliary load, ``alternator_efficiency`` [-]. The gear ratios and
     efficiencies and the engine's :class:`~hevsim.components.engine.EngineTables` travel
     beside it as arrays.
     """
@@ -98,13 +108,17 @@ class DrivelineData(NamedTuple):
     use_fuel_map: bool
     lhv_jpkg: float
     torque_scale: float
+    aux_power_w: float
+    alternator_efficiency: float
 
 
 @dataclass(frozen=True, eq=False)
 class ConventionalVehicle(GearboxModel):
     """A conventional vehicle: configuration and component objects.
 
-    ``fuel_cut_radps`` [rad/s]: the deceleration fuel cut's lowest gearbox input speed.
+    ``fuel_cut_radps`` [rad/s]: the deceleration fuel cut's lowest gearbox input speed;
+    ``aux_power_w`` [W]: electrical auxiliary load, supplied by an alternator of efficiency
+    ``alternator_efficiency`` [-] while the engine turns.
     """
 
     config: ConventionalConfig
@@ -115,6 +129,8 @@ class ConventionalVehicle(GearboxModel):
     engine: Engine
     stop_start: bool
     fuel_cut_radps: float = float("inf")
+    aux_power_w: float = 0.0
+    alternator_efficiency: float = 1.0
 
     @property
     def idle_speed_radps(self) -> float:
@@ -134,7 +150,8 @@ class ConventionalVehicle(GearboxModel):
             idle_radps=self.idle_speed_radps, fuel_cut_radps=float(self.fuel_cut_radps),
             redline_radps=float(eng.redline_radps), stop_start=bool(self.stop_start),
             use_fuel_map=eng.fuel_map is not None, lhv_jpkg=float(eng.fuel_lhv_jpkg),
-            torque_scale=float(eng.torque_scale),
+            torque_scale=float(eng.torque_scale), aux_power_w=float(self.aux_power_w),
+            alternator_efficiency=float(self.alternator_efficiency),
         )  # fmt: skip
 
 
@@ -148,22 +165,24 @@ def build_conventional(cfg: ConventionalConfig) -> ConventionalVehicle:
         engine=with_config_fuel(engine, cfg),
         stop_start=cfg.controller.stop_start == "on",
         fuel_cut_radps=rpm_to_radps(cfg.controller.fuel_cut_speed_rpm),
+        aux_power_w=cfg.controller.aux_power_w,
+        alternator_efficiency=cfg.alternator.efficiency,
     )
 
 
 @njit(cache=True, inline="always")
 def operating_point(
     w_wheel, t_wheel, gear, ratios, effs, fd_ratio, fd_eff, idle, w_cut, redline, stop_start,
-    use_fuel_map, lhv, scale, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y,
-    fuel_z,
+    use_fuel_map, lhv, scale, p_aux, alt_eff, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z,
+    fuel_x, fuel_y, fuel_z,
 ):  # fmt: skip
     """The power flow at one point (scalar kernel): fields of :data:`MECH`, in that order.
 
     Wheel speed [rad/s] and torque [N·m], gear (1..G, a float rounded to the nearest);
     gearbox ``ratios`` and ``effs`` [-]; the scalars of :class:`DrivelineData` (final drive
     ratio and efficiency, idle, fuel-cut and redline speeds [rad/s], stop-start, fuel map,
-    LHV [J/kg], torque scale) and the engine's tables as in
-    :class:`~hevsim.components.engine.EngineTables`.
+    LHV [J/kg], torque scale, auxiliary load [W], alternator efficiency) and the engine's
+    tables as in :class:`~hevsim.components.engine.EngineTables`.
     """
     n_gears = ratios.shape[0]
     gi = int(np.rint(gear)) - 1
@@ -182,14 +201,16 @@ def operating_point(
         drag = torque_from_maps(
             0.0, w_in, False, idle, redline, scale, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z
         )
-        drag_fd = gear_output_torque(drag, ratios[gi], effs[gi])
+        drag_in = drag - p_aux / (alt_eff * w_in)  # the alternator brakes too
+        drag_fd = gear_output_torque(drag_in, ratios[gi], effs[gi])
         if drag < 0.0 and t_fd <= drag_fd:  # the demand brakes at least as hard as the engine
-            cut, w_e, t_in, t_fd_eng = True, w_in, drag, drag_fd
-    t_e = t_in
+            cut, w_e, t_in, t_fd_eng = True, w_in, drag_in, drag_fd
     on = traction or cut or not stop_start
+    t_alt = p_aux / (alt_eff * w_e) if on and w_e > 0.0 else 0.0
+    t_e = t_in + t_alt
     over_speed = traction and w_e > redline
     t_max = max_torque_from_curve(w_e, scale, tmax_x, tmax_y)
-    over_torque = traction and t_e > t_max * (1.0 + 1e-12)
+    over_torque = on and not cut and t_e > t_max * (1.0 + 1e-12)
     fuel = 0.0
     if on and not cut:
         fuel = fired_fuel_from_maps(
@@ -200,7 +221,7 @@ def operating_point(
     bad = bad or over_speed or over_torque
     return (
         gi, w_fd, t_fd, w_in, t_in, w_e, t_e, on, slipping, traction, cut, fuel, t_fd_eng, over_speed,
-        over_torque, bad, t_max,
+        over_torque, bad, t_max, t_alt,
     )  # fmt: skip
 
 
@@ -218,20 +239,27 @@ def point_details(gi, w_fd, t_fd, w_in, t_e, w_e, on, slipping, traction, cut, f
 
 
 @njit(cache=True, inline="always")
-def point_losses(w_wheel, w_fd, t_fd, w_in, t_in, w_e, t_e, on, fuel, t_fd_eng, fd_ratio, fd_eff, lhv):
+def point_losses(
+    w_wheel, w_fd, t_fd, w_in, t_in, w_e, t_e, on, fuel, t_fd_eng, t_alt, fd_ratio, fd_eff, lhv, p_aux
+):  # fmt: skip
     """Power [W] of every energy-audit term (:data:`LOSSES`, in that order) of an operating
-    point (fields of :data:`MECH`), at wheel speed [rad/s]: ``fuel`` (source),
-    ``engine_loss``, ``clutch_loss`` (launch slip), ``gearbox_loss``, ``friction_brakes``,
-    ``final_drive_loss`` and ``wheel`` (delivered to the wheels)."""
+    point (fields of :data:`MECH`), at wheel speed [rad/s] with the auxiliary load ``p_aux``
+    [W]: ``fuel`` (source), ``engine_loss``, ``clutch_loss`` (launch slip),
+    ``gearbox_loss``, ``friction_brakes``, ``final_drive_loss``, ``alternator_loss``,
+    ``aux`` (the auxiliaries), ``battery_chemical`` (source: the starter battery with the
+    engine stopped) and ``wheel`` (delivered to the wheels)."""
     p_fuel = fuel * lhv
-    p_eng = t_e * (w_e if on else 0.0)
+    w_on = w_e if on else 0.0
+    p_eng = t_e * w_on
+    p_alt = t_alt * w_on
     p_in = t_in * w_in
     fric = min(t_fd - t_fd_eng, 0.0)
     t_total = t_fd_eng + fric
     p_wheel = gear_output_torque(t_total, fd_ratio, fd_eff) * w_wheel
+    p_alt_out = p_aux if on else 0.0
     return (
-        p_fuel, p_fuel - p_eng, p_eng - p_in, p_in - t_fd_eng * w_fd, -fric * w_fd, t_total * w_fd - p_wheel,
-        p_wheel,
+        p_fuel, p_fuel - p_eng, p_eng - p_alt - p_in, p_in - t_fd_eng * w_fd, -fric * w_fd,
+        t_total * w_fd - p_wheel, p_alt - p_alt_out, p_aux, p_aux - p_alt_out, p_wheel,
     )  # fmt: skip
 
 
@@ -262,11 +290,12 @@ def _points_many(w_wheel, t_wheel, gear, ratios, effs, d, tab, mech, details, wa
         p = operating_point(
             w_wheel[i], t_wheel[i], gear[i], ratios, effs, d.fd_ratio, d.fd_efficiency, d.idle_radps,
             d.fuel_cut_radps, d.redline_radps, d.stop_start, d.use_fuel_map, d.lhv_jpkg, d.torque_scale,
-            tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
+            d.aux_power_w, d.alternator_efficiency, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z,
+            fuel_x, fuel_y, fuel_z,
         )  # fmt: skip
         (mech[0, i], mech[1, i], mech[2, i], mech[3, i], mech[4, i], mech[5, i], mech[6, i], mech[7, i],
          mech[8, i], mech[9, i], mech[10, i], mech[11, i], mech[12, i], mech[13, i], mech[14, i],
-         mech[15, i], mech[16, i]) = p  # fmt: skip
+         mech[15, i], mech[16, i], mech[17, i]) = p  # fmt: skip
         if want_details:
             (details[0, i], details[1, i], details[2, i], details[3, i], details[4, i], details[5, i],
              details[6, i], details[7, i], details[8, i], details[9, i], details[10, i],
@@ -276,14 +305,15 @@ def _points_many(w_wheel, t_wheel, gear, ratios, effs, d, tab, mech, details, wa
 
 
 @njit(cache=True)
-def _losses_many(w_wheel, mech, fd_ratio, fd_eff, lhv, out):
+def _losses_many(w_wheel, mech, fd_ratio, fd_eff, lhv, p_aux, out):
     """:func:`point_losses` over the columns of ``mech`` (:data:`MECH` rows) -> ``out`` rows."""
     for i in range(w_wheel.shape[0]):
         q = point_losses(
             w_wheel[i], mech[1, i], mech[2, i], mech[3, i], mech[4, i], mech[5, i], mech[6, i],
-            mech[7, i] > 0.0, mech[11, i], mech[12, i], fd_ratio, fd_eff, lhv,
+            mech[7, i] > 0.0, mech[11, i], mech[12, i], mech[17, i], fd_ratio, fd_eff, lhv, p_aux,
         )  # fmt: skip
-        out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i], out[6, i] = q
+        for j in range(len(q)):
+            out[j, i] = q[j]
 
 
 _INT_MECH = ("gi",)
@@ -349,7 +379,7 @@ def loss_powers(
     w = np.ascontiguousarray(np.broadcast_to(np.asarray(wheel_speed_radps, np.float64), shape).ravel())
     out = np.empty((len(LOSSES), w.size))
     d = veh.driveline_data()
-    _losses_many(w, rows, d.fd_ratio, d.fd_efficiency, d.lhv_jpkg, out)
+    _losses_many(w, rows, d.fd_ratio, d.fd_efficiency, d.lhv_jpkg, d.aux_power_w, out)
     return {name: row.reshape(shape) for name, row in zip(LOSSES, out, strict=True)}
 
 

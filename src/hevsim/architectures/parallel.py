@@ -110,7 +110,8 @@ class ParallelHEV(GearboxModel):
     machine_position: str = "p3"
     """``"p3"``: machine on the final-drive input; ``"p2"``: on the gearbox input."""
     aux_power_w: float = 0.0
-    """Electrical auxiliary load on the bus [W] (a pack's cooling, :mod:`hevsim.sim.pack_vehicle`)."""
+    """Electrical auxiliary load on the bus [W]: ``[controller] aux_power_w`` (plus a pack's
+    cooling, :mod:`hevsim.sim.pack_vehicle`)."""
 
     architecture: typing.ClassVar[str] = ARCHITECTURE
 
@@ -128,6 +129,7 @@ def build_parallel_hev(cfg: ParallelHEVConfig) -> ParallelHEV:
         motor_coupling=fixed_gear(cfg.motor_coupling),
         battery=build_battery(cfg.battery, base)[0],
         machine_position=cfg.motor_coupling.position,
+        aux_power_w=cfg.controller.aux_power_w,
     )
 
 
@@ -145,7 +147,8 @@ class ParallelTables(NamedTuple):
     name error): gearbox ratios and efficiencies per gear [-], final drive and machine
     coupling ratio and efficiency [-], ``p2`` (machine on the gearbox input), the engine's
     running window [rad/s], ``torque_scale`` [-], torque-map / fuel-map switches, fuel LHV
-    [J/kg], and the machine's highest speed [rad/s] (inf without a map)."""
+    [J/kg], the machine's highest speed [rad/s] (inf without a map) and the auxiliary load on
+    the bus [W]."""
 
     gear_ratio: np.ndarray
     gear_efficiency: np.ndarray
@@ -161,6 +164,7 @@ class ParallelTables(NamedTuple):
     use_fuel_map: bool
     lhv_jpkg: float
     motor_max_speed_radps: float
+    aux_power_w: float
 
 
 def kernel_tables(hev: ParallelHEV) -> ParallelTables:
@@ -175,6 +179,7 @@ def kernel_tables(hev: ParallelHEV) -> ParallelTables:
         redline_radps=float(eng.redline_radps), engine_torque_scale=float(eng.torque_scale),
         use_torque_map=eng.torque_map is not None, use_fuel_map=eng.fuel_map is not None,
         lhv_jpkg=float(eng.fuel_lhv_jpkg), motor_max_speed_radps=max_machine_speed_radps(hev.motor),
+        aux_power_w=float(hev.aux_power_w),
     )  # fmt: skip
 
 
@@ -327,7 +332,7 @@ def mechanical(
 
 
 LOSS_TERMS: tuple[str, ...] = ("fuel", "engine_loss", "gearbox_loss", "motor_loss", "coupling_loss",
-                                "friction_brakes", "final_drive_loss", "wheel")  # fmt: skip
+                                "friction_brakes", "final_drive_loss", "aux", "wheel")  # fmt: skip
 """Energy-audit terms of :func:`loss_powers` / :func:`losses_point`, in order."""
 
 
@@ -360,12 +365,13 @@ def losses_point(wheel_speed_radps, gi, on, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, 
     p_eng = t_e * (w_e if on else 0.0)
     p_motor = t_em * w_em
     return (p_fuel, p_fuel - p_eng, t_in * w_e - t_gearbox_out * w_fd, p_el - p_motor,
-            p_motor - t_em_shaft * w_shaft, -fric * w_fd, t_fd_total * w_fd - p_wheel, p_wheel)  # fmt: skip
+            p_motor - t_em_shaft * w_shaft, -fric * w_fd, t_fd_total * w_fd - p_wheel, d.aux_power_w,
+            p_wheel)  # fmt: skip
 
 
 @njit(cache=True, **NO_REFCOUNT)
 def _losses_many(w_wheel, gi, on, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, w_em, t_em, p_el, d, out):
-    """:func:`losses_point` over flat arrays; fills ``out`` (8, n)."""
+    """:func:`losses_point` over flat arrays; fills ``out`` (9, n)."""
     for i in range(w_wheel.shape[0]):
         r = losses_point(w_wheel[i], gi[i], on[i], w_fd[i], w_e[i], t_e[i], t_e_fd[i], t_fd[i],
                          fuel[i], w_em[i], t_em[i], p_el[i], d)  # fmt: skip

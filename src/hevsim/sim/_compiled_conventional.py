@@ -43,7 +43,7 @@ COLUMNS: tuple[str, ...] = (
 """Time-series channels of a run, in the Python loop's order (:class:`ForwardRecord`)."""
 AUDIT: tuple[str, ...] = (
     "fuel", "genset_source", "battery_chemical", "aero", "rolling", "grade", "kinetic_vehicle",
-    *(term for term in LOSSES if term not in ("fuel", "wheel")),
+    *(term for term in LOSSES if term not in ("fuel", "wheel", "battery_chemical")),
 )  # fmt: skip
 """Energy-audit terms of a run [J], in the Python loop's order."""
 _LOSS_SLOT = tuple(AUDIT.index(term) if term != "wheel" else -1 for term in LOSSES)
@@ -60,7 +60,7 @@ class RunScalars(NamedTuple):
     ``headwind_mps`` [m/s], ``rolling_resistance`` [-]; ``radius_m`` tire [m]; ``fd_ratio``,
     ``fd_efficiency`` final drive [-]; engine ``torque_scale`` [-], ``idle_radps``,
     ``redline_radps`` [rad/s]; ``fuel_cut_radps``, ``upshift_radps``, ``downshift_radps``
-    [rad/s] of the controller.
+    [rad/s] of the controller; ``aux_power_w`` [W] auxiliary load, ``alternator_efficiency`` [-].
     """
 
     mass_kg: np.ndarray
@@ -79,6 +79,8 @@ class RunScalars(NamedTuple):
     fuel_cut_radps: np.ndarray
     upshift_radps: np.ndarray
     downshift_radps: np.ndarray
+    aux_power_w: np.ndarray
+    alternator_efficiency: np.ndarray
 
 
 VARIANT_KEYS: dict[str, tuple[str, float]] = {
@@ -98,6 +100,8 @@ VARIANT_KEYS: dict[str, tuple[str, float]] = {
     "controller.fuel_cut_speed_rpm": ("fuel_cut_radps", RADPS_PER_RPM),
     "controller.upshift_rpm": ("upshift_radps", RADPS_PER_RPM),
     "controller.downshift_rpm": ("downshift_radps", RADPS_PER_RPM),
+    "controller.aux_power_w": ("aux_power_w", 1.0),
+    "alternator.efficiency": ("alternator_efficiency", 1.0),
     "simulation.soc_initial": ("", 1.0),  # no battery: no effect on the run
 }
 """Dotted configuration keys a compiled batch varies -> (:class:`RunScalars` field, factor
@@ -114,6 +118,7 @@ def run_scalars(veh: ConventionalVehicle, ctl: ShiftSchedule, n: int = 1) -> Run
         "radius_m": veh.tire.radius_m, "fd_ratio": d.fd_ratio, "fd_efficiency": d.fd_efficiency,
         "torque_scale": d.torque_scale, "idle_radps": d.idle_radps, "redline_radps": d.redline_radps,
         "fuel_cut_radps": d.fuel_cut_radps, "upshift_radps": ctl.w_up, "downshift_radps": ctl.w_down,
+        "aux_power_w": d.aux_power_w, "alternator_efficiency": d.alternator_efficiency,
     }  # fmt: skip
     return RunScalars(**{k: np.full(n, float(v)) for k, v in values.items()})
 
@@ -121,8 +126,8 @@ def run_scalars(veh: ConventionalVehicle, ctl: ShiftSchedule, n: int = 1) -> Run
 @njit(cache=True)
 def _try_speed(
     v0, v1, k, dt, grade, gear_prev, m, mf, cd, area, rho, wind, crr, r, ratios, effs, fd, fd_eff, idle,
-    w_cut, redline, stop_start, use_map, lhv, scale, w_up, w_down, tmax_x, tmax_y, tct_x, tct_y, tmap_x,
-    tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
+    w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down, tmax_x, tmax_y, tct_x,
+    tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
 ):  # fmt: skip
     """The driver's demand for end speed ``v1`` and the shift schedule's choice (0: none):
     (gear, mid-step speed, acceleration, grade, wheel force, :func:`operating_point` of the
@@ -137,7 +142,8 @@ def _try_speed(
         gear = kickdown_gear(j, sched)
         p = operating_point(
             w_wheel, t_wheel, float(gear), ratios, effs, fd, fd_eff, idle, w_cut, redline, stop_start,
-            use_map, lhv, scale, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
+            use_map, lhv, scale, p_aux, alt_eff, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x,
+            fuel_y, fuel_z,
         )  # fmt: skip
         if not p[15]:
             return gear, v_mid, a, g, f, p
@@ -161,6 +167,7 @@ def _run_variant(
         s.upshift_radps[i],
         s.downshift_radps[i],
     )
+    p_aux, alt_eff = s.aux_power_w[i], s.alternator_efficiency[i]
     tmax_x, tmax_y, tct_x, tct_y = tab.tmax_x, tab.tmax_y, tab.tct_x, tab.tct_y
     tmap_x, tmap_y, tmap_z = tab.tmap_x, tab.tmap_y, tab.tmap_z
     fuel_x, fuel_y, fuel_z = tab.fuel_x, tab.fuel_y, tab.fuel_z
@@ -178,8 +185,8 @@ def _run_variant(
         v1 = v_des[k + 1]
         c, v_mid, a, g, f, p = _try_speed(
             v, v1, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, r, ratios, effs, fd, fd_eff, idle,
-            w_cut, redline, stop_start, use_map, lhv, scale, w_up, w_down, tmax_x, tmax_y, tct_x, tct_y,
-            tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
+            w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down, tmax_x, tmax_y,
+            tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
         )  # fmt: skip
         limited = 0.0
         if c == 0:  # beyond the powertrain: lower the end speed until a gear can (forward._run)
@@ -189,8 +196,8 @@ def _run_variant(
                 mid = 0.5 * (lo + hi)
                 cm = _try_speed(
                     v, mid, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, r, ratios, effs, fd,
-                    fd_eff, idle, w_cut, redline, stop_start, use_map, lhv, scale, w_up, w_down, tmax_x,
-                    tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
+                    fd_eff, idle, w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up,
+                    w_down, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
                 )[0]  # fmt: skip
                 if cm == 0:
                     hi = mid
@@ -200,17 +207,19 @@ def _run_variant(
                 best_v = 0.0
             c, v_mid, a, g, f, p = _try_speed(
                 v, best_v, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, r, ratios, effs, fd, fd_eff,
-                idle, w_cut, redline, stop_start, use_map, lhv, scale, w_up, w_down, tmax_x, tmax_y, tct_x,
-                tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
+                idle, w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down, tmax_x,
+                tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
             )  # fmt: skip
             v1 = v_mid * 2.0 - v  # (at best_v the schedule chooses best_c again: same inputs)
             if c == 0:
                 return v, traction * dt, gear, k
         w_wheel = v_mid / r
-        gi, w_fd, t_fd, w_in, t_in, w_e, t_e, on, slip, trac, cut, rate, t_fd_eng, _, _, _, t_max = p
+        gi, w_fd, t_fd, w_in, t_in, w_e, t_e, on, slip, trac, cut, rate, t_fd_eng, _, _, _, t_max, t_alt = p
         gear = gi + 1
         det = point_details(gi, w_fd, t_fd, w_in, t_e, w_e, on, slip, trac, cut, rate, t_fd_eng, t_max)
-        q = point_losses(w_wheel, w_fd, t_fd, w_in, t_in, w_e, t_e, on, rate, t_fd_eng, fd, fd_eff, lhv)
+        q = point_losses(
+            w_wheel, w_fd, t_fd, w_in, t_in, w_e, t_e, on, rate, t_fd_eng, t_alt, fd, fd_eff, lhv, p_aux
+        )
         # ---- energy audit [J] (all powers at the mid-step speed), as forward._run
         audit[0] += q[0] * dt
         audit[7] += q[1] * dt
@@ -218,7 +227,10 @@ def _run_variant(
         audit[9] += q[3] * dt
         audit[10] += q[4] * dt
         audit[11] += q[5] * dt
-        p_wheel = q[6]
+        audit[12] += q[6] * dt
+        audit[13] += q[7] * dt
+        audit[2] += q[8] * dt
+        p_wheel = q[9]
         add_road_audit(audit, v, v1, v_mid, a, g, f, m, m_eff, crr, dt)
         if on and not was_on:
             starts += 1.0
@@ -275,7 +287,7 @@ def _run_batch(t, v_des, grade, soc0, s, ratios, effs, stop_start, use_map, lhv,
 def _check_layout() -> None:
     if (K.S_DIST, K.S_FUEL, K.S_SOCF, K.S_RMS, K.S_MAXERR, K.S_EON, K.S_STARTS, K.S_BLIM, K.S_DUR) != tuple(
         range(9)
-    ) or _LOSS_SLOT != (0, 7, 8, 9, 10, 11, -1):
+    ) or _LOSS_SLOT != (0, 7, 8, 9, 10, 11, 12, 13, 2, -1):
         raise RuntimeError("compiled conventional run: summary or audit layout changed; update the kernel")
 
 

@@ -62,6 +62,9 @@ AUDIT_BASE = ("fuel", "genset_source", "battery_chemical", "aero", "rolling", "g
 """Audit terms the reference loop starts with (then the loss terms, then ``battery_loss``)."""
 PS_POWER_BAND, PS_POWER_BAND_MIN_W = PowerFollower.POWER_BAND, PowerFollower.POWER_BAND_MIN_W
 """The power follower's band around its target engine power [-], [W]."""
+AUX_RTOL = 1e-6
+"""Relative round-off [-] of the battery power accepted as "the auxiliaries only" at the SOC
+floor (the bus balance returns the auxiliary load to a few ulps)."""
 ERR_NONE, ERR_STUCK = 0, 1
 """Status codes of the compiled loop: fine; no feasible control even when stopping."""
 
@@ -223,8 +226,8 @@ def _feasible(infeasible, others, cur, t_em, p_bat, p_el, soc, h):
     ok = not infeasible
     if not others and cur >= -h.i_charge_max_a * (1.0 + REGEN_CURRENT_RTOL) and t_em < 0.0:
         ok = True
-    if soc <= h.soc_min:  # empty: no discharge
-        ok = ok and p_bat <= 0.0
+    if soc <= h.soc_min:  # empty: no discharge for traction (the auxiliaries are still supplied)
+        ok = ok and p_bat <= h.aux_power_w * (1.0 + AUX_RTOL)
     if soc >= h.soc_max:  # full: no charging, up to the regeneration limiter's round-off
         ok = ok and p_bat >= -REGEN_CURRENT_RTOL * abs(p_el)
     return ok

@@ -138,8 +138,10 @@ class Step:
                 limit = self.model.battery.max_charge_current_a
                 near = np.asarray(flow.current_a) >= -limit * (1.0 + REGEN_CURRENT_RTOL)
                 feasible = feasible | (~others & near & (np.asarray(flow.torque_nm) < 0.0))
-            if self.soc <= self.soc_min:  # empty: no discharge
-                feasible = feasible & (np.asarray(flow.battery_power_w) <= 0.0)
+            if self.soc <= self.soc_min:  # empty: no discharge for traction (the auxiliaries on the
+                # bus are still supplied: at a standstill nothing else could feed them)
+                aux_w = float(getattr(self.model, "aux_power_w", 0.0))
+                feasible = feasible & (np.asarray(flow.battery_power_w) <= aux_w * (1.0 + 1e-6))
             if self.soc >= self.soc_max:  # full: no charging from any source (the engine through a
                 # generator too), up to the regeneration limiter's round-off (REGEN_CURRENT_RTOL)
                 tol = REGEN_CURRENT_RTOL * np.abs(np.asarray(flow.power_elec_w))

@@ -268,14 +268,15 @@ def _energy_keys(hev: SeriesHEV) -> tuple[float, float, float, float]:
 
 
 def simulate(
-    model: SeriesHEV | VehicleConfig,
+    model: SeriesHEV | VehicleConfig | str | Path,
     cycle: DriveCycle | str | None = None,
     dt_s: float | None = None,
     soc_initial: float | None = None,
     schedule: GensetSchedule | None = None,
     tracking: TrackingBound | None = TRACKING_BOUND,
 ) -> SimulationResult:
-    """Simulate ``model`` forward over ``cycle`` with a fixed step ``dt_s`` [s].
+    """Simulate ``model`` (a vehicle file path, configuration or built model of any
+    architecture) forward over ``cycle`` with a fixed step ``dt_s`` [s].
 
     ``cycle`` is a :class:`DriveCycle`, a registered name or a CSV path (default: the
     configuration's). ``schedule`` replaces the configured supervisory controller by a genset
@@ -290,6 +291,10 @@ def simulate(
     completed result as ``.result``) when the speed error stays beyond ``tracking``
     (default :data:`~hevsim.sim.checks.TRACKING_BOUND`; None skips that check).
     """
+    if isinstance(model, str | Path):  # a vehicle file of any architecture
+        from hevsim.config import load_vehicle_config
+
+        model = load_vehicle_config(model)
     other = _other_architecture(model)
     if other is not None:  # parallel, conventional, BEV, power split: hevsim.sim.forward
         if schedule is not None:
@@ -305,6 +310,7 @@ def simulate(
 
         return simulate_pack_vehicle(model, cycle, dt_s, soc_initial, schedule=schedule)
     t_start = time.perf_counter()
+    assert not isinstance(model, str | Path)  # a path was loaded above
     hev, cyc, dt, args = kernel_inputs(model, cycle, dt_s, soc_initial, schedule)
     t_kernel = time.perf_counter()
     ARCHITECTURES["series"][0](*args)
