@@ -887,6 +887,19 @@ SERIES_CONTROLLER_KEYS: dict[str, tuple[str, ...]] = {
                  "throttle", "throttle_boost", "speed_gain_per_rpm", "pure_ice_band_w"),
 }  # fmt: skip
 """``[controller]`` keys the series HEV's compiled controllers read, by kind."""
+CONTROLLER_KEYS: dict[str, tuple[str, ...]] = {
+    **SERIES_CONTROLLER_KEYS,
+    "electric_assist": ("soc_low", "soc_high", "ev_speed_mps", "ev_power_w", "charge_power_w", "upshift_rpm",
+                        "downshift_rpm", "control_points"),
+    "ecms": ("equivalence_factor", "control_points"),
+    "aecms": ("equivalence_factor", "aecms_kp", "aecms_ki", "aecms_kinetic_fraction", "control_points"),
+    "shift_schedule": ("upshift_rpm", "downshift_rpm"),
+    "power_follower": ("soc_low", "soc_high", "ev_speed_mps", "ev_power_w", "charge_power_w",
+                       "control_points"),
+    "direct": (),
+}  # fmt: skip
+"""``[controller]`` keys each controller kind reads (the one table: :data:`hevsim.control.CONTROLLERS`
+takes its ``parameters`` from here, and :func:`inert_keys` refuses the others)."""
 ARCHITECTURE_CONTROLLER_KEYS: dict[str, tuple[str, ...]] = {
     "conventional": ("stop_start", "fuel_cut_speed_rpm"),
     "power_split": ("engine_speed_points",),
@@ -915,17 +928,17 @@ DATA_KEYS = ("motor.rating", "generator.rating", "battery.temperature_c")
 def inert_keys(cfg: Any) -> dict[str, str]:
     """Dotted keys of ``cfg``'s sections that do nothing for this vehicle -> why (``"sec.*"``:
     the whole section). A file setting one is refused (:func:`check_inert`)."""
-    from hevsim.architectures import ARCHITECTURES as ARCHS
-    from hevsim.control import CONTROLLERS
-
     arch = cfg.architecture
     out: dict[str, str] = {}
     # --controller chooses any kind the architecture admits (the series HEV: the file's kind only)
-    kinds = ARCHS[arch].controllers if arch in ARCHS and arch != "series" else (cfg.controller.kind,)
+    kinds = (
+        ARCHITECTURES[arch].controllers
+        if arch in ARCHITECTURES and arch != "series"
+        else (cfg.controller.kind,)
+    )
     reads: list[str] = ["kind", "aux_power_w", *ARCHITECTURE_CONTROLLER_KEYS.get(arch, ())]
     for kind in kinds:
-        entry = CONTROLLERS.get(kind)
-        reads += SERIES_CONTROLLER_KEYS.get(kind, ()) if entry is None else entry.parameters
+        reads += CONTROLLER_KEYS.get(kind, ())
     for f in dataclasses.fields(ControllerSection):
         if f.name not in reads:
             out[f"controller.{f.name}"] = f"none of its controllers ({', '.join(kinds)}) reads it"

@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from hevsim.config import CONTROLLER_KEYS
 from hevsim.errors import ConfigError
 
 __all__ = ["CONTROLLERS", "ControllerEntry", "make_controller"]
@@ -40,30 +41,30 @@ class ControllerEntry:
 CONTROLLERS: dict[str, ControllerEntry] = {
     "electric_assist": ControllerEntry(
         "electric_assist", "hevsim.control.parallel:ElectricAssist",
-        ("soc_low", "soc_high", "ev_speed_mps", "ev_power_w", "charge_power_w", "upshift_rpm",
-         "downshift_rpm", "control_points"),
+        CONTROLLER_KEYS["electric_assist"],
         "rule-based: EV at low speed and power, engine load-following with machine assist",
     ),
     "ecms": ControllerEntry(
-        "ecms", "hevsim.control.parallel:ECMS", ("equivalence_factor", "control_points"),
+        "ecms", "hevsim.control.parallel:ECMS", CONTROLLER_KEYS["ecms"],
         "ECMS: minimise fuel power + s x battery chemical power over the admissible controls",
     ),
     "aecms": ControllerEntry(
         "aecms", "hevsim.control.parallel:AdaptiveECMS",
-        ("equivalence_factor", "aecms_kp", "aecms_ki", "aecms_kinetic_fraction", "control_points"),
+        CONTROLLER_KEYS["aecms"],
         "adaptive ECMS: s corrected by a PI loop on the SOC error",
     ),
     "shift_schedule": ControllerEntry(
-        "shift_schedule", "hevsim.control.simple:ShiftSchedule", ("upshift_rpm", "downshift_rpm"),
+        "shift_schedule", "hevsim.control.simple:ShiftSchedule", CONTROLLER_KEYS["shift_schedule"],
         "conventional: automatic gearbox shift schedule with kick-down",
     ),
     "power_follower": ControllerEntry(
         "power_follower", "hevsim.control.parallel:PowerFollower",
-        ("soc_low", "soc_high", "ev_speed_mps", "ev_power_w", "charge_power_w", "control_points"),
+        CONTROLLER_KEYS["power_follower"],
         "power split, rule-based: EV at low load, else the engine's most efficient point at the demand",
     ),
     "direct": ControllerEntry(
-        "direct", "hevsim.control.simple:Direct", (), "BEV: the machine meets the demand"
+        "direct", "hevsim.control.simple:Direct", CONTROLLER_KEYS["direct"],
+        "BEV: the machine meets the demand",
     ),
 }  # fmt: skip
 """Online controllers by ``[controller] kind``."""
