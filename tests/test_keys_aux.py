@@ -147,4 +147,5 @@ def test_parallel_aux_at_the_soc_floor(cycle: DriveCycle, compiled: bool) -> Non
     assert abs(res.energy_audit["residual"]) < 1e-8 * gross
     ts = res.timeseries
     floor = ts["soc"].to_numpy() < cfg.battery.soc_min
-    assert (ts["battery_power_w"].to_numpy()[floor] <= p_w + 1e-6).all()
+    # the floor admits the auxiliary load to the loop's relative 1e-6 (sim.forward Step.evaluate)
+    assert (ts["battery_power_w"].to_numpy()[floor] <= p_w * (1.0 + 1e-6)).all()

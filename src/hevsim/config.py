@@ -946,6 +946,7 @@ def inert_keys(cfg: Any) -> dict[str, str]:
     if battery is None:
         out["simulation.soc_initial"] = "it has no traction battery"
         out["metrics.conversion_efficiency"] = "it has no traction battery (no SOC correction)"
+        out["metrics.soc_correction_ocv_v"] = "it has no traction battery (no SOC correction)"
         out["brakes.regen_min_speed_mps"] = out["brakes.regen_fraction"] = "it has no machine to regenerate"
     else:
         keep = ("pack", "bus_min_v", "bus_max_v") if battery.model == "pack" else _BATTERY_KEYS[battery.model]

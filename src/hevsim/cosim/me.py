@@ -34,7 +34,7 @@ from math import isclose, isfinite
 from pathlib import Path
 from typing import Any
 
-from hevsim.cosim.participant import FMUParticipant
+from hevsim.cosim.participant import FMUParticipant, fmi2_callbacks
 from hevsim.errors import ConfigError, SimulationError
 
 SOLVERS = ("cvode-bdf", "cvode-adams")
@@ -130,27 +130,12 @@ class MEParticipant(FMUParticipant):
                 self._set_params()
                 self.slave.exitInitializationMode()
             else:
-                from ctypes import byref
-
-                from fmpy.fmi2 import (
-                    FMU2Model,
-                    defaultCallbacks,
-                    fmi2CallbackFunctions,
-                    fmi2CallbackLoggerTYPE,
-                )
-                from fmpy.logging import addLoggerProxy
+                from fmpy.fmi2 import FMU2Model
 
                 self.slave = FMU2Model(
                     guid=self.md.guid, unzipDirectory=self._dir, modelIdentifier=ident, instanceName=self.name
                 )
-                cb = fmi2CallbackFunctions()
-                cb.logger = fmi2CallbackLoggerTYPE(
-                    lambda c, inst, status, cat, msg: self._on_log(status, cat, msg)
-                )
-                cb.allocateMemory = defaultCallbacks.allocateMemory
-                cb.freeMemory = defaultCallbacks.freeMemory
-                addLoggerProxy(byref(cb))
-                self._callbacks = cb
+                cb = self._callbacks = fmi2_callbacks(self._on_log)
                 self.slave.instantiate(callbacks=cb, loggingOn=logging_on)
                 self.slave.setupExperiment(startTime=t0)
                 self.slave.enterInitializationMode()

@@ -359,6 +359,23 @@ def fmu_file(name: str, fmu: str | Path) -> Path:
     return path
 
 
+def fmi2_callbacks(on_log: Any) -> Any:
+    """FMI 2.0 callback functions whose logger calls ``on_log(status, category, message)``
+    (FMPy's logger proxy formats the variadic message); keep the result alive as long as the
+    instance it is given to."""
+    from ctypes import byref
+
+    from fmpy.fmi2 import defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+    from fmpy.logging import addLoggerProxy
+
+    cb = fmi2CallbackFunctions()
+    cb.logger = fmi2CallbackLoggerTYPE(lambda c, inst, status, cat, msg: on_log(status, cat, msg))
+    cb.allocateMemory = defaultCallbacks.allocateMemory
+    cb.freeMemory = defaultCallbacks.freeMemory
+    addLoggerProxy(byref(cb))
+    return cb
+
+
 class FMUParticipant(Participant):
     """An FMI 2.0 or 3.0 co-simulation FMU driven through FMPy in this process.
 
@@ -569,27 +586,12 @@ class FMUParticipant(Participant):
                         )
                     self.slave.enterStepMode()
             else:
-                from ctypes import byref
-
-                from fmpy.fmi2 import (
-                    FMU2Slave,
-                    defaultCallbacks,
-                    fmi2CallbackFunctions,
-                    fmi2CallbackLoggerTYPE,
-                )
-                from fmpy.logging import addLoggerProxy
+                from fmpy.fmi2 import FMU2Slave
 
                 self.slave = FMU2Slave(
                     guid=self.md.guid, unzipDirectory=self._dir, modelIdentifier=ident, instanceName=self.name
                 )
-                cb = fmi2CallbackFunctions()
-                cb.logger = fmi2CallbackLoggerTYPE(
-                    lambda c, inst, status, cat, msg: self._on_log(status, cat, msg)
-                )
-                cb.allocateMemory = defaultCallbacks.allocateMemory
-                cb.freeMemory = defaultCallbacks.freeMemory
-                addLoggerProxy(byref(cb))
-                self._callbacks = cb  # kept alive as long as the instance
+                cb = self._callbacks = fmi2_callbacks(self._on_log)  # kept alive as long as the instance
                 self.slave.instantiate(callbacks=cb, loggingOn=logging_on)
                 self._raw_do_step = self.slave._functions["fmi2DoStep"]  # FMPy's wrapper costs ~10 µs
                 self.slave.setupExperiment(startTime=t0)
