@@ -1,0 +1,178 @@
+"""Screening of the pack's all-nodes ROM hot spot (issue 26 item 5): how many rows each bound evaluates.
+
+Run from the repository root after building the module ROM of ``examples/pack.toml``::
+
+    .venv/bin/hevsim rom build examples/module_thermal.toml -o examples/module.rom.npz
+    .venv/bin/python benchmarks/bench_hot_spot_screening.py [--pack examples/pack.toml] [--steps 600]
+
+The pack's compiled step (:func:`hevsim.battery.pack_run._module_hot_spots`) takes each module's
+hot spot as the maximum of ``G_j w`` over every node row ``j`` of its cells, evaluating only the
+rows whose bound can reach the largest value found. The script steps the pack under US06
+(the kernel's count of rows evaluated per module step is the baseline, same run), keeps the
+modules' modal states, and replays them offline through other exact screenings, counting the
+rows each one evaluates and the multiply-adds per module step relative to the baseline
+(``rows x order`` for the baseline; the variants add their own per-row work):
+
+* ``anchor``: a full evaluation when the deviation has moved ``thr`` (in |G|max |d - d_a| K)
+  from the anchor ``d_a``, rows bounded by ``|G_j| (|d - d_a| + |d_j - d_a|)`` (norm of the
+  change instead of the kernel's sum of per-step changes);
+* ``modal k``: the ``k`` slowest modes' change since the anchor exact per row (``k`` per row),
+  the rest bounded by ``|G_j,fast| |w_fast - w_a,fast|``;
+* ``step k``: stateless, from the step itself: ``G w = G p + G diag(c) w_old`` with the input
+  part ``p`` exact (``m_in`` per row in a kernel), ``k`` slow modes of the memory part exact and the
+  rest bounded by ``|G_j,fast c_fast| |w_old,fast|`` (``c = 1/(1 + lambda dt)``);
+* ``float32 pass``: every row in single precision with its rounding bound
+  ``(r + 2) 2^-24 sum_i |G_ji d_i|``, then in double the rows whose bound reaches the largest;
+* per-cell truncated SVD of the rows (idea: ``T_c ~ U_k S_k W_k^T d``): the singular values and
+  the largest ``|d|`` seen, whose product is the added error of a truncation.
+
+Every variant's maximum is checked against the all-rows maximum. The script only reports.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _machine import OtherLoad
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def screen(b: np.ndarray, g: np.ndarray, w: np.ndarray) -> int:
+    """Evaluate the row of the largest bound, then every row whose bound exceeds the best value;
+    checks the maximum against all rows; returns the rows evaluated."""
+    j = int(np.argmax(b))
+    best = float(g[j] @ w)
+    need = np.nonzero(b > best)[0]
+    found = max(best, float((g[need] @ w).max())) if need.size else best
+    exact = float((g @ w).max())
+    assert abs(found - exact) <= 1e-9 * max(1.0, abs(exact)), (found, exact)
+    return 1 + int(need.size)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    ap.add_argument("--pack", default=str(ROOT / "examples" / "pack.toml"))
+    ap.add_argument("--steps", type=int, default=600)
+    args = ap.parse_args()
+    from hevsim.battery import pack_run as R
+    from hevsim.battery.pack import Pack, load_pack_config
+    from hevsim.battery.profiles import cycle_cell_current
+    from hevsim.errors import HevsimError
+
+    try:
+        cfg = load_pack_config(args.pack)
+        pack = Pack(cfg)
+    except HevsimError as exc:
+        print(f"bench_hot_spot_screening: {exc}", file=sys.stderr)
+        return 2
+    rom = pack.rom
+    if rom is None:
+        msg = f'bench_hot_spot_screening: {args.pack} has no ROM; expected [module] thermal = "rom"'
+        print(msg, file=sys.stderr)
+        return 2
+    steps = args.steps
+    current = 6.0 * cycle_cell_current("us06", duration_s=steps, dt_s=cfg.pack.dt_s)
+    with OtherLoad() as load:
+        t0 = time.perf_counter()
+        pack.simulate(current)
+        run_s = time.perf_counter() - t0
+    n_mod = cfg.pack.n_modules
+    base_rows = pack._f[R.F_HSROWS] / steps / n_mod
+    pack = Pack(cfg)
+    zs = []
+    for k in range(steps):
+        pack.step(float(current[k]))
+        zs.append(pack.rom_state_z().copy())
+    q, decay = pack._modal["q"], pack._modal["rom_decay"]
+    r, nc = rom.order, rom.n_cells
+    per_cell = [np.unique(p, axis=0) for p in np.asarray(rom.out_candidates).reshape(nc, -1, r)]
+    g = np.vstack(per_cell) @ q
+    w_all = np.array(zs) @ q  # (steps, modules, r)
+    gn = np.linalg.norm(g, axis=1)
+    n = g.shape[0]
+    m_in = pack._modal["rom_in"].shape[0]
+    print(f"ROM order {r}, {n} rows per module, {n_mod} modules, {steps} steps; inputs {m_in}")
+    print(f"baseline (compiled kernel): {base_rows:.0f} rows per module step; simulate {run_s:.3f} s "
+          f"(other load {load.cores if load.cores is not None else float('nan'):.2f} cores)")  # fmt: skip
+    base = base_rows * r
+
+    def report(name: str, rows: float, per_row: float) -> None:
+        ratio = (n * per_row + rows * r) / base
+        print(f"  {name:<22s} rows evaluated {rows:7.0f}  multiply-adds vs baseline {ratio:5.2f}")
+
+    u_m, e_m = rom.unit_state @ q, rom.energy @ q
+    for thr in (0.5, 2.0):
+        ev = 0
+        for m in range(n_mod):
+            y = yt = da = de = None
+            for k in range(steps):
+                w = w_all[k, m]
+                tref = float(e_m @ w / (e_m @ u_m))
+                d = w - tref * u_m
+                dist = float(np.linalg.norm(d - da)) if da is not None else 0.0
+                if y is None or gn.max() * dist > thr:
+                    y, yt, da, de = g @ w, np.full(n, tref), d, np.zeros(n)
+                    ev += n
+                    continue
+                b = y + (tref - yt) + gn * (dist + de) + 1e-9
+                j = int(np.argmax(b))
+                need = np.union1d(np.nonzero(b > float(g[j] @ w))[0], [j])
+                ev += screen(b, g, w)
+                y[need], yt[need], de[need] = g[need] @ w, tref, dist
+        report(f"anchor thr {thr:g} K", ev / steps / n_mod, 0.0)
+    for kk in (5, 20):
+        gs, gf = g[:, :kk], np.linalg.norm(g[:, kk:], axis=1)
+        ev = 0
+        for m in range(n_mod):
+            wa = None
+            for k in range(steps):
+                w = w_all[k, m]
+                df = float(np.linalg.norm(w[kk:] - wa[kk:])) if wa is not None else 0.0
+                if wa is None or gf.max() * df > 0.5:
+                    y, wa = g @ w, w.copy()
+                    ev += n
+                    continue
+                ev += screen(y + gs @ (w - wa)[:kk] + gf * df + 1e-9, g, w)
+        report(f"modal k {kk}", ev / steps / n_mod, kk)
+    c = decay / cfg.pack.dt_s
+    for kk in (0, 20):
+        gs, gf = g[:, :kk] * c[:kk], np.linalg.norm(g[:, kk:] * c[kk:], axis=1)
+        ev = 0
+        for m in range(n_mod):
+            for k in range(1, steps):
+                w0, w = w_all[k - 1, m], w_all[k, m]
+                b = g @ (w - c * w0) + gs @ w0[:kk] + gf * float(np.linalg.norm(w0[kk:])) + 1e-9
+                ev += screen(b, g, w)
+        report(f"step k {kk}", ev / (steps - 1) / n_mod, m_in + kk)
+    # every row in single precision with its rounding bound, then the candidates in double
+    g32, g_abs, counts, worst = g.astype(np.float32), np.abs(g), [], 0.0
+    for w in w_all.reshape(-1, r):
+        tref = float(e_m @ w / (e_m @ u_m))
+        d = w - tref * u_m
+        approx = (g32 @ d.astype(np.float32)).astype(float)
+        bound = (r + 2) * 2.0**-24 * (g_abs @ np.abs(d)) * 1.01 + 1e-12
+        worst = max(worst, float(bound.max()))
+        need = np.nonzero(approx + bound >= float((approx - bound).max()))[0]
+        found, exact = tref + float((g[need] @ d).max()), float((g @ w).max())
+        assert abs(found - exact) <= 1e-9 * abs(exact), (found, exact)
+        counts.append(need.size)
+    print(f"  float32 pass           rows in double {np.mean(counts):7.1f} (at most {max(counts)}), "
+          f"rounding bound at most {worst:.2g} K; the pass multiplies all {n} rows in float32")  # fmt: skip
+    proj = np.eye(r) - np.outer(u_m, e_m) / (e_m @ u_m)
+    d_max = max(float(np.linalg.norm(proj @ w)) for w in w_all.reshape(-1, r))
+    s = np.linalg.svd(per_cell[0] @ q @ proj, compute_uv=False)
+    print(f"  per-cell SVD (cell 0, {s.size} values): s1 {s[0]:.3g}, s10 {s[9]:.3g}, s25 {s[24]:.3g}, "
+          f"s50 {s[49]:.3g}; largest |d| {d_max:.3g}: truncation at rank 50 adds up to "
+          f"{s[50] * d_max:.3g} K")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
