@@ -439,7 +439,10 @@ def gap_bridge(level: int, cycle: str = DEFAULT_CYCLE) -> list[dict[str, Any]]:
     rows = []
 
     def add(step: str, cfg_data: dict[str, Any]) -> None:
-        cfg = config_from_dict(cfg_data, source=f"{pub.name} ({step})", base_dir=Path(pub.base_dir))
+        # resolved configurations mixed section by section, not a user's file: every key is there
+        cfg = config_from_dict(
+            cfg_data, source=f"{pub.name} ({step})", base_dir=Path(pub.base_dir), inert=False
+        )
         r = simulate(cfg, cyc)
         rows.append({"step": step, "mpg": r.value("mpg"), "mpgge": r.value("mpgge"),
                      "distance_mi": r.value("distance_mi"), "soc_final": r.value("soc_final")})  # fmt: skip
