@@ -1158,8 +1158,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(interrupted_message(args), file=sys.stderr)
         return 130
+    except Exception as exc:
+        if not _interrupted(exc):
+            raise
+        print(interrupted_message(args), file=sys.stderr)  # Ctrl-C inside a C callback (numba's cache)
+        return 130
     finally:
         undo()
+
+
+def _interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` was caused by a Ctrl-C: a KeyboardInterrupt raised inside a C library's
+    callback into Python comes back wrapped (numba's cache loader: ``SystemError: <function
+    _numba_unpickle> returned a result with an exception set``); its cause chain holds it."""
+    seen: set[int] = set()
+    cur: BaseException | None = exc
+    while cur is not None and id(cur) not in seen:
+        if isinstance(cur, KeyboardInterrupt):
+            return True
+        seen.add(id(cur))
+        cur = cur.__cause__ or cur.__context__
+    return False
 
 
 if __name__ == "__main__":  # pragma: no cover
