@@ -733,6 +733,27 @@ def validate(
     return dataclasses.replace(result, validation=ts, validation_errors=errors, metadata=meta)
 
 
+def _reference_record(
+    result: Any, t_amb_k: float, *, flag_unmeasured: bool = False
+) -> tuple[CellTestRecord, np.ndarray]:
+    """The identification's own test (its recorded time series) as a :class:`CellTestRecord`,
+    the port temperature [K] where measured, else the ambient ``t_amb_k``; with
+    ``flag_unmeasured`` the record says whether every temperature was measured. Also returns
+    the measured temperatures as recorded (NaN where none) [K]."""
+    ts = result.timeseries
+    t_meas = ts["temp_measured_k"].to_numpy(dtype=float)
+    extra = {"temperature_measured": bool(np.all(np.isfinite(t_meas)))} if flag_unmeasured else {}
+    rec = CellTestRecord(
+        ts["time_s"].to_numpy(dtype=float),
+        ts["current_a"].to_numpy(dtype=float),
+        ts["voltage_measured_v"].to_numpy(dtype=float),
+        np.where(np.isfinite(t_meas), t_meas, t_amb_k),
+        source=str(result.metadata.get("source_file", "<reference>")),
+        **extra,
+    )
+    return rec, t_meas
+
+
 def fit_temperature(
     result: Identification,
     records: list[CellTestRecord],
@@ -767,14 +788,7 @@ def fit_temperature(
         raise InputError("calibrate --data: no tests at other temperatures given.")
     ts = result.timeseries
     t_ref_amb = float(result.metadata.get("port_temp_k", p.capacity.t_ref_k))
-    t_ref_meas = ts["temp_measured_k"].to_numpy(dtype=float)
-    ref = CellTestRecord(
-        ts["time_s"].to_numpy(dtype=float),
-        ts["current_a"].to_numpy(dtype=float),
-        ts["voltage_measured_v"].to_numpy(dtype=float),
-        np.where(np.isfinite(t_ref_meas), t_ref_meas, t_ref_amb),
-        source=str(result.metadata.get("source_file", "<reference>")),
-    )
+    ref, _ = _reference_record(result, t_ref_amb)
     ocv = p.ocv_discharge_v[:, 0]
     cap_c = p.capacity.c0_c
     axis = p.soc
@@ -947,15 +961,7 @@ def fit_temperature_laws(
     ea0 = float(result.metadata.get("r0_activation_energy_j_per_mol", 0.0))
     if not np.isfinite(ea0):
         ea0 = 0.0
-    t_meas_ref = ts["temp_measured_k"].to_numpy(dtype=float)
-    ref = CellTestRecord(
-        ts["time_s"].to_numpy(dtype=float),
-        ts["current_a"].to_numpy(dtype=float),
-        ts["voltage_measured_v"].to_numpy(dtype=float),
-        np.where(np.isfinite(t_meas_ref), t_meas_ref, t_ref),
-        source=str(result.metadata.get("source_file", "<reference>")),
-        temperature_measured=bool(np.all(np.isfinite(t_meas_ref))),
-    )
+    ref, t_meas_ref = _reference_record(result, t_ref, flag_unmeasured=True)
     axis = p_in.soc
     ocv_ref = p_in.ocv_discharge_v[:, c_ref].copy()
     rs_ref = p_in.rs_discharge_ohm[:, c_ref].copy()
