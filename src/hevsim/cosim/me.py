@@ -112,11 +112,7 @@ class MEParticipant(FMUParticipant):
         self._window = (float(start_s), float(stop_s))
 
     def setup(self, t0: float) -> None:
-        from fmpy import extract
-
-        self._dir = extract(str(self.fmu))
-        ident = self.md.modelExchange.modelIdentifier
-        logging_on = self.fmu_log is not None or self.log_threshold <= 1
+        ident, logging_on = self._extract()
         with self._logged():
             if self.fmi3:
                 from fmpy.fmi3 import FMU3Model

@@ -548,14 +548,19 @@ class FMUParticipant(Participant):
         """The interface of the model description this class drives (None: it has none)."""
         return md.coSimulation
 
-    def setup(self, t0: float) -> None:
+    def _extract(self) -> tuple[str, bool]:
+        """Unpack the FMU (``self._dir``); its model identifier for this class's interface and
+        whether the FMU's own logging is switched on."""
         from fmpy import extract
 
         self._dir = extract(str(self.fmu))
+        logging_on = self.fmu_log is not None or self.log_threshold <= 1
+        return self._interface(self.md).modelIdentifier, logging_on
+
+    def setup(self, t0: float) -> None:
+        ident, logging_on = self._extract()
         if _jit_guarded_export(Path(self._dir)):
             import numba  # noqa: F401 (keeps the JIT on, see _jit_guarded_export)
-        ident = self.md.coSimulation.modelIdentifier
-        logging_on = self.fmu_log is not None or self.log_threshold <= 1
         with self._logged():
             if self.fmi3:
                 from fmpy.fmi3 import FMU3Slave
