@@ -23,6 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DOC_FILES = [
     *sorted((ROOT / "docs").glob("*.md")),
     *sorted((ROOT / "docs" / "howto").glob("*.md")),  # the documentation site's how-to guides
+    *sorted((ROOT / "docs" / "explain").glob("*.md")),  # the explanation pages
     ROOT / "README.md",
 ]
 
