@@ -89,3 +89,13 @@ def test_read_ssp_owns_its_folder_until_cleanup(tmp_path: Path, tmpdir_root: Pat
     assert kept.scratch_dir is None
     kept.cleanup()
     assert (tmp_path / "unpacked" / "SystemStructure.ssd").is_file()
+
+
+def test_out_dir_under_missing_folders(tmp_path: Path) -> None:
+    """An ``out_dir`` whose parent folders do not exist yet: they are made (the checkpoint
+    streams beside it used to raise FileNotFoundError from deep in the master)."""
+    out = tmp_path / "not" / "yet" / "out"
+    res = run_cosim(two_masses(), out)
+    assert res.time_s[-1] == pytest.approx(20.0)
+    assert (out / "results.csv").is_file()
+    assert not list(out.parent.glob(".out.checkpoint*"))

@@ -122,6 +122,11 @@ def test_site_has_its_sections(site: Path) -> None:
         "auto_tutorials/plot_03_cell_calibration.html",
         "auto_tutorials/plot_04_pack_ambient.html",
         "auto_tutorials/plot_05_design_study.html",
+        "auto_tutorials/plot_06_module_cosim.html",
+        "explain/equations.html",
+        "explain/energy_audit.html",
+        "dp.html",
+        "cosim.html",
     ):
         assert (site / page).is_file(), page
     landing = _parse(site / "index.html").refs
@@ -222,6 +227,18 @@ def test_study_tutorial_front_is_the_non_dominated_set(site: Path) -> None:
         if not any(e2 >= e and t2 <= t and (e2, t2) != (e, t) for e2, t2 in vehicles.values())
     )  # fmt: skip
     assert shown == expected and 1 <= len(shown) < 9
+
+
+def test_module_cosim_tutorial_closes_the_heat_balance(site: Path) -> None:
+    """The co-simulation tutorial's exchanged heat: cells -> module - plate -> coolant = stored
+    (to the film's small loss), and the module cools towards the 15 degC coolant."""
+    text = _page_text(site / "auto_tutorials" / "plot_06_module_cosim.html")
+    m = re.search(r"cells -> module\s+([\d.]+) J, plate -> coolant\s+([\d.]+) J, stored\s+(-?[\d.]+) J", text)
+    assert m is not None, "the co-simulation tutorial's heat balance is missing"
+    heat_in, heat_out, stored = map(float, m.groups())
+    assert heat_in > 0 and heat_out > heat_in and stored < 0  # started at 30 degC, coolant 15 degC
+    assert abs(heat_in - heat_out - stored) < 1e-3 * heat_out
+    assert len(list(SITE.glob("_images/sphx_glr_plot_06_module_cosim_00*.png"))) == 2
 
 
 # --- a real browser ---------------------------------------------------------------------------------

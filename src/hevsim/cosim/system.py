@@ -200,6 +200,7 @@ def run_cosim(
             })  # fmt: skip
             (tmp / "system.ssd").write_bytes(ssd_xml(desc))
 
+    out.parent.mkdir(parents=True, exist_ok=True)  # the checkpoint streams live beside out_dir
     try:
         res = run_system(desc, progress, ck, resume, log_level, fmu_log)
     except CosimFault as exc:
