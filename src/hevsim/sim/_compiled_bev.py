@@ -22,7 +22,6 @@ from numba import njit
 from hevsim.architectures import bev as B
 from hevsim.architectures._common import NO_REFCOUNT, max_machine_speed_radps
 from hevsim.control.simple import Direct
-from hevsim.errors import DomainError
 from hevsim.sim import kernel as K
 from hevsim.sim._compiled_common import add_road_audit, track_step, write_summary
 from hevsim.sim._compiled_hev import (
@@ -36,6 +35,7 @@ from hevsim.sim._compiled_hev import (
     threaded_batch,
 )
 from hevsim.sim._records import BISECTION_STEPS, BatchRecord, ForwardRecord
+from hevsim.sim.checks import stuck_error
 
 DETAILS: tuple[str, ...] = (
     "motor_speed_radps", "motor_torque_nm", "motor_power_elec_w", "battery_current_a", "battery_power_w",
@@ -166,7 +166,8 @@ def _run(model: B.BEV, grid: Any, soc0: float, soc_min: float, soc_max: float) -
         model.battery.kernel_tables(), cols, audit, summary,
     )  # fmt: skip
     if failed >= 0:
-        raise DomainError(f"{model.name}: no feasible control at t = {t[failed]:g} s even when stopping.")
+        soc_last = cols[COLUMNS.index("soc"), failed - 1] if failed > 0 else soc0
+        raise stuck_error(model, float(t[failed]), float(soc_last), soc_min)
     return COLUMNS, cols, AUDIT, audit, summary, float(v_end)
 
 

@@ -702,7 +702,7 @@ def writable(tab: Any) -> Any:
 def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_max: float) -> tuple[Any, ...]:
     """One compiled run: (channel names, channels (names x n + 1), audit names, audit [J],
     summary, final speed [m/s]); the controller left as the Python loop leaves it."""
-    from hevsim.errors import DomainError
+    from hevsim.sim.checks import stuck_error
 
     cc = controller_code(ctl)
     assert cc is not None
@@ -740,7 +740,8 @@ def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_m
     status, k, v_end = run_hev(dpar, dps, cc, float(soc0), t, v_des, gr, cand0, cand1, thr, h, etab, mtab,
                                gtab, ptab, cols, audit, summary, state, buf)  # fmt: skip
     if status == ERR_STUCK:
-        raise DomainError(f"{model.name}: no feasible control at t = {t[k]:g} s even when stopping.")
+        soc_last = cols[names.index("soc"), k - 1] if k > 0 else soc0
+        raise stuck_error(model, float(t[k]), float(soc_last), soc_min)
     if cc.code == ELECTRIC_ASSIST:
         ctl.gear = int(state[0])
     elif cc.code == AECMS:

@@ -251,3 +251,30 @@ def tracking_message(label: str, ts: Any, p: np.ndarray, bound: TrackingBound) -
         f"{abs(error[k]) / MPS_PER_MPH:.3g} mph at t = {_fmt(t[k])} s (channels speed_desired_mps, "
         f"speed_mps). Likely cause: {_likely_tracking_cause(ts, rows, error, p)}."
     )
+
+
+def stuck_error(
+    model: Any, t_s: float, soc: float | None = None, soc_min: float | None = None
+) -> DomainError:
+    """The error of a step with no feasible control even when the car stops, with the reason
+    when it can be named: a battery at the floor of its SOC window ``soc_min`` [-] at SOC
+    ``soc`` [-] (the SOC of the last completed step) that still has to carry the auxiliary
+    load (``[controller] aux_power_w``) the controller's charging does not cover."""
+    msg = f"{model.name}: no feasible control at t = {t_s:g} s even when stopping"
+    cfg = getattr(model, "config", None)
+    ctl = getattr(cfg, "controller", None)
+    aux_w = float(getattr(ctl, "aux_power_w", 0.0) or 0.0)
+    if soc is not None and soc_min is not None and np.isfinite(soc) and soc <= soc_min + 0.005:
+        msg += f": the battery ran down to SOC {soc:.4f} (window floor [battery] soc_min = {soc_min:g})"
+        if aux_w > 0.0:
+            msg += f" and must still carry the {aux_w:g} W auxiliary load ([controller] aux_power_w)"
+            charge_w = float(getattr(ctl, "charge_power_w", 0.0) or 0.0)
+            if 0.0 < charge_w <= aux_w:
+                msg += (
+                    f", which is more than the controller's charging power ([controller] charge_power_w = "
+                    f"{charge_w:g} W): the battery drains even while the engine charges it; lower the "
+                    "auxiliary load or raise charge_power_w"
+                )
+            else:
+                msg += "; lower the auxiliary load or raise the SOC window's floor margin"
+    return DomainError(msg + ".")

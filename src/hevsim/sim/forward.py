@@ -79,6 +79,7 @@ from hevsim.sim._records import (  # re-exported: the records every forward loop
     REGEN_CURRENT_RTOL,
     ForwardRecord,
 )
+from hevsim.sim.checks import stuck_error
 from hevsim.sim.metrics import compute_metrics, soc_correction_ocv
 from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
 
@@ -532,7 +533,7 @@ def _run(
             (step, a, g, f), control = best
             v1 = step.v_mid_mps * 2.0 - v
             if control is None:
-                raise DomainError(f"{model.name}: no feasible control at t = {t[k]:g} s even when stopping.")
+                raise stuck_error(model, float(t[k]), soc, soc_min)
         st, _ = step.evaluate(*(np.array([c]) for c in control), detail=True)
         ctl.update(step, st)
         det = {key: float(np.ravel(val)[0]) for key, val in st.details.items()}
