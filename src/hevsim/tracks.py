@@ -112,9 +112,20 @@ class Track:
         def per(a: FloatArray) -> FloatArray:
             return np.interp(s, sp, np.append(a, a[0]))
 
-        return Track(self.name, self.length_m / n, s, per(self.curvature_1pm), per(self.x_m), per(self.y_m),
-                     per(self.elevation_m), per(self.banking_rad), per(self.width_right_m),
-                     per(self.width_left_m), self.source, dict(self.metadata))  # fmt: skip
+        return Track(
+            self.name,
+            self.length_m / n,
+            s,
+            per(self.curvature_1pm),
+            per(self.x_m),
+            per(self.y_m),
+            per(self.elevation_m),
+            per(self.banking_rad),
+            per(self.width_right_m),
+            per(self.width_left_m),
+            self.source,
+            dict(self.metadata),
+        )
 
     def check_radius(self, min_radius_m: float, who: str = "the vehicle") -> None:
         """Raise InputError at the first sample whose curvature radius is below
@@ -135,10 +146,18 @@ class Track:
         """The samples as a table (pandas DataFrame) with unit-named columns."""
         import pandas as pd
 
-        return pd.DataFrame({"distance_m": self.distance_m, "x_m": self.x_m, "y_m": self.y_m,
-                             "curvature_1pm": self.curvature_1pm, "elevation_m": self.elevation_m,
-                             "banking_deg": np.degrees(self.banking_rad), "w_tr_right_m": self.width_right_m,
-                             "w_tr_left_m": self.width_left_m})  # fmt: skip
+        return pd.DataFrame(
+            {
+                "distance_m": self.distance_m,
+                "x_m": self.x_m,
+                "y_m": self.y_m,
+                "curvature_1pm": self.curvature_1pm,
+                "elevation_m": self.elevation_m,
+                "banking_deg": np.degrees(self.banking_rad),
+                "w_tr_right_m": self.width_right_m,
+                "w_tr_left_m": self.width_left_m,
+            }
+        )
 
     def plot(self, path: str | Path) -> Path:
         """Centreline coloured by curvature and curvature against distance (PNG)."""
@@ -171,7 +190,7 @@ class Track:
 def _samples(length_m: float, step_m: float, name: str) -> int:
     if not (math.isfinite(step_m) and step_m > 0.0):
         raise InputError(f"track '{name}': distance step {step_m!r} m; expected a finite step > 0 m.")
-    n = int(round(length_m / step_m))
+    n = round(length_m / step_m)
     if n < 8:
         raise InputError(
             f"track '{name}': distance step {step_m:g} m leaves {n} samples on a {length_m:.1f} m lap; "
@@ -237,7 +256,12 @@ def from_curvature(
     where = source or "distance-curvature"
     if k_in.shape != s_in.shape:
         s_in = np.full(1, np.nan)
-    if s_in.ndim != 1 or s_in.size < (1 if length_m is not None else 2) or s_in[0] != 0.0 or np.any(np.diff(s_in) <= 0.0):
+    if (
+        s_in.ndim != 1
+        or s_in.size < (1 if length_m is not None else 2)
+        or s_in[0] != 0.0
+        or np.any(np.diff(s_in) <= 0.0)
+    ):
         raise InputError(
             f"track '{name}' ({where}): column 'distance_m' must start at 0 and increase strictly "
             "(at least two rows), as long as column 'curvature_1pm'."
@@ -281,7 +305,8 @@ def from_curvature(
     if abs(abs(turn) - 2.0 * math.pi) > HEADING_TOLERANCE_RAD or miss > CLOSURE_TOLERANCE_M:
         raise InputError(
             f"track '{name}' ({where}): the track does not close: at distance {total:.1f} m (the end) the "
-            f"centreline is {miss:.2f} m from its start and has turned {math.degrees(turn):.2f} deg; expected "
+            f"centreline is {miss:.2f} m from its start and has turned {math.degrees(turn):.2f} deg; "
+            "expected "
             f"to return within {CLOSURE_TOLERANCE_M:g} m and +-360 deg (within "
             f"{math.degrees(HEADING_TOLERANCE_RAD):.1f} deg)."
         )
@@ -321,9 +346,15 @@ def from_xy(
     x = np.asarray(x_m, np.float64)
     y = np.asarray(y_m, np.float64)
     where = source or "x-y points"
-    extra = {k: (None if v is None else np.asarray(v, np.float64)) for k, v in
-             (("w_tr_right_m", width_right_m), ("w_tr_left_m", width_left_m), ("elevation_m", elevation_m),
-              ("banking_deg", banking_deg))}  # fmt: skip
+    extra = {
+        k: (None if v is None else np.asarray(v, np.float64))
+        for k, v in (
+            ("w_tr_right_m", width_right_m),
+            ("w_tr_left_m", width_left_m),
+            ("elevation_m", elevation_m),
+            ("banking_deg", banking_deg),
+        )
+    }
     if x.size >= 2 and x[-1] == x[0] and y[-1] == y[0]:
         x, y = x[:-1], y[:-1]
         extra = {k: (None if v is None else v[:-1]) for k, v in extra.items()}
@@ -343,7 +374,8 @@ def from_xy(
     if gap > CLOSURE_GAP_FACTOR * spacing:
         raise InputError(
             f"track '{name}' ({where}): the track does not close: the last point (distance "
-            f"{s_pts[-1]:.1f} m, x = {x[-1]:.1f} m, y = {y[-1]:.1f} m) is {gap:.1f} m from the first; expected "
+            f"{s_pts[-1]:.1f} m, x = {x[-1]:.1f} m, y = {y[-1]:.1f} m) is {gap:.1f} m from the first; "
+            "expected "
             f"a closed loop (gap within {CLOSURE_GAP_FACTOR:g} x the median point spacing {spacing:.2f} m)."
         )
     _check_simple(name, where, x, y, s_pts)
@@ -379,9 +411,20 @@ def from_xy(
                 f"track '{name}' ({where}): column 'elevation_m': the track does not close in height: "
                 f"{ez[-1]:g} m at the last point, {ez[0]:g} m at the first."
             )
-    return Track(name, total / n, s, np.asarray(kappa), px, py, chan("elevation_m", 0.0),
-                 np.radians(chan("banking_deg", 0.0)), chan("w_tr_right_m", np.nan), chan("w_tr_left_m", np.nan),
-                 where, {"points": int(x.size), "smoothing_noise_m": noise_m})  # fmt: skip
+    return Track(
+        name,
+        total / n,
+        s,
+        np.asarray(kappa),
+        px,
+        py,
+        chan("elevation_m", 0.0),
+        np.radians(chan("banking_deg", 0.0)),
+        chan("w_tr_right_m", np.nan),
+        chan("w_tr_left_m", np.nan),
+        where,
+        {"points": int(x.size), "smoothing_noise_m": noise_m},
+    )
 
 
 def _read_columns(path: Path) -> dict[str, FloatArray]:
@@ -440,32 +483,55 @@ def load_track_csv(path: str | Path, *, step_m: float = DEFAULT_STEP_M, name: st
     cols = _read_columns(p)
     nm = name or p.stem
     if all(c in cols for c in XY_COLUMNS):
-        return from_xy(nm, cols["x_m"], cols["y_m"], step_m=step_m, width_right_m=cols.get("w_tr_right_m"),
-                       width_left_m=cols.get("w_tr_left_m"), elevation_m=cols.get("elevation_m"),
-                       banking_deg=cols.get("banking_deg"), source=str(p))  # fmt: skip
+        return from_xy(
+            nm,
+            cols["x_m"],
+            cols["y_m"],
+            step_m=step_m,
+            width_right_m=cols.get("w_tr_right_m"),
+            width_left_m=cols.get("w_tr_left_m"),
+            elevation_m=cols.get("elevation_m"),
+            banking_deg=cols.get("banking_deg"),
+            source=str(p),
+        )
     if all(c in cols for c in CURVATURE_COLUMNS):
-        return from_curvature(nm, cols["distance_m"], cols["curvature_1pm"], step_m=step_m,
-                              elevation_m=cols.get("elevation_m"), banking_deg=cols.get("banking_deg"),
-                              source=str(p))  # fmt: skip
+        return from_curvature(
+            nm,
+            cols["distance_m"],
+            cols["curvature_1pm"],
+            step_m=step_m,
+            elevation_m=cols.get("elevation_m"),
+            banking_deg=cols.get("banking_deg"),
+            source=str(p),
+        )
     raise InputError(
         f"{p}: columns {sorted(cols)} found; expected 'x_m', 'y_m' (optional 'w_tr_right_m', 'w_tr_left_m', "
-        "'elevation_m', 'banking_deg') or 'distance_m', 'curvature_1pm' (optional 'elevation_m', 'banking_deg')."
+        "'elevation_m', 'banking_deg') or 'distance_m', 'curvature_1pm' (optional 'elevation_m', "
+        "'banking_deg')."
     )
 
 
 # ------------------------------------------------------------------------------------------
 # Tracks from stated geometry
 # ------------------------------------------------------------------------------------------
-def from_segments(name: str, segments: list[tuple[float, float]], *, step_m: float = DEFAULT_STEP_M,
-                  source: str = "") -> Track:  # fmt: skip
+def from_segments(
+    name: str, segments: list[tuple[float, float]], *, step_m: float = DEFAULT_STEP_M, source: str = ""
+) -> Track:
     """A track of straights and constant-radius arcs: ``segments`` is a list of
     ``(length_m, radius_m)`` with radius ``inf`` for a straight, > 0 for a left-hand arc and
     < 0 for a right-hand one [m]. The loop must close (checked)."""
     lengths = np.array([seg[0] for seg in segments], np.float64)
     kappa = np.array([0.0 if math.isinf(seg[1]) else 1.0 / seg[1] for seg in segments])
     starts = np.concatenate([[0.0], np.cumsum(lengths)[:-1]])
-    return from_curvature(name, starts, kappa, step_m=step_m, length_m=float(lengths.sum()),
-                          source=source or "segments", step_curvature=True)  # fmt: skip
+    return from_curvature(
+        name,
+        starts,
+        kappa,
+        step_m=step_m,
+        length_m=float(lengths.sum()),
+        source=source or "segments",
+        step_curvature=True,
+    )
 
 
 SKIDPAD_RADIUS_M = 30.48
@@ -475,17 +541,24 @@ magazines' lateral-g figures."""
 
 def skidpad(radius_m: float = SKIDPAD_RADIUS_M, *, step_m: float = DEFAULT_STEP_M) -> Track:
     """A circle of ``radius_m`` [m] driven anticlockwise (constant curvature 1/R)."""
-    return from_segments("skidpad", [(2.0 * math.pi * radius_m, radius_m)], step_m=step_m,
-                         source=f"geometry: circle R = {radius_m:g} m")  # fmt: skip
+    return from_segments(
+        "skidpad",
+        [(2.0 * math.pi * radius_m, radius_m)],
+        step_m=step_m,
+        source=f"geometry: circle R = {radius_m:g} m",
+    )
 
 
 def oval(straight_m: float = 800.0, radius_m: float = 200.0, *, step_m: float = DEFAULT_STEP_M) -> Track:
     """Two straights of ``straight_m`` [m] joined by two 180-degree left-hand arcs of
     ``radius_m`` [m] (default: 2 x 800 m + 2 x 628.3 m = 2856.6 m)."""
     half = math.pi * radius_m
-    return from_segments("oval", [(straight_m, math.inf), (half, radius_m), (straight_m, math.inf),
-                                  (half, radius_m)], step_m=step_m,
-                         source=f"geometry: 2 straights {straight_m:g} m, 2 half circles R = {radius_m:g} m")  # fmt: skip
+    return from_segments(
+        "oval",
+        [(straight_m, math.inf), (half, radius_m), (straight_m, math.inf), (half, radius_m)],
+        step_m=step_m,
+        source=f"geometry: 2 straights {straight_m:g} m, 2 half circles R = {radius_m:g} m",
+    )
 
 
 def handling_circuit(*, step_m: float = DEFAULT_STEP_M) -> Track:
@@ -516,9 +589,20 @@ def handling_circuit(*, step_m: float = DEFAULT_STEP_M) -> Track:
     q = 0.5 * math.pi
     s5 = 700.0 + 60.0 - 30.0 - 150.0 - 40.0 - 40.0 - 50.0 + 80.0
     s6 = 60.0 + 200.0 + 30.0 + 40.0 + 100.0 + 40.0 - 50.0 - 80.0
-    segs = [(700.0, math.inf), (q * 60.0, 60.0), (200.0, math.inf), (q * 30.0, 30.0), (150.0, math.inf),
-            (q * 40.0, -40.0), (100.0, math.inf), (q * 40.0, 40.0), (s5, math.inf), (q * 50.0, 50.0),
-            (s6, math.inf), (q * 80.0, 80.0)]  # fmt: skip
+    segs = [
+        (700.0, math.inf),
+        (q * 60.0, 60.0),
+        (200.0, math.inf),
+        (q * 30.0, 30.0),
+        (150.0, math.inf),
+        (q * 40.0, -40.0),
+        (100.0, math.inf),
+        (q * 40.0, 40.0),
+        (s5, math.inf),
+        (q * 50.0, 50.0),
+        (s6, math.inf),
+        (q * 80.0, 80.0),
+    ]
     return from_segments("handling", segs, step_m=step_m, source="geometry: hevsim.tracks.handling_circuit")
 
 
