@@ -10,11 +10,12 @@ A track comes from
 
 * a CSV of the centreline, ``x_m, y_m`` [m] with optional ``w_tr_right_m, w_tr_left_m`` [m]
   (the layout of the TUM racetrack database, whose header line starts with ``#``) and
-  optional ``elevation_m`` [m] / ``banking_deg`` [deg]. The points are fitted with a
-  periodic cubic smoothing spline in chord length (:func:`scipy.interpolate.splprep`,
-  ``per=1``, smoothing ``s = n sigma^2`` with ``sigma`` = :data:`POSITION_NOISE_M`), which is
+  optional ``elevation_m`` [m] / ``banking_deg`` [deg]. The points are interpolated by a
+  periodic cubic spline in chord length (:func:`scipy.interpolate.splprep`, ``per=1``),
   resampled at equal arc length; the curvature is the spline's,
-  ``kappa = (x' y'' - y' x'') / (x'^2 + y'^2)^(3/2)``;
+  ``kappa = (x' y'' - y' x'') / (x'^2 + y'^2)^(3/2)``, smoothed by a periodic Gaussian filter
+  along distance (:data:`CURVATURE_SMOOTHING_M`). (FITPACK's smoothing splines, ``s > 0``,
+  smooth by dropping knots and make the curvature of a sampled circle wander by 10 %);
 * a CSV of ``distance_m, curvature_1pm`` [m, 1/m] (optional ``elevation_m``,
   ``banking_deg``), interpolated linearly onto the step; the centreline is the integral of
   the heading (``theta' = kappa``, ``x' = cos theta``, ``y' = sin theta``) and must close;
@@ -49,11 +50,12 @@ FloatArray = npt.NDArray[np.float64]
 
 DEFAULT_STEP_M = 1.0
 """Default distance step of a resampled track [m]."""
-POSITION_NOISE_M = 0.2
-"""Standard deviation [m] assumed for the points of an x-y centreline: the spline's smoothing
-is ``s = n POSITION_NOISE_M^2`` (the expected sum of squared residuals of n noisy points).
-0.2 m takes the corner-entry spikes out of the shipped Monza centreline (smallest radius 6.8 m
-with 0.05 m, 12.7 m with 0.2 m: its first chicane) and moves the lap length by 0.03 %."""
+CURVATURE_SMOOTHING_M = 5.0
+"""Standard deviation [m] of the periodic Gaussian filter applied along distance to the
+curvature of an x-y centreline (about a car's length: the curvature a car follows is averaged
+over its wheelbase). The interpolating spline through GPS-derived points has corner-entry
+spikes (smallest radius 8.8 m on the shipped Monza centreline; 11.6 m after the filter,
+17.6 m with 10 m); a circle keeps its curvature exactly."""
 CLOSURE_GAP_FACTOR = 4.0
 """An x-y centreline closes if its last point lies within this many median point spacings of
 its first [-]."""
@@ -337,11 +339,13 @@ def from_xy(
     elevation_m: npt.ArrayLike | None = None,
     banking_deg: npt.ArrayLike | None = None,
     source: str = "",
-    noise_m: float = POSITION_NOISE_M,
+    smoothing_m: float = CURVATURE_SMOOTHING_M,
 ) -> Track:
     """A track from centreline points [m] (a closed loop; the first point is not repeated at
-    the end, or repeated exactly), smoothed by a periodic cubic spline (module docstring)."""
+    the end, or repeated exactly): periodic cubic spline, curvature smoothed over
+    ``smoothing_m`` [m] (module docstring)."""
     from scipy.interpolate import splev, splprep
+    from scipy.ndimage import gaussian_filter1d
 
     x = np.asarray(x_m, np.float64)
     y = np.asarray(y_m, np.float64)
@@ -381,7 +385,7 @@ def from_xy(
     _check_simple(name, where, x, y, s_pts)
     xc, yc = np.append(x, x[0]), np.append(y, y[0])
     u = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(xc), np.diff(yc)))])
-    tck, _ = splprep([xc, yc], u=u, s=x.size * noise_m**2, per=1, k=3)
+    tck, _ = splprep([xc, yc], u=u, s=0.0, per=1, k=3)
     # arc length of the spline on a dense grid, then equal arc-length samples
     dense = np.linspace(0.0, u[-1], 20 * x.size + 1)
     dx, dy = splev(dense, tck, der=1)
@@ -395,6 +399,8 @@ def from_xy(
     d1x, d1y = splev(uu, tck, der=1)
     d2x, d2y = splev(uu, tck, der=2)
     kappa = (d1x * d2y - d1y * d2x) / np.hypot(d1x, d1y) ** 3
+    if smoothing_m > 0.0:
+        kappa = gaussian_filter1d(kappa, smoothing_m / (total / n), mode="wrap")
     px, py = np.asarray(px), np.asarray(py)
     s_of_pts = np.interp(u, dense, arc)
 
@@ -423,7 +429,7 @@ def from_xy(
         chan("w_tr_right_m", np.nan),
         chan("w_tr_left_m", np.nan),
         where,
-        {"points": int(x.size), "smoothing_noise_m": noise_m},
+        {"points": int(x.size), "curvature_smoothing_m": smoothing_m},
     )
 
 
