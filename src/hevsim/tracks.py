@@ -63,6 +63,8 @@ CLOSURE_TOLERANCE_M = 1.0
 """Largest miss [m] of the end of a distance-curvature track on its start (position)."""
 HEADING_TOLERANCE_RAD = 0.02
 """Largest miss [rad] of a distance-curvature track's total turning on +-2 pi."""
+INTERSECTION_POINTS = 1500
+"""Largest number of points of the self-intersection test (:func:`_check_simple`) [-]."""
 ELEVATION_TOLERANCE_M = 0.5
 """Largest difference [m] between the elevation at the end and at the start of a lap."""
 XY_COLUMNS = ("x_m", "y_m")
@@ -229,6 +231,11 @@ def _self_intersection(x: FloatArray, y: FloatArray) -> int | None:
 
 
 def _check_simple(name: str, where: str, x: FloatArray, y: FloatArray, s: FloatArray) -> None:
+    """Refuse a loop that crosses itself. The test is O(n^2): a loop of more than
+    :data:`INTERSECTION_POINTS` points is tested on every k-th point (a crossing at an angle
+    stays a crossing; two branches that cross at a grazing angle within k steps may pass)."""
+    stride = max(1, -(-x.size // INTERSECTION_POINTS))
+    x, y, s = x[::stride], y[::stride], s[::stride]
     k = _self_intersection(x, y)
     if k is not None:
         raise InputError(

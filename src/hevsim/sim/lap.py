@@ -33,12 +33,18 @@ track's uniform step ``ds`` (:mod:`hevsim.tracks`):
    given to the architecture's power flow over the same candidates; among the feasible ones
    the lap takes the one of least equivalent power, ECMS's score (fuel power ``m_f LHV`` plus
    ``s`` x the battery chemical power, ``s`` = ``[controller] equivalence_factor``, 2.5 by
-   default; :class:`hevsim.control.parallel.ECMS`), or, with a ``battery_power_w`` deployment input
-   (an electric power [W] per sample, e.g. from an optimal deployment), the one whose battery
-   power is closest to it. Where no candidate gives the demand (the envelope is linear between
-   its speeds) the demand is lowered by :data:`SHORTFALL_STEPS` until one does, and the row is
-   flagged ``powertrain_shortfall``. The SOC is held at its initial value for the lap (energy
-   per lap by source is reported; a stint that carries the SOC over laps is another issue).
+   default; :class:`hevsim.control.parallel.ECMS`).
+
+A **deployment** (``battery_power_max_w``: the largest battery chemical power [W] at each
+sample, the input an optimal deployment over distance will set) limits the candidates of the
+envelope (one envelope row per limit level, :data:`DEPLOYMENT_LEVELS`, interpolated linearly
+between them along the lap) and of the operating points alike.
+
+Where no candidate gives a step's demand (the envelope is linear between its speeds, and the
+explicit scheme takes a step's force at its start speed) the demand is lowered by
+:data:`SHORTFALL_STEPS` until one does, and, below :data:`SHORTFALL_FLAG`, the row is
+flagged ``powertrain_shortfall``. The SOC is held at its initial value for the lap (energy
+per lap by source is reported; a stint that carries the SOC over laps is another issue).
 
 Kernel ``_qss_speed`` is compiled (numba): a 5 km lap at 1 m steps takes well under the
 issue's 50 ms (``benchmarks/bench_lap.py``).
@@ -72,6 +78,9 @@ of the demand [-]. The first steps of :data:`SHORTFALL_STEPS` absorb the explici
 own lag (a step's acceleration comes from the envelope at its start speed, the operating point
 is taken at its mid speed, where the envelope is a little lower) and the envelope's linear
 interpolation between its speeds."""
+DEPLOYMENT_LEVELS = 5
+"""Battery power limits (evenly from 0 to the largest asked) of the envelope rows a
+deployment is interpolated between [-]."""
 DRIVE_CODES = {"front": 0, "rear": 1, "all": 2}
 """Driven axle -> code of the compiled kernel."""
 
@@ -102,13 +111,37 @@ class LapVehicle:
     envelope_speed_mps: np.ndarray
     envelope_force_n: np.ndarray
     envelope: Any = None
+    envelope_levels_w: np.ndarray | None = None
+
+    @property
+    def force_table(self) -> tuple[np.ndarray, np.ndarray]:
+        """(battery power limits [W] (k,), largest wheel force [N] (k, speeds)): one row
+        per deployment limit, or the single unlimited row (limit ``inf``)."""
+        f = np.atleast_2d(np.asarray(self.envelope_force_n, np.float64))
+        levels = self.envelope_levels_w
+        if levels is None:
+            levels = np.full(f.shape[0], np.inf)
+        return np.ascontiguousarray(levels, np.float64), np.ascontiguousarray(f)
 
     @property
     def speed_cap_mps(self) -> float:
         """Highest speed [m/s] of the envelope at which the powertrain still gives a wheel
         force > 0 (beyond it a machine or the engine leaves its map): the lap's speed cap."""
-        ok = np.flatnonzero(self.envelope_force_n > 0.0)
+        ok = np.flatnonzero(self.force_table[1][-1] > 0.0)
         return float(self.envelope_speed_mps[ok[-1]]) if ok.size else 0.0
+
+    def force_n(self, v_mps: np.ndarray, limit_w: np.ndarray | None = None) -> np.ndarray:
+        """Largest wheel force [N] at speeds [m/s] under battery power limits [W] (None: the
+        envelope's largest), as the kernel interpolates it."""
+        levels, table = self.force_table
+        v = np.asarray(v_mps, np.float64)
+        lim = np.full(v.shape, np.inf) if limit_w is None else np.broadcast_to(limit_w, v.shape)
+        return np.array(
+            [
+                _force(float(a), float(b), self.envelope_speed_mps, table, levels)
+                for a, b in zip(v.ravel(), lim.ravel(), strict=True)
+            ]
+        ).reshape(v.shape)
 
     def params(self) -> tuple[float, ...]:
         """Scalars of the kernel, in its argument order."""
@@ -128,9 +161,11 @@ class LapVehicle:
         )
 
 
-def lap_vehicle(model: Any, *, soc: float | None = None) -> LapVehicle:
+def lap_vehicle(model: Any, *, soc: float | None = None, battery_levels_w: Any = None) -> LapVehicle:
     """The :class:`LapVehicle` of a vehicle file, configuration or built model, with its
-    powertrain envelope at ``soc`` [-] (default the configuration's initial SOC)."""
+    powertrain envelope at ``soc`` [-] (default the configuration's initial SOC); with
+    ``battery_levels_w`` (increasing battery power limits [W]), one envelope row per limit
+    for a deployment (:func:`simulate_lap`'s ``battery_power_max_w``)."""
     from hevsim.config import load_vehicle_config
     from hevsim.sim.performance import Adhesion, wheel_force_envelope
 
@@ -139,6 +174,12 @@ def lap_vehicle(model: Any, *, soc: float | None = None) -> LapVehicle:
     cfg = getattr(model, "config", model)
     speeds = np.arange(ENVELOPE_SPEED_STEP_MPS, ENVELOPE_MAX_SPEED_MPS + 1e-9, ENVELOPE_SPEED_STEP_MPS)
     env = wheel_force_envelope(model, speeds, soc)
+    rows, levels = [env.force_n], None
+    if battery_levels_w is not None:
+        levels = np.asarray(battery_levels_w, np.float64)
+        if levels.ndim != 1 or levels.size < 2 or np.any(np.diff(levels) <= 0) or levels[0] < 0:
+            raise InputError(f"battery_levels_w = {levels!r}: expected at least 2 increasing powers >= 0 W.")
+        rows = [wheel_force_envelope(env.model, speeds, env.soc, float(p)).force_n for p in levels]
     body = env.model.body
     Adhesion.of(cfg, body, env.model.tire.radius_m)  # refuses a car that would wheelie
     t = cfg.tire
@@ -147,7 +188,7 @@ def lap_vehicle(model: Any, *, soc: float | None = None) -> LapVehicle:
     aero = cfg.aero
     # the envelope from standstill: the first speed's force below it
     v = np.concatenate([[0.0], env.speed_mps])
-    f = np.concatenate([[env.force_n[0]], env.force_n])
+    f = np.array([np.concatenate([[r[0]], r]) for r in rows])
     return LapVehicle(
         cfg.name,
         body.mass_kg,
@@ -168,6 +209,7 @@ def lap_vehicle(model: Any, *, soc: float | None = None) -> LapVehicle:
         v,
         f,
         env,
+        levels,
     )
 
 
@@ -207,13 +249,28 @@ def _loads(v, kappa, theta, beta, p):
 
 
 @njit(cache=True)
-def _accel(v, kappa, theta, beta, p, ev, ef):
+def _force(v, limit, ev, table, levels):
+    """Largest wheel force [N] at speed v [m/s] under battery power limit [W]: linear in
+    speed along each row of ``table``, linear between the rows of the bracketing ``levels``
+    (nearly exact where the battery's power binds: the force is then linear in it)."""
+    nl = levels.size
+    if nl == 1 or limit >= levels[nl - 1]:
+        return np.interp(v, ev, table[nl - 1])
+    if limit <= levels[0]:
+        return np.interp(v, ev, table[0])
+    j = np.searchsorted(levels, limit) - 1
+    w = (limit - levels[j]) / (levels[j + 1] - levels[j])
+    return (1.0 - w) * np.interp(v, ev, table[j]) + w * np.interp(v, ev, table[j + 1])
+
+
+@njit(cache=True)
+def _accel(v, kappa, theta, beta, p, ev, table, levels, limit):
     """Largest acceleration [m/s^2] (traction and powertrain limits) at speed v [m/s]."""
     m, delta, mux, h, wb = p[0], p[1], p[9], p[8], p[6] + p[7]
     _n_tot, e, nd0, sgn = _loads(v, kappa, theta, beta, p)
     road = _road(v, theta, p)
     a_trac = (mux * e * nd0 - road) / (m * delta - sgn * mux * e * m * h / wb)
-    a_pow = (np.interp(v, ev, ef) - road) / (m * delta)
+    a_pow = (_force(v, limit, ev, table, levels) - road) / (m * delta)
     return min(a_trac, a_pow)
 
 
@@ -244,8 +301,9 @@ def _apex(kappa, theta, beta, p, v_cap):
 
 
 @njit(cache=True)
-def _qss_speed(kappa, theta, beta, ds, p, ev, ef, v_cap):
-    """Speed [m/s] at each sample of a closed lap (n samples, step ds [m])."""
+def _qss_speed(kappa, theta, beta, ds, p, ev, table, levels, limit, v_cap):
+    """Speed [m/s] at each sample of a closed lap (n samples, step ds [m]); ``limit`` [W]:
+    the battery power limit of each sample (``inf``: none)."""
     n = kappa.size
     vlim = np.empty(n)
     for i in range(n):
@@ -256,7 +314,7 @@ def _qss_speed(kappa, theta, beta, ds, p, ev, ef, v_cap):
     for k in range(n - 1):
         i = (i0 + k) % n
         j = (i + 1) % n
-        a = _accel(fwd[i], kappa[i], theta[i], beta[i], p, ev, ef)
+        a = _accel(fwd[i], kappa[i], theta[i], beta[i], p, ev, table, levels, limit[i])
         v2 = fwd[i] * fwd[i] + 2.0 * a * ds
         fwd[j] = min(math.sqrt(v2) if v2 > 0.0 else 0.0, vlim[j])
     bwd = np.empty(n)
@@ -273,16 +331,25 @@ def _qss_speed(kappa, theta, beta, ds, p, ev, ef, v_cap):
     return v, vlim
 
 
-def qss_speed(vehicle: LapVehicle, track: Track) -> tuple[np.ndarray, np.ndarray]:
-    """(speed, apex-limit speed) [m/s] at each sample of ``track`` for ``vehicle``."""
+def qss_speed(
+    vehicle: LapVehicle, track: Track, battery_power_max_w: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(speed, apex-limit speed) [m/s] at each sample of ``track`` for ``vehicle``, with an
+    optional battery power limit [W] at each sample (a deployment)."""
+    levels, table = vehicle.force_table
+    limit = np.full(track.distance_m.size, np.inf)
+    if battery_power_max_w is not None:
+        limit = np.ascontiguousarray(np.broadcast_to(battery_power_max_w, limit.shape), np.float64)
     return _qss_speed(  # type: ignore[no-any-return]
         np.ascontiguousarray(track.curvature_1pm, np.float64),
         np.arctan(track.grade),
         np.ascontiguousarray(track.banking_rad, np.float64),
         float(track.step_m),
         np.array(vehicle.params(), np.float64),
-        np.ascontiguousarray(vehicle.envelope_speed_mps),
-        np.ascontiguousarray(vehicle.envelope_force_n),
+        np.ascontiguousarray(vehicle.envelope_speed_mps, np.float64),
+        table,
+        levels,
+        limit,
         vehicle.speed_cap_mps,
     )
 
@@ -387,7 +454,7 @@ class LapResult:
 def _operating_points(
     vehicle: LapVehicle,
     ts: pd.DataFrame,
-    battery_power_w: np.ndarray | None,
+    limit_w: np.ndarray,
     lhv_j_per_kg: float,
     equivalence_factor: float,
 ) -> tuple[pd.DataFrame, dict[str, float]]:
@@ -412,11 +479,9 @@ def _operating_points(
         e_soc = step.energy_per_soc_j
         p_fuel = np.broadcast_to(np.asarray(st.cost_kg), ok.shape) * lhv_j_per_kg / dt[todo, None]
         p_batt = -np.broadcast_to(np.asarray(st.d_soc), ok.shape) * e_soc / dt[todo, None]
-        if battery_power_w is None:
-            score = p_fuel + equivalence_factor * p_batt
-        else:
-            score = np.abs(p_batt - battery_power_w[todo, None]) * 1e3 + p_fuel
-        score = np.where(ok, score, np.inf)
+        lim = limit_w[todo, None]
+        ok = ok & (p_batt <= lim * (1.0 + 1e-9) + 1e-6)
+        score = np.where(ok, p_fuel + equivalence_factor * p_batt, np.inf)
         best = np.argmin(score, axis=1)
         found = np.isfinite(score[np.arange(todo.size), best])
         chosen[todo[found]] = best[found]
@@ -459,7 +524,7 @@ def simulate_lap(
     *,
     step_m: float = DEFAULT_STEP_M,
     soc: float | None = None,
-    battery_power_w: np.ndarray | None = None,
+    battery_power_max_w: Any = None,
     operating_points: bool = True,
     vehicle: LapVehicle | None = None,
 ) -> LapResult:
@@ -467,10 +532,11 @@ def simulate_lap(
     shipped name or CSV path) at ``step_m`` [m].
 
     ``soc`` [-]: battery SOC held for the lap (default the configuration's initial SOC);
-    ``battery_power_w``: optional deployment, battery chemical power [W] wanted at each
-    sample (> 0 discharging) — the choice among the powertrain's feasible controls (module
-    docstring, item 4); ``operating_points``: False skips the power flow along the lap
-    (speed profile only); ``vehicle``: a :class:`LapVehicle` already built for ``model``.
+    ``battery_power_max_w``: optional deployment, the largest battery chemical power [W]
+    (discharge > 0) at each sample (an array) or everywhere (a number): the envelope and the
+    operating points keep to it (module docstring, item 4); ``operating_points``: False skips
+    the power flow along the lap (speed profile only); ``vehicle``: a :class:`LapVehicle`
+    already built for ``model``.
     """
     from hevsim.config import load_vehicle_config
     from hevsim.fuels import config_fuel
@@ -481,16 +547,30 @@ def simulate_lap(
     trk = track if isinstance(track, Track) else load_track(track, step_m=step_m)
     if isinstance(track, Track) and abs(track.step_m - step_m) > 1e-9 * step_m and step_m != DEFAULT_STEP_M:
         trk = track.resampled(step_m)
-    veh = vehicle or lap_vehicle(model, soc=soc)
-    trk.check_radius(veh.min_turning_radius_m, f"vehicle '{cfg.name}'")
-    if battery_power_w is not None:
-        battery_power_w = np.asarray(battery_power_w, np.float64)
-        if battery_power_w.shape != trk.distance_m.shape or not np.all(np.isfinite(battery_power_w)):
+    limit = np.full(trk.distance_m.size, np.inf)
+    if battery_power_max_w is not None:
+        try:
+            limit = np.array(np.broadcast_to(np.asarray(battery_power_max_w, np.float64), limit.shape))
+        except ValueError:
             raise InputError(
-                f"deployment battery_power_w: shape {battery_power_w.shape}; "
-                f"expected one finite power [W] per track sample ({trk.distance_m.size})."
+                f"deployment battery_power_max_w: shape {np.shape(battery_power_max_w)}; expected a number "
+                f"or one power [W] per track sample ({limit.size})."
+            ) from None
+        bad = np.flatnonzero(np.isnan(limit) | (limit < 0.0))
+        if bad.size:
+            raise InputError(
+                f"deployment battery_power_max_w = {limit[bad[0]]!r} W at distance "
+                f"{trk.distance_m[bad[0]]:.1f} m; expected a power >= 0 W (inf: no limit)."
             )
-    v, vlim = qss_speed(veh, trk)
+    veh = vehicle
+    if veh is not None and battery_power_max_w is not None and veh.envelope_levels_w is None:
+        raise InputError("a deployment needs a LapVehicle built with battery_levels_w (or vehicle=None).")
+    if veh is None:
+        top = float(np.max(limit[np.isfinite(limit)], initial=0.0))
+        levels = None if np.all(np.isinf(limit)) else np.linspace(0.0, max(top, 1.0), DEPLOYMENT_LEVELS)
+        veh = lap_vehicle(model, soc=soc, battery_levels_w=levels)
+    trk.check_radius(veh.min_turning_radius_m, f"vehicle '{cfg.name}'")
+    v, vlim = qss_speed(veh, trk, limit)
     if not np.all(v > 0.0):
         k = int(np.flatnonzero(~(v > 0.0))[0])
         raise InputError(
@@ -544,15 +624,13 @@ def simulate_lap(
         "max_braking_g": float(-ax.min() / STANDARD_GRAVITY),
         "full_power_fraction": 0.0,
     }
-    f_env = np.interp(v_mid, veh.envelope_speed_mps, veh.envelope_force_n)
+    f_env = veh.force_n(v_mid, limit)
     summary["full_power_fraction"] = float(np.sum(dt[force >= 0.98 * f_env]) / lap_t)
     if operating_points:
         lhv = float(
             config_fuel(cfg, getattr(veh.envelope.model, "engine", None)).lower_heating_value_j_per_kg
         )
-        ops, totals = _operating_points(
-            veh, ts, battery_power_w, lhv, float(cfg.controller.equivalence_factor)
-        )
+        ops, totals = _operating_points(veh, ts, limit, lhv, float(cfg.controller.equivalence_factor))
         ts = pd.concat([ts, ops], axis=1)
         summary.update(totals)
         if "gear" in ts:
@@ -561,7 +639,7 @@ def simulate_lap(
         "config": cfg.name,
         "track_source": trk.source,
         "soc": veh.envelope.soc,
-        "deployment": "given battery power" if battery_power_w is not None else "ECMS score",
+        "deployment": "battery power limit" if battery_power_max_w is not None else "none",
         "equivalence_factor": float(cfg.controller.equivalence_factor),
         "mu_x": veh.mu_x,
         "mu_y": veh.mu_y,

@@ -432,11 +432,15 @@ class Envelope:
                     np.asarray(wheel_force_n, np.float64) * r, self.soc, e_soc, bs, 0.0)  # fmt: skip
 
 
-def wheel_force_envelope(model: Any, speeds_mps: np.ndarray, soc: float | None = None) -> Envelope:
+def wheel_force_envelope(
+    model: Any, speeds_mps: np.ndarray, soc: float | None = None, battery_power_max_w: float = np.inf
+) -> Envelope:
     """Largest wheel force [N] the powertrain of ``model`` (file, configuration or built
     model) gives at each speed of ``speeds_mps`` [m/s > 0], over the same candidate controls
     as the performance tests (every gear, full throttle included): a bisection on the wheel
-    force of the architecture's power flow, vectorised over speeds x candidates."""
+    force of the architecture's power flow, vectorised over speeds x candidates. With
+    ``battery_power_max_w`` [W] only the candidates whose battery chemical power (``-dSOC x
+    Q x OCV / dt``) stays at or below it count (a deployment limit)."""
     from hevsim.architectures import architecture
     from hevsim.config import load_vehicle_config
 
@@ -462,7 +466,11 @@ def wheel_force_envelope(model: Any, speeds_mps: np.ndarray, soc: float | None =
     weight = model.body.mass_kg * 9.80665
 
     def feasible(force: np.ndarray) -> np.ndarray:
-        _, ok = env.step(v, force[:, None], ENVELOPE_DT_S).evaluate(*ctl)
+        step = env.step(v, force[:, None], ENVELOPE_DT_S)
+        st, ok = step.evaluate(*ctl)
+        if np.isfinite(battery_power_max_w):
+            p_batt = -np.asarray(st.d_soc) * step.energy_per_soc_j / ENVELOPE_DT_S
+            ok = ok & (p_batt <= battery_power_max_w * (1.0 + 1e-9) + 1e-6)
         return np.asarray(ok).reshape(v.shape[0], -1).any(axis=1)
 
     lo = np.zeros(v.shape[0])
