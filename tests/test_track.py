@@ -141,3 +141,15 @@ def test_unknown_layout_lists_the_expected_columns(tmp_path: Path) -> None:
     p.write_text("a,b\n0,0\n1,1\n", encoding="utf-8")
     with pytest.raises(InputError, match=r"expected 'x_m', 'y_m'"):
         tracks.load_track_csv(p)
+
+
+def test_segment_rows_csv_reproduces_the_geometry(tmp_path: Path) -> None:
+    d, k = tracks.segment_rows(tracks.geometry("handling"))
+    p = tmp_path / "handling.csv"
+    rows = "\n".join(f"{a:.10f},{b:.12g}" for a, b in zip(d, k, strict=True))
+    p.write_text("distance_m,curvature_1pm\n" + rows, encoding="utf-8")
+    back = tracks.load_track_csv(p, step_m=1.0)
+    ref = tracks.handling_circuit(step_m=1.0)
+    assert back.length_m == pytest.approx(ref.length_m, rel=1e-12)
+    assert np.abs(back.curvature_1pm - ref.curvature_1pm).max() < 1e-9
+    assert np.hypot(back.x_m - ref.x_m, back.y_m - ref.y_m).max() < 1e-5  # the 1 um ramps

@@ -547,6 +547,22 @@ def from_segments(
     )
 
 
+def segment_rows(segments: list[tuple[float, float]]) -> tuple[FloatArray, FloatArray]:
+    """(distance [m], curvature [1/m]) rows of a distance-curvature CSV that reproduce
+    ``segments`` (as :func:`from_segments`) under linear interpolation: each piece's start
+    and a row :data:`SEGMENT_EDGE_M` before its end, and the lap's end."""
+    lengths = np.array([seg[0] for seg in segments], np.float64)
+    kappa = np.array([0.0 if math.isinf(seg[1]) else 1.0 / seg[1] for seg in segments])
+    starts = np.concatenate([[0.0], np.cumsum(lengths)[:-1]])
+    d = np.ravel(np.column_stack([starts, starts + lengths - SEGMENT_EDGE_M]))
+    k = np.repeat(kappa, 2)
+    return np.append(d, lengths.sum()), np.append(k, kappa[0])
+
+
+SEGMENT_EDGE_M = 1e-6
+"""Length [m] of the ramp between two pieces in :func:`segment_rows`."""
+
+
 SKIDPAD_RADIUS_M = 30.48
 """Radius of the skidpad circle [m]: 200 ft diameter, the circle of the road tests of US
 magazines' lateral-g figures."""
@@ -599,10 +615,15 @@ def handling_circuit(*, step_m: float = DEFAULT_STEP_M) -> Track:
     + 80 = 0 gives S5 = 530 m; north +60 +200 +30 +40 +100 +40 - 50 - S6 - 80 = 0 gives
     S6 = 340 m (total 2491.2 m; slowest corner T2).
     """
+    segs = _handling_segments()
+    return from_segments("handling", segs, step_m=step_m, source="geometry: hevsim.tracks.handling_circuit")
+
+
+def _handling_segments() -> list[tuple[float, float]]:
     q = 0.5 * math.pi
     s5 = 700.0 + 60.0 - 30.0 - 150.0 - 40.0 - 40.0 - 50.0 + 80.0
     s6 = 60.0 + 200.0 + 30.0 + 40.0 + 100.0 + 40.0 - 50.0 - 80.0
-    segs = [
+    return [
         (700.0, math.inf),
         (q * 60.0, 60.0),
         (200.0, math.inf),
@@ -616,8 +637,24 @@ def handling_circuit(*, step_m: float = DEFAULT_STEP_M) -> Track:
         (s6, math.inf),
         (q * 80.0, 80.0),
     ]
-    return from_segments("handling", segs, step_m=step_m, source="geometry: hevsim.tracks.handling_circuit")
 
+
+def geometry(name: str) -> list[tuple[float, float]]:
+    """The ``(length_m, radius_m)`` pieces of a track built from stated geometry
+    (``skidpad``, ``oval``, ``handling``; see :func:`from_segments`)."""
+    return list(_GEOMETRY[name]())
+
+
+_GEOMETRY = {
+    "skidpad": lambda: [(2.0 * math.pi * SKIDPAD_RADIUS_M, SKIDPAD_RADIUS_M)],
+    "oval": lambda: [
+        (800.0, math.inf),
+        (math.pi * 200.0, 200.0),
+        (800.0, math.inf),
+        (math.pi * 200.0, 200.0),
+    ],
+    "handling": _handling_segments,
+}
 
 TRACK_NAMES = ("skidpad", "oval", "handling", "monza")
 """Shipped tracks."""
