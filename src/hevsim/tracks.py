@@ -594,22 +594,12 @@ def handling_circuit(*, step_m: float = DEFAULT_STEP_M) -> Track:
     """A 2.5 km handling circuit of straights and constant-radius corners, anticlockwise,
     starting east on the main straight (radius > 0 left, < 0 right; lengths [m]):
 
-    ======  =============================  =========
-    piece   geometry                        heading
-    ======  =============================  =========
-    S1      straight 700 m                  east
-    T1      90 deg left,  R 60 m            north
-    S2      straight 200 m
-    T2      90 deg left,  R 30 m            west
-    S3      straight 150 m
-    T3      90 deg right, R 40 m            north
-    S4      straight 100 m
-    T4      90 deg left,  R 40 m            west
-    S5      straight (closes x)
-    T5      90 deg left,  R 50 m            south
-    S6      straight (closes y)
-    T6      90 deg left,  R 80 m            east
-    ======  =============================  =========
+    * S1 straight 700 m (heading east); T1 90 deg left, R 60 m (north);
+    * S2 straight 200 m; T2 90 deg left, R 30 m (west);
+    * S3 straight 150 m; T3 90 deg right, R 40 m (north);
+    * S4 straight 100 m; T4 90 deg left, R 40 m (west);
+    * S5 straight (closes x); T5 90 deg left, R 50 m (south);
+    * S6 straight (closes y); T6 90 deg left, R 80 m (east).
 
     S5 and S6 are computed so that the loop closes: east +700 +60 -30 -150 -40 -40 - S5 - 50
     + 80 = 0 gives S5 = 530 m; north +60 +200 +30 +40 +100 +40 - 50 - S6 - 80 = 0 gives
