@@ -46,7 +46,7 @@ import numpy.typing as npt
 
 from hevsim.errors import InputError
 
-FloatArray = npt.NDArray[np.float64]
+FloatArray = npt.NDArray[np.floating[Any]]
 
 DEFAULT_STEP_M = 1.0
 """Default distance step of a resampled track [m]."""

@@ -340,7 +340,7 @@ def qss_speed(
     limit = np.full(track.distance_m.size, np.inf)
     if battery_power_max_w is not None:
         limit = np.ascontiguousarray(np.broadcast_to(battery_power_max_w, limit.shape), np.float64)
-    return _qss_speed(  # type: ignore[no-any-return]
+    return _qss_speed(
         np.ascontiguousarray(track.curvature_1pm, np.float64),
         np.arctan(track.grade),
         np.ascontiguousarray(track.banking_rad, np.float64),

@@ -471,7 +471,7 @@ def wheel_force_envelope(
         if np.isfinite(battery_power_max_w):
             p_batt = -np.asarray(st.d_soc) * step.energy_per_soc_j / ENVELOPE_DT_S
             ok = ok & (p_batt <= battery_power_max_w * (1.0 + 1e-9) + 1e-6)
-        return np.asarray(ok).reshape(v.shape[0], -1).any(axis=1)
+        return np.asarray(np.asarray(ok).reshape(v.shape[0], -1).any(axis=1), bool)
 
     lo = np.zeros(v.shape[0])
     hi = np.full(v.shape[0], 4.0 * weight)
