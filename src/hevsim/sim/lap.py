@@ -491,8 +491,9 @@ def _operating_points(
     if todo.size:
         k = int(todo[0])
         raise InputError(
-            f"lap of '{vehicle.name}': no control of the powertrain gives even zero wheel force at distance "
-            f"{ts['distance_m'].iloc[k]:.1f} m (speed {v_mid[k]:.2f} m/s)."
+            f"lap of '{vehicle.name}': no control of the powertrain gives the wheel force {force[k]:.0f} N "
+            f"(nor a smaller share of it) at distance {ts['distance_m'].iloc[k]:.1f} m, speed {v_mid[k]:.2f} "
+            "m/s (a machine or the engine beyond its map?)."
         )
     picks = tuple(c[0, chosen] for c in ctl)
     st, _ = env.step(v_mid, used, dt).evaluate(*picks, detail=True)
