@@ -95,6 +95,17 @@ def test_skidpad_with_downforce_matches_the_closed_form() -> None:
     assert v2 > 1.5 * mu * G * r  # the downforce matters here
 
 
+def test_banked_skidpad_matches_the_closed_form() -> None:
+    # v^2 = g R (mu cos b + sin b) / (cos b - mu sin b), banked into the (left-hand) corner
+    mu, r, bank_deg = 0.8, 50.0, 15.0
+    t = tracks.skidpad(r, step_m=1.0)
+    banked = dataclasses.replace(t, banking_rad=np.full(t.distance_m.size, math.radians(bank_deg)))
+    v, _ = qss_speed(point_vehicle(mu=mu), banked)
+    b = math.radians(bank_deg)
+    v2 = G * r * (mu * math.cos(b) + math.sin(b)) / (math.cos(b) - mu * math.sin(b))
+    assert np.allclose(v, math.sqrt(v2), rtol=1e-12)
+
+
 def test_skidpad_of_a_real_car_with_drag_stays_at_its_limit() -> None:
     res = simulate_lap(HP, "skidpad", step_m=0.5)
     mu = load_vehicle_config(HP).tire.friction_coefficient
