@@ -232,6 +232,26 @@ def _cmd_performance(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_lap(args: argparse.Namespace) -> int:
+    from hevsim.config import SimulationSection, load_vehicle_config
+    from hevsim.schema import check_option
+    from hevsim.sim.lap import check_step, simulate_lap
+    from hevsim.tracks import TRACK_NAMES
+
+    cfg = load_vehicle_config(args.config)
+    step = check_step(args.step)
+    check_option("--soc", args.soc, SimulationSection, "soc_initial")
+    track_name = Path(args.track).stem if args.track not in TRACK_NAMES else args.track
+    out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_{track_name}_lap"
+    _prepare(args, out, args.config, None if args.track in TRACK_NAMES else args.track)
+    res = simulate_lap(cfg, args.track, step_m=step, soc=args.soc)
+    res.save(out, plots=not args.no_plots)
+    print(f"{cfg.name} ({cfg.architecture}) on {res.track.name}: lap time {res.lap_time_s:.3f} s")
+    print(res.format())
+    print(f"results written to {out}/ ({_written(out)})")
+    return 0
+
+
 def _cmd_refinement(args: argparse.Namespace) -> int:
     from hevsim.refinement import format_energy_table, format_table, run_refinement
 
@@ -870,6 +890,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--grade-speed-mph", type=float, default=30.0, help="speed of the gradeability test [mph]")
     p.add_argument("--no-plots", action="store_true", help="skip the speed/power plot")
     p.set_defaults(func=_cmd_performance)
+
+    p = sub.add_parser(
+        "lap", help="quasi-steady-state lap time, speed, g-g and energy per lap on a track (issue 29)"
+    )
+    p.add_argument(
+        "config", help="vehicle configuration (TOML), any architecture with a performance envelope"
+    )
+    p.add_argument("track", help="shipped track (skidpad, oval, handling, monza) or track CSV")
+    p.add_argument("--step", type=float, default=1.0, help="distance step [m] (default 1)")
+    p.add_argument("--soc", type=float, help="battery SOC held for the lap [-] (default the initial SOC)")
+    p.add_argument("--out", help="results folder (default results/<config>_<track>_lap)")
+    _add_force(p, "folder at --out")
+    p.add_argument("--no-plots", action="store_true", help="skip the plots")
+    p.set_defaults(func=_cmd_lap)
 
     p = sub.add_parser(
         "refinement", help="run the tutorial's sequential-refinement levels and tabulate MPGGE"

@@ -87,6 +87,7 @@ class BodySection:
     front_axle_to_cg_m: float = param(1.4, 0.0, 50.0, "m")
     rear_axle_to_cg_m: float = param(1.6, 0.0, 50.0, "m")
     wheels_per_axle: int = param(2, 1, 20, "-")
+    min_turning_radius_m: float = param(5.0, 0.1, 100.0, "m")  # hevsim lap: sharper track corners refused
 
 
 @dataclass(frozen=True)
@@ -98,11 +99,29 @@ class TireSection:
     Ground Vehicles*, 4th ed. (2008), Table 1.3. ``driven_axle``: the axle whose normal load
     (static share plus load transfer, :func:`hevsim.components.body.axle_normal_loads`)
     limits the tractive force, ``"front"``, ``"rear"`` or ``"all"`` (all-wheel drive).
+    ``friction_coefficient_x`` / ``_y`` [-]: the semi-axes of the friction ellipse of the lap
+    simulation (longitudinal, lateral; :mod:`hevsim.sim.lap`); 0 (the default) takes
+    ``friction_coefficient``.
     """
 
     radius_m: float = param(0.3, 0.01, 5.0, "m")
     friction_coefficient: float = param(0.9, 0.05, 2.0, "-")
     driven_axle: str = choice("front", "front", "rear", "all")
+    friction_coefficient_x: float = param(0.0, 0.0, 3.0, "-")  # hevsim lap; 0: friction_coefficient
+    friction_coefficient_y: float = param(0.0, 0.0, 3.0, "-")  # hevsim lap; 0: friction_coefficient
+
+
+@dataclass(frozen=True)
+class AeroSection:
+    """Aerodynamic downforce of the lap simulation (:mod:`hevsim.sim.lap`); the drag stays in
+    ``[body]``. Downforce = 0.5 rho ``downforce_coefficient`` A v^2 [N] on the ``[body]``
+    frontal area A and air density rho; ``downforce_coefficient`` [-] is -C_L (> 0 presses the
+    car onto the road; the default 0 is a car without downforce), ``front_downforce_fraction``
+    [-] the share carried by the front axle (aero balance).
+    """
+
+    downforce_coefficient: float = param(0.0, -2.0, 10.0, "-")
+    front_downforce_fraction: float = param(0.5, 0.0, 1.0, "-")
 
 
 @dataclass(frozen=True)
@@ -416,6 +435,7 @@ class SeriesHEVConfig(_VehicleConfig):
     simulation: SimulationSection = field(default_factory=SimulationSection)
     body: BodySection = field(default_factory=BodySection)
     tire: TireSection = field(default_factory=TireSection)
+    aero: AeroSection = field(default_factory=AeroSection)
     final_drive: GearSection = field(default_factory=GearSection)
     brakes: BrakesSection = field(default_factory=BrakesSection)
     motor: MachineSection = field(default_factory=MachineSection)
@@ -445,6 +465,7 @@ class ParallelHEVConfig(_VehicleConfig):
     powertrain: PowertrainSection = field(default_factory=lambda: PowertrainSection("parallel"))
     body: BodySection = field(default_factory=BodySection)
     tire: TireSection = field(default_factory=TireSection)
+    aero: AeroSection = field(default_factory=AeroSection)
     final_drive: GearSection = field(default_factory=GearSection)
     gearbox: GearboxSection = field(default_factory=GearboxSection)
     engine: EngineSection = field(default_factory=EngineSection)
@@ -469,6 +490,7 @@ class ConventionalConfig(_VehicleConfig):
     powertrain: PowertrainSection = field(default_factory=lambda: PowertrainSection("conventional"))
     body: BodySection = field(default_factory=BodySection)
     tire: TireSection = field(default_factory=TireSection)
+    aero: AeroSection = field(default_factory=AeroSection)
     final_drive: GearSection = field(default_factory=GearSection)
     gearbox: GearboxSection = field(default_factory=GearboxSection)
     engine: EngineSection = field(default_factory=EngineSection)
@@ -491,6 +513,7 @@ class BEVConfig(_VehicleConfig):
     powertrain: PowertrainSection = field(default_factory=lambda: PowertrainSection("bev"))
     body: BodySection = field(default_factory=BodySection)
     tire: TireSection = field(default_factory=TireSection)
+    aero: AeroSection = field(default_factory=AeroSection)
     final_drive: GearSection = field(default_factory=GearSection)
     motor: MachineSection = field(default_factory=MachineSection)
     battery: BatterySection = field(default_factory=BatterySection)
@@ -513,6 +536,7 @@ class PowerSplitConfig(_VehicleConfig):
     powertrain: PowertrainSection = field(default_factory=lambda: PowertrainSection("power_split"))
     body: BodySection = field(default_factory=BodySection)
     tire: TireSection = field(default_factory=TireSection)
+    aero: AeroSection = field(default_factory=AeroSection)
     final_drive: GearSection = field(default_factory=GearSection)
     planetary: PlanetarySection = field(default_factory=PlanetarySection)
     engine: EngineSection = field(default_factory=EngineSection)
@@ -876,6 +900,10 @@ COMMAND_KEYS: dict[str, str] = {
     "body.wheels_per_axle": "hevsim performance (axle loads of the traction limit)",
     "tire.friction_coefficient": "hevsim performance (tire adhesion limit)",
     "tire.driven_axle": "hevsim performance (tire adhesion limit)",
+    "tire.friction_coefficient_x": "hevsim lap (friction ellipse)",
+    "tire.friction_coefficient_y": "hevsim lap (friction ellipse)",
+    "body.min_turning_radius_m": "hevsim lap (sharpest corner of a track)",
+    "aero.*": "hevsim lap (downforce)",
     "optimization.*": "hevsim optimize (the DP problem)",
 }
 """Keys that act only in another command than ``simulate``, and where (kept, not refused)."""

@@ -391,3 +391,95 @@ def performance(
     meta = {"config": cfg.name, "architecture": cfg.architecture, "dt_s": dt_s, "soc": soc0,
             "grade_speed_mps": grade_speed_mps}  # fmt: skip
     return PerformanceResult(pd.DataFrame(rows), runs, meta)
+
+
+ENVELOPE_DT_S = 1.0
+"""Step [s] of the power flow when the wheel-force envelope is evaluated (sets the SOC change
+per step only; the limits are powers, torques and currents)."""
+ENVELOPE_BISECTION_STEPS = 40
+"""Bisection steps on the wheel force of :func:`wheel_force_envelope` [-]."""
+
+
+@dataclass
+class Envelope:
+    """The powertrain's largest wheel force at each speed (no tire limit).
+
+    Attributes: speed_mps [m/s], force_n [N] (largest feasible wheel force; 0 where none),
+    the model the flow ran on (``model``, series: :func:`quasi_static_model`'s), its power
+    module (``module``), the candidate controls (flat arrays, :func:`capability_controls`)
+    and the SOC [-] it holds.
+    """
+
+    speed_mps: np.ndarray
+    force_n: np.ndarray
+    model: Any
+    module: Any
+    controls: tuple[np.ndarray, ...]
+    soc: float
+
+    def step(self, v_mid_mps: Any, wheel_force_n: Any, dt_s: Any) -> Step:
+        """A :class:`Step` for arrays of mid speeds [m/s], wheel forces [N] and steps [s]
+        (broadcast together); its ``evaluate`` broadcasts them against the candidates."""
+        model = self.model
+        r = model.tire.radius_m
+        battery: Any = getattr(model, "battery", None)
+        bs, e_soc = None, 1.0
+        if battery is not None:
+            bs = _battery_state(model, self.soc, 1.0)
+            e_soc = battery.capacity_ah * 3600.0 * float(np.asarray(bs.ocv_v))
+        v = np.asarray(v_mid_mps, np.float64)
+        return Step(model, self.module.power_flow, 0, 0.0, dt_s, v, v / r,  # type: ignore[arg-type]
+                    np.asarray(wheel_force_n, np.float64) * r, self.soc, e_soc, bs, 0.0)  # fmt: skip
+
+
+def wheel_force_envelope(
+    model: Any, speeds_mps: np.ndarray, soc: float | None = None, battery_power_max_w: float = np.inf
+) -> Envelope:
+    """Largest wheel force [N] the powertrain of ``model`` (file, configuration or built
+    model) gives at each speed of ``speeds_mps`` [m/s > 0], over the same candidate controls
+    as the performance tests (every gear, full throttle included): a bisection on the wheel
+    force of the architecture's power flow, vectorised over speeds x candidates. With
+    ``battery_power_max_w`` [W] only the candidates whose battery chemical power (``-dSOC x
+    Q x OCV / dt``) stays at or below it count (a deployment limit)."""
+    from hevsim.architectures import architecture
+    from hevsim.config import load_vehicle_config
+
+    if isinstance(model, str | Path):
+        model = load_vehicle_config(model)
+    cfg = getattr(model, "config", model)
+    arch = architecture(cfg.architecture)
+    mod = arch.power_module()
+    if not hasattr(mod, "capability_controls"):
+        raise ConfigError(
+            f"{cfg.name}: key 'powertrain.architecture' = {cfg.architecture!r} has no performance "
+            "envelope yet."
+        )
+    if model is cfg:
+        model = arch.build(cfg)
+    if hasattr(mod, "quasi_static_model"):
+        model = mod.quasi_static_model(model)
+    soc0 = float(cfg.simulation.soc_initial if soc is None else soc)
+    controls = tuple(np.ravel(np.asarray(c, np.float64)) for c in mod.capability_controls(model))
+    env = Envelope(np.asarray(speeds_mps, np.float64), np.zeros(len(speeds_mps)), model, mod, controls, soc0)
+    v = env.speed_mps[:, None]
+    ctl = tuple(c[None, :] for c in controls)
+    weight = model.body.mass_kg * 9.80665
+
+    def feasible(force: np.ndarray) -> np.ndarray:
+        step = env.step(v, force[:, None], ENVELOPE_DT_S)
+        st, ok = step.evaluate(*ctl)
+        if np.isfinite(battery_power_max_w):
+            p_batt = -np.asarray(st.d_soc) * step.energy_per_soc_j / ENVELOPE_DT_S
+            ok = ok & (p_batt <= battery_power_max_w * (1.0 + 1e-9) + 1e-6)
+        return np.asarray(np.asarray(ok).reshape(v.shape[0], -1).any(axis=1), bool)
+
+    lo = np.zeros(v.shape[0])
+    hi = np.full(v.shape[0], 4.0 * weight)
+    ok0 = feasible(lo)
+    for _ in range(ENVELOPE_BISECTION_STEPS):
+        mid = 0.5 * (lo + hi)
+        good = feasible(mid)
+        lo = np.where(good, mid, lo)
+        hi = np.where(good, hi, mid)
+    env.force_n = np.where(ok0, lo, 0.0)
+    return env
