@@ -887,9 +887,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("config", help="vehicle configuration (TOML), any architecture")
     p.add_argument("-o", "--out", help="results folder (default results/<config>_label)")
     _add_force(p, "folder at --out")
-    p.add_argument("--model-year", type=int, help="picks the derived 5-cycle coefficients (default: the newest set)")
-    p.add_argument("--charger-efficiency", type=float, default=1.0,
-                   help="electric vehicles: energy counted from the wall = battery energy / this (default 1)")
+    p.add_argument(
+        "--model-year", type=int, help="picks the derived 5-cycle coefficients (default: the newest set)"
+    )
+    p.add_argument(
+        "--charger-efficiency",
+        type=float,
+        default=1.0,
+        help="electric vehicles: energy counted from the wall = battery energy / this (default 1)",
+    )
     p.set_defaults(func=_cmd_label)
 
     p = sub.add_parser(

@@ -115,11 +115,16 @@ def constants() -> LabelConstants:
     sets = []
     for name, entry in data.get("coefficients", {}).items():
         w = f"{where} [coefficients.{name}]"
-        sets.append(Coefficients(
-            name, int(_number(entry, "first_model_year", w, 1900, 3000)),
-            _number(entry, "city_intercept_gal_per_mi", w, 0, 1), _number(entry, "city_slope", w, 0, 10),
-            _number(entry, "highway_intercept_gal_per_mi", w, 0, 1), _number(entry, "highway_slope", w, 0, 10),
-        ))  # fmt: skip
+        sets.append(
+            Coefficients(
+                name,
+                int(_number(entry, "first_model_year", w, 1900, 3000)),
+                _number(entry, "city_intercept_gal_per_mi", w, 0, 1),
+                _number(entry, "city_slope", w, 0, 10),
+                _number(entry, "highway_intercept_gal_per_mi", w, 0, 1),
+                _number(entry, "highway_slope", w, 0, 10),
+            )
+        )
     if not sets:
         raise InputError(f"{where}: no [coefficients.*] set; expected at least one.")
     return LabelConstants(
@@ -206,10 +211,14 @@ def _run(model: Any, cycle: Any, soc: float | None) -> Run:
     _check_tracking(res)
     m = res.metrics
     return Run(
-        float(m["soc_initial"]["value"]), float(m["soc_final"]["value"]), float(m["fuel_kg"]["value"]),
-        _fuel_energy_j(res), float(m["battery_energy_wh"]["value"]) * J_PER_WH,
-        float(m["distance_m"]["value"]), res,
-    )  # fmt: skip
+        float(m["soc_initial"]["value"]),
+        float(m["soc_final"]["value"]),
+        float(m["fuel_kg"]["value"]),
+        _fuel_energy_j(res),
+        float(m["battery_energy_wh"]["value"]) * J_PER_WH,
+        float(m["distance_m"]["value"]),
+        res,
+    )
 
 
 def _check_tracking(res: Any) -> None:
@@ -258,8 +267,17 @@ def balance_soc(model: Any, cycle: str, name: str, tolerance: float, max_runs: i
         run = _run(model, cycle, soc)
         runs.append(run)
         if abs(run.balance) <= tolerance:
-            return Test(name, cycle, run.distance_m, run.fuel_kg, run.net_energy_change_j, "within tolerance",
-                        runs, run.balance, run.result)  # fmt: skip
+            return Test(
+                name,
+                cycle,
+                run.distance_m,
+                run.fuel_kg,
+                run.net_energy_change_j,
+                "within tolerance",
+                runs,
+                run.balance,
+                run.result,
+            )
         nxt = _next_soc(runs, lo, hi)
         if any(abs(nxt - r.soc_initial) < 1e-9 for r in runs):
             nxt = 0.5 * (nxt + runs[-1].soc_initial) if abs(nxt - runs[-1].soc_initial) > 1e-9 else nxt
@@ -272,12 +290,13 @@ def balance_soc(model: Any, cycle: str, name: str, tolerance: float, max_runs: i
         raise ConfigError(
             f"{model.name} on {cycle}: the SOC could not be balanced (SAE J1711): over {len(runs)} runs with "
             f"initial SOC {', '.join(f'{r.soc_initial:.4f}' for r in runs)} the net battery energy change "
-            f"was never within {100 * tolerance:g} % of the fuel energy (best {100 * worst.balance:+.2f} %) and "
+            f"was never within {100 * tolerance:g} % of the fuel energy (best {100 * worst.balance:+.2f} %) "
+            "and "
             "always of one sign, so no run brackets a balanced test; expected a charge-sustaining "
             "controller (check [controller] and the battery.soc_min/soc_max window)."
         )
     fuel = np.array([r.fuel_kg for r in runs])
-    slope, intercept = np.polyfit(nec, fuel, 1)
+    _slope, intercept = np.polyfit(nec, fuel, 1)
     best = min(runs, key=lambda r: abs(r.balance))
     distance = float(np.mean([r.distance_m for r in runs]))
     return Test(name, cycle, distance, float(intercept), 0.0, "J1711 regression", runs, 0.0, best.result)
@@ -306,35 +325,54 @@ class Label:
         tests = {}
         for key, t in self.tests.items():
             tests[key] = {
-                "cycle": t.cycle, "distance_mi": t.distance_m / M_PER_MILE, "method": t.method,
+                "cycle": t.cycle,
+                "distance_mi": t.distance_m / M_PER_MILE,
+                "method": t.method,
                 "balance_nec_over_fuel_energy": t.balance,
-                "runs": [{"soc_initial": r.soc_initial, "soc_final": r.soc_final, "fuel_kg": r.fuel_kg,
-                          "fuel_energy_j": r.fuel_energy_j, "net_energy_change_j": r.net_energy_change_j,
-                          "nec_over_fuel_energy": r.balance if math.isfinite(r.balance) else None}
-                         for r in t.runs],
-            }  # fmt: skip
+                "runs": [
+                    {
+                        "soc_initial": r.soc_initial,
+                        "soc_final": r.soc_final,
+                        "fuel_kg": r.fuel_kg,
+                        "fuel_energy_j": r.fuel_energy_j,
+                        "net_energy_change_j": r.net_energy_change_j,
+                        "nec_over_fuel_energy": r.balance if math.isfinite(r.balance) else None,
+                    }
+                    for r in t.runs
+                ],
+            }
         return {
-            "vehicle": self.name, "architecture": self.architecture, "kind": self.kind, "fuel": self.fuel,
+            "vehicle": self.name,
+            "architecture": self.architecture,
+            "kind": self.kind,
+            "fuel": self.fuel,
             "method": "EPA derived 5-cycle label (40 CFR 600.210-12) from UDDS and HWFET",
-            "coefficients": {"set": c.name, "first_model_year": c.first_model_year,
-                             "city_intercept_gal_per_mi": c.city_intercept_gal_per_mi, "city_slope": c.city_slope,
-                             "highway_intercept_gal_per_mi": c.highway_intercept_gal_per_mi,
-                             "highway_slope": c.highway_slope},
+            "coefficients": {
+                "set": c.name,
+                "first_model_year": c.first_model_year,
+                "city_intercept_gal_per_mi": c.city_intercept_gal_per_mi,
+                "city_slope": c.city_slope,
+                "highway_intercept_gal_per_mi": c.highway_intercept_gal_per_mi,
+                "highway_slope": c.highway_slope,
+            },
             "city_weight": k.city_weight,
             "soc_balance_tolerance": k.soc_balance_tolerance if self.kind == "charge_sustaining" else None,
-            "figures": self.figures, "tests": tests, "elapsed_s": self.elapsed_s,
-        }  # fmt: skip
+            "figures": self.figures,
+            "tests": tests,
+            "elapsed_s": self.elapsed_s,
+        }
 
     def text(self) -> str:
         """A short plain-text report."""
         f = self.figures
         c = self.coefficients
+        w = constants().city_weight
         lines = [
             f"EPA label: {self.name} ("
             + ", ".join(dict.fromkeys([self.architecture, self.kind.replace("_", "-")]))
             + (f", {self.fuel})" if self.kind != "electric" else ")"),
             f"derived 5-cycle coefficients: set {c.name} (model year {c.first_model_year} on), "
-            f"combined = {100 * constants().city_weight:g}/{100 - 100 * constants().city_weight:g} city/highway",
+            f"combined = {100 * w:g}/{100 - 100 * w:g} city/highway",
             f"{'':<26}{'city':>10}{'highway':>10}{'combined':>10}",
         ]
 
@@ -356,8 +394,10 @@ class Label:
         else:
             row("unadjusted mpg", "unadjusted_mpg")
             row("adjusted mpg", "adjusted_mpg")
-            lines.append(f"mpg in US gallons of {self.fuel}" + (
-                " (the EPA label of a diesel car counts its own gallons)" if "diesel" in self.fuel else ""))  # fmt: skip
+            lines.append(
+                f"mpg in US gallons of {self.fuel}"
+                + (" (the EPA label of a diesel car counts its own gallons)" if "diesel" in self.fuel else "")
+            )
         if self.kind == "charge_sustaining":
             tol = constants().soc_balance_tolerance
             for key, t in self.tests.items():
@@ -436,15 +476,21 @@ def label(config: Any, model_year: int | None = None, charger_efficiency: float 
         else:
             r = _run(model, cycle, None)
             battery_j = float(r.result.energy_audit.get("battery_chemical", 0.0))
-            tests[name] = Test(name, cycle, r.distance_m, r.fuel_kg, battery_j, "single run", [r], None, r.result)
+            tests[name] = Test(
+                name, cycle, r.distance_m, r.fuel_kg, battery_j, "single run", [r], None, r.result
+            )
     figures: dict[str, Any] = {}
     w = k.city_weight
     miles = {n: t.distance_m / M_PER_MILE for n, t in tests.items()}
     if kind == "electric":
-        kwh_mi = {n: t.battery_energy_j / J_PER_WH / 1000.0 / miles[n] / charger_efficiency
-                  for n, t in tests.items()}  # fmt: skip
+        kwh_mi = {
+            n: t.battery_energy_j / J_PER_WH / 1000.0 / miles[n] / charger_efficiency
+            for n, t in tests.items()
+        }
         if min(kwh_mi.values()) <= 0.0:
-            raise ConfigError(f"{model.name}: the battery supplied no energy over a label test; expected > 0.")
+            raise ConfigError(
+                f"{model.name}: the battery supplied no energy over a label test; expected > 0."
+            )
         mpge = {n: k.kwh_per_gallon_equivalent / v for n, v in kwh_mi.items()}
         adj_mpge = {n: adjusted_electric_mpge(mpge[n], n, coef, k.electric_adjustment_factor) for n in mpge}
         adj_kwh_mi = {n: k.kwh_per_gallon_equivalent / v for n, v in adj_mpge.items()}
@@ -457,28 +503,49 @@ def label(config: Any, model_year: int | None = None, charger_efficiency: float 
         figures = {
             "unadjusted_kwh_per_100mi": {n: 100 * v for n, v in kwh_mi.items()},
             "adjusted_kwh_per_100mi": {n: 100 * v for n, v in adj_kwh_mi.items()},
-            "unadjusted_mpge": mpge, "adjusted_mpge": adj_mpge,
-            "usable_battery_energy_kwh": usable, "charger_efficiency": float(charger_efficiency),
-            "range_mi": {"unadjusted": usable * charger_efficiency / kwh_mi["combined"],
-                         "adjusted": usable * charger_efficiency / adj_kwh_mi["combined"]},
-            "units": {"kwh_per_100mi": "kWh/100 mi", "mpge": "mi/gal-equivalent", "range_mi": "mi",
-                      "usable_battery_energy_kwh": "kWh"},
-        }  # fmt: skip
+            "unadjusted_mpge": mpge,
+            "adjusted_mpge": adj_mpge,
+            "usable_battery_energy_kwh": usable,
+            "charger_efficiency": float(charger_efficiency),
+            "range_mi": {
+                "unadjusted": usable * charger_efficiency / kwh_mi["combined"],
+                "adjusted": usable * charger_efficiency / adj_kwh_mi["combined"],
+            },
+            "units": {
+                "kwh_per_100mi": "kWh/100 mi",
+                "mpge": "mi/gal-equivalent",
+                "range_mi": "mi",
+                "usable_battery_energy_kwh": "kWh",
+            },
+        }
     else:
         mpg = {}
         for n, t in tests.items():
             assert t.fuel_kg is not None
             gal = _gallons(t.fuel_kg, fuel.density_kg_per_m3)
             if not gal > 0.0:
-                raise ConfigError(f"{model.name} on {t.cycle}: no fuel burnt; expected a fuel-burning vehicle.")
+                raise ConfigError(
+                    f"{model.name} on {t.cycle}: no fuel burnt; expected a fuel-burning vehicle."
+                )
             mpg[n] = miles[n] / gal
         adj = {"city": adjusted_city(mpg["city"], coef), "highway": adjusted_highway(mpg["highway"], coef)}
         mpg["combined"] = combined(mpg["city"], mpg["highway"], w)
         adj["combined"] = combined(adj["city"], adj["highway"], w)
         figures = {
-            "unadjusted_mpg": mpg, "adjusted_mpg": adj,
-            "l_per_100km": {n: 100.0 * 1000.0 * M3_PER_US_GALLON / (v * M_PER_MILE / 1000.0) for n, v in adj.items()},
+            "unadjusted_mpg": mpg,
+            "adjusted_mpg": adj,
+            "l_per_100km": {
+                n: 100.0 * 1000.0 * M3_PER_US_GALLON / (v * M_PER_MILE / 1000.0) for n, v in adj.items()
+            },
             "units": {"mpg": f"mi per US gallon of {fuel.name}", "l_per_100km": "L/100 km (adjusted)"},
-        }  # fmt: skip
-    return Label(model.name, model.config.architecture, kind, fuel.label, coef, tests, figures,
-                 time.perf_counter() - t0)  # fmt: skip
+        }
+    return Label(
+        model.name,
+        model.config.architecture,
+        kind,
+        fuel.label,
+        coef,
+        tests,
+        figures,
+        time.perf_counter() - t0,
+    )
