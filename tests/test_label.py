@@ -158,3 +158,28 @@ def test_cli_bad_input(tmp_path: Path) -> None:
     heavy.write_text(text.replace("mass_kg = 1474.18", "mass_kg = 30000.0"))
     assert main(["label", str(heavy), "-o", str(tmp_path / "d")]) == 3  # cannot follow UDDS: TrackingError
     assert not any((tmp_path / n).exists() for n in "abcd")
+
+
+def test_formulas_match_fastsim3_get_label_fe_when_installed() -> None:
+    """FASTSim 3 (the ``bench`` extra) labels its own 2016 Prius (2008 set) and Renault Zoe (2017 set,
+    a BEV); hevsim's equations on FASTSim's unadjusted figures give FASTSim's adjusted ones."""
+    fsim = pytest.importorskip("fastsim")
+    for resource in ("2016_TOYOTA_Prius_Two.yaml", "2022_Renault_Zoe_ZE50_R135.yaml"):
+        out = json.loads(fsim.get_label_fe(fsim.Vehicle.from_resource(resource)).to_json())
+        a = out["adj_params"]
+        c = L.Coefficients(
+            "fastsim", 2008, a["city_intercept"], a["city_slope"], a["hwy_intercept"], a["hwy_slope"]
+        )
+        if out["lab_udds_mpgge"] > 0:  # fuel-burning
+            city, hwy = L.adjusted_city(out["lab_udds_mpgge"], c), L.adjusted_highway(out["lab_hwy_mpgge"], c)
+            assert city == pytest.approx(out["adj_udds_mpgge"], rel=1e-12)
+            assert hwy == pytest.approx(out["adj_hwy_mpgge"], rel=1e-12)
+            assert L.combined(city, hwy) == pytest.approx(out["adj_comb_mpgge"], rel=1e-12)
+            assert L.combined(out["lab_udds_mpgge"], out["lab_hwy_mpgge"]) == pytest.approx(
+                out["lab_comb_mpgge"]
+            )
+        else:  # electric: FASTSim's kWh per gallon equivalent is 33.7; *_ess_* is at the battery terminals
+            for test, key in (("city", "udds"), ("highway", "hwy")):
+                lab = out[f"lab_{key}_kwh_per_mi"]
+                adj = 33.7 / L.adjusted_electric_mpge(33.7 / lab, test, c)
+                assert adj == pytest.approx(out[f"adj_{key}_ess_kwh_per_mi"], rel=1e-12)
