@@ -185,7 +185,7 @@ class Run:
 
 
 @dataclass
-class Test:
+class LabelTest:
     """One label test (city or highway) and how it was balanced."""
 
     name: str
@@ -251,10 +251,10 @@ def _next_soc(runs: list[Run], lo: float, hi: float) -> float:
     return float(min(max(soc, lo), hi))
 
 
-def balance_soc(model: Any, cycle: str, name: str, tolerance: float, max_runs: int) -> Test:
+def balance_soc(model: Any, cycle: str, name: str, tolerance: float, max_runs: int) -> LabelTest:
     """Run ``cycle`` until ``|NEC| / fuel energy <= tolerance`` (SAE J1711), else regress.
 
-    Returns the :class:`Test` with the accepted run (method ``"within tolerance"``) or, when
+    Returns the :class:`LabelTest` with the accepted run (method ``"within tolerance"``) or, when
     ``max_runs`` runs never balanced, the fuel read at NEC = 0 from a linear fit of fuel
     against NEC over the runs (method ``"J1711 regression"``; needs runs on both sides of 0).
     """
@@ -267,7 +267,7 @@ def balance_soc(model: Any, cycle: str, name: str, tolerance: float, max_runs: i
         run = _run(model, cycle, soc)
         runs.append(run)
         if abs(run.balance) <= tolerance:
-            return Test(
+            return LabelTest(
                 name,
                 cycle,
                 run.distance_m,
@@ -299,7 +299,7 @@ def balance_soc(model: Any, cycle: str, name: str, tolerance: float, max_runs: i
     _slope, intercept = np.polyfit(nec, fuel, 1)
     best = min(runs, key=lambda r: abs(r.balance))
     distance = float(np.mean([r.distance_m for r in runs]))
-    return Test(name, cycle, distance, float(intercept), 0.0, "J1711 regression", runs, 0.0, best.result)
+    return LabelTest(name, cycle, distance, float(intercept), 0.0, "J1711 regression", runs, 0.0, best.result)
 
 
 # --- the label -------------------------------------------------------------------------------
@@ -314,7 +314,7 @@ class Label:
     kind: str
     fuel: str
     coefficients: Coefficients
-    tests: dict[str, Test]
+    tests: dict[str, LabelTest]
     figures: dict[str, Any]
     elapsed_s: float
 
@@ -469,14 +469,14 @@ def label(config: Any, model_year: int | None = None, charger_efficiency: float 
     model = _build(config)
     kind = _kind(model)
     fuel = config_fuel(model.config, getattr(model, "engine", None))
-    tests: dict[str, Test] = {}
+    tests: dict[str, LabelTest] = {}
     for name, cycle in TESTS:
         if kind == "charge_sustaining":
             tests[name] = balance_soc(model, cycle, name, k.soc_balance_tolerance, k.soc_balance_max_runs)
         else:
             r = _run(model, cycle, None)
             battery_j = float(r.result.energy_audit.get("battery_chemical", 0.0))
-            tests[name] = Test(
+            tests[name] = LabelTest(
                 name, cycle, r.distance_m, r.fuel_kg, battery_j, "single run", [r], None, r.result
             )
     figures: dict[str, Any] = {}
