@@ -57,6 +57,16 @@ def test_2016_prius_label_from_the_issues_unadjusted_figures() -> None:
     assert (round(city), round(hwy), round(L.combined(city, hwy))) == (54, 50, 52)
 
 
+def test_inverse_equations_round_trip() -> None:
+    """The label's 54 / 50 mpg for the 2016 Prius come from 77.36 / 72.3 mpg unadjusted."""
+    c = _set("2008")
+    assert L.unadjusted_city(54.0, c) == pytest.approx(77.36, abs=0.01)
+    assert L.unadjusted_highway(50.0, c) == pytest.approx(72.3, abs=0.05)
+    for mpg in (20.0, 55.0, 90.0):
+        assert L.adjusted_city(L.unadjusted_city(mpg, c), c) == pytest.approx(mpg, rel=1e-13)
+        assert L.adjusted_highway(L.unadjusted_highway(mpg, c), c) == pytest.approx(mpg, rel=1e-13)
+
+
 def test_electric_adjustment_is_fastsims() -> None:
     """FASTSim (simdrivelabel.py lines 132-139): adjusted MPGe = max(derived 5-cycle, 0.7 x unadjusted);
     at low MPGe the derived equation is the larger, at BEV-like MPGe the 0.7 factor."""

@@ -150,6 +150,18 @@ def adjusted_highway(unadjusted_mpg: float, c: Coefficients) -> float:
     return 1.0 / (c.highway_intercept_gal_per_mi + c.highway_slope / unadjusted_mpg)
 
 
+def unadjusted_city(adjusted_mpg: float, c: Coefficients) -> float:
+    """The unadjusted city (FTP) fuel economy [mi/gal] behind a label's city value [mi/gal]
+    (the inverse of :func:`adjusted_city`)."""
+    return c.city_slope / (1.0 / adjusted_mpg - c.city_intercept_gal_per_mi)
+
+
+def unadjusted_highway(adjusted_mpg: float, c: Coefficients) -> float:
+    """The unadjusted highway (HFET) fuel economy [mi/gal] behind a label's highway value
+    [mi/gal] (the inverse of :func:`adjusted_highway`)."""
+    return c.highway_slope / (1.0 / adjusted_mpg - c.highway_intercept_gal_per_mi)
+
+
 def combined(city_mpg: float, highway_mpg: float, city_weight: float = 0.55) -> float:
     """Combined fuel economy [mi/gal]: the city-weighted harmonic mean (600.210-12(c))."""
     return 1.0 / (city_weight / city_mpg + (1.0 - city_weight) / highway_mpg)
