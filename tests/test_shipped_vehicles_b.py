@@ -74,9 +74,13 @@ def test_prius_2016_loads_with_its_sources() -> None:
 def test_prius_2016_audit_and_fuel_economy_band(prius_runs: dict[str, dict[str, float]]) -> None:
     """SOC-corrected MPGGE within a band of the EPA label's raw test value (label 54/50 mpg city
     / highway, raw 77.4/72.3 mpg by the derived 5-cycle equations) and of FASTSim 3's run on its
-    own 2016 Prius (stored figures). The 1998 engine map (38.5 % peak) is the main gap: it stays
-    below both (measured with the 0.75 kWh pack: -30 %/-18 % vs EPA raw, -15 %/-16 % vs FASTSim).
-    The 0.75 kWh pack follows both traces and the power follower ends within 0.04 of its start."""
+    own 2016 Prius (stored figures). The 1998 engine map (39.4 % peak) is the main gap: it stays
+    below both (measured with the 0.75 kWh pack and the power follower on its optimal operating
+    line, issue 25: -25 %/-12 % vs EPA raw, -9 %/-9 % vs FASTSim; the old follower: -30 %/-18 %).
+    The 0.75 kWh pack follows both traces. A single run from SOC 0.6 ends within 0.12 of it (0.58
+    / 0.71: the HWFET's last stop from 60 mph regenerates about 0.1 of this small pack after the
+    engine's 15 kW floor has held it near soc_high; issue 25 changed the bound from 0.05, which the
+    old follower met by charging less); the label balances each test to 1 % (tests/test_label.py)."""
     val = _validation()
     stored = tomllib.loads((VALIDATION / "prius_2016_fastsim.toml").read_text(encoding="utf-8"))
     assert val.epa_unadjusted_mpg("udds") == pytest.approx(77.36, abs=0.01)
@@ -85,7 +89,7 @@ def test_prius_2016_audit_and_fuel_economy_band(prius_runs: dict[str, dict[str, 
         assert r["energy_audit_residual_pct"] < 0.5
         assert 0.55 < r["mpgge"] / val.epa_unadjusted_mpg(cycle) < 1.05
         assert 0.65 < r["mpgge"] / stored[cycle]["mpg"] < 1.05
-        assert abs(r["soc_final"] - 0.6) < 0.05  # measured 0.569 / 0.614
+        assert abs(r["soc_final"] - 0.6) < 0.12  # measured 0.582 / 0.711 (old follower 0.569 / 0.614)
         assert r["traction_limited_s"] == 0.0  # follows the trace: the DP can run the same cycle
 
 

@@ -12,8 +12,9 @@ gallon equivalent, 33.7 kWh per US gallon (the value FASTSim's own MPGGE uses).
 
 The EPA label of the 2016 Prius Two is 54 mpg city / 50 mpg highway (fueleconomy.gov, quoted by
 truedelta.com and others). Label values are adjusted; the raw UDDS / HWFET test values they come
-from are inverted here with the EPA "derived 5-cycle" equations (40 CFR 600.210-08):
-city = 1 / (0.003259 + 1.1805 / UDDS), highway = 1 / (0.001376 + 1.3466 / HWFET).
+from are inverted here with the EPA "derived 5-cycle" equations (40 CFR 600.210-08, the 2008
+coefficient set of model year 2016: city = 1 / (0.003259 + 1.1805 / UDDS), highway = 1 /
+(0.001376 + 1.3466 / HWFET)), from hevsim's label module (hevsim.sim.label).
 """
 
 from __future__ import annotations
@@ -33,14 +34,17 @@ J_PER_GALLON_GASOLINE_EQUIVALENT = 33.7 * 3.6e6
 M_PER_MILE = 1609.344
 EPA_LABEL_MPG = {"udds": 54.0, "hwfet": 50.0}
 """2016 Prius Two label, city / highway [mpg] (fueleconomy.gov)."""
-DERIVED_5CYCLE = {"udds": (0.003259, 1.1805), "hwfet": (0.001376, 1.3466)}
-"""(intercept [gal/mi], slope [-]) of the EPA derived 5-cycle equations, 40 CFR 600.210-08."""
+MODEL_YEAR = 2016
+"""Picks the derived 5-cycle coefficients of the label (the 2008 set)."""
 
 
 def epa_unadjusted_mpg(cycle: str) -> float:
     """Raw dynamometer fuel economy [mpg] behind the label value of ``cycle``."""
-    a, b = DERIVED_5CYCLE[cycle]
-    return b / (1.0 / EPA_LABEL_MPG[cycle] - a)
+    from hevsim.sim import label
+
+    c = label.constants().for_model_year(MODEL_YEAR)
+    invert = label.unadjusted_city if cycle == "udds" else label.unadjusted_highway
+    return invert(EPA_LABEL_MPG[cycle], c)
 
 
 def run_fastsim() -> dict[str, Any]:

@@ -252,6 +252,18 @@ def _cmd_lap(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_label(args: argparse.Namespace) -> int:
+    from hevsim.sim.label import label
+
+    out = Path(args.out) if args.out else Path("results") / f"{Path(args.config).stem}_label"
+    _prepare(args, out, args.config)
+    res = label(args.config, model_year=args.model_year, charger_efficiency=args.charger_efficiency)
+    res.save(out)
+    print(res.text())
+    print(f"results written to {out}/ ({_written(out)})")
+    return 0
+
+
 def _cmd_refinement(args: argparse.Namespace) -> int:
     from hevsim.refinement import format_energy_table, format_table, run_refinement
 
@@ -890,6 +902,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--grade-speed-mph", type=float, default=30.0, help="speed of the gradeability test [mph]")
     p.add_argument("--no-plots", action="store_true", help="skip the speed/power plot")
     p.set_defaults(func=_cmd_performance)
+
+    p = sub.add_parser("label", help="EPA label: UDDS + HWFET, adjusted city/highway/combined mpg or MPGe")
+    p.add_argument("config", help="vehicle configuration (TOML), any architecture")
+    p.add_argument("-o", "--out", help="results folder (default results/<config>_label)")
+    _add_force(p, "folder at --out")
+    p.add_argument(
+        "--model-year", type=int, help="picks the derived 5-cycle coefficients (default: the newest set)"
+    )
+    p.add_argument(
+        "--charger-efficiency",
+        type=float,
+        default=1.0,
+        help="electric vehicles: energy counted from the wall = battery energy / this (default 1)",
+    )
+    p.set_defaults(func=_cmd_label)
 
     p = sub.add_parser(
         "lap", help="quasi-steady-state lap time, speed, g-g and energy per lap on a track (issue 29)"

@@ -294,8 +294,10 @@ class ControllerSection:
     drag). BEV:
     ``"direct"`` (the machine gives what the driver asks, within its and the battery's limits).
     Power split: ``"power_follower"`` (rule-based: EV below ``ev_speed_mps`` and ``ev_power_w``
-    with SOC above ``soc_low``, else the engine gives the demand plus the charging power at its
-    most efficient candidate), ``"ecms"``, ``"aecms"`` (candidates: ``engine_speed_points``
+    with SOC above ``soc_low``, else the engine gives the demand plus the charging power, at
+    least ``engine_min_power_w`` while the SOC is below ``soc_high``, at the candidate of least
+    fuel per unit of engine work near that power: its optimal operating line), ``"ecms"``,
+    ``"aecms"`` (candidates: ``engine_speed_points``
     engine speeds x ``control_points`` throttles, and engine off).
     """
 
@@ -315,6 +317,10 @@ class ControllerSection:
     ev_speed_mps: float = param(8.0, 0.0, 100.0, "m/s")
     ev_power_w: float = param(8000.0, 0.0, 1e7, "W")
     charge_power_w: float = param(4000.0, 0.0, 1e7, "W")
+    # power split (power_follower): the engine, once on, gives at least this power while the SOC is
+    # below soc_high (the surplus charges the battery): keeps it off the inefficient low-load end of
+    # its optimal operating line; 0 = the demand only
+    engine_min_power_w: float = param(0.0, 0.0, 1e7, "W")
     upshift_rpm: float = param(2000.0, 1.0, 1e5, "rpm")
     downshift_rpm: float = param(1100.0, 1.0, 1e5, "rpm")
     equivalence_factor: float = param(2.5, 0.0, 100.0, "-")
@@ -923,7 +929,7 @@ CONTROLLER_KEYS: dict[str, tuple[str, ...]] = {
     "aecms": ("equivalence_factor", "aecms_kp", "aecms_ki", "aecms_kinetic_fraction", "control_points"),
     "shift_schedule": ("upshift_rpm", "downshift_rpm"),
     "power_follower": ("soc_low", "soc_high", "ev_speed_mps", "ev_power_w", "charge_power_w",
-                       "control_points"),
+                       "engine_min_power_w", "control_points"),
     "direct": (),
 }  # fmt: skip
 """``[controller]`` keys each controller kind reads (the one table: :data:`hevsim.control.CONTROLLERS`

@@ -303,13 +303,16 @@ def ecms_from_costate_csv(path: Any) -> dict[str, float]:
 
 
 class PowerFollower(_RuleBased):
-    """Rule-based power follower of the power split (ADVISOR-style).
+    """Rule-based power follower of the power split, on the engine's optimal operating line.
 
-    EV (engine off) when braking or coasting, or below ``ev_speed_mps`` and ``ev_power_w``
-    with SOC above ``soc_low``. Otherwise the engine gives the wheel power plus a charging
-    power ramping from 0 at ``soc_high`` to ``charge_power_w`` at ``soc_low``: of the feasible
-    candidates within 10 % (at least 1 kW) of that engine power, the one of least fuel; if
-    none, the one of engine power closest to it.
+    EV (engine off) when braking or coasting, below ``ev_speed_mps`` and ``ev_power_w`` with
+    SOC above ``soc_low``, or below ``engine_min_power_w`` with SOC above ``soc_high``.
+    Otherwise the engine gives the wheel power plus a charging power ramping from 0 at
+    ``soc_high`` to ``charge_power_w`` at ``soc_low``, and at least ``engine_min_power_w``
+    while the SOC is below ``soc_high`` (the surplus charges the battery). Of the feasible
+    candidates within 10 % (at least 1 kW) of that engine power it takes the one of least fuel
+    per unit of engine work (the most efficient: the optimal operating line the DP follows, on
+    the candidate grid); if none, the one of engine power closest to it.
     """
 
     name = "power_follower"
@@ -319,8 +322,25 @@ class PowerFollower(_RuleBased):
     """Smallest band around the target engine power [W]."""
 
     def __init__(self, hev: Any, soc_low: float, soc_high: float, ev_speed_mps: float, ev_power_w: float,
-                 charge_power_w: float, control_points: int) -> None:  # fmt: skip
+                 charge_power_w: float, control_points: int,
+                 engine_min_power_w: float = 0.0) -> None:  # fmt: skip
         super().__init__(hev, soc_low, soc_high, ev_speed_mps, ev_power_w, charge_power_w, control_points)
+        self.engine_min_power = float(engine_min_power_w)
+
+    def electric(self, p_dem: float, soc: float, low_load: bool) -> bool:
+        """Engine off: braking or coasting, low load above ``soc_low``, or (with the SOC above
+        ``soc_high``) a wheel power ``p_dem`` [W] below ``engine_min_power_w``: the surplus the
+        floor charged is spent instead of running the engine below its floor."""
+        return (
+            p_dem <= 0.0
+            or (soc > self.soc_low and low_load)
+            or (soc > self.soc_high and p_dem < self.engine_min_power)
+        )
+
+    def target_power(self, p_dem: float, soc: float) -> float:
+        """Engine power [W] to give at wheel power ``p_dem`` [W] and state of charge ``soc`` [-]."""
+        target = max(p_dem, 0.0) + float(self.charge_fraction(soc)) * self.charge_power
+        return max(target, self.engine_min_power) if soc < self.soc_high else target
 
     def choose(self, step: Any) -> Control | None:
         """EV or the most efficient engine operating point near the target power."""
@@ -330,10 +350,9 @@ class PowerFollower(_RuleBased):
         st, feasible = step.evaluate(*self.controls)
         feasible = np.ravel(feasible)
         ev = np.ravel(np.asarray(self.controls[-1]) == 0.0)
-        if (p_dem <= 0.0 or (soc > self.soc_low and low_load)) and (feasible & ev).any():
+        if self.electric(p_dem, soc, low_load) and (feasible & ev).any():
             return self.pick(int(np.flatnonzero(feasible & ev)[0]))
-        frac = float(self.charge_fraction(soc))
-        target = max(p_dem, 0.0) + frac * self.charge_power
+        target = self.target_power(p_dem, soc)
         p_eng = np.ravel(st.details["engine_power_w"]) if st.details else None
         if p_eng is None:
             st, _ = step.evaluate(*self.controls, detail=True)
@@ -342,5 +361,13 @@ class PowerFollower(_RuleBased):
         band = max(self.POWER_BAND * target, self.POWER_BAND_MIN_W)
         near = feasible & ~ev & (np.abs(p_eng - target) <= band)
         if near.any():
-            return self.pick(_argmin_feasible(fuel, near))
+            return self.pick(_argmin_feasible(specific_fuel(fuel, p_eng), near))
         return self.pick(_argmin_feasible(np.abs(p_eng - target), feasible))
+
+
+def specific_fuel(fuel: np.ndarray, engine_power_w: np.ndarray) -> np.ndarray:
+    """Fuel per unit of engine power (``fuel`` [kg] over ``engine_power_w`` [W], inf where the
+    engine gives no power): the power follower's ranking of candidates near its target."""
+    p = np.asarray(engine_power_w, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(p > 0.0, np.asarray(fuel, dtype=np.float64) / np.where(p > 0.0, p, 1.0), np.inf)

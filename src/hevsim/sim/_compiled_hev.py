@@ -37,7 +37,7 @@ from hevsim.components.body import road_load_force
 from hevsim.components.bus import battery_power_limits, bus_balance, machine_request
 from hevsim.components.driveline import gear_input_torque
 from hevsim.components.flow import LIMIT_RTOL
-from hevsim.control.parallel import PowerFollower
+from hevsim.control.parallel import PowerFollower, specific_fuel
 from hevsim.control.simple import shift_gear
 from hevsim.sim import kernel as K
 from hevsim.sim._compiled_common import add_road_audit, track_step, write_summary
@@ -122,6 +122,7 @@ class ControllerConstants(NamedTuple):
     ev_speed_mps: float
     ev_power_w: float
     charge_power_w: float
+    engine_min_power_w: float
     w_up_radps: float
     w_down_radps: float
     thr_monotone: bool
@@ -152,6 +153,7 @@ def controller_code(ctl: Any) -> ControllerConstants | None:
         ev_speed_mps=g("ev_speed"),
         ev_power_w=g("ev_power"),
         charge_power_w=g("charge_power"),
+        engine_min_power_w=g("engine_min_power"),
         w_up_radps=g("w_up"),
         w_down_radps=g("w_down"),
         thr_monotone=code == ELECTRIC_ASSIST and P.torque_rises_with_throttle(ctl.hev, ctl.thr_grid),
@@ -470,19 +472,25 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
         state[1] = s
     elif cc.code == ECMS:
         s = cc.s0
-    elif p_dem <= 0.0 or (soc > cc.soc_low and low_load):  # power follower: the first feasible EV candidate
+    elif (
+        p_dem <= 0.0
+        or (soc > cc.soc_low and low_load)
+        or (soc > cc.soc_high and p_dem < cc.engine_min_power_w)
+    ):  # power follower (PowerFollower.electric): the first feasible EV candidate
         i = _scan(
             dpar, dps, np.int64(SCAN_EV), 0.0, 0.0, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
         )
         if i >= 0:
             return True, cand0[i], cand1[i], False, 0.0, 0.0
     if cc.code == POWER_FOLLOWER:
-        # The least fuel of the feasible candidates whose engine power (known per run: p_cand)
-        # is near the target: candidates in the order of their fuel (``order``, ties by index;
-        # per run, as the fuel depends on the engine alone), the first near and feasible one is
-        # it (the argmin over all, as the Python controller takes it). The rest only when none
-        # is feasible.
+        # The least fuel per unit of engine work of the feasible candidates whose engine power
+        # (known per run: p_cand) is near the target: candidates in the order of their specific
+        # fuel (``order``, ties by index; per run, as it depends on the engine alone), the first
+        # near and feasible one is it (the argmin over all, as the Python controller takes it).
+        # The rest only when none is feasible.
         target = max(p_dem, 0.0) + frac * cc.charge_power_w
+        if soc < cc.soc_high:  # PowerFollower.target_power
+            target = max(target, cc.engine_min_power_w)
         band = max(PS_POWER_BAND * target, PS_POWER_BAND_MIN_W)
         i = _scan(
             dpar,
@@ -730,11 +738,12 @@ def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_m
     nc = cand0.size
     e_flags, e_floats = np.zeros((3, nc), np.bool_), np.zeros((3, nc))
     p_cand, order = np.zeros(nc), np.arange(nc)
-    if not parallel:  # each candidate's engine operating point, engine power [W], fuel order
+    if not parallel:  # each candidate's engine operating point, engine power [W], specific-fuel order
         engine_cache(cand0, cand1, dps, etab, e_flags, e_floats)
         p_cand = e_floats[1] * e_floats[0]
         fuel_kg = e_floats[2] * (t[1] - t[0])  # as _point gives it
-        order = np.argsort(np.where(np.isnan(fuel_kg), -np.inf, fuel_kg), kind="stable")  # NaN first
+        spec = specific_fuel(fuel_kg, p_cand)  # as the Python controller ranks them
+        order = np.argsort(np.where(np.isnan(spec), -np.inf, spec), kind="stable")  # NaN first
     buf = (np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc, np.bool_), p_cand, order,
            np.zeros(len(mod.DETAILS)), np.zeros(len(mod.LOSS_TERMS)), e_flags, e_floats)  # fmt: skip
     status, k, v_end = run_hev(dpar, dps, cc, float(soc0), t, v_des, gr, cand0, cand1, thr, h, etab, mtab,
