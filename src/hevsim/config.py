@@ -253,6 +253,9 @@ CONTROLLER_KINDS: tuple[str, ...] = (
 )  # fmt: skip
 """Every ``[controller] kind``; which ones an architecture admits is in
 :data:`ARCHITECTURES` (``controllers``)."""
+SERIES_ONLINE_CONTROLLERS: tuple[str, ...] = ("ecms", "aecms")
+"""The series HEV's controllers of :mod:`hevsim.control` (run on its quasi-static power flow in
+:mod:`hevsim.sim.forward`, not in its compiled kernel)."""
 
 
 @dataclass(frozen=True)
@@ -579,6 +582,17 @@ def _check_optimization(cfg: Any, source: str) -> None:
 
 def _check_series(cfg: SeriesHEVConfig, source: str) -> None:
     _check_controller(cfg, source)
+    kind = cfg.controller.kind
+    if kind in SERIES_ONLINE_CONTROLLERS:  # the quasi-static power flow of hevsim.architectures.series
+        needs = (("genset.kind", cfg.genset.kind, ("engine",)),
+                 ("battery.model", cfg.battery.model, ("ideal", "rint", "table")))  # fmt: skip
+        for key, value, expected in needs:
+            if value not in expected:
+                raise ConfigError(
+                    f"{source}: key 'controller.kind' = {kind!r} runs the series HEV on its quasi-static "
+                    f"power flow (the DP's stage model), which needs '{key}' = {' or '.join(expected)}; "
+                    f"got '{key}' = {value!r}."
+                )
     _pairs_below(cfg, source, (("controller.soc_low", "controller.soc_high"),
                                ("battery.soc_min", "battery.soc_max"),
                                ("engine.stall_speed_rpm", "engine.redline_rpm")))  # fmt: skip
@@ -697,7 +711,8 @@ def register_architecture(spec: ArchitectureSpec) -> None:
 
 
 register_architecture(ArchitectureSpec(
-    "series", SeriesHEVConfig, ("thermostat", "schedule"), _series_required, _check_series,
+    "series", SeriesHEVConfig, ("thermostat", "schedule", *SERIES_ONLINE_CONTROLLERS), _series_required,
+    _check_series,
 ))  # fmt: skip
 register_architecture(ArchitectureSpec(
     "parallel", ParallelHEVConfig, ("electric_assist", "ecms", "aecms"),
@@ -930,11 +945,12 @@ def inert_keys(cfg: Any) -> dict[str, str]:
     the whole section). A file setting one is refused (:func:`check_inert`)."""
     arch = cfg.architecture
     out: dict[str, str] = {}
-    # --controller chooses any kind the architecture admits (the series HEV: the file's kind only)
+    # --controller chooses any kind the architecture admits (the series HEV: the file's kind or an
+    # online controller, not the other kernel supervisor)
     kinds = (
         ARCHITECTURES[arch].controllers
         if arch in ARCHITECTURES and arch != "series"
-        else (cfg.controller.kind,)
+        else tuple(dict.fromkeys((cfg.controller.kind, *SERIES_ONLINE_CONTROLLERS)))
     )
     reads: list[str] = ["kind", "aux_power_w", *ARCHITECTURE_CONTROLLER_KEYS.get(arch, ())]
     for kind in kinds:
