@@ -315,7 +315,8 @@ def simulate(
         from hevsim.sim.forward import simulate_architecture
 
         return simulate_architecture(other, model, cycle, dt_s, soc_initial, controller, **controller_params)
-    kind = getattr(model, "config", model).controller.kind
+    cfg_any: Any = getattr(model, "config", model)
+    kind = cfg_any.controller.kind
     if isinstance(controller, str):
         if controller in SERIES_CONTROLLER_KEYS and controller != kind:
             raise ConfigError(
@@ -494,13 +495,15 @@ def simulate_batch(
     ``variants`` maps kernel parameter names (:data:`hevsim.sim.kernel.PARAMS`, e.g.
     ``"mass_kg"``, ``"driver_gain_per_mps"``, ``"soc_initial"``) to arrays of equal length
     (scalars broadcast). Returns fuel economy and summaries per variant. For the other
-    architectures the variants are dotted configuration keys (``"body.mass_kg"``), run by the
-    architecture's compiled batch where it has one, else one after the other
-    (:func:`hevsim.sim.forward.simulate_batch_architecture`; ``compiled=False`` forces the
-    latter).
+    architectures, and a series HEV whose ``[controller] kind`` is an online controller
+    (``ecms``, ``aecms``: it runs in :mod:`hevsim.sim.forward`), the variants are dotted
+    configuration keys (``"body.mass_kg"``), run by the architecture's compiled batch where it
+    has one, else one after the other (:func:`hevsim.sim.forward.simulate_batch_architecture`;
+    ``compiled=False`` forces the latter).
     """
     other = _other_architecture(model)
-    if other is not None:
+    cfg_any: Any = getattr(model, "config", model)
+    if other is not None or cfg_any.controller.kind in SERIES_ONLINE_CONTROLLERS:
         from hevsim.sim.forward import simulate_batch_architecture
 
         return simulate_batch_architecture(model, variants, cycle, dt_s, compiled=compiled)
