@@ -37,15 +37,19 @@ def main() -> None:
     args = ap.parse_args()
     hev = build_series_hev(load_vehicle_config(ROOT / "examples" / "series_hev.toml"))
     load0 = os.getloadavg()[0]
-    print(f"{'cycle':<8}{'controller':<34}{'MPG':>7}{'MPGGE':>8}{'SOC end':>9}{'fuel_eq/DP':>11}{'wall s':>8}")
+    print(
+        f"{'cycle':<8}{'controller':<34}{'MPG':>7}{'MPGGE':>8}{'SOC end':>9}{'fuel_eq/DP':>11}{'wall s':>8}"
+    )
     for cycle in args.cycles:
         t = time.perf_counter()
         dp = optimize(hev, cycle, progress=False)
         t_dp = time.perf_counter() - t
         s = ecms_from_dp(dp)
         runs = []
-        for label, kw in (("rule-based (thermostat)", {}), (f"ECMS (s = {s['equivalence_factor']:.3f} from DP)",
-                          {"controller": "ecms", **s}), ("A-ECMS", {"controller": "aecms"})):  # fmt: skip
+        ecms = f"ECMS (s = {s['equivalence_factor']:.3f} from DP)"
+        controllers = (("rule-based (thermostat)", {}), (ecms, {"controller": "ecms", **s}),
+                       ("A-ECMS", {"controller": "aecms"}))  # fmt: skip
+        for label, kw in controllers:
             t = time.perf_counter()
             r = simulate(hev, cycle, **kw)
             runs.append((label, r.metrics, time.perf_counter() - t))
@@ -54,7 +58,7 @@ def main() -> None:
         for label, m, wall in runs:
             print(f"{cycle:<8}{label:<34}{m['mpg']['value']:>7.1f}{m['mpgge']['value']:>8.1f}"
                   f"{m['soc_final']['value']:>9.3f}{m['fuel_equivalent_kg']['value'] / ref:>11.4f}"
-                  f"{wall:>8.2f}")  # fmt: skip
+                  f"{wall:>8.2f}", flush=True)  # fmt: skip
     print(f"load average {load0:.1f} -> {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores "
           f"(numpy {np.__version__})")  # fmt: skip
 
