@@ -583,20 +583,27 @@ def _check_optimization(cfg: Any, source: str) -> None:
 def _check_series(cfg: SeriesHEVConfig, source: str) -> None:
     _check_controller(cfg, source)
     kind = cfg.controller.kind
-    if kind in SERIES_ONLINE_CONTROLLERS:  # the quasi-static power flow of hevsim.architectures.series
-        needs = (("genset.kind", cfg.genset.kind, ("engine",)),
-                 ("battery.model", cfg.battery.model, ("ideal", "rint", "table")))  # fmt: skip
-        for key, value, expected in needs:
-            if value not in expected:
-                raise ConfigError(
-                    f"{source}: key 'controller.kind' = {kind!r} runs the series HEV on its quasi-static "
-                    f"power flow (the DP's stage model), which needs '{key}' = {' or '.join(expected)}; "
-                    f"got '{key}' = {value!r}."
-                )
+    why = _series_online_refusal(cfg)
+    if kind in SERIES_ONLINE_CONTROLLERS and why:
+        raise ConfigError(
+            f"{source}: key 'controller.kind' = {kind!r} runs the series HEV on its quasi-static power flow "
+            f"(the DP's stage model), which needs {why}."
+        )
     _pairs_below(cfg, source, (("controller.soc_low", "controller.soc_high"),
                                ("battery.soc_min", "battery.soc_max"),
                                ("engine.stall_speed_rpm", "engine.redline_rpm")))  # fmt: skip
     _check_optimization(cfg, source)
+
+
+def _series_online_refusal(cfg: SeriesHEVConfig) -> str:
+    """Why a series HEV cannot run its online controllers (:data:`SERIES_ONLINE_CONTROLLERS`:
+    the quasi-static power flow has an engine genset and a table battery), "" when it can."""
+    needs = (("genset.kind", cfg.genset.kind, ("engine",)),
+             ("battery.model", cfg.battery.model, ("ideal", "rint", "table")))  # fmt: skip
+    for key, value, expected in needs:
+        if value not in expected:
+            return f"'{key}' = {' or '.join(expected)}; got '{key}' = {value!r}"
+    return ""
 
 
 def _check_parallel(cfg: ParallelHEVConfig, source: str) -> None:
@@ -945,13 +952,14 @@ def inert_keys(cfg: Any) -> dict[str, str]:
     the whole section). A file setting one is refused (:func:`check_inert`)."""
     arch = cfg.architecture
     out: dict[str, str] = {}
-    # --controller chooses any kind the architecture admits (the series HEV: the file's kind or an
-    # online controller, not the other kernel supervisor)
-    kinds = (
-        ARCHITECTURES[arch].controllers
-        if arch in ARCHITECTURES and arch != "series"
-        else tuple(dict.fromkeys((cfg.controller.kind, *SERIES_ONLINE_CONTROLLERS)))
-    )
+    # --controller chooses any kind the architecture admits (the series HEV: the thermostat, its
+    # online controllers where it can run them, and the schedule only when the file names it: it
+    # needs its CSV)
+    if arch == "series":
+        online = () if _series_online_refusal(cfg) else SERIES_ONLINE_CONTROLLERS
+        kinds: tuple[str, ...] = tuple(dict.fromkeys((cfg.controller.kind, "thermostat", *online)))
+    else:
+        kinds = ARCHITECTURES[arch].controllers if arch in ARCHITECTURES else (cfg.controller.kind,)
     reads: list[str] = ["kind", "aux_power_w", *ARCHITECTURE_CONTROLLER_KEYS.get(arch, ())]
     for kind in kinds:
         reads += CONTROLLER_KEYS.get(kind, ())
