@@ -192,8 +192,7 @@ def test_refused_controllers_exit_2(
 
 def test_study_runs_series_ecms_tuned_from_the_case_dp() -> None:
     """`hevsim study`'s simulate solver: the series HEV with ``controller = "ecms_dp"`` equals
-    a single ECMS run with the same case's DP factor, and ``aecms`` runs (the rule-based
-    rows stay on the kernel)."""
+    a single ECMS run with the same case's DP factor; the rule-based rows stay on the kernel."""
     from hevsim.studies.runner import run_study
     from hevsim.studies.solvers import OK
     from hevsim.studies.spec import study_from_dict, with_overrides
@@ -203,7 +202,6 @@ def test_study_runs_series_ecms_tuned_from_the_case_dp() -> None:
         "name": "series_ecms", "vehicle": str(SERIES), "cycles": ["hwfet"],
         "metrics": ["fuel_kg", "soc_final"], "parameters": {"body.mass_kg": [1300.0]},
         "solvers": [{"name": "simulate", "controller": "ecms_dp"},
-                    {"name": "simulate", "controller": "aecms"},
                     {"name": "simulate", "controller": "rule_based"}, {"name": "optimize", **dp}],
     })  # fmt: skip
     rows = run_study(study, scheduler="in-process", progress=False)
@@ -215,5 +213,3 @@ def test_study_runs_series_ecms_tuned_from_the_case_dp() -> None:
     assert got["fuel_kg"] == pytest.approx(ref.value("fuel_kg"), rel=1e-12)
     rule = rows[rows["solver"] == "simulate[controller=rule_based]"].iloc[0]
     assert rule["fuel_kg"] == pytest.approx(simulate(cfg, "hwfet").value("fuel_kg"), rel=1e-12)
-    aecms = rows[rows["solver"] == "simulate[controller=aecms]"].iloc[0]
-    assert abs(aecms["soc_final"] - cfg.simulation.soc_initial) <= 0.01
