@@ -213,3 +213,13 @@ def test_study_runs_series_ecms_tuned_from_the_case_dp() -> None:
     assert got["fuel_kg"] == pytest.approx(ref.value("fuel_kg"), rel=1e-12)
     rule = rows[rows["solver"] == "simulate[controller=rule_based]"].iloc[0]
     assert rule["fuel_kg"] == pytest.approx(simulate(cfg, "hwfet").value("fuel_kg"), rel=1e-12)
+
+
+def test_python_api_refuses_online_control_of_a_pack_series() -> None:
+    """simulate(..., controller="ecms") on a series HEV with a pack: the ConfigError of the
+    file check (no quasi-static pack), before any run."""
+    from hevsim.config import load_vehicle_config
+
+    pack = load_vehicle_config(ROOT / "examples" / "series_hev_pack.toml")
+    with pytest.raises(ConfigError, match=r"'controller\.kind' = 'ecms'.*'battery\.model' = 'pack'"):
+        simulate(pack, "udds", controller="ecms")

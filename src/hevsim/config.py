@@ -582,17 +582,23 @@ def _check_optimization(cfg: Any, source: str) -> None:
 
 def _check_series(cfg: SeriesHEVConfig, source: str) -> None:
     _check_controller(cfg, source)
-    kind = cfg.controller.kind
-    why = _series_online_refusal(cfg)
-    if kind in SERIES_ONLINE_CONTROLLERS and why:
-        raise ConfigError(
-            f"{source}: key 'controller.kind' = {kind!r} runs the series HEV on its quasi-static power flow "
-            f"(the DP's stage model), which needs {why}."
-        )
+    if cfg.controller.kind in SERIES_ONLINE_CONTROLLERS:
+        check_series_online(cfg, source, cfg.controller.kind)
     _pairs_below(cfg, source, (("controller.soc_low", "controller.soc_high"),
                                ("battery.soc_min", "battery.soc_max"),
                                ("engine.stall_speed_rpm", "engine.redline_rpm")))  # fmt: skip
     _check_optimization(cfg, source)
+
+
+def check_series_online(cfg: SeriesHEVConfig, source: str, kind: str) -> None:
+    """ConfigError unless the series HEV ``cfg`` can run the online controller ``kind``
+    (:data:`SERIES_ONLINE_CONTROLLERS`) on its quasi-static power flow."""
+    why = _series_online_refusal(cfg)
+    if why:
+        raise ConfigError(
+            f"{source}: key 'controller.kind' = {kind!r} runs the series HEV on its quasi-static power flow "
+            f"(the DP's stage model), which needs {why}."
+        )
 
 
 def _series_online_refusal(cfg: SeriesHEVConfig) -> str:

@@ -15,7 +15,12 @@ import pandas as pd
 import hevsim
 from hevsim.battery.cell import soc_outside
 from hevsim.components.engine import Engine
-from hevsim.config import SERIES_CONTROLLER_KEYS, SERIES_ONLINE_CONTROLLERS, VehicleConfig
+from hevsim.config import (
+    SERIES_CONTROLLER_KEYS,
+    SERIES_ONLINE_CONTROLLERS,
+    VehicleConfig,
+    check_series_online,
+)
 from hevsim.cycles import DriveCycle
 from hevsim.errors import ConfigError, DomainError, TrackingError
 from hevsim.fuels import config_fuel
@@ -332,6 +337,7 @@ def simulate(
             )
         from hevsim.sim.forward import simulate_architecture
 
+        check_series_online(cfg_any, cfg_any.name, getattr(controller, "name", kind))
         return simulate_architecture(
             "series", model, cycle, dt_s, soc_initial, controller, **controller_params
         )
