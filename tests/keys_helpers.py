@@ -69,6 +69,10 @@ def scenario(cfg: Any, key: str) -> dict[str, Any]:
         return {}
     if sec != "controller":
         return {}
+    if arch == "series" and name not in C.SERIES_CONTROLLER_KEYS.get(cfg.controller.kind, ()):
+        for kind in C.SERIES_ONLINE_CONTROLLERS:  # a key of its online controllers: run one
+            if name in CONTROLLERS[kind].parameters:
+                return {"controller.kind": kind}
     if arch == "series":  # the genset starts at once; its cranking, at a step that resolves it
         fine = {"simulation.dt_s": 0.02} if name == "start_speed_rpm" else {}
         return {"simulation.soc_initial": cfg.controller.soc_low - 0.005, **fine}

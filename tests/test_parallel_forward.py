@@ -267,11 +267,15 @@ def test_series_refuses_a_parallel_controller(tmp_path: Path, capsys: pytest.Cap
     series = ROOT / "examples" / "series_hev.toml"
     text = series.read_text()
     bad = tmp_path / "s.toml"
-    bad.write_text(text.replace("[controller]\n", '[controller]\nkind = "ecms"\n', 1))
-    assert 'kind = "ecms"' in bad.read_text()
-    with pytest.raises(ConfigError, match=r"'controller\.kind' = 'ecms' is not defined for the series"):
+    bad.write_text(text.replace("[controller]\n", '[controller]\nkind = "electric_assist"\n', 1))
+    assert 'kind = "electric_assist"' in bad.read_text()
+    with pytest.raises(
+        ConfigError, match=r"'controller\.kind' = 'electric_assist' is not defined for the series"
+    ):
         C.load_vehicle_config(bad)
-    assert main(["simulate", str(series), "--controller", "ecms", "--out", str(tmp_path / "o")]) == 2
+    assert (
+        main(["simulate", str(series), "--controller", "electric_assist", "--out", str(tmp_path / "o")]) == 2
+    )
     assert "--controller" in capsys.readouterr().err
 
 

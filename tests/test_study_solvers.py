@@ -141,12 +141,18 @@ metrics = ["mpgge"]
 "body.mass_kg" = [1200.0, 1300.0]
 [[solvers]]
 name = "simulate"
-controller = "ecms"
+controller = "electric_assist"
 """)
     out = tmp_path / "out"
     assert main(["study", str(p), "--out", str(out), "--scheduler", "in-process"]) == 2
     err = capsys.readouterr().err
-    for needle in (str(p), "solvers[0]", "key 'controller' = 'ecms'", "series", "rule_based, thermostat"):
+    for needle in (
+        str(p),
+        "solvers[0]",
+        "key 'controller' = 'electric_assist'",
+        "series",
+        "rule_based, thermostat",
+    ):
         assert needle in err, (needle, err)
     assert not out.exists()
 

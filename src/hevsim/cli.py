@@ -64,7 +64,7 @@ def _cmd_cycles(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from hevsim.config import SeriesHEVConfig, SimulationSection, load_vehicle_config
+    from hevsim.config import SERIES_CONTROLLER_KEYS, SeriesHEVConfig, SimulationSection, load_vehicle_config
     from hevsim.cycles import load_cycle
     from hevsim.errors import ConfigError
     from hevsim.schema import check_option
@@ -74,13 +74,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     check_option("--soc-initial", args.soc_initial, SimulationSection, "soc_initial")
     cfg = load_vehicle_config(args.config)
     series = isinstance(cfg, SeriesHEVConfig)
-    ctl_options = {"--controller": args.controller, "--ecms-from": args.ecms_from}
-    if series and any(ctl_options.values()):
-        used = ", ".join(k for k, v in ctl_options.items() if v)
-        raise ConfigError(
-            f"{args.config}: option {used} is for architectures with online controllers; the series HEV's "
-            "controller is [controller] kind = thermostat | schedule (or --schedule)."
+    if series and args.schedule and (args.controller or args.ecms_from):
+        used = ", ".join(
+            k for k, v in {"--controller": args.controller, "--ecms-from": args.ecms_from}.items() if v
         )
+        raise ConfigError(f"{args.config}: --schedule replaces the series HEV's supervisor; drop {used}.")
     if not series and args.schedule:
         raise ConfigError(f"{args.config}: --schedule replays a series-HEV genset schedule; this is a "
                           f"{cfg.architecture} HEV (use --controller).")  # fmt: skip
@@ -90,10 +88,13 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
         overrides = dict(ecms_from_costate_csv(args.ecms_from))
     kind = args.controller or ("ecms" if args.ecms_from else None)  # whatever rule-based kind is configured
-    if not series:
-        from hevsim.architectures import check_controller
-
-        check_controller(cfg.replace(**{"controller.kind": kind}) if kind else cfg, str(args.config))
+    if kind and kind != cfg.controller.kind:  # validated as a file with that kind (exit 2 if refused)
+        option = f"--controller {args.controller}" if args.controller else f"--ecms-from {args.ecms_from}"
+        try:
+            cfg = cfg.replace(**{"controller.kind": kind})
+        except ConfigError as exc:
+            raise ConfigError(f"{args.config} with {option}: {exc}") from exc
+    online = not series or cfg.controller.kind not in SERIES_CONTROLLER_KEYS  # hevsim.control's loop
     cycle = load_cycle(args.cycle or cfg.simulation.cycle)
     if args.replay and not args.schedule:
         raise ConfigError("--replay applies a genset schedule exactly as the DP took it; give the schedule "
@@ -114,7 +115,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
         result = simulate_pack_vehicle(cfg, cycle, args.dt, args.soc_initial, controller=kind,
                                        schedule=schedule, age_state=age)  # fmt: skip
-    elif series:
+    elif not online or schedule is not None:  # the series HEV's kernel supervisors
         result = simulate(cfg, cycle, dt_s=args.dt, soc_initial=args.soc_initial, schedule=schedule)
     else:
         from hevsim.architectures import architecture
@@ -856,8 +857,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--controller",
-        help="supervisory controller, overriding [controller] kind (parallel: electric_assist, ecms, aecms; "
-        "power split: power_follower, ecms, aecms; conventional: shift_schedule; BEV: direct)",
+        help="supervisory controller, overriding [controller] kind (series: thermostat, schedule, ecms, "
+        "aecms; parallel: electric_assist, ecms, aecms; power split: power_follower, ecms, aecms; "
+        "conventional: shift_schedule; BEV: direct)",
     )
     p.add_argument(
         "--ecms-from",

@@ -272,6 +272,9 @@ CONTROLLER_KINDS: tuple[str, ...] = (
 )  # fmt: skip
 """Every ``[controller] kind``; which ones an architecture admits is in
 :data:`ARCHITECTURES` (``controllers``)."""
+SERIES_ONLINE_CONTROLLERS: tuple[str, ...] = ("ecms", "aecms")
+"""The series HEV's controllers of :mod:`hevsim.control` (run on its quasi-static power flow in
+:mod:`hevsim.sim.forward`, not in its compiled kernel)."""
 
 
 @dataclass(frozen=True)
@@ -609,10 +612,34 @@ def _check_optimization(cfg: Any, source: str) -> None:
 
 def _check_series(cfg: SeriesHEVConfig, source: str) -> None:
     _check_controller(cfg, source)
+    if cfg.controller.kind in SERIES_ONLINE_CONTROLLERS:
+        check_series_online(cfg, source, cfg.controller.kind)
     _pairs_below(cfg, source, (("controller.soc_low", "controller.soc_high"),
                                ("battery.soc_min", "battery.soc_max"),
                                ("engine.stall_speed_rpm", "engine.redline_rpm")))  # fmt: skip
     _check_optimization(cfg, source)
+
+
+def check_series_online(cfg: SeriesHEVConfig, source: str, kind: str) -> None:
+    """ConfigError unless the series HEV ``cfg`` can run the online controller ``kind``
+    (:data:`SERIES_ONLINE_CONTROLLERS`) on its quasi-static power flow."""
+    why = _series_online_refusal(cfg)
+    if why:
+        raise ConfigError(
+            f"{source}: key 'controller.kind' = {kind!r} runs the series HEV on its quasi-static power flow "
+            f"(the DP's stage model), which needs {why}."
+        )
+
+
+def _series_online_refusal(cfg: SeriesHEVConfig) -> str:
+    """Why a series HEV cannot run its online controllers (:data:`SERIES_ONLINE_CONTROLLERS`:
+    the quasi-static power flow has an engine genset and a table battery), "" when it can."""
+    needs = (("genset.kind", cfg.genset.kind, ("engine",)),
+             ("battery.model", cfg.battery.model, ("ideal", "rint", "table")))  # fmt: skip
+    for key, value, expected in needs:
+        if value not in expected:
+            return f"'{key}' = {' or '.join(expected)}; got '{key}' = {value!r}"
+    return ""
 
 
 def _check_parallel(cfg: ParallelHEVConfig, source: str) -> None:
@@ -727,7 +754,8 @@ def register_architecture(spec: ArchitectureSpec) -> None:
 
 
 register_architecture(ArchitectureSpec(
-    "series", SeriesHEVConfig, ("thermostat", "schedule"), _series_required, _check_series,
+    "series", SeriesHEVConfig, ("thermostat", "schedule", *SERIES_ONLINE_CONTROLLERS), _series_required,
+    _check_series,
 ))  # fmt: skip
 register_architecture(ArchitectureSpec(
     "parallel", ParallelHEVConfig, ("electric_assist", "ecms", "aecms"),
@@ -964,12 +992,14 @@ def inert_keys(cfg: Any) -> dict[str, str]:
     the whole section). A file setting one is refused (:func:`check_inert`)."""
     arch = cfg.architecture
     out: dict[str, str] = {}
-    # --controller chooses any kind the architecture admits (the series HEV: the file's kind only)
-    kinds = (
-        ARCHITECTURES[arch].controllers
-        if arch in ARCHITECTURES and arch != "series"
-        else (cfg.controller.kind,)
-    )
+    # --controller chooses any kind the architecture admits (the series HEV: the thermostat, its
+    # online controllers where it can run them, and the schedule only when the file names it: it
+    # needs its CSV)
+    if arch == "series":
+        online = () if _series_online_refusal(cfg) else SERIES_ONLINE_CONTROLLERS
+        kinds: tuple[str, ...] = tuple(dict.fromkeys((cfg.controller.kind, "thermostat", *online)))
+    else:
+        kinds = ARCHITECTURES[arch].controllers if arch in ARCHITECTURES else (cfg.controller.kind,)
     reads: list[str] = ["kind", "aux_power_w", *ARCHITECTURE_CONTROLLER_KEYS.get(arch, ())]
     for kind in kinds:
         reads += CONTROLLER_KEYS.get(kind, ())

@@ -223,15 +223,17 @@ def group(name: str) -> KernelGroup:
     )
 
 
-def run_groups(cfg: Any, python_loop: bool = False) -> list[KernelGroup]:
+def run_groups(cfg: Any, python_loop: bool = False, series_online: bool = False) -> list[KernelGroup]:
     """The groups a forward run of the vehicle configuration ``cfg`` compiles: its
     architecture's compiled loop, or the power flows of the Python loop (``python_loop``, or
-    a pack battery outside the series HEV), plus the pack step for ``[battery] model =
-    "pack"``."""
+    a pack battery outside the series HEV, or ``series_online``: a series HEV with an online
+    controller, which runs its quasi-static power flow in the Python loop), plus the pack step
+    for ``[battery] model = "pack"``."""
     arch = str(getattr(cfg, "architecture", "series"))
     pack = getattr(getattr(cfg, "battery", None), "model", None) == "pack"
     wanted = {"pack"} if pack else set()
-    wanted.add("python_loop" if arch != "series" and (python_loop or pack) else arch)
+    loop = series_online if arch == "series" else python_loop or pack
+    wanted.add("python_loop" if loop else arch)
     return [g for g in GROUPS if wanted.intersection(g.serves)]
 
 

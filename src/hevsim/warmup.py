@@ -257,6 +257,10 @@ def simulation_preflight(cfg: object, cycle: object, dt_s: float | None) -> None
         stage(
             f"simulating {label}: {n_steps:,} steps, about {format_duration(seconds)} and {need / MB:,.0f} MB"
         )
+    from hevsim.config import SERIES_ONLINE_CONTROLLERS
     from hevsim.sim.forward import use_compiled
 
-    compile_notice_for(run_groups(cfg, python_loop=not use_compiled(None)))
+    kind = getattr(getattr(cfg, "controller", None), "kind", None)
+    compile_notice_for(
+        run_groups(cfg, python_loop=not use_compiled(None), series_online=kind in SERIES_ONLINE_CONTROLLERS)
+    )

@@ -68,7 +68,8 @@ GENSET_AT_MAX_RTOL = 1e-6
 """A genset request within this fraction of the largest power is "at its maximum" [-]."""
 
 __all__ = [
-    "ARCHITECTURE", "CONTROLS", "LOSSES", "MODES", "SeriesHEV", "build_series_hev", "capability_controls",
+    "ARCHITECTURE", "CONTROLS", "LOSSES", "MODES", "SeriesHEV", "build_series_hev", "candidate_controls",
+    "capability_controls",
     "genset_max_power_w", "loss_powers", "power_flow", "power_mode", "quasi_static_model", "run_series",
     "run_series_batch",
 ]  # fmt: skip
@@ -127,13 +128,27 @@ def _engine_points(hev: SeriesHEV, power_w: np.ndarray) -> tuple[np.ndarray, ...
 
 def quasi_static_model(hev: SeriesHEV) -> SeriesHEV:
     """The model the quasi-static loop drives: the traction motor's rotor inertia ``J``
-    [kg·m²] put into the body's rotating-mass factor, ``delta + J (ratio / r)^2 / m``, so
-    that the effective mass is the compiled kernel's ``m_eff``."""
+    [kg·m²] moved into the body's rotating-mass factor, ``delta + J (ratio / r)^2 / m``, so
+    that the effective mass is the compiled kernel's ``m_eff`` (the motor of the returned
+    model has no inertia left, so a second call changes nothing)."""
     b, ratio, r = hev.body, hev.gear.ratio, hev.tire.radius_m
     extra = hev.traction_motor.inertia_kgm2 * (ratio / r) ** 2 / b.mass_kg
     if extra == 0.0:
         return hev
-    return dataclasses.replace(hev, body=dataclasses.replace(b, mass_factor=b.mass_factor + extra))
+    return dataclasses.replace(
+        hev,
+        body=dataclasses.replace(b, mass_factor=b.mass_factor + extra),
+        traction_motor=dataclasses.replace(hev.traction_motor, inertia_kgm2=0.0),
+    )
+
+
+def candidate_controls(hev: SeriesHEV, control_points: int) -> tuple[np.ndarray]:
+    """The candidates an online controller (ECMS, A-ECMS of :mod:`hevsim.control`) scores each
+    step: ``control_points`` genset electrical powers [W] from 0 (engine off) to the largest,
+    evenly spaced as the DP's input grid (:class:`hevsim.optimal._series_dp.SeriesFormulation`:
+    the top one :data:`GENSET_MAX_RTOL` below the largest)."""
+    p_max = float(genset_max_power_w(hev)) * (1.0 - GENSET_MAX_RTOL)
+    return (np.linspace(0.0, p_max, int(control_points)),)
 
 
 def power_flow(

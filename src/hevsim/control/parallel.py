@@ -244,14 +244,18 @@ class ControlSchedule:
         self.time_s, self.gear, self.throttle = t, g, u
 
     @classmethod
-    def from_optimization(cls, result: Any) -> ControlSchedule:
-        """The optimal controls of a parallel or power-split
+    def from_optimization(cls, result: Any) -> ControlSchedule | InputSchedule:
+        """The optimal controls of a parallel, power-split or series
         :class:`~hevsim.optimal.OptimizationResult` (for the power split ``gear`` holds the
-        engine speed [rad/s])."""
+        engine speed [rad/s]; a series result gives an :class:`InputSchedule` of its genset
+        electrical power)."""
+        if result.architecture in SERIES_INPUTS:
+            return InputSchedule.from_optimization(result)
         first = {"parallel": "gear", "power_split": "engine_speed_radps"}.get(result.architecture)
         if first is None:
             raise ConfigError(
-                f"a control schedule needs a parallel or power-split DP result, got {result.architecture!r}."
+                f"a control schedule needs a parallel, power-split or series DP result, got "
+                f"{result.architecture!r}."
             )
         ts = result.timeseries
         return cls(ts["time_s"].to_numpy(), ts[first].to_numpy(), ts["engine_throttle"].to_numpy(),
@@ -270,6 +274,58 @@ class ControlSchedule:
         g = float(self.gear[i]) if u > 0 else 1.0
         _, feasible = step.evaluate(np.array([max(g, 1.0)]), np.array([u]))
         return (max(g, 1.0), u) if feasible[0] else None
+
+
+SERIES_INPUTS: dict[str, tuple[str, ...]] = {"series": ("genset_power_w",)}
+"""DP results whose inputs are the controls of the architecture's ``power_flow`` as they are:
+architecture -> the time-series columns holding them (what :class:`InputSchedule` replays)."""
+
+
+@dataclass
+class InputSchedule:
+    """Replay the inputs of a DP optimum as the DP took them: ``controls`` holds one array per
+    control of the architecture's ``power_flow`` (the series HEV: genset electrical power [W]),
+    each value applying from ``time_s`` [s] until the next time."""
+
+    time_s: np.ndarray
+    controls: tuple[np.ndarray, ...]
+    source: str = "schedule"
+    name: str = "schedule"
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.time_s, dtype=np.float64)
+        cs = tuple(np.asarray(c, dtype=np.float64) for c in self.controls)
+        if not (t.ndim == 1 and t.size >= 1 and cs and all(c.shape == t.shape for c in cs)):
+            raise ConfigError(f"{self.source}: time and every control must be 1-D arrays of equal length.")
+        if not all(np.isfinite(c).all() for c in cs):
+            raise ConfigError(f"{self.source}: every control value must be finite.")
+        self.time_s, self.controls = t, cs
+
+    @classmethod
+    def from_optimization(cls, result: Any) -> InputSchedule:
+        """The optimal inputs of a DP result of an architecture in :data:`SERIES_INPUTS`."""
+        columns = SERIES_INPUTS.get(result.architecture)
+        if columns is None:
+            raise ConfigError(
+                f"an input schedule needs a DP result of {', '.join(SERIES_INPUTS)}, got "
+                f"{result.architecture!r}."
+            )
+        ts = result.timeseries
+        return cls(ts["time_s"].to_numpy(), tuple(ts[c].to_numpy() for c in columns),
+                   source=f"DP optimum on {result.cycle.name}")  # fmt: skip
+
+    def reset(self, soc_initial: float) -> None:
+        """Nothing to reset."""
+
+    def update(self, step: Any, stage: Any) -> None:
+        """Nothing to remember."""
+
+    def choose(self, step: Any) -> Control | None:
+        """The scheduled control at the step's start time (None if infeasible)."""
+        i = int(np.clip(np.searchsorted(self.time_s, step.time_s + 1e-9, side="right") - 1, 0, None))
+        control = tuple(float(c[i]) for c in self.controls)
+        _, feasible = step.evaluate(*(np.array([c]) for c in control))
+        return control if feasible[0] else None
 
 
 def ecms_from_dp(result: Any) -> dict[str, float]:

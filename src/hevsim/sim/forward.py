@@ -220,6 +220,8 @@ def simulate_architecture(
     if cfg is None or cfg.architecture != name:
         got = getattr(cfg, "architecture", type(model).__name__)
         raise ConfigError(f"simulate: key 'powertrain.architecture' = {got!r}; expected {name!r} here.")
+    if hasattr(mod, "quasi_static_model"):  # series: the motor's rotor inertia in the effective mass
+        model = mod.quasi_static_model(model)
     ctl = controller if controller is not None and not isinstance(controller, str) else None
     if ctl is None:
         ctl = make_controller(model, controller, **controller_params)

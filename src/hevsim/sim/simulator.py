@@ -15,7 +15,12 @@ import pandas as pd
 import hevsim
 from hevsim.battery.cell import soc_outside
 from hevsim.components.engine import Engine
-from hevsim.config import VehicleConfig
+from hevsim.config import (
+    SERIES_CONTROLLER_KEYS,
+    SERIES_ONLINE_CONTROLLERS,
+    VehicleConfig,
+    check_series_online,
+)
 from hevsim.cycles import DriveCycle
 from hevsim.errors import ConfigError, DomainError, TrackingError
 from hevsim.fuels import config_fuel
@@ -274,6 +279,8 @@ def simulate(
     soc_initial: float | None = None,
     schedule: GensetSchedule | None = None,
     tracking: TrackingBound | None = TRACKING_BOUND,
+    controller: Any = None,
+    **controller_params: Any,
 ) -> SimulationResult:
     """Simulate ``model`` (a vehicle file path, configuration or built model of any
     architecture) forward over ``cycle`` with a fixed step ``dt_s`` [s].
@@ -282,9 +289,17 @@ def simulate(
     configuration's). ``schedule`` replaces the configured supervisory controller by a genset
     schedule (for example a DP optimum). Returns a :class:`SimulationResult`.
 
+    ``controller``: a ``[controller] kind`` name or a controller object of
+    :mod:`hevsim.control` (default: the configuration's kind), ``controller_params`` override
+    ``[controller]`` values (``equivalence_factor=2.6``). The series HEV's kernel supervisors
+    (``thermostat``, ``schedule``) run in its compiled kernel; its online controllers
+    (``ecms``, ``aecms``: :data:`hevsim.config.SERIES_ONLINE_CONTROLLERS`) run on its
+    quasi-static power flow (:func:`hevsim.architectures.series.power_flow`, the DP's stage
+    model) in the loop every other architecture uses,
+    :func:`hevsim.sim.forward.simulate_architecture` (driver: the trace follower of that loop).
+
     Any other architecture (parallel, conventional, BEV, power split: a configuration or a
-    built model) runs in :func:`hevsim.sim.forward.simulate_architecture` with its configured
-    controller.
+    built model) runs in :func:`hevsim.sim.forward.simulate_architecture`.
 
     Raises :class:`~hevsim.errors.DomainError` when a recorded channel becomes NaN or
     infinite or the SOC leaves [0, 1], and :class:`~hevsim.errors.TrackingError` (holding the
@@ -304,7 +319,34 @@ def simulate(
             )
         from hevsim.sim.forward import simulate_architecture
 
-        return simulate_architecture(other, model, cycle, dt_s, soc_initial)
+        return simulate_architecture(other, model, cycle, dt_s, soc_initial, controller, **controller_params)
+    cfg_any: Any = getattr(model, "config", model)
+    kind = cfg_any.controller.kind
+    if isinstance(controller, str):
+        if controller in SERIES_CONTROLLER_KEYS and controller != kind:
+            raise ConfigError(
+                f"simulate: controller {controller!r} is a series-kernel supervisor; set key "
+                f"'controller.kind' = {controller!r} in the configuration (it holds {kind!r})."
+            )
+        kind = controller
+    if (controller is not None and not isinstance(controller, str)) or kind not in SERIES_CONTROLLER_KEYS:
+        if schedule is not None:
+            raise ConfigError(
+                f"simulate: a genset schedule replaces the series HEV's supervisor; got controller {kind!r} "
+                "too."
+            )
+        from hevsim.sim.forward import simulate_architecture
+
+        check_series_online(cfg_any, cfg_any.name, getattr(controller, "name", kind))
+        return simulate_architecture(
+            "series", model, cycle, dt_s, soc_initial, controller, **controller_params
+        )
+    if controller_params:
+        raise ConfigError(
+            f"simulate: controller parameters ({', '.join(controller_params)}) are for the online "
+            f"controllers ({', '.join(SERIES_ONLINE_CONTROLLERS)}); the series kernel's {kind!r} reads "
+            "its [controller] section."
+        )
     if getattr(getattr(getattr(model, "config", model), "battery", None), "model", "") == "pack":
         from hevsim.sim.pack_vehicle import simulate_pack_vehicle
 
@@ -459,13 +501,15 @@ def simulate_batch(
     ``variants`` maps kernel parameter names (:data:`hevsim.sim.kernel.PARAMS`, e.g.
     ``"mass_kg"``, ``"driver_gain_per_mps"``, ``"soc_initial"``) to arrays of equal length
     (scalars broadcast). Returns fuel economy and summaries per variant. For the other
-    architectures the variants are dotted configuration keys (``"body.mass_kg"``), run by the
-    architecture's compiled batch where it has one, else one after the other
-    (:func:`hevsim.sim.forward.simulate_batch_architecture`; ``compiled=False`` forces the
-    latter).
+    architectures, and a series HEV whose ``[controller] kind`` is an online controller
+    (``ecms``, ``aecms``: it runs in :mod:`hevsim.sim.forward`), the variants are dotted
+    configuration keys (``"body.mass_kg"``), run by the architecture's compiled batch where it
+    has one, else one after the other (:func:`hevsim.sim.forward.simulate_batch_architecture`;
+    ``compiled=False`` forces the latter).
     """
     other = _other_architecture(model)
-    if other is not None:
+    cfg_any: Any = getattr(model, "config", model)
+    if other is not None or cfg_any.controller.kind in SERIES_ONLINE_CONTROLLERS:
         from hevsim.sim.forward import simulate_batch_architecture
 
         return simulate_batch_architecture(model, variants, cycle, dt_s, compiled=compiled)

@@ -374,12 +374,21 @@ def _simulate_prepare(study: Any, solver: Any) -> SimulateContext:
     fingerprint = study.fingerprint()
     token = f"{fingerprint}:{solver.label}"
     dp = solver.option(DP_OPTIONS)
-    if base.architecture != "series":  # configuration keys, validated per variant by the batch
+    if _forward_keys(base):  # configuration keys, validated per variant by the batch
         return SimulateContext(base, study.keys, integer, solver.option("dt_s"), (), (), token, (), dp,
                                fingerprint)  # fmt: skip
     kernel, structural, notes = classify_keys(base, study.keys, integer, study.values)
     return SimulateContext(base, study.keys, integer, solver.option("dt_s"), kernel, structural, token, notes,
                            dp, fingerprint)  # fmt: skip
+
+
+def _forward_keys(base: Any) -> bool:
+    """Whether the ``simulate`` solver varies configuration keys of ``base`` (every
+    architecture but the series HEV, and the series HEV with an online controller, which runs
+    in :mod:`hevsim.sim.forward`) rather than the series kernel's parameters."""
+    from hevsim.config import SERIES_ONLINE_CONTROLLERS
+
+    return bool(base.architecture != "series" or base.controller.kind in SERIES_ONLINE_CONTROLLERS)
 
 
 def _simulate_group(ctx: SimulateContext, row: np.ndarray) -> Hashable:
@@ -403,7 +412,7 @@ def _simulate_run(
     from hevsim.sim import kernel as K
     from hevsim.sim.simulator import simulate_batch
 
-    if ctx.base.architecture != "series":
+    if _forward_keys(ctx.base):
         return _architecture_run(ctx, cycle, values, metrics, threads)
     t0 = time.perf_counter()
     m = values.shape[0]
@@ -492,8 +501,9 @@ def _dp_factor(ctx: SimulateContext, cfg: Any, cycle: Any, row: np.ndarray, thre
 def _architecture_run(
     ctx: SimulateContext, cycle: Any, values: np.ndarray, metrics: tuple[str, ...], threads: int | None
 ) -> list[Outcome]:
-    """``simulate`` for the architectures other than the series HEV: the batch's cases as
-    configuration-key variants of one :func:`~hevsim.sim.simulator.simulate_batch` call."""
+    """``simulate`` for the architectures other than the series HEV (and the series HEV with an
+    online controller): the batch's cases as configuration-key variants of one
+    :func:`~hevsim.sim.simulator.simulate_batch` call."""
     from hevsim.architectures import architecture
     from hevsim.config import with_overrides
     from hevsim.sim.simulator import simulate_batch
