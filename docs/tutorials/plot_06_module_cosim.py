@@ -97,5 +97,6 @@ heat_out_j = float(np.sum(res["fem.wall_heat_w"][1:] * dt))
 stored_j = float(res["fem.stored_energy_j"][-1] - res["fem.stored_energy_j"][0])
 gap_j = heat_in_j - heat_out_j - stored_j
 print(f"cells -> module {heat_in_j:8.1f} J, plate -> coolant {heat_out_j:8.1f} J, stored {stored_j:8.1f} J")
-print(f"unaccounted (film to the air, exchange error): {gap_j:.2f} J = {100 * gap_j / heat_out_j:.3f} % of the cooling")
+share = 100 * gap_j / heat_out_j
+print(f"unaccounted (film to the air, exchange error): {gap_j:.2f} J = {share:.3f} % of the cooling")
 assert abs(gap_j) < 1e-3 * heat_out_j
