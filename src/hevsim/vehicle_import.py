@@ -350,13 +350,19 @@ def read_vehicle(path: str | Path, row: int | None = None, name: str | None = No
 
 
 # ============================================================================ FASTSim's rules
-def fastsim_test_mass_kg(v: dict[str, Any]) -> float:
+def fastsim_test_mass_kg(v: dict[str, Any], where: str = "FASTSim vehicle") -> float:
     """FASTSim-2's vehicle mass [kg] (``RustVehicle::set_veh_mass``): ``veh_override_kg`` when
     given, else cargo + glider + multiplier x (transmission + battery + motor + engine + fuel
     storage), each component's mass from its size."""
     if v.get("veh_override_kg") is not None:
         return float(v["veh_override_kg"])
     mult = float(v["comp_mass_multiplier"])
+    for size, per in (("fc_max_kw", "fc_kw_per_kg"), ("fs_max_kw", "fs_kwh_per_kg")):
+        if v.get(size) and not v.get(per):
+            raise ConfigError(
+                f"{where}: key {per!r} = {v.get(per)!r}: FASTSim's component-mass rule divides by it ({size} = {v[size]:g}); "
+                "expected a positive number, or the vehicle mass in 'veh_override_kg'."
+            )
     ess = 0.0
     if v["ess_max_kwh"] and v["ess_max_kw"]:
         ess = (v["ess_max_kwh"] * v["ess_kg_per_kwh"] + v["ess_base_kg"]) * mult
@@ -521,7 +527,7 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
     if has_engine and fuel_type not in FUELS and not isinstance(v.get("fc_eff_map"), list):
         raise ConfigError(f"{source}: key 'fc_eff_type' = {fuel_type!r}; expected one of {', '.join(FUELS)}.")
     fuel = FUELS.get(fuel_type, "gasoline")
-    mass = fastsim_test_mass_kg(v)
+    mass = fastsim_test_mass_kg(v, source)
     r = float(v["wheel_radius_m"])
     inertia = float(v.get("wheel_inertia_kg_m2") or 0.0) * float(v.get("num_wheels") or 0.0)
     mass_factor = 1.0 + inertia / (mass * r * r)
@@ -622,8 +628,8 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
         a(f"resistance_ohm = {_fmt(res)}   # one-way efficiency sqrt(ess_round_trip_eff {rt:g}) at {p_ref / 1e3:g} kW (half the motor's power)")
         a(f"max_discharge_current_a = {_fmt(i_max)}   # ess_max_kw {kw:g} / OCV")
         a(f"max_charge_current_a = {_fmt(i_max)}")
-        a(f"soc_min = {_fmt(v.get('min_soc') or 0.0)}")
-        a(f"soc_max = {_fmt(v.get('max_soc') or 1.0)}")
+        a(f"soc_min = {_fmt(v.get('min_soc') or 0.0)}   # min_soc")
+        a(f"soc_max = {_fmt(v.get('max_soc') or 1.0)}   # max_soc")
         a("")
     a("[simulation]")
     a('cycle = "udds"')
