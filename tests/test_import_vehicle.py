@@ -80,7 +80,12 @@ def test_masses_equal_fastsims_own(tmp_path: Path) -> None:
     fs = pytest.importorskip("fastsim")
     import warnings
 
-    for name in ("2012_Ford_Fusion", "2016_TOYOTA_Prius_Two", "2010_Mazda_3_i-Stop", "2016_EU_VW_Golf_1.4TSI"):
+    for name in (
+        "2012_Ford_Fusion",
+        "2016_TOYOTA_Prius_Two",
+        "2010_Mazda_3_i-Stop",
+        "2016_EU_VW_Golf_1.4TSI",
+    ):
         d = yaml.safe_load((VEHDB / f"{name}.yaml").read_text())
         d["veh_override_kg"] = None
         f = tmp_path / f"{name}.yaml"
@@ -143,7 +148,14 @@ def test_phev_and_fuel_cell_refused_by_name(tmp_path: Path, capsys: pytest.Captu
 
 def test_written_file_comments_the_approximations(tmp_path: Path) -> None:
     text = _import(tmp_path, VEHDB / "2016_TOYOTA_Prius_Two.yaml").read_text()
-    for needle in ("Apache License 2.0", "veh_override_kg", "mph_fc_on", "kw_demand_fc_on", "aux_kw", "min_soc"):
+    for needle in (
+        "Apache License 2.0",
+        "veh_override_kg",
+        "mph_fc_on",
+        "kw_demand_fc_on",
+        "aux_kw",
+        "min_soc",
+    ):
         assert needle in text
     eng = (tmp_path / "veh_engine" / "fuel_rate_map.csv").read_text().splitlines()
     assert eng[0] == "speed_rad_per_s,torque_N_m,fuel_rate_g_per_s"
@@ -159,7 +171,9 @@ def test_every_efficiency_map_point_is_fastsims_curve(tmp_path: Path) -> None:
     frac = np.minimum(p / 71e3, 1.0)
     x = [0.0, 0.005, 0.015, 0.04, 0.06, 0.1, 0.14, 0.2, 0.4, 0.6, 0.8, 1.0]
     e = [0.08, 0.1, 0.26, 0.33, 0.355, 0.37, 0.38, 0.38, 0.35, 0.34, 0.33, 0.32]
-    expected = np.where(p > 0, p / np.interp(frac, x, e) / get_fuel("gasoline").lower_heating_value_j_per_kg * 1e3, 0.0)
+    expected = np.where(
+        p > 0, p / np.interp(frac, x, e) / get_fuel("gasoline").lower_heating_value_j_per_kg * 1e3, 0.0
+    )
     assert np.allclose(t["fuel_rate_g_per_s"], expected, rtol=1e-12, atol=0.0)
 
 
@@ -176,3 +190,14 @@ def test_every_vehdb_vehicle_simulates_udds(tmp_path: Path) -> None:
         out = _import(tmp_path, src, name=f"v{i}")
         res = simulate(out, "udds", tracking=None)
         assert res.metrics["distance_mi"]["value"] > 7.0, src.name
+
+
+def test_docs_table_lists_every_key() -> None:
+    from hevsim.vehicle_import import VAL_KEYS, key_treatment
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "import_vehicle.md").read_text()
+    table = key_treatment()
+    assert set(VAL_KEYS) <= set(table)
+    for key, (treatment, _) in table.items():
+        if key not in VAL_KEYS:
+            assert f"| `{key}` | {treatment} |" in doc, key

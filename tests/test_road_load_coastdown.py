@@ -21,7 +21,7 @@ from hevsim.errors import ConfigError
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 A_N, B_N_PER_M_S, C_N_PER_M2_S2, TEST_MASS_KG = 130.0, 2.5, 0.42, 1600.0
-"""A mid-size sedan's coast-down targets (the order of the EPA Test Car List's) [N, N/(m/s), N/(m/s)^2, kg]."""
+"""Mid-size sedan coast-down targets (the order of the EPA Test Car List's) [N, N/(m/s), N/(m/s)^2, kg]."""
 VEHICLES = {
     "series": "series_hev.toml",
     "parallel": "parallel_hev.toml",
@@ -81,7 +81,9 @@ def test_series_kernel_coasts_down_with_a_b_c() -> None:
     for v in (3.0, 12.0, 31.0):
         a = K.vehicle_step(p, v, 0.0, 0.0, 0.0, m_eff, 0.1)[0]
         assert -a * m_eff == pytest.approx(_road_load(np.array(v)), rel=1e-9)
-    res = _simulate(_coastdown_config("series"), DriveCycle("cruise", np.arange(0.0, 31.0), np.full(31, 15.0)))
+    res = _simulate(
+        _coastdown_config("series"), DriveCycle("cruise", np.arange(0.0, 31.0), np.full(31, 15.0))
+    )
     ts = res.timeseries
     assert np.allclose(ts["road_load_force_n"].to_numpy()[5:], _road_load(ts["speed_mps"].to_numpy()[5:]),
                        rtol=1e-9, atol=0.0)  # fmt: skip

@@ -892,13 +892,17 @@ def build_parser() -> argparse.ArgumentParser:
     _add_force(p, "file at --out")
     p.set_defaults(func=_cmd_refinement)
 
-    p = sub.add_parser("import-vehicle", help="import a FASTSim vehicle (fastsim-2 YAML/CSV, vehicle database CSV)")
+    p = sub.add_parser(
+        "import-vehicle", help="import a FASTSim vehicle (fastsim-2 YAML/CSV, vehicle database CSV)"
+    )
     p.add_argument("file", help="FASTSim vehicle file: fastsim-2 .yaml / .csv or the vehicle database CSV")
     which = p.add_mutually_exclusive_group()
     which.add_argument("--row", type=int, help="database row (its 'selection' number)")
     which.add_argument("--name", help="database vehicle by its scenario name")
     which.add_argument("--list", action="store_true", help="list the file's vehicles and exit")
-    p.add_argument("-o", "--out", help="hevsim vehicle TOML to write (maps beside it: <stem>_engine/, <stem>_motor/)")
+    p.add_argument(
+        "-o", "--out", help="hevsim vehicle TOML to write (maps beside it: <stem>_engine/, <stem>_motor/)"
+    )
     _add_force(p, "file at -o")
     p.set_defaults(func=_cmd_import_vehicle)
 

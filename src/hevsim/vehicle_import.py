@@ -5,7 +5,7 @@ engine and motor maps (CSV folders) beside it.
 The equations taken from FASTSim (NREL, Apache-2.0; read in ``rust/fastsim-core/src/
 vehicle.rs`` ``set_veh_mass`` / ``set_derived``, ``simdrive/simdrive_impl.rs`` and
 ``python/fastsim/parameters.py`` of github.com/NREL/fastsim at bd9111bb) are re-stated here,
-with the constants they use; the mapping of every key is :data:`KEY_TREATMENT` (also in
+with the constants they use; the mapping of every key is :func:`key_treatment` (also in
 docs/import_vehicle.md). Nothing of FASTSim's code is copied.
 
 Architectures: ``Conv`` -> conventional, ``HEV`` -> parallel (P2: FASTSim's engine and motor
@@ -17,9 +17,11 @@ from __future__ import annotations
 
 import ast
 import csv
+import functools
 import math
 import tempfile
 import tomllib
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -81,145 +83,57 @@ BATTERY_EFF_POWER_FRACTION = 0.5
 MAP_SPEED_POINTS, MAP_TORQUE_POINTS = 31, 61
 
 # ----------------------------------------------------------------------------- key table
-MAPPED, APPROX, DERIVED, REFERENCE, REFUSED = "mapped", "approximated", "recomputed", "reference", "refused"
-KEY_TREATMENT: dict[str, tuple[str, str]] = {
-    "scenario_name": (MAPPED, "name / description"),
-    "selection": (REFERENCE, "row number of the database (comment)"),
-    "veh_year": (MAPPED, "description"),
-    "veh_pt_type": (MAPPED, "powertrain.architecture: Conv -> conventional, HEV -> parallel (P2), BEV -> bev; PHEV refused"),
-    "drag_coef": (MAPPED, "body.drag_coefficient"),
-    "frontal_area_m2": (MAPPED, "body.frontal_area_m2"),
-    "glider_kg": (MAPPED, "body.mass_kg (FASTSim's component-mass rule)"),
-    "cargo_kg": (MAPPED, "body.mass_kg (FASTSim's component-mass rule)"),
-    "veh_override_kg": (MAPPED, "body.mass_kg when given"),
-    "comp_mass_multiplier": (MAPPED, "body.mass_kg (FASTSim's component-mass rule)"),
-    "trans_kg": (MAPPED, "body.mass_kg (FASTSim's component-mass rule)"),
-    "fc_base_kg": (MAPPED, "body.mass_kg (FASTSim's component-mass rule)"),
-    "fc_kw_per_kg": (MAPPED, "body.mass_kg (FASTSim's component-mass rule)"),
-    "mc_pe_kg_per_kw": (MAPPED, "body.mass_kg (FASTSim's component-mass rule)"),
-    "mc_pe_base_kg": (MAPPED, "body.mass_kg (FASTSim's component-mass rule)"),
-    "ess_kg_per_kwh": (MAPPED, "body.mass_kg (FASTSim's component-mass rule)"),
-    "ess_base_kg": (MAPPED, "body.mass_kg (FASTSim's component-mass rule)"),
-    "fs_kwh_per_kg": (MAPPED, "body.mass_kg (FASTSim's component-mass rule)"),
-    "fs_kwh": (MAPPED, "body.mass_kg (fuel-storage mass); the tank's energy does not limit hevsim's run"),
-    "fs_max_kw": (APPROX, "fuel-storage power limit not modelled (FASTSim files give 2000 kW or more: no limit)"),
-    "fs_secs_to_peak_pwr": (APPROX, "fuel-storage power ramp not modelled"),
-    "veh_cg_m": (MAPPED, "body.cg_height_m"),
-    "wheel_base_m": (MAPPED, "body.front_axle_to_cg_m + body.rear_axle_to_cg_m"),
-    "drive_axle_weight_frac": (MAPPED, "static front share of the axle loads (front-wheel drive assumed)"),
-    "wheel_coef_of_fric": (MAPPED, "tire.friction_coefficient"),
-    "wheel_radius_m": (MAPPED, "tire.radius_m"),
-    "wheel_inertia_kg_m2": (MAPPED, "body.mass_factor = 1 + n I / (m r^2)"),
-    "num_wheels": (MAPPED, "body.mass_factor = 1 + n I / (m r^2)"),
-    "wheel_rr_coef": (MAPPED, "body.rolling_resistance x 9.81 / 9.80665 (FASTSim's gravity)"),
-    "fc_max_kw": (MAPPED, "engine map: max power"),
-    "fc_pwr_out_perc": (MAPPED, "engine fuel map (efficiency vs power fraction at every speed)"),
-    "fc_eff_map": (MAPPED, "engine fuel map (efficiency vs power fraction at every speed)"),
-    "fc_eff_type": (MAPPED, "engine fuel (SI, Atkinson: gasoline; Diesel, HD_Diesel: diesel); H2FC refused"),
-    "fc_peak_eff_override": (MAPPED, "engine efficiency curve scaled to this peak"),
-    "fc_sec_to_peak_pwr": (APPROX, "engine power ramp not modelled: full power at once"),
-    "min_fc_time_on": (APPROX, "minimum engine-on time not modelled"),
-    "idle_fc_kw": (APPROX, "not carried: FASTSim uses it only as the HEV's forced-on engine power; the fuel "
-                   "map burns P / eff(P) like FASTSim, so an idling engine burns the fuel of its load"),
-    "mc_max_kw": (MAPPED, "motor map: max power (torque limit = power / speed above the base speed)"),
-    "mc_pwr_out_perc": (MAPPED, "motor efficiency map (efficiency vs power fraction at every speed)"),
-    "mc_eff_map": (MAPPED, "motor efficiency map; empty: FASTSim's baseline curves by motor size"),
-    "mc_peak_eff_override": (MAPPED, "motor efficiency curve scaled to this peak"),
-    "small_motor_power_kw": (MAPPED, "baseline motor curve interpolation"),
-    "large_motor_power_kw": (MAPPED, "baseline motor curve interpolation"),
-    "modern_max": (MAPPED, "baseline motor curve peak"),
-    "mc_sec_to_peak_pwr": (APPROX, "motor power ramp not modelled"),
-    "ess_max_kw": (MAPPED, "battery current limits (power / OCV)"),
-    "ess_max_kwh": (MAPPED, "battery capacity (energy / OCV)"),
-    "ess_round_trip_eff": (APPROX, "Rint battery whose one-way efficiency equals sqrt(round trip) at half the motor power"),
-    "ess_life_coef_a": (APPROX, "battery life not modelled"),
-    "ess_life_coef_b": (APPROX, "battery life not modelled"),
-    "min_soc": (MAPPED, "battery.soc_min"),
-    "max_soc": (MAPPED, "battery.soc_max"),
-    "ess_dischg_to_fc_max_eff_perc": (APPROX, "FASTSim's HEV energy management: hevsim's electric_assist rules instead"),
-    "ess_chg_to_fc_max_eff_perc": (APPROX, "FASTSim's HEV energy management: hevsim's electric_assist rules instead"),
-    "max_accel_buffer_mph": (APPROX, "FASTSim's HEV SOC buffers: hevsim's electric_assist SOC band instead"),
-    "max_accel_buffer_perc_of_useable_soc": (APPROX, "FASTSim's HEV SOC buffers: electric_assist SOC band instead"),
-    "perc_high_acc_buf": (APPROX, "FASTSim's HEV SOC buffers: electric_assist SOC band instead"),
-    "ess_to_fuel_ok_error": (APPROX, "FASTSim's SOC-balance tolerance: hevsim's SOC correction instead"),
-    "mph_fc_on": (MAPPED, "controller.ev_speed_mps (HEV)"),
-    "kw_demand_fc_on": (MAPPED, "controller.ev_power_w (HEV)"),
-    "max_regen": (MAPPED, "brakes.regen_fraction (BEV); HEV: hevsim regenerates within the machine's limits"),
-    "regen_a": (APPROX, "brakes.regen_min_speed_mps (BEV) = the speed where FASTSim's regen curve reaches half"),
-    "regen_b": (APPROX, "brakes.regen_min_speed_mps (BEV) = the speed where FASTSim's regen curve reaches half"),
-    "stop_start": (MAPPED, "controller.stop_start (conventional)"),
-    "force_aux_on_fc": (APPROX, "conventional: aux always on the engine (alternator); electrified: on the bus"),
-    "alt_eff": (MAPPED, "alternator.efficiency (conventional)"),
-    "chg_eff": (APPROX, "charger (plug-in) not modelled"),
-    "aux_kw": (MAPPED, "controller.aux_power_w"),
-    "trans_eff": (MAPPED, "gearbox.efficiency (conventional, HEV) / final_drive.efficiency (BEV)"),
-    "charging_on": (REFUSED, "roadway charging: refused when true"),
-    "max_roadway_chg_kw": (REFUSED, "roadway charging: refused when nonzero"),
-    "veh_kg": (DERIVED, "recomputed by FASTSim's rule"),
-    "max_trac_mps2": (DERIVED, "hevsim's traction limit from friction and axle loads"),
-    "ess_mass_kg": (DERIVED, "recomputed by FASTSim's rule"),
-    "mc_mass_kg": (DERIVED, "recomputed by FASTSim's rule"),
-    "fc_mass_kg": (DERIVED, "recomputed by FASTSim's rule"),
-    "fs_mass_kg": (DERIVED, "recomputed by FASTSim's rule"),
-}
-"""Every fastsim-2 vehicle key -> (treatment, how). ``val*`` keys are EPA reference values (comments)."""
-VAL_KEYS = (
-    "val_udds_mpgge", "val_hwy_mpgge", "val_comb_mpgge", "val_udds_kwh_per_mile", "val_hwy_kwh_per_mile",
-    "val_comb_kwh_per_mile", "val_cd_range_mi", "val_const65_mph_kwh_per_mile", "val_const60_mph_kwh_per_mile",
-    "val_const55_mph_kwh_per_mile", "val_const45_mph_kwh_per_mile", "val_unadj_udds_kwh_per_mile",
-    "val_unadj_hwy_kwh_per_mile", "val0_to60_mph", "val_ess_life_miles", "val_range_miles", "val_veh_base_cost",
-    "val_msrp",
-)  # fmt: skip
-for _k in VAL_KEYS:
-    KEY_TREATMENT[_k] = (REFERENCE, "EPA / published reference value (comment in the written file)")
+KEYS_FILE = "data/vehicles/fastsim_keys.toml"
+"""Every fastsim-2 vehicle key -> treatment and how (and FASTSim's old camelCase names), as data."""
+TREATMENTS = ("mapped", "approximated", "recomputed", "reference", "refused")
 
-OLD_NAMES = {
-    "Scenario_name": "scenario_name", "Selection": "selection", "vehYear": "veh_year", "vehPtType": "veh_pt_type",
-    "dragCoef": "drag_coef", "frontalAreaM2": "frontal_area_m2", "gliderKg": "glider_kg", "vehCgM": "veh_cg_m",
-    "driveAxleWeightFrac": "drive_axle_weight_frac", "wheelBaseM": "wheel_base_m", "cargoKg": "cargo_kg",
-    "vehOverrideKg": "veh_override_kg", "maxFuelStorKw": "fs_max_kw", "fuelStorSecsToPeakPwr": "fs_secs_to_peak_pwr",
-    "fuelStorKwh": "fs_kwh", "fuelStorKwhPerKg": "fs_kwh_per_kg", "maxFuelConvKw": "fc_max_kw", "fcEffMap": "fc_eff_map",
-    "fcEffType": "fc_eff_type", "fuelConvSecsToPeakPwr": "fc_sec_to_peak_pwr", "fuelConvBaseKg": "fc_base_kg",
-    "fuelConvKwPerKg": "fc_kw_per_kg", "mcPwrOutPerc": "mc_pwr_out_perc", "maxMotorKw": "mc_max_kw",
-    "motorSecsToPeakPwr": "mc_sec_to_peak_pwr", "stopStart": "stop_start", "mcPeKgPerKw": "mc_pe_kg_per_kw",
-    "mcPeBaseKg": "mc_pe_base_kg", "maxEssKw": "ess_max_kw", "maxEssKwh": "ess_max_kwh", "essKgPerKwh": "ess_kg_per_kwh",
-    "essBaseKg": "ess_base_kg", "essRoundTripEff": "ess_round_trip_eff", "essLifeCoefA": "ess_life_coef_a",
-    "essLifeCoefB": "ess_life_coef_b", "wheelInertiaKgM2": "wheel_inertia_kg_m2", "numWheels": "num_wheels",
-    "wheelRrCoef": "wheel_rr_coef", "wheelRadiusM": "wheel_radius_m", "wheelCoefOfFric": "wheel_coef_of_fric",
-    "minSoc": "min_soc", "maxSoc": "max_soc", "essDischgToFcMaxEffPerc": "ess_dischg_to_fc_max_eff_perc",
-    "essChgToFcMaxEffPerc": "ess_chg_to_fc_max_eff_perc", "maxAccelBufferMph": "max_accel_buffer_mph",
-    "maxAccelBufferPercOfUseableSoc": "max_accel_buffer_perc_of_useable_soc", "percHighAccBuf": "perc_high_acc_buf",
-    "mphFcOn": "mph_fc_on", "kwDemandFcOn": "kw_demand_fc_on", "altEff": "alt_eff", "chgEff": "chg_eff",
-    "auxKw": "aux_kw", "forceAuxOnFC": "force_aux_on_fc", "transKg": "trans_kg", "transEff": "trans_eff",
-    "compMassMultiplier": "comp_mass_multiplier", "essToFuelOkError": "ess_to_fuel_ok_error", "maxRegen": "max_regen",
-    "valUddsMpgge": "val_udds_mpgge", "valHwyMpgge": "val_hwy_mpgge", "valCombMpgge": "val_comb_mpgge",
-    "valUddsKwhPerMile": "val_udds_kwh_per_mile", "valHwyKwhPerMile": "val_hwy_kwh_per_mile",
-    "valCombKwhPerMile": "val_comb_kwh_per_mile", "valCdRangeMi": "val_cd_range_mi",
-    "valConst65MphKwhPerMile": "val_const65_mph_kwh_per_mile", "valConst60MphKwhPerMile": "val_const60_mph_kwh_per_mile",
-    "valConst55MphKwhPerMile": "val_const55_mph_kwh_per_mile", "valConst45MphKwhPerMile": "val_const45_mph_kwh_per_mile",
-    "valUnadjUddsKwhPerMile": "val_unadj_udds_kwh_per_mile", "valUnadjHwyKwhPerMile": "val_unadj_hwy_kwh_per_mile",
-    "val0To60Mph": "val0_to60_mph", "valEssLifeMiles": "val_ess_life_miles", "valRangeMiles": "val_range_miles",
-    "valVehBaseCost": "val_veh_base_cost", "valMsrp": "val_msrp", "minFcTimeOn": "min_fc_time_on",
-    "idleFcKw": "idle_fc_kw", "mcEffMap": "mc_eff_map", "fcPwrOutPerc": "fc_pwr_out_perc",
-    "MaxRoadwayChgKw": "max_roadway_chg_kw", "chargingOn": "charging_on",
-}  # fmt: skip
-"""FASTSim's older camelCase column names (``vehicle_base.NEW_TO_OLD``) -> the snake_case ones."""
+
+@functools.lru_cache(maxsize=1)
+def _key_table() -> tuple[dict[str, tuple[str, str]], dict[str, str]]:
+    path = Path(str(resources.files("hevsim") / KEYS_FILE))
+    data = tomllib.loads(path.read_text(encoding="utf-8"))
+    keys: dict[str, tuple[str, str]] = {}
+    for k, entry in data["keys"].items():
+        if entry.get("treatment") not in TREATMENTS:
+            raise ConfigError(
+                f"{path}: key 'keys.{k}.treatment' = {entry.get('treatment')!r}; expected one of "
+                f"{TREATMENTS}."
+            )
+        keys[k] = (entry["treatment"], entry["how"])
+    return keys, dict(data["old_names"])
+
+
+def key_treatment() -> dict[str, tuple[str, str]]:
+    """Every fastsim-2 vehicle key -> (treatment, how) (:data:`KEYS_FILE`)."""
+    return dict(_key_table()[0])
+
+
+VAL_KEYS = (
+    "val_udds_mpgge", "val_hwy_mpgge", "val_comb_mpgge", "val_udds_kwh_per_mile",
+    "val_hwy_kwh_per_mile", "val_comb_kwh_per_mile", "val_cd_range_mi", "val_const65_mph_kwh_per_mile",
+    "val_const60_mph_kwh_per_mile", "val_const55_mph_kwh_per_mile", "val_const45_mph_kwh_per_mile",
+    "val_unadj_udds_kwh_per_mile", "val_unadj_hwy_kwh_per_mile", "val0_to60_mph", "val_ess_life_miles",
+    "val_range_miles", "val_veh_base_cost", "val_msrp",
+)  # fmt: skip
+"""FASTSim's reference-value keys (EPA label or published figures), listed as a comment."""
 
 _DEFAULTS: dict[str, Any] = {
     "fc_pwr_out_perc": None, "mc_pwr_out_perc": None, "mc_eff_map": None, "veh_override_kg": None,
     "stop_start": False, "force_aux_on_fc": False, "small_motor_power_kw": SMALL_MOTOR_POWER_KW,
     "large_motor_power_kw": LARGE_MOTOR_POWER_KW, "modern_max": MODERN_MAX, "regen_a": 500.0, "regen_b": 0.99,
-    "charging_on": False, "max_roadway_chg_kw": None, "fc_peak_eff_override": None, "mc_peak_eff_override": None,
-    "selection": None,
+    "charging_on": False, "max_roadway_chg_kw": None, "fc_peak_eff_override": None,
+    "mc_peak_eff_override": None, "selection": None,
 }  # fmt: skip
 """Optional keys and FASTSim's defaults for them (``regen_a``, ``regen_b``: ``default_regen_a/b``)."""
 _REQUIRED = (
-    "veh_pt_type", "drag_coef", "frontal_area_m2", "glider_kg", "cargo_kg", "comp_mass_multiplier", "fc_max_kw",
-    "mc_max_kw", "ess_max_kw", "ess_max_kwh", "wheel_radius_m", "wheel_rr_coef", "trans_eff", "aux_kw",
+    "veh_pt_type", "drag_coef", "frontal_area_m2", "glider_kg", "cargo_kg", "comp_mass_multiplier",
+    "fc_max_kw", "mc_max_kw", "ess_max_kw", "ess_max_kwh", "wheel_radius_m", "wheel_rr_coef", "trans_eff",
+    "aux_kw",
 )  # fmt: skip
 
 _MASS_ONLY = ("glider_kg", "cargo_kg", "comp_mass_multiplier")
 """Required keys that only FASTSim's mass rule reads (not needed with ``veh_override_kg``)."""
+
 
 # ============================================================================ reading
 def _scalar(text: str) -> Any:
@@ -243,17 +157,20 @@ def _normalise(raw: dict[str, Any], where: str) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for key, value in raw.items():
         k = str(key).strip().replace(" ", "_")
-        k = OLD_NAMES.get(k, k)
+        k = _key_table()[1].get(k, k)
         k = "scenario_name" if k.lower() == "scenario_name" else k
         if isinstance(value, dict) and "data" in value:  # fastsim-2 YAML arrays: {v, dim, data}
             value = [float(x) for x in value["data"]]
         if isinstance(value, str):
-            value = _scalar(value) if k not in ("scenario_name", "veh_pt_type", "fc_eff_type") else value.strip()
+            value = (
+                _scalar(value) if k not in ("scenario_name", "veh_pt_type", "fc_eff_type") else value.strip()
+            )
         if isinstance(value, float) and math.isnan(value):
             value = None
-        if k not in KEY_TREATMENT:
+        if k not in _key_table()[0]:
             raise ConfigError(
-                f"{where}: key {k!r} is not a fastsim-2 vehicle key hevsim knows; expected one of the keys of "
+                f"{where}: key {k!r} is not a fastsim-2 vehicle key hevsim knows; expected one of the keys "
+                "of "
                 "docs/import_vehicle.md (a fastsim-3 file or another format?)."
             )
         out[k] = value
@@ -270,7 +187,9 @@ def _read_csv_rows(path: Path) -> list[list[str]]:
 
 def list_vehicles(path: str | Path) -> list[tuple[int, str, str]]:
     """(row, name, FASTSim powertrain type) of every vehicle in ``path``."""
-    return [(i, str(v.get("scenario_name", "")), str(v.get("veh_pt_type", ""))) for i, v in _vehicles(Path(path))]
+    return [
+        (i, str(v.get("scenario_name", "")), str(v.get("veh_pt_type", ""))) for i, v in _vehicles(Path(path))
+    ]
 
 
 def _vehicles(path: Path) -> list[tuple[int, dict[str, Any]]]:
@@ -298,7 +217,9 @@ def _vehicles(path: Path) -> list[tuple[int, dict[str, Any]]]:
         return [(int(data.get("selection") or 0), _normalise(data, str(path)))]
     if suffix == ".csv":
         rows = _read_csv_rows(path)
-        if len(rows) > 1 and len(rows[0]) >= 3 and rows[0][1].strip() == "Param Name":  # one vehicle, vertical
+        if (
+            len(rows) > 1 and len(rows[0]) >= 3 and rows[0][1].strip() == "Param Name"
+        ):  # one vehicle, vertical
             raw = {r[1]: r[2] for r in rows[1:] if len(r) >= 3 and r[1].strip()}
             return [(0, _normalise(raw, str(path)))]
         header = [h.strip() for h in rows[0]] if rows else []
@@ -315,7 +236,9 @@ def _vehicles(path: Path) -> list[tuple[int, dict[str, Any]]]:
             f"{path}: not a FASTSim vehicle CSV: expected a single-vehicle file (columns ',Param Name,Param "
             "Value') or the vehicle database (columns 'selection', 'Scenario name', ...)."
         )
-    raise ConfigError(f"{path}: suffix {path.suffix!r} is not a FASTSim vehicle file; expected .yaml or .csv.")
+    raise ConfigError(
+        f"{path}: suffix {path.suffix!r} is not a FASTSim vehicle file; expected .yaml or .csv."
+    )
 
 
 def read_vehicle(path: str | Path, row: int | None = None, name: str | None = None) -> dict[str, Any]:
@@ -335,17 +258,27 @@ def read_vehicle(path: str | Path, row: int | None = None, name: str | None = No
     elif name is not None:
         chosen = [v for _, v in vehicles if str(v.get("scenario_name", "")).strip() == name.strip()]
         if not chosen:
-            raise ConfigError(f"{p}: --name {name!r} names no vehicle of the file (hevsim import-vehicle --list FILE).")
+            raise ConfigError(
+                f"{p}: --name {name!r} names no vehicle of the file (hevsim import-vehicle --list FILE)."
+            )
         veh = chosen[0]
     elif len(vehicles) == 1:
         veh = vehicles[0][1]
     else:
-        raise ConfigError(f"{p}: {len(vehicles)} vehicles; choose one with --row N or --name NAME (see --list).")
+        raise ConfigError(
+            f"{p}: {len(vehicles)} vehicles; choose one with --row N or --name NAME (see --list)."
+        )
     full = {**_DEFAULTS, **{k: v for k, v in veh.items() if v is not None or k not in _DEFAULTS}}
-    needed = _REQUIRED if full.get("veh_override_kg") is None else tuple(k for k in _REQUIRED if k not in _MASS_ONLY)
+    needed = (
+        _REQUIRED
+        if full.get("veh_override_kg") is None
+        else tuple(k for k in _REQUIRED if k not in _MASS_ONLY)
+    )
     missing = [k for k in needed if full.get(k) is None]
     if missing:
-        raise ConfigError(f"{p}: key(s) {', '.join(repr(k) for k in missing)} missing or empty; expected numbers.")
+        raise ConfigError(
+            f"{p}: key(s) {', '.join(repr(k) for k in missing)} missing or empty; expected numbers."
+        )
     return full
 
 
@@ -360,7 +293,8 @@ def fastsim_test_mass_kg(v: dict[str, Any], where: str = "FASTSim vehicle") -> f
     for size, per in (("fc_max_kw", "fc_kw_per_kg"), ("fs_max_kw", "fs_kwh_per_kg")):
         if v.get(size) and not v.get(per):
             raise ConfigError(
-                f"{where}: key {per!r} = {v.get(per)!r}: FASTSim's component-mass rule divides by it ({size} = {v[size]:g}); "
+                f"{where}: key {per!r} = {v.get(per)!r}: FASTSim's component-mass rule divides by it "
+                f"({size} = {v[size]:g}); "
                 "expected a positive number, or the vehicle mass in 'veh_override_kg'."
             )
     ess = 0.0
@@ -379,7 +313,9 @@ def engine_curve(v: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     eff = v.get("fc_eff_map")
     eff = np.asarray(eff if isinstance(eff, list) else FC_EFF_MAPS[str(v["fc_eff_type"])], float)
     if x.size != eff.size:
-        raise ConfigError(f"key 'fc_eff_map' has {eff.size} values and 'fc_pwr_out_perc' {x.size}; expected equal lengths.")
+        raise ConfigError(
+            f"key 'fc_eff_map' has {eff.size} values and 'fc_pwr_out_perc' {x.size}; expected equal lengths."
+        )
     if v.get("fc_peak_eff_override"):
         eff = eff * float(v["fc_peak_eff_override"]) / eff.max()
     return x, eff
@@ -391,12 +327,23 @@ def motor_curve(v: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     x = np.asarray(v["mc_pwr_out_perc"] or MC_PWR_OUT_PERC, float)
     eff = v.get("mc_eff_map")
     if not isinstance(eff, list) or not any(eff):
-        large = np.asarray(LARGE_BASELINE_EFF) + (float(v["modern_max"] or MODERN_MAX) - max(LARGE_BASELINE_EFF))
-        share = min(max((v["mc_max_kw"] - v["small_motor_power_kw"]) / (v["large_motor_power_kw"] - v["small_motor_power_kw"]), 0.0), 1.0)
+        large = np.asarray(LARGE_BASELINE_EFF) + (
+            float(v["modern_max"] or MODERN_MAX) - max(LARGE_BASELINE_EFF)
+        )
+        share = min(
+            max(
+                (v["mc_max_kw"] - v["small_motor_power_kw"])
+                / (v["large_motor_power_kw"] - v["small_motor_power_kw"]),
+                0.0,
+            ),
+            1.0,
+        )
         eff = share * large + (1.0 - share) * np.asarray(SMALL_BASELINE_EFF)
     eff = np.asarray(eff, float)
     if x.size != eff.size:
-        raise ConfigError(f"key 'mc_eff_map' has {eff.size} values and 'mc_pwr_out_perc' {x.size}; expected equal lengths.")
+        raise ConfigError(
+            f"key 'mc_eff_map' has {eff.size} values and 'mc_pwr_out_perc' {x.size}; expected equal lengths."
+        )
     if v.get("mc_peak_eff_override"):
         eff = eff * float(v["mc_peak_eff_override"]) / eff.max()
     return x, eff
@@ -427,11 +374,13 @@ def _write_engine(folder: Path, v: dict[str, Any], fuel: str) -> None:
             lines.append(f"{_fmt(wi)},{_fmt(ti)},{_fmt(rate)}")
     (folder / "fuel_rate_map.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
     (folder / "max_torque.csv").write_text(
-        "speed_rad_per_s,max_torque_N_m\n" + "".join(f"{_fmt(a)},{_fmt(b)}\n" for a, b in zip(w, t_max, strict=True)),
+        "speed_rad_per_s,max_torque_N_m\n"
+        + "".join(f"{_fmt(a)},{_fmt(b)}\n" for a, b in zip(w, t_max, strict=True)),
         encoding="utf-8",
     )
     (folder / "closed_throttle_torque.csv").write_text(
-        "speed_rad_per_s,closed_throttle_torque_N_m\n" + "".join(f"{_fmt(a)},0.0\n" for a in w), encoding="utf-8"
+        "speed_rad_per_s,closed_throttle_torque_N_m\n" + "".join(f"{_fmt(a)},0.0\n" for a in w),
+        encoding="utf-8",
     )
     curve = ", ".join(f"[{a:g}, {b:g}]" for a, b in zip(x, eff, strict=True))
     (folder / "meta.toml").write_text(
@@ -443,7 +392,8 @@ def _write_engine(folder: Path, v: dict[str, Any], fuel: str) -> None:
         "(FASTSim's engine has no speed dependence); max torque = min(P_max / knee speed, P_max / speed); "
         'no closed-throttle drag (FASTSim has none)."\n'
         f"fastsim_power_fraction_efficiency = [{curve}]\n"
-        "[source]\nupstream = \"NREL FASTSim vehicle file (Apache-2.0, Copyright 2020 Alliance for Sustainable "
+        '[source]\nupstream = "NREL FASTSim vehicle file (Apache-2.0, Copyright 2020 '
+        "Alliance for Sustainable "
         'Energy, LLC)"\n',
         encoding="utf-8",
     )
@@ -467,13 +417,17 @@ def _write_motor(folder: Path, v: dict[str, Any]) -> None:
         for ti in torque:
             frac = min(abs(wi * ti) / p_max_w, 1.0)
             e = float(np.interp(frac, x, eff))
-            e = max(e, float(eff[eff > 0].min()))  # FASTSim's 0 at zero power is a placeholder (no power flows)
+            e = max(
+                e, float(eff[eff > 0].min())
+            )  # FASTSim's 0 at zero power is a placeholder (no power flows)
             lines.append(f"{_fmt(wi)},{_fmt(ti)},{_fmt(e)}")
     (folder / "efficiency_map.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
     (folder / "torque_limits.csv").write_text(
         "speed_rad_per_s,max_motoring_torque_cont_N_m,max_generating_torque_cont_N_m,max_motoring_torque_peak_N_m,"
         "max_generating_torque_peak_N_m\n"
-        + "".join(f"{_fmt(a)},{_fmt(b)},{_fmt(-b)},{_fmt(b)},{_fmt(-b)}\n" for a, b in zip(w, t_lim, strict=True)),
+        + "".join(
+            f"{_fmt(a)},{_fmt(b)},{_fmt(-b)},{_fmt(b)},{_fmt(-b)}\n" for a, b in zip(w, t_lim, strict=True)
+        ),
         encoding="utf-8",
     )
     curve = ", ".join(f"[{a:g}, {b:g}]" for a, b in zip(x, eff, strict=True))
@@ -482,10 +436,12 @@ def _write_motor(folder: Path, v: dict[str, Any]) -> None:
         f'description = "FASTSim motor of {_esc(v.get("scenario_name"))}: {v["mc_max_kw"]:g} kW"\n'
         'sign_convention = "torque > 0: motoring (efficiency = P_mech/P_elec); torque < 0: generating '
         '(efficiency = P_elec/P_mech)"\n'
-        'notes = "Written by hevsim import-vehicle: efficiency = eff(|P| / P_max) at every speed, motoring and '
-        "generating (FASTSim's curve over output power); torque limit = min(P_max / base speed, P_max / speed).\"\n"
+        'notes = "Written by hevsim import-vehicle: efficiency = eff(|P| / P_max) at every speed, '
+        "motoring and generating (FASTSim's curve over output power); torque limit = "
+        'min(P_max / base speed, P_max / speed)."\n'
         f"fastsim_power_fraction_efficiency = [{curve}]\n"
-        "[source]\nupstream = \"NREL FASTSim vehicle file (Apache-2.0, Copyright 2020 Alliance for Sustainable "
+        '[source]\nupstream = "NREL FASTSim vehicle file (Apache-2.0, Copyright 2020 '
+        "Alliance for Sustainable "
         'Energy, LLC)"\n',
         encoding="utf-8",
     )
@@ -509,18 +465,26 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
     pt = str(v["veh_pt_type"]).strip()
     if str(v.get("fc_eff_type", "")).strip() == "H2FC" or pt == "FCEV":
         raise ConfigError(
-            f"{source}: key 'fc_eff_type' = 'H2FC' (a fuel-cell vehicle): fuel-cell vehicles are not supported "
+            f"{source}: key 'fc_eff_type' = 'H2FC' (a fuel-cell vehicle): fuel-cell vehicles are not "
+            "supported "
             "by hevsim import-vehicle yet."
         )
     if pt in NOT_YET:
-        raise ConfigError(f"{source}: key 'veh_pt_type' = {pt!r}: {NOT_YET[pt]} are not supported by hevsim import-vehicle yet.")
+        raise ConfigError(
+            f"{source}: key 'veh_pt_type' = {pt!r}: {NOT_YET[pt]} are not supported by hevsim "
+            "import-vehicle yet."
+        )
     if pt not in ARCHITECTURE_OF:
         raise ConfigError(
-            f"{source}: key 'veh_pt_type' = {pt!r} is not a FASTSim powertrain type hevsim knows; expected one of "
+            f"{source}: key 'veh_pt_type' = {pt!r} is not a FASTSim powertrain type hevsim knows; "
+            "expected one of "
             f"{', '.join(ARCHITECTURE_OF)} (PHEV and fuel-cell vehicles are not supported yet)."
         )
     if v.get("charging_on") or any(v.get("max_roadway_chg_kw") or []):
-        raise ConfigError(f"{source}: keys 'charging_on' / 'max_roadway_chg_kw': roadway charging is not modelled; expected it off.")
+        raise ConfigError(
+            f"{source}: keys 'charging_on' / 'max_roadway_chg_kw': roadway charging is not modelled; "
+            "expected it off."
+        )
     arch = ARCHITECTURE_OF[pt]
     has_engine = arch != "bev"
     fuel_type = str(v.get("fc_eff_type", "")).strip()
@@ -540,7 +504,10 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
     L: list[str] = []
     a = L.append
     a(f"# Imported from FASTSim by `hevsim import-vehicle`: {source}")
-    a("# (NREL FASTSim vehicle data, Apache License 2.0, Copyright 2020 Alliance for Sustainable Energy, LLC.)")
+    a(
+        "# (NREL FASTSim vehicle data, Apache License 2.0, Copyright 2020 Alliance for Sustainable Energy, "
+        "LLC.)"
+    )
     a("# Every FASTSim key is mapped, approximated or refused: docs/import_vehicle.md has the table; the")
     a("# approximations that matter for this vehicle are noted next to the keys below.")
     vals = [f"{k} = {v[k]:g}" for k in VAL_KEYS if isinstance(v.get(k), float)]
@@ -550,18 +517,35 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
     a(f'description = "{_esc(name)} ({_esc(pt)}, {v.get("veh_year") or "year n/a"}) imported from FASTSim"')
     a("")
     a("[powertrain]")
-    a(f'architecture = "{arch}"' + ("   # FASTSim HEV: engine and motor add power at the transmission input (P2)" if arch == "parallel" else ""))
+    a(
+        f'architecture = "{arch}"'
+        + (
+            "   # FASTSim HEV: engine and motor add power at the transmission input (P2)"
+            if arch == "parallel"
+            else ""
+        )
+    )
     a("")
     a("[body]")
-    how = "veh_override_kg" if v.get("veh_override_kg") is not None else "FASTSim's component-mass rule (set_veh_mass)"
+    how = (
+        "veh_override_kg"
+        if v.get("veh_override_kg") is not None
+        else "FASTSim's component-mass rule (set_veh_mass)"
+    )
     a(f"mass_kg = {_fmt(mass)}   # {how}")
     a(f"drag_coefficient = {_fmt(v['drag_coef'])}")
     a(f"frontal_area_m2 = {_fmt(v['frontal_area_m2'])}")
-    a(f"rolling_resistance = {_fmt(crr)}   # wheel_rr_coef {v['wheel_rr_coef']:g} x FASTSim's g {FASTSIM_GRAVITY_MPS2:g} / hevsim's {STANDARD_GRAVITY:g}")
+    a(
+        f"rolling_resistance = {_fmt(crr)}   # wheel_rr_coef {v['wheel_rr_coef']:g} x FASTSim's g "
+        f"{FASTSIM_GRAVITY_MPS2:g} / hevsim's {STANDARD_GRAVITY:g}"
+    )
     a(f"mass_factor = {_fmt(mass_factor)}   # 1 + num_wheels x wheel_inertia_kg_m2 / (m r^2)")
     a(f"air_density_kgpm3 = {FASTSIM_AIR_DENSITY_KGPM3}   # FASTSim's")
     a(f"cg_height_m = {_fmt(abs(cg))}   # |veh_cg_m| (FASTSim: negative = rear-wheel drive)")
-    a(f"front_axle_to_cg_m = {_fmt((1.0 - front) * wb)}   # drive_axle_weight_frac {drive_share:g} on the driven axle, wheel_base_m {wb:g}")
+    a(
+        f"front_axle_to_cg_m = {_fmt((1.0 - front) * wb)}   # drive_axle_weight_frac {drive_share:g} on "
+        f"the driven axle, wheel_base_m {wb:g}"
+    )
     a(f"rear_axle_to_cg_m = {_fmt(front * wb)}")
     a("")
     a("[tire]")
@@ -573,7 +557,7 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
     if has_engine:
         fd = (TOP_GEAR_ENGINE_RPM_AT_30_MPS * math.pi / 30.0) * r / (30.0 * GEAR_RATIOS[-1])
         a("[final_drive]   # FASTSim has no gears: a generic 6-speed gearbox and final drive (assumed); the")
-        a("                # imported engine's efficiency depends on its power only, so the gears change little")
+        a("                # imported engine's efficiency depends on its power only: gears change little")
         a(f"ratio = {_fmt(fd)}   # {TOP_GEAR_ENGINE_RPM_AT_30_MPS:g} rpm in top gear at 30 m/s")
         a("efficiency = 1.0")
         a("")
@@ -583,7 +567,7 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
         a("")
         a("[engine]")
         a('model = "map"')
-        a(f'data = "{stem}_engine"   # efficiency vs power fraction of FASTSim at every speed (meta.toml there)')
+        a(f'data = "{stem}_engine"   # FASTSim\'s efficiency vs power fraction at every speed (meta.toml)')
         a(f"stall_speed_rpm = {ENGINE_IDLE_RPM}   # assumed idle (FASTSim's engine has no speed)")
         a(f"redline_rpm = {ENGINE_REDLINE_RPM}   # assumed")
         a("")
@@ -606,11 +590,11 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
     if electric:
         a("[motor]")
         a('model = "map"')
-        a(f'data = "{stem}_motor"   # efficiency vs power fraction of FASTSim at every speed (meta.toml there)')
+        a(f'data = "{stem}_motor"   # FASTSim\'s efficiency vs power fraction at every speed (meta.toml)')
         a("")
         if arch == "parallel":
             mc_ratio = _motor_speed_max_radps() / ((45.0 / r) * fd * GEAR_RATIOS[-1])
-            a('[motor_coupling]   # P2: on the gearbox input, like FASTSim (mc + fc -> transmission)')
+            a("[motor_coupling]   # P2: on the gearbox input, like FASTSim (mc + fc -> transmission)")
             a('position = "p2"')
             a(f"ratio = {_fmt(mc_ratio)}   # the motor map's top speed at 45 m/s in top gear (assumed)")
             a("efficiency = 1.0")
@@ -625,7 +609,10 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
         a('model = "rint"')
         a(f"ocv_v = {BATTERY_OCV_V}   # assumed")
         a(f"capacity_ah = {_fmt(kwh * 1e3 / BATTERY_OCV_V)}   # ess_max_kwh {kwh:g}")
-        a(f"resistance_ohm = {_fmt(res)}   # one-way efficiency sqrt(ess_round_trip_eff {rt:g}) at {p_ref / 1e3:g} kW (half the motor's power)")
+        a(
+            f"resistance_ohm = {_fmt(res)}   # one-way efficiency sqrt(ess_round_trip_eff {rt:g}) at "
+            f"{p_ref / 1e3:g} kW (half the motor's power)"
+        )
         a(f"max_discharge_current_a = {_fmt(i_max)}   # ess_max_kw {kw:g} / OCV")
         a(f"max_charge_current_a = {_fmt(i_max)}")
         a(f"soc_min = {_fmt(v.get('min_soc') or 0.0)}   # min_soc")
@@ -652,7 +639,7 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
             a(f"efficiency = {_fmt(v.get('alt_eff') or 1.0)}   # alt_eff")
     elif arch == "parallel":
         lo, hi = float(v.get("min_soc") or 0.0), float(v.get("max_soc") or 1.0)
-        a('kind = "electric_assist"   # FASTSim HEV rules approximated by electric assist (docs/import_vehicle.md)')
+        a('kind = "electric_assist"   # FASTSim HEV rules approximated (docs/import_vehicle.md)')
         a(f"ev_speed_mps = {_fmt(min(float(v.get('mph_fc_on') or 0.0) * 0.44704, 100.0))}   # mph_fc_on")
         a(f"ev_power_w = {_fmt(min(float(v.get('kw_demand_fc_on') or 0.0) * 1e3, 1e7))}   # kw_demand_fc_on")
         a(f"soc_low = {_fmt(lo + 0.25 * (hi - lo))}   # a quarter into the SOC window (assumed)")
@@ -666,7 +653,10 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
         a("")
         a("[brakes]")
         a(f"regen_fraction = {_fmt(min(max(float(v.get('max_regen') or 0.0), 0.0), 1.0))}   # max_regen")
-        a(f"regen_min_speed_mps = {_fmt(regen_half_speed_mps(v))}   # where FASTSim's regen curve (regen_a, regen_b) reaches half")
+        a(
+            f"regen_min_speed_mps = {_fmt(regen_half_speed_mps(v))}   # where FASTSim's regen curve "
+            "(regen_a, regen_b) reaches half"
+        )
         a("")
         a("[metrics]")
         a("conversion_efficiency = 1.0")
@@ -690,7 +680,12 @@ def import_vehicle(
     arch = ARCHITECTURE_OF[str(v["veh_pt_type"]).strip()]
     folders = []
     if arch != "bev":
-        folders.append((out_p.with_name(f"{stem}_engine"), lambda d: _write_engine(d, v, FUELS.get(str(v.get("fc_eff_type")), "gasoline"))))
+        folders.append(
+            (
+                out_p.with_name(f"{stem}_engine"),
+                lambda d: _write_engine(d, v, FUELS.get(str(v.get("fc_eff_type")), "gasoline")),
+            )
+        )
     if arch != "conventional":
         folders.append((out_p.with_name(f"{stem}_motor"), lambda d: _write_motor(d, v)))
     prepare_output(out_p, kind="file", force=force, option="-o", protect=[src])

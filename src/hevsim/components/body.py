@@ -59,7 +59,17 @@ def axle_normal_loads(mass_kg, accel_mps2, drag_n, grade, cg_height_m, a_m, b_m,
 
 @njit(cache=True)
 def road_load_force(
-    v_mps, accel_mps2, grade, mass_kg, mass_factor, cd, area_m2, rho_kgpm3, headwind_mps, crr, crr_speed_s_per_m
+    v_mps,
+    accel_mps2,
+    grade,
+    mass_kg,
+    mass_factor,
+    cd,
+    area_m2,
+    rho_kgpm3,
+    headwind_mps,
+    crr,
+    crr_speed_s_per_m,
 ):
     """Tractive force needed at the wheels, the road-load form of eq (32) [N].
 

@@ -57,7 +57,8 @@ class RunScalars(NamedTuple):
 
     Body (:class:`~hevsim.components.body.VehicleBody`): ``mass_kg`` [kg], ``mass_factor``
     [-], ``drag_coefficient`` [-], ``frontal_area_m2`` [m²], ``air_density_kgpm3`` [kg/m³],
-    ``headwind_mps`` [m/s], ``rolling_resistance`` [-], ``rolling_resistance_speed_s_per_m`` [s/m]; ``radius_m`` tire [m]; ``fd_ratio``,
+    ``headwind_mps`` [m/s], ``rolling_resistance`` [-], ``rolling_resistance_speed_s_per_m``
+    [s/m]; ``radius_m`` tire [m]; ``fd_ratio``,
     ``fd_efficiency`` final drive [-]; engine ``torque_scale`` [-], ``idle_radps``,
     ``redline_radps`` [rad/s]; ``fuel_cut_radps``, ``upshift_radps``, ``downshift_radps``
     [rad/s] of the controller; ``aux_power_w`` [W] auxiliary load, ``alternator_efficiency`` [-].
@@ -188,9 +189,9 @@ def _run_variant(
     for k in range(n):
         v1 = v_des[k + 1]
         c, v_mid, a, g, f, p = _try_speed(
-            v, v1, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, crrv, r, ratios, effs, fd, fd_eff, idle,
-            w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down, tmax_x, tmax_y,
-            tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
+            v, v1, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, crrv, r, ratios, effs, fd, fd_eff,
+            idle, w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down, tmax_x,
+            tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
         )  # fmt: skip
         limited = 0.0
         if c == 0:  # beyond the powertrain: lower the end speed until a gear can (forward._run)
@@ -210,9 +211,9 @@ def _run_variant(
             if best_c == 0:
                 best_v = 0.0
             c, v_mid, a, g, f, p = _try_speed(
-                v, best_v, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, crrv, r, ratios, effs, fd, fd_eff,
-                idle, w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down, tmax_x,
-                tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
+                v, best_v, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, crrv, r, ratios, effs, fd,
+                fd_eff, idle, w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down,
+                tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
             )  # fmt: skip
             v1 = v_mid * 2.0 - v  # (at best_v the schedule chooses best_c again: same inputs)
             if c == 0:

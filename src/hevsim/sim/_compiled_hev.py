@@ -659,7 +659,20 @@ def run_hev(
         p_bat = det[nd - 2]
         audit[2] += e_chem
         audit[len(AUDIT_BASE) + nl - 2] += e_chem - p_bat * dt
-        add_road_audit(audit, v, v1, v_mid, a, g, f, h.mass_kg, m_eff, h.rolling_resistance, h.rolling_resistance_speed_s_per_m, dt)
+        add_road_audit(
+            audit,
+            v,
+            v1,
+            v_mid,
+            a,
+            g,
+            f,
+            h.mass_kg,
+            m_eff,
+            h.rolling_resistance,
+            h.rolling_resistance_speed_s_per_m,
+            dt,
+        )
         # ---- mode and bookkeeping
         i_on, mode = 0, 0.0
         if dpar is not None:

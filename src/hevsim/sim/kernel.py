@@ -339,7 +339,9 @@ def driver_step(p, mot, drv_kind, v, v_target, v_target_prev, grade_k, dt, m_eff
     ratio = p[RATIO]
     w_m0 = v / r * ratio
     m_max, m_min = torque_limits(w_m0, p[MSCALE], mot)
-    f_res0 = road_load_force(v, 0.0, grade_k, p[MASS], p[MFACT], p[CD], p[AREA], p[RHO], p[WIND], p[CRR], p[CRRV])
+    f_res0 = road_load_force(
+        v, 0.0, grade_k, p[MASS], p[MFACT], p[CD], p[AREA], p[RHO], p[WIND], p[CRR], p[CRRV]
+    )
     f_drive_max = m_max * ratio * p[GEFF] / r
     u = drive(drv_kind, p, v, v_target, v_target_prev, dt, f_res0, f_drive_max, m_eff)
     return u, w_m0, m_max, m_min
