@@ -122,7 +122,7 @@ _DEFAULTS: dict[str, Any] = {
     "stop_start": False, "force_aux_on_fc": False, "small_motor_power_kw": SMALL_MOTOR_POWER_KW,
     "large_motor_power_kw": LARGE_MOTOR_POWER_KW, "modern_max": MODERN_MAX, "regen_a": 500.0, "regen_b": 0.99,
     "charging_on": False, "max_roadway_chg_kw": None, "fc_peak_eff_override": None,
-    "mc_peak_eff_override": None, "selection": None,
+    "mc_peak_eff_override": None, "selection": None, "fastsim3_mass_kg": None,
 }  # fmt: skip
 """Optional keys and FASTSim's defaults for them (``regen_a``, ``regen_b``: ``default_regen_a/b``)."""
 _REQUIRED = (
@@ -203,12 +203,9 @@ def _vehicles(path: Path) -> list[tuple[int, dict[str, Any]]]:
             data = yaml.safe_load(path.read_text(encoding="utf-8"))
         except (yaml.YAMLError, UnicodeDecodeError) as exc:
             raise ConfigError(f"{path}: not a readable YAML file ({exc}).") from exc
+        if isinstance(data, dict) and "pt_type" in data and "chassis" in data:
+            return [(0, _normalise(from_fastsim3(data, str(path)), str(path)))]
         if not isinstance(data, dict) or "veh_pt_type" not in data:
-            if isinstance(data, dict) and "pt_type" in data:
-                raise ConfigError(
-                    f"{path}: a fastsim-3 vehicle (key 'pt_type'); hevsim imports fastsim-2 files only so "
-                    "far: convert it with fastsim 2 or use the fastsim-2 file of the same vehicle."
-                )
             found = sorted(data)[:5] if isinstance(data, dict) else type(data).__name__
             raise ConfigError(
                 f"{path}: not a FASTSim vehicle: key 'veh_pt_type' is missing (found {found}); expected a "
@@ -271,7 +268,7 @@ def read_vehicle(path: str | Path, row: int | None = None, name: str | None = No
     full = {**_DEFAULTS, **{k: v for k, v in veh.items() if v is not None or k not in _DEFAULTS}}
     needed = (
         _REQUIRED
-        if full.get("veh_override_kg") is None
+        if full.get("veh_override_kg") is None and full.get("fastsim3_mass_kg") is None
         else tuple(k for k in _REQUIRED if k not in _MASS_ONLY)
     )
     missing = [k for k in needed if full.get(k) is None]
@@ -282,6 +279,126 @@ def read_vehicle(path: str | Path, row: int | None = None, name: str | None = No
     return full
 
 
+# ============================================================================ fastsim 3
+FASTSIM3_TYPES = {"Conv": "Conv", "HEV": "HEV", "BEV": "BEV", "PHEV": "PHEV"}
+"""fastsim-3 ``pt_type`` variants -> fastsim-2 ``veh_pt_type``."""
+
+
+def _f3(d: dict[str, Any], key: str, where: str, default: Any = ...) -> Any:
+    if key in d and d[key] is not None:
+        return d[key]
+    if default is ...:
+        raise ConfigError(f"{where}: key {key!r} is missing or empty; expected a value (fastsim-3 vehicle).")
+    return default
+
+
+def _f3_curve(interp: Any, where: str) -> tuple[list[float], list[float]]:
+    """(power fractions, efficiencies) of a fastsim-3 1-D interpolator (``data.grid``, ``data.values``)."""
+    try:
+        grid = interp["data"]["grid"][0]
+        values = interp["data"]["values"]
+        return [float(x) for x in grid], [float(x) for x in values]
+    except (KeyError, TypeError, IndexError) as exc:
+        raise ConfigError(
+            f"{where}: expected a 1-D interpolator with data.grid and data.values ({exc})."
+        ) from exc
+
+
+def _f3_scalar(x: Any, where: str) -> float:
+    if isinstance(x, dict) and "Constant" in x:
+        return float(x["Constant"])
+    if isinstance(x, int | float):
+        return float(x)
+    raise ConfigError(f"{where} = {x!r}; expected a constant efficiency (a number or {{Constant: value}}).")
+
+
+def from_fastsim3(data: dict[str, Any], where: str) -> dict[str, Any]:
+    """The fastsim-2 keys of a fastsim-3 vehicle mapping (``Vehicle.to_yaml`` layout): chassis,
+    powertrain components (``fc``, ``em``, ``res``, ``transmission``), controls and the
+    vehicle mass fastsim 3 computed (``mass_kilograms``, taken as ``veh_override_kg``).
+    Thermal, cabin and HVAC models are refused (not modelled by the import)."""
+    pt = data["pt_type"]
+    if not isinstance(pt, dict) or len(pt) != 1:
+        raise ConfigError(f"{where}: key 'pt_type' = {pt!r}; expected one powertrain (Conv, HEV, BEV).")
+    kind, parts = next(iter(pt.items()))
+    if kind not in FASTSIM3_TYPES:
+        raise ConfigError(
+            f"{where}: key 'pt_type' = {kind!r} is not a fastsim-3 powertrain type hevsim knows; "
+            "expected one "
+            f"of {', '.join(FASTSIM3_TYPES)}."
+        )
+    for key in ("cabin", "hvac"):
+        if data.get(key) not in (None, "None"):
+            raise ConfigError(
+                f"{where}: key {key!r} is set: cabin and HVAC models are not imported; remove it."
+            )
+    ch = data["chassis"]
+    drive = str(ch.get("drive_type") or "FWD")
+    cg = float(_f3(ch, "cg_height_meters", f"{where}: chassis"))
+    v: dict[str, Any] = {
+        "scenario_name": str(data.get("name") or ""),
+        "veh_year": float(data["year"]) if str(data.get("year") or "").isdigit() else None,
+        "veh_pt_type": FASTSIM3_TYPES[kind],
+        "drag_coef": _f3(ch, "drag_coef", f"{where}: chassis"),
+        "frontal_area_m2": _f3(ch, "frontal_area_square_meters", f"{where}: chassis"),
+        "wheel_rr_coef": _f3(ch, "wheel_rr_coef", f"{where}: chassis"),
+        "wheel_inertia_kg_m2": _f3(ch, "wheel_inertia_kilogram_square_meters", f"{where}: chassis", 0.0),
+        "num_wheels": float(_f3(ch, "num_wheels", f"{where}: chassis", 4)),
+        "wheel_radius_m": _f3(ch, "wheel_radius_meters", f"{where}: chassis"),
+        "veh_cg_m": -cg if drive == "RWD" else cg,
+        "wheel_coef_of_fric": _f3(ch, "wheel_fric_coef", f"{where}: chassis", 0.9),
+        "drive_axle_weight_frac": _f3(ch, "drive_axle_weight_frac", f"{where}: chassis", 0.6),
+        "wheel_base_m": _f3(ch, "wheel_base_meters", f"{where}: chassis", 2.6),
+        "glider_kg": ch.get("glider_mass_kilograms"),
+        "cargo_kg": ch.get("cargo_mass_kilograms"),
+        "comp_mass_multiplier": 1.0,
+        "fastsim3_mass_kg": float(_f3(data, "mass_kilograms", where)),
+        "aux_kw": float(data.get("pwr_aux_base_watts") or 0.0) / 1e3,
+        "fc_max_kw": 0.0, "mc_max_kw": 0.0, "ess_max_kw": 0.0, "ess_max_kwh": 0.0, "fs_max_kw": 0.0,
+        "trans_eff": _f3_scalar(_f3(parts.get("transmission", {}), "eff_interp", f"{where}: transmission"),
+                                f"{where}: key 'transmission.eff_interp'"),
+        "alt_eff": float(parts.get("alt_eff") or 1.0),
+        "max_regen": 1.0,
+    }  # fmt: skip
+    fc = parts.get("fc")
+    if fc:
+        if fc.get("thrml") not in (None, "None"):
+            raise ConfigError(
+                f"{where}: key 'fc.thrml' is set: engine thermal models are not imported; remove it."
+            )
+        v["fc_max_kw"] = float(_f3(fc, "pwr_out_max_watts", f"{where}: fc")) / 1e3
+        v["fc_pwr_out_perc"], v["fc_eff_map"] = _f3_curve(fc.get("eff_interp_from_pwr_out"), f"{where}: fc")
+        v["idle_fc_kw"] = float(fc.get("pwr_idle_fuel_watts") or 0.0) / 1e3
+        fuel = str((parts.get("fs") or {}).get("fuel_type") or "")
+        v["fc_eff_type"] = "Diesel" if "diesel" in fuel.lower() else "SI"
+        v["fs_max_kw"] = float((parts.get("fs") or {}).get("pwr_out_max_watts") or 0.0) / 1e3
+    em = parts.get("em")
+    if em:
+        v["mc_max_kw"] = float(_f3(em, "pwr_out_max_watts", f"{where}: em")) / 1e3
+        v["mc_pwr_out_perc"], v["mc_eff_map"] = _f3_curve(em.get("eff_interp_achieved"), f"{where}: em")
+    res = parts.get("res")
+    if res:
+        if res.get("thrml") not in (None, "None"):
+            raise ConfigError(
+                f"{where}: key 'res.thrml' is set: battery thermal models are not imported; remove it."
+            )
+        v["ess_max_kw"] = float(_f3(res, "pwr_out_max_watts", f"{where}: res")) / 1e3
+        v["ess_max_kwh"] = float(_f3(res, "energy_capacity_joules", f"{where}: res")) / 3.6e6
+        v["ess_round_trip_eff"] = (
+            _f3_scalar(_f3(res, "eff_interp", f"{where}: res"), f"{where}: key 'res.eff_interp'") ** 2
+        )
+        v["min_soc"], v["max_soc"] = float(res.get("min_soc") or 0.0), float(res.get("max_soc") or 1.0)
+    ctl = parts.get("pt_cntrl")
+    if isinstance(ctl, dict) and "RGWDB" in ctl:
+        r = ctl["RGWDB"]
+        v["mph_fc_on"] = float(r.get("speed_fc_forced_on_meters_per_second") or 0.0) / 0.44704
+        v["kw_demand_fc_on"] = float(r.get("frac_pwr_demand_fc_forced_on") or 0.0) * (
+            v["fc_max_kw"] + v["mc_max_kw"]
+        )
+    v["stop_start"] = isinstance(ctl, str) and "stop" in ctl.lower()
+    return v
+
+
 # ============================================================================ FASTSim's rules
 def fastsim_test_mass_kg(v: dict[str, Any], where: str = "FASTSim vehicle") -> float:
     """FASTSim-2's vehicle mass [kg] (``RustVehicle::set_veh_mass``): ``veh_override_kg`` when
@@ -289,6 +406,8 @@ def fastsim_test_mass_kg(v: dict[str, Any], where: str = "FASTSim vehicle") -> f
     storage), each component's mass from its size."""
     if v.get("veh_override_kg") is not None:
         return float(v["veh_override_kg"])
+    if v.get("fastsim3_mass_kg") is not None:
+        return float(v["fastsim3_mass_kg"])
     mult = float(v["comp_mass_multiplier"])
     for size, per in (("fc_max_kw", "fc_kw_per_kg"), ("fs_max_kw", "fs_kwh_per_kg")):
         if v.get(size) and not v.get(per):
@@ -530,6 +649,8 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
     how = (
         "veh_override_kg"
         if v.get("veh_override_kg") is not None
+        else "fastsim 3's vehicle mass_kilograms"
+        if v.get("fastsim3_mass_kg") is not None
         else "FASTSim's component-mass rule (set_veh_mass)"
     )
     a(f"mass_kg = {_fmt(mass)}   # {how}")
