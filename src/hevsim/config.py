@@ -871,7 +871,7 @@ def config_from_dict(
             )
     spec.check(cfg, source)
     if inert:
-        check_road_load_form(explicit, source)
+        check_road_load_form(explicit, source, ARCHITECTURE_LABELS.get(spec.name, f"{spec.name} vehicle"))
         check_inert(cfg, explicit, source)
     return cfg
 
@@ -883,7 +883,7 @@ ROAD_LOAD_COASTDOWN = ("road_load_a_n", "road_load_b_n_per_m_s", "road_load_c_n_
 """``[body]`` keys of the coast-down road-load form (all four together)."""
 
 
-def check_road_load_form(keys: list[str], source: str) -> None:
+def check_road_load_form(keys: list[str], source: str, label: str = "vehicle") -> None:
     """ConfigError when the dotted ``keys`` a file sets mix the two road-load forms of
     :class:`BodySection` (naming the keys of each) or give only part of the coast-down form."""
     coast = [f"body.{k}" for k in ROAD_LOAD_COASTDOWN if f"body.{k}" in keys]
@@ -892,7 +892,8 @@ def check_road_load_form(keys: list[str], source: str) -> None:
     physical = [f"body.{k}" for k in ROAD_LOAD_PHYSICAL if f"body.{k}" in keys]
     if physical:
         raise ConfigError(
-            f"{source}: keys {', '.join(repr(k) for k in physical)} and {', '.join(repr(k) for k in coast)} "
+            f"{source}: key '{coast[0]}' does nothing for a {label} whose road load is given in the physical "
+            f"form (keys {', '.join(repr(k) for k in physical)}): keys {', '.join(repr(k) for k in coast)} "
             "mix the two road-load forms; give either the physical form (mass, drag, rolling resistance) "
             "or the coast-down form (road_load_a_n, road_load_b_n_per_m_s, road_load_c_n_per_m2_s2, "
             "test_mass_kg), not both."

@@ -633,7 +633,8 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
     if vals:
         a("# Reference values of the FASTSim file (EPA label or published): " + ", ".join(vals))
     a(f'name = "{_esc(stem)}"')
-    a(f'description = "{_esc(name)} ({_esc(pt)}, {v.get("veh_year") or "year n/a"}) imported from FASTSim"')
+    year = f"{v['veh_year']:.0f}" if isinstance(v.get("veh_year"), float) else "year n/a"
+    a(f'description = "{_esc(name)} ({_esc(pt)}, {year}) imported from FASTSim"')
     a("")
     a("[powertrain]")
     a(
