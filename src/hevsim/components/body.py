@@ -33,7 +33,7 @@ def grade_force(mass_kg, grade):
 
 @njit(cache=True)
 def rolling_force(mass_kg, grade, crr, crr_speed_s_per_m, v_mps):
-    """Rolling resistance magnitude (crr + crr_v |v|) m g cos(alpha) for a moving vehicle [N].
+    """Rolling resistance magnitude (crr + crr_v abs(v)) m g cos(alpha) for a moving vehicle [N].
 
     ``crr`` [-] is the constant coefficient, ``crr_speed_s_per_m`` [s/m] the speed-proportional
     one (zero for the physical form of a vehicle file; the coast-down form's B term, see
