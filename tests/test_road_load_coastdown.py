@@ -55,18 +55,35 @@ def _simulate(cfg, cycle: DriveCycle):
     return simulate(cfg, cycle, dt_s=1.0, tracking=None)
 
 
+def _coastdown_trace(v0: float, m_eff: float, n: int, dt: float) -> np.ndarray:
+    """Speeds [m/s] of a coast-down with no traction: each 1-s step solves
+    m_eff (v1 - v0) / dt + A + B u + C u^2 = 0 with u = (v0 + v1) / 2 (the simulators' mid-step road load)."""
+    v = [v0]
+    for _ in range(n):
+        b, c = B_N_PER_M_S + 2.0 * m_eff / dt, A_N - 2.0 * m_eff * v[-1] / dt
+        u = (-b + np.sqrt(b * b - 4.0 * C_N_PER_M2_S2 * c)) / (2.0 * C_N_PER_M2_S2)
+        v.append(2.0 * u - v[-1])
+    return np.array(v)
+
+
 @pytest.mark.parametrize("arch", [a for a in VEHICLES if a != "series"])
 def test_constant_speed_and_coastdown_reproduce_a_b_c(arch: str) -> None:
     cfg = _coastdown_config(arch)
     body = VehicleBody.from_section(cfg.body)
     assert body.mass_kg == TEST_MASS_KG
+    m_eff = body.mass_kg * body.mass_factor
     t = np.arange(0.0, 41.0)
-    for v_trace in (np.full(t.size, 20.0), np.linspace(25.0, 12.0, t.size)):  # cruise, coast-down
+    coast = _coastdown_trace(25.0, m_eff, t.size - 1, 1.0)
+    assert coast[-1] > 10.0
+    for coasting, v_trace in ((False, np.full(t.size, 20.0)), (True, coast)):  # cruise, coast-down
         res = _simulate(cfg, DriveCycle("abc", t, v_trace))
         ts = res.timeseries
         v_mid = 0.5 * (v_trace[1:] + v_trace[:-1])
         f = ts["road_load_force_n"].to_numpy()[: v_mid.size]  # row k: step k to k + 1
         assert np.allclose(f, _road_load(v_mid), rtol=1e-9, atol=0.0), arch
+        if coasting:  # no traction: the wheel force is zero to 1e-9 of the road load
+            wheel = ts["wheel_force_n"].to_numpy()[: v_mid.size]
+            assert np.all(np.abs(wheel) <= 1e-9 * f), arch
 
 
 def test_series_kernel_coasts_down_with_a_b_c() -> None:
