@@ -251,3 +251,9 @@ def test_fastsim3_bev_road_load_and_list(tmp_path: Path, capsys: pytest.CaptureF
     ref += mass * G_FASTSIM * ch["wheel_rr_coef"] * speed
     assert np.allclose(f * speed, ref, rtol=1e-9, atol=0.0)
     assert simulate(out, "udds", tracking=None).metrics["distance_mi"]["value"] > 7.0
+
+
+def test_output_into_a_new_folder(tmp_path: Path) -> None:
+    out = tmp_path / "new" / "folder" / "focus.toml"
+    assert main(["import-vehicle", str(VEHDB / "2012_Ford_Focus.yaml"), "-o", str(out)]) == 0
+    assert out.is_file() and (out.parent / "focus_engine" / "fuel_rate_map.csv").is_file()

@@ -813,7 +813,7 @@ def import_vehicle(
     prepare_output(out_p, kind="file", force=force, option="-o", protect=[src])
     for d, _ in folders:
         prepare_output(d, kind="dir", force=force, option="-o", protect=[src])
-    with tempfile.TemporaryDirectory(prefix=".hevsim-import-", dir=out_p.resolve().parent) as tmp:
+    with tempfile.TemporaryDirectory(prefix="hevsim-import-") as tmp:
         for d, write in folders:  # check the vehicle loads before anything appears at -o
             (Path(tmp) / d.name).mkdir()
             write(Path(tmp) / d.name)
