@@ -131,6 +131,8 @@ _REQUIRED = (
     "aux_kw",
 )  # fmt: skip
 
+_TEXT_KEYS = ("scenario_name", "veh_pt_type", "fc_eff_type")
+"""The fastsim-2 keys whose values are text."""
 _MASS_ONLY = ("glider_kg", "cargo_kg", "comp_mass_multiplier")
 """Required keys that only FASTSim's mass rule reads (not needed with ``veh_override_kg``)."""
 
@@ -271,6 +273,9 @@ def read_vehicle(path: str | Path, row: int | None = None, name: str | None = No
         if full.get("veh_override_kg") is None and full.get("fastsim3_mass_kg") is None
         else tuple(k for k in _REQUIRED if k not in _MASS_ONLY)
     )
+    for k, val in full.items():
+        if isinstance(val, str) and k not in _TEXT_KEYS:
+            raise ConfigError(f"{p}: key {k!r} = {val!r}; expected a number (or a list of numbers).")
     missing = [k for k in needed if full.get(k) is None]
     if missing:
         raise ConfigError(
