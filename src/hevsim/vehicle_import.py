@@ -144,6 +144,11 @@ def _scalar(text: str) -> Any:
         return None
     if s.upper() in ("TRUE", "FALSE"):
         return s.upper() == "TRUE"
+    if s.endswith("%"):  # FASTSim's CSVs write some fractions as percentages (vehicle.clean_data)
+        try:
+            return float(s[:-1]) / 100.0
+        except ValueError:
+            return s
     if s.startswith("["):
         try:
             return [float(x) for x in ast.literal_eval(s)]
