@@ -260,7 +260,7 @@ def test_body_and_gear_methods_are_their_kernels(seed: int, mass: float, crr: fl
     a = rng.normal(0.0, 1.5, N)
     g = rng.normal(0.0, 0.05, N)
     f = body.road_load_force(v, a, g)
-    kargs = (mass, 1.05, body.drag_coefficient, body.frontal_area_m2, body.air_density_kgpm3, 2.0, crr)
+    kargs = (mass, 1.05, body.drag_coefficient, body.frontal_area_m2, body.air_density_kgpm3, 2.0, crr, 0.0)
     for k in range(N):
         assert close(f[k], road_load_force(v[k], a[k], g[k], *kargs))
     alpha = np.arctan(g)

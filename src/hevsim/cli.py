@@ -50,6 +50,12 @@ def _written(out: Path) -> str:
     return ", ".join(names)
 
 
+def _cmd_import_vehicle(args: argparse.Namespace) -> int:
+    from hevsim.vehicle_import import run_command
+
+    return run_command(args)
+
+
 def _cmd_cycles(args: argparse.Namespace) -> int:
     from hevsim.cycles import list_cycles
 
@@ -948,6 +954,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="also write the table (Markdown) to this file")
     _add_force(p, "file at --out")
     p.set_defaults(func=_cmd_refinement)
+
+    p = sub.add_parser(
+        "import-vehicle", help="import a FASTSim vehicle (fastsim-2 YAML/CSV, vehicle database CSV)"
+    )
+    p.add_argument("file", help="FASTSim vehicle file: fastsim-2 .yaml / .csv or the vehicle database CSV")
+    which = p.add_mutually_exclusive_group()
+    which.add_argument("--row", type=int, help="database row (its 'selection' number)")
+    which.add_argument("--name", help="database vehicle by its scenario name")
+    which.add_argument("--list", action="store_true", help="list the file's vehicles and exit")
+    p.add_argument(
+        "-o", "--out", help="hevsim vehicle TOML to write (maps beside it: <stem>_engine/, <stem>_motor/)"
+    )
+    _add_force(p, "file at -o")
+    p.set_defaults(func=_cmd_import_vehicle)
 
     p = sub.add_parser("optimize", help="globally optimal energy management (dynamic programming)")
     p.add_argument("config", help="vehicle configuration (TOML): series or parallel HEV")

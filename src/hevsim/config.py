@@ -74,12 +74,27 @@ class SimulationSection:
 
 @dataclass(frozen=True)
 class BodySection:
-    """Vehicle body (thesis Table 2.2; defaults are the Simscape Vehicle Body block's)."""
+    """Vehicle body (thesis Table 2.2; defaults are the Simscape Vehicle Body block's).
+
+    The road load is given in one of two forms, never both: the physical form (``mass_kg``,
+    ``drag_coefficient``, ``frontal_area_m2``, ``rolling_resistance`` and the optional
+    speed-proportional ``rolling_resistance_speed_s_per_m``), or the coast-down form as the
+    EPA states it: target coefficients ``road_load_a_n`` [N], ``road_load_b_n_per_m_s``
+    [N/(m/s)], ``road_load_c_n_per_m2_s2`` [N/(m/s)^2] (F = A + B v + C v^2 on level road in
+    still air) and the equivalent test weight as a mass, ``test_mass_kg`` [kg] (0, the default:
+    the physical form). :meth:`hevsim.components.body.VehicleBody.from_section` turns the
+    coast-down form into the body's coefficients.
+    """
 
     mass_kg: float = param(1200.0, 1.0, 1e6, "kg")
     drag_coefficient: float = param(0.4, 0.0, 10.0, "-")
     frontal_area_m2: float = param(3.0, 0.0, 100.0, "m^2")
     rolling_resistance: float = param(0.0, 0.0, 1.0, "-")
+    rolling_resistance_speed_s_per_m: float = param(0.0, -0.1, 0.1, "s/m")
+    road_load_a_n: float = param(0.0, 0.0, 1e5, "N")
+    road_load_b_n_per_m_s: float = param(0.0, -1e4, 1e4, "N/(m/s)")
+    road_load_c_n_per_m2_s2: float = param(0.0, 0.0, 1e3, "N/(m/s)^2")
+    test_mass_kg: float = param(0.0, 0.0, 1e6, "kg")
     mass_factor: float = param(1.0, 1.0, 10.0, "-")
     air_density_kgpm3: float = param(1.18, 0.0, 10.0, "kg/m^3")
     headwind_mps: float = param(0.0, -100.0, 100.0, "m/s")
@@ -914,8 +929,40 @@ def config_from_dict(
             )
     spec.check(cfg, source)
     if inert:
+        check_road_load_form(explicit, source, ARCHITECTURE_LABELS.get(spec.name, f"{spec.name} vehicle"))
         check_inert(cfg, explicit, source)
     return cfg
+
+
+ROAD_LOAD_PHYSICAL = ("mass_kg", "drag_coefficient", "frontal_area_m2", "rolling_resistance",
+                      "rolling_resistance_speed_s_per_m")  # fmt: skip
+"""``[body]`` keys of the physical road-load form."""
+ROAD_LOAD_COASTDOWN = ("road_load_a_n", "road_load_b_n_per_m_s", "road_load_c_n_per_m2_s2", "test_mass_kg")
+"""``[body]`` keys of the coast-down road-load form (all four together)."""
+
+
+def check_road_load_form(keys: list[str], source: str, label: str = "vehicle") -> None:
+    """ConfigError when the dotted ``keys`` a file sets mix the two road-load forms of
+    :class:`BodySection` (naming the keys of each) or give only part of the coast-down form."""
+    coast = [f"body.{k}" for k in ROAD_LOAD_COASTDOWN if f"body.{k}" in keys]
+    if not coast:
+        return
+    physical = [f"body.{k}" for k in ROAD_LOAD_PHYSICAL if f"body.{k}" in keys]
+    if physical:
+        raise ConfigError(
+            f"{source}: key '{coast[0]}' does nothing for a {label} whose road load is given in the physical "
+            f"form (keys {', '.join(repr(k) for k in physical)}): keys {', '.join(repr(k) for k in coast)} "
+            "mix the two road-load forms; give either the physical form (mass, drag, rolling resistance) "
+            "or the coast-down form (road_load_a_n, road_load_b_n_per_m_s, road_load_c_n_per_m2_s2, "
+            "test_mass_kg), not both."
+        )
+    missing = [f"body.{k}" for k in ROAD_LOAD_COASTDOWN if f"body.{k}" not in keys]
+    if missing:
+        raise ConfigError(
+            f"{source}: the coast-down road load ({', '.join(repr(k) for k in coast)}) needs "
+            f"{', '.join(repr(k) for k in missing)} too; expected all of "
+            f"{', '.join('body.' + k for k in ROAD_LOAD_COASTDOWN)}."
+        )
 
 
 # ------------------------------------------------------------------------------------------
@@ -1006,6 +1053,13 @@ def inert_keys(cfg: Any) -> dict[str, str]:
     for f in dataclasses.fields(ControllerSection):
         if f.name not in reads:
             out[f"controller.{f.name}"] = f"none of its controllers ({', '.join(kinds)}) reads it"
+    body = getattr(cfg, "body", None)
+    if body is not None and body.test_mass_kg > 0.0:
+        for name in ROAD_LOAD_PHYSICAL:
+            out[f"body.{name}"] = "its road load is given in the coast-down form (body.test_mass_kg > 0)"
+    elif body is not None:
+        for name in ROAD_LOAD_COASTDOWN:
+            out[f"body.{name}"] = "body.test_mass_kg = 0 selects the physical road-load form"
     battery = getattr(cfg, "battery", None)
     if battery is None:
         out["simulation.soc_initial"] = "it has no traction battery"

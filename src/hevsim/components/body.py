@@ -32,9 +32,14 @@ def grade_force(mass_kg, grade):
 
 
 @njit(cache=True)
-def rolling_force(mass_kg, grade, crr):
-    """Rolling resistance magnitude crr m g cos(alpha) for a moving vehicle [N]."""
-    return crr * mass_kg * STANDARD_GRAVITY * np.cos(np.arctan(grade))
+def rolling_force(mass_kg, grade, crr, crr_speed_s_per_m, v_mps):
+    """Rolling resistance magnitude (crr + crr_v abs(v)) m g cos(alpha) for a moving vehicle [N].
+
+    ``crr`` [-] is the constant coefficient, ``crr_speed_s_per_m`` [s/m] the speed-proportional
+    one (zero for the physical form of a vehicle file; the coast-down form's B term, see
+    :func:`coastdown_parameters`), ``v_mps`` [m/s] the speed.
+    """
+    return (crr + crr_speed_s_per_m * np.abs(v_mps)) * mass_kg * STANDARD_GRAVITY * np.cos(np.arctan(grade))
 
 
 @njit(cache=True)
@@ -54,20 +59,57 @@ def axle_normal_loads(mass_kg, accel_mps2, drag_n, grade, cg_height_m, a_m, b_m,
 
 @njit(cache=True)
 def road_load_force(
-    v_mps, accel_mps2, grade, mass_kg, mass_factor, cd, area_m2, rho_kgpm3, headwind_mps, crr
+    v_mps,
+    accel_mps2,
+    grade,
+    mass_kg,
+    mass_factor,
+    cd,
+    area_m2,
+    rho_kgpm3,
+    headwind_mps,
+    crr,
+    crr_speed_s_per_m,
 ):
     """Tractive force needed at the wheels, the road-load form of eq (32) [N].
 
-    F = delta m a + F_drag + F_roll + m g sin(alpha), with the rolling term active only while
-    moving (``v_mps > 0``) and ``delta`` the rotating-mass factor.
+    F = delta m a + F_drag + F_roll + m g sin(alpha), with the rolling term
+    (:func:`rolling_force`, coefficients ``crr`` [-] and ``crr_speed_s_per_m`` [s/m]) active
+    only while moving (``v_mps > 0``) and ``delta`` the rotating-mass factor. On level road in
+    still air this is delta m a + A + B v + C v^2 with A = crr m g, B = crr_v m g,
+    C = rho Cd A_f / 2: the coast-down form (:func:`coastdown_parameters`).
     """
     moving = v_mps > 0.0
     return (
         mass_factor * mass_kg * accel_mps2
         + aero_force(v_mps, headwind_mps, cd, area_m2, rho_kgpm3)
-        + rolling_force(mass_kg, grade, crr) * moving
+        + rolling_force(mass_kg, grade, crr, crr_speed_s_per_m, v_mps) * moving
         + grade_force(mass_kg, grade)
     )
+
+
+COASTDOWN_FRONTAL_AREA_M2 = 1.0
+"""Frontal area [m^2] a coast-down vehicle's body carries: its drag coefficient is then the
+drag area ``2 C / rho`` [m^2] (only the product Cd A_f enters the road load)."""
+
+
+def coastdown_parameters(
+    a_n: float, b_n_per_m_s: float, c_n_per_m2_s2: float, test_mass_kg: float, rho_kgpm3: float
+) -> dict[str, float]:
+    """The body parameters that make :func:`road_load_force` equal the coast-down road load
+    F = A + B v + C v^2 (EPA target coefficients, 40 CFR 1066.301) of a vehicle of equivalent
+    test weight ``test_mass_kg`` [kg] on level road in still air: A [N] and B [N/(m/s)] become
+    the rolling coefficients A / (m g) [-] and B / (m g) [s/m] (so a grade scales them by
+    cos alpha, as it scales a tire's normal load), C [N/(m/s)^2] the drag area 2 C / rho
+    [m^2] at the body's air density ``rho_kgpm3`` [kg/m^3]."""
+    weight_n = test_mass_kg * STANDARD_GRAVITY
+    return {
+        "mass_kg": test_mass_kg,
+        "rolling_resistance": a_n / weight_n,
+        "rolling_resistance_speed_s_per_m": b_n_per_m_s / weight_n,
+        "drag_coefficient": 2.0 * c_n_per_m2_s2 / (rho_kgpm3 * COASTDOWN_FRONTAL_AREA_M2),
+        "frontal_area_m2": COASTDOWN_FRONTAL_AREA_M2,
+    }
 
 
 @dataclass(frozen=True)
@@ -76,13 +118,15 @@ class VehicleBody:
 
     Attributes are SI: mass [kg], frontal area [m^2], lengths [m], air density [kg/m^3],
     headwind [m/s]; ``mass_factor`` (rotating-mass factor, delta of eq 32) and the drag and
-    rolling coefficients are dimensionless.
+    rolling coefficients are dimensionless (the speed-proportional rolling coefficient
+    ``rolling_resistance_speed_s_per_m`` is in s/m).
     """
 
     mass_kg: float = 1200.0
     drag_coefficient: float = 0.4
     frontal_area_m2: float = 3.0
     rolling_resistance: float = 0.0
+    rolling_resistance_speed_s_per_m: float = 0.0
     mass_factor: float = 1.0
     air_density_kgpm3: float = AIR_DENSITY_KGPM3
     headwind_mps: float = 0.0
@@ -93,9 +137,26 @@ class VehicleBody:
 
     @classmethod
     def from_section(cls, section: object) -> VehicleBody:
-        """Body from any configuration section with some of these fields (others default)."""
+        """Body from any configuration section with some of these fields (others default).
+
+        A section in the coast-down form (``test_mass_kg`` > 0 with ``road_load_a_n``,
+        ``road_load_b_n_per_m_s``, ``road_load_c_n_per_m2_s2``) gets its mass and road-load
+        coefficients from :func:`coastdown_parameters`: the one place that form becomes the
+        body every architecture, the DP and the performance envelope use.
+        """
         names = [f.name for f in dataclasses.fields(cls)]
-        return cls(**{n: getattr(section, n) for n in names if hasattr(section, n)})
+        values = {n: getattr(section, n) for n in names if hasattr(section, n)}
+        if float(getattr(section, "test_mass_kg", 0.0) or 0.0) > 0.0:
+            values.update(
+                coastdown_parameters(
+                    float(section.road_load_a_n),  # type: ignore[attr-defined]
+                    float(section.road_load_b_n_per_m_s),  # type: ignore[attr-defined]
+                    float(section.road_load_c_n_per_m2_s2),  # type: ignore[attr-defined]
+                    float(section.test_mass_kg),  # type: ignore[attr-defined]
+                    float(values.get("air_density_kgpm3", AIR_DENSITY_KGPM3)),
+                )
+            )
+        return cls(**values)
 
     def road_load_force(self, v_mps, accel_mps2, grade=0.0):
         """Vectorised eq (32) [N] for arrays of speed [m/s], acceleration [m/s^2], grade [-]."""
@@ -110,6 +171,7 @@ class VehicleBody:
             self.air_density_kgpm3,
             self.headwind_mps,
             self.rolling_resistance,
+            self.rolling_resistance_speed_s_per_m,
         )
 
     def axle_normal_loads(self, accel_mps2, v_mps=0.0, grade=0.0):

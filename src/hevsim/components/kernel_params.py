@@ -6,7 +6,7 @@ layout lives here, below both (issue 24: constants shared across layers live in 
 """
 
 PARAMS = (
-    "mass_kg", "mass_factor", "cd", "area_m2", "rho_kgpm3", "headwind_mps", "crr",
+    "mass_kg", "mass_factor", "cd", "area_m2", "rho_kgpm3", "headwind_mps", "crr", "crr_v",
     "tire_radius_m", "gear_ratio", "gear_efficiency", "max_brake_force_n",
     "driver_gain_per_mps", "driver_feedforward",
     "motor_kind", "motor_eff", "motor_scale", "motor_inertia",

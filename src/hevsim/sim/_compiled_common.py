@@ -17,14 +17,14 @@ AUDIT_ROAD = ("aero", "rolling", "grade", "kinetic_vehicle")
 
 
 @njit(cache=True, inline="always")
-def add_road_audit(audit, v0, v1, v_mid, a, g, f, mass_kg, m_eff, crr, dt):
+def add_road_audit(audit, v0, v1, v_mid, a, g, f, mass_kg, m_eff, crr, crr_v, dt):
     """Add one step's road energies [J] to ``audit[3:7]`` (:data:`AUDIT_ROAD`): speeds at the
     start, end and middle of the step [m/s], acceleration [m/s²], grade [-], wheel force [N],
-    mass and effective (rotating) mass [kg], rolling coefficient [-], step [s]. Aero is the
+    mass and effective (rotating) mass [kg], rolling coefficients [-] and [s/m], step [s]. Aero is the
     rest of the road load of eq (32); nothing is added at a standstill."""
     if v_mid > 0.0:
         f_grade = grade_force(mass_kg, g)
-        f_roll = rolling_force(mass_kg, g, crr)
+        f_roll = rolling_force(mass_kg, g, crr, crr_v, v_mid)
         f_aero = f - m_eff * a - f_roll - f_grade
         audit[3] += f_aero * v_mid * dt
         audit[4] += f_roll * v_mid * dt

@@ -57,7 +57,8 @@ class RunScalars(NamedTuple):
 
     Body (:class:`~hevsim.components.body.VehicleBody`): ``mass_kg`` [kg], ``mass_factor``
     [-], ``drag_coefficient`` [-], ``frontal_area_m2`` [m²], ``air_density_kgpm3`` [kg/m³],
-    ``headwind_mps`` [m/s], ``rolling_resistance`` [-]; ``radius_m`` tire [m]; ``fd_ratio``,
+    ``headwind_mps`` [m/s], ``rolling_resistance`` [-], ``rolling_resistance_speed_s_per_m``
+    [s/m]; ``radius_m`` tire [m]; ``fd_ratio``,
     ``fd_efficiency`` final drive [-]; engine ``torque_scale`` [-], ``idle_radps``,
     ``redline_radps`` [rad/s]; ``fuel_cut_radps``, ``upshift_radps``, ``downshift_radps``
     [rad/s] of the controller; ``aux_power_w`` [W] auxiliary load, ``alternator_efficiency`` [-].
@@ -70,6 +71,7 @@ class RunScalars(NamedTuple):
     air_density_kgpm3: np.ndarray
     headwind_mps: np.ndarray
     rolling_resistance: np.ndarray
+    rolling_resistance_speed_s_per_m: np.ndarray
     radius_m: np.ndarray
     fd_ratio: np.ndarray
     fd_efficiency: np.ndarray
@@ -91,6 +93,7 @@ VARIANT_KEYS: dict[str, tuple[str, float]] = {
     "body.air_density_kgpm3": ("air_density_kgpm3", 1.0),
     "body.headwind_mps": ("headwind_mps", 1.0),
     "body.rolling_resistance": ("rolling_resistance", 1.0),
+    "body.rolling_resistance_speed_s_per_m": ("rolling_resistance_speed_s_per_m", 1.0),
     "tire.radius_m": ("radius_m", 1.0),
     "final_drive.ratio": ("fd_ratio", 1.0),
     "final_drive.efficiency": ("fd_efficiency", 1.0),
@@ -115,6 +118,7 @@ def run_scalars(veh: ConventionalVehicle, ctl: ShiftSchedule, n: int = 1) -> Run
         "mass_kg": b.mass_kg, "mass_factor": b.mass_factor, "drag_coefficient": b.drag_coefficient,
         "frontal_area_m2": b.frontal_area_m2, "air_density_kgpm3": b.air_density_kgpm3,
         "headwind_mps": b.headwind_mps, "rolling_resistance": b.rolling_resistance,
+        "rolling_resistance_speed_s_per_m": b.rolling_resistance_speed_s_per_m,
         "radius_m": veh.tire.radius_m, "fd_ratio": d.fd_ratio, "fd_efficiency": d.fd_efficiency,
         "torque_scale": d.torque_scale, "idle_radps": d.idle_radps, "redline_radps": d.redline_radps,
         "fuel_cut_radps": d.fuel_cut_radps, "upshift_radps": ctl.w_up, "downshift_radps": ctl.w_down,
@@ -125,7 +129,7 @@ def run_scalars(veh: ConventionalVehicle, ctl: ShiftSchedule, n: int = 1) -> Run
 
 @njit(cache=True)
 def _try_speed(
-    v0, v1, k, dt, grade, gear_prev, m, mf, cd, area, rho, wind, crr, r, ratios, effs, fd, fd_eff, idle,
+    v0, v1, k, dt, grade, gear_prev, m, mf, cd, area, rho, wind, crr, crrv, r, ratios, effs, fd, fd_eff, idle,
     w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down, tmax_x, tmax_y, tct_x,
     tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
 ):  # fmt: skip
@@ -135,7 +139,7 @@ def _try_speed(
     v_mid = 0.5 * (v0 + v1)
     a = (v1 - v0) / dt
     g = 0.5 * (grade[k] + grade[k + 1])
-    f = road_load_force(v_mid, a, g, m, mf, cd, area, rho, wind, crr) if v_mid > 0.0 else 0.0
+    f = road_load_force(v_mid, a, g, m, mf, cd, area, rho, wind, crr, crrv) if v_mid > 0.0 else 0.0
     w_wheel, t_wheel = v_mid / r, f * r
     sched = shift_gear(gear_prev, w_wheel * fd, ratios, w_up, w_down)
     for j in range(ratios.shape[0]):
@@ -160,6 +164,7 @@ def _run_variant(
     wheel energy [J], last gear, index of a step with no feasible control or -1)."""
     m, mf, cd, area = s.mass_kg[i], s.mass_factor[i], s.drag_coefficient[i], s.frontal_area_m2[i]
     rho, wind, crr, r = s.air_density_kgpm3[i], s.headwind_mps[i], s.rolling_resistance[i], s.radius_m[i]
+    crrv = s.rolling_resistance_speed_s_per_m[i]
     fd, fd_eff, scale, idle = s.fd_ratio[i], s.fd_efficiency[i], s.torque_scale[i], s.idle_radps[i]
     redline, w_cut, w_up, w_down = (
         s.redline_radps[i],
@@ -184,9 +189,9 @@ def _run_variant(
     for k in range(n):
         v1 = v_des[k + 1]
         c, v_mid, a, g, f, p = _try_speed(
-            v, v1, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, r, ratios, effs, fd, fd_eff, idle,
-            w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down, tmax_x, tmax_y,
-            tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
+            v, v1, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, crrv, r, ratios, effs, fd, fd_eff,
+            idle, w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down, tmax_x,
+            tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
         )  # fmt: skip
         limited = 0.0
         if c == 0:  # beyond the powertrain: lower the end speed until a gear can (forward._run)
@@ -195,7 +200,7 @@ def _run_variant(
             for _ in range(BISECTION_STEPS):
                 mid = 0.5 * (lo + hi)
                 cm = _try_speed(
-                    v, mid, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, r, ratios, effs, fd,
+                    v, mid, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, crrv, r, ratios, effs, fd,
                     fd_eff, idle, w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up,
                     w_down, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
                 )[0]  # fmt: skip
@@ -206,9 +211,9 @@ def _run_variant(
             if best_c == 0:
                 best_v = 0.0
             c, v_mid, a, g, f, p = _try_speed(
-                v, best_v, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, r, ratios, effs, fd, fd_eff,
-                idle, w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down, tmax_x,
-                tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
+                v, best_v, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, crrv, r, ratios, effs, fd,
+                fd_eff, idle, w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down,
+                tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
             )  # fmt: skip
             v1 = v_mid * 2.0 - v  # (at best_v the schedule chooses best_c again: same inputs)
             if c == 0:
@@ -231,7 +236,7 @@ def _run_variant(
         audit[13] += q[7] * dt
         audit[2] += q[8] * dt
         p_wheel = q[9]
-        add_road_audit(audit, v, v1, v_mid, a, g, f, m, m_eff, crr, dt)
+        add_road_audit(audit, v, v1, v_mid, a, g, f, m, m_eff, crr, crrv, dt)
         if on and not was_on:
             starts += 1.0
         was_on = on

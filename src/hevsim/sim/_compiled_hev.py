@@ -101,6 +101,7 @@ class HEVConstants(NamedTuple):
     air_density_kgpm3: float
     headwind_mps: float
     rolling_resistance: float
+    rolling_resistance_speed_s_per_m: float
     radius_m: float
     lhv_jpkg: float
 
@@ -185,6 +186,7 @@ def constants(model: Any, soc_min: float, soc_max: float) -> HEVConstants:
         air_density_kgpm3=float(body.air_density_kgpm3),
         headwind_mps=float(body.headwind_mps),
         rolling_resistance=float(body.rolling_resistance),
+        rolling_resistance_speed_s_per_m=float(body.rolling_resistance_speed_s_per_m),
         radius_m=float(model.tire.radius_m),
         lhv_jpkg=float(model.engine.fuel_lhv_jpkg),
     )
@@ -559,6 +561,7 @@ def _demand(v0, v1, k, dt, gr, h):
             h.air_density_kgpm3,
             h.headwind_mps,
             h.rolling_resistance,
+            h.rolling_resistance_speed_s_per_m,
         )
     return v_mid, a, g, f
 
@@ -664,7 +667,20 @@ def run_hev(
         p_bat = det[nd - 2]
         audit[2] += e_chem
         audit[len(AUDIT_BASE) + nl - 2] += e_chem - p_bat * dt
-        add_road_audit(audit, v, v1, v_mid, a, g, f, h.mass_kg, m_eff, h.rolling_resistance, dt)
+        add_road_audit(
+            audit,
+            v,
+            v1,
+            v_mid,
+            a,
+            g,
+            f,
+            h.mass_kg,
+            m_eff,
+            h.rolling_resistance,
+            h.rolling_resistance_speed_s_per_m,
+            dt,
+        )
         # ---- mode and bookkeeping
         i_on, mode = 0, 0.0
         if dpar is not None:

@@ -64,6 +64,7 @@ CONFIG_KEYS = {
     "rho_kgpm3": "body.air_density_kgpm3",
     "headwind_mps": "body.headwind_mps",
     "crr": "body.rolling_resistance",
+    "crr_v": "body.rolling_resistance_speed_s_per_m",
     "tire_radius_m": "tire.radius_m",
     "gear_ratio": "gear.ratio",
     "gear_efficiency": "gear.efficiency",

@@ -558,7 +558,20 @@ def _run(
             audit["battery_chemical"] += e_chem
             audit["battery_loss"] = audit.get("battery_loss", 0.0) + e_chem - det["battery_power_w"] * dt
         road[:] = 0.0  # aero (the rest of the road load, eq 32), rolling, grade, kinetic
-        add_road_audit(road, v, v1, v_mid, a, g, f, body.mass_kg, m_eff, body.rolling_resistance, dt)
+        add_road_audit(
+            road,
+            v,
+            v1,
+            v_mid,
+            a,
+            g,
+            f,
+            body.mass_kg,
+            m_eff,
+            body.rolling_resistance,
+            body.rolling_resistance_speed_s_per_m,
+            dt,
+        )
         for j, term in enumerate(AUDIT_ROAD, start=3):
             audit[term] += float(road[j])
         # ---- mode and bookkeeping

@@ -57,6 +57,7 @@ AREA = P["area_m2"]
 RHO = P["rho_kgpm3"]
 WIND = P["headwind_mps"]
 CRR = P["crr"]
+CRRV = P["crr_v"]
 RTIRE = P["tire_radius_m"]
 RATIO = P["gear_ratio"]
 GEFF = P["gear_efficiency"]
@@ -338,7 +339,9 @@ def driver_step(p, mot, drv_kind, v, v_target, v_target_prev, grade_k, dt, m_eff
     ratio = p[RATIO]
     w_m0 = v / r * ratio
     m_max, m_min = torque_limits(w_m0, p[MSCALE], mot)
-    f_res0 = road_load_force(v, 0.0, grade_k, p[MASS], p[MFACT], p[CD], p[AREA], p[RHO], p[WIND], p[CRR])
+    f_res0 = road_load_force(
+        v, 0.0, grade_k, p[MASS], p[MFACT], p[CD], p[AREA], p[RHO], p[WIND], p[CRR], p[CRRV]
+    )
     f_drive_max = m_max * ratio * p[GEFF] / r
     u = drive(drv_kind, p, v, v_target, v_target_prev, dt, f_res0, f_drive_max, m_eff)
     return u, w_m0, m_max, m_min
@@ -511,7 +514,7 @@ def vehicle_step(p, v, f_motor, f_fric, grade_k, m_eff, dt):
     """
     f_aero = aero_force(v, p[WIND], p[CD], p[AREA], p[RHO])
     f_grade = grade_force(p[MASS], grade_k)
-    f_roll_mag = rolling_force(p[MASS], grade_k, p[CRR])
+    f_roll_mag = rolling_force(p[MASS], grade_k, p[CRR], p[CRRV], v)
     f_roll = f_roll_mag
     net = f_motor - f_aero - f_grade
     if v <= 0.0 and abs(net) <= f_roll_mag + f_fric:

@@ -69,6 +69,7 @@ class SeriesHEV:
             "rho_kgpm3": b.air_density_kgpm3,
             "headwind_mps": b.headwind_mps,
             "crr": b.rolling_resistance,
+            "crr_v": b.rolling_resistance_speed_s_per_m,
             "tire_radius_m": self.tire.radius_m,
             "gear_ratio": self.gear.ratio,
             "gear_efficiency": self.gear.efficiency,
