@@ -57,9 +57,9 @@ def check_limits(path: str, res: object) -> tuple[float, float]:
     assert over_c[k_c] <= 1e-12, f"{path}: step {k_c} takes {-i[k_c]:.6f} A over the limit {lim_c[k_c]:.6f} A"
     v_min, v_max, n_s = _window(path)
     v_cell = ts["pack_voltage_v"].to_numpy() / n_s
-    moving = i != 0.0
-    assert np.all(v_cell[moving] >= v_min * (1.0 - RTOL)), f"{path}: cell voltage {v_cell.min():.4f} V < {v_min} V"
-    assert np.all(v_cell[moving] <= v_max * (1.0 + RTOL)), f"{path}: cell voltage {v_cell.max():.4f} V > {v_max} V"
+    v_cell = v_cell[i != 0.0]
+    assert np.all(v_cell >= v_min * (1.0 - RTOL)), f"{path}: cell voltage {v_cell.min():.4f} V < {v_min} V"
+    assert np.all(v_cell <= v_max * (1.0 + RTOL)), f"{path}: cell voltage {v_cell.max():.4f} V > {v_max} V"
     dis = np.where(i > 0.0, i / np.maximum(lim_d, 1e-300), 0.0)
     chg = np.where(i < 0.0, -i / np.maximum(lim_c, 1e-300), 0.0)
     return float(dis.max()), float(chg.max())
