@@ -537,7 +537,7 @@ def cached_by_content(path: str | Path, load: Callable[..., Any], *args: Any) ->
     except OSError:
         return load(p, *args)
     name = (getattr(load, "__module__", ""), getattr(load, "__qualname__", repr(load)))
-    key = (*name, str(p), str(p.resolve()), args, _digest(data))
+    key = (*name, str(p), os.path.abspath(p), args, _digest(data))  # abspath: no system calls
     with _CONTENT_LOCK:
         if key in _CONTENT_CACHE:
             _CONTENT_CACHE.move_to_end(key)
