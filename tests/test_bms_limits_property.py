@@ -4,11 +4,13 @@ On every step of random speed traces (bounded acceleration, random grade, ambien
 and of US06 (cooling on and off, 40 degC soaked), the pack current stays within the BMS's
 discharge and charge limits of that step (to 1e-9, round-off of the bus's quadratic), and the
 pack's step-average voltage per series cell within the cells' ``[limits] v_min_v``/``v_max_v``
-(the BMS's voltage limit keeps every series group's step-average voltage in that window).
+(the BMS's voltage limit keeps every series group's step-average voltage in that window),
+and the traction motor's torque within its limits at the recorded (mid-step) motor speed.
 Before the fix the series HEV on US06 drew 1.06x the discharge limit (the motor's torque
 limited at the step's start speed, its power taken at the mid-step speed) and charged at
 1.04x the charge limit (the generator's output not bounded by the charge limit); the parallel
-HEV drew 1 + 1e-6 of it (the flow's feasibility tolerance).
+HEV drew 1 + 1e-6 of it (the flow's feasibility tolerance); the series motor's torque was
+up to 0.9 % over its limit at the mid-step speed on 12 US06 steps (read at the start speed).
 
 Parametrised over :data:`PACK_EXAMPLES`: add a pack example of another architecture there.
 """
@@ -60,6 +62,17 @@ def check_limits(path: str, res: object) -> tuple[float, float]:
     v_cell = v_cell[i != 0.0]
     assert np.all(v_cell >= v_min * (1.0 - RTOL)), f"{path}: cell voltage {v_cell.min():.4f} V < {v_min} V"
     assert np.all(v_cell <= v_max * (1.0 + RTOL)), f"{path}: cell voltage {v_cell.max():.4f} V > {v_max} V"
+    # the traction motor's own torque limits at the speed its power is taken at (recorded)
+    model = res.model  # type: ignore[attr-defined]
+    motor = getattr(model, "traction_motor", None) or model.motor
+    w = ts["motor_speed_radps"].to_numpy()
+    t = ts["motor_torque_nm"].to_numpy()
+    t_hi = np.asarray(motor.max_motoring_torque(np.abs(w)), float)
+    t_lo = np.asarray(motor.max_generating_torque(np.abs(w)), float)
+    k = int(np.argmax(t - t_hi))
+    assert t[k] <= t_hi[k] * (1.0 + RTOL), f"{path}: step {k}: torque {t[k]:.4f} > {t_hi[k]:.4f} N·m"
+    k = int(np.argmin(t - t_lo))
+    assert t[k] >= t_lo[k] * (1.0 + RTOL), f"{path}: step {k}: torque {t[k]:.4f} < {t_lo[k]:.4f} N·m"
     dis = np.where(i > 0.0, i / np.maximum(lim_d, 1e-300), 0.0)
     chg = np.where(i < 0.0, -i / np.maximum(lim_c, 1e-300), 0.0)
     return float(dis.max()), float(chg.max())

@@ -31,6 +31,7 @@ from hevsim.components.battery import charge_current, pack_ocv_r
 from hevsim.components.body import aero_force, grade_force, road_load_force, rolling_force
 from hevsim.components.bus import (
     REGEN_ITERATIONS,
+    TORQUE_RTOL,
     battery_power_limits,
     bus_current,
     limit_machine_torque,
@@ -591,7 +592,8 @@ def traction_limit_step(p, mot, t_m, u, f_brake_req, v, v1, a, f_aero, f_roll, f
     regeneration, the friction brakes taking the rest of the driver's ``f_brake_req`` [N]) is
     scaled at the mid-step speed of the step it makes (:func:`vehicle_step` again), and a
     bisection on the torque keeps the feasible end where the fixed-point scaling has not
-    converged (efficiency maps). Nothing changes where the limits hold.
+    converged (efficiency maps). Then the motor's own torque limits are checked at the
+    mid-step speed too (:func:`_torque_limit_mid`). Nothing changes where the limits hold.
 
     ``v1``, ``a``, ``f_aero`` .. ``f_fric``: :func:`vehicle_step`'s values for ``t_m``.
     Returns (torque [N·m], wheel force [N], friction force [N], acceleration [m/s^2], end
@@ -603,9 +605,10 @@ def traction_limit_step(p, mot, t_m, u, f_brake_req, v, v1, a, f_aero, f_roll, f
     lo = -p_chg_max - p_other
     f_motor = gear_output_torque(t_m, ratio, p[GEFF]) / r
     p_el = machine_power(t_m, 0.5 * (v + v1) / r * ratio, p[MKIND], p[MEFF], p[MSCALE], mot)
-    if not needs_limit(t_m, p_el, p_other, p_dis_max, p_chg_max):
-        return t_m, f_motor, f_fric, a, v1, f_aero, f_roll, f_grade, False, p_el
     t0 = t_m
+    if not needs_limit(t_m, p_el, p_other, p_dis_max, p_chg_max):
+        return _torque_limit_mid(p, mot, t_m, u, f_brake_req, v, v1, a, f_aero, f_roll, f_grade, f_fric,
+                                 f_motor, p_el, hi, lo, grade_k, m_eff, dt, t0)  # fmt: skip
     target = max(hi, 0.0) if t_m > 0.0 else min(lo, 0.0)
     good, bad = 0.0, t_m  # feasible and infeasible torques bracketing the limit
     feasible = False
@@ -633,7 +636,49 @@ def traction_limit_step(p, mot, t_m, u, f_brake_req, v, v1, a, f_aero, f_roll, f
         f_motor, f_fric, a, v1, f_aero, f_roll, f_grade, p_el = _traction_at(
             p, mot, t_m, u, f_brake_req, v, grade_k, m_eff, dt
         )
-    return t_m, f_motor, f_fric, a, v1, f_aero, f_roll, f_grade, t_m != t0, p_el
+    return _torque_limit_mid(p, mot, t_m, u, f_brake_req, v, v1, a, f_aero, f_roll, f_grade, f_fric, f_motor,
+                             p_el, hi, lo, grade_k, m_eff, dt, t0)  # fmt: skip
+
+
+@njit(**STEP_JIT)
+def _within(p, mot, t_m, p_el, v, v1, hi, lo):
+    """The motor's torque ``t_m`` [N·m] within its limits at the mid-step speed of ``v``,
+    ``v1`` [m/s] and its electrical power ``p_el`` [W] within ``lo`` .. ``hi`` (zero torque
+    always is)."""
+    if t_m == 0.0:
+        return True
+    t_hi, t_lo = torque_limits(0.5 * (v + v1) / p[RTIRE] * p[RATIO], p[MSCALE], mot)
+    if t_m > 0.0:
+        return t_m <= t_hi * (1.0 + TORQUE_RTOL) and p_el <= hi
+    return t_m >= t_lo * (1.0 + TORQUE_RTOL) and p_el >= lo
+
+
+@njit(**STEP_JIT)
+def _torque_limit_mid(p, mot, t_m, u, f_brake_req, v, v1, a, f_aero, f_roll, f_grade, f_fric, f_motor, p_el,
+                      hi, lo, grade_k, m_eff, dt, t0):  # fmt: skip
+    """:func:`traction_limit_step`'s last stage: the motor's own torque limits at the mid-step
+    speed (:func:`driver_step` read them at the start speed; in the constant-power region the
+    mid-step limit of an accelerating car is lower). A torque beyond them goes to the limit
+    at the mid-step speed of the step it makes (a bisection keeps the feasible side)."""
+    if _within(p, mot, t_m, p_el, v, v1, hi, lo):
+        return t_m, f_motor, f_fric, a, v1, f_aero, f_roll, f_grade, t_m != t0, p_el
+    t_hi, t_lo = torque_limits(0.5 * (v + v1) / p[RTIRE] * p[RATIO], p[MSCALE], mot)
+    good, bad = 0.0, t_m
+    trial = min(t_m, t_hi) if t_m > 0.0 else max(t_m, t_lo)  # the limit at this step's mid speed
+    for _ in range(BISECTION_STEPS):
+        g = _traction_at(p, mot, trial, u, f_brake_req, v, grade_k, m_eff, dt)
+        if _within(p, mot, trial, g[7], v, g[3], hi, lo):
+            good = trial
+        else:
+            bad = trial
+        if abs(bad - good) <= LIMIT_RTOL * abs(t_m):
+            break
+        trial = 0.5 * (good + bad)
+    t_m = good
+    f_motor, f_fric, a, v1, f_aero, f_roll, f_grade, p_el = _traction_at(
+        p, mot, t_m, u, f_brake_req, v, grade_k, m_eff, dt
+    )
+    return t_m, f_motor, f_fric, a, v1, f_aero, f_roll, f_grade, True, p_el
 
 
 @njit(**STEP_JIT)
