@@ -286,7 +286,8 @@ BATTERY_KINDS = ("tables", "ecm", "pack")
 EXACT_LIMIT_KINDS = (2,)
 """Battery kinds (codes of :data:`BATTERY_KINDS`) whose current limits hold exactly on every
 step (issue 24 item 4): the pack's BMS. The battery's limits are then checked again at the
-mid-step speed the powers are taken at (:func:`traction_limit_step`), a generating genset is
+mid-step speed the powers are taken at (:func:`traction_limit_step`, with the motor's torque
+limits), a generating genset is
 clipped to what the battery can take (:func:`genset_limit`) and the auxiliaries are shed at the
 discharge limit (:func:`bus_step`). The ``tables`` and ``ecm`` kinds keep the thesis's
 start-of-step limit (the 8 refinement levels and ``examples/series_hev.toml`` bit for bit:
