@@ -406,9 +406,20 @@ def load_cycle_csv(path: str | Path, name: str | None = None) -> DriveCycle:
         name: cycle name; defaults to the file name without extension.
 
     Returns:
-        The cycle, with ``source`` set to the file path.
+        The cycle, with ``source`` set to the file path. Parsed once per file content
+        (:func:`hevsim.io.cached_by_content`; a cycle is immutable: read-only arrays).
     """
+    from hevsim.io import cached_by_content
+
     p = Path(path)
+    if not p.is_file():
+        return _parse_cycle_csv(p, name)  # its errors name the file
+    cycle: DriveCycle = cached_by_content(p, _parse_cycle_csv, name)
+    return cycle
+
+
+def _parse_cycle_csv(p: Path, name: str | None) -> DriveCycle:
+    """:func:`load_cycle_csv`'s parser."""
     header, rows = _read_csv_rows(p)
     lowered = [h.lower() for h in header]
     if TIME_COLUMN not in lowered:
@@ -457,9 +468,18 @@ def load_cycle_csv(path: str | Path, name: str | None = None) -> DriveCycle:
 
 # ---------------------------------------------------------------------- registry
 def _cycles_metadata() -> dict[str, Any]:
-    """The parsed ``data/cycles/cycles.toml``."""
+    """The parsed ``data/cycles/cycles.toml`` (parsed once per file content: a deep copy)."""
+    import copy
+
+    from hevsim.io import cached_by_content
+
     resource = files(_DATA_PACKAGE) / "data" / _CYCLES_TOML
-    with resource.open("rb") as stream:
+    with as_file(resource) as path:
+        return copy.deepcopy(cached_by_content(path, _parse_toml_file))
+
+
+def _parse_toml_file(path: Path) -> dict[str, Any]:
+    with path.open("rb") as stream:
         return tomllib.load(stream)
 
 

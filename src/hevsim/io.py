@@ -19,11 +19,14 @@ Command-line tools call :func:`prepare_output` before any computation, inside
 from __future__ import annotations
 
 import errno
+import hashlib
 import json
 import os
 import secrets
 import shutil
 import sys
+import threading
+from collections import OrderedDict
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -504,3 +507,55 @@ def read_text_utf8(path: str | Path, what: str = "TOML", error: type[Exception] 
         f"{p}: is not UTF-8 text: {where} is not valid UTF-8; expected a UTF-8 {what} file (save it "
         "as UTF-8; a '°' or 'µ' written by a Latin-1 / Windows-1252 editor is the usual cause)."
     )
+
+
+# ---------------------------------------------------------------------- parsed-input cache
+CONTENT_CACHE_ENTRIES = 512
+"""Parsed files kept by :func:`cached_by_content` (least recently used dropped first)."""
+_CONTENT_CACHE: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
+_CONTENT_LOCK = threading.Lock()
+
+
+def _digest(data: bytes) -> bytes:
+    return hashlib.blake2b(data, digest_size=20).digest()
+
+
+def cached_by_content(path: str | Path, load: Callable[..., Any], *args: Any) -> Any:
+    """``load(path, *args)``, parsed once per file content: the result is kept under the
+    resolved path, ``load``, ``args`` (hashable) and a hash of the file's bytes, so a changed
+    file (whatever its time stamp) is read again. The cache holds at most
+    :data:`CONTENT_CACHE_ENTRIES` results and is shared by threads.
+
+    The cached object is returned as is: ``load`` must return something immutable, or the
+    caller must hand out copies (:func:`hevsim.tables.read_csv_columns` copies its arrays,
+    :func:`hevsim.schema.read_toml` its dictionary). A path that cannot be read goes straight
+    to ``load``, whose errors name the file; errors are not cached.
+    """
+    p = Path(path)
+    try:
+        data = p.read_bytes()
+    except OSError:
+        return load(p, *args)
+    name = (getattr(load, "__module__", ""), getattr(load, "__qualname__", repr(load)))
+    key = (*name, str(p), os.path.abspath(p), args, _digest(data))  # abspath: no system calls
+    with _CONTENT_LOCK:
+        if key in _CONTENT_CACHE:
+            _CONTENT_CACHE.move_to_end(key)
+            return _CONTENT_CACHE[key]
+    value = load(p, *args)
+    try:  # the file changed while it was parsed: do not keep what may be a mix
+        same = _digest(p.read_bytes()) == key[-1]
+    except OSError:
+        same = False
+    if same:
+        with _CONTENT_LOCK:
+            _CONTENT_CACHE[key] = value
+            while len(_CONTENT_CACHE) > CONTENT_CACHE_ENTRIES:
+                _CONTENT_CACHE.popitem(last=False)
+    return value
+
+
+def clear_content_cache() -> None:
+    """Forget every parsed file of :func:`cached_by_content`."""
+    with _CONTENT_LOCK:
+        _CONTENT_CACHE.clear()

@@ -14,6 +14,7 @@ command-line option, so options and files share one validation.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import math
@@ -24,7 +25,10 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from hevsim.errors import ConfigError
-from hevsim.io import read_text_utf8  # re-exported: the one UTF-8 reader lives in ground
+from hevsim.io import (
+    cached_by_content,
+    read_text_utf8,  # re-exported: the one UTF-8 reader lives in ground
+)
 
 T = TypeVar("T")
 Choices = Mapping[str, tuple[str, ...]]
@@ -173,10 +177,16 @@ def build_config(
 
 def read_toml(path: str | Path) -> dict[str, Any]:
     """Parse a TOML configuration file (UTF-8, :func:`read_text_utf8`); ``name`` defaults to
-    the file's stem."""
+    the file's stem. Parsed once per file content (:func:`hevsim.io.cached_by_content`): the
+    dictionary returned is the caller's own (deep) copy."""
     p = Path(path)
     if not p.is_file():
         raise ConfigError(f"{p}: configuration file not found; expected a TOML file.")
+    return copy.deepcopy(cached_by_content(p, _parse_toml))
+
+
+def _parse_toml(p: Path) -> dict[str, Any]:
+    """:func:`read_toml`'s parser."""
     try:
         data = tomllib.loads(read_text_utf8(p))
     except tomllib.TOMLDecodeError as exc:

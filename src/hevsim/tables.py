@@ -289,12 +289,24 @@ class Table2D:
 
 
 def read_csv_columns(path: str | Path, columns: list[str]) -> dict[str, FloatArray]:
-    """Read numeric ``columns`` of a CSV file with clear errors (file, column, line, value)."""
-    import pandas as pd
+    """Read numeric ``columns`` of a CSV file with clear errors (file, column, line, value).
+
+    Parsed once per file content (:func:`hevsim.io.cached_by_content`); the arrays returned
+    are the caller's own copies."""
+    from hevsim.io import cached_by_content
 
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{p}: file not found; expected a CSV file with columns {columns}.")
+    parsed: dict[str, FloatArray] = cached_by_content(p, _parse_csv_columns, tuple(columns))
+    return {c: v.copy() for c, v in parsed.items()}
+
+
+def _parse_csv_columns(p: Path, columns: tuple[str, ...]) -> dict[str, FloatArray]:
+    """:func:`read_csv_columns`'s parser (its arrays are made read-only: they are cached)."""
+    import pandas as pd
+
+    columns = list(columns)  # type: ignore[assignment]
     try:
         frame = pd.read_csv(p, comment="#", skipinitialspace=True)
     except Exception as exc:  # pandas raises several parser error types
@@ -315,17 +327,28 @@ def read_csv_columns(path: str | Path, columns: list[str]) -> dict[str, FloatArr
                 f"{p}: line {row + 2}, column '{c}': value {str(frame[c].iloc[row])!r} is not a "
                 "finite number; expected a number."
             )
+        values.setflags(write=False)
         out[c] = values
     return out
 
 
 def read_meta(folder: str | Path, what: str) -> dict[str, Any]:
-    """Parse ``folder/meta.toml`` of a component-data folder, with a clear error if absent."""
-    import tomllib
+    """Parse ``folder/meta.toml`` of a component-data folder, with a clear error if absent
+    (parsed once per file content: the dictionary returned is the caller's own copy)."""
+    import copy
+
+    from hevsim.io import cached_by_content
 
     path = Path(folder) / "meta.toml"
     if not path.is_file():
         raise InputError(f"{path}: {what} metadata file not found; expected a meta.toml file.")
+    return copy.deepcopy(cached_by_content(path, _parse_meta))
+
+
+def _parse_meta(path: Path) -> dict[str, Any]:
+    """:func:`read_meta`'s parser (cached per file content: callers get deep copies)."""
+    import tomllib
+
     from hevsim.io import read_text_utf8
 
     try:

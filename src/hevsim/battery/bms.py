@@ -167,22 +167,27 @@ class PackRun:
         :class:`~hevsim.components.flow.BatteryState` (OCV = ``E`` of discharge,
         resistances = ``Z`` of each direction; no charging at ``soc_max``). The flow's
         terminal power then goes to :meth:`finish_power`, which solves the current with the
-        direction's own pair."""
+        direction's own pair.
+
+        The flow accepts a current up to ``1 + LIMIT_RTOL`` of its limits
+        (:data:`hevsim.components.flow.LIMIT_RTOL`, the round-off of its regeneration
+        scaling), and a controller that searches the largest feasible point lands there: the
+        model's limits are the BMS's divided by ``1 + LIMIT_RTOL``, so that the accepted
+        current never exceeds the BMS's own limit (issue 24 item 4)."""
         from hevsim.components.bus import battery_power_limits_many
-        from hevsim.components.flow import BatteryState
+        from hevsim.components.flow import LIMIT_RTOL, BatteryState
 
         if self.base_aux_w is None:
             self.base_aux_w = float(getattr(model, "aux_power_w", 0.0))
         self.begin()
         lim = self.limits
+        i_dis, i_chg = lim.discharge_a / (1.0 + LIMIT_RTOL), lim.charge_a / (1.0 + LIMIT_RTOL)
         o, rd, rc = np.array([self.e_dis]), np.array([self.z_dis]), np.array([self.z_chg])
-        _, p_chg = battery_power_limits_many(o, rd, rc, lim.discharge_a, lim.charge_a)
+        _, p_chg = battery_power_limits_many(o, rd, rc, i_dis, i_chg)
         if soc >= soc_max:
             p_chg[:] = 0.0
         bs = BatteryState(np.asarray(soc), o.reshape(()), rd.reshape(()), rc.reshape(()), p_chg.reshape(()))
-        battery = replace(
-            model.battery, max_discharge_current_a=lim.discharge_a, max_charge_current_a=lim.charge_a
-        )
+        battery = replace(model.battery, max_discharge_current_a=i_dis, max_charge_current_a=i_chg)
         return replace(model, battery=battery, aux_power_w=self.base_aux_w + self.cooling_w), bs
 
     def current_for_power(self, power_w: float) -> float:

@@ -31,6 +31,7 @@ from hevsim.components.battery import charge_current, pack_ocv_r
 from hevsim.components.body import aero_force, grade_force, road_load_force, rolling_force
 from hevsim.components.bus import (
     REGEN_ITERATIONS,
+    TORQUE_RTOL,
     battery_power_limits,
     bus_current,
     limit_machine_torque,
@@ -283,6 +284,15 @@ SUPERVISOR_KINDS = ("thermostat", "schedule", "replay")
 SUPERVISOR_REPLAY = 2
 """Code of the quasi-static replay supervisor (its genset has no shaft dynamics)."""
 BATTERY_KINDS = ("tables", "ecm", "pack")
+EXACT_LIMIT_KINDS = (2,)
+"""Battery kinds (codes of :data:`BATTERY_KINDS`) whose current limits hold exactly on every
+step (issue 24 item 4): the pack's BMS. The battery's limits are then checked again at the
+mid-step speed the powers are taken at (:func:`traction_limit_step`, with the motor's torque
+limits), a generating genset is
+clipped to what the battery can take (:func:`genset_limit`) and the auxiliaries are shed at the
+discharge limit (:func:`bus_step`). The ``tables`` and ``ecm`` kinds keep the thesis's
+start-of-step limit (the 8 refinement levels and ``examples/series_hev.toml`` bit for bit:
+that example's 100 A limit is exceeded by up to 6.8 % on 12 UDDS steps, docs/pack.md)."""
 
 
 @njit(cache=True)
@@ -325,6 +335,11 @@ def battery_state(kind, p, bat, soc, current_sign):
 # single-function loop it replaced). The genset and bus steps write their own channels of
 # row ``k`` of ``out`` when ``record`` is true; the loop writes the rest.
 STEP_JIT: dict[str, Any] = {"cache": True, "_nrt": False}
+BISECTION_STEPS = 60
+LIMIT_RTOL = 1e-12
+"""A torque scaled to a battery power limit stops within this fraction of it (below it)."""
+"""Bisection steps that make a limit exact where the fixed-point scaling of a torque to a
+power limit has not converged (an efficiency map): 2^-60 of the torque."""
 
 
 @njit(**STEP_JIT)
@@ -369,10 +384,8 @@ def bus_limits(p, soc, ocv, r_b, ocv_c, r_c, dt, cap_as):
 
 
 @njit(**STEP_JIT)
-def genset_step(
-    p, eng, gen, gs_state, thr_cmd, w_target, t_target, quasi_static, w_gs, dt, j_shaft, p_motoring_max,
-    energy, record, out, k,
-):  # fmt: skip
+def genset_step(p, eng, gen, gs_state, thr_cmd, w_target, t_target, quasi_static, w_gs, dt, j_shaft,
+                p_motoring_max):  # fmt: skip
     """Advance the genset shaft (engine + generator, 1:1) over one step of ``dt`` [s].
 
     An engine genset: the engine gives its torque at the commanded throttle; the generator
@@ -382,15 +395,19 @@ def genset_step(
     coasts down. ``quasi_static`` (the replay of a DP optimum): the running engine sits at
     ``w_target`` [rad/s] and ``t_target`` [N·m] (NaN: the torque at the throttle) for the whole
     step and the generator takes its torque, as in the DP's model (no shaft dynamics).
-    Adds the fuel, engine, generator and shaft kinetic terms to ``energy`` [J].
+    The step's energy terms and channels are added by :func:`genset_account` once the bus
+    balance has settled the generator's power (:func:`genset_limit` may lower it).
     Returns (fuel rate [kg/s], end speed [rad/s], generator electrical power [W] (> 0 drawn
-    from the bus), current source on, engine fired).
+    from the bus), current source on, engine fired, engine torque [N·m], generator torque
+    [N·m], throttle [-], shaft speed of the record and of the fuel map [rad/s], shaft speed its
+    powers are taken at [rad/s]).
     """
     t_eng = 0.0
     t_gen = 0.0
     thr = 0.0
     fuel_rate = 0.0
     w1 = w_gs
+    w_pow = w_gs
     p_gen_el = 0.0
     source_on = False
     fired = False
@@ -406,12 +423,10 @@ def genset_step(
         else:
             w_gs = 0.0
         w1 = w_gs
+        w_pow = w_gs
         fuel_rate = engine_fuel_rate(t_eng, w_gs, fired, p[EFMAP] > 0, p[ELHV], p[ESCALE], eng)
         eta_g = machine_efficiency(t_gen, w_gs, p[GKIND], p[GEFFM], p[GSCALE], gen)
         p_gen_el = electrical_power(t_gen, w_gs, eta_g)
-        energy[E_FUEL] += fuel_rate * p[ELHV] * dt
-        energy[E_ENG] += (fuel_rate * p[ELHV] - t_eng * w_gs) * dt
-        energy[E_GEN] += (p_gen_el - t_gen * w_gs) * dt
     elif p[GSKIND] == GENSET_ENGINE:
         thr = thr_cmd
         fired = thr > 0.0 and w_gs >= p[ESTALL] and w_gs <= p[ERED]
@@ -448,17 +463,85 @@ def genset_step(
                     if w1 < 0.0:  # the shaft stops: engine friction does exactly the remaining work
                         w1 = 0.0
                         t_eng = -w_gs * j_shaft / dt - t_gen
-        w_mid_gs = 0.5 * (w_gs + w1)
+        w_pow = 0.5 * (w_gs + w1)
         fuel_rate = engine_fuel_rate(t_eng, w_gs, fired, p[EFMAP] > 0, p[ELHV], p[ESCALE], eng)
-        eta_g = machine_efficiency(t_gen, w_mid_gs, p[GKIND], p[GEFFM], p[GSCALE], gen)
-        p_gen_el = electrical_power(t_gen, w_mid_gs, eta_g)
-        p_eng = t_eng * w_mid_gs
-        energy[E_FUEL] += fuel_rate * p[ELHV] * dt
-        energy[E_ENG] += (fuel_rate * p[ELHV] - p_eng) * dt
-        energy[E_GEN] += (p_gen_el - t_gen * w_mid_gs) * dt
-        energy[E_KING] += 0.5 * j_shaft * (w1 * w1 - w_gs * w_gs)
+        eta_g = machine_efficiency(t_gen, w_pow, p[GKIND], p[GEFFM], p[GSCALE], gen)
+        p_gen_el = electrical_power(t_gen, w_pow, eta_g)
     elif p[GSKIND] == GENSET_CURRENT_SOURCE and gs_state == GS_RUNNING:
         source_on = True  # its power is set once the bus voltage is known
+    return fuel_rate, w1, p_gen_el, source_on, fired, t_eng, t_gen, thr, w_gs, w_pow
+
+
+@njit(**STEP_JIT)
+def genset_limit(
+    p, eng, gen, t_eng, t_gen, thr, fired, w_gs, w1, w_pow, quasi_static, dt, j_shaft, p_gen_min
+):
+    """Lower a generating genset's electrical output to ``-p_gen_min`` [W] (``p_gen_min`` the
+    least generator power, > 0 drawn, the bus can take: the battery's charge limit less the
+    rest of the bus), the genset's power request clipped: the engine backs off its torque by
+    what the generator no longer takes (the shaft keeps its path) down to zero torque, below
+    which the shaft keeps the energy (it speeds up). Exact: after the fixed-point scaling a
+    bisection on the generator torque keeps the feasible end.
+
+    ``t_eng``, ``t_gen`` [N·m], throttle ``thr``, start/end speeds ``w_gs``, ``w1`` and the
+    power speed ``w_pow`` [rad/s] as returned by :func:`genset_step`. Returns (fuel rate
+    [kg/s], end speed [rad/s], generator electrical power [W], engine torque [N·m], generator
+    torque [N·m], throttle [-], power speed [rad/s]).
+    """
+    t_sum = t_eng + t_gen
+    t_eng_min = min(t_eng, 0.0)
+    args = (t_sum, t_eng_min, quasi_static, w_gs, w1, w_pow, dt, j_shaft)
+    t_e, w_e, w_p, p_el = _genset_at(p, gen, t_gen, *args)
+    if p_gen_min >= 0.0:
+        t_gen = 0.0
+        t_e, w_e, w_p, p_el = _genset_at(p, gen, t_gen, *args)
+    else:
+        for _ in range(REGEN_ITERATIONS):
+            if p_el >= p_gen_min or p_el >= 0.0:
+                break
+            t_gen *= p_gen_min / p_el
+            t_e, w_e, w_p, p_el = _genset_at(p, gen, t_gen, *args)
+        if p_el < p_gen_min:  # not converged (an efficiency map): bisect, keep the feasible end
+            lo, hi = t_gen, 0.0
+            for _ in range(BISECTION_STEPS):
+                mid = 0.5 * (lo + hi)
+                if _genset_at(p, gen, mid, *args)[3] >= p_gen_min:
+                    hi = mid
+                else:
+                    lo = mid
+            t_gen = hi
+            t_e, w_e, w_p, p_el = _genset_at(p, gen, t_gen, *args)
+    if t_e < t_eng and t_eng > 0.0:
+        thr *= t_e / t_eng  # recorded throttle: the engine's share backed off
+    fuel_rate = engine_fuel_rate(t_e, w_gs, fired, p[EFMAP] > 0, p[ELHV], p[ESCALE], eng)
+    return fuel_rate, w_e, p_el, t_e, t_gen, thr, w_p
+
+
+@njit(**STEP_JIT)
+def _genset_at(p, gen, t_g, t_sum, t_eng_min, quasi_static, w_gs, w1, w_pow, dt, j_shaft):
+    """:func:`genset_limit`'s genset at generator torque ``t_g`` [N·m]: (engine torque [N·m],
+    end speed, power speed [rad/s], generator electrical power [W])."""
+    t_e = max(t_sum - t_g, t_eng_min)
+    if quasi_static:
+        w_e, w_p = w1, w_pow
+    else:
+        w_e = max(w_gs + dt / j_shaft * (t_e + t_g), 0.0)
+        w_p = 0.5 * (w_gs + w_e)
+    return t_e, w_e, w_p, machine_power(t_g, w_p, p[GKIND], p[GEFFM], p[GSCALE], gen)
+
+
+@njit(**STEP_JIT)
+def genset_account(p, fuel_rate, t_eng, t_gen, thr, w_gs, w1, w_pow, p_gen_el, quasi_static, dt, j_shaft,
+                   energy, record, out, k):  # fmt: skip
+    """Add the genset's fuel, engine, generator and shaft kinetic terms of the step to
+    ``energy`` [J] and write its channels of row ``k`` of ``out`` (``record``); arguments as
+    returned by :func:`genset_step` / :func:`genset_limit`."""
+    if p[GSKIND] == GENSET_ENGINE:
+        energy[E_FUEL] += fuel_rate * p[ELHV] * dt
+        energy[E_ENG] += (fuel_rate * p[ELHV] - t_eng * w_pow) * dt
+        energy[E_GEN] += (p_gen_el - t_gen * w_pow) * dt
+        if not quasi_static:
+            energy[E_KING] += 0.5 * j_shaft * (w1 * w1 - w_gs * w_gs)
     if record:
         out[k, CH_GENERATOR_TORQUE_NM] = t_gen
         out[k, CH_GENERATOR_POWER_ELEC_W] = p_gen_el
@@ -467,7 +550,6 @@ def genset_step(
         out[k, CH_ENGINE_THROTTLE] = thr
         out[k, CH_ENGINE_POWER_W] = t_eng * w_gs
         out[k, CH_FUEL_RATE_KGPS] = fuel_rate
-    return fuel_rate, w1, p_gen_el, source_on, fired
 
 
 @njit(**STEP_JIT)
@@ -477,7 +559,7 @@ def traction_step(p, mot, u, v, w_m0, m_max, m_min, p_gen_el, source_on, ocv, p_
 
     ``p_dis_max``, ``p_chg_max``: the battery's power limits of :func:`bus_limits` [W].
     Returns (motor torque [N·m], motor force at the wheels [N], friction brake force [N],
-    limited, the rest of the bus load [W] (> 0 drawn)).
+    limited, the rest of the bus load [W] (> 0 drawn), the driver's brake force request [N]).
     """
     r = p[RTIRE]
     ratio = p[RATIO]
@@ -501,7 +583,120 @@ def traction_step(p, mot, u, v, w_m0, m_max, m_min, p_gen_el, source_on, ocv, p_
         limited = 1.0
     f_motor = gear_output_torque(t_m, ratio, p[GEFF]) / r
     f_fric = max(f_brake_req + min(f_motor, 0.0), 0.0) if u < 0.0 else 0.0
-    return t_m, f_motor, f_fric, limited, p_other
+    return t_m, f_motor, f_fric, limited, p_other, f_brake_req
+
+
+@njit(**STEP_JIT)
+def traction_limit_step(p, mot, t_m, u, f_brake_req, v, v1, a, f_aero, f_roll, f_grade, f_fric, p_other,
+                        p_dis_max, p_chg_max, grade_k, m_eff, dt):  # fmt: skip
+    """The battery's limits at the speed the motor's power is taken at: :func:`traction_step`
+    limits the torque at the start speed ``v`` [m/s], :func:`bus_step` takes its power at the
+    mid-step speed; where that power leaves the battery beyond ``p_dis_max`` or
+    ``p_chg_max`` [W] with the rest of the bus ``p_other`` [W], the motoring torque (or the
+    regeneration, the friction brakes taking the rest of the driver's ``f_brake_req`` [N]) is
+    scaled at the mid-step speed of the step it makes (:func:`vehicle_step` again), and a
+    bisection on the torque keeps the feasible end where the fixed-point scaling has not
+    converged (efficiency maps). Then the motor's own torque limits are checked at the
+    mid-step speed too (:func:`_torque_limit_mid`). Nothing changes where the limits hold.
+
+    ``v1``, ``a``, ``f_aero`` .. ``f_fric``: :func:`vehicle_step`'s values for ``t_m``.
+    Returns (torque [N·m], wheel force [N], friction force [N], acceleration [m/s^2], end
+    speed [m/s], aero, rolling, grade forces [N], limited, the motor's electrical power [W]).
+    """
+    r = p[RTIRE]
+    ratio = p[RATIO]
+    hi = p_dis_max - p_other
+    lo = -p_chg_max - p_other
+    f_motor = gear_output_torque(t_m, ratio, p[GEFF]) / r
+    p_el = machine_power(t_m, 0.5 * (v + v1) / r * ratio, p[MKIND], p[MEFF], p[MSCALE], mot)
+    t0 = t_m
+    if not needs_limit(t_m, p_el, p_other, p_dis_max, p_chg_max):
+        return _torque_limit_mid(p, mot, t_m, u, f_brake_req, v, v1, a, f_aero, f_roll, f_grade, f_fric,
+                                 f_motor, p_el, hi, lo, grade_k, m_eff, dt, t0)  # fmt: skip
+    target = max(hi, 0.0) if t_m > 0.0 else min(lo, 0.0)
+    good, bad = 0.0, t_m  # feasible and infeasible torques bracketing the limit
+    feasible = False
+    for _ in range(REGEN_ITERATIONS):  # fixed point t <- t target / P(t), from either side
+        t_m *= target / p_el
+        f_motor, f_fric, a, v1, f_aero, f_roll, f_grade, p_el = _traction_at(
+            p, mot, t_m, u, f_brake_req, v, grade_k, m_eff, dt
+        )
+        feasible = t_m == 0.0 or (p_el <= hi if t_m > 0.0 else p_el >= lo)
+        if feasible:
+            good = t_m if abs(t_m) > abs(good) else good
+            if t_m == 0.0 or abs(p_el - target) <= LIMIT_RTOL * abs(target):
+                break
+        else:
+            bad = t_m if abs(t_m) < abs(bad) else bad
+    if not feasible:  # not converged (an efficiency map): bisect, keep the feasible end
+        for _ in range(BISECTION_STEPS):
+            mid = 0.5 * (good + bad)
+            p_mid = _traction_at(p, mot, mid, u, f_brake_req, v, grade_k, m_eff, dt)[7]
+            if p_mid <= hi if mid > 0.0 else p_mid >= lo:
+                good = mid
+            else:
+                bad = mid
+        t_m = good
+        f_motor, f_fric, a, v1, f_aero, f_roll, f_grade, p_el = _traction_at(
+            p, mot, t_m, u, f_brake_req, v, grade_k, m_eff, dt
+        )
+    return _torque_limit_mid(p, mot, t_m, u, f_brake_req, v, v1, a, f_aero, f_roll, f_grade, f_fric, f_motor,
+                             p_el, hi, lo, grade_k, m_eff, dt, t0)  # fmt: skip
+
+
+@njit(**STEP_JIT)
+def _within(p, mot, t_m, p_el, v, v1, hi, lo):
+    """The motor's torque ``t_m`` [N·m] within its limits at the mid-step speed of ``v``,
+    ``v1`` [m/s] and its electrical power ``p_el`` [W] within ``lo`` .. ``hi`` (zero torque
+    always is)."""
+    if t_m == 0.0:
+        return True
+    t_hi, t_lo = torque_limits(0.5 * (v + v1) / p[RTIRE] * p[RATIO], p[MSCALE], mot)
+    if t_m > 0.0:
+        return t_m <= t_hi * (1.0 + TORQUE_RTOL) and p_el <= hi
+    return t_m >= t_lo * (1.0 + TORQUE_RTOL) and p_el >= lo
+
+
+@njit(**STEP_JIT)
+def _torque_limit_mid(p, mot, t_m, u, f_brake_req, v, v1, a, f_aero, f_roll, f_grade, f_fric, f_motor, p_el,
+                      hi, lo, grade_k, m_eff, dt, t0):  # fmt: skip
+    """:func:`traction_limit_step`'s last stage: the motor's own torque limits at the mid-step
+    speed (:func:`driver_step` read them at the start speed; in the constant-power region the
+    mid-step limit of an accelerating car is lower). A torque beyond them goes to the limit
+    at the mid-step speed of the step it makes (a bisection keeps the feasible side)."""
+    if _within(p, mot, t_m, p_el, v, v1, hi, lo):
+        return t_m, f_motor, f_fric, a, v1, f_aero, f_roll, f_grade, t_m != t0, p_el
+    t_hi, t_lo = torque_limits(0.5 * (v + v1) / p[RTIRE] * p[RATIO], p[MSCALE], mot)
+    good, bad = 0.0, t_m
+    trial = min(t_m, t_hi) if t_m > 0.0 else max(t_m, t_lo)  # the limit at this step's mid speed
+    for _ in range(BISECTION_STEPS):
+        g = _traction_at(p, mot, trial, u, f_brake_req, v, grade_k, m_eff, dt)
+        if _within(p, mot, trial, g[7], v, g[3], hi, lo):
+            good = trial
+        else:
+            bad = trial
+        if abs(bad - good) <= LIMIT_RTOL * abs(t_m):
+            break
+        trial = 0.5 * (good + bad)
+    t_m = good
+    f_motor, f_fric, a, v1, f_aero, f_roll, f_grade, p_el = _traction_at(
+        p, mot, t_m, u, f_brake_req, v, grade_k, m_eff, dt
+    )
+    return t_m, f_motor, f_fric, a, v1, f_aero, f_roll, f_grade, True, p_el
+
+
+@njit(**STEP_JIT)
+def _traction_at(p, mot, t_m, u, f_brake_req, v, grade_k, m_eff, dt):
+    """:func:`traction_limit_step`'s step at motor torque ``t_m`` [N·m]: (wheel force,
+    friction force [N], then :func:`vehicle_step`'s acceleration, end speed and forces, the
+    motor's electrical power at the mid-step speed [W])."""
+    r = p[RTIRE]
+    ratio = p[RATIO]
+    f_motor = gear_output_torque(t_m, ratio, p[GEFF]) / r
+    f_fric = max(f_brake_req + min(f_motor, 0.0), 0.0) if u < 0.0 else 0.0
+    a, v1, f_aero, f_roll, f_grade, f_fric = vehicle_step(p, v, f_motor, f_fric, grade_k, m_eff, dt)
+    p_el = machine_power(t_m, 0.5 * (v + v1) / r * ratio, p[MKIND], p[MEFF], p[MSCALE], mot)
+    return f_motor, f_fric, a, v1, f_aero, f_roll, f_grade, p_el
 
 
 @njit(**STEP_JIT)
@@ -566,12 +761,15 @@ def floor_traction_step(p, mot, t_m, v, v1, p_other, p_dis_max, grade_k, m_eff, 
 
 
 @njit(**STEP_JIT)
-def bus_step(p, mot, t_m, v_mid, p_gen_el, source_on, ocv, r_b, ocv_c, r_c, p_dis_max, at_floor,
-             soc, dt, cap_as, energy, record, out, k):  # fmt: skip
+def bus_step(p, mot, t_m, v_mid, p_gen_el, source_on, ocv, r_b, ocv_c, r_c, p_dis_max, p_chg_max, at_floor,
+             exact, soc, dt, cap_as, energy, record, out, k):  # fmt: skip
     """Close the DC bus at the mid-step speed ``v_mid`` [m/s]: motor electrical power, battery
     current (eqs 21-22) and SOC (eq 13); adds the battery, source, motor and auxiliary terms to
     ``energy`` [J]. Where the SOC floor binds (``at_floor``, :func:`bus_limits`) the
     auxiliaries get only what the battery can still give within ``p_dis_max`` [W] (shed).
+    ``exact`` (a pack's BMS, :data:`EXACT_LIMIT_KINDS`): the same wherever the discharge limit
+    ``p_dis_max`` still binds with the motor and the genset at their limits, and a
+    current-source genset gives no more than the battery can take within ``p_chg_max`` [W].
 
     Returns (motor mechanical and electrical power [W], current-source power [W], SOC at the
     end of the step [-], battery current [A], battery-limited: beyond the deliverable power or
@@ -585,10 +783,15 @@ def bus_step(p, mot, t_m, v_mid, p_gen_el, source_on, ocv, r_b, ocv_c, r_c, p_di
     p_aux = p[PAUX]
     p_bat = p_m_el + p_gen_el + p_aux - p_src
     shed = 0.0
-    if at_floor and p_bat > p_dis_max and p_aux > 0.0:  # at the SOC floor: auxiliaries shed
+    if (at_floor or exact) and p_bat > p_dis_max and p_aux > 0.0:  # at the limit: auxiliaries shed
         shed = min(p_aux, p_bat - p_dis_max)
         p_aux -= shed
         p_bat -= shed
+    if exact and p_bat < -p_chg_max and p_src > 0.0:  # at the charge limit: the current source clipped
+        cut = min(p_src, -p_chg_max - p_bat)
+        p_src -= cut
+        p_bat += cut
+        shed += cut
     # the discharge and charge states were evaluated at the start of the step (bus_limits)
     i_bat, ocv_b, r_bat, over_power = bus_current(p_bat, ocv, r_b, ocv_c, r_c)
     v_bat = ocv_b - r_bat * i_bat
@@ -667,6 +870,7 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
     sup_kind = int(p[SUPKIND])
     quasi_static = sup_kind == SUPERVISOR_REPLAY
     bat_kind = int(p[BATKIND])
+    exact = bat_kind in EXACT_LIMIT_KINDS
 
     v = v_des[0]
     w_gs = 0.0
@@ -697,13 +901,13 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
         ocv_c, r_c = battery_state(bat_kind, p, bat, soc, -1.0)
         p_dis_max, p_chg_max, at_floor = bus_limits(p, soc, ocv, r_b, ocv_c, r_c, dt, cap_as)
         t_target = sched[k, 2] if quasi_static else 0.0
-        fuel_rate, w1, p_gen_el, source_on, fired = genset_step(
+        fuel_rate, w1, p_gen_el, source_on, fired, t_eng, t_gen, thr, w_gs_k, w_pow = genset_step(
             p, eng, gen, gs_state, thr_cmd, w_target, t_target, quasi_static, w_gs, dt, j_shaft,
-            p_dis_max - p[PAUX], energy, record, out, k,
+            p_dis_max - p[PAUX],
         )  # fmt: skip
         if fired:
             eon += dt
-        t_m, f_motor, f_fric, limited, p_other = traction_step(
+        t_m, f_motor, f_fric, limited, p_other, f_brake_req = traction_step(
             p, mot, u, v, w_m0, m_max, m_min, p_gen_el, source_on, ocv, p_dis_max, p_chg_max
         )
         if at_floor and t_m > 0.0:
@@ -714,10 +918,27 @@ def run_series(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, ene
                 limited = 1.0
         else:
             a, v1, f_aero, f_roll, f_grade, f_fric = vehicle_step(p, v, f_motor, f_fric, grade[k], m_eff, dt)
+        if exact:  # the battery's limits at the mid-step speed the powers are taken at: the
+            # motor first, then a generating genset's output clipped to what the battery can take
+            t_m, f_motor, f_fric, a, v1, f_aero, f_roll, f_grade, mid_limited, p_m_el = traction_limit_step(
+                p, mot, t_m, u, f_brake_req, v, v1, a, f_aero, f_roll, f_grade, f_fric, p_other, p_dis_max,
+                p_chg_max, grade[k], m_eff, dt,
+            )  # fmt: skip
+            if mid_limited:
+                limited = 1.0
+            p_gen_min = -p_chg_max - (p_m_el + p_other - p_gen_el)
+            if p_gen_el < p_gen_min and t_gen < 0.0:
+                fuel_rate, w1, p_gen_el, t_eng, t_gen, thr, w_pow = genset_limit(
+                    p, eng, gen, t_eng, t_gen, thr, fired, w_gs_k, w1, w_pow, quasi_static, dt, j_shaft,
+                    p_gen_min,
+                )  # fmt: skip
+                limited = 1.0
+        genset_account(p, fuel_rate, t_eng, t_gen, thr, w_gs_k, w1, w_pow, p_gen_el, quasi_static, dt,
+                       j_shaft, energy, record, out, k)  # fmt: skip
         v_mid = 0.5 * (v + v1)
         p_m_mech, p_m_el, p_src, soc1, i_bat, over_power = bus_step(
-            p, mot, t_m, v_mid, p_gen_el, source_on, ocv, r_b, ocv_c, r_c, p_dis_max, at_floor, soc, dt,
-            cap_as, energy, record, out, k,
+            p, mot, t_m, v_mid, p_gen_el, source_on, ocv, r_b, ocv_c, r_c, p_dis_max, p_chg_max, at_floor,
+            exact, soc, dt, cap_as, energy, record, out, k,
         )  # fmt: skip
         if bat_kind == 1:  # dynamic cells: advance their RC, charge and thermal states
             battery_ecm_advance(p, bat, i_bat, dt)
