@@ -160,14 +160,21 @@ class PackRun:
         """Start a step: Thevenin pair per direction, BMS limits, cooling power."""
         self.start = self.pack.begin_step()
 
-    def vehicle_step(self, model: Any, soc: float, soc_max: float) -> tuple[Any, Any]:
+    def vehicle_step(
+        self, model: Any, soc: float, soc_max: float, discharge_rtol: float = 0.0, charge_rtol: float = 0.0
+    ) -> tuple[Any, Any]:
         """Begin a step of the forward simulator (:mod:`hevsim.sim.forward`): returns the
         model with this step's battery limits and bus load (``battery`` current limits =
         the BMS's, ``aux_power_w`` = the model's own + the cooling) and the
         :class:`~hevsim.components.flow.BatteryState` (OCV = ``E`` of discharge,
         resistances = ``Z`` of each direction; no charging at ``soc_max``). The flow's
         terminal power then goes to :meth:`finish_power`, which solves the current with the
-        direction's own pair."""
+        direction's own pair.
+
+        ``discharge_rtol``/``charge_rtol`` [-]: the relative excess over a current limit the
+        simulator's feasibility test accepts (round-off of its regeneration scaling); the
+        limits handed to the vehicle are the BMS's divided by ``1 + rtol``, so that no
+        accepted step exceeds the BMS's own limit."""
         from hevsim.components.bus import battery_power_limits_many
         from hevsim.components.flow import BatteryState
 
@@ -175,6 +182,8 @@ class PackRun:
             self.base_aux_w = float(getattr(model, "aux_power_w", 0.0))
         self.begin()
         lim = self.limits
+        lim = replace(lim, discharge_a=lim.discharge_a / (1.0 + discharge_rtol),
+                      charge_a=lim.charge_a / (1.0 + charge_rtol))  # fmt: skip
         o, rd, rc = np.array([self.e_dis]), np.array([self.z_dis]), np.array([self.z_chg])
         _, p_chg = battery_power_limits_many(o, rd, rc, lim.discharge_a, lim.charge_a)
         if soc >= soc_max:

@@ -69,6 +69,7 @@ import numpy as np
 import pandas as pd
 
 import hevsim
+from hevsim.components.flow import LIMIT_RTOL
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DomainError, InputError
 from hevsim.fuels import config_fuel
@@ -498,7 +499,7 @@ def _run(
     model_k = model
     for k in range(n):
         if pack is not None:  # the pack's BMS limits, (E, Z) and cooling load for this step
-            model_k, bs = pack.vehicle_step(model, soc, soc_max)
+            model_k, bs = pack.vehicle_step(model, soc, soc_max, LIMIT_RTOL, REGEN_CURRENT_RTOL)
         else:
             bs = _battery_state(model, soc, soc_max) if battery is not None else None
         ocv = float(np.asarray(bs.ocv_v)) if bs is not None else 0.0
