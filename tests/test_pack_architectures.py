@@ -204,7 +204,8 @@ def test_simulate_ambient_soak_and_cooling_options(tmp_path: Path, capsys: pytes
 
 def test_ambient_study_script_runs_each_new_example(tmp_path: Path) -> None:
     """examples/ambient_study/run_pack_architectures.py on 60 s cycles (its --seconds option):
-    one BEV case and the power split's cooling on/off pair; the report has both tables."""
+    one BEV case from a nearly empty battery (its range run ends at the SOC floor) and the power
+    split's cooling on/off pair; the report has both tables."""
     sys.path.insert(0, str(EX / "ambient_study"))
     try:
         import run_pack_architectures as study
@@ -212,12 +213,15 @@ def test_ambient_study_script_runs_each_new_example(tmp_path: Path) -> None:
         sys.path.pop(0)
     out = tmp_path / "study"
     study.main(["--out", str(out), "--seconds", "60", "--workers", "1", "--ambient", "0",
-                "--cycles", "udds"])  # fmt: skip
+                "--cycles", "udds", "--soc-initial", "0.11"])  # fmt: skip
     report = (out / "report.md").read_text()
     assert "bev_pack" in report and "prius_like_power_split_pack" in report
     import pandas as pd
 
     bev = pd.read_csv(out / "bev.csv")
     assert list(bev["cycle"]) == ["udds"] and bev["kwh_per_100km"].between(5.0, 40.0).all()
+    # driven to empty: near the one-cycle extrapolation, the battery at its floor (0.1)
+    assert bev["range_km"].iloc[0] == pytest.approx(bev["range_1cycle_km"].iloc[0], rel=0.3)
+    assert bev["soc_at_empty"].iloc[0] == pytest.approx(0.1, abs=2e-3)
     split = pd.read_csv(out / "power_split.csv")
     assert sorted(split["cooling"]) == ["off", "on"]
