@@ -50,7 +50,9 @@ def _copy(tmp_path: Path, vehicle: str, pack: str, pack_edits: dict[str, str] | 
           vehicle_edits: dict[str, str] | None = None) -> Path:  # fmt: skip
     """Copies of a shipped pack vehicle and its pack file in ``tmp_path``, with text edits."""
     text = (EX / pack).read_text()
-    text = text.replace('thermal_config = "module_thermal.toml"', f'thermal_config = "{EX / "module_thermal.toml"}"')
+    text = text.replace(
+        'thermal_config = "module_thermal.toml"', f'thermal_config = "{EX / "module_thermal.toml"}"'
+    )
     for old, new in (pack_edits or {}).items():
         assert old in text, old
         text = text.replace(old, new)
@@ -95,7 +97,9 @@ def test_fixed_coolant_representative_pack_equals_the_cell_model(
     n_s, n_p = pc.pack.n_modules * pc.module.n_series, pc.module.n_parallel
     i = ts["pack_current_a"].to_numpy()
     assert i.max() > 20.0 and i.min() < -5.0  # both directions, real currents
-    cell = Cell(pc.cells.parameters, soc_initial=cfg.simulation.soc_initial, temp_k=273.15 + pc.pack.initial_temp_c)
+    cell = Cell(
+        pc.cells.parameters, soc_initial=cfg.simulation.soc_initial, temp_k=273.15 + pc.pack.initial_temp_c
+    )
     ref = cell.simulate(i / n_p, 1.0, 273.15 + pc.cooling.supply_temp_c).timeseries
     v_ref = n_s * ref["voltage_avg_v"].to_numpy()
     np.testing.assert_allclose(ts["pack_voltage_v"], v_ref, rtol=1e-6)
@@ -142,7 +146,8 @@ def test_pack_balance_bms_limits_and_cooling_load(
         assert math.isfinite(res.metrics[key]["value"]), key
     assert "module0_hottest_cell_temp_k" in res.timeseries and "coolant_loop_temp_k" in res.timeseries
     assert res.metadata["pack"]["n_cells"] == load_pack_config(tmp_path / pack).pack.n_modules * (
-        load_pack_config(tmp_path / pack).module.n_series * load_pack_config(tmp_path / pack).module.n_parallel
+        load_pack_config(tmp_path / pack).module.n_series
+        * load_pack_config(tmp_path / pack).module.n_parallel
     )
 
 
@@ -164,7 +169,12 @@ def test_conventional_with_a_pack_exits_2(tmp_path: Path, capsys: pytest.Capture
 def test_bev_pack_outside_the_bus_window_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """The BEV's inverter accepts 180-420 V; a bus_max_v of 380 V is below the pack's 390 V
     (100 x 3.9 V): exit 2 naming the pack file, its keys and both windows."""
-    path = _copy(tmp_path, "bev_pack.toml", "bev_battery.toml", vehicle_edits={"bus_max_v = 420.0": "bus_max_v = 380.0"})
+    path = _copy(
+        tmp_path,
+        "bev_pack.toml",
+        "bev_battery.toml",
+        vehicle_edits={"bus_max_v = 420.0": "bus_max_v = 380.0"},
+    )
     out = tmp_path / "out"
     assert main(["simulate", str(path), "--cycle", "udds", "--out", str(out)]) == 2
     err = capsys.readouterr().err
@@ -173,13 +183,17 @@ def test_bev_pack_outside_the_bus_window_exits_2(tmp_path: Path, capsys: pytest.
     assert not out.exists()
 
 
-def test_simulate_ambient_soak_and_cooling_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_simulate_ambient_soak_and_cooling_options(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """``hevsim simulate --ambient-c -10 --soak`` on the BEV pack starts the cells at -10 degC
     (the BMS's cold derating shows); ``--cooling-off`` on the power split stops the pump;
     the options on a vehicle without a pack are refused (exit 2, the key and value named)."""
     cyc = tmp_path / "short.csv"
     c = _short("udds", 120.0)
-    cyc.write_text("time_s,speed_mps\n" + "".join(f"{t:g},{v:.6f}\n" for t, v in zip(c.time_s, c.speed_mps)))
+    cyc.write_text(
+        "time_s,speed_mps\n" + "".join(f"{t:g},{v:.6f}\n" for t, v in zip(c.time_s, c.speed_mps, strict=True))
+    )
     out = tmp_path / "cold"
     assert main(["simulate", str(EX / "bev_pack.toml"), "--cycle", str(cyc), "--out", str(out), "--no-plots",
                  "--ambient-c", "-10", "--soak"]) == 0  # fmt: skip
@@ -191,7 +205,8 @@ def test_simulate_ambient_soak_and_cooling_options(tmp_path: Path, capsys: pytes
     assert metrics["pack_peak_cell_temp_c"]["value"] < 0.0
     assert metrics["pack_derated_s"]["value"] > 0.0  # factor 0.9 at -10 degC
     out2 = tmp_path / "off"
-    assert main(["simulate", str(EX / "prius_like_power_split_pack.toml"), "--cycle", str(cyc), "--out", str(out2),
+    split = str(EX / "prius_like_power_split_pack.toml")
+    assert main(["simulate", split, "--cycle", str(cyc), "--out", str(out2),
                  "--no-plots", "--ambient-c", "40", "--soak", "--cooling-off"]) == 0  # fmt: skip
     m2 = json.loads((out2 / "metrics.json").read_text())
     assert m2["pack_cooling_energy_j"]["value"] == 0.0

@@ -91,7 +91,9 @@ def run_bev(case: dict[str, Any]) -> dict[str, Any]:
     tol = case["range_speed_tolerance_mph"] * MPS_PER_MPH
     reps = max(2, math.ceil(1.05 * est_km / dist_km) + 1) if math.isfinite(est_km) else 2
     for _ in range(6):  # more repetitions until the car runs out (a warmer pack goes further)
-        long = simulate_pack_vehicle(cfg, _cycle(case["cycle"], case.get("seconds"), reps), case["dt_s"], **kw)
+        long = simulate_pack_vehicle(
+            cfg, _cycle(case["cycle"], case.get("seconds"), reps), case["dt_s"], **kw
+        )
         ts = long.timeseries
         behind = np.flatnonzero((ts["speed_desired_mps"] - ts["speed_mps"]).to_numpy() > tol)
         if behind.size:
@@ -117,14 +119,17 @@ def run_split(case: dict[str, Any]) -> dict[str, Any]:
                                 ambient_temp_c=case["ambient_c"], soak=True, cooling_off=off)  # fmt: skip
     m = res.metrics
     return {
-        "vehicle": cfg.name, "cycle": case["cycle"], "ambient_c": case["ambient_c"], "cooling": case["cooling"],
+        "vehicle": cfg.name, "cycle": case["cycle"], "ambient_c": case["ambient_c"],
+        "cooling": case["cooling"],
         "mpgge": m["mpgge"]["value"], "mpg": m["mpg"]["value"], "soc_final": m["soc_final"]["value"],
         **_common(res), "traction_limited_s": m["traction_limited_s"]["value"],
         "cpu_s": time.process_time() - t0,
     }  # fmt: skip
 
 
-def cases(study: dict[str, Any], args: argparse.Namespace) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+def cases(
+    study: dict[str, Any], args: argparse.Namespace
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """(BEV cases, power-split cases) of the study file, shortened by the options."""
     dt = float(study.get("dt_s", 1.0))
     b, s = study["bev"], study["power_split"]
@@ -132,8 +137,8 @@ def cases(study: dict[str, Any], args: argparse.Namespace) -> tuple[list[dict[st
     cycles = args.cycles if args.cycles else b["cycles"]
     extra = {"dt_s": dt, "seconds": args.seconds}
     bev = [{"vehicle": str((HERE / b["vehicle"]).resolve()), "cycle": c, "ambient_c": float(t),
-            "range_speed_tolerance_mph": float(b["range_speed_tolerance_mph"]), "soc_initial": args.soc_initial,
-            **extra}
+            "range_speed_tolerance_mph": float(b["range_speed_tolerance_mph"]),
+            "soc_initial": args.soc_initial, **extra}
            for c in cycles for t in ambients]  # fmt: skip
     split = [{"vehicle": str((HERE / s["vehicle"]).resolve()), "cycle": s["cycle"],
               "ambient_c": float(s["ambient_c"]), "cooling": c, **extra} for c in s["cooling"]]  # fmt: skip
@@ -189,10 +194,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--study", default=str(HERE / "pack_architectures.toml"))
     ap.add_argument("--out", default="results/ambient_pack_architectures")
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--seconds", type=float, help="drive only the first SECONDS of each cycle (a quick check)")
+    ap.add_argument(
+        "--seconds", type=float, help="drive only the first SECONDS of each cycle (a quick check)"
+    )
     ap.add_argument("--ambient", type=float, action="append", help="BEV ambient [degC] (repeatable)")
     ap.add_argument("--cycles", nargs="+", help="BEV cycles (default the study file's)")
-    ap.add_argument("--soc-initial", type=float, help="BEV initial SOC (default the vehicle file's; a quick check)")
+    ap.add_argument(
+        "--soc-initial", type=float, help="BEV initial SOC (default the vehicle file's; a quick check)"
+    )
     args = ap.parse_args(argv)
     bev_cases, split_cases = cases(read_toml(Path(args.study)), args)
     t0 = time.perf_counter()

@@ -171,7 +171,11 @@ def _pack_options(cfg: Any, args: argparse.Namespace) -> dict[str, Any]:
     from hevsim.errors import ConfigError
     from hevsim.schema import check_option
 
-    given = {"--ambient-c": args.ambient_c is not None, "--soak": args.soak, "--cooling-off": args.cooling_off}
+    given = {
+        "--ambient-c": args.ambient_c is not None,
+        "--soak": args.soak,
+        "--cooling-off": args.cooling_off,
+    }
     used = [k for k, v in given.items() if v]
     if not used:
         return {}
@@ -865,12 +869,21 @@ def build_parser() -> argparse.ArgumentParser:
         help="[battery] model = 'pack': the cells' ageing state, read (new cells when FILE does not exist), "
         "advanced by the run's stress and written back atomically",
     )
-    p.add_argument("--ambient-c", type=float,
-                   help="[battery] model = 'pack': ambient temperature [degC] (default the pack file's)")
-    p.add_argument("--soak", action="store_true",
-                   help="with --ambient-c: the cells and the coolant start at the ambient (a car parked long)")
-    p.add_argument("--cooling-off", action="store_true",
-                   help="[battery] model = 'pack': pump, radiator fan and chiller off")
+    p.add_argument(
+        "--ambient-c",
+        type=float,
+        help="[battery] model = 'pack': ambient temperature [degC] (default the pack file's)",
+    )
+    p.add_argument(
+        "--soak",
+        action="store_true",
+        help="with --ambient-c: the cells and the coolant start at the ambient (a car parked long)",
+    )
+    p.add_argument(
+        "--cooling-off",
+        action="store_true",
+        help="[battery] model = 'pack': pump, radiator fan and chiller off",
+    )
     p.set_defaults(func=_cmd_simulate)
 
     p = sub.add_parser(

@@ -1069,7 +1069,9 @@ def _foreign_sections(data: dict[str, Any], spec: ArchitectureSpec, source: str)
             first = next(iter(value), "")
             key = f"{sec}.{first}" if first else sec
             shown = f" = {value[first]!r}" if first and not isinstance(value[first], dict) else ""
-            why = " (it has no traction battery: every battery model, 'pack' included, needs an electric drive)"
+            why = (
+                " (it has no traction battery: every battery model, 'pack' included, needs an electric drive)"
+            )
             raise ConfigError(
                 f"{source}: key '{key}'{shown} does nothing for a {label}"
                 f"{why if sec == 'battery' and 'battery' not in own else ''}: section [{sec}] belongs to the "
