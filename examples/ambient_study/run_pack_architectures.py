@@ -35,6 +35,7 @@ import pandas as pd
 
 from hevsim.config import load_vehicle_config
 from hevsim.cycles import DriveCycle, load_cycle
+from hevsim.errors import DomainError
 from hevsim.io import atomic_directory
 from hevsim.schema import read_toml
 from hevsim.sim.pack_vehicle import simulate_pack_vehicle
@@ -89,11 +90,21 @@ def run_bev(case: dict[str, Any]) -> dict[str, Any]:
         "soc_final": soc1, **_common(res), "range_1cycle_km": est_km,
     }  # fmt: skip
     tol = case["range_speed_tolerance_mph"] * MPS_PER_MPH
-    reps = max(2, math.ceil(1.05 * est_km / dist_km) + 1) if math.isfinite(est_km) else 2
-    for _ in range(6):  # more repetitions until the car runs out (a warmer pack goes further)
-        long = simulate_pack_vehicle(
-            cfg, _cycle(case["cycle"], case.get("seconds"), reps), case["dt_s"], **kw
-        )
+    # repetitions: the one-cycle estimate first (the car empties in the last one); one more when it
+    # did not run out (a warmer pack goes further), one fewer when it sat empty so long that the
+    # pack could no longer feed the auxiliaries (DomainError: no feasible control)
+    reps = max(2, math.ceil(est_km / dist_km)) if math.isfinite(est_km) else 2
+    row["range_km"] = math.nan  # never ran out within the attempts (reported as such)
+    tried: set[int] = set()
+    while reps not in tried and len(tried) < 8:
+        tried.add(reps)
+        try:
+            long = simulate_pack_vehicle(
+                cfg, _cycle(case["cycle"], case.get("seconds"), reps), case["dt_s"], **kw
+            )
+        except DomainError:
+            reps -= 1
+            continue
         ts = long.timeseries
         behind = np.flatnonzero((ts["speed_desired_mps"] - ts["speed_mps"]).to_numpy() > tol)
         if behind.size:
@@ -103,9 +114,7 @@ def run_bev(case: dict[str, Any]) -> dict[str, Any]:
             row["soc_at_empty"] = float(ts["soc"].iloc[k])
             row["range_repetitions"] = reps
             break
-        reps += 3
-    else:
-        row["range_km"] = math.nan  # never ran out (reported as such)
+        reps += 1
     row["cpu_s"] = time.process_time() - t0
     return row
 
