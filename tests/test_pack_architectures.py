@@ -151,6 +151,21 @@ def test_pack_balance_bms_limits_and_cooling_load(
     )
 
 
+def test_bev_reaching_its_soc_floor_on_the_highway_coasts_to_rest() -> None:
+    """The BEV's pack reaches battery.soc_min at highway speed: the car slows, then coasts to
+    rest (the last crawl needs no push: the road load stops it within the step) and waits with
+    the auxiliaries fed; before, the forward loop stopped with "no feasible control even when
+    stopping". The audit still closes."""
+    cfg = load_vehicle_config(EX / "bev_pack.toml")
+    res = simulate_pack_vehicle(cfg, _short("hwfet", 200.0), 1.0, soc_initial=0.102)
+    ts = res.timeseries
+    assert ts["soc"].iloc[-1] < cfg.battery.soc_min + 1e-3
+    assert ts["speed_mps"].iloc[-20:].max() < 1e-3 < ts["speed_desired_mps"].iloc[-20:].min()
+    assert res.metrics["traction_limited_s"]["value"] > 20.0
+    assert abs(res.metrics["energy_audit_residual_pct"]["value"]) < 1e-6
+    assert abs(res.extra["pack_energy"]["residual_relative"]) < 1e-9
+
+
 def test_conventional_with_a_pack_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A conventional car has no traction battery: [battery] model = "pack" is refused with
     exit 2 naming the file, the key, the value and the reason; no results folder."""

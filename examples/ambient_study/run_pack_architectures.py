@@ -4,7 +4,8 @@ Reads ``pack_architectures.toml`` next to this file and runs, every case soaked 
 
 * the BEV (``bev_pack.toml``) on each cycle at each ambient: consumption over one cycle
   (kWh/100 km of DC energy at the pack terminals, the cooling loop and the auxiliaries
-  included, net of regeneration), and the range driven to empty: the cycle repeated until the
+  included, net of regeneration; and the cells' chemical energy per distance, which adds the
+  pack's own losses), and the range driven to empty: the cycle repeated until the
   car first falls behind the trace by more than ``range_speed_tolerance_mph`` (the battery at
   its SOC floor ``battery.soc_min``, from the file's ``soc_initial``); the one-cycle SOC
   extrapolation ``distance x (soc_initial - soc_min) / (soc_initial - soc_final)`` is listed
@@ -86,7 +87,9 @@ def run_bev(case: dict[str, Any]) -> dict[str, Any]:
     est_km = dist_km * (soc0 - floor) / (soc0 - soc1) if soc0 > soc1 else math.inf
     row = {
         "vehicle": cfg.name, "cycle": case["cycle"], "ambient_c": case["ambient_c"],
-        "kwh_per_100km": e_out_j / 3.6e6 / dist_km * 100.0, "mpgge": m["mpgge"]["value"],
+        "kwh_per_100km": e_out_j / 3.6e6 / dist_km * 100.0,
+        "cells_kwh_per_100km": -res.extra["pack_energy"]["chemical_change_j"] / 3.6e6 / dist_km * 100.0,
+        "mpgge": m["mpgge"]["value"],
         "soc_final": soc1, **_common(res), "range_1cycle_km": est_km,
     }  # fmt: skip
     tol = case["range_speed_tolerance_mph"] * MPS_PER_MPH
@@ -165,8 +168,8 @@ def _md(df: pd.DataFrame) -> str:
     return "\n".join(_table(list(df.columns), rows))
 
 
-BEV_COLUMNS = ["cycle", "ambient_c", "kwh_per_100km", "range_km", "range_1cycle_km", "peak_cell_temp_c",
-               "cooling_energy_wh", "derated_s", "bms_limited_s"]  # fmt: skip
+BEV_COLUMNS = ["cycle", "ambient_c", "kwh_per_100km", "cells_kwh_per_100km", "range_km", "range_1cycle_km",
+               "peak_cell_temp_c", "cooling_energy_wh", "derated_s", "bms_limited_s"]  # fmt: skip
 SPLIT_COLUMNS = ["cycle", "ambient_c", "cooling", "mpgge", "soc_final", "peak_cell_temp_c", "derated_s",
                  "first_derating_s", "bms_limited_s", "cooling_energy_wh"]  # fmt: skip
 
@@ -178,8 +181,9 @@ def report(bev: pd.DataFrame, split: pd.DataFrame, wall_s: float, workers: int) 
         "",
         f"{bev['vehicle'].iloc[0]}: soaked at the ambient, cooling loop on; kWh/100 km = DC energy at the "
         "pack terminals over one cycle (auxiliaries and cooling loop included, regeneration netted) per "
-        "distance; range_km = distance driven with the cycle repeated until the car first fell behind the "
-        "trace by more than 2 mph (the battery at its SOC floor); range_1cycle_km = the one-cycle SOC "
+        "distance; cells_kwh_per_100km = the cells' chemical energy per distance (the pack's own "
+        "losses added); range_km = distance driven with the cycle repeated until the car first fell "
+        "behind the trace by more than 2 mph (the battery at its SOC floor); range_1cycle_km = the one-cycle SOC "
         "extrapolation; derated = time the BMS's temperature factor was below 1 (cold or hot); no cabin "
         "climate control.",
         "",

@@ -506,8 +506,11 @@ def _run(
         e_soc = q_as * ocv if bs is not None else 1.0
 
         def step_at(v1: float, k: int = k, v0: float = v, soc: float = soc, bs: Any = bs,
-                    e_soc: float = e_soc, mk: Any = model_k) -> tuple[Step, float, float, float]:  # fmt: skip
+                    e_soc: float = e_soc, mk: Any = model_k, coast: bool = False,
+                    ) -> tuple[Step, float, float, float]:  # fmt: skip
             v_mid, a, g, f = demand(v0, v1, k)
+            if coast:  # no wheel force: the road load alone brings the car to rest within the step
+                f = 0.0
             st = Step(mk, mod.power_flow, k, float(t[k]), dt, v_mid, v_mid / r, f * r, soc, e_soc, bs,
                       soc_min, soc_max)  # fmt: skip
             return st, a, g, f
@@ -529,7 +532,15 @@ def _run(
                     lo, best = mid, (trial, c)
             if best is None:
                 trial = step_at(0.0)
-                best = (trial, ctl.choose(trial[0]))
+                c = ctl.choose(trial[0])
+                if c is None and trial[3] > 0.0:
+                    # stopping needs a push (the road load decelerates the crawling car more than
+                    # the step asks, so it coasts to rest within the step): no wheel force then,
+                    # e.g. a BEV whose pack reached its SOC floor (the audit's aero term takes
+                    # the difference, at most the crawl's kinetic energy)
+                    trial = step_at(0.0, coast=True)
+                    c = ctl.choose(trial[0])
+                best = (trial, c)
             (step, a, g, f), control = best
             v1 = step.v_mid_mps * 2.0 - v
             if control is None:
