@@ -184,8 +184,8 @@ def report(bev: pd.DataFrame, split: pd.DataFrame, wall_s: float, workers: int) 
         "distance; cells_kwh_per_100km = the cells' chemical energy per distance (the pack's own "
         "losses added); range_km = distance driven with the cycle repeated until the car first fell "
         "behind the trace by more than 2 mph (the battery at its SOC floor); range_1cycle_km = the "
-        "one-cycle SOC extrapolation; derated = time the BMS's temperature factor was below 1 (cold or hot); no cabin "
-        "climate control.",
+        "one-cycle SOC extrapolation; derated = time the BMS's temperature factor was below 1 (cold or "
+        "hot); no cabin climate control.",
         "",
         _md(bev[BEV_COLUMNS]),
         "",
