@@ -166,6 +166,22 @@ def test_bev_reaching_its_soc_floor_on_the_highway_coasts_to_rest() -> None:
     assert abs(res.extra["pack_energy"]["residual_relative"]) < 1e-9
 
 
+def test_batch_of_a_pack_vehicle_runs_the_pack() -> None:
+    """``simulate_batch_architecture`` on the BEV with a pack: each variant runs the pack (the
+    compiled batch, which knows only the nominal battery, is not used): its metrics equal a
+    single pack run of that variant."""
+    from hevsim.sim.forward import simulate_batch_architecture
+
+    cyc = _short("udds", 120.0)
+    batch = simulate_batch_architecture(EX / "bev_pack.toml", {"body.mass_kg": [1600.0, 1800.0]}, cyc)
+    df = batch.table
+    cfg = load_vehicle_config(EX / "bev_pack.toml").replace(**{"body.mass_kg": 1800.0})
+    one = simulate_pack_vehicle(cfg, cyc)
+    for key in ("soc_final", "pack_peak_cell_temp_c", "pack_cooling_energy_j"):
+        assert df[key].iloc[1] == pytest.approx(one.metrics[key]["value"], rel=1e-12), key
+    assert df["soc_final"].iloc[1] < df["soc_final"].iloc[0]
+
+
 def test_conventional_with_a_pack_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A conventional car has no traction battery: [battery] model = "pack" is refused with
     exit 2 naming the file, the key, the value and the reason; no results folder."""

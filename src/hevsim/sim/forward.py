@@ -388,7 +388,8 @@ def simulate_batch_architecture(
     (:meth:`~hevsim.config._VehicleConfig.replace`). The architecture's compiled batch
     (``simulate_batch_compiled``, see the module docstring) runs them all at once where it
     covers the keys and the controller (``compiled`` as in :func:`simulate_architecture`);
-    otherwise they are simulated in turn. Returns a
+    otherwise (and always for a ``[battery] model = "pack"`` vehicle, whose pack the compiled
+    batch does not take) they are simulated in turn. Returns a
     :class:`~hevsim.sim.simulator.BatchResult` (one row per variant: the variant's values and
     every metric).
     """
@@ -410,7 +411,8 @@ def simulate_batch_architecture(
     arch = architecture(cfg.architecture, cfg.name)
     sections: dict[str, dict[str, Any]] = {}
     cfgs = [variant_config(cfg, v, arch.spec, sections) for v in values]
-    loop = compiled_loop(arch.name) if use_compiled(compiled) else None
+    pack = getattr(getattr(cfg, "battery", None), "model", "") == "pack"  # the pack runs variant by variant
+    loop = compiled_loop(arch.name) if use_compiled(compiled) and not pack else None
     hook = getattr(loop, "simulate_batch_compiled", None)
     rec = None
     if hook is not None and all(np.issubdtype(a.dtype, np.number) for a in arrays.values()):
