@@ -535,11 +535,13 @@ def _run(
             if best is None:
                 trial = step_at(0.0)
                 c = ctl.choose(trial[0])
-                if c is None and trial[3] > 0.0:
+                if c is None and trial[3] > 0.0 and pack is not None:
                     # stopping needs a push (the road load decelerates the crawling car more than
                     # the step asks, so it coasts to rest within the step): no wheel force then,
                     # e.g. a BEV whose pack reached its SOC floor (the audit's aero term takes
-                    # the difference, at most the crawl's kinetic energy)
+                    # the difference, at most the crawl's kinetic energy). Only with a pack: the
+                    # compiled loops (no pack) still end such a run with the DomainError below,
+                    # and the Python loop without a pack stays equal to them.
                     trial = step_at(0.0, coast=True)
                     c = ctl.choose(trial[0])
                 best = (trial, c)
