@@ -192,7 +192,7 @@ def test_conventional_with_a_pack_exits_2(tmp_path: Path, capsys: pytest.Capture
     out = tmp_path / "out"
     assert main(["simulate", str(path), "--cycle", "udds", "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    for needle in (str(path), "'battery.model' = 'pack'", "no traction battery", "conventional"):
+    for needle in (str(path), "key 'battery.model'", "value 'pack'", "no traction battery", "conventional"):
         assert needle in err, (needle, err)
     assert not out.exists()
 

@@ -1068,14 +1068,14 @@ def _foreign_sections(data: dict[str, Any], spec: ArchitectureSpec, source: str)
         if users:
             first = next(iter(value), "")
             key = f"{sec}.{first}" if first else sec
-            shown = f" = {value[first]!r}" if first and not isinstance(value[first], dict) else ""
             why = (
-                " (it has no traction battery: every battery model, 'pack' included, needs an electric drive)"
+                "; it has no traction battery: every battery model, 'pack' included, needs an electric drive"
             )
+            shown = f"value {value[first]!r}" if first and not isinstance(value[first], dict) else ""
+            shown += why if sec == "battery" else ""
             raise ConfigError(
-                f"{source}: key '{key}'{shown} does nothing for a {label}"
-                f"{why if sec == 'battery' and 'battery' not in own else ''}: section [{sec}] belongs to the "
-                f"{', '.join(users)} architecture(s); remove it."
+                f"{source}: key '{key}' does nothing for a {label}{f' ({shown})' if shown else ''}: section "
+                f"[{sec}] belongs to the {', '.join(users)} architecture(s); remove it."
             )
 
 
