@@ -114,13 +114,14 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         schedule = GensetSchedule.from_csv(args.schedule, quasi_static=args.replay)
     from hevsim.warmup import simulation_preflight
 
+    pack_options = _pack_options(cfg, args)
     simulation_preflight(cfg, cycle, args.dt)  # memory refusal, long-run line, compile notice
     age = _age_state_option(cfg, args.age_state, bool(overrides))
-    if age is not None:  # a pack that ages over the run (hevsim.battery.life)
+    if age is not None or pack_options:  # a pack that ages over the run, or at another ambient
         from hevsim.sim.pack_vehicle import simulate_pack_vehicle
 
         result = simulate_pack_vehicle(cfg, cycle, args.dt, args.soc_initial, controller=kind,
-                                       schedule=schedule, age_state=age)  # fmt: skip
+                                       schedule=schedule, age_state=age, **pack_options)  # fmt: skip
     elif not online or schedule is not None:  # the series HEV's kernel supervisors
         result = simulate(cfg, cycle, dt_s=args.dt, soc_initial=args.soc_initial, schedule=schedule)
     else:
@@ -168,6 +169,34 @@ def _age_state_option(cfg: Any, path: str | None, ecms_overrides: bool) -> Any:
             f"{cfg.battery.model!r}) and no --ecms-from."
         )
     return load_or_new_age_state(path, _pack_config(cfg).n_cells)
+
+
+def _pack_options(cfg: Any, args: argparse.Namespace) -> dict[str, Any]:
+    """``--ambient-c``/``--soak``/``--cooling-off`` of ``hevsim simulate`` as keywords of
+    :func:`hevsim.sim.pack_vehicle.simulate_pack_vehicle` (ConfigError without a pack)."""
+    from hevsim.battery.pack import PackSection
+    from hevsim.errors import ConfigError
+    from hevsim.schema import check_option
+
+    given = {
+        "--ambient-c": args.ambient_c is not None,
+        "--soak": args.soak,
+        "--cooling-off": args.cooling_off,
+    }
+    used = [k for k, v in given.items() if v]
+    if not used:
+        return {}
+    battery = getattr(cfg, "battery", None)
+    if battery is None or battery.model != "pack":
+        got = "no [battery]" if battery is None else f"key 'battery.model' = {battery.model!r}"
+        raise ConfigError(
+            f"{args.config}: option {', '.join(used)} sets the pack's ambient and cooling; it needs "
+            f"[battery] model = 'pack' (got {got})."
+        )
+    if args.soak and args.ambient_c is None:
+        raise ConfigError("--soak starts the cells and the coolant at the ambient; give it with --ambient-c.")
+    check_option("--ambient-c", args.ambient_c, PackSection, "ambient_temp_c")
+    return {"ambient_temp_c": args.ambient_c, "soak": args.soak, "cooling_off": args.cooling_off}
 
 
 def _eol(cfg: Any) -> tuple[float, float]:
@@ -879,6 +908,21 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE",
         help="[battery] model = 'pack': the cells' ageing state, read (new cells when FILE does not exist), "
         "advanced by the run's stress and written back atomically",
+    )
+    p.add_argument(
+        "--ambient-c",
+        type=float,
+        help="[battery] model = 'pack': ambient temperature [degC] (default the pack file's)",
+    )
+    p.add_argument(
+        "--soak",
+        action="store_true",
+        help="with --ambient-c: the cells and the coolant start at the ambient (a car parked long)",
+    )
+    p.add_argument(
+        "--cooling-off",
+        action="store_true",
+        help="[battery] model = 'pack': pump, radiator fan and chiller off",
     )
     p.set_defaults(func=_cmd_simulate)
 

@@ -246,7 +246,8 @@ class BatterySection:
     path), with its RC and thermal dynamics; ``temperature_c`` is its initial and heat-port
     temperature. The current limits accept ``inf`` (the default): no limit.
 
-    ``"pack"`` (series and parallel): the pack file ``pack`` (a pack TOML as
+    ``"pack"`` (every architecture with a traction battery: series, parallel, power split,
+    BEV): the pack file ``pack`` (a pack TOML as
     ``examples/pack.toml``, relative to this file) with every cell, its module thermal model,
     cooling loop and BMS (:mod:`hevsim.sim.pack_vehicle`); the pack file's arrangement, limits
     and temperatures replace this section's, except ``soc_min`` / ``soc_max``.
@@ -702,10 +703,10 @@ def _check_conventional(cfg: ConventionalConfig, source: str) -> None:
 def _check_bev(cfg: BEVConfig, source: str) -> None:
     _check_controller(cfg, source)
     _pairs_below(cfg, source, (("battery.soc_min", "battery.soc_max"),))
-    if cfg.battery.model in ("cell", "pack"):
+    if cfg.battery.model == "cell":
         raise ConfigError(
-            f"{source}: key 'battery.model' = {cfg.battery.model!r} is not supported by the bev "
-            "architecture; expected one of ideal, rint, table."
+            f"{source}: key 'battery.model' = 'cell' is not supported by the bev "
+            "architecture; expected one of ideal, rint, table, pack."
         )
 
 
@@ -723,10 +724,10 @@ def _check_power_split(cfg: PowerSplitConfig, source: str) -> None:
             f"planetary set: the planets would need (ring - sun) / 2 = {(zr - zs) / 2:g} teeth; expected "
             "tooth numbers whose difference is even."
         )
-    if cfg.engine.model != "map" or cfg.battery.model in ("cell", "pack"):
+    if cfg.engine.model != "map" or cfg.battery.model == "cell":
         raise ConfigError(
             f"{source}: the power split needs 'engine.model' = 'map' (got {cfg.engine.model!r}) and a "
-            f"battery model ideal, rint or table (got {cfg.battery.model!r})."
+            f"battery model ideal, rint, table or pack (got {cfg.battery.model!r})."
         )
 
 
@@ -1185,9 +1186,14 @@ def _foreign_sections(data: dict[str, Any], spec: ArchitectureSpec, source: str)
         if users:
             first = next(iter(value), "")
             key = f"{sec}.{first}" if first else sec
+            why = (
+                "; it has no traction battery: every battery model, 'pack' included, needs an electric drive"
+            )
+            shown = f"value {value[first]!r}" if first and not isinstance(value[first], dict) else ""
+            shown += why if sec == "battery" else ""
             raise ConfigError(
-                f"{source}: key '{key}' does nothing for a {label}: section [{sec}] belongs to the "
-                f"{', '.join(users)} architecture(s); remove it."
+                f"{source}: key '{key}' does nothing for a {label}{f' ({shown})' if shown else ''}: section "
+                f"[{sec}] belongs to the {', '.join(users)} architecture(s); remove it."
             )
 
 

@@ -160,7 +160,14 @@ class PackRun:
         """Start a step: Thevenin pair per direction, BMS limits, cooling power."""
         self.start = self.pack.begin_step()
 
-    def vehicle_step(self, model: Any, soc: float, soc_max: float) -> tuple[Any, Any]:
+    def vehicle_step(
+        self,
+        model: Any,
+        soc: float,
+        soc_max: float,
+        discharge_rtol: float | None = None,
+        charge_rtol: float | None = None,
+    ) -> tuple[Any, Any]:
         """Begin a step of the forward simulator (:mod:`hevsim.sim.forward`): returns the
         model with this step's battery limits and bus load (``battery`` current limits =
         the BMS's, ``aux_power_w`` = the model's own + the cooling) and the
@@ -169,11 +176,12 @@ class PackRun:
         terminal power then goes to :meth:`finish_power`, which solves the current with the
         direction's own pair.
 
-        The flow accepts a current up to ``1 + LIMIT_RTOL`` of its limits
-        (:data:`hevsim.components.flow.LIMIT_RTOL`, the round-off of its regeneration
-        scaling), and a controller that searches the largest feasible point lands there: the
-        model's limits are the BMS's divided by ``1 + LIMIT_RTOL``, so that the accepted
-        current never exceeds the BMS's own limit (issue 24 item 4)."""
+        ``discharge_rtol``/``charge_rtol`` [-]: the relative excess over a current limit the
+        simulator's feasibility test accepts (default
+        :data:`hevsim.components.flow.LIMIT_RTOL`, the round-off of its regeneration scaling),
+        and a controller that searches the largest feasible point lands there: the limits
+        handed to the vehicle are the BMS's divided by ``1 + rtol``, so that no accepted step
+        exceeds the BMS's own limit (issue 24 item 4)."""
         from hevsim.components.bus import battery_power_limits_many
         from hevsim.components.flow import LIMIT_RTOL, BatteryState
 
@@ -181,7 +189,9 @@ class PackRun:
             self.base_aux_w = float(getattr(model, "aux_power_w", 0.0))
         self.begin()
         lim = self.limits
-        i_dis, i_chg = lim.discharge_a / (1.0 + LIMIT_RTOL), lim.charge_a / (1.0 + LIMIT_RTOL)
+        r_dis = LIMIT_RTOL if discharge_rtol is None else discharge_rtol
+        r_chg = LIMIT_RTOL if charge_rtol is None else charge_rtol
+        i_dis, i_chg = lim.discharge_a / (1.0 + r_dis), lim.charge_a / (1.0 + r_chg)
         o, rd, rc = np.array([self.e_dis]), np.array([self.z_dis]), np.array([self.z_chg])
         _, p_chg = battery_power_limits_many(o, rd, rc, i_dis, i_chg)
         if soc >= soc_max:
