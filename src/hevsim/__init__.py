@@ -10,6 +10,20 @@ from hevsim._numba_cache import configure_before_numba as _configure_numba_cache
 
 __version__ = "0.1.0"
 
-__all__ = ["__version__"]
+__all__ = ["__version__", "simulate", "simulate_batch"]
+
+#: The one entry point of every forward simulation (any architecture, any battery model),
+#: imported on first use so that ``import hevsim`` stays light.
+_LAZY = {"simulate": "hevsim.sim.simulator", "simulate_batch": "hevsim.sim.simulator"}
+
+
+def __getattr__(name: str) -> object:
+    """``hevsim.simulate`` and ``hevsim.simulate_batch``
+    (:func:`hevsim.sim.simulator.simulate`, :func:`hevsim.sim.simulator.simulate_batch`)."""
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'hevsim' has no attribute {name!r}")
 
 _configure_numba_cache(_Path(__file__).resolve().parent, __version__)

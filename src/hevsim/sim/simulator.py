@@ -272,6 +272,38 @@ def _energy_keys(hev: SeriesHEV) -> tuple[float, float, float, float]:
     )
 
 
+def _simulate_pack_options(
+    model: Any,
+    cycle: Any,
+    dt_s: float | None,
+    soc_initial: float | None,
+    schedule: Any,
+    controller: Any,
+    controller_params: dict[str, Any],
+    **pack_options: Any,
+) -> SimulationResult:
+    """:func:`simulate` with a pack's ambient, soak, cooling or age options (ConfigError
+    naming the option and the battery model when the vehicle has no pack)."""
+    cfg: Any = getattr(model, "config", model)
+    given = [k for k, v in pack_options.items() if v is not None and v is not False]
+    battery = getattr(cfg, "battery", None)
+    if battery is None or battery.model != "pack":
+        got = "no [battery]" if battery is None else f"key 'battery.model' = {battery.model!r}"
+        raise ConfigError(
+            f"{cfg.name}: simulate({', '.join(given)}=...) sets the pack's ambient, cooling or age; it "
+            f"needs [battery] model = 'pack' (got {got})."
+        )
+    if controller_params:
+        cfg = cfg.replace(**{f"controller.{k}": v for k, v in controller_params.items()})
+        model = cfg
+    from hevsim.sim.pack_vehicle import simulate_pack_vehicle
+
+    return simulate_pack_vehicle(model, cycle, dt_s, soc_initial, controller=controller, schedule=schedule,
+                                 ambient_temp_c=pack_options["ambient_c"], soak=pack_options["soak"],
+                                 cooling_off=pack_options["cooling_off"],
+                                 age_state=pack_options["age_state"])  # fmt: skip
+
+
 def simulate(
     model: SeriesHEV | VehicleConfig | str | Path,
     cycle: DriveCycle | str | None = None,
@@ -280,10 +312,22 @@ def simulate(
     schedule: GensetSchedule | None = None,
     tracking: TrackingBound | None = TRACKING_BOUND,
     controller: Any = None,
+    *,
+    ambient_c: float | None = None,
+    soak: bool = False,
+    cooling_off: bool = False,
+    age_state: Any = None,
     **controller_params: Any,
 ) -> SimulationResult:
     """Simulate ``model`` (a vehicle file path, configuration or built model of any
     architecture) forward over ``cycle`` with a fixed step ``dt_s`` [s].
+
+    ``ambient_c`` [degC], ``soak``, ``cooling_off`` and ``age_state`` (a
+    :class:`hevsim.battery.life.PackAgeState`, advanced in place) are for a vehicle with
+    ``[battery] model = "pack"`` (any architecture but the conventional car): the pack's
+    ambient, cells and coolant starting at it, the cooling loop stopped, the cells' age
+    (:func:`hevsim.sim.pack_vehicle.simulate_pack_vehicle`). ``hevsim.simulate`` is this
+    function.
 
     ``cycle`` is a :class:`DriveCycle`, a registered name or a CSV path (default: the
     configuration's). ``schedule`` replaces the configured supervisory controller by a genset
@@ -310,6 +354,10 @@ def simulate(
         from hevsim.config import load_vehicle_config
 
         model = load_vehicle_config(model)
+    if ambient_c is not None or soak or cooling_off or age_state is not None:
+        pack = {"ambient_c": ambient_c, "soak": soak, "cooling_off": cooling_off, "age_state": age_state}
+        return _simulate_pack_options(model, cycle, dt_s, soc_initial, schedule, controller,
+                                      controller_params, **pack)  # fmt: skip
     other = _other_architecture(model)
     if other is not None:  # parallel, conventional, BEV, power split: hevsim.sim.forward
         if schedule is not None:
