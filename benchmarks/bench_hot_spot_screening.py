@@ -2,16 +2,19 @@
 
 Run from the repository root after building the module ROM of ``examples/pack.toml``::
 
-    .venv/bin/hevsim rom build examples/module_thermal.toml -o examples/module.rom.npz
-    .venv/bin/python benchmarks/bench_hot_spot_screening.py [--pack examples/pack.toml] [--steps 600]
+    .venv/bin/hevsim rom build examples/module_thermal.toml   # results/module_thermal.rom.npz
+    .venv/bin/python benchmarks/bench_hot_spot_screening.py [--pack P] [--steps 600] [--kernel-only]
 
 The pack's compiled step (:func:`hevsim.battery.pack_run._module_hot_spots`) takes each module's
 hot spot as the maximum of ``G_j w`` over every node row ``j`` of its cells, evaluating only the
-rows whose bound can reach the largest value found. The script steps the pack under US06
-(the kernel's count of rows evaluated per module step is the baseline, same run), keeps the
-modules' modal states, and replays them offline through other exact screenings, counting the
-rows each one evaluates and the multiply-adds per module step relative to the baseline
-(``rows x order`` for the baseline; the variants add their own per-row work):
+rows whose bound can reach the largest value found; those rows are evaluated in single precision
+with a rounding bound, and the few that can still be the largest in double. The script first
+times ``Pack.simulate`` under US06 with the kernel evaluating the rows in double
+(``hs_const[0] = 0``, the screening before the single-precision pass) and as shipped, alternated
+in the same run, and checks that every module's hot spot is bit-identical (``--kernel-only``
+stops there). Then it keeps the modules' modal states and replays them offline through other
+exact screenings, counting the rows each one evaluates and the multiply-adds per module step
+relative to the kernel in double (``rows x order``; the variants add their own per-row work):
 
 * ``anchor``: a full evaluation when the deviation has moved ``thr`` (in |G|max |d - d_a| K)
   from the anchor ``d_a``, rows bounded by ``|G_j| (|d - d_a| + |d_j - d_a|)`` (norm of the
@@ -60,6 +63,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     ap.add_argument("--pack", default=str(ROOT / "examples" / "pack.toml"))
     ap.add_argument("--steps", type=int, default=600)
+    ap.add_argument("--kernel-only", action="store_true", help="only the compiled kernel, double vs single")
     args = ap.parse_args()
     from hevsim.battery import pack_run as R
     from hevsim.battery.pack import Pack, load_pack_config
@@ -79,12 +83,43 @@ def main() -> int:
         return 2
     steps = args.steps
     current = 6.0 * cycle_cell_current("us06", duration_s=steps, dt_s=cfg.pack.dt_s)
-    with OtherLoad() as load:
-        t0 = time.perf_counter()
-        pack.simulate(current)
-        run_s = time.perf_counter() - t0
     n_mod = cfg.pack.n_modules
-    base_rows = pack._f[R.F_HSROWS] / steps / n_mod
+    # the compiled kernel in double (hs_const[0] = 0, the screening before issue 26's single-
+    # precision pass) and as shipped (single precision, then double), alternated, same run
+    runs: dict[str, list[float]] = {"double": [], "single": []}
+    hots: dict[str, np.ndarray] = {}
+    rows: dict[str, tuple[float, float]] = {}
+    with OtherLoad() as load:
+        for mode in ("double", "single", "double", "single"):
+            p = Pack(cfg)
+            if mode == "double":
+                p._modal["hs_const"][0] = 0.0
+            p.simulate(current[:2])  # compile outside the timing
+            p = Pack(cfg)
+            if mode == "double":
+                p._modal["hs_const"][0] = 0.0
+            t0 = time.perf_counter()
+            res = p.simulate(current)
+            runs[mode].append(time.perf_counter() - t0)
+            ts = res.timeseries
+            hots[mode] = ts[[c for c in ts.columns if "hot_spot" in c]].to_numpy()
+            per = steps * n_mod
+            rows[mode] = (p._f[R.F_HSROWS] / per, p._f[R.F_HSROWS64] / per)
+    same = bool(np.array_equal(hots["double"], hots["single"]))
+    t_d, t_s = min(runs["double"]), min(runs["single"])
+    print(
+        f"pack.simulate, {steps} s of US06, {n_mod} modules (best of 2; other load "
+        f"{load.cores if load.cores is not None else float('nan'):.2f} cores):"
+    )
+    print(f"  kernel in double   {t_d:.3f} s = {t_d / (steps * n_mod) * 1e6:6.1f} us per module step, "
+          f"{rows['double'][0]:.0f} rows per module step")  # fmt: skip
+    print(f"  single then double {t_s:.3f} s = {t_s / (steps * n_mod) * 1e6:6.1f} us per module step, "
+          f"{rows['single'][0]:.0f} rows in single and {rows['single'][1]:.1f} in double per module step; "
+          f"ratio {t_d / t_s:.2f}x; hot spots identical: {same}")  # fmt: skip
+    if args.kernel_only:
+        return 0
+    run_s = t_d
+    base_rows = rows["double"][0]
     pack = Pack(cfg)
     zs = []
     for k in range(steps):
@@ -99,8 +134,9 @@ def main() -> int:
     n = g.shape[0]
     m_in = pack._modal["rom_in"].shape[0]
     print(f"ROM order {r}, {n} rows per module, {n_mod} modules, {steps} steps; inputs {m_in}")
-    print(f"baseline (compiled kernel): {base_rows:.0f} rows per module step; simulate {run_s:.3f} s "
-          f"(other load {load.cores if load.cores is not None else float('nan'):.2f} cores)")  # fmt: skip
+    print(
+        f"baseline (compiled kernel in double): {base_rows:.0f} rows per module step; simulate {run_s:.3f} s"
+    )
     base = base_rows * r
 
     def report(name: str, rows: float, per_row: float) -> None:

@@ -101,6 +101,71 @@ def test_modal_rom_and_hot_spot_equal_the_dense_stepper(rom_pack: dict[str, Any]
     assert pack.steps_done == steps
 
 
+def _all_rows_max(g: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Brute force: per module, the largest ``G_j . w`` over every row, each row by the kernel's
+    own double product (:func:`hevsim.battery.pack_run._dot`)."""
+    from numba import njit
+
+    @njit(cache=False)
+    def run(g, w, out):  # type: ignore[no-untyped-def]
+        for m in range(w.shape[0]):
+            best = -np.inf
+            for j in range(g.shape[0]):
+                best = max(best, R._dot(g[j], w[m]))
+            out[m] = best
+
+    out = np.empty(w.shape[0])
+    run(g, w, out)
+    return out
+
+
+@pytest.mark.parametrize("rebase_k", [R.HOT_SPOT_REBASE_K, 0.3])
+def test_hot_spot_screening_equals_all_rows_on_random_states(
+    rom_pack: dict[str, Any], rebase_k: float
+) -> None:
+    """Property (issue 26): on random modal states of every kind the screened hot spot (time
+    bounds, then single precision with its rounding bound, then double) equals the maximum over
+    every row evaluated in double (1e-12 K; the same product): random walks with steps from
+    1e-6 to 10 times the typical deviation, jumps, the exactly uniform field (every row equal
+    to rounding: all ties), a field peaked on one node, and states far from the ROM's range."""
+    from hevsim.battery.pack import Pack
+
+    cfg, rom = rom_pack["cfg"], rom_pack["rom"]
+    pack = Pack(cfg, rom=rom)
+    pack._f[R.F_HSREBASE] = rebase_k
+    s = pack.arrays
+    g, unit = s.rom_cand, s.hs_unit
+    n_mod, r = s.rom_w.shape
+    rng = np.random.default_rng(26)
+    scale = rng.lognormal(0.0, 1.0, r) / np.sqrt(r)  # per-mode deviation scale [K-ish]
+    d = rng.standard_normal((n_mod, r)) * scale
+    t_ref = 300.0 + 10.0 * rng.standard_normal(n_mod)
+    hot = np.empty(n_mod)
+    worst, equal, steps = 0.0, 0, 0
+    for k in range(600):
+        kind = k % 100
+        if kind == 0:  # the uniform field: every row ties to rounding
+            w = t_ref[:, None] * unit
+        elif kind == 1:  # one node's row direction: a sharp peak
+            w = t_ref[:, None] * unit + 5.0 * g[rng.integers(0, g.shape[0], n_mod)]
+        elif kind == 2:  # a jump far out (1000 x the scale)
+            w = t_ref[:, None] * unit + 1e3 * rng.standard_normal((n_mod, r)) * scale
+        else:  # a random walk with steps over seven decades
+            d = d + 10.0 ** rng.uniform(-6, 1) * rng.standard_normal((n_mod, r)) * scale
+            t_ref = t_ref + rng.standard_normal(n_mod) * 10.0 ** rng.uniform(-4, 0)
+            w = t_ref[:, None] * unit + d
+        w = np.ascontiguousarray(w)
+        R._module_hot_spots(s, w, hot)
+        brute = _all_rows_max(g, w)
+        worst = max(worst, float(np.abs(hot - brute).max()))
+        equal += int(np.sum(hot == brute))
+        steps += 1
+    assert worst <= 1e-12, worst
+    assert equal >= 0.99 * steps * n_mod, (equal, steps * n_mod)
+    # few rows in double: the single-precision pass leaves a handful per module step
+    assert s.f[R.F_HSROWS64] < 0.05 * steps * n_mod * g.shape[0], s.f[R.F_HSROWS64]
+
+
 def test_cooling_loop_reaches_its_closed_form_steady_state() -> None:
     """Constant plate heat Q, chiller off: the compiled loop settles where the radiator, the
     pipes and the pump balance it: eps C_min (T - T_a) + UA_loop (T - T_a) = Q + P_pump."""

@@ -867,9 +867,12 @@ class Pack:
         self._hot = np.zeros((0, n_mod))
         if self.rom is None:
             e1, e2 = np.zeros(0), np.zeros((0, 0))
+            self._modal: dict[str, np.ndarray]
             self._modal = {"rom_decay": e1, "rom_in": e2, "rom_out": e2, "rom_cand": e2, "hs_norm": e1,
                            "hs_unit": e1, "energy": e1, "hs_ub": e2, "hs_prev": e2, "hs_blk": e2,
-                           "hs_block": e1, "hs_gmax": e1}  # fmt: skip
+                           "hs_block": e1, "hs_gmax": e1, "hs_g32": np.zeros((0, 0), np.float32),
+                           "hs_d32": np.zeros(0, np.float32), "hs_cand": np.zeros(0, np.int64),
+                           "hs_const": np.zeros(4)}  # fmt: skip
             self._rom_w, self._rom_u, self._rom_y = (np.zeros((n_mod, 0)) for _ in range(3))
             self._channel = (e1, e1, e1)
             return
@@ -880,6 +883,8 @@ class Pack:
         self._modal["hs_ub"] = np.zeros((n_mod, self._modal["rom_cand"].shape[0]))
         self._modal["hs_prev"] = np.zeros((n_mod, rom.order + 4))
         self._modal["hs_blk"] = np.zeros((n_mod, self._modal["hs_gmax"].shape[0]))
+        self._modal["hs_d32"] = np.zeros(rom.order, np.float32)
+        self._modal["hs_cand"] = np.zeros(self._modal["rom_cand"].shape[0], np.int64)
         w0 = t0 * (rom.unit_state @ self._modal["q"])
         self._rom_w = np.ascontiguousarray(np.repeat(w0[None, :], n_mod, axis=0))
         self._rom_u = np.zeros((n_mod, rom.n_cells + rom.n_segments + 2))
@@ -906,7 +911,8 @@ class Pack:
                 self._totals, self.port_k, self._cells, self._energy_buf, self.loop.lp, self.loop.ls,
                 self._inlet, self._plate_heat, *self._derating, md["rom_decay"], md["rom_in"], md["rom_out"],
                 md["rom_cand"], md["hs_norm"], md["hs_unit"], md["energy"], md["hs_ub"], md["hs_prev"],
-                md["hs_blk"], md["hs_block"], md["hs_gmax"],
+                md["hs_blk"], md["hs_block"], md["hs_gmax"], md["hs_g32"], md["hs_d32"], md["hs_cand"],
+                md["hs_const"],
                 self._rom_w, self._rom_u, self._rom_y, *self._channel, self._acc, self._sv,
                 self._rec, self._hot, st.data if st is not None else np.zeros((8, 0)),
                 st.counts if st is not None else np.zeros(2),

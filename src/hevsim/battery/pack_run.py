@@ -48,11 +48,11 @@ F_NAMES = (
     "weight", "n_modules", "sim_per_module", "max_current_a", "ambient_k", "linear", "ez_valid", "rom",
     "h_plate", "time_s", "step", "soc", "soc_min", "soc_max", "stress", "v_min", "v_max", "base_aux_w",
     "rom_b_amb_w_k", "rom_f_const_w", "activation_k", "hot_spot_started",
-    "hot_spot_rows", "hot_spot_rebase_k",
+    "hot_spot_rows", "hot_spot_rebase_k", "hot_spot_rows_double",
 )  # fmt: skip
 (F_DT, F_NG, F_NP, F_REP, F_NS, F_NPAR, F_WEIGHT, F_NMOD, F_SIMPM, F_IMAX, F_AMB, F_LINEAR, F_EZVALID,
  F_ROM, F_H, F_TIME, F_STEP, F_SOC, F_SOCMIN, F_SOCMAX, F_STRESS, F_VMIN, F_VMAX, F_BASEAUX, F_BAMB,
- F_FCONST, F_ACT, F_HSINIT, F_HSROWS, F_HSREBASE) = range(
+ F_FCONST, F_ACT, F_HSINIT, F_HSROWS, F_HSREBASE, F_HSROWS64) = range(
     len(F_NAMES))  # fmt: skip
 
 #: the step vector :attr:`PackArrays.sv` that :func:`pack_begin` fills
@@ -166,6 +166,10 @@ class PackArrays(NamedTuple):
     hs_blk: FloatArray
     hs_block: FloatArray
     hs_gmax: FloatArray
+    hs_g32: FloatArray
+    hs_d32: FloatArray
+    hs_cand: FloatArray
+    hs_const: FloatArray
     rom_w: FloatArray
     rom_u: FloatArray
     rom_y: FloatArray
@@ -289,34 +293,61 @@ def _deviation_change(wm, unit, t_ref, d_prev):
     return acc
 
 
+@njit(cache=True, fastmath=True)
+def _dot32(a, b):
+    """``a . b`` of two float32 vectors, accumulated in float32 (vectorised: any summation order;
+    the rounding bound of :func:`_module_hot_spots` holds for every order)."""
+    acc = np.float32(0.0)
+    for i in range(a.shape[0]):
+        acc += a[i] * b[i]
+    return acc
+
+
 @njit(**NO_REFCOUNT)
 def _module_hot_spots(s, w, hot):
     """Per-module hot spot [K]: the largest candidate-node temperature ``G_j w`` of each
-    module's cells (``G = rom_cand``, modal), exact (to rounding) with few rows evaluated.
+    module's cells (``G = rom_cand``, modal; every node of the cells for a ROM built with
+    ``candidates = 0``), exactly the largest of the rows evaluated in double (:func:`_dot`),
+    with few rows evaluated in double.
 
-    Every candidate row satisfies ``G_j u = 1`` for the modal state ``u`` of the uniform 1 K
-    field, so with ``T_ref = e.w / e.u`` (the module's mean, ``e`` the stored-heat row) and
-    ``d = w - T_ref u``, a row changes over a step by ``dT_ref + G_j dd`` and
-    ``|G_j dd| <= |G_j| |dd|``. With the running sums ``R`` of ``dT_ref`` (plus a slack for
+    Every candidate row satisfies ``G_j u = 1`` (to ``eta``, ``hs_const``) for the modal state
+    ``u`` of the uniform 1 K field, so with ``T_ref = e.w / e.u`` (the module's mean, ``e`` the
+    stored-heat row) and ``d = w - T_ref u``, a row changes over a step by ``dT_ref + G_j dd``
+    and ``|G_j dd| <= |G_j| |dd|``. With the running sums ``R`` of ``dT_ref`` (plus a slack for
     rounding) and ``S`` of ``|dd|`` since the module's last full evaluation, row ``j``
-    evaluated to ``y`` keeps the offset ``a_j = y - R - |G_j| S`` and stays below
+    evaluated to at most ``y`` keeps the offset ``a_j = y - R - |G_j| S`` and stays below
     ``a_j + R + |G_j| S`` (no per-step update). The rows come in blocks (one per cell,
     ``hs_block`` offsets) with the largest ``|G_j|`` of each (``hs_gmax``): a block keeps the
     offset ``b = B - R - gmax S`` of the largest row bound ``B`` when it was last scanned, so
-    ``b + R + gmax S`` bounds all its rows. A step evaluates the row that was the hottest, then
-    scans the blocks whose bound exceeds the largest value found so far and, in them, evaluates
-    the rows whose own bound exceeds it: every row skipped is below it, so the maximum is the
-    maximum of all rows. The first step (and one whose sums passed ``f[F_HSREBASE]``, by default
-    :data:`HOT_SPOT_REBASE_K`) evaluates every row."""
+    ``b + R + gmax S`` bounds all its rows.
+
+    A row that the bounds cannot exclude is first evaluated in single precision (issue 26:
+    the rows of all the cells' nodes lie within a few millikelvin of each other, so the bounds
+    alone leave about half of them): ``T_ref + G32_j d32`` is within
+    ``e_j = |G_j| E + c`` of the row's double value ``v_j = G_j . w`` (:func:`_dot`), with
+    ``E = g32 |d| + g64 (|w| + |T_ref| |u|)`` (``g32 = gamma_{r+2}`` in single precision: the
+    rounding of G and d to float32 and of the sum in any order; ``g64``: the double product
+    and the rounding of ``d``) and ``c = |T_ref| 2 eta`` plus 1e-12 K. A step evaluates the
+    row that was the hottest in double (the lower bound ``L`` of the maximum), then scans the
+    blocks whose bound exceeds ``L`` and, in them, the rows whose own bound exceeds it, in
+    single precision, raising ``L`` to ``y32 - e_j`` and keeping the rows with
+    ``y32 + e_j >= L`` (``hs_cand``); at the end the kept rows whose ``y32 + e_j`` reaches the
+    final ``L`` are evaluated in double, and the hot spot is the largest of those values: every
+    row left out has ``v_j <= L <=`` that maximum, so it is the maximum of ``v_j`` over all rows
+    (bit for bit). The first step (and one whose sums passed ``f[F_HSREBASE]``, by default
+    :data:`HOT_SPOT_REBASE_K`) scans every row. With ``hs_const[0] = 0`` the scan evaluates
+    in double (as before issue 26's single-precision pass; benchmarks compare the two)."""
     g, gn, unit, en = s.rom_cand, s.hs_norm, s.hs_unit, s.hs_energy
     a, prev, blk, start, gmax = s.hs_ub, s.hs_prev, s.hs_blk, s.hs_block, s.hs_gmax
+    g32, d32, cand, hc = s.hs_g32, s.hs_d32, s.hs_cand, s.hs_const
     r = w.shape[1]
-    n_rows = g.shape[0]
     n_blocks = gmax.shape[0]
     e_u = _dot(en, unit)
     first = s.f[F_HSINIT] == 0.0
     rebase = s.f[F_HSREBASE]
+    single = hc[0] > 0.0
     evaluated = 0
+    doubles = 0
     for m in range(w.shape[0]):
         wm = w[m]
         t_ref = _dot(en, wm) / e_u
@@ -325,43 +356,63 @@ def _module_hot_spots(s, w, hot):
         grow = prev[m, r + HP_GROW] + math.sqrt(dd2) * (1.0 + 1e-12)
         prev[m, r + HP_TREF] = t_ref
         j_best = int(prev[m, r + HP_BEST])
-        if first or grow > rebase or abs(rise) > rebase:
+        d_norm2 = 0.0
+        w_norm2 = 0.0
+        for i in range(r):
+            di = prev[m, i]
+            d32[i] = np.float32(di)
+            d_norm2 += di * di
+            w_norm2 += wm[i] * wm[i]
+        # e_j = |G_j| big_e + small_e (hs_const: g32, g64, eta, |u|); 1 % for these sums' rounding
+        big_e = 1.01 * (hc[0] * math.sqrt(d_norm2) + hc[1] * (math.sqrt(w_norm2) + abs(t_ref) * hc[3]))
+        small_e = 1.01 * abs(t_ref) * 2.0 * hc[2] + 1e-12
+        n_cand = 0
+        low = best = -np.inf
+        full = first or grow > rebase or abs(rise) > rebase
+        if full:
             rise = grow = 0.0
-            best = -np.inf
-            for k in range(n_blocks):
-                top = -np.inf
-                for j in range(int(start[k]), int(start[k + 1])):
-                    y = _dot(g[j], wm)
-                    a[m, j] = y
-                    top = max(top, y)
-                    if y > best:
-                        best, j_best = y, j
-                blk[m, k] = top + HOT_SPOT_SLACK_K
-            evaluated += n_rows
         else:
-            best = _dot(g[j_best], wm)
-            a[m, j_best] = best - rise - gn[j_best] * grow
+            low = best = _dot(g[j_best], wm)
+            a[m, j_best] = low - rise - gn[j_best] * grow
+            doubles += 1
             evaluated += 1
-            for k in range(n_blocks):
-                if blk[m, k] + rise + gmax[k] * grow <= best:
-                    continue
-                top = -np.inf
-                for j in range(int(start[k]), int(start[k + 1])):
-                    bound = a[m, j] + rise + gn[j] * grow
-                    if bound > best:
+        for k in range(n_blocks):
+            if not full and blk[m, k] + rise + gmax[k] * grow <= low:
+                continue
+            top = -np.inf
+            for j in range(int(start[k]), int(start[k + 1])):
+                bound = a[m, j] + rise + gn[j] * grow
+                if full or (bound > low and j != j_best):
+                    if single:
+                        e_j = gn[j] * big_e + small_e
+                        y = t_ref + _dot32(g32[j], d32)
+                    else:  # hs_const[0] = 0: every row in double (the reference for benchmarks)
+                        e_j = 0.0
                         y = _dot(g[j], wm)
-                        a[m, j] = y - rise - gn[j] * grow
-                        bound = y
-                        evaluated += 1
-                        if y > best:
-                            best, j_best = y, j
-                    top = max(top, bound)
-                blk[m, k] = top + HOT_SPOT_SLACK_K - rise - gmax[k] * grow
+                    bound = y + e_j
+                    a[m, j] = bound - rise - gn[j] * grow
+                    evaluated += 1
+                    if y - e_j > low:
+                        low = y - e_j
+                    if bound >= low:
+                        cand[n_cand] = j
+                        n_cand += 1
+                top = max(top, bound)
+            blk[m, k] = top + HOT_SPOT_SLACK_K - rise - gmax[k] * grow
+        for c in range(n_cand):
+            j = cand[c]
+            if a[m, j] + rise + gn[j] * grow >= low - 1e-12:  # (the offset's rounding)
+                y = _dot(g[j], wm)
+                a[m, j] = y - rise - gn[j] * grow
+                doubles += 1
+                if y > best:
+                    best, j_best = y, j
         prev[m, r + HP_RISE] = rise
         prev[m, r + HP_GROW] = grow
         prev[m, r + HP_BEST] = j_best
         hot[m] = best
     s.f[F_HSROWS] += evaluated
+    s.f[F_HSROWS64] += doubles
     s.f[F_HSINIT] = 1.0
 
 
@@ -556,12 +607,26 @@ def pack_simulate(s, request_a, cells_out):
         cells_out[k] = s.cells
 
 
+def hot_spot_rounding(cand: np.ndarray, unit: np.ndarray) -> np.ndarray:
+    """The constants of :func:`_module_hot_spots`'s rounding bound for the rows ``cand``
+    (n_rows, r) and the uniform state ``unit`` (r,): ``gamma_{r+2}`` in single precision
+    (float32 rows and deviation, a sum of r products in any order), the double product's and
+    the deviation's relative rounding, ``eta = max_j |G_j u - 1|`` and ``|u|``."""
+    r = cand.shape[1]
+    u32, u64 = 2.0**-24, 2.0**-53
+    g32 = (r + 2) * u32 / (1.0 - (r + 2) * u32)
+    g64 = 2.0 * (r + 4) * u64 / (1.0 - (r + 4) * u64)
+    eta = float(np.abs(cand @ unit - 1.0).max()) + 1e-15 if cand.size else 0.0
+    return np.array([g32, g64, eta, float(np.linalg.norm(unit))])
+
+
 def modal_rom(rom, dt_s: float, wall_h_w_m2k: float) -> dict[str, np.ndarray]:
     """The modal arrays of a :class:`~hevsim.thermal.rom.ThermalRom` at step ``dt_s`` [s] and wall
     film ``wall_h_w_m2k`` [W/(m^2 K)] (module docstring): ``q`` (r, r) the eigenvectors, and the
     :class:`PackArrays` entries ``rom_decay``, ``rom_in``, ``rom_out``, ``rom_cand`` (each cell's
     candidate rows without repeats, in blocks from ``hs_block``), ``hs_norm``, ``hs_block``,
-    ``hs_gmax``, ``hs_unit``; plus
+    ``hs_gmax``, ``hs_unit``, ``hs_g32`` (the rows in single precision) and ``hs_const``
+    (:func:`hot_spot_rounding`); plus
     ``energy`` (r,) the stored-heat row and ``film`` the film row, both times ``q``."""
     h = rom.check_wall_h(float(wall_h_w_m2k))
     lam, q = np.linalg.eigh(rom.stiffness(h))
@@ -570,6 +635,7 @@ def modal_rom(rom, dt_s: float, wall_h_w_m2k: float) -> dict[str, np.ndarray]:
     blocks = [np.unique(rows, axis=0, return_index=True)[1] for rows in per_cell]
     cand = np.vstack([rows[np.sort(keep)] for rows, keep in zip(per_cell, blocks, strict=True)]) @ q
     norm = np.sqrt(np.einsum("ij,ij->i", cand, cand))
+    unit = rom.unit_state @ q
     start = np.concatenate([[0], np.cumsum([b.size for b in blocks])])
     out_rows = np.vstack([rom.out_mean, rom.out_wall, rom.film_row[None, :]])
     return {
@@ -581,7 +647,9 @@ def modal_rom(rom, dt_s: float, wall_h_w_m2k: float) -> dict[str, np.ndarray]:
         "hs_norm": norm,
         "hs_block": start.astype(float),
         "hs_gmax": np.array([norm[start[k] : start[k + 1]].max() for k in range(rom.n_cells)]),
-        "hs_unit": rom.unit_state @ q,
+        "hs_unit": unit,
+        "hs_g32": np.ascontiguousarray(cand.astype(np.float32)),
+        "hs_const": hot_spot_rounding(cand, unit),
         "energy": rom.energy @ q,
     }
 
@@ -591,6 +659,7 @@ __all__ = [
     "RECORD_CHANNELS",
     "SV_NAMES",
     "PackArrays",
+    "hot_spot_rounding",
     "modal_rom",
     "pack_begin",
     "pack_finish",

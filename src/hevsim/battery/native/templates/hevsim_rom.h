@@ -68,21 +68,63 @@ static void hv_vecmat(const double *x, int n, const double *a, int m, double *y)
     }
 }
 
+/* hot[c] = the largest candidate row G_j . z of cell c (each row summed in order in double, as
+ * hv_vecmat does), evaluating in double only the rows that can be the largest (issue 26): every
+ * row in single precision first, on the deviation d = z - T_ref u from the state of the uniform
+ * field (T_ref = e.z / e.u, e the stored-heat row; G_j u = 1 to HS_ETA), so that
+ * T_ref + G32_j d32 is within e_j = |G_j| E + c of the double value, with
+ * E = HS_G32 |d| + HS_G64 (|z| + |T_ref| |u|) (HS_G32 = gamma_{NZ+2} in single precision: the
+ * rounding of G and d to float and of the sum in any order; HS_G64: the double product and the
+ * rounding of d) and c = 2 |T_ref| HS_ETA + 1e-12 K (1 % on both for their own rounding). A row
+ * whose upper value T_ref + y32_j + e_j is below the largest lower value of its cell is below
+ * the cell's largest double value, so the maximum over the others is exact (pack_run.py's
+ * _module_hot_spots does the same) */
+static void hv_hot_spots(const double *z, double *hot)
+{
+    int c, k, i, j;
+    float d32[NZ], y32[NCELL * NCAND];
+    double e_u = hv_dot(ENERGY, UNIT_STATE, NZ), t_ref = hv_dot(ENERGY, z, NZ) / e_u;
+    double d_norm2 = 0.0, z_norm2 = 0.0, big_e, small_e;
+    for (i = 0; i < NZ; i++) {
+        double di = z[i] - t_ref * UNIT_STATE[i];
+        d32[i] = (float)di;
+        d_norm2 += di * di;
+        z_norm2 += z[i] * z[i];
+    }
+    big_e = 1.01 * (HS_G32 * sqrt(d_norm2) + HS_G64 * (sqrt(z_norm2) + fabs(t_ref) * HS_UNIT_NORM));
+    small_e = 1.01 * fabs(t_ref) * 2.0 * HS_ETA + 1e-12;
+    for (j = 0; j < NCELL * NCAND; j++) y32[j] = 0.0f;
+    for (i = 0; i < NZ; i++) {
+        const float xi = d32[i], *row = CAND32_T[i];
+        for (j = 0; j < NCELL * NCAND; j++) y32[j] += xi * row[j];
+    }
+    for (c = 0; c < NCELL; c++) {
+        double low = -HUGE_VAL, best = -HUGE_VAL;
+        for (k = 0; k < NCAND; k++) {
+            j = c * NCAND + k;
+            if (t_ref + (double)y32[j] - (CAND_NORM[j] * big_e + small_e) > low)
+                low = t_ref + (double)y32[j] - (CAND_NORM[j] * big_e + small_e);
+        }
+        for (k = 0; k < NCAND; k++) {
+            j = c * NCAND + k;
+            if (t_ref + (double)y32[j] + (CAND_NORM[j] * big_e + small_e) >= low) {
+                double v = hv_dot(OUT_CAND[j], z, NZ);
+                if (v > best) best = v;
+            }
+        }
+        hot[c] = best;
+    }
+}
+
 /* the outputs of state z with the fluid temperatures fluid_k[NSEG] and ambient_k */
 static void hv_outputs(hv_data *d, const double *fluid_k, double ambient_k)
 {
-    int c, s, k;
+    int s;
     double h = d->r[VR_WALL_H_W_M2K];
-    double cand[NCELL * NCAND], wall[NSEG];
+    double wall[NSEG];
     hv_vecmat(d->z, NZ, &OUT_MEAN_T[0][0], NCELL, &d->r[VR_CELL_MEAN_TEMP0]);
-    hv_vecmat(d->z, NZ, &OUT_CAND_T[0][0], NCELL * NCAND, cand);
+    hv_hot_spots(d->z, &d->r[VR_CELL_MAX_TEMP0]);
     hv_vecmat(d->z, NZ, &OUT_WALL_T[0][0], NSEG, wall);
-    for (c = 0; c < NCELL; c++) {
-        double hot = cand[c * NCAND];
-        for (k = 1; k < NCAND; k++)
-            if (cand[c * NCAND + k] > hot) hot = cand[c * NCAND + k];
-        d->r[VR_CELL_MAX_TEMP0 + c] = hot;
-    }
     for (s = 0; s < NSEG; s++) {
         d->r[VR_SEGMENT_WALL_TEMP0 + s] = wall[s] / WALL_AREA[s];
         d->r[VR_SEGMENT_WALL_HEAT0 + s] = h * (wall[s] - WALL_AREA[s] * fluid_k[s]);
