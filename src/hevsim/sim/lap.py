@@ -112,6 +112,7 @@ class LapVehicle:
     envelope_force_n: np.ndarray
     envelope: Any = None
     envelope_levels_w: np.ndarray | None = None
+    rolling_resistance_speed_s_per_m: float = 0.0  # the coast-down form's B term [s/m]
 
     @property
     def force_table(self) -> tuple[np.ndarray, np.ndarray]:
@@ -158,6 +159,7 @@ class LapVehicle:
             self.mu_x,
             self.mu_y,
             float(DRIVE_CODES[self.driven_axle]),
+            self.rolling_resistance_speed_s_per_m,
         )
 
 
@@ -210,6 +212,7 @@ def lap_vehicle(model: Any, *, soc: float | None = None, battery_levels_w: Any =
         f,
         env,
         levels,
+        float(getattr(body, "rolling_resistance_speed_s_per_m", 0.0)),
     )
 
 
@@ -219,9 +222,9 @@ def lap_vehicle(model: Any, *, soc: float | None = None, battery_levels_w: Any =
 @njit(cache=True)
 def _road(v, theta, p):
     """Drag + rolling + grade force [N] at speed v [m/s] on grade angle theta [rad]."""
-    m, cda, crr = p[0], p[2], p[3]
+    m, cda, crr, crr_v = p[0], p[2], p[3], p[12]
     grade = math.tan(theta)
-    return cda * v * v + rolling_force(m, grade, crr) * (v > 0.0) + grade_force(m, grade)
+    return cda * v * v + rolling_force(m, grade, crr, crr_v, v) * (v > 0.0) + grade_force(m, grade)
 
 
 @njit(cache=True)
@@ -587,7 +590,9 @@ def simulate_lap(
     p = veh.params()
     road = (
         p[2] * v_mid**2
-        + rolling_force(veh.mass_kg, trk.grade, veh.rolling_resistance)
+        + rolling_force(
+            veh.mass_kg, trk.grade, veh.rolling_resistance, veh.rolling_resistance_speed_s_per_m, v_mid
+        )
         + grade_force(veh.mass_kg, trk.grade)
     )
     force = veh.mass_kg * veh.mass_factor * ax + road
