@@ -33,13 +33,14 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from typing import Any
 
 import numpy as np
 
 from _machine import OtherLoad
 from hevsim.battery import Cell, load_cell_parameters
 from hevsim.battery.calibrate import CellTestRecord
-from hevsim.battery.identify import Identification, identify
+from hevsim.battery.identify import REST_THIN, Identification, identify
 
 CELL = "thesis_table_4_1"
 SOC_START = 0.95
@@ -70,10 +71,68 @@ def record(hours: float) -> CellTestRecord:
     )
 
 
-def run(rec: CellTestRecord, jacobian: str, **kw: float) -> tuple[float, float, Identification]:
+def run(rec: CellTestRecord, jacobian: str, **kw: Any) -> tuple[float, float, Identification]:
     t0, c0 = time.perf_counter(), time.process_time()
     res = identify(CELL, rec, jacobian=jacobian, **kw)
     return time.perf_counter() - t0, time.process_time() - c0, res
+
+
+def compare(r0: Identification, r1: Identification) -> str:
+    """Largest parameter difference of two fits of one test, in standard errors of the first
+    and relative, over the parameters flagged in neither."""
+    a, b = r0.parameters, r1.parameters
+    ok = ((a["flag"] == "") & (b["flag"] == "")).to_numpy()
+    v0, v1 = a["value"].to_numpy(dtype=float), b["value"].to_numpy(dtype=float)
+    se = a["std_error"].to_numpy(dtype=float)
+    z = np.abs(v1 - v0)[ok] / se[ok]
+    rel = np.abs(v1 - v0)[ok] / np.maximum(np.abs(v0[ok]), 1e-12)
+    se_ratio = b["std_error"].to_numpy(dtype=float)[ok] / se[ok]
+    return (
+        f"largest difference {np.max(z):.3f} standard errors ({np.max(rel):.2e} relative) over the "
+        f"{int(ok.sum())} parameters flagged in neither; standard errors x {np.min(se_ratio):.3f}"
+        f"..{np.max(se_ratio):.3f}; RMSE {1e3 * r0.rmse['voltage_v']:.4f} -> "
+        f"{1e3 * r1.rmse['voltage_v']:.4f} mV"
+    )
+
+
+def ambients(cell: str) -> None:
+    """Time a calibration over the three DFN pulse tests of ``cell`` (issue 27: <= 60 s on 2
+    cores): every row against rests thinned (``thin_rests``), back to back, threads by the
+    load policy (``hevsim.threads``)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "validation"))
+    import validate_dfn as V
+
+    from hevsim.battery.identify import fit_temperature, fit_temperature_laws
+
+    os.environ.pop("HEVSIM_THREADS", None)
+    recs = {t: CellTestRecord.from_csv(V.HERE / V._name(cell, "pulse", t)) for t in V.CAL_AMBIENTS_C}
+    others = [recs[t] for t in V.CAL_AMBIENTS_C if t != 25]
+    kw: dict[str, Any] = {"soc_initial": V.SOC_INITIAL, "capacity_ah": V.AMBIENT_CELLS[cell],
+                          "port_temp_k": 298.15, "n_rc": 2, **V.STRUCTURES["fidelity"]}  # fmt: skip
+    identify(CELL, record(1.0), soc_initial=SOC_START, port_temp_k=AMBIENT_K)  # numba cache
+    print(f"calibration over three ambients, {cell}: 3 x {recs[25].time_s.size} rows, "
+          f"uptime load average before: {os.getloadavg()[0]:.2f}")  # fmt: skip
+    rows = {}
+    with OtherLoad() as load:
+        for thin in (1, REST_THIN):
+            t0, c0 = time.perf_counter(), time.process_time()
+            ref = identify(CELL, recs[25], thin_rests=thin, **kw)
+            res = fit_temperature_laws(fit_temperature(ref, others), others, thin_rests=thin)
+            rows[thin] = (time.perf_counter() - t0, time.process_time() - c0, res)
+    for thin, (wall, cpu, res) in rows.items():
+        label = "every row" if thin == 1 else f"rests thinned 1/{thin}"
+        print(f"  {label:<20} wall {wall:7.2f} s  cpu {cpu:7.2f} s  joint nfev "
+              f"{res.metadata['temperature_laws_nfev']:4d}  RMSE over the three tests "
+              f"{1e3 * res.rmse['all_tests_voltage_v']:.3f} mV")  # fmt: skip
+    (w0, c0, r0), (w1, c1, r1) = rows[1], rows[REST_THIN]
+    print(f"  thinned / every row: wall {w1 / w0:.2f}, cpu {c1 / c0:.2f}   target <= 60 s: "
+          f"{'met' if w1 <= 60.0 else 'NOT met'} (wall), "
+          f"{'met' if c1 <= 60.0 else 'NOT met'} (cpu)")  # fmt: skip
+    print(f"  {compare(r0, r1)}")
+    print(f"  {load.text()}")
 
 
 def main() -> None:
@@ -82,7 +141,11 @@ def main() -> None:
     ap.add_argument("--record", help="time this test CSV instead of the synthetic HPPC")
     ap.add_argument("--soc-initial", type=float, default=SOC_START, help="with --record: initial SOC")
     ap.add_argument("--capacity-ah", type=float, help="with --record: capacity [A h]")
+    ap.add_argument("--ambients", choices=("nmc", "lfp"), help="time the calibration over three ambients")
     args = ap.parse_args()
+    if args.ambients:
+        ambients(args.ambients)
+        return
     os.environ["HEVSIM_THREADS"] = "1"
     kw: dict[str, float] = {"soc_initial": SOC_START, "port_temp_k": AMBIENT_K}
     run(record(1.0), "analytic", **kw)  # numba cache, imports
@@ -99,7 +162,8 @@ def main() -> None:
     rows = {}
     with OtherLoad() as load:
         for jac in ("finite_difference", "analytic"):
-            rows[jac] = run(rec, jac, **kw)
+            rows[jac] = run(rec, jac, thin_rests=1, **kw)
+        rows["analytic, thinned"] = run(rec, "analytic", **kw)
     for jac, (wall, cpu, res) in rows.items():
         m = res.metadata
         print(
@@ -107,6 +171,7 @@ def main() -> None:
             f"jacobians {m['njev']:4d}  RMSE {1e3 * res.rmse['voltage_v']:.3f} mV  "
             f"max {1e3 * res.rmse['voltage_max_v']:.2f} mV"
         )
+    (w2, c2, r2) = rows["analytic, thinned"]
     (w0, c0, r0), (w1, c1, r1) = rows["finite_difference"], rows["analytic"]
     v0 = r0.parameters["value"].to_numpy(dtype=float)
     v1 = r1.parameters["value"].to_numpy(dtype=float)
@@ -119,6 +184,10 @@ def main() -> None:
     print(f"  largest relative parameter difference: {rel:.2e} over the {int(ok.sum())} parameters "
           f"flagged in neither run; {np.max(rel_all):.2e} over all {rel_all.size} "
           "(the flagged ones are not identified by the test)")  # fmt: skip
+    print(f"  rests thinned (1 row in {REST_THIN} after {60:g} s) / every row, analytic: wall {w2 / w1:.2f}, "
+          f"cpu {c2 / c1:.2f}; target <= 30 s: {'met' if w2 <= 30.0 else 'NOT met'} (wall), "
+          f"{'met' if c2 <= 30.0 else 'NOT met'} (cpu)")  # fmt: skip
+    print(f"  thinned vs every row: {compare(r1, r2)}")
     print(f"  {load.text()}")
 
 

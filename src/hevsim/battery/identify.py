@@ -337,6 +337,37 @@ class _OcvMap:
         return v, g
 
 
+REST_KEEP_S = 60.0
+"""Rows of a rest kept one by one [s] from its start (:func:`_row_selection`)."""
+REST_THIN = 10
+"""Beyond :data:`REST_KEEP_S` into a rest, one row in this many is kept (:func:`_row_selection`)."""
+
+
+def _row_selection(
+    rec: CellTestRecord, keep_s: float = REST_KEEP_S, thin: int = REST_THIN
+) -> tuple[np.ndarray, FloatArray]:
+    """Rows of ``rec`` the least squares weighs and their weights [-] (multiplying the
+    residual): every row under current and the first ``keep_s`` [s] of each rest one by one;
+    later in a rest (a slow, smooth relaxation) one row in ``thin`` with weight sqrt(``thin``),
+    so the sum of squares stands for the rows it skips. The simulation still runs every step;
+    only the fit's residual and Jacobian rows are thinned (the trust-region SVDs and the
+    Jacobian's chain rule scale with the rows). ``thin`` = 1 keeps every row."""
+    n = rec.time_s.size
+    if thin <= 1:
+        return np.arange(n), np.ones(n)
+    band = 1e-3 * max(float(np.max(np.abs(rec.current_a))), 1e-12)
+    still = np.abs(rec.current_a) <= band
+    # rows since the rest began, counting its first row as 1 (0 under current)
+    k = np.arange(n)
+    start = still & ~np.r_[False, still[:-1]]
+    run = np.where(still, k - np.maximum.accumulate(np.where(start, k, 0)) + 1, 0)
+    late = run * rec.dt_s > keep_s
+    keep = ~late | ((run % thin) == 0)
+    rows = np.flatnonzero(keep)
+    w = np.where(late[rows], np.sqrt(thin), 1.0)
+    return rows, w
+
+
 def _longest_segment_s(rec: CellTestRecord) -> float:
     """Longest run of (nearly) constant current [s]."""
     i = rec.current_a
@@ -346,10 +377,12 @@ def _longest_segment_s(rec: CellTestRecord) -> float:
     return float(np.max(np.diff(edges)) * rec.dt_s)
 
 
-def _stats(sol: Any, specs: list[_Param], longest_s: float) -> pd.DataFrame:
-    """Parameter table with standard errors, 95 % intervals, correlations and flags."""
+def _stats(sol: Any, specs: list[_Param], longest_s: float, n_rows: float | None = None) -> pd.DataFrame:
+    """Parameter table with standard errors, 95 % intervals, correlations and flags.
+    ``n_rows``: the number of measurements the residuals stand for (default their number;
+    with rests thinned by :func:`_row_selection`, the full count)."""
     n = len(specs)
-    m = sol.fun.size
+    m = sol.fun.size if n_rows is None else n_rows
     ssr = float(sol.fun @ sol.fun)
     jac = sol.jac
     with np.errstate(all="ignore"):
@@ -440,6 +473,8 @@ def identify(
     sigma_t: float = 0.1,
     model: ModelSection = FIDELITY_MODEL,
     jacobian: str = "auto",
+    ocv_knot_soc: float | None = None,
+    thin_rests: int = REST_THIN,
 ) -> Identification:
     """Identify a complete parameter set from ``record`` (module docstring).
 
@@ -489,8 +524,9 @@ def identify(
     s_r, r_pts = step_resistances(record, soc, 0.1 * i_max)
     if r_pts.size == 0:
         raise InputError(f"{src}: no current steps larger than {0.1 * i_max:.3g} A: R_s cannot be fitted.")
-    # SOC axis: the rests' SOCs, plus 0 and 1 (extrapolated, not fitted)
-    axis = np.unique(np.r_[0.0, np.clip(s_pts, 0.0, 1.0), 1.0])
+    # SOC axis: the rests' SOCs, plus 0 and 1 (extrapolated, not fitted), plus knots between rests
+    knots = _ocv_knots(s_pts, ocv_knot_soc)
+    axis = np.unique(np.r_[0.0, np.clip(s_pts, 0.0, 1.0), knots, 1.0])
     tested = (axis >= s_pts.min() - 1e-9) & (axis <= s_pts.max() + 1e-9)
     ocv_init = np.interp(axis, s_pts, v_pts)
     if s_pts.size >= 2:  # linear extrapolation of the end segments
@@ -569,14 +605,18 @@ def identify(
             source=f"calibrated from {src}",
         )
 
+    rows, w_rows = _row_selection(record, thin=thin_rests)
+    v_meas = record.voltage_v[rows]
+    w_v = w_rows / sigma_v
+
     def res_v(theta: FloatArray) -> FloatArray:
         v, _ = _simulate(build(theta), record, soc_initial, port_k, port_k)
-        return (v - record.voltage_v) / sigma_v
+        return (v[rows] - v_meas) * w_v
 
     def jac_v(theta: FloatArray) -> FloatArray:
         """d res_v / d theta from the forward sensitivities (one extended run of the kernel)."""
         p = build(theta)
-        dv = _sensitivities(p, record, soc_initial, port_k)[0]
+        dv = _sensitivities(p, record, soc_initial, port_k)[0][rows]
         cols = K.sensitivity_columns(axis.size, n_rc)
         jac = np.empty((dv.shape[0], len(specs)))
         jac[:, :n_ocv] = dv[:, cols["ocv"]] @ ocv_map(theta[:n_ocv])[1]
@@ -588,7 +628,7 @@ def identify(
         if charge_transfer:
             jac[:, -2] = dv[:, cols["ct_i0_a"]] * p.charge_transfer.i0_a
             jac[:, -1] = dv[:, cols["ct_scale"]] * p.charge_transfer.scale
-        return jac / sigma_v
+        return jac * w_v[:, None]
 
     lo = np.array([s.lo for s in specs])
     hi = np.array([s.hi for s in specs])
@@ -614,7 +654,7 @@ def identify(
                 workers=workers,
             )
     p_el = build(sol_v.x)
-    table = _stats(sol_v, specs, longest)
+    table = _stats(sol_v, specs, longest, n_rows=float(np.sum(w_rows**2)))
 
     # thermal: log C_heat, log R_skin with the electrical parameters fixed
     has_t = record.temperature_measured and bool(np.any(np.abs(t_meas - t_meas[0]) > 1e-9))
@@ -675,6 +715,18 @@ def identify(
         "success": bool(sol_v.success),
     }
     return Identification(p_fit, table, rmse, ts, metadata=meta)
+
+
+def _ocv_knots(s_pts: FloatArray, spacing: float | None) -> FloatArray:
+    """OCV breakpoints [-] between consecutive rest SOCs ``s_pts`` so that no gap exceeds
+    ``spacing`` [-] (none when ``spacing`` is None)."""
+    if spacing is None or s_pts.size < 2:
+        return np.zeros(0)
+    out = []
+    for a, b in itertools.pairwise(np.sort(s_pts)):
+        n = int(np.ceil((b - a) / spacing - 1e-9))
+        out += list(np.linspace(a, b, n + 1)[1:-1])
+    return np.array(out)
 
 
 def _fit_series(
@@ -907,6 +959,58 @@ def _unfitted(name: str, unit: str, flag: str) -> dict[str, Any]:
             "flag": flag, "note": ""}  # fmt: skip
 
 
+def _relaxed_curve(rec: CellTestRecord, soc: FloatArray, min_rest_s: float) -> tuple[FloatArray, FloatArray]:
+    """(SOC [-], relaxed voltage [V]) at the rests of ``rec`` (SOC per row ``soc``), sorted by SOC."""
+    band = 1e-3 * max(float(np.max(np.abs(rec.current_a))), 1e-9)
+    rests = find_rests(rec, band, min_rest_s)
+    if not rests:
+        return np.zeros(0), np.zeros(0)
+    return ocv_points(rec, soc, rests)
+
+
+def _initial_soc_from_rests(
+    rec: CellTestRecord,
+    ref_curve: tuple[FloatArray, FloatArray],
+    ocv_ref: FloatArray,
+    axis: FloatArray,
+    capacity_c: float,
+    min_rest_s: float,
+) -> float:
+    """Initial SOC [-] of ``rec`` (the step before its first row): the shift of its rests'
+    coulomb-counted SOCs (reference capacity ``capacity_c`` [C]) that best lays their relaxed
+    voltages on the reference test's relaxed-voltage curve ``ref_curve`` (a grid search, then
+    refined). The whole rest sequence pins the SOC where the first voltage alone cannot (a flat
+    OCV, e.g. an LFP plateau, has no inverse). Without two rests in both tests: the inverse of
+    the (monotone) reference OCV ``ocv_ref`` on ``axis`` at the first voltage."""
+    s_ref, v_ref = ref_curve
+    q = coulomb_soc(rec, 0.0, capacity_c)  # -(charge removed) / C per row
+    s_pts, v_pts = _relaxed_curve(rec, q, min_rest_s)  # SOCs relative to the start
+    if s_ref.size < 2 or s_pts.size < 2:
+        ocv_mono = np.maximum.accumulate(ocv_ref)
+        return float(np.clip(np.interp(rec.voltage_v[0], ocv_mono, axis), 0.0, 1.0))
+    span = float(s_pts.max() - s_pts.min())
+
+    def cost(s0: float) -> float:
+        s = s0 + s_pts
+        inside = (s >= s_ref[0] - 0.05 * span) & (s <= s_ref[-1] + 0.05 * span)
+        if inside.sum() < 2:
+            return np.inf
+        return float(np.mean((np.interp(s[inside], s_ref, v_ref) - v_pts[inside]) ** 2)) / inside.mean()
+
+    lo = float(np.clip(-s_pts.min(), 0.0, 1.0))
+    hi = float(np.clip(1.0 - s_pts.max(), lo, 1.0))
+    grid = np.linspace(lo, hi, 201) if hi > lo else np.array([lo])
+    best = float(grid[int(np.argmin([cost(g) for g in grid]))])
+    step = (grid[1] - grid[0]) if grid.size > 1 else 0.0
+    for _ in range(3):  # refine on finer grids around the best
+        if step <= 0:
+            break
+        fine = np.clip(np.linspace(best - step, best + step, 41), lo, hi)
+        best = float(fine[int(np.argmin([cost(g) for g in fine]))])
+        step = step / 20.0
+    return float(np.clip(best, 0.0, 1.0))
+
+
 MIN_AMBIENT_SPREAD_K = 5.0
 """Ambients closer than this [K] (highest minus lowest) cannot separate an activation energy:
 :func:`fit_temperature_laws` then holds every activation energy at 0 and flags it."""
@@ -921,6 +1025,9 @@ def fit_temperature_laws(
     sigma_t: float = 0.1,
     min_ambient_spread_k: float = MIN_AMBIENT_SPREAD_K,
     min_rest_s: float = 300.0,
+    loss: str = "linear",
+    f_scale: float = 1.0,
+    thin_rests: int = REST_THIN,
 ) -> Identification:
     """The temperature-dependent parameter set, fitted jointly to the reference test and the
     tests at other ambients (issue 27; ``hevsim calibrate --data``).
@@ -974,12 +1081,12 @@ def fit_temperature_laws(
         idx = np.arange(axis.size)
     ambients = []
     soc0 = []
+    ref_rests = _relaxed_curve(ref, ts["soc"].to_numpy(dtype=float), min_rest_s)
     for rec in records:
         if not rec.temperature_measured:
             raise InputError(f"{rec.source}: column 'temp_k' is required for a test at another ambient.")
         ambients.append(float(rec.temp_k[0]))
-        ocv_mono = np.maximum.accumulate(ocv_ref)
-        soc0.append(float(np.clip(np.interp(rec.voltage_v[0], ocv_mono, axis), 0.0, 1.0)))
+        soc0.append(_initial_soc_from_rests(rec, ref_rests, ocv_ref, axis, p_in.capacity.c0_c, min_rest_s))
     amb = np.array(ambients)
     spread = float(max(amb.max(), t_ref) - min(amb.min(), t_ref))
     fit_ea = spread >= min_ambient_spread_k
@@ -1149,12 +1256,15 @@ def fit_temperature_laws(
             out.append(_simulate(p, rec, s0, t_amb, float(rec.temp_k[0]) if k else t_ref))
         return out
 
+    selection = [_row_selection(rec, thin=thin_rests) for rec, _, _ in runs]
+    n_meas = sum(float(np.sum(w**2)) for _, w in selection) * (2 if all_meas else 1)
+
     def residuals(theta: FloatArray) -> FloatArray:
         parts = []
-        for (rec, _, _), (v, t) in zip(runs, simulate_all(theta), strict=True):
-            parts.append((v - rec.voltage_v) / sigma_v)
+        for (rec, _, _), (v, t), (rows, w) in zip(runs, simulate_all(theta), selection, strict=True):
+            parts.append((v[rows] - rec.voltage_v[rows]) * (w / sigma_v))
             if all_meas:
-                parts.append((t - rec.temp_k) / sigma_t)
+                parts.append((t[rows] - rec.temp_k[rows]) * (w / sigma_t))
         return np.concatenate(parts)
 
     lo = np.array([s.lo for s in specs])
@@ -1169,10 +1279,12 @@ def fit_temperature_laws(
             ftol=1e-10,
             xtol=1e-10,
             max_nfev=200,
+            loss=loss,
+            f_scale=f_scale,
             workers=pool.map if threads > 1 else map,
         )
     longest = max(_longest_segment_s(r) for r, _, _ in runs)
-    table = _stats(sol, specs, longest)
+    table = _stats(sol, specs, longest, n_rows=n_meas)
     extra = []
     if not fit_ea:
         why = (
