@@ -383,7 +383,7 @@ def _stats(sol: Any, specs: list[_Param], longest_s: float, n_rows: float | None
     with rests thinned by :func:`_row_selection`, the full count)."""
     n = len(specs)
     m = sol.fun.size if n_rows is None else n_rows
-    ssr = float(sol.fun @ sol.fun)
+    ssr = 2.0 * float(sol.cost)  # the sum of squares; with a robust loss, its robust analogue
     jac = sol.jac
     with np.errstate(all="ignore"):
         # covariance from the SVD of the Jacobian itself, not a pseudo-inverse of J^T J: that
@@ -473,7 +473,6 @@ def identify(
     sigma_t: float = 0.1,
     model: ModelSection = FIDELITY_MODEL,
     jacobian: str = "auto",
-    ocv_knot_soc: float | None = None,
     thin_rests: int = REST_THIN,
 ) -> Identification:
     """Identify a complete parameter set from ``record`` (module docstring).
@@ -524,9 +523,8 @@ def identify(
     s_r, r_pts = step_resistances(record, soc, 0.1 * i_max)
     if r_pts.size == 0:
         raise InputError(f"{src}: no current steps larger than {0.1 * i_max:.3g} A: R_s cannot be fitted.")
-    # SOC axis: the rests' SOCs, plus 0 and 1 (extrapolated, not fitted), plus knots between rests
-    knots = _ocv_knots(s_pts, ocv_knot_soc)
-    axis = np.unique(np.r_[0.0, np.clip(s_pts, 0.0, 1.0), knots, 1.0])
+    # SOC axis: the rests' SOCs, plus 0 and 1 (extrapolated, not fitted)
+    axis = np.unique(np.r_[0.0, np.clip(s_pts, 0.0, 1.0), 1.0])
     tested = (axis >= s_pts.min() - 1e-9) & (axis <= s_pts.max() + 1e-9)
     ocv_init = np.interp(axis, s_pts, v_pts)
     if s_pts.size >= 2:  # linear extrapolation of the end segments
@@ -715,18 +713,6 @@ def identify(
         "success": bool(sol_v.success),
     }
     return Identification(p_fit, table, rmse, ts, metadata=meta)
-
-
-def _ocv_knots(s_pts: FloatArray, spacing: float | None) -> FloatArray:
-    """OCV breakpoints [-] between consecutive rest SOCs ``s_pts`` so that no gap exceeds
-    ``spacing`` [-] (none when ``spacing`` is None)."""
-    if spacing is None or s_pts.size < 2:
-        return np.zeros(0)
-    out = []
-    for a, b in itertools.pairwise(np.sort(s_pts)):
-        n = int(np.ceil((b - a) / spacing - 1e-9))
-        out += list(np.linspace(a, b, n + 1)[1:-1])
-    return np.array(out)
 
 
 def _fit_series(
