@@ -997,6 +997,8 @@ def _initial_soc_from_rests(
     return float(np.clip(best, 0.0, 1.0))
 
 
+ROBUST_LOSSES = ("linear", "soft_l1", "huber", "cauchy", "arctan")
+"""Losses of :func:`fit_temperature_laws` (``scipy.optimize.least_squares``)."""
 MIN_AMBIENT_SPREAD_K = 5.0
 """Ambients closer than this [K] (highest minus lowest) cannot separate an activation energy:
 :func:`fit_temperature_laws` then holds every activation energy at 0 and flags it."""
@@ -1038,11 +1040,23 @@ def fit_temperature_laws(
     and flagged as :func:`identify` does. Ambients spanning less than
     ``min_ambient_spread_k`` cannot separate an activation energy from the reference values:
     the activation energies are then held at 0, reported as NaN and flagged, not fitted.
+
+    Each other test's initial SOC starts from its rests laid on the reference test's relaxed
+    voltages (:func:`_initial_soc_from_rests`; the first voltage alone has no inverse on a flat
+    OCV). ``loss`` / ``f_scale`` (in units of ``sigma_v`` / ``sigma_t``): a robust loss of
+    ``scipy.optimize.least_squares`` (``"soft_l1"``: errors beyond ``f_scale`` weigh less), for
+    tests with rows the model structure cannot follow (an LFP cell's low-SOC knee), which would
+    otherwise drag the shared parameters; the standard errors then scale with the robust cost.
+    ``thin_rests``: the rows weighed (:func:`_row_selection`).
     """
     p_in = result.params
     ts = result.timeseries
     if not records:
         raise InputError("calibrate --data: no tests at other temperatures given.")
+    if loss not in ROBUST_LOSSES:
+        raise InputError(f"calibrate --data: loss {loss!r}: expected one of {', '.join(ROBUST_LOSSES)}.")
+    if not (np.isfinite(f_scale) and f_scale > 0):
+        raise InputError(f"calibrate --robust-mv {f_scale!r}: expected a scale > 0 (in units of sigma_v).")
     if not np.array_equal(p_in.rc_discharge[:, :2], p_in.rc_charge[:, :2]):
         raise InputError(
             "calibrate --data: the temperature laws are fitted for one RC set (rc_mode = 'persistent', "
