@@ -36,6 +36,36 @@ def test_calibration_over_ambients_holds_the_targets_at_unseen_ambients(cell: st
     assert cold["rmse_mv"] > 3 * TARGET_RMS_MV  # the single-ambient calibration fails in the cold
 
 
+MIN_BAND_SAMPLES = 10  # the >=3C band holds one UDDS row: its "bias" is that row's error
+TARGET_BIAS_MV = 5.0
+
+
+def test_lfp_calibration_over_ambients_has_no_band_bias_at_unseen_ambients() -> None:
+    """LFP (issue 27 item 3's bias target): calibrated over the three pulse tests, sampled every
+    5 s (the tests' segments last multiples of 10 s, so the coarser record holds the same
+    current; the whole SOC range, down to the low-SOC knee, at a fifth of the rows) with the
+    robust joint fit (validate_dfn.ROBUST_F_SCALE), no current band of the UDDS at -10, 10, 35 or
+    45 degC has a mean voltage error above 5 mV, besides the RMS, max and temperature targets.
+    Plain least squares on the same data leaves +8 to +9 mV in every band at -10 degC (the knee's
+    errors drag the capacity factors and initial SOCs: an OCV offset on the plateau)."""
+    fits = V.ambient_calibrations("lfp", every=5)
+    tab = V.ambient_table("lfp", fits)
+    after = tab[tab["calibration"] == "after"]
+    assert sorted(set(after["ambient_c"])) == sorted(V.VAL_AMBIENTS_C)
+    for _, row in after.iterrows():
+        where = f"lfp at {row['ambient_c']} degC: {row.to_dict()}"
+        if row["range"] == "all":
+            assert row["rmse_mv"] <= TARGET_RMS_MV, where
+            assert row["max_abs_mv"] <= TARGET_MAX_MV, where
+            assert row["temp_rmse_k"] <= TARGET_TEMP_K, where
+        elif row["samples"] >= MIN_BAND_SAMPLES:
+            assert abs(row["mean_mv"]) <= TARGET_BIAS_MV, where
+        else:
+            assert abs(row["mean_mv"]) <= 2 * TARGET_BIAS_MV, where  # one or a few rows
+    caps = fits["after"].parameters.set_index("name")["value"]
+    assert caps.filter(like="capacity_factor").between(0.95, 1.06).all()  # 1.09 before the fix
+
+
 def test_ambient_data_match_their_provenance() -> None:
     import hashlib
     import tomllib
