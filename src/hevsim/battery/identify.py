@@ -337,7 +337,7 @@ class _OcvMap:
         return v, g
 
 
-REST_KEEP_S = 60.0
+REST_KEEP_S = 300.0
 """Rows of a rest kept one by one [s] from its start (:func:`_row_selection`)."""
 REST_THIN = 10
 """Beyond :data:`REST_KEEP_S` into a rest, one row in this many is kept (:func:`_row_selection`)."""
@@ -377,13 +377,24 @@ def _longest_segment_s(rec: CellTestRecord) -> float:
     return float(np.max(np.diff(edges)) * rec.dt_s)
 
 
-def _stats(sol: Any, specs: list[_Param], longest_s: float, n_rows: float | None = None) -> pd.DataFrame:
+def _stats(
+    sol: Any, specs: list[_Param], longest_s: float, weights: FloatArray | None = None
+) -> pd.DataFrame:
     """Parameter table with standard errors, 95 % intervals, correlations and flags.
-    ``n_rows``: the number of measurements the residuals stand for (default their number;
-    with rests thinned by :func:`_row_selection`, the full count)."""
+
+    ``weights``: the factor each residual row carries (rests thinned by
+    :func:`_row_selection`: sqrt(thin) on the rows kept late in a rest; default 1). The
+    covariance is then the weighted least squares' sandwich s² (JᵀJ)⁻¹ Jᵀ W² J (JᵀJ)⁻¹ with
+    s² from the unweighted residuals of the rows kept: a row standing for ``thin`` rows carries
+    one row's information, so the parameters the late rests determine get the larger errors
+    the thinned data give them (with unit weights: the usual s² (JᵀJ)⁻¹)."""
     n = len(specs)
-    m = sol.fun.size if n_rows is None else n_rows
-    ssr = 2.0 * float(sol.cost)  # the sum of squares; with a robust loss, its robust analogue
+    m = sol.fun.size
+    w = np.ones(m) if weights is None else np.asarray(weights, dtype=float)
+    fun = np.asarray(sol.fun, dtype=float)
+    ss_raw = float(fun @ fun)
+    robust = 2.0 * float(sol.cost) / ss_raw if ss_raw > 0 else 1.0  # < 1 with a robust loss
+    s2 = robust * float(np.sum((fun / w) ** 2)) / max(m - n, 1)
     jac = sol.jac
     with np.errstate(all="ignore"):
         # covariance from the SVD of the Jacobian itself, not a pseudo-inverse of J^T J: that
@@ -391,9 +402,11 @@ def _stats(sol: Any, specs: list[_Param], longest_s: float, n_rows: float | None
         # time constants), which would report an unidentifiable pair with small errors; a
         # singular value below the rounding level counts as that level (a huge variance)
         try:
-            _, sv, vt = np.linalg.svd(jac, full_matrices=False)
+            u, sv, vt = np.linalg.svd(jac, full_matrices=False)
             floor = max(float(sv[0]), 1e-300) * max(m, n) * np.finfo(float).eps
-            cov = (vt.T / np.maximum(sv, floor) ** 2) @ vt * ssr / max(m - n, 1)
+            a = vt.T / np.maximum(sv, floor)  # V S^-1
+            b = u * w[:, None]  # W U
+            cov = a @ (b.T @ b) @ a.T * s2
         except np.linalg.LinAlgError:
             cov = np.full((n, n), np.nan)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
@@ -652,7 +665,7 @@ def identify(
                 workers=workers,
             )
     p_el = build(sol_v.x)
-    table = _stats(sol_v, specs, longest, n_rows=float(np.sum(w_rows**2)))
+    table = _stats(sol_v, specs, longest, weights=w_rows)
 
     # thermal: log C_heat, log R_skin with the electrical parameters fixed
     has_t = record.temperature_measured and bool(np.any(np.abs(t_meas - t_meas[0]) > 1e-9))
@@ -1015,7 +1028,7 @@ def fit_temperature_laws(
     min_rest_s: float = 300.0,
     loss: str = "linear",
     f_scale: float = 1.0,
-    thin_rests: int = REST_THIN,
+    thin_rests: int = 1,
 ) -> Identification:
     """The temperature-dependent parameter set, fitted jointly to the reference test and the
     tests at other ambients (issue 27; ``hevsim calibrate --data``).
@@ -1047,7 +1060,8 @@ def fit_temperature_laws(
     ``scipy.optimize.least_squares`` (``"soft_l1"``: errors beyond ``f_scale`` weigh less), for
     tests with rows the model structure cannot follow (an LFP cell's low-SOC knee), which would
     otherwise drag the shared parameters; the standard errors then scale with the robust cost.
-    ``thin_rests``: the rows weighed (:func:`_row_selection`).
+    ``thin_rests``: the rows weighed (:func:`_row_selection`; default every row: this fit's
+    time goes to the finite-difference Jacobian's kernel runs, which thinning does not shorten).
     """
     p_in = result.params
     ts = result.timeseries
@@ -1257,7 +1271,7 @@ def fit_temperature_laws(
         return out
 
     selection = [_row_selection(rec, thin=thin_rests) for rec, _, _ in runs]
-    n_meas = sum(float(np.sum(w**2)) for _, w in selection) * (2 if all_meas else 1)
+    row_w = np.concatenate([np.r_[w, w] if all_meas else w for _, w in selection])
 
     def residuals(theta: FloatArray) -> FloatArray:
         parts = []
@@ -1284,7 +1298,7 @@ def fit_temperature_laws(
             workers=pool.map if threads > 1 else map,
         )
     longest = max(_longest_segment_s(r) for r, _, _ in runs)
-    table = _stats(sol, specs, longest, n_rows=n_meas)
+    table = _stats(sol, specs, longest, weights=row_w)
     extra = []
     if not fit_ea:
         why = (
