@@ -184,7 +184,8 @@ def main() -> None:
     print(f"  largest relative parameter difference: {rel:.2e} over the {int(ok.sum())} parameters "
           f"flagged in neither run; {np.max(rel_all):.2e} over all {rel_all.size} "
           "(the flagged ones are not identified by the test)")  # fmt: skip
-    print(f"  rests thinned (1 row in {REST_THIN} after {REST_KEEP_S:g} s) / every row, analytic: wall {w2 / w1:.2f}, "
+    print(f"  rests thinned (1 row in {REST_THIN} after {REST_KEEP_S:g} s) / every row, analytic: "
+          f"wall {w2 / w1:.2f}, "
           f"cpu {c2 / c1:.2f}; target <= 30 s: {'met' if w2 <= 30.0 else 'NOT met'} (wall), "
           f"{'met' if c2 <= 30.0 else 'NOT met'} (cpu)")  # fmt: skip
     print(f"  thinned vs every row: {compare(r1, r2)}")
