@@ -359,6 +359,12 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
         opt = "--validate" if args.validate is not None else "--data"
         raise InputError(f"calibrate: {opt} needs the full calibration (leave out --fit).")
+    if args.robust_mv is not None and not (args.data and args.robust_mv > 0):
+        from hevsim.errors import InputError
+
+        raise InputError(
+            f"calibrate --robust-mv {args.robust_mv!r}: expected a scale > 0 mV, with --data (the joint fit)."
+        )
     no_temp_ok = args.fit is None and args.ambient_c is not None  # full calibration: temp_k optional
     record = CellTestRecord.from_csv(args.test, temperature_k=c_to_k(args.ambient_c) if no_temp_ok else None)
     if args.fit is None:
