@@ -984,12 +984,13 @@ def _initial_soc_from_rests(
     coulomb-counted SOCs (reference capacity ``capacity_c`` [C]) that best lays their relaxed
     voltages on the reference test's relaxed-voltage curve ``ref_curve`` (a grid search, then
     refined). The whole rest sequence pins the SOC where the first voltage alone cannot (a flat
-    OCV, e.g. an LFP plateau, has no inverse). Without two rests in both tests: the inverse of
-    the (monotone) reference OCV ``ocv_ref`` on ``axis`` at the first voltage."""
+    OCV, e.g. an LFP plateau, has no inverse). Where the reference OCV ``ocv_ref`` on ``axis``
+    is strictly increasing (it has an inverse; as :func:`fit_temperature` decides), or without
+    two rests in both tests: its inverse at the first voltage."""
     s_ref, v_ref = ref_curve
     q = coulomb_soc(rec, 0.0, capacity_c)  # -(charge removed) / C per row
     s_pts, v_pts = _relaxed_curve(rec, q, min_rest_s)  # SOCs relative to the start
-    if s_ref.size < 2 or s_pts.size < 2:
+    if s_ref.size < 2 or s_pts.size < 2 or np.all(np.diff(ocv_ref) > 0):
         ocv_mono = np.maximum.accumulate(ocv_ref)
         return float(np.clip(np.interp(rec.voltage_v[0], ocv_mono, axis), 0.0, 1.0))
     span = float(s_pts.max() - s_pts.min())
