@@ -963,6 +963,13 @@ def _unfitted(name: str, unit: str, flag: str) -> dict[str, Any]:
             "flag": flag, "note": ""}  # fmt: skip
 
 
+REST_SOC_COST_RATIO = 4.0
+"""The rests' initial SOC replaces the OCV inverse's when it lays the rests this many times
+better (mean square voltage error; :func:`_initial_soc_from_rests`)."""
+REST_SOC_COST_FLOOR_V2 = 2.5e-7
+"""... and by more than this mean square [V²] ((0.5 mV)²)."""
+
+
 def _relaxed_curve(rec: CellTestRecord, soc: FloatArray, min_rest_s: float) -> tuple[FloatArray, FloatArray]:
     """(SOC [-], relaxed voltage [V]) at the rests of ``rec`` (SOC per row ``soc``), sorted by SOC."""
     band = 1e-3 * max(float(np.max(np.abs(rec.current_a))), 1e-9)
@@ -984,15 +991,17 @@ def _initial_soc_from_rests(
     coulomb-counted SOCs (reference capacity ``capacity_c`` [C]) that best lays their relaxed
     voltages on the reference test's relaxed-voltage curve ``ref_curve`` (a grid search, then
     refined). The whole rest sequence pins the SOC where the first voltage alone cannot (a flat
-    OCV, e.g. an LFP plateau, has no inverse). Where the reference OCV ``ocv_ref`` on ``axis``
-    is strictly increasing (it has an inverse; as :func:`fit_temperature` decides), or without
-    two rests in both tests: its inverse at the first voltage."""
+    OCV, e.g. an LFP plateau, has no reliable inverse). The inverse of the reference OCV
+    ``ocv_ref`` on ``axis`` at the first voltage is kept unless the rests' shift lays them
+    clearly better (mean square below 1/:data:`REST_SOC_COST_RATIO` of the inverse's, beyond
+    :data:`REST_SOC_COST_FLOOR_V2`), and always without two rests in both tests."""
     s_ref, v_ref = ref_curve
     q = coulomb_soc(rec, 0.0, capacity_c)  # -(charge removed) / C per row
     s_pts, v_pts = _relaxed_curve(rec, q, min_rest_s)  # SOCs relative to the start
-    if s_ref.size < 2 or s_pts.size < 2 or np.all(np.diff(ocv_ref) > 0):
-        ocv_mono = np.maximum.accumulate(ocv_ref)
-        return float(np.clip(np.interp(rec.voltage_v[0], ocv_mono, axis), 0.0, 1.0))
+    ocv_mono = np.maximum.accumulate(ocv_ref)
+    s_inv = float(np.clip(np.interp(rec.voltage_v[0], ocv_mono, axis), 0.0, 1.0))
+    if s_ref.size < 2 or s_pts.size < 2:
+        return s_inv
     span = float(s_pts.max() - s_pts.min())
 
     def cost(s0: float) -> float:
@@ -1013,6 +1022,9 @@ def _initial_soc_from_rests(
         fine = np.clip(np.linspace(best - step, best + step, 41), lo, hi)
         best = float(fine[int(np.argmin([cost(g) for g in fine]))])
         step = step / 20.0
+    c_inv, c_best = cost(s_inv), cost(best)
+    if np.isfinite(c_inv) and c_inv <= REST_SOC_COST_RATIO * c_best + REST_SOC_COST_FLOOR_V2:
+        return s_inv  # the inverse lays the rests about as well
     return float(np.clip(best, 0.0, 1.0))
 
 
