@@ -623,11 +623,10 @@ def identify(
 
     rows, w_rows = _row_selection(record, thin=thin_rests)
     v_meas = record.voltage_v[rows]
-    w_v = w_rows / sigma_v
 
     def res_v(theta: FloatArray) -> FloatArray:
         v, _ = _simulate(build(theta), record, soc_initial, port_k, port_k)
-        return (v[rows] - v_meas) * w_v
+        return (v[rows] - v_meas) / sigma_v * w_rows  # w = 1: the unthinned residual bit for bit
 
     def jac_v(theta: FloatArray) -> FloatArray:
         """d res_v / d theta from the forward sensitivities (one extended run of the kernel)."""
@@ -644,7 +643,7 @@ def identify(
         if charge_transfer:
             jac[:, -2] = dv[:, cols["ct_i0_a"]] * p.charge_transfer.i0_a
             jac[:, -1] = dv[:, cols["ct_scale"]] * p.charge_transfer.scale
-        return jac * w_v[:, None]
+        return jac / sigma_v * w_rows[:, None]
 
     lo = np.array([s.lo for s in specs])
     hi = np.array([s.hi for s in specs])
@@ -1294,9 +1293,9 @@ def fit_temperature_laws(
     def residuals(theta: FloatArray) -> FloatArray:
         parts = []
         for (rec, _, _), (v, t), (rows, w) in zip(runs, simulate_all(theta), selection, strict=True):
-            parts.append((v[rows] - rec.voltage_v[rows]) * (w / sigma_v))
+            parts.append((v[rows] - rec.voltage_v[rows]) / sigma_v * w)  # w = 1: bit for bit
             if all_meas:
-                parts.append((t[rows] - rec.temp_k[rows]) * (w / sigma_t))
+                parts.append((t[rows] - rec.temp_k[rows]) / sigma_t * w)
         return np.concatenate(parts)
 
     lo = np.array([s.lo for s in specs])
