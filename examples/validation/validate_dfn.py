@@ -16,7 +16,7 @@ current range and, with ``OUT_DIR``, writes both calibrations (``cell.toml``, pl
 45 degC), the UDDS errors per current band of the cell calibrated at 25 degC alone (before:
 ``calibrate pulse_25c.csv``) and calibrated over the three pulse tests at 0, 25 and 45 degC
 (after: ``calibrate pulse_25c.csv --data pulse_0c.csv --data pulse_45c.csv``, the joint
-temperature laws).
+temperature laws; for LFP with ``--robust-mv 2``, :data:`ROBUST_F_SCALE`).
 """
 
 from __future__ import annotations
