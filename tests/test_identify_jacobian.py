@@ -127,9 +127,11 @@ def test_ocv_map_jacobian_matches_finite_differences() -> None:
     assert np.any(g[:2] != 0) and np.all(g[-1] == 0)  # extrapolated low end moves; the top is clipped
 
 
-def test_identify_jacobian_matches_finite_differences(monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("thin", [1, ID.REST_THIN])
+def test_identify_jacobian_matches_finite_differences(monkeypatch: pytest.MonkeyPatch, thin: int) -> None:
     """The Jacobian ``identify`` hands to the optimiser, at the initial guess, against central
-    differences of its residual: covers the mapping to OCV, log R_s, log RC and log ct."""
+    differences of its residual: covers the mapping to OCV, log R_s, log RC and log ct; every
+    row, and the rests thinned (``thin_rests``)."""
     p = _cell("step_consistent", 0.0)
     seg = [(0.0, 600)]
     for _ in range(3):
@@ -149,11 +151,13 @@ def test_identify_jacobian_matches_finite_differences(monkeypatch: pytest.Monkey
 
     monkeypatch.setattr(ID, "_least_squares", fake)
     with pytest.raises(Captured):
-        ID.identify(p, rec, soc_initial=0.95, capacity_ah=p.capacity.c0_c / 3600, port_temp_k=T_AMB)
+        ID.identify(
+            p, rec, soc_initial=0.95, capacity_ah=p.capacity.c0_c / 3600, port_temp_k=T_AMB, thin_rests=thin
+        )
     fun, x0, jac = seen["fun"], seen["x0"], seen["jac"]
     analytic = jac(x0)
-    rows, w = ID._row_selection(rec)  # rests thinned after their first minute
-    assert analytic.shape == (rows.size, x0.size) and rows.size < t.size
+    rows, w = ID._row_selection(rec, thin=thin)  # thinned: one row in `thin` after 300 s of a rest
+    assert analytic.shape == (rows.size, x0.size) and (rows.size < t.size) == (thin > 1)
     np.testing.assert_allclose(np.sum(w**2), t.size, atol=ID.REST_THIN)  # stands for every row
     for j in range(x0.size):
         e = np.zeros_like(x0)
