@@ -501,7 +501,7 @@ def identify(
     threads) or ``"auto"`` (analytic unless ``rc_mode = "switched"``). ``thin_rests`` > 1
     weighs one row in ``thin_rests`` after a rest's first :data:`REST_KEEP_S` (weight
     sqrt(thin_rests), :func:`_row_selection`): fewer rows for the trust-region SVDs and the
-    Jacobian's chain rule (12 h HPPC: 0.68x the CPU with 10, parameters within 0.3 standard
+    Jacobian's chain rule (12 h HPPC: 0.55x the CPU with 10, parameters within 0.31 standard
     errors), at the price of the information those rows held (the covariance is the weighted
     sandwich: the OCV values of long rests up to 5x wider errors). Default 1: every row.
     """
