@@ -127,9 +127,11 @@ def test_ocv_map_jacobian_matches_finite_differences() -> None:
     assert np.any(g[:2] != 0) and np.all(g[-1] == 0)  # extrapolated low end moves; the top is clipped
 
 
-def test_identify_jacobian_matches_finite_differences(monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("thin", [1, ID.REST_THIN])
+def test_identify_jacobian_matches_finite_differences(monkeypatch: pytest.MonkeyPatch, thin: int) -> None:
     """The Jacobian ``identify`` hands to the optimiser, at the initial guess, against central
-    differences of its residual: covers the mapping to OCV, log R_s, log RC and log ct."""
+    differences of its residual: covers the mapping to OCV, log R_s, log RC and log ct; every
+    row, and the rests thinned (``thin_rests``)."""
     p = _cell("step_consistent", 0.0)
     seg = [(0.0, 600)]
     for _ in range(3):
@@ -149,10 +151,14 @@ def test_identify_jacobian_matches_finite_differences(monkeypatch: pytest.Monkey
 
     monkeypatch.setattr(ID, "_least_squares", fake)
     with pytest.raises(Captured):
-        ID.identify(p, rec, soc_initial=0.95, capacity_ah=p.capacity.c0_c / 3600, port_temp_k=T_AMB)
+        ID.identify(
+            p, rec, soc_initial=0.95, capacity_ah=p.capacity.c0_c / 3600, port_temp_k=T_AMB, thin_rests=thin
+        )
     fun, x0, jac = seen["fun"], seen["x0"], seen["jac"]
     analytic = jac(x0)
-    assert analytic.shape == (t.size, x0.size)
+    rows, w = ID._row_selection(rec, thin=thin)  # thinned: one row in `thin` after 300 s of a rest
+    assert analytic.shape == (rows.size, x0.size) and (rows.size < t.size) == (thin > 1)
+    np.testing.assert_allclose(np.sum(w**2), t.size, atol=ID.REST_THIN)  # stands for every row
     for j in range(x0.size):
         e = np.zeros_like(x0)
         e[j] = 1e-6
@@ -171,3 +177,22 @@ def test_analytic_jacobian_needs_persistent_rc() -> None:
     )
     with pytest.raises(InputError, match="analytic Jacobian needs rc_mode"):
         ID.identify(p, rec, soc_initial=0.9, min_rest_s=60, model=ModelSection(), jacobian="analytic")
+
+
+def test_row_selection_keeps_every_row_under_current_and_thins_late_rests() -> None:
+    """Every row under current and the first minute of each rest, then one row in
+    ``REST_THIN`` with weight sqrt(REST_THIN); ``thin = 1`` keeps every row unweighted."""
+    cur = np.r_[np.zeros(200), np.full(30, 5.0), np.zeros(95), np.full(7, -2.0), np.zeros(61)]
+    t = np.arange(1.0, cur.size + 1.0)
+    rec = CellTestRecord(t, cur, t * 0 + 3.7, t * 0 + T_AMB)
+    rows, w = ID._row_selection(rec, keep_s=60.0, thin=10)
+    kept = np.zeros(cur.size, bool)
+    kept[rows] = True
+    assert kept[cur != 0].all() and np.all(w[cur[rows] != 0] == 1.0)
+    for a, b in ((0, 200), (230, 325), (332, 393)):  # the three rests
+        assert kept[a : a + 60].all() and np.all(w[(rows >= a) & (rows < a + 60)] == 1.0)
+        late = rows[(rows >= a + 60) & (rows < b)]
+        assert np.all(np.diff(late) == 10) and np.allclose(w[np.isin(rows, late)], np.sqrt(10.0))
+        assert abs(late.size * 10 - (b - a - 60)) < 10  # the weights stand for the rows skipped
+    rows1, w1 = ID._row_selection(rec, thin=1)
+    assert np.array_equal(rows1, np.arange(cur.size)) and np.all(w1 == 1.0)

@@ -153,3 +153,24 @@ def test_ambients_too_close_are_flagged_not_fitted() -> None:
             and "too close to separate an activation energy" in tab.loc[name, "flag"]
         )
     assert res.params.resistance.ea_j_per_mol == 0.0 and np.all(res.params.rc_discharge[:, 2:] == 0.0)
+
+
+def test_robust_loss_settings_are_checked(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A robust scale <= 0 or an unknown loss stops with the option named (CLI: exit 2)."""
+    from hevsim.cli import main
+    from hevsim.errors import InputError
+
+    ref, cold = synthetic_tests((298.15, 273.15))
+    with pytest.raises(InputError, match="robust-mv"):
+        fit_temperature_laws(reference_guess(ref), [cold], loss="soft_l1", f_scale=0.0)
+    with pytest.raises(InputError, match="loss 'l2'"):
+        fit_temperature_laws(reference_guess(ref), [cold], loss="l2")
+    files = []
+    for rec in (ref, cold):
+        f = tmp_path / Path(rec.source).name
+        np.savetxt(f, np.c_[rec.time_s, rec.current_a, rec.voltage_v, rec.temp_k], delimiter=",",
+                   header="time_s,current_a,voltage_v,temp_k", comments="")  # fmt: skip
+        files.append(str(f))
+    args = ["calibrate", "thesis_table_4_1", files[0], "--soc-initial", "0.9", "--capacity-ah", "5"]
+    assert main([*args, "--data", files[1], "--robust-mv", "-1", "--out", str(tmp_path / "o")]) == 2
+    assert "--robust-mv -1.0" in capsys.readouterr().err

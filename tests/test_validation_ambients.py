@@ -36,6 +36,36 @@ def test_calibration_over_ambients_holds_the_targets_at_unseen_ambients(cell: st
     assert cold["rmse_mv"] > 3 * TARGET_RMS_MV  # the single-ambient calibration fails in the cold
 
 
+MIN_BAND_SAMPLES = 10  # the >=3C band holds one UDDS row: its "bias" is that row's error
+TARGET_BIAS_MV = 5.0
+
+
+def test_lfp_calibration_over_ambients_has_no_band_bias_at_unseen_ambients() -> None:
+    """LFP (issue 27 item 3's bias target): calibrated over the three pulse tests, sampled every
+    5 s (the tests' segments last multiples of 10 s, so the coarser record holds the same
+    current; the whole SOC range, down to the low-SOC knee, at a fifth of the rows) with the
+    robust joint fit (validate_dfn.ROBUST_F_SCALE), no current band of the UDDS at -10, 10, 35 or
+    45 degC has a mean voltage error above 5 mV, besides the RMS, max and temperature targets.
+    Plain least squares on the same data leaves +8 to +9 mV in every band at -10 degC (the knee's
+    errors drag the capacity factors and initial SOCs: an OCV offset on the plateau)."""
+    fits = V.ambient_calibrations("lfp", every=5)
+    tab = V.ambient_table("lfp", fits)
+    after = tab[tab["calibration"] == "after"]
+    assert sorted(set(after["ambient_c"])) == sorted(V.VAL_AMBIENTS_C)
+    for _, row in after.iterrows():
+        where = f"lfp at {row['ambient_c']} degC: {row.to_dict()}"
+        if row["range"] == "all":
+            assert row["rmse_mv"] <= TARGET_RMS_MV, where
+            assert row["max_abs_mv"] <= TARGET_MAX_MV, where
+            assert row["temp_rmse_k"] <= TARGET_TEMP_K, where
+        elif row["samples"] >= MIN_BAND_SAMPLES:
+            assert abs(row["mean_mv"]) <= TARGET_BIAS_MV, where
+        else:
+            assert abs(row["mean_mv"]) <= 2 * TARGET_BIAS_MV, where  # one or a few rows
+    caps = fits["after"].parameters.set_index("name")["value"]
+    assert caps.filter(like="capacity_factor").between(0.95, 1.06).all()  # 1.09 before the fix
+
+
 def test_ambient_data_match_their_provenance() -> None:
     import hashlib
     import tomllib
@@ -44,3 +74,26 @@ def test_ambient_data_match_their_provenance() -> None:
     assert len(prov) == 14  # two cells x (3 pulse tests + 4 drive cycles)
     for name, digest in prov.items():
         assert "sha256:" + hashlib.sha256((DATA / name).read_bytes()).hexdigest() == digest, name
+
+
+def test_initial_soc_of_an_lfp_test_from_its_rests() -> None:
+    """The joint fit's start for each other test's initial SOC: on the flat LFP OCV the first
+    voltage has no inverse (the fitted OCV's inverse gave about 0.84 for a test that starts at
+    0.95, and the joint fit then settled on a capacity factor of 1.08 with a shifted SOC); laying
+    the test's rests on the reference test's relaxed-voltage curve gives the known 0.95."""
+    import numpy as np
+
+    from hevsim.battery import identify as ID
+    from hevsim.battery.calibrate import CellTestRecord
+
+    cap_c = V.AMBIENT_CELLS["lfp"] * 3600.0
+    ref = CellTestRecord.from_csv(DATA / V._name("lfp", "pulse", 25))
+    curve = ID._relaxed_curve(ref, ID.coulomb_soc(ref, V.SOC_INITIAL, cap_c), 300.0)
+    soc_ax = np.array([0.0, 0.15, 0.5, 0.85, 1.0])
+    ocv = np.interp(soc_ax, curve[0], curve[1])  # flat at the top: a poor inverse
+    for t_c in (0, 45):
+        rec = CellTestRecord.from_csv(DATA / V._name("lfp", "pulse", t_c))
+        s0 = ID._initial_soc_from_rests(rec, curve, ocv, soc_ax, cap_c, 300.0)
+        assert abs(s0 - V.SOC_INITIAL) < 2e-3, (t_c, s0)
+        inverse = float(np.interp(rec.voltage_v[0], np.maximum.accumulate(ocv), soc_ax))
+        assert abs(inverse - V.SOC_INITIAL) > 0.05  # what the OCV inverse alone gives

@@ -427,6 +427,12 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
         opt = "--validate" if args.validate is not None else "--data"
         raise InputError(f"calibrate: {opt} needs the full calibration (leave out --fit).")
+    if args.robust_mv is not None and not (args.data and args.robust_mv > 0):
+        from hevsim.errors import InputError
+
+        raise InputError(
+            f"calibrate --robust-mv {args.robust_mv!r}: expected a scale > 0 mV, with --data (the joint fit)."
+        )
     no_temp_ok = args.fit is None and args.ambient_c is not None  # full calibration: temp_k optional
     record = CellTestRecord.from_csv(args.test, temperature_k=c_to_k(args.ambient_c) if no_temp_ok else None)
     if args.fit is None:
@@ -467,7 +473,8 @@ def _calibrate_full(args: argparse.Namespace, record: Any, out: Path) -> int:
         from hevsim.battery.identify import fit_temperature, fit_temperature_laws
 
         others = [CellTestRecord.from_csv(f) for f in args.data]
-        result = fit_temperature_laws(fit_temperature(result, others), others)
+        robust = {} if args.robust_mv is None else {"loss": "soft_l1", "f_scale": args.robust_mv}
+        result = fit_temperature_laws(fit_temperature(result, others), others, **robust)  # sigma_v = 1 mV
     if args.validate is not None:
         ambient_k = c_to_k(args.ambient_c) if args.ambient_c is not None else None
         val = CellTestRecord.from_csv(args.validate, temperature_k=ambient_k)
@@ -1062,6 +1069,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="full calibration: a pulse test at another ambient (repeatable; temp_k column required, "
         "first row at rest at the ambient): the temperature laws fitted jointly over the ambients "
         "(Arrhenius R_s, RC, charge transfer; entropic coefficient; capacity factor; thermal)",
+    )
+    p.add_argument(
+        "--robust-mv",
+        type=float,
+        metavar="MV",
+        help="with --data: robust (soft-L1) joint fit, voltage errors beyond MV [mV] weigh less "
+        "(e.g. 2 for an LFP cell whose low-SOC knee the model cannot follow; default: least squares)",
     )
     p.add_argument(
         "--validate-soc", type=float, help="SOC at the start of --validate (default: from its first voltage)"
