@@ -26,4 +26,5 @@ def __getattr__(name: str) -> object:
         return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(f"module 'hevsim' has no attribute {name!r}")
 
+
 _configure_numba_cache(_Path(__file__).resolve().parent, __version__)
