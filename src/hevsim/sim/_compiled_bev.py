@@ -128,20 +128,8 @@ def run_bev(soc0, t, v_des, gr, h, wd, mtab, ptab, cols, audit, summary):
         e_chem = -d_soc * q_as * ocv
         audit[2] += e_chem
         audit[len(AUDIT_BASE) + 4] += e_chem - p_bat * dt
-        add_road_audit(
-            audit,
-            v,
-            v1,
-            v_mid,
-            a,
-            g,
-            f,
-            h.mass_kg,
-            m_eff,
-            h.rolling_resistance,
-            h.rolling_resistance_speed_s_per_m,
-            dt,
-        )
+        crr, crr_v = h.rolling_resistance, h.rolling_resistance_speed_s_per_m
+        add_road_audit(audit, v, v1, v_mid, a, g, f, h.mass_kg, m_eff, crr, crr_v, dt)
         err_sq, err_max, dist, lim_s = track_step(
             v_des[k] - v, v_mid, dt, limited, err_sq, err_max, dist, lim_s
         )

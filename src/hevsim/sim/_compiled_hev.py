@@ -667,20 +667,8 @@ def run_hev(
         p_bat = det[nd - 2]
         audit[2] += e_chem
         audit[len(AUDIT_BASE) + nl - 2] += e_chem - p_bat * dt
-        add_road_audit(
-            audit,
-            v,
-            v1,
-            v_mid,
-            a,
-            g,
-            f,
-            h.mass_kg,
-            m_eff,
-            h.rolling_resistance,
-            h.rolling_resistance_speed_s_per_m,
-            dt,
-        )
+        crr, crr_v = h.rolling_resistance, h.rolling_resistance_speed_s_per_m
+        add_road_audit(audit, v, v1, v_mid, a, g, f, h.mass_kg, m_eff, crr, crr_v, dt)
         # ---- mode and bookkeeping
         i_on, mode = 0, 0.0
         if dpar is not None:
