@@ -43,10 +43,12 @@ BINDING: dict[str, Any] = {
     "battery.soc_min": lambda cfg: [cfg.simulation.soc_initial + d for d in (-1e-4, -1e-2)],
     "battery.soc_max": lambda cfg: [cfg.simulation.soc_initial + d for d in (1e-3, 1e-2, -1e-2)],
     "engine.redline_rpm": lambda cfg: [0.5 * (cfg.engine.stall_speed_rpm + cfg.controller.upshift_rpm)],
+    "controller.engine_min_power_w": lambda cfg: [15000.0],
 }
 """Values that make a limit bind within a short run, tried first: the SOC window's ends at
 the initial SOC (the first discharge reaches the lower one; the upper one below it stops any
-charging), the redline below the upshift speed."""
+charging), the redline below the upshift speed, a power-split engine floor above the light
+loads it otherwise runs at."""
 
 
 def scenario(cfg: Any, key: str) -> dict[str, Any]:

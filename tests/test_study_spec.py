@@ -84,8 +84,8 @@ solvers = ["simulate"]
         ({"solvers": [{"name": "fuzzy_logic"}]}, ["fuzzy_logic", "optimize", "performance", "simulate"]),
         ({"solvers": [{"name": "performance", "dt_s": 20.0}]}, ["solvers[0]", "dt_s = 20.0", "(0, 10]"]),
         (
-            {"solvers": [{"name": "simulate", "controller": "ecms"}]},
-            ["controller", "'ecms'", "series", "rule_based"],
+            {"solvers": [{"name": "simulate", "controller": "electric_assist"}]},  # ecms runs on a series HEV
+            ["controller", "'electric_assist'", "series", "rule_based"],
         ),
         ({"solvers": [{"name": "simulate", "controller": "fuzzy"}]}, ["controller", "fuzzy", "thermostat"]),
         ({"solvers": [{"name": "optimize", "soc_grid_points": 1}]}, ["soc_grid_points", ">= 2"]),

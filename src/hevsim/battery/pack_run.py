@@ -568,7 +568,8 @@ def pack_finish(s, current_a, current_request_a):
         _stress_add(s.stress, s.stress_n, cells, dt, f[F_ACT])
     if k < s.rec.shape[0]:
         r = s.rec[k]
-        d = 0 if current_a >= 0.0 else 2
+        # the direction's pair; a current of round-off size (a zero power solved to -1e-15 A) is no charge
+        d = 0 if current_a >= -1e-12 * max(1.0, f[F_IMAX]) else 2
         r[R_I] = current_a
         r[R_V] = v_avg
         r[R_P] = v_avg * current_a

@@ -456,12 +456,9 @@ def _build(config: Any) -> Any:
         config = load_vehicle_config(config)
     if hasattr(config, "config"):
         return config
-    from hevsim.architectures import architecture
-    from hevsim.sim.model import build_series_hev
+    from hevsim.architectures import build_vehicle
 
-    if config.architecture == "series":
-        return build_series_hev(config)
-    return architecture(config.architecture).build(config)
+    return build_vehicle(config)
 
 
 def label(config: Any, model_year: int | None = None, charger_efficiency: float = 1.0) -> Label:
