@@ -81,7 +81,7 @@ img = plt.imread("results/tutorial_module_cosim/pictures/fem_cells_section.png")
 fig, ax = plt.subplots(figsize=(11, 5))
 ax.imshow(img)
 ax.set_axis_off()
-ax.set_title("Temperature in vertical sections through the cell rows at the end of the run")
+_ = ax.set_title("Temperature in vertical sections through the cell rows at the end of the run")
 
 # %%
 # The books close
