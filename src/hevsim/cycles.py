@@ -15,7 +15,6 @@ Example::
 
 from __future__ import annotations
 
-import csv
 import math
 import tomllib
 from collections.abc import Callable
@@ -29,6 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from hevsim.errors import InputError
+from hevsim.io import read_csv_rows
 from hevsim.units import M_PER_MILE, MPS_PER_MPH
 
 if TYPE_CHECKING:
@@ -342,40 +342,13 @@ class DriveCycle:
 
 # ---------------------------------------------------------------------- CSV files
 def _read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
-    """Header names and data rows with their 1-based physical line numbers.
-
-    Blank lines and lines starting with ``#`` are skipped; fields are stripped.
-    """
+    """Header names and data rows with their 1-based physical line numbers
+    (:func:`hevsim.io.read_csv_rows`: blank lines and ``#`` lines skipped, fields stripped)."""
     if path.is_dir():
         raise InputError(
             f"{path} is a directory; expected a CSV file or a shipped cycle name ({', '.join(CYCLE_NAMES)})."
         )
-    if not path.is_file():
-        raise InputError(
-            f"{path}: file not found; expected a CSV file with columns '{TIME_COLUMN}' and "
-            f"one of {list(SPEED_COLUMNS)}."
-        )
-    header: list[str] | None = None
-    rows: list[tuple[int, list[str]]] = []
-    try:
-        with path.open(newline="", encoding="utf-8-sig") as stream:
-            reader = csv.reader(stream)
-            for raw in reader:
-                fields = [f.strip() for f in raw]
-                if not any(fields) or fields[0].startswith("#"):
-                    continue
-                if header is None:
-                    header = fields
-                else:
-                    rows.append((reader.line_num, fields))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"{path}: cannot be read as a CSV text file ({exc}).") from exc
-    if header is None:
-        raise InputError(
-            f"{path}: no header line; expected a CSV file with columns '{TIME_COLUMN}' and "
-            f"one of {list(SPEED_COLUMNS)}."
-        )
-    return header, rows
+    return read_csv_rows(path, f"a CSV file with columns '{TIME_COLUMN}' and one of {list(SPEED_COLUMNS)}")
 
 
 def _parse_column(path: Path, rows: list[tuple[int, list[str]]], index: int, column: str) -> FloatArray:

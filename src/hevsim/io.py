@@ -18,6 +18,7 @@ Command-line tools call :func:`prepare_output` before any computation, inside
 
 from __future__ import annotations
 
+import csv
 import errno
 import hashlib
 import json
@@ -36,7 +37,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from hevsim.errors import ConfigError, OutputError
+from hevsim.errors import ConfigError, InputError, OutputError
 
 MARKER = ".hevsim-results"
 """Name of the marker file of a hevsim results folder."""
@@ -559,3 +560,39 @@ def clear_content_cache() -> None:
     """Forget every parsed file of :func:`cached_by_content`."""
     with _CONTENT_LOCK:
         _CONTENT_CACHE.clear()
+
+
+def read_csv_rows(
+    path: Path, expected: str, hash_header: tuple[str, ...] = ()
+) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """Header names and data rows (with their 1-based physical line numbers) of a CSV text
+    file, fields stripped. Blank lines and lines starting with ``#`` are skipped, except a
+    first line ``# name, ...`` whose first name is in ``hash_header`` (a header written as
+    a comment, as the TUM racetrack database does). ``expected`` says what the file should
+    be, in the :class:`~hevsim.errors.InputError` of a missing, unreadable or headless file.
+    """
+    if not path.is_file():
+        raise InputError(f"{path}: file not found; expected {expected}.")
+    header: list[str] | None = None
+    rows: list[tuple[int, list[str]]] = []
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as stream:
+            reader = csv.reader(stream)
+            for raw in reader:
+                fields = [f.strip() for f in raw]
+                if not any(fields):
+                    continue
+                if fields[0].startswith("#"):
+                    first = fields[0].lstrip("#").strip()
+                    if header is None and first in hash_header:
+                        header = [first, *fields[1:]]
+                    continue
+                if header is None:
+                    header = fields
+                else:
+                    rows.append((reader.line_num, fields))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"{path}: cannot be read as a CSV text file ({exc}).") from exc
+    if header is None:
+        raise InputError(f"{path}: no header line; expected {expected}.")
+    return header, rows

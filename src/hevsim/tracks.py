@@ -34,7 +34,6 @@ curvature spike beyond a vehicle's minimum turning radius.
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass, field
 from importlib import resources
@@ -45,6 +44,7 @@ import numpy as np
 import numpy.typing as npt
 
 from hevsim.errors import InputError
+from hevsim.io import read_csv_rows
 
 FloatArray = npt.NDArray[np.floating[Any]]
 
@@ -443,33 +443,13 @@ def from_xy(
 def _read_columns(path: Path) -> dict[str, FloatArray]:
     """Columns of a track CSV by header name. The header is the first line; it may start
     with ``#`` (the TUM racetrack database). Other ``#`` lines are comments."""
-    if not path.is_file():
-        raise InputError(
-            f"{path}: file not found; expected a track CSV (columns x_m, y_m or distance_m, curvature_1pm) "
-            f"or a shipped track name ({', '.join(TRACK_NAMES)})."
-        )
-    header: list[str] | None = None
-    rows: list[tuple[int, list[str]]] = []
-    try:
-        with path.open(newline="", encoding="utf-8-sig") as stream:
-            reader = csv.reader(stream)
-            for raw in reader:
-                fields = [f.strip() for f in raw]
-                if not any(fields):
-                    continue
-                if header is None:
-                    first = fields[0].lstrip("#").strip()
-                    if fields[0].startswith("#") and first not in (*XY_COLUMNS, *CURVATURE_COLUMNS):
-                        continue
-                    header = [first, *fields[1:]]
-                    continue
-                if fields[0].startswith("#"):
-                    continue
-                rows.append((reader.line_num, fields))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"{path}: cannot be read as a CSV text file ({exc}).") from exc
-    if header is None or not rows:
-        raise InputError(f"{path}: no header line or no data rows; expected a track CSV.")
+    expected = (
+        "a track CSV (columns x_m, y_m or distance_m, curvature_1pm) "
+        f"or a shipped track name ({', '.join(TRACK_NAMES)})"
+    )
+    header, rows = read_csv_rows(path, expected, hash_header=(*XY_COLUMNS, *CURVATURE_COLUMNS))
+    if not rows:
+        raise InputError(f"{path}: no data rows; expected {expected}.")
     out: dict[str, FloatArray] = {}
     for c, name in enumerate(header):
         if name not in (*XY_COLUMNS, *CURVATURE_COLUMNS, *OPTIONAL_COLUMNS):
