@@ -1,10 +1,25 @@
-"""Shared helpers of the benchmark scripts: how busy the rest of the machine was."""
+"""Shared helpers of the benchmark scripts: how busy the rest of the machine was, and the
+median time of repeated calls."""
 
 from __future__ import annotations
 
 import os
+import statistics
 import time
+from collections.abc import Callable
 from pathlib import Path
+
+
+def median_time(fn: Callable[[], object], repeats: int, warm: bool = False) -> float:
+    """Median wall time [s] of ``repeats`` calls of ``fn`` (``warm``: one uncounted call first)."""
+    if warm:
+        fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
 
 
 def machine_busy_s() -> float | None:

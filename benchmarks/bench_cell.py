@@ -19,26 +19,15 @@ Medians of ``--repeats`` runs. The script only reports: it always exits 0.
 from __future__ import annotations
 
 import argparse
-import statistics
 import time
-from collections.abc import Callable
 
 import numpy as np
 
-from _machine import OtherLoad
+from _machine import OtherLoad, median_time
 from hevsim.battery import Cell, Module, load_cell_parameters, simulate_cells
 from hevsim.battery import kernel as K
 from hevsim.battery.params import CellParameters, ChargeTransferSection, ModelSection
 from hevsim.battery.profiles import cycle_cell_current
-
-
-def median_time(fn: Callable[[], object], repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def fidelity_set(name: str) -> CellParameters:

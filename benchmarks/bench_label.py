@@ -27,19 +27,10 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from _machine import OtherLoad
+from _machine import OtherLoad, median_time
 
 ROOT = Path(__file__).resolve().parents[1]
 FASTSIM_VEHICLE = "2016_TOYOTA_Prius_Two.yaml"
-
-
-def _median_s(fn: Any, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def bench_fastsim(repeats: int) -> dict[str, float] | None:
@@ -65,7 +56,7 @@ def bench_fastsim(repeats: int) -> dict[str, float] | None:
         both()
         run_once = statistics.median(both() for _ in range(repeats))
         fsim.get_label_fe(veh)
-        label_s = _median_s(lambda: fsim.get_label_fe(veh), repeats)
+        label_s = median_time(lambda: fsim.get_label_fe(veh), repeats)
         out = json.loads(fsim.get_label_fe(veh).to_json())
     return {"run_once_s": run_once, "label_s": label_s, "udds_mpg": out["lab_udds_mpgge"],
             "hwy_mpg": out["lab_hwy_mpgge"]}  # fmt: skip
@@ -82,7 +73,7 @@ def main() -> int:
     first = label(a.config)
     first_s = time.perf_counter() - t0
     with OtherLoad() as load:
-        warm = _median_s(lambda: label(a.config), a.repeats)
+        warm = median_time(lambda: label(a.config), a.repeats)
         fs = bench_fastsim(a.repeats)
     runs = sum(len(t.runs) for t in first.tests.values())
     name = Path(a.config).name

@@ -20,22 +20,10 @@ and the load of the other processes while it ran. The script only reports: it al
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
-import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-
-
-def _median(fn, repeats: int) -> float:  # type: ignore[no-untyped-def]
-    fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def main() -> int:
@@ -45,7 +33,7 @@ def main() -> int:
     ap.add_argument("--track", default="monza")
     a = ap.parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from _machine import OtherLoad
+    from _machine import OtherLoad, median_time
     from hevsim import tracks
     from hevsim.sim import lap as L
 
@@ -54,7 +42,7 @@ def main() -> int:
         f"track {track.name}: {track.length_m:.0f} m, {track.distance_m.size} samples at {track.step_m:.3f} m"
     )
     with OtherLoad() as load:
-        t_env = _median(lambda: L.lap_vehicle(a.config), max(1, a.repeats // 2))
+        t_env = median_time(lambda: L.lap_vehicle(a.config), max(1, a.repeats // 2), warm=True)
         veh = L.lap_vehicle(a.config)
         levels, table = veh.force_table
         args = (
@@ -69,11 +57,13 @@ def main() -> int:
             L.np.full(track.distance_m.size, L.np.inf),
             veh.speed_cap_mps,
         )
-        t_kernel = _median(lambda: L._qss_speed(*args), a.repeats)
-        t_py = _median(lambda: L._qss_speed.py_func(*args), 1)
-        t_lap = _median(lambda: L.simulate_lap(a.config, track, vehicle=veh), max(1, a.repeats // 2))
-        t_lap0 = _median(
-            lambda: L.simulate_lap(a.config, track, vehicle=veh, operating_points=False), a.repeats
+        t_kernel = median_time(lambda: L._qss_speed(*args), a.repeats, warm=True)
+        t_py = median_time(lambda: L._qss_speed.py_func(*args), 1, warm=True)
+        t_lap = median_time(
+            lambda: L.simulate_lap(a.config, track, vehicle=veh), max(1, a.repeats // 2), warm=True
+        )
+        t_lap0 = median_time(
+            lambda: L.simulate_lap(a.config, track, vehicle=veh, operating_points=False), a.repeats, warm=True
         )
     lap = L.simulate_lap(a.config, track, vehicle=veh, operating_points=False)
     print(f"vehicle {veh.name}: lap time {lap.lap_time_s:.3f} s")
