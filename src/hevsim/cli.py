@@ -433,6 +433,10 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         raise InputError(
             f"calibrate --robust-mv {args.robust_mv!r}: expected a scale > 0 mV, with --data (the joint fit)."
         )
+    if args.hysteresis and not args.data:
+        from hevsim.errors import InputError
+
+        raise InputError("calibrate --hysteresis: needs --data (the hysteresis is fitted in the joint fit).")
     no_temp_ok = args.fit is None and args.ambient_c is not None  # full calibration: temp_k optional
     record = CellTestRecord.from_csv(args.test, temperature_k=c_to_k(args.ambient_c) if no_temp_ok else None)
     if args.fit is None:
@@ -473,8 +477,10 @@ def _calibrate_full(args: argparse.Namespace, record: Any, out: Path) -> int:
         from hevsim.battery.identify import fit_temperature, fit_temperature_laws
 
         others = [CellTestRecord.from_csv(f) for f in args.data]
-        robust = {} if args.robust_mv is None else {"loss": "soft_l1", "f_scale": args.robust_mv}
-        result = fit_temperature_laws(fit_temperature(result, others), others, **robust)  # sigma_v = 1 mV
+        robust: dict[str, Any] = {} if args.robust_mv is None else {"loss": "soft_l1", "f_scale": args.robust_mv}
+        result = fit_temperature_laws(  # sigma_v = 1 mV
+            fit_temperature(result, others), others, hysteresis=args.hysteresis, **robust
+        )
     if args.validate is not None:
         ambient_k = c_to_k(args.ambient_c) if args.ambient_c is not None else None
         val = CellTestRecord.from_csv(args.validate, temperature_k=ambient_k)
@@ -1076,6 +1082,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="MV",
         help="with --data: robust (soft-L1) joint fit, voltage errors beyond MV [mV] weigh less "
         "(e.g. 2 for an LFP cell whose low-SOC knee the model cannot follow; default: least squares)",
+    )
+    p.add_argument(
+        "--hysteresis",
+        action="store_true",
+        help="with --data: fit the one-state hysteresis too (amplitude, rate, activation energy of the "
+        "amplitude); the tests need charge and discharge",
     )
     p.add_argument(
         "--validate-soc", type=float, help="SOC at the start of --validate (default: from its first voltage)"

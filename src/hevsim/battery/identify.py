@@ -1046,6 +1046,7 @@ def fit_temperature_laws(
     loss: str = "linear",
     f_scale: float = 1.0,
     thin_rests: int = 1,
+    hysteresis: bool = False,
 ) -> Identification:
     """The temperature-dependent parameter set, fitted jointly to the reference test and the
     tests at other ambients (issue 27; ``hevsim calibrate --data``).
@@ -1079,6 +1080,13 @@ def fit_temperature_laws(
     otherwise drag the shared parameters; the standard errors then scale with the robust cost.
     ``thin_rests``: the rows weighed (:func:`_row_selection`; default every row; this fit's
     time goes to the finite-difference Jacobian's kernel runs, which thinning does not shorten).
+
+    ``hysteresis`` (``calibrate --hysteresis``): fit the one-state hysteresis too — its
+    amplitude M at T_ref [V], its rate gamma [-] and (ambients far enough apart) M's activation
+    energy Ea_M [J/mol], M(T) = M A(Ea_M, T); every test starts with the hysteresis state at 0
+    (a test begun after a long rest from a full charge), and the tests need charge and
+    discharge to tell it from the OCV. Off (the default), the input set's hysteresis is kept
+    as it is (:func:`identify` gives none).
     """
     p_in = result.params
     ts = result.timeseries
@@ -1222,6 +1230,18 @@ def fit_temperature_laws(
         if all_meas
         else slice(0, 0)
     )
+    hy = p_in.hysteresis
+    s_hy = (
+        block(
+            [
+                ("hyst_max_v", "V", True, np.log(1e-5), np.log(0.5), np.log(hy.max_v if hy.max_v > 0 else 5e-3)),
+                ("hyst_gamma", "-", True, np.log(1e-2), np.log(1e4), np.log(hy.gamma if hy.gamma > 0 else 50.0)),
+            ]
+            + ([("hyst_ea_j_per_mol", "J/mol", False, lo_ea, hi_ea, hy.ea_j_per_mol)] if fit_ea else [])
+        )
+        if hysteresis
+        else slice(0, 0)
+    )
     ocv_map = _OcvMap(ocv_ref, idx, axis, lim.v_min_v, lim.v_max_v, extrapolate=idx.size >= 2)
 
     def build(theta: FloatArray) -> CellParameters:
@@ -1252,6 +1272,15 @@ def fit_temperature_laws(
             ct_new = dataclasses.replace(
                 ct_new, i0_a=float(i0), scale=float(m), ea_j_per_mol=float(ea["ct_ea_j_per_mol"])
             )
+        hyst = p_in.hysteresis
+        if hysteresis:
+            h = theta[s_hy]
+            hyst = dataclasses.replace(
+                hyst,
+                max_v=float(np.exp(h[0])),
+                gamma=float(np.exp(h[1])),
+                ea_j_per_mol=float(h[2]) if fit_ea else 0.0,
+            )
         n_t = t_axis.size
         rs_t = np.repeat(rs[:, None], n_t, axis=1)
         return _with(
@@ -1266,6 +1295,7 @@ def fit_temperature_laws(
             rc_discharge=rc if n_rc else p_in.rc_discharge,
             rc_charge=rc.copy() if n_rc else p_in.rc_charge,
             charge_transfer=ct_new,
+            hysteresis=hyst,
             thermal=thermal,
             capacity=dataclasses.replace(p_in.capacity, t_ref_k=t_ref, alpha_c_per_k=0.0),
             resistance=dataclasses.replace(
@@ -1324,6 +1354,8 @@ def fit_temperature_laws(
             "(held at 0, not fitted)"
         )
         extra += [_unfitted(n, "J/mol", why) for n in ea_names]
+        if hysteresis:
+            extra.append(_unfitted("hyst_ea_j_per_mol", "J/mol", why))
     if not has_rests:
         why = (
             f"no rests of {min_rest_s:g} s in every test at another ambient: the entropic coefficient is "
@@ -1361,6 +1393,7 @@ def fit_temperature_laws(
         "temperature_laws": "joint fit over the ambients (issue 27)",
         "temperature_laws_nfev": int(sol.nfev),
         "temperature_laws_success": bool(sol.success),
+        "hysteresis_fitted": bool(hysteresis),
         "voltage_rmse_per_file_v": per_file,
     }
     return dataclasses.replace(
