@@ -67,7 +67,10 @@ RELATIVE_ERROR_LIMIT = 0.1
 """Relative standard error above which a strongly correlated parameter is flagged (below it the
 correlation is only noted: the test separates the pair well enough)."""
 CURRENT_BINS_C = (0.0, 0.5, 1.0, 2.0, 3.0, np.inf)
-"""Current ranges [C-rate] of the validation error table."""
+"""Current ranges [C-rate] of the validation error table: closed on the right, the first from
+0 (``0-0.5C`` = [0, 0.5], ``0.5-1C`` = (0.5, 1], ..., ``>3C``), the bounds with a relative
+tolerance of 1e-9 (a drive cycle scaled to a 3C peak has its peak in ``2-3C``, whatever the
+rounding of current / capacity)."""
 
 
 @dataclass
@@ -1408,9 +1411,11 @@ def error_table(ts: pd.DataFrame, capacity_ah: float) -> pd.DataFrame:
     err = ts["voltage_error_v"].to_numpy()
     rows = []
     for a, b in itertools.pairwise(CURRENT_BINS_C):
-        sel = (c_rate >= a) & (c_rate < b)
+        sel = c_rate <= b * (1.0 + 1e-9)
+        if a > 0.0:
+            sel &= c_rate > a * (1.0 + 1e-9)
         if sel.any():
-            label = f"{a:g}-{b:g}C" if np.isfinite(b) else f">={a:g}C"
+            label = f"{a:g}-{b:g}C" if np.isfinite(b) else f">{a:g}C"
             rows.append(
                 {
                     "range": label,
