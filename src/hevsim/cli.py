@@ -477,7 +477,9 @@ def _calibrate_full(args: argparse.Namespace, record: Any, out: Path) -> int:
         from hevsim.battery.identify import fit_temperature, fit_temperature_laws
 
         others = [CellTestRecord.from_csv(f) for f in args.data]
-        robust: dict[str, Any] = {} if args.robust_mv is None else {"loss": "soft_l1", "f_scale": args.robust_mv}
+        robust: dict[str, Any] = {}
+        if args.robust_mv is not None:
+            robust = {"loss": "soft_l1", "f_scale": args.robust_mv}
         result = fit_temperature_laws(  # sigma_v = 1 mV
             fit_temperature(result, others), others, hysteresis=args.hysteresis, **robust
         )

@@ -1234,11 +1234,13 @@ def fit_temperature_laws(
         else slice(0, 0)
     )
     hy = p_in.hysteresis
+    m0 = hy.max_v if hy.max_v > 0 else 5e-3  # start: 5 mV, rate 50
+    g0 = hy.gamma if hy.gamma > 0 else 50.0
     s_hy = (
         block(
             [
-                ("hyst_max_v", "V", True, np.log(1e-5), np.log(0.5), np.log(hy.max_v if hy.max_v > 0 else 5e-3)),
-                ("hyst_gamma", "-", True, np.log(1e-2), np.log(1e4), np.log(hy.gamma if hy.gamma > 0 else 50.0)),
+                ("hyst_max_v", "V", True, np.log(1e-5), np.log(0.5), np.log(m0)),
+                ("hyst_gamma", "-", True, np.log(1e-2), np.log(1e4), np.log(g0)),
             ]
             + ([("hyst_ea_j_per_mol", "J/mol", False, lo_ea, hi_ea, hy.ea_j_per_mol)] if fit_ea else [])
         )
