@@ -1,0 +1,85 @@
+"""Model Exchange conformance on the Modelica Reference FMUs themselves (issue 30 item 1): the
+models BouncingBall, Dahlquist, VanDerPol, Stair, Resource (FMI 2.0 and 3.0) and StateSpace
+(FMI 3.0 only, array variables) compiled from their C sources (tests/cosim_reference.py), each
+run as an :class:`MEParticipant` and by ``fmpy.simulate_fmu(fmi_type="ModelExchange")`` with
+the same solver and settings (CVODE BDF, relative tolerance 1e-5, output interval = communication
+step = stop time / 500, no event rows). Stated tolerance: every output at every communication
+point equal to 1e-12 relative to 1 + |value| (the same solver called the same way: in practice
+bit-identical). Independent references besides FMPy: StateSpace's closed form y = u exp(t)
+(A = B = C = D = I, x0 = 0), Resource's y = 97 (the first character of resources/y.txt, "a"),
+Stair's counter (one time event per second, termination at 10)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from tests.cosim_reference import build_reference_fmu
+
+from hevsim.cosim.master import simulate
+from hevsim.cosim.me import MEParticipant
+
+CASES = [(m, v) for m in ("BouncingBall", "Dahlquist", "VanDerPol", "Stair", "Resource") for v in (2, 3)]
+CASES.append(("StateSpace", 3))
+STOP = {"BouncingBall": 3.0, "Dahlquist": 10.0, "VanDerPol": 20.0, "Stair": 10.0, "Resource": 1.0,
+        "StateSpace": 10.0}  # fmt: skip
+"""The models' DefaultExperiment stop times [s]."""
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[tuple[str, int], Path]:
+    d = tmp_path_factory.mktemp("reference")
+    return {(m, v): build_reference_fmu(m, v, d) for m, v in CASES}
+
+
+def fmpy_me(fmu: Path, stop: float, h: float) -> np.ndarray:
+    from fmpy import simulate_fmu
+
+    return simulate_fmu(str(fmu), fmi_type="ModelExchange", stop_time=stop, output_interval=h,
+                        relative_tolerance=1e-5, solver="CVode", record_events=False)  # fmt: skip
+
+
+def _columns(ref: np.ndarray, name: str) -> list[tuple[str, np.ndarray]]:
+    """FMPy's column ``name`` as hevsim's scalar columns (an array ``y`` -> ``y[1]`` ..)."""
+    a = ref[name].astype(float)
+    if a.ndim == 1:
+        return [(name, a)]
+    return [(f"{name}[{k + 1}]", a[:, k]) for k in range(a.shape[1])]
+
+
+@pytest.mark.parametrize(("model", "fmi"), CASES, ids=[f"{m}-fmi{v}" for m, v in CASES])
+def test_reference_me_fmu_equals_fmpy(fmus: dict[tuple[str, int], Path], model: str, fmi: int) -> None:
+    from fmpy import read_model_description
+
+    fmu = fmus[model, fmi]
+    md = read_model_description(str(fmu))
+    assert md.modelExchange is not None and float(md.defaultExperiment.stopTime) == STOP[model]
+    stop = STOP[model]
+    h = 0.01 if model == "Stair" else stop / 500
+    ref = fmpy_me(fmu, stop, h)
+    p = MEParticipant("m", fmu)
+    assert p.fmi3 == (fmi == 3)
+    res = simulate([p], [], stop_time_s=stop, step_s=h)
+    n = len(ref)
+    assert n > 100 and np.array_equal(res.time_s[:n], ref["time"])
+    checked = 0
+    for v in ref.dtype.names[1:]:
+        for col, a in _columns(ref, v):
+            b = res[f"m.{col}"][:n]
+            assert np.max(np.abs(a - b) / (1 + np.abs(a))) <= 1e-12, (col, np.max(np.abs(a - b)))
+            checked += 1
+    assert checked == len(res.columns)  # every output hevsim recorded is compared
+    t = res.time_s
+    if model == "StateSpace":  # y = u exp(t), u = (1, 2, 3): rtol 1e-5, global error grows with y
+        for k, u in enumerate((1.0, 2.0, 3.0)):
+            assert np.max(np.abs(res[f"m.y[{k + 1}]"] - u * np.exp(t)) / (u * np.exp(t))) <= 5e-4
+    if model == "Resource":
+        assert np.all(res["m.y"] == ord("a"))
+    if model == "Stair":  # counter = 1 + floor(t) until it reaches 10 at t = 9 s: termination
+        assert res.stopped_by == "participant 'm' requested termination at t = 9 s" and p.events == 9
+        np.testing.assert_array_equal(res["m.counter"][:-1], 1 + np.floor(t[:-1] + 1e-9))
+    if model == "BouncingBall":  # state events located: the ball never sinks below the floor
+        assert p.events >= 8 and res["m.h"].min() >= -1e-6
+    if model == "VanDerPol":  # the limit cycle's amplitude (about 2.0)
+        assert 1.95 <= res["m.x0"][t >= 10].max() <= 2.05
