@@ -450,6 +450,7 @@ def serve(rfd: int, wfd: int) -> None:
                     dict(p.types),
                     fast,
                     dict(p.fmi_types),
+                    p.exact_restore,
                 )
             elif cmd == "quit":
                 return

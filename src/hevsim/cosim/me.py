@@ -21,9 +21,14 @@ reinitialise the solver. An input that changed since the last step is an event a
 (the same iteration, then a solver restart). ``terminateSimulation`` from the FMU ends the
 run there (as a co-simulation FMU's request).
 
-Not supported: saving and restoring the state (the integrator's history is part of it), so
-iteration and step negotiation refuse an ME participant, and a checkpoint resumes by replay;
-FMI 3.0 clocks.
+State: an FMU declaring ``canGetAndSetFMUstate`` and ``canSerializeFMUstate`` saves and
+restores its FMU state with the participant's time, next time event and held inputs; a restore
+re-initialises CVODE at the restored time (the solver's step-size and order history is not
+saved, so after a restore the run equals an uninterrupted one to the solver's tolerance, not
+bit for bit). Iteration and step negotiation use it; checkpoints resume an ME participant by
+replay (exact) rather than by restoring it (:attr:`MEParticipant.exact_restore`).
+
+Not supported: FMI 3.0 clocks of Model Exchange FMUs.
 """
 
 from __future__ import annotations
@@ -97,14 +102,39 @@ class MEParticipant(FMUParticipant):
         if max_step_s is not None and not max_step_s > 0:
             raise ConfigError(f"participant {name!r}: max_step_s {max_step_s!r}; expected > 0.")
         self.solver, self.rtol, self.max_step_s = solver, float(rtol), max_step_s
-        self.can_state = False
+        # (can_state: the FMU's canGetAndSetFMUstate and canSerializeFMUstate, read by FMUParticipant)
         self._window: tuple[float, float] | None = None
         self.events = 0
         """Events handled (time, state, step and input events) since :meth:`setup`."""
 
+    exact_restore = False
+    """A restored state restarts CVODE (its step size and order history are not saved), so the
+    run after a restore equals an uninterrupted one only to the solver's tolerance: checkpoints
+    replay an ME participant (exactly) instead of restoring it."""
+
     @property
     def state_note(self) -> str:
-        return "a Model Exchange FMU: its state includes the integrator's, which is not saved"
+        key = "FMUState" if self.fmi3 else "FMUstate"
+        return (f'Model Exchange FMU {self.fmu.name} declares canGetAndSet{key}="false" or '
+                f'canSerialize{key}="false"')  # fmt: skip
+
+    def get_state(self) -> Any:
+        """The FMU's serialised state (FMI get / serialise FMU state, in continuous-time mode
+        after a step) with the participant's own: time, next time event, held inputs, events,
+        termination request. The integrator is not part of it (see :attr:`exact_restore`)."""
+        fmu_state = super().get_state()
+        return (fmu_state, self._time, self._next_event, dict(self._held), self._inputs_changed,
+                self.events, self.terminate_requested)  # fmt: skip
+
+    def set_state(self, state: Any) -> None:
+        """Restore a :meth:`get_state` snapshot and re-initialise CVODE at its time (from the
+        restored continuous states and nominals)."""
+        fmu_state, t, nxt, held, changed, events, term = state
+        super().set_state(fmu_state)
+        self._time, self._next_event, self._held = float(t), nxt, dict(held)
+        self._inputs_changed, self.events, self.terminate_requested = bool(changed), int(events), bool(term)
+        self._set_time(self._time)
+        self._solver.reset(self._time)
 
     def run_window(self, start_s: float, stop_s: float) -> None:
         """The run's start and stop time [s] (the master tells it before :meth:`setup`): the
@@ -254,7 +284,7 @@ class MEParticipant(FMUParticipant):
         if not isclose(t, self._time, rel_tol=1e-9, abs_tol=1e-12):
             raise SimulationError(
                 f"FMU {self.fmu.name} is at t = {self._time!r} s, asked to step from {t!r} s "
-                "(a Model Exchange participant cannot go back: no saved state)."
+                "(a Model Exchange participant goes back only by restoring a saved state)."
             )
         solver, set_time, completed, needs_step = (
             self._solver,

@@ -76,6 +76,11 @@ class Participant(ABC):
     clocked_inputs: Mapping[str, str] = {}
     """Input variables set only when their clock ticks (name -> clock name): not in
     :attr:`inputs`, delivered with the ticks of their clock (:meth:`deliver_ticks`)."""
+    exact_restore: bool = True
+    """A restored state continues exactly as the run it was saved from (False: only to a
+    tolerance, e.g. a Model Exchange FMU whose integrator restarts): checkpoints replay such
+    participants from the start instead of restoring them; iteration and step negotiation
+    restore them."""
     deterministic: bool = True
     """Same inputs give the same outputs: a run it cannot checkpoint can be resumed by
     replaying from the start (the replay is compared with the stored results)."""

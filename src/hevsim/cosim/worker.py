@@ -211,7 +211,8 @@ class WorkerFMUParticipant(Participant):
         except SimulationError as exc:
             self.close()
             raise ConfigError(str(exc)) from None
-        ins, outs, can_state, note, types, fast, fmi_types = info
+        ins, outs, can_state, note, types, fast, fmi_types, exact = info
+        self.exact_restore = bool(exact)
         self.inputs, self.outputs = dict(ins), dict(outs)
         self.fmi_types = dict(fmi_types)
         self._can_state, self._state_note = bool(can_state), str(note)
