@@ -12,6 +12,7 @@ and packs it with its model description and, for Resource, ``resources/y.txt``.
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import zipfile
@@ -20,9 +21,11 @@ from pathlib import Path
 SOURCES = Path(__file__).resolve().parent / "reference_fmus"
 
 
-def build_reference_fmu(model: str, fmi_version: int, out_dir: Path) -> Path:
+def build_reference_fmu(model: str, fmi_version: int, out_dir: Path, me_only: bool = False) -> Path:
     """Compile Reference FMU ``model`` for FMI ``fmi_version`` (2 or 3) to
-    ``out_dir/<model><fmi_version>.fmu`` (Linux x86-64 binary)."""
+    ``out_dir/<model><fmi_version>.fmu`` (Linux x86-64 binary); ``me_only``: its model
+    description without the ``<CoSimulation>`` element (``<model><fmi_version>ME.fmu``), so that
+    hevsim runs it as a Model Exchange FMU."""
     cc = shutil.which("cc") or shutil.which("gcc")
     assert cc, "no C compiler"
     xml = SOURCES / model / f"FMI{fmi_version}.xml"
@@ -39,9 +42,13 @@ def build_reference_fmu(model: str, fmi_version: int, out_dir: Path) -> Path:
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     platform = "x86_64-linux" if fmi_version == 3 else "linux64"
-    out = out_dir / f"{model}{fmi_version}.fmu"
+    out = out_dir / f"{model}{fmi_version}{'ME' if me_only else ''}.fmu"
+    text = xml.read_text()
+    if me_only:
+        text = re.sub(r"<CoSimulation\b[^>]*(/>|>.*?</CoSimulation>)", "", text, flags=re.S)
+        assert "<CoSimulation" not in text
     with zipfile.ZipFile(out, "w") as z:
-        z.write(xml, "modelDescription.xml")
+        z.writestr("modelDescription.xml", text)
         z.write(so, f"binaries/{platform}/{model}.so")
         if (SOURCES / model / "y.txt").is_file():
             z.write(SOURCES / model / "y.txt", "resources/y.txt")

@@ -147,3 +147,26 @@ def test_me_participant_under_iteration_equals_the_exact_hold(fmus: dict[tuple[s
     me, ref = out
     assert np.max(np.abs(me["ss.y[1]"] - ref["ss.y[1]"])) <= 1e-5
     assert abs(ref["ss.y[1]"][-1] - (-1 + math.exp(2 / 3) + (3 - math.exp(2 / 3)) / 3)) <= 5e-3
+
+
+def test_me_fmu_with_state_under_iteration_from_an_ssd(
+    fmus: dict[tuple[str, int], Path], tmp_path: Path
+) -> None:
+    """An SSD with the Reference VanDerPol as a Model Exchange only FMU (it declares
+    canGetAndSetFMUstate) and iterative coupling: ``--check`` passes it (refused before, as
+    "cannot save and restore its state") and the run (a forked worker on the default path)
+    gives the in-process participant's results."""
+    from hevsim.cli import main
+    from hevsim.cosim.ssd import FMU_TYPE, Component, SystemDescription
+    from hevsim.cosim.ssp_write import write_ssd
+    from hevsim.cosim.system import run_cosim
+
+    fmu = build_reference_fmu("VanDerPol", 2, tmp_path, me_only=True)
+    desc = SystemDescription("me", [Component("v", FMU_TYPE, fmu.name)], [], stop_time_s=2.0,
+                             master={"step_s": 0.01, "max_iterations": 3}, base_dir=tmp_path)  # fmt: skip
+    ssd = write_ssd(desc, tmp_path / "me.ssd")
+    assert main(["cosim", str(ssd), "--check"]) == 0
+    res = run_cosim(ssd, tmp_path / "out")
+    assert res.stats["fmu_process"] == {"v": "worker process"}
+    ref = simulate([MEParticipant("v", fmu)], [], stop_time_s=2.0, step_s=0.01, max_iterations=3)
+    assert np.array_equal(res["v.x0"], ref["v.x0"]) and np.array_equal(res["v.x1"], ref["v.x1"])

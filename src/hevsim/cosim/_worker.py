@@ -473,8 +473,9 @@ def _other(p: Any, cmd: str, args: tuple[Any, ...]) -> Any:
         p.set_inputs(*args)
     elif cmd == "get":
         return p.get_outputs()
-    elif cmd == "get_state":
-        return bytes(p.get_state())
+    elif cmd == "get_state":  # (an FMU's serialised state; a Model Exchange FMU's with its own)
+        state = p.get_state()
+        return bytes(state) if isinstance(state, bytearray | memoryview) else state
     elif cmd == "set_state":
         p.set_state(*args)
     elif cmd == "terminate":

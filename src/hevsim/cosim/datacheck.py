@@ -257,13 +257,14 @@ def _fmu_connectors(desc: SystemDescription, c: Component, info: dict[str, Any])
     except ConfigError as exc:
         raise ConfigError(f"{desc.source}: component {c.name!r}: {exc}") from None
     cs, key = md.coSimulation, "FMUState" if md.fmiVersion.startswith("3") else "FMUstate"
-    info["can_state"] = bool(getattr(cs, f"canGetAndSet{key}", False)) and bool(
-        getattr(cs, f"canSerialize{key}", False)
+    iface = cs if cs is not None else md.modelExchange  # (run as the participant runs it)
+    info["can_state"] = bool(getattr(iface, f"canGetAndSet{key}", False)) and bool(
+        getattr(iface, f"canSerialize{key}", False)
     )
     info["state_note"] = (
         f'FMU {f.name} declares canGetAndSet{key}="false" or canSerialize{key}="false"'
         if cs is not None
-        else f"FMU {f.name} is Model Exchange: its state includes the integrator's, which is not saved"
+        else f'Model Exchange FMU {f.name} declares canGetAndSet{key}="false" or canSerialize{key}="false"'
     )
     info["event_mode"] = bool(md.fmiVersion.startswith("3") and getattr(cs, "hasEventMode", False))
     info["clocks"] = {

@@ -529,17 +529,20 @@ class WorkerFMUParticipant(Participant):
         not taken yet (a checkpoint then resumes with them)."""
         self._flush()
         state = self._rpc("get_state")
-        return (state, self._out_names, tuple(self._ahead)) if self._ahead else state
+        if self._ahead:
+            return {"fmu": state, "out_names": self._out_names, "ahead": tuple(self._ahead)}
+        return state
 
     def set_state(self, state: Any) -> None:
         self._pending = {}
         self._out = None
         self._started = False  # a step started from the replaced state is void
         self._discard_ahead()
-        if isinstance(state, tuple):  # saved while running ahead
-            state, self._out_names, ahead = state
-            self._ahead.extend(ahead)
-        self._rpc("set_state", bytes(state))
+        if isinstance(state, dict):  # saved while running ahead
+            self._out_names = state["out_names"]
+            self._ahead.extend(state["ahead"])
+            state = state["fmu"]
+        self._rpc("set_state", bytes(state) if isinstance(state, bytearray | memoryview) else state)
 
     def terminate(self) -> None:
         if self.proc.poll() is None:
