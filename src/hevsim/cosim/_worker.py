@@ -55,7 +55,7 @@ def unpack_steps(packed: tuple[Any, ...]) -> tuple[tuple[str, ...], list[Any]]:
     n = len(names)
     vals = memoryview(data).cast("d").tolist() if data else []
     last = len(prefs) - 1
-    out = [(True, pref, False, None, dict(zip(names, vals[k * n : k * n + n], strict=True)))
+    out: list[Any] = [(True, pref, False, None, dict(zip(names, vals[k * n : k * n + n], strict=True)))
            for k, pref in enumerate(prefs[:last])]  # fmt: skip
     if last >= 0:
         outs = dict(zip(names, vals[last * n : last * n + n], strict=True)) if ok else None

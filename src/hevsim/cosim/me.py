@@ -104,6 +104,8 @@ class MEParticipant(FMUParticipant):
         self.solver, self.rtol, self.max_step_s = solver, float(rtol), max_step_s
         # (can_state: the FMU's canGetAndSetFMUstate and canSerializeFMUstate, read by FMUParticipant)
         self._window: tuple[float, float] | None = None
+        self._next_event: float | None = None  # the FMU's next time event [s]
+        self._held: dict[str, Any] = {}  # the inputs last set
         self.events = 0
         """Events handled (time, state, step and input events) since :meth:`setup`."""
 
@@ -169,7 +171,7 @@ class MEParticipant(FMUParticipant):
                 self.slave.exitInitializationMode()
             self._time = float(t0)
             self.events = 0
-            self._next_event: float | None = None
+            self._next_event = None
             self.terminate_requested = False
             if self._iterate_events():  # (the FMU is in event mode after initialisation)
                 raise SimulationError(f"FMU {self.fmu.name} requested termination during initialisation.")
@@ -178,7 +180,7 @@ class MEParticipant(FMUParticipant):
         self.vars.bind(self.slave)
         self._raw_calls()
         self._inputs_changed = False
-        self._held: dict[str, Any] = {}
+        self._held = {}
 
     def _raw_calls(self) -> None:
         """setTime and completedIntegratorStep through the FMU's own functions (FMPy's wrappers
