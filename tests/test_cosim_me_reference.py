@@ -170,3 +170,24 @@ def test_me_fmu_with_state_under_iteration_from_an_ssd(
     assert res.stats["fmu_process"] == {"v": "worker process"}
     ref = simulate([MEParticipant("v", fmu)], [], stop_time_s=2.0, step_s=0.01, max_iterations=3)
     assert np.array_equal(res["v.x0"], ref["v.x0"]) and np.array_equal(res["v.x1"], ref["v.x1"])
+
+
+@pytest.mark.parametrize(("model", "fmi"), CASES, ids=[f"{m}-fmi{v}" for m, v in CASES])
+def test_reference_cs_fmu_equals_fmpy(fmus: dict[tuple[str, int], Path], model: str, fmi: int) -> None:
+    """The same Reference FMUs through their co-simulation interface (:class:`FMUParticipant`,
+    in process; the FMI 3.0 BouncingBall and Stair declare event mode, which hevsim uses)
+    against ``fmpy.simulate_fmu(fmi_type="CoSimulation")`` with the output interval as the
+    communication step: every output at every point equal to 1e-12 (in practice identical)."""
+    from fmpy import simulate_fmu
+
+    from hevsim.cosim.participant import FMUParticipant
+
+    fmu, stop = fmus[model, fmi], STOP[model]
+    h = 0.01 if model == "Stair" else stop / 500
+    ref = simulate_fmu(str(fmu), fmi_type="CoSimulation", stop_time=stop, output_interval=h)
+    res = simulate([FMUParticipant("m", fmu)], [], stop_time_s=stop, step_s=h)
+    n = len(ref)
+    assert n > 100 and np.array_equal(res.time_s[:n], ref["time"])
+    for v in ref.dtype.names[1:]:
+        for col, a in _columns(ref, v):
+            assert np.max(np.abs(a - res[f"m.{col}"][:n]) / (1 + np.abs(a))) <= 1e-12, col
