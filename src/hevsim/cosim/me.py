@@ -334,15 +334,20 @@ _UNSET = object()
 
 def participant_class(fmu: str | Path) -> type[FMUParticipant]:
     """:class:`FMUParticipant` for an FMU with a co-simulation interface, else
-    :class:`MEParticipant` when it has a model exchange one (the FMU is read; a file that is
-    not an FMU is left to the participant to report)."""
+    :class:`MEParticipant` when it has a model exchange one, else
+    :class:`hevsim.cosim.se.SEParticipant` when it has only Scheduled Execution (the FMU is
+    read; a file that is not an FMU is left to the participant to report)."""
     from fmpy import read_model_description
 
     try:
         md = read_model_description(str(fmu))
     except Exception:
         return FMUParticipant
-    return MEParticipant if md.coSimulation is None and md.modelExchange is not None else FMUParticipant
+    if md.coSimulation is None and md.modelExchange is not None:
+        return MEParticipant
+    from hevsim.cosim.se import SEParticipant, has_only_scheduled_execution
+
+    return SEParticipant if has_only_scheduled_execution(md) else FMUParticipant
 
 
 __all__ = ["SOLVERS", "MEParticipant", "participant_class"]

@@ -438,7 +438,7 @@ class FMUParticipant(Participant):
         except ConfigError as exc:
             raise ConfigError(f"participant {name!r}: FMU {self.fmu.name}: {exc}") from None
         self.inputs, self.outputs = self.vars.inputs, self.vars.outputs
-        if self._event_capable(md):  # clocks are run (below): not "unsupported"
+        if self._event_capable(md) or self.runs_own_clocks:  # clocks are run: not "unsupported"
             for k in [k for k, t in self.vars.unsupported.items() if t == "Clock"]:
                 del self.vars.unsupported[k]
         if self.vars.unsupported:
@@ -472,6 +472,8 @@ class FMUParticipant(Participant):
         self.terminate_requested = False
 
     interface_name = "co-simulation"
+    runs_own_clocks = False
+    """The subclass runs the FMU's clocks itself (Scheduled Execution: :mod:`hevsim.cosim.se`)."""
 
     def _event_capable(self, md: Any) -> bool:
         """Whether the FMU runs in event mode here (FMI 3.0 co-simulation with hasEventMode)."""
