@@ -150,3 +150,30 @@ def test_me_worker_runs_ahead_packed_and_pipelined(fmus: dict[str, Path]) -> Non
     assert np.array_equal(res.data, ref.data) and np.array_equal(res.time_s, ref.time_s)
     assert packed and all(packed)
     assert sent_with_buffered[0] == 0 and min(sent_with_buffered[1:]) > 0  # pipelined
+
+
+def test_me_fmu_clocks_against_the_closed_form(tmp_path: Path) -> None:
+    """FMI 3.0 Model Exchange with clocks (tests/cosim_cme3_clocks.py): the periodic input
+    clock (0.3 s, shift 0.1 s) ticks as a time event in event mode (fmi3SetClock, then the event
+    iteration), wherever the communication points are; the output clock is read after the
+    iteration. count = ticks so far, exactly; x = exp(-t) + sum exp(-(t - t_k)) to 1e-6 (rtol
+    1e-8); the output clock with every third tick. Before: the clocks were not run (a warning)."""
+    from tests.cosim_cme3_clocks import build_me_clocks_fmu
+
+    fmu = build_me_clocks_fmu(tmp_path)
+    tk = 0.1 + 0.3 * np.arange(7)
+    for h in (0.05, 0.3):
+        p = MEParticipant("m", fmu, rtol=1e-8)
+        assert p.clock_inputs == {"tick": "constant"} and p.clock_outputs == {"third": "triggered"}
+        res = simulate([p], [], stop_time_s=2.1, step_s=h)
+        t = res.time_s
+        count = [np.sum(tk <= ti + 1e-9) for ti in t]
+        x = np.exp(-t) + [np.sum(np.exp(-(ti - tk[tk <= ti + 1e-9]))) for ti in t]
+        np.testing.assert_array_equal(res["m.count"], count)
+        assert np.max(np.abs(res["m.x"] - x)) <= 1e-6
+        assert [c for _, c in p.clock_log] == ["tick"] * 2 + ["tick", "third"] + ["tick"] * 2 + [
+            "tick",
+            "third",
+            "tick",
+        ]
+        np.testing.assert_allclose([s for s, c in p.clock_log if c == "third"], [0.7, 1.6], rtol=1e-12)

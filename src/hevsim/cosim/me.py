@@ -83,6 +83,11 @@ class MEParticipant(FMUParticipant):
     def _interface(md: Any) -> Any:
         return md.modelExchange
 
+    def _event_capable(self, md: Any) -> bool:
+        """FMI 3.0 Model Exchange always has event mode: its clocks are run (periodic input
+        clocks tick as time events, output clocks are read after each event iteration)."""
+        return bool(md.fmiVersion.startswith("3"))
+
     def __init__(
         self,
         name: str,
@@ -157,6 +162,11 @@ class MEParticipant(FMUParticipant):
                 self.slave.enterInitializationMode(startTime=t0)
                 self._set_params()
                 self.slave.exitInitializationMode()
+                self._t0 = float(t0)
+                self._schedule = self._clock_schedule() if self._periodic else []
+                self._pending, self.clock_log, self.clock_ticks = [], [], {}
+                eps = 1e-9 * max(1.0, abs(t0))
+                self._tick_inputs(t0, [c for c, t1, _ in self._schedule if t1 <= t0 + eps], [])
             else:
                 from fmpy.fmi2 import FMU2Model
 
@@ -252,13 +262,33 @@ class MEParticipant(FMUParticipant):
         while need and not terminate:
             need, terminate, _, _, defined, t_next = update()
         self._next_event = float(t_next) if defined else None
+        if self.clock_outputs:  # output clocks that ticked in this event (fmi3GetClock)
+            names = list(self.clock_outputs)
+            for c, on in zip(names, self.slave.getClock([self._clock_vr[c] for c in names]), strict=True):
+                if on:
+                    out = self.vars.get_outputs(self.slave) if self._clocked_outputs[c] else {}
+                    self.clock_ticks.setdefault(c, []).append(
+                        (self._time, {k: out[k] for k in self._clocked_outputs[c]})
+                    )
+                    self.clock_log.append((self._time, c))
         return bool(terminate)
 
     def _event(self, t: float) -> bool:
-        """Handle an event at ``t``: event mode, iteration, continuous-time mode, solver
-        restart. Returns whether the FMU asked to terminate."""
+        """Handle an event at ``t``: event mode, the input clocks ticking at ``t`` activated
+        (fmi3SetClock), iteration, continuous-time mode, solver restart. Returns whether the
+        FMU asked to terminate."""
         self.events += 1
         self.slave.enterEventMode()
+        if self.fmi3 and (self._schedule or self._pending):
+            eps = 1e-9 * max(1.0, abs(t))
+            periodic = [
+                c for c, first, dt in self._schedule
+                if t >= first - eps and abs(t - first - round((t - first) / dt) * dt) <= eps
+            ]  # fmt: skip
+            due = [(c, v) for tk, c, v in self._pending if abs(tk - t) <= eps]
+            self._pending = [e for e in self._pending if abs(e[0] - t) > eps]
+            self._tick_inputs(t, periodic, due)
+        self._time = t
         if self._iterate_events():
             return True
         self.slave.enterContinuousTimeMode()
@@ -296,6 +326,9 @@ class MEParticipant(FMUParticipant):
         )
         time = self._time
         self.terminate_requested = False
+        ticks = self._ticks_in(time, t_end) if self.fmi3 and (self._schedule or self._pending) else []
+        if self.fmi3:
+            self.clock_ticks = {}
         if self._inputs_changed:  # inputs changed at t: an event there
             self._inputs_changed = False
             if self._event(time):
@@ -303,6 +336,10 @@ class MEParticipant(FMUParticipant):
         while not (time > t_end or isclose(time, t_end)):
             t_next = t_end
             nxt = self._next_event
+            while ticks and (ticks[0] < time or isclose(ticks[0], time)):
+                ticks.pop(0)
+            if ticks and (nxt is None or ticks[0] < nxt):  # a clock tick: a time event
+                nxt = ticks[0]
             if nxt is not None and t_next > nxt and not isclose(t_next, nxt):
                 t_next = nxt
             time_event = nxt is not None and isclose(t_next, nxt)

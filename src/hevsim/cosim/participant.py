@@ -520,8 +520,8 @@ class FMUParticipant(Participant):
             self._clock_vr[v.name] = v.valueReference
         for v in md.modelVariables:
             cl = getattr(v, "clocks", None) or []
-            if not cl or v.causality not in ("input", "output"):
-                continue
+            if not cl or v.causality not in ("input", "output") or str(v.type) == "Clock":
+                continue  # (a clock's own "clocks": the clocks it depends on, not a clocked value)
             if len(cl) != 1 or v.name not in self.vars.types:
                 raise ConfigError(
                     f"participant {self.name!r}: FMU {fmu}: clocked variable {v.name!r} "
