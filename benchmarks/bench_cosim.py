@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -334,7 +335,7 @@ def worker_rows(fmu: Path, steps: int, runs: int = 5) -> None:
                   f"max {w[-1]:6.1f} µs{cpu}")  # fmt: skip
 
 
-def me_rows(d: Path, steps: int, runs: int = 3) -> None:
+def me_rows(d: Path, steps: int, runs: int = 5) -> None:
     """Model Exchange Van der Pol (the C FMU of tests/cosim_cme.py, CVODE BDF, rtol 1e-5) for
     ``steps`` communication steps of H: ``fmpy.simulate_fmu`` (output interval H, no event
     rows) against ``simulate`` with an in-process :class:`MEParticipant` and against
@@ -366,13 +367,26 @@ def me_rows(d: Path, steps: int, runs: int = 3) -> None:
         simulate([MEParticipant("vdp", fmu)], [], stop_time_s=stop, step_s=H)
         return time.perf_counter() - t0
 
+    def cpu_s() -> float:  # this process and its reaped children (the forked workers)
+        r, c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+        return r.ru_utime + r.ru_stime + c.ru_utime + c.ru_stime
+
+    def timed(fn: Any) -> tuple[float, float]:  # (wall [s], CPU [s])
+        c0 = cpu_s()
+        wall = fn()
+        return wall, cpu_s() - c0
+
     fmpy_s(), master_s()  # warm up
-    rows = [(fmpy_s(), master_s(), t_run_cosim(ssd, d / f"me_out{i}")[0]) for i in range(runs)]
-    tf, tm, tr = (min(r[k] for r in rows) for k in range(3))
+    rows = [(timed(fmpy_s), timed(master_s), timed(lambda i=i: t_run_cosim(ssd, d / f"me_out{i}")[0]))
+            for i in range(runs)]  # fmt: skip
+    tf, tm, tr = (min(r[k][0] for r in rows) for k in range(3))
+    cf, cm, cr = (statistics.median(r[k][1] for r in rows) for k in range(3))
     print(f"  Model Exchange Van der Pol (C, CVODE BDF rtol 1e-5), {steps} steps of {H} s, min of {runs}:")
     print(f"    fmpy.simulate_fmu: {tf:.3f} s; hevsim simulate (in process): {tm:.3f} s, ratio {tm / tf:.2f}")
     print(f"    run_cosim default path (forked worker, files, plots): {tr:.3f} s, ratio {tr / tf:.2f} "
           f"(target {TARGET_RATIO})")  # fmt: skip
+    print(f"    CPU time, medians (master + worker): fmpy {cf:.3f} s, simulate {cm:.3f} s ({cm / cf:.2f}), "
+          f"run_cosim {cr:.3f} s ({cr / cf:.2f})")  # fmt: skip
 
 
 def main() -> None:

@@ -229,16 +229,23 @@ def _ahead(fmu: Path, params: dict[str, float], batch: tuple[int, int] | None) -
     if batch is None:
         p.run_ahead = None  # type: ignore[assignment,method-assign]
     else:
-        real_run_ahead, real_rpc = p.run_ahead, p._rpc
+        real_run_ahead, real_send, real_recv = p.run_ahead, p._send, p._recv
         p.run_ahead = lambda next_end: real_run_ahead(next_end, *batch)  # type: ignore[method-assign]
+        asked: list[int] = []
 
-        def rpc(cmd: str, *args: Any) -> Any:
-            res = real_rpc(cmd, *args)
+        def send(cmd: str, *args: Any) -> None:
+            real_send(cmd, *args)
             if cmd == "steps":
-                sizes.append((len(args[0]), len(res[0]), res[1] is None))
+                asked.append(len(args[0]))
+
+        def recv(cmd: str) -> Any:
+            res = real_recv(cmd)
+            if cmd == "steps":  # (a packed reply: one preferred step per step run)
+                run = len(res[0][3]) if isinstance(res[0], tuple) else len(res[0])
+                sizes.append((asked.pop(0), run, res[1] is None))
             return res
 
-        p._rpc = rpc  # type: ignore[method-assign]
+        p._send, p._recv = send, recv  # type: ignore[method-assign]
     return p, sizes
 
 
@@ -299,7 +306,10 @@ def test_checkpoint_of_a_worker_running_ahead_resumes_identically(integrator: Pa
     interrupt_after(run, 0.55, checkpoint_path=ck, checkpoint_every=1)
     saved = pickle.loads(ck.read_bytes())
     assert saved["t"] == pytest.approx(0.6)
-    fmu_state, _, ahead = saved["states"]["i"]  # at 0.8 s, with the steps from 0.6 and 0.7 s
+    # at 0.8 s, with the steps from 0.6 and 0.7 s (the batch from 0.4 s, sent while the master
+    # took the first one, was collected by the first checkpoint)
+    st = saved["states"]["i"]
+    fmu_state, ahead = st["fmu"], st["ahead"]
     assert isinstance(fmu_state, bytes) and [round(s[0], 9) for s in ahead] == [0.6, 0.7]
     resumed = run(checkpoint_path=ck, resume=True)
     full = run()

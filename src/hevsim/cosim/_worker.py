@@ -44,6 +44,25 @@ TOKEN = object()
 """What :meth:`FrameReader.recv` returns for a :data:`TOKEN_FRAME`."""
 
 
+PACKED = "packed"
+"""Marks a run-ahead reply whose outputs come as one float64 buffer (:meth:`_Stepper.steps`)."""
+
+
+def unpack_steps(packed: tuple[Any, ...]) -> tuple[tuple[str, ...], list[Any]]:
+    """The output names and the per-step replies (ok, preferred h, terminate requested,
+    terminate time, {output: value} or None) of a packed run-ahead reply."""
+    _, names, data, prefs, (ok, term, t_term) = packed
+    n = len(names)
+    vals = memoryview(data).cast("d").tolist() if data else []
+    last = len(prefs) - 1
+    out: list[Any] = [(True, pref, False, None, dict(zip(names, vals[k * n : k * n + n], strict=True)))
+           for k, pref in enumerate(prefs[:last])]  # fmt: skip
+    if last >= 0:
+        outs = dict(zip(names, vals[last * n : last * n + n], strict=True)) if ok else None
+        out.append((ok, prefs[last], term, t_term, outs))
+    return names, out
+
+
 def encode_frame(obj: Any) -> bytes:
     """``obj`` as one frame: its pickle's length, then the pickle."""
     payload = pickle.dumps(obj, pickle.HIGHEST_PROTOCOL)
@@ -302,6 +321,9 @@ class _Stepper:
         """Run ahead: the steps ``schedule`` ((t, h) pairs) with the inputs held, up to the first
         that is not accepted or asks to terminate: (their replies, the error of the step
         that raised or None)."""
+        packed = self._packed_steps(schedule)
+        if packed is not None:
+            return packed
         replies: list[Any] = []
         for t, h in schedule:
             try:
@@ -312,6 +334,44 @@ class _Stepper:
             if not r[0] or r[2]:
                 break
         return replies, None
+
+    def _packed_steps(self, schedule: tuple[tuple[float, float], ...]) -> Any:
+        """:meth:`steps` for an FMU whose outputs are all float64, its outputs read with the
+        FMU's own get function into one buffer (no dict per step): ((``PACKED``, output
+        names, the accepted steps' outputs as float64 bytes, row after row, each step's
+        preferred step, (ok, terminate requested, terminate time) of the last step), error);
+        every step but the last was accepted without a termination request. None: the FMU's
+        outputs are not all float64 (or it has none)."""
+        import ctypes
+
+        p = self.p
+        fast = p.vars.fast_names() if hasattr(p, "real_io") else None
+        if fast is None or not fast[1]:
+            return None
+        names = fast[1]
+        row = (ctypes.c_double * len(names))()
+        _, get = p.real_io((), None, row)
+        assert get is not None
+        data, prefs = bytearray(), []
+        tail: tuple[bool, bool, float | None] = (True, False, None)
+        err = None
+        for t, h in schedule:
+            try:
+                ok, pref = p.do_step(t, h)
+                if ok:
+                    with phase("get_outputs"):
+                        get()
+            except Exception as exc:
+                err = f"{type(exc).__name__}: {exc}"
+                break
+            prefs.append(pref)
+            if ok:
+                data += row
+            tail = (bool(ok), bool(p.terminate_requested), p.terminate_time)
+            if not ok or tail[1]:
+                break
+        self.out_names = names
+        return (PACKED, names, bytes(data), tuple(prefs), tail), err
 
 
 @contextlib.contextmanager
@@ -390,6 +450,7 @@ def serve(rfd: int, wfd: int) -> None:
                     dict(p.types),
                     fast,
                     dict(p.fmi_types),
+                    p.exact_restore,
                 )
             elif cmd == "quit":
                 return
@@ -412,8 +473,9 @@ def _other(p: Any, cmd: str, args: tuple[Any, ...]) -> Any:
         p.set_inputs(*args)
     elif cmd == "get":
         return p.get_outputs()
-    elif cmd == "get_state":
-        return bytes(p.get_state())
+    elif cmd == "get_state":  # (an FMU's serialised state; a Model Exchange FMU's with its own)
+        state = p.get_state()
+        return bytes(state) if isinstance(state, bytearray | memoryview) else state
     elif cmd == "set_state":
         p.set_state(*args)
     elif cmd == "terminate":

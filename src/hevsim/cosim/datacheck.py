@@ -247,23 +247,27 @@ def _fmu_connectors(desc: SystemDescription, c: Component, info: dict[str, Any])
         md = read_model_description(str(f))
     except Exception as exc:
         raise ConfigError(f"{desc.source}: component {c.name!r}: {f} is not a valid FMU ({exc}).") from None
-    if md.coSimulation is None and md.modelExchange is None:
+    se = getattr(md, "scheduledExecution", None)
+    if md.coSimulation is None and md.modelExchange is None and se is None:
         raise ConfigError(
-            f"{desc.source}: component {c.name!r}: FMU {f.name} has neither a co-simulation nor a "
-            "model exchange interface."
+            f"{desc.source}: component {c.name!r}: FMU {f.name} has neither a co-simulation, a "
+            "model exchange nor a scheduled execution interface."
         )
     try:
         fv = FmuVariables(md, f.name)
     except ConfigError as exc:
         raise ConfigError(f"{desc.source}: component {c.name!r}: {exc}") from None
     cs, key = md.coSimulation, "FMUState" if md.fmiVersion.startswith("3") else "FMUstate"
-    info["can_state"] = bool(getattr(cs, f"canGetAndSet{key}", False)) and bool(
-        getattr(cs, f"canSerialize{key}", False)
+    iface = cs if cs is not None else md.modelExchange  # (run as the participant runs it; SE: no state)
+    info["can_state"] = bool(getattr(iface, f"canGetAndSet{key}", False)) and bool(
+        getattr(iface, f"canSerialize{key}", False)
     )
     info["state_note"] = (
         f'FMU {f.name} declares canGetAndSet{key}="false" or canSerialize{key}="false"'
         if cs is not None
-        else f"FMU {f.name} is Model Exchange: its state includes the integrator's, which is not saved"
+        else f'Model Exchange FMU {f.name} declares canGetAndSet{key}="false" or canSerialize{key}="false"'
+        if md.modelExchange is not None
+        else f"Scheduled Execution FMU {f.name}: its state is not saved here"
     )
     info["event_mode"] = bool(md.fmiVersion.startswith("3") and getattr(cs, "hasEventMode", False))
     info["clocks"] = {

@@ -235,10 +235,12 @@ class Master:
             if n not in self.p:
                 raise ConfigError(f"rates name unknown participant {n!r}; participants: {sorted(self.p)}.")
         self.rates = {n: int(options.rates.get(n, 1)) for n in self.order}
-        self._stateless = [n for n in self.order if not self.p[n].can_save_state]
+        no_state = [n for n in self.order if not self.p[n].can_save_state]
+        # checkpoints replay the participants that cannot restore a state exactly
+        self._stateless = [n for n in self.order if n in no_state or not self.p[n].exact_restore]
         needs = state_needs(options)
-        if needs and self._stateless:
-            n = self._stateless[0]
+        if needs and no_state:
+            n = no_state[0]
             raise ConfigError(
                 f"participant {n!r} cannot save and restore its state ({self.p[n].state_note}), "
                 f"which {needs} needs; use max_iterations=1 and negotiation 'fixed' with it."
@@ -490,7 +492,8 @@ class Master:
             if t != ref[0] or not same or (self._tcols and trow != self._treplay[i]):
                 names = ", ".join(repr(n) for n in self._stateless)
                 raise CosimFault(
-                    f"cannot resume: participant(s) {names} cannot save their state, so the run was "
+                    f"cannot resume: participant(s) {names} cannot save their state (or not restore it "
+                    "exactly), so the run was "
                     f"replayed from the start, but the replay differs from the stored results at "
                     f"t = {t:g} s (row {i}): the participants are not deterministic. Run again "
                     "without resume."
@@ -679,7 +682,8 @@ class Master:
                 self._refuse_replay(ck)  # type: ignore[arg-type]
                 self._replay, self._treplay = blob["table"], blob["text_table"]
                 self.stats["resume"] = (
-                    f"replayed from t = {t:g} s (participants that cannot save their state), checked "
+                    f"replayed from t = {t:g} s (participants that cannot save their state or restore it "
+                    "exactly), checked "
                     f"against the {len(self._replay)} rows stored up to t = {blob['t']:g} s "
                     f"(step {blob['nsteps']})"
                 )

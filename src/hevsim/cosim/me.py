@@ -21,9 +21,14 @@ reinitialise the solver. An input that changed since the last step is an event a
 (the same iteration, then a solver restart). ``terminateSimulation`` from the FMU ends the
 run there (as a co-simulation FMU's request).
 
-Not supported: saving and restoring the state (the integrator's history is part of it), so
-iteration and step negotiation refuse an ME participant, and a checkpoint resumes by replay;
-FMI 3.0 clocks.
+State: an FMU declaring ``canGetAndSetFMUstate`` and ``canSerializeFMUstate`` saves and
+restores its FMU state with the participant's time, next time event and held inputs; a restore
+re-initialises CVODE at the restored time (the solver's step-size and order history is not
+saved, so after a restore the run equals an uninterrupted one to the solver's tolerance, not
+bit for bit). Iteration and step negotiation use it; checkpoints resume an ME participant by
+replay (exact) rather than by restoring it (:attr:`MEParticipant.exact_restore`).
+
+Not supported: FMI 3.0 clocks of Model Exchange FMUs.
 """
 
 from __future__ import annotations
@@ -78,6 +83,11 @@ class MEParticipant(FMUParticipant):
     def _interface(md: Any) -> Any:
         return md.modelExchange
 
+    def _event_capable(self, md: Any) -> bool:
+        """FMI 3.0 Model Exchange always has event mode: its clocks are run (periodic input
+        clocks tick as time events, output clocks are read after each event iteration)."""
+        return bool(md.fmiVersion.startswith("3"))
+
     def __init__(
         self,
         name: str,
@@ -97,14 +107,41 @@ class MEParticipant(FMUParticipant):
         if max_step_s is not None and not max_step_s > 0:
             raise ConfigError(f"participant {name!r}: max_step_s {max_step_s!r}; expected > 0.")
         self.solver, self.rtol, self.max_step_s = solver, float(rtol), max_step_s
-        self.can_state = False
+        # (can_state: the FMU's canGetAndSetFMUstate and canSerializeFMUstate, read by FMUParticipant)
         self._window: tuple[float, float] | None = None
+        self._next_event: float | None = None  # the FMU's next time event [s]
+        self._held: dict[str, Any] = {}  # the inputs last set
         self.events = 0
         """Events handled (time, state, step and input events) since :meth:`setup`."""
 
+    exact_restore = False
+    """A restored state restarts CVODE (its step size and order history are not saved), so the
+    run after a restore equals an uninterrupted one only to the solver's tolerance: checkpoints
+    replay an ME participant (exactly) instead of restoring it."""
+
     @property
     def state_note(self) -> str:
-        return "a Model Exchange FMU: its state includes the integrator's, which is not saved"
+        key = "FMUState" if self.fmi3 else "FMUstate"
+        return (f'Model Exchange FMU {self.fmu.name} declares canGetAndSet{key}="false" or '
+                f'canSerialize{key}="false"')  # fmt: skip
+
+    def get_state(self) -> Any:
+        """The FMU's serialised state (FMI get / serialise FMU state, in continuous-time mode
+        after a step) with the participant's own: time, next time event, held inputs, events,
+        termination request. The integrator is not part of it (see :attr:`exact_restore`)."""
+        fmu_state = super().get_state()
+        return (fmu_state, self._time, self._next_event, dict(self._held), self._inputs_changed,
+                self.events, self.terminate_requested)  # fmt: skip
+
+    def set_state(self, state: Any) -> None:
+        """Restore a :meth:`get_state` snapshot and re-initialise CVODE at its time (from the
+        restored continuous states and nominals)."""
+        fmu_state, t, nxt, held, changed, events, term = state
+        super().set_state(fmu_state)
+        self._time, self._next_event, self._held = float(t), nxt, dict(held)
+        self._inputs_changed, self.events, self.terminate_requested = bool(changed), int(events), bool(term)
+        self._set_time(self._time)
+        self._solver.reset(self._time)
 
     def run_window(self, start_s: float, stop_s: float) -> None:
         """The run's start and stop time [s] (the master tells it before :meth:`setup`): the
@@ -125,6 +162,11 @@ class MEParticipant(FMUParticipant):
                 self.slave.enterInitializationMode(startTime=t0)
                 self._set_params()
                 self.slave.exitInitializationMode()
+                self._t0 = float(t0)
+                self._schedule = self._clock_schedule() if self._periodic else []
+                self._pending, self.clock_log, self.clock_ticks = [], [], {}
+                eps = 1e-9 * max(1.0, abs(t0))
+                self._tick_inputs(t0, [c for c, t1, _ in self._schedule if t1 <= t0 + eps], [])
             else:
                 from fmpy.fmi2 import FMU2Model
 
@@ -139,7 +181,7 @@ class MEParticipant(FMUParticipant):
                 self.slave.exitInitializationMode()
             self._time = float(t0)
             self.events = 0
-            self._next_event: float | None = None
+            self._next_event = None
             self.terminate_requested = False
             if self._iterate_events():  # (the FMU is in event mode after initialisation)
                 raise SimulationError(f"FMU {self.fmu.name} requested termination during initialisation.")
@@ -148,7 +190,7 @@ class MEParticipant(FMUParticipant):
         self.vars.bind(self.slave)
         self._raw_calls()
         self._inputs_changed = False
-        self._held: dict[str, Any] = {}
+        self._held = {}
 
     def _raw_calls(self) -> None:
         """setTime and completedIntegratorStep through the FMU's own functions (FMPy's wrappers
@@ -220,13 +262,33 @@ class MEParticipant(FMUParticipant):
         while need and not terminate:
             need, terminate, _, _, defined, t_next = update()
         self._next_event = float(t_next) if defined else None
+        if self.clock_outputs:  # output clocks that ticked in this event (fmi3GetClock)
+            names = list(self.clock_outputs)
+            for c, on in zip(names, self.slave.getClock([self._clock_vr[c] for c in names]), strict=True):
+                if on:
+                    out = self.vars.get_outputs(self.slave) if self._clocked_outputs[c] else {}
+                    self.clock_ticks.setdefault(c, []).append(
+                        (self._time, {k: out[k] for k in self._clocked_outputs[c]})
+                    )
+                    self.clock_log.append((self._time, c))
         return bool(terminate)
 
     def _event(self, t: float) -> bool:
-        """Handle an event at ``t``: event mode, iteration, continuous-time mode, solver
-        restart. Returns whether the FMU asked to terminate."""
+        """Handle an event at ``t``: event mode, the input clocks ticking at ``t`` activated
+        (fmi3SetClock), iteration, continuous-time mode, solver restart. Returns whether the
+        FMU asked to terminate."""
         self.events += 1
         self.slave.enterEventMode()
+        if self.fmi3 and (self._schedule or self._pending):
+            eps = 1e-9 * max(1.0, abs(t))
+            periodic = [
+                c for c, first, dt in self._schedule
+                if t >= first - eps and abs(t - first - round((t - first) / dt) * dt) <= eps
+            ]  # fmt: skip
+            due = [(c, v) for tk, c, v in self._pending if abs(tk - t) <= eps]
+            self._pending = [e for e in self._pending if abs(e[0] - t) > eps]
+            self._tick_inputs(t, periodic, due)
+        self._time = t
         if self._iterate_events():
             return True
         self.slave.enterContinuousTimeMode()
@@ -254,7 +316,7 @@ class MEParticipant(FMUParticipant):
         if not isclose(t, self._time, rel_tol=1e-9, abs_tol=1e-12):
             raise SimulationError(
                 f"FMU {self.fmu.name} is at t = {self._time!r} s, asked to step from {t!r} s "
-                "(a Model Exchange participant cannot go back: no saved state)."
+                "(a Model Exchange participant goes back only by restoring a saved state)."
             )
         solver, set_time, completed, needs_step = (
             self._solver,
@@ -264,6 +326,9 @@ class MEParticipant(FMUParticipant):
         )
         time = self._time
         self.terminate_requested = False
+        ticks = self._ticks_in(time, t_end) if self.fmi3 and (self._schedule or self._pending) else []
+        if self.fmi3:
+            self.clock_ticks = {}
         if self._inputs_changed:  # inputs changed at t: an event there
             self._inputs_changed = False
             if self._event(time):
@@ -271,6 +336,10 @@ class MEParticipant(FMUParticipant):
         while not (time > t_end or isclose(time, t_end)):
             t_next = t_end
             nxt = self._next_event
+            while ticks and (ticks[0] < time or isclose(ticks[0], time)):
+                ticks.pop(0)
+            if ticks and (nxt is None or ticks[0] < nxt):  # a clock tick: a time event
+                nxt = ticks[0]
             if nxt is not None and t_next > nxt and not isclose(t_next, nxt):
                 t_next = nxt
             time_event = nxt is not None and isclose(t_next, nxt)
@@ -302,15 +371,20 @@ _UNSET = object()
 
 def participant_class(fmu: str | Path) -> type[FMUParticipant]:
     """:class:`FMUParticipant` for an FMU with a co-simulation interface, else
-    :class:`MEParticipant` when it has a model exchange one (the FMU is read; a file that is
-    not an FMU is left to the participant to report)."""
+    :class:`MEParticipant` when it has a model exchange one, else
+    :class:`hevsim.cosim.se.SEParticipant` when it has only Scheduled Execution (the FMU is
+    read; a file that is not an FMU is left to the participant to report)."""
     from fmpy import read_model_description
 
     try:
         md = read_model_description(str(fmu))
     except Exception:
         return FMUParticipant
-    return MEParticipant if md.coSimulation is None and md.modelExchange is not None else FMUParticipant
+    if md.coSimulation is None and md.modelExchange is not None:
+        return MEParticipant
+    from hevsim.cosim.se import SEParticipant, has_only_scheduled_execution
+
+    return SEParticipant if has_only_scheduled_execution(md) else FMUParticipant
 
 
 __all__ = ["SOLVERS", "MEParticipant", "participant_class"]

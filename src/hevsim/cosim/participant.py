@@ -76,6 +76,11 @@ class Participant(ABC):
     clocked_inputs: Mapping[str, str] = {}
     """Input variables set only when their clock ticks (name -> clock name): not in
     :attr:`inputs`, delivered with the ticks of their clock (:meth:`deliver_ticks`)."""
+    exact_restore: bool = True
+    """A restored state continues exactly as the run it was saved from (False: only to a
+    tolerance, e.g. a Model Exchange FMU whose integrator restarts): checkpoints replay such
+    participants from the start instead of restoring them; iteration and step negotiation
+    restore them."""
     deterministic: bool = True
     """Same inputs give the same outputs: a run it cannot checkpoint can be resumed by
     replaying from the start (the replay is compared with the stored results)."""
@@ -433,7 +438,7 @@ class FMUParticipant(Participant):
         except ConfigError as exc:
             raise ConfigError(f"participant {name!r}: FMU {self.fmu.name}: {exc}") from None
         self.inputs, self.outputs = self.vars.inputs, self.vars.outputs
-        if self._event_capable(md):  # clocks are run (below): not "unsupported"
+        if self._event_capable(md) or self.runs_own_clocks:  # clocks are run: not "unsupported"
             for k in [k for k, t in self.vars.unsupported.items() if t == "Clock"]:
                 del self.vars.unsupported[k]
         if self.vars.unsupported:
@@ -467,6 +472,8 @@ class FMUParticipant(Participant):
         self.terminate_requested = False
 
     interface_name = "co-simulation"
+    runs_own_clocks = False
+    """The subclass runs the FMU's clocks itself (Scheduled Execution: :mod:`hevsim.cosim.se`)."""
 
     def _event_capable(self, md: Any) -> bool:
         """Whether the FMU runs in event mode here (FMI 3.0 co-simulation with hasEventMode)."""
@@ -513,8 +520,8 @@ class FMUParticipant(Participant):
             self._clock_vr[v.name] = v.valueReference
         for v in md.modelVariables:
             cl = getattr(v, "clocks", None) or []
-            if not cl or v.causality not in ("input", "output"):
-                continue
+            if not cl or v.causality not in ("input", "output") or str(v.type) == "Clock":
+                continue  # (a clock's own "clocks": the clocks it depends on, not a clocked value)
             if len(cl) != 1 or v.name not in self.vars.types:
                 raise ConfigError(
                     f"participant {self.name!r}: FMU {fmu}: clocked variable {v.name!r} "

@@ -25,6 +25,7 @@ from typing import Any, NoReturn
 from hevsim.cosim._worker import (
     OUTCOME_AT,
     OUTCOME_FORMAT,
+    PACKED,
     REPLY_SEQ_AT,
     REQUEST_SEQ_AT,
     SPIN_MAX_S,
@@ -36,6 +37,7 @@ from hevsim.cosim._worker import (
     encode_frame,
     send_frame,
     step_at,
+    unpack_steps,
     write_frame,
     write_seq,
 )
@@ -73,10 +75,10 @@ class ForkedWorker:
         if pid == 0:  # the worker: serve, never return into the master's code
             code = 1
             try:
-                for f in list(_MASTER_ENDS):
-                    if not f.closed:
+                for f in list(_MASTER_ENDS):  # (closing the file objects, this process's
+                    if not f.closed:  # copies: one collected later must not close a reused fd)
                         with contextlib.suppress(OSError):
-                            os.close(f.fileno())
+                            f.close()
                 os.close(w_req)
                 os.close(r_rep)
                 os.dup2(2, 1)
@@ -200,6 +202,7 @@ class WorkerFMUParticipant(Participant):
         self._batch = RUN_AHEAD_STEPS
         self._max_batch = RUN_AHEAD_MAX
         self._ahead: collections.deque[tuple[float, float, Any]] = collections.deque()
+        self._prefetched: tuple[tuple[float, float], ...] | None = None  # steps sent, reply due
         self._in_names: tuple[str, ...] | None = None  # input names the worker holds
         self._out_names: tuple[str, ...] = ()
         try:
@@ -208,7 +211,8 @@ class WorkerFMUParticipant(Participant):
         except SimulationError as exc:
             self.close()
             raise ConfigError(str(exc)) from None
-        ins, outs, can_state, note, types, fast, fmi_types = info
+        ins, outs, can_state, note, types, fast, fmi_types, exact = info
+        self.exact_restore = bool(exact)
         self.inputs, self.outputs = dict(ins), dict(outs)
         self.fmi_types = dict(fmi_types)
         self._can_state, self._state_note = bool(can_state), str(note)
@@ -261,6 +265,8 @@ class WorkerFMUParticipant(Participant):
             )
         if self._in_flight:  # a started step's reply comes first
             self._collect()
+        if self._prefetched is not None:  # so does that of the steps run ahead meanwhile
+            self._take()
 
     def _write(self, cmd: str, frame: bytes) -> None:
         try:
@@ -329,7 +335,7 @@ class WorkerFMUParticipant(Participant):
         self._pending: dict[str, Any] = {}
         self._out: dict[str, Any] | None = None
         self._started = False
-        self._ahead.clear()
+        self._discard_ahead()
         self._rpc("setup", t0)
 
     def set_inputs(self, values: Mapping[str, Any]) -> None:
@@ -406,10 +412,29 @@ class WorkerFMUParticipant(Participant):
         self._next_end = next_end
         self._batch = int(batch)
         self._max_batch = max(int(max_batch), self._batch)
-        self._ahead.clear()
+        self._discard_ahead()
 
     def _fetch(self, t: float) -> None:
-        """Run the next steps from ``t`` in the worker and buffer their replies."""
+        """Take the next steps from ``t``: those the worker is running already, else run
+        them now; then let the worker run the batch after them while the master takes these
+        (the worker computes while the master records: on two free cores the run costs the
+        larger of the two, not their sum)."""
+        if self._prefetched is None:
+            schedule = self._schedule(t)
+            if not schedule:
+                raise SimulationError(f"participant {self.name!r}: asked to step from the stop time {t!r} s.")
+            self._send("steps", schedule)
+            self._prefetched = schedule
+        self._take()
+        last = self._ahead[-1][2] if self._ahead else None
+        if isinstance(last, tuple) and last[0] and not last[2]:  # accepted, no termination
+            nxt = self._schedule(self._ahead[-1][0] + self._ahead[-1][1])
+            if nxt:
+                self._send("steps", nxt)
+                self._prefetched = nxt
+
+    def _schedule(self, t: float) -> tuple[tuple[float, float], ...]:
+        """The next batch of (t, h) steps from ``t`` (empty at the stop time)."""
         assert self._next_end is not None
         schedule: list[tuple[float, float]] = []
         tk = t
@@ -419,18 +444,25 @@ class WorkerFMUParticipant(Participant):
                 break
             schedule.append((tk, te - tk))
             tk = te
-        if not schedule:
-            raise SimulationError(f"participant {self.name!r}: asked to step from the stop time {t!r} s.")
+        self._batch = min(2 * self._batch, self._max_batch)
+        return tuple(schedule)
+
+    def _take(self) -> None:
+        """Read the reply of the steps run ahead (:attr:`_prefetched`) into the buffer."""
+        schedule, self._prefetched = self._prefetched, None
+        assert schedule is not None
         try:
-            replies, err = self._rpc("steps", tuple(schedule))
+            replies, err = self._recv("steps")
         except SimulationError as exc:  # crashed: in one of the steps, which is not known
             if self.proc.poll() is None:
                 raise
             raise SimulationError(
-                f"{str(exc).rstrip('.')} while running {len(schedule)} steps ahead from t = {t:g} s "
-                f"to {tk:g} s (a worker without inputs steps ahead of the exchange)"
+                f"{str(exc).rstrip('.')} while running {len(schedule)} steps ahead from t = "
+                f"{schedule[0][0]:g} s to {sum(schedule[-1]):g} s (a worker without inputs steps "
+                "ahead of the exchange)"
             ) from None
-        self._batch = min(2 * self._batch, self._max_batch)
+        if isinstance(replies, tuple) and replies and replies[0] == PACKED:
+            self._out_names, replies = unpack_steps(replies)
         self._ahead.extend((*step, r) for step, r in zip(schedule, replies, strict=False))
         if err is not None:
             self._ahead.append((*schedule[len(replies)], err))
@@ -438,7 +470,7 @@ class WorkerFMUParticipant(Participant):
     def do_step(self, t: float, h: float) -> tuple[bool, float | None]:
         if self._next_end is not None:
             if self._pending:  # (the master sets no inputs on a participant running ahead)
-                if self._ahead:
+                if self._ahead or self._prefetched is not None:
                     raise SimulationError(f"participant {self.name!r}: inputs set while running ahead.")
                 self._flush()
             if not self._ahead:
@@ -466,7 +498,9 @@ class WorkerFMUParticipant(Participant):
         ok, pref, term, t_term, outs = reply
         self.terminate_requested = bool(term)
         self.terminate_time = t_term
-        if outs is not None:
+        if type(outs) is dict:  # (a packed run-ahead step)
+            self._out = outs
+        elif outs is not None:
             keys, vals = outs
             if keys is not None:
                 self._out_names = keys
@@ -479,6 +513,12 @@ class WorkerFMUParticipant(Participant):
             self._out = dict(self._rpc("get"))
         return dict(self._out)
 
+    def _discard_ahead(self) -> None:
+        """Forget the steps run ahead (their reply read first, when one is due)."""
+        if self._prefetched is not None:
+            self._ready()
+        self._ahead.clear()
+
     def _flush(self) -> None:
         if self._pending:
             self._rpc("set", self._pending)
@@ -489,17 +529,20 @@ class WorkerFMUParticipant(Participant):
         not taken yet (a checkpoint then resumes with them)."""
         self._flush()
         state = self._rpc("get_state")
-        return (state, self._out_names, tuple(self._ahead)) if self._ahead else state
+        if self._ahead:
+            return {"fmu": state, "out_names": self._out_names, "ahead": tuple(self._ahead)}
+        return state
 
     def set_state(self, state: Any) -> None:
         self._pending = {}
         self._out = None
         self._started = False  # a step started from the replaced state is void
-        self._ahead.clear()
-        if isinstance(state, tuple):  # saved while running ahead
-            state, self._out_names, ahead = state
-            self._ahead.extend(ahead)
-        self._rpc("set_state", bytes(state))
+        self._discard_ahead()
+        if isinstance(state, dict):  # saved while running ahead
+            self._out_names = state["out_names"]
+            self._ahead.extend(state["ahead"])
+            state = state["fmu"]
+        self._rpc("set_state", bytes(state) if isinstance(state, bytearray | memoryview) else state)
 
     def terminate(self) -> None:
         if self.proc.poll() is None:
