@@ -34,6 +34,7 @@ import csv
 import functools
 import hashlib
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field, replace
 from importlib import resources
@@ -68,9 +69,10 @@ PROCEDURES = {
 """The tests kept, by category: the FTP's 75 °F exhaust tests and the highway test (the Cold CO
 test at 20 °F is left out)."""
 CYCLE_OF = {"FTP": "udds", "HWY": "hwfet"}
-HYBRID_WORDS = ("hybrid", "hev", "phev", "plug-in", "prius", "insight", "ioniq", "niro", "sienna", "venza", " 250h", " 300h", " 350h", " 450h", "e-hybrid")  # fmt: skip
+HYBRID_WORDS = ("hybrid", "hev", "phev", "plug-in", "prius", "insight", "ioniq", "niro", "sienna", "venza", "e-hybrid")  # fmt: skip
 """Words of a model name that mark a hybrid (lower case; ``Sienna`` and ``Venza`` are hybrid-only in
-MY2022; the Lexus ``...h`` models are hybrids)."""
+MY2022); so does a Lexus-style number ending in h (``ES 300h``, ``LC 500h``: :data:`HYBRID_PATTERN`)."""
+HYBRID_PATTERN = re.compile(r"\b\d{3}h\+?(\s|$)")
 HYBRID_FTP_HWY_RATIO = 0.95
 """A test vehicle whose measured FTP mpg is at least this share of its HWY mpg is taken for a hybrid
 (regenerative braking: a conventional car's city figure is well below its highway one)."""
@@ -224,7 +226,7 @@ def split(vehicle_id: str) -> str:
 def is_hybrid_name(model: str) -> bool:
     """Whether a model name marks a hybrid (:data:`HYBRID_WORDS`)."""
     m = f" {model.lower()}"
-    return any(w in m for w in HYBRID_WORDS)
+    return any(w in m for w in HYBRID_WORDS) or HYBRID_PATTERN.search(m) is not None
 
 
 def read_test_cars(path: str | Path | None = None) -> tuple[list[TestVehicle], dict[str, int]]:
