@@ -116,3 +116,23 @@ def test_bad_generic_file_names_the_key(tmp_path: Path) -> None:
     bad.write_text(src.read_text().replace("brake_work = ", "brake_wrok = "))
     with pytest.raises(ConfigError, match="brake_wrok"):
         T.generic(str(bad))
+
+
+def test_camry_example_within_ten_percent_of_its_epa_figures(tmp_path: Path) -> None:
+    """examples/toyota_camry_2022_le.toml (issue 25 item 6): hevsim's unadjusted label within 10 % of
+    the unadjusted figures behind the car's EPA label (28 city / 39 highway, 2017 coefficient set),
+    and its engine folder is the generic map of its Test Car List entry with the shipped weights."""
+    from hevsim.fuels import get_fuel
+    from hevsim.sim import label as L
+
+    root = Path(__file__).resolve().parents[1] / "examples"
+    lab = L.label(root / "toyota_camry_2022_le.toml", model_year=2022)
+    c = L.constants().for_model_year(2022)
+    u = lab.figures["unadjusted_mpg"]
+    assert u["city"] == pytest.approx(L.unadjusted_city(28, c), rel=0.10)
+    assert u["highway"] == pytest.approx(L.unadjusted_highway(39, c), rel=0.10)
+    vehicles, _ = T.read_test_cars()
+    v = next(x for x in vehicles if x.vehicle_id == "18-AV2A" and x.a_n > 25.5 * T.N_PER_LBF)
+    T.write_engine(tmp_path / "e", v, T.generic(), T.generic().fitted, get_fuel("gasoline").lower_heating_value_j_per_kg)
+    for name in ("fuel_rate_map.csv", "max_torque.csv", "closed_throttle_torque.csv"):
+        assert (tmp_path / "e" / name).read_text() == (root / "toyota_camry_2022_le_engine" / name).read_text()

@@ -366,7 +366,14 @@ def write_engine(folder: Path, v: TestVehicle, g: Generic, p: EngineParams, lhv_
         f'description = "generic gasoline engine (hevsim.validation.test_car_list): {v.displacement_m3 * 1e3:.2f} L, '
         f'{v.rated_power_w / 1e3:.0f} kW"\n'
         'fuel = "gasoline"\n'
-        f"[parameters]\nrotational_inertia_kg_m2 = {g.inertia_kgm2_per_l * v.displacement_m3 * 1e3!r}\n",
+        'notes = "Not a measured map: the generic Willans-type gasoline map of hevsim.validation.test_car_list '
+        '(fuel power = fitted weights x terms in speed, torque, displacement and rated torque; weights fitted on '
+        'the training half of the EPA Test Car List MY2022, hevsim/data/validation/epa_test_car_generic.toml), '
+        'sized by displacement and rated power."\n'
+        f"fitted_weights = {{ {', '.join(f'{k} = {w!r}' for k, w in p.weights_by_name if w)} }}\n"
+        f"[parameters]\ndisplacement_L = {v.displacement_m3 * 1e3!r}\nmax_power_kW = {v.rated_power_w / 1e3!r}\n"
+        f"rotational_inertia_kg_m2 = {g.inertia_kgm2_per_l * v.displacement_m3 * 1e3!r}\n"
+        '[source]\nupstream = "hevsim (generic map); sizes from the US EPA Test Car List MY2022 (public domain)"\n',
         encoding="utf-8",
     )
 
