@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from _machine import OtherLoad
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -58,8 +59,9 @@ def fastsim_part(plots: Path | None) -> dict[str, Any]:
         if r.skipped:
             continue
         print(
-            f"| {r.row} | {r.name} | {r.powertrain} | {r.model_year} | {r.unit} | {f(r.epa or math.nan, r.unit)} | "
-            f"{f(r.hevsim, r.unit)} | {e(r.error('hevsim'))} | {f(r.fastsim, r.unit)} | {e(r.error('fastsim'))} | "
+            f"| {r.row} | {r.name} | {r.powertrain} | {r.model_year} | {r.unit} | "
+            f"{f(r.epa or math.nan, r.unit)} | {f(r.hevsim, r.unit)} | {e(r.error('hevsim'))} | "
+            f"{f(r.fastsim, r.unit)} | {e(r.error('fastsim'))} | "
             f"{'; '.join(r.notes)} |"
         )
     reasons: dict[str, list[str]] = {}
@@ -78,7 +80,8 @@ def fastsim_part(plots: Path | None) -> dict[str, Any]:
             f"{d['fastsim_median_pct']:.1f} % | {d['fastsim_p90_pct']:.1f} % |"
         )
     print(
-        f"\ntime: {wall:.1f} s wall for {sum(1 for r in rows if not r.skipped)} vehicles: hevsim import + label "
+        f"\ntime: {wall:.1f} s wall for {sum(1 for r in rows if not r.skipped)} vehicles: hevsim import + "
+        "label "
         f"{t_h:.1f} s (first call includes the numba cache load), FASTSim 3 get_label_fe {t_f:.1f} s; "
         f"target 60 s; {load.text()}"
     )
@@ -94,7 +97,10 @@ def _plot_fastsim(rows: list[Any], out: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.6))
-    for ax, unit, title in ((axes[0], "mpg", "engine vehicles: combined mpg"), (axes[1], "kWh/mi", "BEVs: combined kWh/mi")):
+    for ax, unit, title in (
+        (axes[0], "mpg", "engine vehicles: combined mpg"),
+        (axes[1], "kWh/mi", "BEVs: combined kWh/mi"),
+    ):
         sel = [r for r in rows if not r.skipped and r.unit == unit]
         if not sel:
             continue
@@ -160,14 +166,18 @@ def tcl_part(plots: Path | None, limit: int | None) -> dict[str, Any]:
     for key, d in s.items():
         half, cat = key.split()
         print(
-            f"| {'training' if half == 'train' else 'held-out'} | {cat} | {d['n']:.0f} | {d['median_abs_pct']:.1f} % "
+            f"| {'training' if half == 'train' else 'held-out'} | {cat} | {d['n']:.0f} | "
+            f"{d['median_abs_pct']:.1f} % "
             f"| {d['p90_abs_pct']:.1f} % | {d['mean_pct']:+.1f} % |"
         )
     held = [r for r in runs if r.half == "test"]
     print("\nheld-out error distribution (predicted / measured - 1), share of tests within:")
     for cat in ("FTP", "HWY"):
         e = np.abs([r.error for r in held if r.category == cat])
-        print(f"  {cat}: " + ", ".join(f"±{b} %: {100 * np.mean(e <= b / 100):.0f} %" for b in (2, 5, 10, 12, 20)))
+        print(
+            f"  {cat}: "
+            + ", ".join(f"±{b} %: {100 * np.mean(e <= b / 100):.0f} %" for b in (2, 5, 10, 12, 20))
+        )
     worst = sorted(held, key=lambda r: -abs(r.error))[:10]
     print("\nworst held-out tests:")
     for r in worst:
@@ -178,7 +188,8 @@ def tcl_part(plots: Path | None, limit: int | None) -> dict[str, Any]:
             f"{r.predicted_mpg:.1f} ({100 * r.error:+.0f} %)"
         )
     print(
-        f"\ntime: {wall:.1f} s wall ({2 * n_tests} test predictions: a reference pass of {t_ref:.1f} s for the "
+        f"\ntime: {wall:.1f} s wall ({2 * n_tests} test predictions: a reference pass of {t_ref:.1f} s "
+        "for the "
         f"fit and a pass with the fitted map), target 300 s; {load.text()}"
     )
     if plots is not None:
@@ -196,7 +207,9 @@ def _plot_tcl(runs: list[Any], out: Path) -> None:
     for ax, cat in zip(axes, ("FTP", "HWY"), strict=True):
         for half, col, lab in (("train", "0.6", "training half"), ("test", "C0", "held-out half")):
             sel = [r for r in runs if r.category == cat and r.half == half]
-            ax.scatter([r.measured_mpg for r in sel], [r.predicted_mpg for r in sel], s=6, color=col, label=lab)
+            ax.scatter(
+                [r.measured_mpg for r in sel], [r.predicted_mpg for r in sel], s=6, color=col, label=lab
+            )
         allm = [r.measured_mpg for r in runs if r.category == cat]
         xs = np.array([min(allm) * 0.9, max(allm) * 1.1])
         ax.plot(xs, xs, "k-", lw=0.8)

@@ -133,6 +133,10 @@ def test_camry_example_within_ten_percent_of_its_epa_figures(tmp_path: Path) -> 
     assert u["highway"] == pytest.approx(L.unadjusted_highway(39, c), rel=0.10)
     vehicles, _ = T.read_test_cars()
     v = next(x for x in vehicles if x.vehicle_id == "18-AV2A" and x.a_n > 25.5 * T.N_PER_LBF)
-    T.write_engine(tmp_path / "e", v, T.generic(), T.generic().fitted, get_fuel("gasoline").lower_heating_value_j_per_kg)
+    T.write_engine(
+        tmp_path / "e", v, T.generic(), T.generic().fitted, get_fuel("gasoline").lower_heating_value_j_per_kg
+    )
     for name in ("fuel_rate_map.csv", "max_torque.csv", "closed_throttle_torque.csv"):
-        assert (tmp_path / "e" / name).read_text() == (root / "toyota_camry_2022_le_engine" / name).read_text()
+        assert (tmp_path / "e" / name).read_text() == (
+            root / "toyota_camry_2022_le_engine" / name
+        ).read_text()

@@ -86,7 +86,8 @@ def not_epa() -> dict[str, str]:
 
 
 def model_year(v: dict[str, Any]) -> int:
-    """The vehicle's model year: ``veh_year``, else a year opening its name, else :data:`DEFAULT_MODEL_YEAR`."""
+    """The vehicle's model year: ``veh_year``, else a year opening its name, else
+    :data:`DEFAULT_MODEL_YEAR`."""
     y = v.get("veh_year")
     if isinstance(y, float) and y > 1900:
         return int(y)
@@ -127,7 +128,11 @@ def _diesel_factor(v: dict[str, Any]) -> float:
     from hevsim.units import M3_PER_US_GALLON
 
     d = get_fuel("diesel")
-    return FASTSIM_KWH_PER_GGE * 3.6e6 / (d.lower_heating_value_j_per_kg * d.density_kg_per_m3 * M3_PER_US_GALLON)
+    return (
+        FASTSIM_KWH_PER_GGE
+        * 3.6e6
+        / (d.lower_heating_value_j_per_kg * d.density_kg_per_m3 * M3_PER_US_GALLON)
+    )
 
 
 def combined_label(city: float, highway: float, year: int, bev: bool, charger_efficiency: float) -> float:
@@ -139,7 +144,8 @@ def combined_label(city: float, highway: float, year: int, bev: bool, charger_ef
     c = k.for_model_year(year)
     if bev:
         adj = [
-            k.kwh_per_gallon_equivalent / L.adjusted_electric_mpge(k.kwh_per_gallon_equivalent / x, t, c, k.electric_adjustment_factor)
+            k.kwh_per_gallon_equivalent
+            / L.adjusted_electric_mpge(k.kwh_per_gallon_equivalent / x, t, c, k.electric_adjustment_factor)
             for x, t in ((city, "city"), (highway, "highway"))
         ]  # fmt: skip
         return (k.city_weight * adj[0] + (1 - k.city_weight) * adj[1]) / charger_efficiency
@@ -165,13 +171,17 @@ def fastsim_yaml(v: dict[str, Any], out: Path) -> Path:
     FASTSim's bundled 2016 Prius file; lists as fastsim-2 arrays)."""
     import yaml
 
-    tpl_path = Path(str(resources.files("hevsim") / "data" / "vehicles" / "fastsim" / "vehdb" / FASTSIM_TEMPLATE))
+    tpl_path = Path(
+        str(resources.files("hevsim") / "data" / "vehicles" / "fastsim" / "vehdb" / FASTSIM_TEMPLATE)
+    )
     if tpl_path.is_file():
         template = yaml.safe_load(tpl_path.read_text(encoding="utf-8"))
     else:
         import fastsim
 
-        template = yaml.safe_load(Path(fastsim.__file__).parent.joinpath("resources", "vehdb", FASTSIM_TEMPLATE).read_text())
+        template = yaml.safe_load(
+            Path(fastsim.__file__).parent.joinpath("resources", "vehdb", FASTSIM_TEMPLATE).read_text()
+        )
     for k, val in v.items():
         if k not in template:
             continue
@@ -183,7 +193,9 @@ def fastsim_yaml(v: dict[str, Any], out: Path) -> Path:
             template[k] = int(val)
         else:
             template[k] = val
-    if not isinstance(v.get("fc_eff_map"), list):  # fastsim-2's default curve of fc_eff_type (FASTSim 3 has none)
+    if not isinstance(
+        v.get("fc_eff_map"), list
+    ):  # fastsim-2's default curve of fc_eff_type (FASTSim 3 has none)
         from hevsim.vehicle_import import FC_EFF_MAPS
 
         curve = list(FC_EFF_MAPS.get(str(v.get("fc_eff_type", "")).strip(), FC_EFF_MAPS["SI"]))
@@ -213,9 +225,7 @@ def fastsim_unadjusted(row: Row, v: dict[str, Any], work: Path) -> tuple[float, 
     return float(out["lab_udds_mpgge"]) * k, float(out["lab_hwy_mpgge"]) * k
 
 
-def validate(
-    only: list[int] | None = None, with_fastsim: bool = True, path: Path | None = None
-) -> list[Row]:
+def validate(only: list[int] | None = None, with_fastsim: bool = True, path: Path | None = None) -> list[Row]:
     """Label every vehicle with EPA figures (``only``: these database rows) by hevsim and, if
     installed and ``with_fastsim``, by FASTSim 3; return the rows (skipped ones included)."""
     out = []
@@ -251,10 +261,11 @@ def validate(
 
 
 def summary(rows_: list[Row]) -> dict[str, dict[str, float]]:
-    """Per powertrain class and "all": count, median and 90th percentile of |error| [%], hevsim and FASTSim."""
+    """Per powertrain class and "all": count, median and 90th percentile of |error| [%], hevsim
+    and FASTSim."""
     done = [r for r in rows_ if not r.skipped]
     out: dict[str, dict[str, float]] = {}
-    for cls in sorted({r.powertrain for r in done}) + ["all"]:
+    for cls in [*sorted({r.powertrain for r in done}), "all"]:
         sel = [r for r in done if cls in ("all", r.powertrain)]
         d: dict[str, float] = {"n": float(len(sel))}
         for which in ("hevsim", "fastsim"):

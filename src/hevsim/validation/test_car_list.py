@@ -63,13 +63,18 @@ FTP_COLD_WEIGHT = 0.43
 GASOLINE_FUELS = ("Tier 2 Cert Gasoline",)
 """Test fuels counted as gasoline (the list's ``Test Fuel Type Description``)."""
 PROCEDURES = {
-    "FTP": ("Federal fuel 2-day exhaust (w/can load)", "Federal fuel 3-day exhaust", "CVS 75 and later (w/o can. load)"),
+    "FTP": (
+        "Federal fuel 2-day exhaust (w/can load)", "Federal fuel 3-day exhaust",
+        "CVS 75 and later (w/o can. load)",
+    ),
     "HWY": ("HWFE",),
 }  # fmt: skip
 """The tests kept, by category: the FTP's 75 °F exhaust tests and the highway test (the Cold CO
 test at 20 °F is left out)."""
 CYCLE_OF = {"FTP": "udds", "HWY": "hwfet"}
-HYBRID_WORDS = ("hybrid", "hev", "phev", "plug-in", "prius", "insight", "ioniq", "niro", "sienna", "venza", "e-hybrid")  # fmt: skip
+HYBRID_WORDS = (
+    "hybrid", "hev", "phev", "plug-in", "prius", "insight", "ioniq", "niro", "sienna", "venza", "e-hybrid",
+)  # fmt: skip
 """Words of a model name that mark a hybrid (lower case; ``Sienna`` and ``Venza`` are hybrid-only in
 MY2022); so does a Lexus-style number ending in h (``ES 300h``, ``LC 500h``: :data:`HYBRID_PATTERN`)."""
 HYBRID_PATTERN = re.compile(r"\b\d{3}h\+?(\s|$)")
@@ -77,7 +82,17 @@ HYBRID_FTP_HWY_RATIO = 0.95
 """A test vehicle whose measured FTP mpg is at least this share of its HWY mpg is taken for a hybrid
 (regenerative braking: a conventional car's city figure is well below its highway one)."""
 
-POINT_TERMS = ("brake_work", "friction_vd", "friction_vd_speed", "friction_vd_speed2", "pumping_vd", "friction_peak", "friction_peak_speed", "brake_work_speed", "constant")
+POINT_TERMS = (
+    "brake_work",
+    "friction_vd",
+    "friction_vd_speed",
+    "friction_vd_speed2",
+    "pumping_vd",
+    "friction_peak",
+    "friction_peak_speed",
+    "brake_work_speed",
+    "constant",
+)
 """The fuel power of the generic map is ``sum(weight_k x term_k(w, T))`` [W] over these terms (per
 unit weight: ``w T``; ``w V_d/(4 pi) s^k`` for k = 0, 1, 2, weights in Pa; ``w V_d/(4 pi) (1 -
 T/T_max(w))`` (throttling), in Pa; ``w T_peak s^k`` for k = 0, 1 (friction scaling with the rated
@@ -158,22 +173,24 @@ def generic(path: str | None = None) -> Generic:
     spread = {int(k): _num(t.get("spread", {}), k, f"{w} [transmission.spread]") for k in t.get("spread", {})}
     unknown = sorted(set(f) - set(FEATURES))
     if unknown:
-        raise ConfigError(f"{w} [engine.fitted]: key(s) {unknown} unknown; expected some of {', '.join(FEATURES)}.")
+        raise ConfigError(
+            f"{w} [engine.fitted]: key(s) {unknown} unknown; expected some of {', '.join(FEATURES)}."
+        )
     fitted = EngineParams(tuple((k, _num(f, k, f"{w} [engine.fitted]")) for k in FEATURES if k in f))
     if fitted.weights()[0] <= 0:
-        raise ConfigError(f"{w} [engine.fitted]: key 'brake_work' = 0; expected 1 / indicated efficiency > 1.")
-    return Generic(
-        *(_num(e, k, f"{w} [engine]") for k in ("idle_rpm", "redline_rpm", "knee_rpm", "full_torque_rpm",
-                                                "idle_torque_fraction", "reference_rpm", "closed_throttle_mep_pa",
-                                                "inertia_kgm2_per_l")),
-        int(_num(e, "speed_points", f"{w} [engine]")), int(_num(e, "torque_points", f"{w} [engine]")),
-        spread, int(_num(t, "cvt_steps", f"{w} [transmission]")),
-        *(_num(t, k, f"{w} [transmission]") for k in ("gearbox_efficiency", "final_drive_efficiency",
-                                                      "upshift_rpm", "downshift_rpm", "tire_radius_m")),
-        tuple(str(c) for c in t.get("manual_codes", [])),
-        _num(t, "manual_upshift_rpm", f"{w} [transmission]"), _num(t, "manual_downshift_rpm", f"{w} [transmission]"),
-        fitted, w,
-    )  # fmt: skip
+        raise ConfigError(
+            f"{w} [engine.fitted]: key 'brake_work' = 0; expected 1 / indicated efficiency > 1."
+        )
+    eng = ("idle_rpm", "redline_rpm", "knee_rpm", "full_torque_rpm", "idle_torque_fraction", "reference_rpm",
+           "closed_throttle_mep_pa", "inertia_kgm2_per_l")  # fmt: skip
+    trans = ("gearbox_efficiency", "final_drive_efficiency", "upshift_rpm", "downshift_rpm", "tire_radius_m",
+             "manual_upshift_rpm", "manual_downshift_rpm")  # fmt: skip
+    kw: dict[str, Any] = {k: _num(e, k, f"{w} [engine]") for k in eng}
+    kw.update({k: _num(t, k, f"{w} [transmission]") for k in trans})
+    kw.update({k: int(_num(e, k, f"{w} [engine]")) for k in ("speed_points", "torque_points")})
+    kw["cvt_steps"] = int(_num(t, "cvt_steps", f"{w} [transmission]"))
+    kw["manual_codes"] = tuple(str(c) for c in t.get("manual_codes", []))
+    return Generic(**kw, spread=spread, fitted=fitted, source=w)
 
 
 # ============================================================================ the list
@@ -203,7 +220,11 @@ class TestVehicle:
 
     @property
     def key(self) -> str:
-        return f"{self.vehicle_id}|{self.test_mass_kg:.1f}|{self.a_n:.3f}|{self.nv_rpm_per_mph:g}|{self.axle_ratio:g}"
+        """The configuration's identity: vehicle ID, test weight, road load A, N/V, axle ratio."""
+        return (
+            f"{self.vehicle_id}|{self.test_mass_kg:.1f}|{self.a_n:.3f}|{self.nv_rpm_per_mph:g}|"
+            f"{self.axle_ratio:g}"
+        )
 
     @property
     def name(self) -> str:
@@ -309,7 +330,9 @@ def gear_ratios(v: TestVehicle, g: Generic) -> list[float]:
     n = g.cvt_steps if v.gears <= 1 else v.gears
     spread = g.spread.get(max(v.gears, 1))
     if spread is None:
-        raise ConfigError(f"{g.source}: [transmission] spread has no value for {v.gears} gears (vehicle {v.vehicle_id}).")
+        raise ConfigError(
+            f"{g.source}: [transmission] spread has no value for {v.gears} gears (vehicle {v.vehicle_id})."
+        )
     if n == 1:
         return [top]
     return [top * spread ** ((n - 1 - i) / (n - 1)) for i in range(n)]
@@ -333,10 +356,14 @@ def point_terms(t_nm: np.ndarray, w_radps: np.ndarray, v: TestVehicle, g: Generi
     peak = w_radps * v.rated_power_w / (g.knee_rpm * RADPS_PER_RPM)
     load = np.clip(1.0 - t_nm / _max_torque(w_radps, v, g), 0.0, 1.0)
     wt = w_radps * t_nm
-    return np.stack([wt, vd, vd * s, vd * s * s, vd * load, peak, peak * s, wt * s, np.ones_like(wt)], axis=-1)
+    return np.stack(
+        [wt, vd, vd * s, vd * s * s, vd * load, peak, peak * s, wt * s, np.ones_like(wt)], axis=-1
+    )
 
 
-def fuel_power_w(t_nm: np.ndarray, w_radps: np.ndarray, v: TestVehicle, g: Generic, p: EngineParams) -> np.ndarray:
+def fuel_power_w(
+    t_nm: np.ndarray, w_radps: np.ndarray, v: TestVehicle, g: Generic, p: EngineParams
+) -> np.ndarray:
     """Fuel power [W] of the generic engine at torque [N m] and speed [rad/s] (module docstring)."""
     return point_terms(t_nm, w_radps, v, g) @ p.weights()[: len(POINT_TERMS)]
 
@@ -350,10 +377,14 @@ def write_engine(folder: Path, v: TestVehicle, g: Generic, p: EngineParams, lhv_
     ww, tt = np.meshgrid(w, torque, indexing="ij")
     rate = fuel_power_w(tt, ww, v, g, p) / lhv_j_per_kg * 1e3
     lines = ["speed_rad_per_s,torque_N_m,fuel_rate_g_per_s"]
-    lines += [f"{a!r},{b!r},{c!r}" for a, b, c in zip(ww.ravel().tolist(), tt.ravel().tolist(), rate.ravel().tolist(), strict=True)]
+    lines += [
+        f"{a!r},{b!r},{c!r}"
+        for a, b, c in zip(ww.ravel().tolist(), tt.ravel().tolist(), rate.ravel().tolist(), strict=True)
+    ]
     (folder / "fuel_rate_map.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
     (folder / "max_torque.csv").write_text(
-        "speed_rad_per_s,max_torque_N_m\n" + "".join(f"{a!r},{b!r}\n" for a, b in zip(w.tolist(), tmax.tolist(), strict=True)),
+        "speed_rad_per_s,max_torque_N_m\n"
+        + "".join(f"{a!r},{b!r}\n" for a, b in zip(w.tolist(), tmax.tolist(), strict=True)),
         encoding="utf-8",
     )
     drag = -g.closed_throttle_mep_pa * v.displacement_m3 / (4 * math.pi)
@@ -363,17 +394,21 @@ def write_engine(folder: Path, v: TestVehicle, g: Generic, p: EngineParams, lhv_
     )
     (folder / "meta.toml").write_text(
         f'name = "{folder.name}"\n'
-        f'description = "generic gasoline engine (hevsim.validation.test_car_list): {v.displacement_m3 * 1e3:.2f} L, '
+        'description = "generic gasoline engine (hevsim.validation.test_car_list): '
+        f"{v.displacement_m3 * 1e3:.2f} L, "
         f'{v.rated_power_w / 1e3:.0f} kW"\n'
         'fuel = "gasoline"\n'
-        'notes = "Not a measured map: the generic Willans-type gasoline map of hevsim.validation.test_car_list '
-        '(fuel power = fitted weights x terms in speed, torque, displacement and rated torque; weights fitted on '
-        'the training half of the EPA Test Car List MY2022, hevsim/data/validation/epa_test_car_generic.toml), '
+        'notes = "Not a measured map: the generic Willans-type gasoline map of '
+        "hevsim.validation.test_car_list (fuel power = fitted weights x terms in speed, torque, "
+        "displacement and rated torque; weights fitted on the training half of the EPA Test Car List "
+        "MY2022, hevsim/data/validation/epa_test_car_generic.toml), "
         'sized by displacement and rated power."\n'
         f"fitted_weights = {{ {', '.join(f'{k} = {w!r}' for k, w in p.weights_by_name if w)} }}\n"
-        f"[parameters]\ndisplacement_L = {v.displacement_m3 * 1e3!r}\nmax_power_kW = {v.rated_power_w / 1e3!r}\n"
+        f"[parameters]\ndisplacement_L = {v.displacement_m3 * 1e3!r}\n"
+        f"max_power_kW = {v.rated_power_w / 1e3!r}\n"
         f"rotational_inertia_kg_m2 = {g.inertia_kgm2_per_l * v.displacement_m3 * 1e3!r}\n"
-        '[source]\nupstream = "hevsim (generic map); sizes from the US EPA Test Car List MY2022 (public domain)"\n',
+        '[source]\nupstream = "hevsim (generic map); sizes from the US EPA Test Car List MY2022 '
+        '(public domain)"\n',
         encoding="utf-8",
     )
 
@@ -396,7 +431,10 @@ def vehicle_config(v: TestVehicle, engine_dir: Path, g: Generic) -> Any:
         "tire": {"radius_m": g.tire_radius_m, "driven_axle": axle},
         "final_drive": {"ratio": v.axle_ratio, "efficiency": g.final_drive_efficiency},
         "gearbox": {"ratios": gear_ratios(v, g), "efficiency": g.gearbox_efficiency},
-        "engine": {"model": "map", "data": str(engine_dir), "stall_speed_rpm": g.idle_rpm, "redline_rpm": g.redline_rpm},
+        "engine": {
+            "model": "map", "data": str(engine_dir), "stall_speed_rpm": g.idle_rpm,
+            "redline_rpm": g.redline_rpm,
+        },
         "simulation": {"cycle": "udds", "dt_s": 1.0},
         "controller": {"kind": "shift_schedule", "upshift_rpm": up, "downshift_rpm": down},
     }  # fmt: skip
@@ -438,7 +476,11 @@ def features(res: Any, v: TestVehicle, category: str, g: Generic) -> np.ndarray:
     ts = res.timeseries
     t = ts["time_s"].to_numpy()
     dt = np.diff(t, append=t[-1] + (t[-1] - t[-2] if t.size > 1 else 1.0))
-    fuelled = (ts["engine_on"].to_numpy() > 0) & (ts["fuel_cut"].to_numpy() == 0) & (ts["fuel_rate_gps"].to_numpy() > 0)
+    fuelled = (
+        (ts["engine_on"].to_numpy() > 0)
+        & (ts["fuel_cut"].to_numpy() == 0)
+        & (ts["fuel_rate_gps"].to_numpy() > 0)
+    )
     terms = point_terms(ts["engine_torque_nm"].to_numpy(), ts["engine_speed_radps"].to_numpy(), v, g)
     cold = FTP_COLD_WEIGHT * v.displacement_m3 if category == "FTP" else 0.0
     return np.append((fuelled * dt) @ terms, cold)
@@ -461,7 +503,9 @@ def run_vehicle(v: TestVehicle, work: Path, g: Generic, p: EngineParams) -> list
         if cat not in cache:
             res = simulate(model, CYCLE_OF[cat], tracking=None)
             f = features(res, v, cat, g)
-            fuel_j = float(res.metrics["fuel_kg"]["value"]) * get_fuel("gasoline").lower_heating_value_j_per_kg
+            fuel_j = (
+                float(res.metrics["fuel_kg"]["value"]) * get_fuel("gasoline").lower_heating_value_j_per_kg
+            )
             fuel_j += cold * f[-1]
             dist = float(res.metrics["distance_m"]["value"])
             cache[cat] = (dist / M_PER_MILE / (fuel_j / gal_j), f, dist)
@@ -470,7 +514,9 @@ def run_vehicle(v: TestVehicle, work: Path, g: Generic, p: EngineParams) -> list
     return out
 
 
-def run_all(vehicles: list[TestVehicle], work: Path, g: Generic, p: EngineParams | None = None) -> list[TestRun]:
+def run_all(
+    vehicles: list[TestVehicle], work: Path, g: Generic, p: EngineParams | None = None
+) -> list[TestRun]:
     """:func:`run_vehicle` for every vehicle (``p`` None: the shipped fitted parameters)."""
     p = p or g.fitted
     runs: list[TestRun] = []
@@ -490,7 +536,9 @@ def fit(runs: list[TestRun]) -> EngineParams:
     x, _ = nnls(a / scale, np.ones(len(runs)))
     x = x / scale
     if x[0] <= 0:
-        raise ConfigError("the engine fit gave no brake-work weight (1 / indicated efficiency = 0); check the data.")
+        raise ConfigError(
+            "the engine fit gave no brake-work weight (1 / indicated efficiency = 0); check the data."
+        )
     return EngineParams.from_weights(x)
 
 
