@@ -1,0 +1,249 @@
+"""hevsim against EPA figures on two public data sets (issue 25 item 5); see docs/validation.md.
+
+(a) FASTSim's vehicle database: every light-duty vehicle with EPA figures in its ``val*``
+    columns, imported with ``hevsim import-vehicle`` (no per-vehicle tuning), labelled by hevsim
+    and by FASTSim 3 in the same run, adjusted combined mpg (kWh/mi for BEVs) vs the EPA label.
+(b) The EPA Test Car List MY2022: every measured conventional gasoline FTP and HWY test, the
+    vehicle built from the list's own fields plus generic component models; the generic
+    engine map's weights fitted on the training half, errors reported on both halves.
+
+Run from the repository root::
+
+    .venv/bin/python benchmarks/validate_epa.py [--only fastsim|tcl] [--plots docs] [--json out.json]
+        [--limit N]
+
+Prints the tables and summaries, the timings (with the other processes' load) and FASTSim's
+time for the same database work; writes the predicted-vs-measured scatter plots
+(``validation_fastsim_db.png``, ``validation_test_car_list.png``) into ``--plots``. The script
+only reports: it always exits 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from _machine import OtherLoad
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def fastsim_part(plots: Path | None) -> dict[str, Any]:
+    from hevsim.validation import fastsim_db as F
+
+    with OtherLoad() as load:
+        t0 = time.perf_counter()
+        rows = F.validate()
+        wall = time.perf_counter() - t0
+    t_h = sum(r.hevsim_s for r in rows)
+    t_f = sum(r.fastsim_s for r in rows)
+    print("## (a) FASTSim vehicle database vs EPA label (adjusted combined)\n")
+    print("| row | vehicle | class | MY | unit | EPA | hevsim | err | FASTSim | err | note |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+
+    def f(x: float, unit: str) -> str:
+        return "-" if not math.isfinite(x) else (f"{x:.3f}" if unit == "kWh/mi" else f"{x:.1f}")
+
+    def e(x: float) -> str:
+        return "-" if not math.isfinite(x) else f"{100 * x:+.1f} %"
+
+    for r in rows:
+        if r.skipped:
+            continue
+        print(
+            f"| {r.row} | {r.name} | {r.powertrain} | {r.model_year} | {r.unit} | "
+            f"{f(r.epa or math.nan, r.unit)} | {f(r.hevsim, r.unit)} | {e(r.error('hevsim'))} | "
+            f"{f(r.fastsim, r.unit)} | {e(r.error('fastsim'))} | "
+            f"{'; '.join(r.notes)} |"
+        )
+    reasons: dict[str, list[str]] = {}
+    for r in rows:
+        if r.skipped:
+            reasons.setdefault(r.skipped, []).append(f"{r.row}")
+    print("\nLeft out:")
+    for why, rs in reasons.items():
+        print(f"- {len(rs)} row(s) ({', '.join(rs)}): {why}")
+    s = F.summary(rows)
+    print("\n| class | n | hevsim median abs | hevsim 90th pct | FASTSim median abs | FASTSim 90th pct |")
+    print("|---|---|---|---|---|---|")
+    for cls, d in s.items():
+        print(
+            f"| {cls} | {d['n']:.0f} | {d['hevsim_median_pct']:.1f} % | {d['hevsim_p90_pct']:.1f} % | "
+            f"{d['fastsim_median_pct']:.1f} % | {d['fastsim_p90_pct']:.1f} % |"
+        )
+    print(
+        f"\ntime: {wall:.1f} s wall for {sum(1 for r in rows if not r.skipped)} vehicles: hevsim import + "
+        "label "
+        f"{t_h:.1f} s (first call includes the numba cache load), FASTSim 3 get_label_fe {t_f:.1f} s; "
+        f"target 60 s; {load.text()}"
+    )
+    if plots is not None:
+        _plot_fastsim(rows, plots / "validation_fastsim_db.png")
+    return {"summary": s, "wall_s": wall, "hevsim_s": t_h, "fastsim_s": t_f}
+
+
+def _plot_fastsim(rows: list[Any], out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.6))
+    for ax, unit, title in (
+        (axes[0], "mpg", "engine vehicles: combined mpg"),
+        (axes[1], "kWh/mi", "BEVs: combined kWh/mi"),
+    ):
+        sel = [r for r in rows if not r.skipped and r.unit == unit]
+        if not sel:
+            continue
+        epa = np.array([r.epa for r in sel])
+        for which, mk, col in (("hevsim", "o", "C0"), ("fastsim", "x", "C3")):
+            y = np.array([getattr(r, which) for r in sel])
+            ax.scatter(epa, y, marker=mk, color=col, label="hevsim" if which == "hevsim" else "FASTSim 3")
+        for r in sel:
+            if r.powertrain == "HEV":
+                ax.annotate("HEV", (r.epa, r.hevsim), fontsize=7, xytext=(3, 3), textcoords="offset points")
+        lo, hi = float(epa.min()) * 0.8, float(epa.max()) * 1.2
+        xs = np.array([lo, hi])
+        ax.plot(xs, xs, "k-", lw=0.8)
+        ax.fill_between(xs, 0.95 * xs, 1.05 * xs, color="0.85", label="±5 %", zorder=0)
+        ax.set_xlim(lo, hi)
+        ax.set_ylim(lo, hi)
+        ax.set_xlabel(f"EPA label ({unit})")
+        ax.set_ylabel(f"model ({unit})")
+        ax.set_title(title)
+        ax.legend(fontsize=8)
+    fig.suptitle("FASTSim vehicle database: adjusted combined figure vs the EPA label")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    print(f"wrote {out}")
+
+
+def tcl_part(plots: Path | None, limit: int | None) -> dict[str, Any]:
+    from hevsim.validation import test_car_list as T
+
+    g = T.generic()
+    with OtherLoad() as load:
+        t0 = time.perf_counter()
+        vehicles, skipped = T.read_test_cars()
+        if limit:
+            vehicles = vehicles[:limit]
+        with tempfile.TemporaryDirectory(prefix="hevsim-tcl-") as tmp:
+            ref = T.run_all(vehicles, Path(tmp) / "ref", g)
+            t_ref = time.perf_counter() - t0
+            train = [r for r in ref if r.half == "train"]
+            params = T.fit(train)
+            runs = T.run_all(vehicles, Path(tmp) / "fit", g, params)
+        wall = time.perf_counter() - t0
+    print("\n## (b) EPA Test Car List MY2022: conventional gasoline FTP and HWY tests\n")
+    n_tests = sum(len(v.tests) for v in vehicles)
+    print(f"{len(vehicles)} vehicle configurations, {n_tests} tests; left out: ")
+    for why, n in sorted(skipped.items(), key=lambda x: -x[1]):
+        print(f"- {n} test rows: {why}")
+    print("\nfitted on the training half (non-negative least squares of the relative fuel error):")
+    print("[engine.fitted]")
+    for k, w in params.weights_by_name:
+        if w > 0:
+            print(f"{k} = {w:.6g}")
+    print(f"(indicated efficiency 1 / brake_work = {params.indicated_efficiency:.3f})")
+    lin = np.array([T.linear_mpg(r, params) / r.predicted_mpg - 1 for r in runs])
+    print(
+        f"consistency: the fit's linear prediction vs the full simulation with the fitted map: median "
+        f"|diff| {100 * np.median(np.abs(lin)):.2f} %, max {100 * np.max(np.abs(lin)):.2f} %"
+    )
+    s = T.summary(runs)
+    print("\n| half | test | n | median abs error | 90th pct abs error | mean error |")
+    print("|---|---|---|---|---|---|")
+    for key, d in s.items():
+        half, cat = key.split()
+        print(
+            f"| {'training' if half == 'train' else 'held-out'} | {cat} | {d['n']:.0f} | "
+            f"{d['median_abs_pct']:.1f} % "
+            f"| {d['p90_abs_pct']:.1f} % | {d['mean_pct']:+.1f} % |"
+        )
+    held = [r for r in runs if r.half == "test"]
+    print("\nheld-out error distribution (predicted / measured - 1), share of tests within:")
+    for cat in ("FTP", "HWY"):
+        e = np.abs([r.error for r in held if r.category == cat])
+        print(
+            f"  {cat}: "
+            + ", ".join(f"±{b} %: {100 * np.mean(e <= b / 100):.0f} %" for b in (2, 5, 10, 12, 20))
+        )
+    worst = sorted(held, key=lambda r: -abs(r.error))[:10]
+    print("\nworst held-out tests:")
+    for r in worst:
+        v = r.vehicle
+        print(
+            f"  {v.name} ({v.vehicle_id}, {v.displacement_m3 * 1e3:.1f} L, {v.rated_power_w / 745.7:.0f} hp, "
+            f"{v.transmission_code} {v.gears}): {r.category} measured {r.measured_mpg:.1f} predicted "
+            f"{r.predicted_mpg:.1f} ({100 * r.error:+.0f} %)"
+        )
+    print(
+        f"\ntime: {wall:.1f} s wall ({2 * n_tests} test predictions: a reference pass of {t_ref:.1f} s "
+        "for the "
+        f"fit and a pass with the fitted map), target 300 s; {load.text()}"
+    )
+    if plots is not None:
+        _plot_tcl(runs, plots / "validation_test_car_list.png")
+    return {"summary": s, "wall_s": wall, "fitted": dict(params.weights_by_name)}
+
+
+def _plot_tcl(runs: list[Any], out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.6))
+    for ax, cat in zip(axes, ("FTP", "HWY"), strict=True):
+        for half, col, lab in (("train", "0.6", "training half"), ("test", "C0", "held-out half")):
+            sel = [r for r in runs if r.category == cat and r.half == half]
+            ax.scatter(
+                [r.measured_mpg for r in sel], [r.predicted_mpg for r in sel], s=6, color=col, label=lab
+            )
+        allm = [r.measured_mpg for r in runs if r.category == cat]
+        xs = np.array([min(allm) * 0.9, max(allm) * 1.1])
+        ax.plot(xs, xs, "k-", lw=0.8)
+        ax.plot(xs, 1.12 * xs, "k:", lw=0.6, label="±12 %")
+        ax.plot(xs, 0.88 * xs, "k:", lw=0.6)
+        ax.set_xlabel(f"measured {cat} (RND_ADJ_FE, mpg)")
+        ax.set_ylabel("hevsim (mpg)")
+        ax.set_title(f"{cat} test")
+        ax.legend(fontsize=8)
+    fig.suptitle("EPA Test Car List MY2022, conventional gasoline: predicted vs measured (unadjusted)")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    print(f"wrote {out}")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--only", choices=("fastsim", "tcl"))
+    ap.add_argument("--plots", type=Path, default=None, help="folder for the PNG scatter plots")
+    ap.add_argument("--json", type=Path, default=None, help="write the summaries here")
+    ap.add_argument("--limit", type=int, default=None, help="Test Car List: the first N vehicles only")
+    a = ap.parse_args()
+    out: dict[str, Any] = {}
+    if a.plots:
+        a.plots.mkdir(parents=True, exist_ok=True)
+    if a.only in (None, "fastsim"):
+        out["fastsim_db"] = fastsim_part(a.plots)
+    if a.only in (None, "tcl"):
+        out["test_car_list"] = tcl_part(a.plots, a.limit)
+    if a.json:
+        a.json.write_text(json.dumps(out, indent=1, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

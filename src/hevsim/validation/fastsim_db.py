@@ -1,0 +1,278 @@
+"""hevsim and FASTSim against the EPA label figures of FASTSim's vehicle database.
+
+Every light-duty vehicle of ``FASTSim_py_veh_db.csv`` with EPA figures in its ``val*`` columns is
+imported with :func:`hevsim.vehicle_import.import_vehicle` (no per-vehicle tuning) and labelled by
+:func:`hevsim.sim.label.label`; FASTSim 3 (the ``bench`` extra) labels the same fastsim-2 vehicle in
+the same run with its ``get_label_fe``. Both models' *unadjusted* UDDS and HWFET figures go through
+the same label equations (the derived 5-cycle set of the vehicle's model year, hevsim's
+:mod:`hevsim.sim.label`), and the adjusted combined figure is compared with the database's
+``val_comb_mpgge`` (engine vehicles) or ``val_comb_kwh_per_mile`` (BEVs, from the wall: both
+models' battery energy over the file's charger efficiency ``chg_eff``).
+
+Units: FASTSim and the import count fuel in gallons of gasoline equivalent (33.7 kWh); the EPA
+label of a diesel car counts gallons of diesel, so a diesel's unadjusted mpgge is multiplied by
+33.7 kWh / (diesel LHV x density x gallon, hevsim's fuel table) before the label equations.
+
+Vehicles left out, with the reason in the table: PHEVs and fuel-cell vehicles (the import does
+not handle them yet), rows without EPA figures (trucks, non-US cars), and the rows of
+``hevsim/data/validation/fastsim_db_not_epa.toml`` whose ``val*`` figures are not an EPA label.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import tempfile
+import time
+import tomllib
+import warnings
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hevsim.errors import ConfigError
+
+DATABASE = "data/vehicles/fastsim/FASTSim_py_veh_db.csv"
+"""FASTSim's vehicle database, relative to the installed ``hevsim`` package."""
+NOT_EPA_FILE = "data/validation/fastsim_db_not_epa.toml"
+"""Database rows whose ``val*`` figures are not an EPA label (scenario name -> reason)."""
+FASTSIM_KWH_PER_GGE = 33.7
+"""FASTSim's gallon of gasoline equivalent [kWh] (``kwh_per_gge``), the gallon of the import's fuel."""
+DEFAULT_MODEL_YEAR = 2016
+"""Model year of a row that gives none (in ``veh_year`` or its name) [-]."""
+FASTSIM_TEMPLATE = "2016_TOYOTA_Prius_Two.yaml"
+"""fastsim-2 YAML whose layout carries a database row into FASTSim 3 (``Vehicle.from_f2_file``)."""
+
+
+@dataclass
+class Row:
+    """One vehicle of the database: its figures and the two models' labels."""
+
+    row: int
+    name: str
+    powertrain: str
+    model_year: int
+    unit: str
+    epa: float | None
+    skipped: str = ""
+    hevsim: float = math.nan
+    fastsim: float = math.nan
+    hevsim_unadjusted: tuple[float, float] = (math.nan, math.nan)
+    fastsim_unadjusted: tuple[float, float] = (math.nan, math.nan)
+    hevsim_s: float = 0.0
+    fastsim_s: float = 0.0
+    notes: list[str] = field(default_factory=list)
+
+    def error(self, which: str) -> float:
+        """``which`` ("hevsim"/"fastsim") / EPA - 1 [-] (NaN when either is missing)."""
+        x = getattr(self, which)
+        return x / self.epa - 1.0 if self.epa and math.isfinite(x) else math.nan
+
+
+def database_path() -> Path:
+    """The shipped FASTSim vehicle database."""
+    return Path(str(resources.files("hevsim") / DATABASE))
+
+
+def not_epa() -> dict[str, str]:
+    """Scenario name -> why its ``val*`` figures are not an EPA label."""
+    p = Path(str(resources.files("hevsim") / NOT_EPA_FILE))
+    data = tomllib.loads(p.read_text(encoding="utf-8"))
+    return {str(k): str(v) for k, v in data.get("not_epa", {}).items()}
+
+
+def model_year(v: dict[str, Any]) -> int:
+    """The vehicle's model year: ``veh_year``, else a year opening its name, else
+    :data:`DEFAULT_MODEL_YEAR`."""
+    y = v.get("veh_year")
+    if isinstance(y, float) and y > 1900:
+        return int(y)
+    m = re.match(r"\s*((?:19|20)\d\d)\b", str(v.get("scenario_name") or ""))
+    return int(m.group(1)) if m else DEFAULT_MODEL_YEAR
+
+
+def rows(path: Path | None = None) -> list[tuple[Row, dict[str, Any]]]:
+    """Every vehicle of the database as a :class:`Row` (with ``skipped`` set when left out) and its keys."""
+    from hevsim.vehicle_import import list_vehicles, read_vehicle
+
+    p = path or database_path()
+    bad = not_epa()
+    out = []
+    for i, name, pt in list_vehicles(p):
+        v = read_vehicle(p, row=i)
+        fcev = str(v.get("fc_eff_type", "")).strip() == "H2FC"
+        kind = "FCEV" if fcev else pt
+        unit = "kWh/mi" if pt == "BEV" else "mpg"
+        epa = v.get("val_comb_kwh_per_mile") if pt == "BEV" else v.get("val_comb_mpgge")
+        epa = float(epa) if isinstance(epa, float) and epa > 0 else None
+        r = Row(i, name.strip(), kind, model_year(v), unit, epa)
+        if epa is None:
+            r.skipped = "no EPA figure in val_comb_*"
+        elif name.strip() in bad:
+            r.skipped = f"not an EPA label: {bad[name.strip()]}"
+        elif kind in ("PHEV", "FCEV"):
+            r.skipped = f"{kind}: not handled by hevsim import-vehicle yet (being added)"
+        out.append((r, v))
+    return out
+
+
+def _diesel_factor(v: dict[str, Any]) -> float:
+    """Gallons of gasoline equivalent per gallon of the vehicle's fuel as the EPA label counts it [-]."""
+    if str(v.get("fc_eff_type", "")).strip() not in ("Diesel", "HD_Diesel"):
+        return 1.0
+    from hevsim.fuels import get_fuel
+    from hevsim.units import M3_PER_US_GALLON
+
+    d = get_fuel("diesel")
+    return (
+        FASTSIM_KWH_PER_GGE
+        * 3.6e6
+        / (d.lower_heating_value_j_per_kg * d.density_kg_per_m3 * M3_PER_US_GALLON)
+    )
+
+
+def combined_label(city: float, highway: float, year: int, bev: bool, charger_efficiency: float) -> float:
+    """The adjusted combined figure of unadjusted city / highway figures (mpg, or battery
+    kWh/mi for a BEV, then returned from the wall) with hevsim's label equations."""
+    from hevsim.sim import label as L
+
+    k = L.constants()
+    c = k.for_model_year(year)
+    if bev:
+        adj = [
+            k.kwh_per_gallon_equivalent
+            / L.adjusted_electric_mpge(k.kwh_per_gallon_equivalent / x, t, c, k.electric_adjustment_factor)
+            for x, t in ((city, "city"), (highway, "highway"))
+        ]  # fmt: skip
+        return (k.city_weight * adj[0] + (1 - k.city_weight) * adj[1]) / charger_efficiency
+    return L.combined(L.adjusted_city(city, c), L.adjusted_highway(highway, c), k.city_weight)
+
+
+def hevsim_unadjusted(row: Row, path: Path, work: Path) -> tuple[float, float]:
+    """hevsim's unadjusted (city, highway): mpg in the label's gallons, or battery kWh/mi for a BEV."""
+    from hevsim.sim.label import label
+    from hevsim.vehicle_import import import_vehicle, read_vehicle
+
+    toml = import_vehicle(path, work / f"row{row.row}.toml", row=row.row, force=True)
+    lab = label(toml, model_year=row.model_year)
+    f = lab.figures
+    if row.powertrain == "BEV":
+        return f["unadjusted_kwh_per_100mi"]["city"] / 100, f["unadjusted_kwh_per_100mi"]["highway"] / 100
+    k = 1.0 / _diesel_factor(read_vehicle(path, row=row.row))
+    return f["unadjusted_mpg"]["city"] * k, f["unadjusted_mpg"]["highway"] * k
+
+
+def fastsim_yaml(v: dict[str, Any], out: Path) -> Path:
+    """A fastsim-2 YAML of database vehicle ``v`` for FASTSim 3 (the keys of ``v`` on the layout of
+    FASTSim's bundled 2016 Prius file; lists as fastsim-2 arrays)."""
+    import yaml
+
+    tpl_path = Path(
+        str(resources.files("hevsim") / "data" / "vehicles" / "fastsim" / "vehdb" / FASTSIM_TEMPLATE)
+    )
+    if tpl_path.is_file():
+        template = yaml.safe_load(tpl_path.read_text(encoding="utf-8"))
+    else:
+        import fastsim
+
+        template = yaml.safe_load(
+            Path(fastsim.__file__).parent.joinpath("resources", "vehdb", FASTSIM_TEMPLATE).read_text()
+        )
+    for k, val in v.items():
+        if k not in template:
+            continue
+        if isinstance(val, list):
+            template[k] = {"v": 1, "dim": [len(val)], "data": val}
+        elif val is None:
+            template[k] = None if k.endswith("override") or k == "veh_override_kg" else template[k]
+        elif k == "veh_year":
+            template[k] = int(val)
+        else:
+            template[k] = val
+    if not isinstance(
+        v.get("fc_eff_map"), list
+    ):  # fastsim-2's default curve of fc_eff_type (FASTSim 3 has none)
+        from hevsim.vehicle_import import FC_EFF_MAPS
+
+        curve = list(FC_EFF_MAPS.get(str(v.get("fc_eff_type", "")).strip(), FC_EFF_MAPS["SI"]))
+        template["fc_eff_map"] = {"v": 1, "dim": [len(curve)], "data": curve}
+    if not isinstance(v.get("mc_eff_map"), list):
+        template["mc_eff_map"] = {"v": 1, "dim": [11], "data": [0.0] * 11}
+    if v.get("fc_pwr_out_perc") is None:
+        from hevsim.vehicle_import import FC_PWR_OUT_PERC
+
+        template["fc_pwr_out_perc"] = {"v": 1, "dim": [12], "data": list(FC_PWR_OUT_PERC)}
+    out.write_text(yaml.safe_dump(template), encoding="utf-8")
+    return out
+
+
+def fastsim_unadjusted(row: Row, v: dict[str, Any], work: Path) -> tuple[float, float]:
+    """FASTSim 3's unadjusted (city, highway) from its ``get_label_fe`` (``lab_*``), in the units of
+    :func:`hevsim_unadjusted`. Raises ImportError without fastsim."""
+    import fastsim as fs
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        veh = fs.Vehicle.from_f2_file(str(fastsim_yaml(v, work / f"row{row.row}_f2.yaml")))
+        out = json.loads(fs.get_label_fe(veh).to_json())
+    if row.powertrain == "BEV":
+        return float(out["lab_udds_kwh_per_mi"]), float(out["lab_hwy_kwh_per_mi"])
+    k = 1.0 / _diesel_factor(v)
+    return float(out["lab_udds_mpgge"]) * k, float(out["lab_hwy_mpgge"]) * k
+
+
+def validate(only: list[int] | None = None, with_fastsim: bool = True, path: Path | None = None) -> list[Row]:
+    """Label every vehicle with EPA figures (``only``: these database rows) by hevsim and, if
+    installed and ``with_fastsim``, by FASTSim 3; return the rows (skipped ones included)."""
+    out = []
+    p = path or database_path()
+    with tempfile.TemporaryDirectory(prefix="hevsim-epa-") as tmp:
+        work = Path(tmp)
+        for r, v in rows(p):
+            if only is not None and r.row not in only:
+                continue
+            out.append(r)
+            if r.skipped:
+                continue
+            bev = r.powertrain == "BEV"
+            chg = float(v.get("chg_eff") or 1.0) if bev else 1.0
+            t0 = time.perf_counter()
+            try:
+                r.hevsim_unadjusted = hevsim_unadjusted(r, p, work)
+                r.hevsim = combined_label(*r.hevsim_unadjusted, r.model_year, bev, chg)
+            except ConfigError as exc:
+                r.notes.append(f"hevsim: {str(exc).splitlines()[0][:120]}")
+            r.hevsim_s = time.perf_counter() - t0
+            if with_fastsim:
+                t0 = time.perf_counter()
+                try:
+                    r.fastsim_unadjusted = fastsim_unadjusted(r, v, work)
+                    r.fastsim = combined_label(*r.fastsim_unadjusted, r.model_year, bev, chg)
+                except ImportError:
+                    with_fastsim = False
+                except Exception as exc:  # FASTSim refuses some vehicles: say so in the table
+                    r.notes.append(f"FASTSim: {str(exc).splitlines()[0][:120]}")
+                r.fastsim_s = time.perf_counter() - t0
+    return out
+
+
+def summary(rows_: list[Row]) -> dict[str, dict[str, float]]:
+    """Per powertrain class and "all": count, median and 90th percentile of |error| [%], hevsim
+    and FASTSim."""
+    done = [r for r in rows_ if not r.skipped]
+    out: dict[str, dict[str, float]] = {}
+    for cls in [*sorted({r.powertrain for r in done}), "all"]:
+        sel = [r for r in done if cls in ("all", r.powertrain)]
+        d: dict[str, float] = {"n": float(len(sel))}
+        for which in ("hevsim", "fastsim"):
+            e = np.abs([r.error(which) for r in sel])
+            e = e[np.isfinite(e)]
+            d[f"{which}_n"] = float(e.size)
+            d[f"{which}_median_pct"] = 100 * float(np.median(e)) if e.size else math.nan
+            d[f"{which}_p90_pct"] = 100 * float(np.percentile(e, 90)) if e.size else math.nan
+        out[cls] = d
+    return out

@@ -1,0 +1,568 @@
+"""hevsim against the EPA Test Car List (model year 2022): every measured conventional gasoline
+FTP and HWY certification test, the vehicle built from the list's own fields plus generic
+component models (``hevsim/data/validation/epa_test_car_generic.toml``).
+
+**The vehicle of a test** (:func:`vehicle_config`): a conventional car whose road load is the
+list's *target* coefficients A [lbf], B [lbf/mph], C [lbf/mph^2] (converted to N, N/(m/s),
+N/(m/s)^2) at the *equivalent test weight* (the body's coast-down form), a gearbox of the listed
+number of gears (a CVT: a many-step box) whose top gear gives the listed *N/V ratio* (engine rpm
+per mph in top gear) with the listed *axle ratio* as final drive, the listed drive axle, and a
+generic gasoline engine (:func:`write_engine`) sized by the listed *displacement* and *rated
+power*, shifted by a generic rule. The measured figure is ``RND_ADJ_FE`` [mpg]: the test's fuel
+economy as certified, before the label's 5-cycle adjustment (the FTP's is the 3-bag composite:
+its ``FE Bag 1..3`` columns combine to it with the FTP weights 0.43 cold / 0.57 hot).
+
+**The generic engine** is a Willans-type map (fuel power linear in brake power with a
+speed-dependent friction and a load-dependent pumping term)::
+
+    P_fuel = [w T + w V_d / (4 pi) (fmep0 + fmep1 s + fmep2 s^2 + pmep (1 - T / T_max(w)))] / eta_i
+
+with ``s`` = rpm / reference rpm. Its five parameters and the FTP's cold-start fuel
+(``cold_start_j_per_m3`` x V_d, added to the cold UDDS that weighs 0.43 in the composite) are
+fitted, all together, by non-negative least squares on the relative fuel error of a *training
+half* of the test vehicles (:func:`split`: by a hash of the Test Vehicle ID). The fit is
+linear: the operating points of a test do not depend on the fuel map (the shift rule reads
+engine speed, the kick-down the torque curve, the fuel-cut drag its own fixed constant), so
+one simulation per test with any map gives the energy integrals (:data:`FEATURES`) the fuel of
+every map is a linear combination of; :func:`fit` solves for the weights and the figures
+reported are then full simulations with the fitted map.
+"""
+
+from __future__ import annotations
+
+import csv
+import functools
+import hashlib
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field, replace
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hevsim.errors import ConfigError
+from hevsim.units import M3_PER_US_GALLON, M_PER_MILE, MPS_PER_MPH, RADPS_PER_RPM
+
+TEST_CAR_LIST = "data/vehicles/epa/22-tstcar.csv"
+"""The EPA Test Car List MY2022, relative to the installed ``hevsim`` package."""
+GENERIC_FILE = "data/validation/epa_test_car_generic.toml"
+"""The generic component models and the fitted engine parameters."""
+
+N_PER_LBF = 4.4482216152605
+"""Newtons in one pound-force [N/lbf] (exact)."""
+KG_PER_LB = 0.45359237
+"""Kilograms in one pound [kg/lb] (exact)."""
+W_PER_HP = 745.69987158227022
+"""Watts in one mechanical horsepower (550 ft lbf/s) [W/hp]."""
+FTP_COLD_WEIGHT = 0.43
+"""Weight of the cold-start UDDS (bags 1+2) in the FTP composite (40 CFR 600.114-08); the hot one is 0.57."""
+
+GASOLINE_FUELS = ("Tier 2 Cert Gasoline",)
+"""Test fuels counted as gasoline (the list's ``Test Fuel Type Description``)."""
+PROCEDURES = {
+    "FTP": (
+        "Federal fuel 2-day exhaust (w/can load)", "Federal fuel 3-day exhaust",
+        "CVS 75 and later (w/o can. load)",
+    ),
+    "HWY": ("HWFE",),
+}  # fmt: skip
+"""The tests kept, by category: the FTP's 75 °F exhaust tests and the highway test (the Cold CO
+test at 20 °F is left out)."""
+CYCLE_OF = {"FTP": "udds", "HWY": "hwfet"}
+HYBRID_WORDS = (
+    "hybrid", "hev", "phev", "plug-in", "prius", "insight", "ioniq", "niro", "sienna", "venza", "e-hybrid",
+)  # fmt: skip
+"""Words of a model name that mark a hybrid (lower case; ``Sienna`` and ``Venza`` are hybrid-only in
+MY2022); so does a Lexus-style number ending in h (``ES 300h``, ``LC 500h``: :data:`HYBRID_PATTERN`)."""
+HYBRID_PATTERN = re.compile(r"\b\d{3}h\+?(\s|$)")
+HYBRID_FTP_HWY_RATIO = 0.95
+"""A test vehicle whose measured FTP mpg is at least this share of its HWY mpg is taken for a hybrid
+(regenerative braking: a conventional car's city figure is well below its highway one)."""
+
+POINT_TERMS = (
+    "brake_work",
+    "friction_vd",
+    "friction_vd_speed",
+    "friction_vd_speed2",
+    "pumping_vd",
+    "friction_peak",
+    "friction_peak_speed",
+    "brake_work_speed",
+    "constant",
+)
+"""The fuel power of the generic map is ``sum(weight_k x term_k(w, T))`` [W] over these terms (per
+unit weight: ``w T``; ``w V_d/(4 pi) s^k`` for k = 0, 1, 2, weights in Pa; ``w V_d/(4 pi) (1 -
+T/T_max(w))`` (throttling), in Pa; ``w T_peak s^k`` for k = 0, 1 (friction scaling with the rated
+torque); ``w T s``; 1 W); :func:`point_terms`."""
+FEATURES = (*POINT_TERMS, "cold_start")
+"""The energy integrals of a test (each point term over the fuelled steps, and for an FTP the
+cold start's ``0.43 V_d`` [m^3]) whose weighted sum is the fuel energy [J]."""
+
+
+@dataclass(frozen=True)
+class EngineParams:
+    """The generic engine's fitted weights, one per :data:`FEATURES` name (module docstring)."""
+
+    weights_by_name: tuple[tuple[str, float], ...]
+
+    def weights(self) -> np.ndarray:
+        """The weights in the order of :data:`FEATURES` (0 for a name not given)."""
+        d = dict(self.weights_by_name)
+        return np.array([float(d.get(k, 0.0)) for k in FEATURES])
+
+    @classmethod
+    def from_weights(cls, w: np.ndarray) -> EngineParams:
+        """Parameters of weights ``w`` in the order of :data:`FEATURES`."""
+        return cls(tuple((k, float(x)) for k, x in zip(FEATURES, w, strict=True)))
+
+    @property
+    def indicated_efficiency(self) -> float:
+        """1 / the brake-work weight [-]."""
+        return 1.0 / self.weights()[0]
+
+
+@dataclass(frozen=True)
+class Generic:
+    """The generic models of :data:`GENERIC_FILE` (units in the names)."""
+
+    idle_rpm: float
+    redline_rpm: float
+    knee_rpm: float
+    full_torque_rpm: float
+    idle_torque_fraction: float
+    reference_rpm: float
+    closed_throttle_mep_pa: float
+    inertia_kgm2_per_l: float
+    speed_points: int
+    torque_points: int
+    spread: dict[int, float]
+    cvt_steps: int
+    gearbox_efficiency: float
+    final_drive_efficiency: float
+    upshift_rpm: float
+    downshift_rpm: float
+    tire_radius_m: float
+    manual_codes: tuple[str, ...]
+    manual_upshift_rpm: float
+    manual_downshift_rpm: float
+    fitted: EngineParams
+    source: str = ""
+
+
+def _num(d: dict[str, Any], key: str, where: str) -> float:
+    v = d.get(key)
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < 0:
+        raise ConfigError(f"{where}: key '{key}' = {v!r}; expected a number >= 0.")
+    return float(v)
+
+
+@functools.lru_cache(maxsize=4)
+def generic(path: str | None = None) -> Generic:
+    """The generic models (``path``: another TOML of the same layout; None: the shipped one)."""
+    p = Path(path) if path else Path(str(resources.files("hevsim") / GENERIC_FILE))
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise ConfigError(f"{p}: cannot read the generic models ({exc}).") from exc
+    e, t = data.get("engine", {}), data.get("transmission", {})
+    f = e.get("fitted", {})
+    w = str(p)
+    spread = {int(k): _num(t.get("spread", {}), k, f"{w} [transmission.spread]") for k in t.get("spread", {})}
+    unknown = sorted(set(f) - set(FEATURES))
+    if unknown:
+        raise ConfigError(
+            f"{w} [engine.fitted]: key(s) {unknown} unknown; expected some of {', '.join(FEATURES)}."
+        )
+    fitted = EngineParams(tuple((k, _num(f, k, f"{w} [engine.fitted]")) for k in FEATURES if k in f))
+    if fitted.weights()[0] <= 0:
+        raise ConfigError(
+            f"{w} [engine.fitted]: key 'brake_work' = 0; expected 1 / indicated efficiency > 1."
+        )
+    eng = ("idle_rpm", "redline_rpm", "knee_rpm", "full_torque_rpm", "idle_torque_fraction", "reference_rpm",
+           "closed_throttle_mep_pa", "inertia_kgm2_per_l")  # fmt: skip
+    trans = ("gearbox_efficiency", "final_drive_efficiency", "upshift_rpm", "downshift_rpm", "tire_radius_m",
+             "manual_upshift_rpm", "manual_downshift_rpm")  # fmt: skip
+    kw: dict[str, Any] = {k: _num(e, k, f"{w} [engine]") for k in eng}
+    kw.update({k: _num(t, k, f"{w} [transmission]") for k in trans})
+    kw.update({k: int(_num(e, k, f"{w} [engine]")) for k in ("speed_points", "torque_points")})
+    kw["cvt_steps"] = int(_num(t, "cvt_steps", f"{w} [transmission]"))
+    kw["manual_codes"] = tuple(str(c) for c in t.get("manual_codes", []))
+    return Generic(**kw, spread=spread, fitted=fitted, source=w)
+
+
+# ============================================================================ the list
+@dataclass
+class TestVehicle:
+    """One vehicle configuration of the list and its measured tests (SI)."""
+
+    __test__ = False  # not a pytest class
+
+    vehicle_id: str
+    make: str
+    model: str
+    displacement_m3: float
+    rated_power_w: float
+    transmission: str
+    transmission_code: str
+    gears: int
+    drive: str
+    test_mass_kg: float
+    axle_ratio: float
+    nv_rpm_per_mph: float
+    a_n: float
+    b_n_per_mps: float
+    c_n_per_mps2: float
+    tests: list[tuple[str, str, float]] = field(default_factory=list)
+    """(category "FTP"/"HWY", test number, measured RND_ADJ_FE [mpg])."""
+
+    @property
+    def key(self) -> str:
+        """The configuration's identity: vehicle ID, test weight, road load A, N/V, axle ratio."""
+        return (
+            f"{self.vehicle_id}|{self.test_mass_kg:.1f}|{self.a_n:.3f}|{self.nv_rpm_per_mph:g}|"
+            f"{self.axle_ratio:g}"
+        )
+
+    @property
+    def name(self) -> str:
+        return f"{self.make} {self.model}".strip()
+
+
+def _float(row: dict[str, str], col: str, where: str) -> float:
+    try:
+        v = float(row[col])
+    except (KeyError, ValueError):
+        raise ConfigError(f"{where}: column {col!r} = {row.get(col)!r}; expected a number.") from None
+    return v
+
+
+def split(vehicle_id: str) -> str:
+    """``"train"`` or ``"test"``: the half of a Test Vehicle ID (the first byte of its SHA-256 even/odd)."""
+    return "train" if hashlib.sha256(vehicle_id.encode()).digest()[0] % 2 == 0 else "test"
+
+
+def is_hybrid_name(model: str) -> bool:
+    """Whether a model name marks a hybrid (:data:`HYBRID_WORDS`)."""
+    m = f" {model.lower()}"
+    return any(w in m for w in HYBRID_WORDS) or HYBRID_PATTERN.search(m) is not None
+
+
+def read_test_cars(path: str | Path | None = None) -> tuple[list[TestVehicle], dict[str, int]]:
+    """The conventional gasoline test vehicles of the list with their measured FTP and HWY
+    tests, and the count of tests left out per reason."""
+    p = Path(path) if path else Path(str(resources.files("hevsim") / TEST_CAR_LIST))
+    try:
+        with p.open(newline="", encoding="utf-8-sig") as f:
+            rows = list(csv.DictReader(f))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{p}: cannot read the EPA Test Car List ({exc}).") from exc
+    skipped: dict[str, int] = {}
+
+    def skip(reason: str) -> None:
+        skipped[reason] = skipped.get(reason, 0) + 1
+
+    cd_ids = {r["Test Vehicle ID"] for r in rows if r.get("Test Category") == "CD"}
+    vehicles: dict[str, TestVehicle] = {}
+    for n, r in enumerate(rows, start=2):
+        where = f"{p}, line {n}"
+        cat = r.get("Test Category", "")
+        if cat not in PROCEDURES:
+            skip(f"category {cat} (not FTP/HWY)")
+            continue
+        if r.get("Test Procedure Description") not in PROCEDURES[cat]:
+            skip(f"procedure {r.get('Test Procedure Description')}")
+            continue
+        if r.get("Test Fuel Type Description") not in GASOLINE_FUELS:
+            skip(f"fuel {r.get('Test Fuel Type Description')}")
+            continue
+        if r.get("Analytically Derived FE?") != "No":
+            skip("analytically derived (not measured)")
+            continue
+        if r["Test Vehicle ID"] in cd_ids:
+            skip("plug-in hybrid (has a charge-depleting test)")
+            continue
+        if is_hybrid_name(r.get("Represented Test Veh Model", "")):
+            skip("hybrid (model name)")
+            continue
+        try:
+            mpg = _float(r, "RND_ADJ_FE", where)
+            v = TestVehicle(
+                r["Test Vehicle ID"], r["Represented Test Veh Make"], r["Represented Test Veh Model"],
+                _float(r, "Test Veh Displacement (L)", where) * 1e-3,
+                _float(r, "Rated Horsepower", where) * W_PER_HP,
+                r["Tested Transmission Type"], r["Tested Transmission Type Code"],
+                int(_float(r, "# of Gears", where)), r["Drive System Code"],
+                _float(r, "Equivalent Test Weight (lbs.)", where) * KG_PER_LB,
+                _float(r, "Axle Ratio", where), _float(r, "N/V Ratio", where),
+                _float(r, "Target Coef A (lbf)", where) * N_PER_LBF,
+                _float(r, "Target Coef B (lbf/mph)", where) * N_PER_LBF / MPS_PER_MPH,
+                _float(r, "Target Coef C (lbf/mph**2)", where) * N_PER_LBF / MPS_PER_MPH**2,
+            )  # fmt: skip
+        except ConfigError:
+            skip("a field empty or not a number")
+            continue
+        if min(v.displacement_m3, v.rated_power_w, v.test_mass_kg, v.axle_ratio, v.nv_rpm_per_mph, mpg) <= 0:
+            skip("a field zero")
+            continue
+        v = vehicles.setdefault(v.key, v)
+        v.tests.append((cat, r.get("Test Number", ""), mpg))
+    out = []
+    for v in vehicles.values():
+        ftp = [m for c, _, m in v.tests if c == "FTP"]
+        hwy = [m for c, _, m in v.tests if c == "HWY"]
+        if ftp and hwy and np.mean(ftp) >= HYBRID_FTP_HWY_RATIO * np.mean(hwy):
+            for _ in v.tests:
+                skip(f"hybrid (measured FTP >= {HYBRID_FTP_HWY_RATIO:g} x HWY)")
+            continue
+        out.append(v)
+    return out, skipped
+
+
+# ============================================================================ the vehicle
+def gear_ratios(v: TestVehicle, g: Generic) -> list[float]:
+    """Gearbox ratios [-], first gear first: top gear from N/V and the axle ratio, the others
+    spaced geometrically over the generic spread of the listed number of gears."""
+    overall = v.nv_rpm_per_mph * 2 * math.pi * g.tire_radius_m / (MPS_PER_MPH * 60.0)
+    top = overall / v.axle_ratio
+    n = g.cvt_steps if v.gears <= 1 else v.gears
+    spread = g.spread.get(max(v.gears, 1))
+    if spread is None:
+        raise ConfigError(
+            f"{g.source}: [transmission] spread has no value for {v.gears} gears (vehicle {v.vehicle_id})."
+        )
+    if n == 1:
+        return [top]
+    return [top * spread ** ((n - 1 - i) / (n - 1)) for i in range(n)]
+
+
+def _max_torque(w_radps: np.ndarray, v: TestVehicle, g: Generic) -> np.ndarray:
+    peak = v.rated_power_w / (g.knee_rpm * RADPS_PER_RPM)
+    rpm = w_radps / RADPS_PER_RPM
+    low = g.idle_torque_fraction + (1 - g.idle_torque_fraction) * np.clip(
+        (rpm - g.idle_rpm) / max(g.full_torque_rpm - g.idle_rpm, 1.0), 0.0, 1.0
+    )
+    return np.minimum(peak * low, v.rated_power_w / np.maximum(w_radps, 1e-9))
+
+
+def point_terms(t_nm: np.ndarray, w_radps: np.ndarray, v: TestVehicle, g: Generic) -> np.ndarray:
+    """The :data:`POINT_TERMS` at torque [N m] and speed [rad/s] (arrays of one shape), stacked
+    on a last axis [W per unit weight]."""
+    t_nm, w_radps = np.broadcast_arrays(np.asarray(t_nm, float), np.asarray(w_radps, float))
+    s = w_radps / (g.reference_rpm * RADPS_PER_RPM)
+    vd = w_radps * v.displacement_m3 / (4 * math.pi)
+    peak = w_radps * v.rated_power_w / (g.knee_rpm * RADPS_PER_RPM)
+    load = np.clip(1.0 - t_nm / _max_torque(w_radps, v, g), 0.0, 1.0)
+    wt = w_radps * t_nm
+    return np.stack(
+        [wt, vd, vd * s, vd * s * s, vd * load, peak, peak * s, wt * s, np.ones_like(wt)], axis=-1
+    )
+
+
+def fuel_power_w(
+    t_nm: np.ndarray, w_radps: np.ndarray, v: TestVehicle, g: Generic, p: EngineParams
+) -> np.ndarray:
+    """Fuel power [W] of the generic engine at torque [N m] and speed [rad/s] (module docstring)."""
+    return point_terms(t_nm, w_radps, v, g) @ p.weights()[: len(POINT_TERMS)]
+
+
+def write_engine(folder: Path, v: TestVehicle, g: Generic, p: EngineParams, lhv_j_per_kg: float) -> None:
+    """Write the generic engine of ``v`` (hevsim engine folder: meta.toml + CSV maps) into ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    w = np.linspace(0.9 * g.idle_rpm, g.redline_rpm, g.speed_points) * RADPS_PER_RPM
+    tmax = _max_torque(w, v, g)
+    torque = np.linspace(0.0, float(tmax.max()), g.torque_points)
+    ww, tt = np.meshgrid(w, torque, indexing="ij")
+    rate = fuel_power_w(tt, ww, v, g, p) / lhv_j_per_kg * 1e3
+    lines = ["speed_rad_per_s,torque_N_m,fuel_rate_g_per_s"]
+    lines += [
+        f"{a!r},{b!r},{c!r}"
+        for a, b, c in zip(ww.ravel().tolist(), tt.ravel().tolist(), rate.ravel().tolist(), strict=True)
+    ]
+    (folder / "fuel_rate_map.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    (folder / "max_torque.csv").write_text(
+        "speed_rad_per_s,max_torque_N_m\n"
+        + "".join(f"{a!r},{b!r}\n" for a, b in zip(w.tolist(), tmax.tolist(), strict=True)),
+        encoding="utf-8",
+    )
+    drag = -g.closed_throttle_mep_pa * v.displacement_m3 / (4 * math.pi)
+    (folder / "closed_throttle_torque.csv").write_text(
+        "speed_rad_per_s,closed_throttle_torque_N_m\n" + "".join(f"{a!r},{drag!r}\n" for a in w.tolist()),
+        encoding="utf-8",
+    )
+    (folder / "meta.toml").write_text(
+        f'name = "{folder.name}"\n'
+        'description = "generic gasoline engine (hevsim.validation.test_car_list): '
+        f"{v.displacement_m3 * 1e3:.2f} L, "
+        f'{v.rated_power_w / 1e3:.0f} kW"\n'
+        'fuel = "gasoline"\n'
+        'notes = "Not a measured map: the generic Willans-type gasoline map of '
+        "hevsim.validation.test_car_list (fuel power = fitted weights x terms in speed, torque, "
+        "displacement and rated torque; weights fitted on the training half of the EPA Test Car List "
+        "MY2022, hevsim/data/validation/epa_test_car_generic.toml), "
+        'sized by displacement and rated power."\n'
+        f"fitted_weights = {{ {', '.join(f'{k} = {w!r}' for k, w in p.weights_by_name if w)} }}\n"
+        f"[parameters]\ndisplacement_L = {v.displacement_m3 * 1e3!r}\n"
+        f"max_power_kW = {v.rated_power_w / 1e3!r}\n"
+        f"rotational_inertia_kg_m2 = {g.inertia_kgm2_per_l * v.displacement_m3 * 1e3!r}\n"
+        '[source]\nupstream = "hevsim (generic map); sizes from the US EPA Test Car List MY2022 '
+        '(public domain)"\n',
+        encoding="utf-8",
+    )
+
+
+def vehicle_config(v: TestVehicle, engine_dir: Path, g: Generic) -> Any:
+    """The validated hevsim configuration of test vehicle ``v`` with its engine in ``engine_dir``."""
+    from hevsim.config import config_from_dict
+
+    axle = {"F": "front", "R": "rear"}.get(v.drive, "all")
+    manual = v.transmission_code in g.manual_codes
+    up, down = (g.manual_upshift_rpm, g.manual_downshift_rpm) if manual else (g.upshift_rpm, g.downshift_rpm)
+    data = {
+        "name": f"tcl_{v.vehicle_id}",
+        "description": f"{v.name} (EPA Test Car List MY2022, test vehicle {v.vehicle_id})",
+        "powertrain": {"architecture": "conventional"},
+        "body": {
+            "road_load_a_n": v.a_n, "road_load_b_n_per_m_s": v.b_n_per_mps,
+            "road_load_c_n_per_m2_s2": v.c_n_per_mps2, "test_mass_kg": v.test_mass_kg,
+        },
+        "tire": {"radius_m": g.tire_radius_m, "driven_axle": axle},
+        "final_drive": {"ratio": v.axle_ratio, "efficiency": g.final_drive_efficiency},
+        "gearbox": {"ratios": gear_ratios(v, g), "efficiency": g.gearbox_efficiency},
+        "engine": {
+            "model": "map", "data": str(engine_dir), "stall_speed_rpm": g.idle_rpm,
+            "redline_rpm": g.redline_rpm,
+        },
+        "simulation": {"cycle": "udds", "dt_s": 1.0},
+        "controller": {"kind": "shift_schedule", "upshift_rpm": up, "downshift_rpm": down},
+    }  # fmt: skip
+    return config_from_dict(data, f"test vehicle {v.vehicle_id}", engine_dir.parent)
+
+
+# ============================================================================ running
+@dataclass
+class TestRun:
+    """A simulated test: measured and predicted mpg, and the fuel's energy integrals."""
+
+    __test__ = False
+
+    vehicle: TestVehicle
+    category: str
+    test_number: str
+    measured_mpg: float
+    predicted_mpg: float
+    features: np.ndarray
+    distance_m: float
+    half: str
+
+    @property
+    def error(self) -> float:
+        """predicted / measured - 1 [-]."""
+        return self.predicted_mpg / self.measured_mpg - 1.0
+
+
+def gallon_energy_j() -> float:
+    """Energy of one US gallon of gasoline [J] (LHV x density of hevsim's gasoline)."""
+    from hevsim.fuels import get_fuel
+
+    f = get_fuel("gasoline")
+    return f.lower_heating_value_j_per_kg * f.density_kg_per_m3 * M3_PER_US_GALLON
+
+
+def features(res: Any, v: TestVehicle, category: str, g: Generic) -> np.ndarray:
+    """The :data:`FEATURES` integrals of one simulation result (fuelled steps)."""
+    ts = res.timeseries
+    t = ts["time_s"].to_numpy()
+    dt = np.diff(t, append=t[-1] + (t[-1] - t[-2] if t.size > 1 else 1.0))
+    fuelled = (
+        (ts["engine_on"].to_numpy() > 0)
+        & (ts["fuel_cut"].to_numpy() == 0)
+        & (ts["fuel_rate_gps"].to_numpy() > 0)
+    )
+    terms = point_terms(ts["engine_torque_nm"].to_numpy(), ts["engine_speed_radps"].to_numpy(), v, g)
+    cold = FTP_COLD_WEIGHT * v.displacement_m3 if category == "FTP" else 0.0
+    return np.append((fuelled * dt) @ terms, cold)
+
+
+def run_vehicle(v: TestVehicle, work: Path, g: Generic, p: EngineParams) -> list[TestRun]:
+    """Simulate test vehicle ``v`` (maps written under ``work``) on the cycles of its tests."""
+    from hevsim.architectures import build_vehicle
+    from hevsim.fuels import get_fuel
+    from hevsim.sim.simulator import simulate
+
+    folder = work / f"e_{hashlib.sha1(v.key.encode()).hexdigest()[:12]}"
+    write_engine(folder, v, g, p, get_fuel("gasoline").lower_heating_value_j_per_kg)
+    model = build_vehicle(vehicle_config(v, folder, g))
+    gal_j = gallon_energy_j()
+    cold = float(p.weights()[-1])
+    out = []
+    cache: dict[str, tuple[float, np.ndarray, float]] = {}
+    for cat, number, mpg in v.tests:
+        if cat not in cache:
+            res = simulate(model, CYCLE_OF[cat], tracking=None)
+            f = features(res, v, cat, g)
+            fuel_j = (
+                float(res.metrics["fuel_kg"]["value"]) * get_fuel("gasoline").lower_heating_value_j_per_kg
+            )
+            fuel_j += cold * f[-1]
+            dist = float(res.metrics["distance_m"]["value"])
+            cache[cat] = (dist / M_PER_MILE / (fuel_j / gal_j), f, dist)
+        pred, f, dist = cache[cat]
+        out.append(TestRun(v, cat, number, mpg, pred, f, dist, split(v.vehicle_id)))
+    return out
+
+
+def run_all(
+    vehicles: list[TestVehicle], work: Path, g: Generic, p: EngineParams | None = None
+) -> list[TestRun]:
+    """:func:`run_vehicle` for every vehicle (``p`` None: the shipped fitted parameters)."""
+    p = p or g.fitted
+    runs: list[TestRun] = []
+    for v in vehicles:
+        runs.extend(run_vehicle(v, work, g, p))
+    return runs
+
+
+def fit(runs: list[TestRun]) -> EngineParams:
+    """Non-negative least squares of the relative fuel error over ``runs`` (the training half):
+    weights ``x`` >= 0 minimising sum((features . x) / measured fuel energy - 1)^2."""
+    from scipy.optimize import nnls
+
+    gal_j = gallon_energy_j()
+    a = np.array([r.features / (r.distance_m / M_PER_MILE / r.measured_mpg * gal_j) for r in runs])
+    scale = np.maximum(np.abs(a).max(axis=0), 1e-30)
+    x, _ = nnls(a / scale, np.ones(len(runs)))
+    x = x / scale
+    if x[0] <= 0:
+        raise ConfigError(
+            "the engine fit gave no brake-work weight (1 / indicated efficiency = 0); check the data."
+        )
+    return EngineParams.from_weights(x)
+
+
+def linear_mpg(r: TestRun, p: EngineParams) -> float:
+    """The mpg the fitted weights predict from a run's integrals (the fit's own prediction) [mpg]."""
+    return r.distance_m / M_PER_MILE / (float(r.features @ p.weights()) / gallon_energy_j())
+
+
+def summary(runs: list[TestRun]) -> dict[str, dict[str, float]]:
+    """Median and 90th percentile of |error| [%], mean error [%] and count per (half, category)."""
+    out: dict[str, dict[str, float]] = {}
+    for half in ("train", "test"):
+        for cat in ("FTP", "HWY"):
+            e = np.array([r.error for r in runs if r.half == half and r.category == cat])
+            if e.size:
+                out[f"{half} {cat}"] = {
+                    "n": float(e.size),
+                    "median_abs_pct": 100 * float(np.median(np.abs(e))),
+                    "p90_abs_pct": 100 * float(np.percentile(np.abs(e), 90)),
+                    "mean_pct": 100 * float(np.mean(e)),
+                }
+    return out
+
+
+def with_params(g: Generic, p: EngineParams) -> Generic:
+    """``g`` with other fitted engine parameters."""
+    return replace(g, fitted=p)

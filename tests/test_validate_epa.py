@@ -1,0 +1,142 @@
+"""The EPA validation (hevsim.validation, benchmarks/validate_epa.py) on a few vehicles of each data set.
+
+The full tables are the benchmark's; here a handful of vehicles, with their errors against the EPA
+figures asserted (FASTSim database: the issue's median goal of 5 %; Test Car List: a deterministic
+sample of the held-out half, HWY within the goal, FTP within what the full validation achieves,
+docs/validation.md).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hevsim.errors import ConfigError
+from hevsim.validation import fastsim_db as F
+from hevsim.validation import test_car_list as T
+
+FASTSIM_ROWS = (1, 3, 20, 22)
+"""2016 Corolla, 2016 Camry (conventional), 2016 Leaf 30 kWh, 2016 Tesla Model S60 (BEV)."""
+
+
+def test_fastsim_database_rows_within_the_goal() -> None:
+    rows = F.validate(only=list(FASTSIM_ROWS), with_fastsim=True)
+    assert [r.row for r in rows] == list(FASTSIM_ROWS)
+    errors = np.abs([r.error("hevsim") for r in rows])
+    assert np.all(np.isfinite(errors))
+    assert np.all(errors <= 0.05), [(r.name, r.hevsim, r.epa) for r in rows]
+    theirs = np.array([r.fastsim for r in rows])
+    if np.all(np.isfinite(theirs)):  # FASTSim installed (the bench extra): the peer, same vehicle file
+        assert np.array([r.hevsim for r in rows]) == pytest.approx(theirs, rel=0.05)
+    bev = rows[2]
+    assert bev.unit == "kWh/mi" and 0.2 < bev.hevsim < 0.4
+
+
+def test_fastsim_database_skips_are_stated() -> None:
+    rows = {r.row: r for r, _ in F.rows()}
+    assert rows[12].skipped.startswith("PHEV") and rows[23].skipped.startswith("FCEV")
+    assert rows[25].skipped == "no EPA figure in val_comb_*"  # a truck
+    assert rows[39].skipped.startswith("not an EPA label")  # Maruti Swift: a copy of the Corolla's figures
+    assert rows[1].skipped == "" and rows[1].epa == 31.0
+
+
+def test_combined_label_is_the_label_equations() -> None:
+    """FASTSim's own 2016 Prius figures (lab 63.41 / 70.21 mpg -> adj 46.99 combined, 2008 set)."""
+    assert F.combined_label(63.41125821311937, 70.21424834754671, 2016, False, 1.0) == pytest.approx(
+        46.9901361039704, rel=1e-9
+    )
+    assert F.model_year({"scenario_name": "2017 CHEVROLET Bolt", "veh_year": None}) == 2017
+
+
+def test_road_load_and_mass_are_the_lists_converted() -> None:
+    vehicles, skipped = T.read_test_cars()
+    v = next(x for x in vehicles if x.vehicle_id == "562TT5348")  # Aston Martin DB11 V8, first line
+    assert v.a_n == pytest.approx(40.94 * 4.4482216152605, rel=1e-12)
+    assert v.b_n_per_mps == pytest.approx(0.0169 * 4.4482216152605 / 0.44704, rel=1e-12)
+    assert v.c_n_per_mps2 == pytest.approx(0.0271 * 4.4482216152605 / 0.44704**2, rel=1e-12)
+    assert v.test_mass_kg == pytest.approx(4500 * 0.45359237, rel=1e-12)
+    assert sorted(c for c, _, _ in v.tests) == ["FTP", "HWY"]
+    g = T.generic()
+    ratios = T.gear_ratios(v, g)
+    assert len(ratios) == 8 and ratios[0] / ratios[-1] == pytest.approx(g.spread[8])
+    # top gear: N/V (engine rpm per mph) = overall ratio x wheel rpm per mph
+    wheel_rpm_per_mph = 0.44704 * 60 / (2 * math.pi * g.tire_radius_m)
+    assert ratios[-1] * v.axle_ratio * wheel_rpm_per_mph == pytest.approx(22.2, rel=1e-12)
+    assert skipped["analytically derived (not measured)"] > 0 and skipped["hybrid (model name)"] > 0
+    assert not any(T.is_hybrid_name(x.model) for x in vehicles)
+    assert T.is_hybrid_name("LC 500h") and not T.is_hybrid_name("IS 350")
+
+
+def test_split_is_deterministic_and_halves() -> None:
+    vehicles, _ = T.read_test_cars()
+    halves = [T.split(v.vehicle_id) for v in vehicles]
+    assert halves == [T.split(v.vehicle_id) for v in vehicles]
+    assert 0.4 < halves.count("train") / len(halves) < 0.6
+
+
+def test_held_out_sample_and_the_fit_is_linear(tmp_path: Path) -> None:
+    """Every 16th held-out vehicle: the simulated fuel equals the fitted weights times the
+    run's energy integrals (the linearity the fit relies on), and the errors are within bounds."""
+    vehicles, _ = T.read_test_cars()
+    held = [v for v in vehicles if T.split(v.vehicle_id) == "test"][::16]
+    g = T.generic()
+    runs = T.run_all(held, tmp_path, g)
+    assert len(runs) >= 60
+    for r in runs:
+        assert T.linear_mpg(r, g.fitted) == pytest.approx(r.predicted_mpg, rel=2e-3)
+    for cat, median_max, p90_max in (("HWY", 0.05, 0.12), ("FTP", 0.07, 0.17)):
+        e = np.abs([r.error for r in runs if r.category == cat])
+        assert np.median(e) <= median_max, (cat, np.median(e))
+        assert np.percentile(e, 90) <= p90_max, (cat, np.percentile(e, 90))
+
+
+def test_fit_recovers_known_weights() -> None:
+    """NNLS on runs whose measured fuel is exactly a known weighting of their integrals."""
+    rng = np.random.default_rng(1)
+    true = T.EngineParams.from_weights(np.array([2.4, 3e4, 0, 9e3, 0, 0.1, 0, 0, 2500.0, 4e9]))
+    runs = []
+    for i in range(40):
+        f = np.abs(rng.normal(size=len(T.FEATURES))) * np.array(
+            [2e7, 300, 300, 300, 300, 50, 50, 2e7, 1000, 1e-3]
+        )
+        dist = 12000.0
+        fuel_j = float(f @ true.weights())
+        mpg = dist / 1609.344 / (fuel_j / T.gallon_energy_j())
+        runs.append(T.TestRun(None, "FTP", str(i), mpg, mpg, f, dist, "train"))  # type: ignore[arg-type]
+    got = T.fit(runs).weights()
+    assert got == pytest.approx(true.weights(), rel=1e-6, abs=1e-6)
+
+
+def test_bad_generic_file_names_the_key(tmp_path: Path) -> None:
+    src = Path(T.__file__).parents[1] / T.GENERIC_FILE
+    bad = tmp_path / "g.toml"
+    bad.write_text(src.read_text().replace("brake_work = ", "brake_wrok = "))
+    with pytest.raises(ConfigError, match="brake_wrok"):
+        T.generic(str(bad))
+
+
+def test_camry_example_within_ten_percent_of_its_epa_figures(tmp_path: Path) -> None:
+    """examples/toyota_camry_2022_le.toml (issue 25 item 6): hevsim's unadjusted label within 10 % of
+    the unadjusted figures behind the car's EPA label (28 city / 39 highway, 2017 coefficient set),
+    and its engine folder is the generic map of its Test Car List entry with the shipped weights."""
+    from hevsim.fuels import get_fuel
+    from hevsim.sim import label as L
+
+    root = Path(__file__).resolve().parents[1] / "examples"
+    lab = L.label(root / "toyota_camry_2022_le.toml", model_year=2022)
+    c = L.constants().for_model_year(2022)
+    u = lab.figures["unadjusted_mpg"]
+    assert u["city"] == pytest.approx(L.unadjusted_city(28, c), rel=0.10)
+    assert u["highway"] == pytest.approx(L.unadjusted_highway(39, c), rel=0.10)
+    vehicles, _ = T.read_test_cars()
+    v = next(x for x in vehicles if x.vehicle_id == "18-AV2A" and x.a_n > 25.5 * T.N_PER_LBF)
+    T.write_engine(
+        tmp_path / "e", v, T.generic(), T.generic().fitted, get_fuel("gasoline").lower_heating_value_j_per_kg
+    )
+    for name in ("fuel_rate_map.csv", "max_torque.csv", "closed_throttle_torque.csv"):
+        assert (tmp_path / "e" / name).read_text() == (
+            root / "toyota_camry_2022_le_engine" / name
+        ).read_text()
