@@ -68,12 +68,16 @@ def bench_set(name: str, current: np.ndarray, repeats: int, n_cells: int, fideli
     t_kernel = median_time(kernel_once, repeats)
     t_cell = median_time(lambda: Cell(p, SOC_INITIAL).simulate(current, 1.0, 298.15), repeats)
     t0 = time.perf_counter()
-    simulate_cells(p, current, 1.0, 298.15, soc_initial=SOC_INITIAL, n_cells=2)  # warm-up (compile/cache load)
+    simulate_cells(
+        p, current, 1.0, 298.15, soc_initial=SOC_INITIAL, n_cells=2
+    )  # warm-up (compile/cache load)
     first_b = time.perf_counter() - t0
     rng = np.random.default_rng(0)
     r_scale = 1.0 + 0.05 * rng.standard_normal(n_cells)
     few = max(3, repeats // 5)
-    t_batch = median_time(lambda: simulate_cells(p, current, 1.0, 298.15, soc_initial=SOC_INITIAL, r_scale=r_scale), few)
+    t_batch = median_time(
+        lambda: simulate_cells(p, current, 1.0, 298.15, soc_initial=SOC_INITIAL, r_scale=r_scale), few
+    )
     Module(p, soc_initial=SOC_INITIAL).simulate(current[:10], 1.0)
     t_mod = median_time(lambda: Module(p, soc_initial=SOC_INITIAL).simulate(current, 1.0), few)
     label = " + persistent RC, in-step OCV, Butler-Volmer" if fidelity else ""

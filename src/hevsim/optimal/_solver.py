@@ -928,7 +928,14 @@ class DPSolver:
         return xs, us, gs, n_fallback
 
     def _near_set_step(
-        self, blk: Block, k: int, x: FloatArray, out: StepOut, bw: Backward, band: FloatArray, band_i: IntArray
+        self,
+        blk: Block,
+        k: int,
+        x: FloatArray,
+        out: StepOut,
+        bw: Backward,
+        band: FloatArray,
+        band_i: IntArray,
     ) -> StepOut | None:
         """Level set, forward pass: the state ``x`` has slipped out of the interpolated
         reachable set by round-off of the interpolation (the level value is invariant along
