@@ -32,7 +32,6 @@ from hevsim.battery import kernel as K
 from hevsim.battery.params import CellParameters, ChargeTransferSection, ModelSection
 from hevsim.battery.profiles import cycle_cell_current
 
-
 SOC_INITIAL = 0.5  # [-] every cell starts here; the profile is charge-sustaining
 
 
