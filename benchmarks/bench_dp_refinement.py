@@ -127,6 +127,10 @@ def main() -> int:
     print(f"double integrator: inputs refined (61^2 states)\n{head}")
     for m in (51, 101) if args.quick else (51, 101, 201):
         row(f"61^2 x {m}", double_integrator(61, m), [0.0, 0.0], j_di, XF_DI, XF_DI)
+    if not args.quick:
+        print(f"double integrator: the grids of issue 26 (both refined)\n{head}")
+        for n, m in ((81, 201), (161, 401)):
+            row(f"{n}^2 x {m}", double_integrator(n, m), [0.0, 0.0], j_di, XF_DI, XF_DI)
     return 0
 
 

@@ -79,6 +79,15 @@ def test_two_tank_finer_inputs_not_worse() -> None:
     assert e21 <= 0.001, e21
 
 
+def test_two_tank_finer_inputs_not_worse_at_51_nodes() -> None:
+    """51 x 51 nodes, 21 -> 41 values per input: +0.265 % -> +2.140 % before (the forward
+    pass slipped out of the interpolated level set by 1e-8 and the closest approach then
+    picked an extreme split of the flow at every step, 95 steps); now +0.265 % both."""
+    e21, e41 = tt_error(51, 21), tt_error(51, 41)
+    assert min(e21, e41) >= 0.0
+    assert e41 <= e21 + INTERP_TOL, (e21, e41)
+
+
 def test_two_tank_finer_states_not_worse() -> None:
     """11 values per input, 41 -> 51 -> 101 nodes per state: the error does not grow."""
     errs = [tt_error(n, 11) for n in (41, 51, 101)]

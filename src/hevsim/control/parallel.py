@@ -19,6 +19,11 @@ from hevsim.architectures import parallel as P
 from hevsim.errors import ConfigError
 from hevsim.units import rpm_to_radps
 
+HOLD_EQUIVALENCE_FACTOR = 10.0
+"""Equivalence factor [-] of the electric assist's charge-hold below ``soc_low`` with an
+auxiliary load: the ECMS score ``fuel power + s x battery chemical power`` of every candidate
+with a factor so high that the engine charges as hard as its speed allows."""
+
 Control = tuple[float, ...]
 """A control: (gear [1..G], throttle [-]) for the parallel HEV, (engine speed [rad/s],
 throttle [-]) for the power split; throttle 0 is engine off."""
@@ -100,6 +105,25 @@ class _RuleBased(_GridController):
     def charge_fraction(self, soc: float) -> Any:
         """Share [-] of ``charge_power`` to add at ``soc``: 0 at ``soc_high``, 1 at ``soc_low``."""
         return np.clip((self.soc_high - soc) / (self.soc_high - self.soc_low), 0.0, 1.0)
+
+    def charging_power(self, soc: float) -> float:
+        """Engine charging power [W] at ``soc`` [-]: ``charge_fraction x charge_power``, plus
+        the auxiliary load (``[controller] aux_power_w``) once the SOC is below ``soc_low``:
+        there the running engine carries the auxiliaries as well, so that they cannot drain
+        the battery to the floor of its window (issue 26: a 5 kW load on the parallel HEV
+        example ran it 0.11 below its floor with the charging power alone)."""
+        p = float(self.charge_fraction(soc)) * self.charge_power
+        return p + self.aux_w if soc < self.soc_low else p
+
+    def holds(self, soc: float) -> bool:
+        """Below ``soc_low`` with an auxiliary load: the electric assist holds the SOC (the
+        engine carries the auxiliaries and charges; :data:`HOLD_EQUIVALENCE_FACTOR`)."""
+        return soc < self.soc_low and self.aux_w > 0.0
+
+    @property
+    def aux_w(self) -> float:
+        """The vehicle's electrical auxiliary load [W]."""
+        return float(getattr(self.hev, "aux_power_w", 0.0) or 0.0)
 
 
 class ECMS(_GridController):
@@ -200,14 +224,15 @@ class ElectricAssist(_RuleBased):
         p_dem = step.wheel_torque_nm * step.wheel_speed_radps
         soc = step.soc
         low_load = self.low_load(step, p_dem)
+        if self.holds(soc):  # charge-hold: ECMS with a charging-biased factor, every candidate
+            return self.best(step, HOLD_EQUIVALENCE_FACTOR)
         ev = p_dem <= 0.0 or soc > self.soc_high or (soc > self.soc_low and low_load)
         control: Control = (float(g), 0.0)
         if not ev:
             w_e = w_fd * hev.gear_ratios[g - 1]
-            frac = self.charge_fraction(soc)
             t_fd = float(hev.final_drive.input_torque(step.wheel_torque_nm))
             t_req = float(hev.gears[g - 1].input_torque(t_fd)) + (
-                frac * self.charge_power / w_e if w_e > 0 else 0.0
+                self.charging_power(soc) / w_e if w_e > 0 else 0.0
             )
             mech = P.mechanical(hev, step.wheel_speed_radps, 0.0, float(g), self.thr_grid)
             ok = ~mech["bad"]
@@ -395,7 +420,7 @@ class PowerFollower(_RuleBased):
 
     def target_power(self, p_dem: float, soc: float) -> float:
         """Engine power [W] to give at wheel power ``p_dem`` [W] and state of charge ``soc`` [-]."""
-        target = max(p_dem, 0.0) + float(self.charge_fraction(soc)) * self.charge_power
+        target = max(p_dem, 0.0) + self.charging_power(soc)
         return max(target, self.engine_min_power) if soc < self.soc_high else target
 
     def choose(self, step: Any) -> Control | None:

@@ -15,3 +15,4 @@ BTOL = 1e-9  # relative tolerance (of the grid span) on the state bounds
 VTOL = 1e-9  # level-set tolerance (span-normalised distance) for "inside the set"
 VTIE = 1e-12  # level values closer than this are a tie (broken by the lower cost)
 V_CAP = 1.0e6  # level-set value of nodes whose every input is masked
+FWD_VTIE = 1e-6  # forward pass, level set: next level values this close to the smallest are a tie

@@ -37,7 +37,7 @@ from hevsim.components.body import road_load_force
 from hevsim.components.bus import battery_power_limits, bus_balance, machine_request
 from hevsim.components.driveline import gear_input_torque
 from hevsim.components.flow import LIMIT_RTOL
-from hevsim.control.parallel import PowerFollower, specific_fuel
+from hevsim.control.parallel import HOLD_EQUIVALENCE_FACTOR, PowerFollower, specific_fuel
 from hevsim.control.simple import shift_gear
 from hevsim.sim import kernel as K
 from hevsim.sim._compiled_common import add_road_audit, track_step, write_summary
@@ -449,6 +449,7 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
     p_dem = t_wheel * w_wheel
     low_load = v_mid < cc.ev_speed_mps and p_dem < cc.ev_power_w
     frac = min(max((cc.soc_high - soc) / (cc.soc_high - cc.soc_low), 0.0), 1.0)  # charge_fraction
+    p_charge = frac * cc.charge_power_w + (h.aux_power_w if soc < cc.soc_low else 0.0)  # charging_power
     s = 0.0
     if cc.code == ELECTRIC_ASSIST:
         if dpar is not None:
@@ -461,13 +462,16 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
                 w_e = w_fd * dpar.gear_ratio[g - 1]
                 t_fd = gear_input_torque(t_wheel, dpar.final_drive_ratio, dpar.final_drive_efficiency)
                 t_req = gear_input_torque(t_fd, dpar.gear_ratio[g - 1], dpar.gear_efficiency[g - 1]) + (
-                    frac * cc.charge_power_w / w_e if w_e > 0 else 0.0
+                    p_charge / w_e if w_e > 0 else 0.0
                 )
                 c1 = _assist_throttle(w_wheel, g, t_req, thr_grid, cc.thr_monotone, dpar, etab)
-            ok, fuel_kg, d_soc, _ = _point(dpar, dps, c0, c1, NO_ENGINE, w_wheel, t_wheel, regen_ok, soc, dt,
-                                           bat, md, True, det, loss)  # fmt: skip
-            if ok:
-                return True, c0, c1, True, fuel_kg, d_soc
+            if soc < cc.soc_low and h.aux_power_w > 0.0:  # ElectricAssist.holds: charge-hold
+                s = HOLD_EQUIVALENCE_FACTOR
+            else:
+                ok, fuel_kg, d_soc, _ = _point(dpar, dps, c0, c1, NO_ENGINE, w_wheel, t_wheel, regen_ok, soc,
+                                               dt, bat, md, True, det, loss)  # fmt: skip
+                if ok:
+                    return True, c0, c1, True, fuel_kg, d_soc
     elif cc.code == AECMS:
         err = state[3] - cc.kin * v_mid**2 / e_soc - soc
         s = max(0.0, cc.s0 + cc.kp * err + cc.ki * state[2])
@@ -490,7 +494,7 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
         # fuel (``order``, ties by index; per run, as it depends on the engine alone), the first
         # near and feasible one is it (the argmin over all, as the Python controller takes it).
         # The rest only when none is feasible.
-        target = max(p_dem, 0.0) + frac * cc.charge_power_w
+        target = max(p_dem, 0.0) + p_charge
         if soc < cc.soc_high:  # PowerFollower.target_power
             target = max(target, cc.engine_min_power_w)
         band = max(PS_POWER_BAND * target, PS_POWER_BAND_MIN_W)

@@ -268,14 +268,10 @@ def stuck_error(
     if soc is not None and soc_min is not None and np.isfinite(soc) and soc <= soc_min + 0.005:
         msg += f": the battery ran down to SOC {soc:.4f} (window floor [battery] soc_min = {soc_min:g})"
         if aux_w > 0.0:
-            msg += f" and must still carry the {aux_w:g} W auxiliary load ([controller] aux_power_w)"
-            charge_w = float(getattr(ctl, "charge_power_w", 0.0) or 0.0)
-            if 0.0 < charge_w <= aux_w:
-                msg += (
-                    f", which is more than the controller's charging power ([controller] charge_power_w = "
-                    f"{charge_w:g} W): the battery drains even while the engine charges it; lower the "
-                    "auxiliary load or raise charge_power_w"
-                )
-            else:
-                msg += "; lower the auxiliary load or raise the SOC window's floor margin"
+            msg += (
+                f" and must still carry the {aux_w:g} W auxiliary load ([controller] aux_power_w), more "
+                "than the engine could charge (the rule-based controllers charge it on top of their "
+                "charging power below soc_low; a parallel HEV's engine cannot turn at a standstill): "
+                "lower the auxiliary load"
+            )
     return DomainError(msg + ".")
