@@ -45,6 +45,8 @@ def _short(cycle: str, seconds: float) -> DriveCycle:
 
 
 def _close(a: float, b: float) -> bool:
+    if a == b:  # also inf (a BEV's mpg)
+        return True
     if math.isnan(a) or math.isnan(b):
         return math.isnan(a) and math.isnan(b)
     return abs(a - b) <= ATOL + RTOL * abs(b)
