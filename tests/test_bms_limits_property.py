@@ -30,7 +30,13 @@ from hevsim.cycles import DriveCycle
 from hevsim.sim.pack_vehicle import simulate_pack_vehicle, vehicle_pack_config
 
 ROOT = Path(__file__).resolve().parents[1]
-PACK_EXAMPLES = ("examples/series_hev_pack.toml", "examples/parallel_hev_pack.toml")
+PACK_EXAMPLES = (
+    "examples/series_hev_pack.toml",
+    "examples/parallel_hev_pack.toml",
+    "examples/high_performance_parallel_hev_pack.toml",
+    "examples/bev_pack.toml",
+    "examples/prius_like_power_split_pack.toml",
+)
 """Vehicle examples with ``battery.model = "pack"`` checked here (one per architecture)."""
 RTOL = 1e-9
 DT_S = 1.0
@@ -105,6 +111,8 @@ def traces(draw: st.DrawFn) -> DriveCycle:
 def test_random_cycles_stay_within_the_bms_limits(
     path: str, cycle: DriveCycle, ambient_c: float, cooling_off: bool, soc0: float
 ) -> None:
+    b = load_vehicle_config(ROOT / path).battery  # within the vehicle's own SOC window
+    soc0 = min(max(soc0, b.soc_min), b.soc_max)
     res = simulate_pack_vehicle(
         str(ROOT / path), cycle, DT_S, soc0, ambient_temp_c=ambient_c, soak=True, cooling_off=cooling_off
     )
