@@ -32,7 +32,7 @@ rounding, with only the rows that can be the largest evaluated (:func:`_module_h
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -207,7 +207,7 @@ def _binding(i_max, a, b, c):
     return max(best, 0.0), why
 
 
-PACK_STEP: dict[str, bool] = {"cache": True, "_nrt": True}
+PACK_STEP: dict[str, Any] = {"cache": True, "_nrt": True}
 """Options of the pack step's entry points (:func:`pack_begin`, :func:`pack_finish`, the bus side):
 numba's reference counting on explicitly, so that the forward loops compiled without it
 (``_nrt=False``, :mod:`hevsim.sim._compiled_hev`) can call them (a callee otherwise inherits
