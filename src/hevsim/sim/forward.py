@@ -394,8 +394,9 @@ def simulate_batch_architecture(
     (:meth:`~hevsim.config._VehicleConfig.replace`). The architecture's compiled batch
     (``simulate_batch_compiled``, see the module docstring) runs them all at once where it
     covers the keys and the controller (``compiled`` as in :func:`simulate_architecture`);
-    otherwise (and always for a ``[battery] model = "pack"`` vehicle, whose pack the compiled
-    batch does not take) they are simulated in turn. Returns a
+    otherwise (and always for a ``[battery] model = "pack"`` vehicle, whose pack the threaded
+    compiled batch does not take) they are simulated in turn, each a compiled run where the
+    architecture has one (a pack vehicle's pack steps inside it). Returns a
     :class:`~hevsim.sim.simulator.BatchResult` (one row per variant: the variant's values and
     every metric).
     """
