@@ -30,8 +30,16 @@ from hevsim.cycles import DriveCycle
 from hevsim.sim.pack_vehicle import simulate_pack_vehicle, vehicle_pack_config
 
 ROOT = Path(__file__).resolve().parents[1]
-PACK_EXAMPLES = ("examples/series_hev_pack.toml", "examples/parallel_hev_pack.toml")
+PACK_EXAMPLES = (
+    "examples/series_hev_pack.toml",
+    "examples/parallel_hev_pack.toml",
+    "examples/high_performance_parallel_hev_pack.toml",
+    "examples/bev_pack.toml",
+    "examples/prius_like_power_split_pack.toml",
+)
 """Vehicle examples with ``battery.model = "pack"`` checked here (one per architecture)."""
+NOT_BINDING_ON_US06 = ("examples/bev_pack.toml",)
+"""Examples whose pack current stays below the BMS limits on US06 (checked on it all the same)."""
 RTOL = 1e-9
 DT_S = 1.0
 
@@ -105,6 +113,8 @@ def traces(draw: st.DrawFn) -> DriveCycle:
 def test_random_cycles_stay_within_the_bms_limits(
     path: str, cycle: DriveCycle, ambient_c: float, cooling_off: bool, soc0: float
 ) -> None:
+    b = load_vehicle_config(ROOT / path).battery  # within the vehicle's own SOC window
+    soc0 = min(max(soc0, b.soc_min), b.soc_max)
     res = simulate_pack_vehicle(
         str(ROOT / path), cycle, DT_S, soc0, ambient_temp_c=ambient_c, soak=True, cooling_off=cooling_off
     )
@@ -117,5 +127,7 @@ def test_us06_stays_within_the_bms_limits(path: str, cooling_off: bool) -> None:
     kw = {"ambient_temp_c": 40.0, "soak": True, "cooling_off": True} if cooling_off else {}
     res = simulate_pack_vehicle(str(ROOT / path), "us06", DT_S, **kw)  # type: ignore[arg-type]
     r_dis, r_chg = check_limits(path, res)
-    # the limits bind on US06 (the test would pass trivially otherwise)
-    assert max(r_dis, r_chg) > 0.999
+    if path not in NOT_BINDING_ON_US06:  # the limits bind on US06 (the test would pass trivially otherwise)
+        assert max(r_dis, r_chg) > 0.999
+    else:  # the BEV's 400 A pack stays below its limits on US06 (0.85 / 0.92 of them measured)
+        assert max(r_dis, r_chg) > 0.5

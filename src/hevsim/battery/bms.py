@@ -49,7 +49,6 @@ Each vehicle step ``dt`` (the pack's ``pack.dt_s``):
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -181,34 +180,34 @@ class PackRun:
         :data:`hevsim.components.flow.LIMIT_RTOL`, the round-off of its regeneration scaling),
         and a controller that searches the largest feasible point lands there: the limits
         handed to the vehicle are the BMS's divided by ``1 + rtol``, so that no accepted step
-        exceeds the BMS's own limit (issue 24 item 4)."""
-        from hevsim.components.bus import battery_power_limits_many
+        exceeds the BMS's own limit (issue 24 item 4). The numbers are those of
+        :func:`hevsim.battery.pack_run.pack_bus_state`, the compiled forward loops' own."""
+        from hevsim.battery.pack_run import F_BASEAUX, pack_bus_state
         from hevsim.components.flow import LIMIT_RTOL, BatteryState
 
         if self.base_aux_w is None:
             self.base_aux_w = float(getattr(model, "aux_power_w", 0.0))
         self.begin()
-        lim = self.limits
         r_dis = LIMIT_RTOL if discharge_rtol is None else discharge_rtol
         r_chg = LIMIT_RTOL if charge_rtol is None else charge_rtol
-        i_dis, i_chg = lim.discharge_a / (1.0 + r_dis), lim.charge_a / (1.0 + r_chg)
-        o, rd, rc = np.array([self.e_dis]), np.array([self.z_dis]), np.array([self.z_chg])
-        _, p_chg = battery_power_limits_many(o, rd, rc, i_dis, i_chg)
-        if soc >= soc_max:
-            p_chg[:] = 0.0
-        bs = BatteryState(np.asarray(soc), o.reshape(()), rd.reshape(()), rc.reshape(()), p_chg.reshape(()))
+        s = self.pack.arrays
+        s.f[F_BASEAUX] = self.base_aux_w
+        ocv, z_dis, z_chg, p_chg, i_dis, i_chg, aux_w = pack_bus_state(
+            s, float(soc), float(soc_max), r_dis, r_chg
+        )
+        bs = BatteryState(
+            np.asarray(soc), np.asarray(ocv), np.asarray(z_dis), np.asarray(z_chg), np.asarray(p_chg)
+        )
         battery = replace(model.battery, max_discharge_current_a=i_dis, max_charge_current_a=i_chg)
-        return replace(model, battery=battery, aux_power_w=self.base_aux_w + self.cooling_w), bs
+        return replace(model, battery=battery, aux_power_w=aux_w), bs
 
     def current_for_power(self, power_w: float) -> float:
         """Pack current [A] whose step-average terminal power is ``power_w`` [W] (> 0
         discharging), from the direction's ``E I - Z I^2 = P`` (the root nearer zero; the
         maximum-power current when ``P`` exceeds ``E^2 / 4Z``)."""
-        if power_w == 0.0:
-            return 0.0
-        e, z = (self.e_dis, self.z_dis) if power_w > 0.0 else (self.e_chg, self.z_chg)
-        disc = e * e - 4.0 * z * power_w
-        return 2.0 * power_w / (e + math.sqrt(disc)) if disc > 0.0 else e / (2.0 * z)
+        from hevsim.battery.pack_run import pack_current_for_power
+
+        return float(pack_current_for_power(self.pack.arrays, float(power_w)))
 
     def finish_power(self, power_w: float) -> float:
         """End the step at terminal power ``power_w`` [W]; returns the new SOC [-]."""

@@ -32,7 +32,7 @@ rounding, with only the rows that can be the largest evaluated (:func:`_module_h
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -40,6 +40,7 @@ from numba import njit
 from hevsim.battery.cooling import LP_INF, LP_PFLOW, LP_RHOCP, LP_ZEROC, LS_TEMP, loop_begin, loop_end
 from hevsim.battery.kernel import SOCINI, SQ, SQABS, STEMP, cell_capacity
 from hevsim.battery.pack import NO_REFCOUNT, pack_pairs, pack_pass, pack_pass_linear
+from hevsim.components.bus import battery_power_limits
 from hevsim.tables import FloatArray
 
 #: scalar entries of :attr:`PackArrays.f` (sizes, flags and the run's running values)
@@ -206,7 +207,14 @@ def _binding(i_max, a, b, c):
     return max(best, 0.0), why
 
 
-@njit(cache=True)
+PACK_STEP: dict[str, Any] = {"cache": True, "_nrt": True}
+"""Options of the pack step's entry points (:func:`pack_begin`, :func:`pack_finish`, the bus side):
+numba's reference counting on explicitly, so that the forward loops compiled without it
+(``_nrt=False``, :mod:`hevsim.sim._compiled_hev`) can call them (a callee otherwise inherits
+its caller's option, and the step's work arrays need it)."""
+
+
+@njit(**PACK_STEP)
 def pack_begin(s):
     """The first half of a step (module docstring): fills ``s.sv``."""
     f, sv = s.f, s.sv
@@ -485,7 +493,7 @@ def _stress_add(st, st_n, cells, dt, activation_k):
         st[ST_SOCMAX, c] = max(st[ST_SOCMAX, c], soc)
 
 
-@njit(cache=True)
+@njit(**PACK_STEP)
 def pack_finish(s, current_a, current_request_a):
     """The second half of a step at pack current ``current_a`` [A] (module docstring); returns
     the mean cell SOC [-]. The record row is ``rec[step]`` (skipped beyond its rows)."""
@@ -608,6 +616,53 @@ def pack_simulate(s, request_a, cells_out):
         cells_out[k] = s.cells
 
 
+# -- the pack as a vehicle's battery: the bus side of a step --------------------------------------
+@njit(**PACK_STEP)
+def pack_bus_state(s, soc, soc_max, discharge_rtol, charge_rtol):
+    """The bus side of a step begun by :func:`pack_begin` (the one place both the Python forward
+    loop, :meth:`hevsim.battery.bms.PackRun.vehicle_step`, and the compiled forward loops of
+    every architecture take it from): (OCV [V] = the discharge pair's ``E``, discharge and
+    charge resistance [ohm] = each direction's ``Z``, largest charge power [W] (0 when the
+    vehicle's SOC ``soc`` [-] is at ``soc_max``), the discharge and charge current limits [A]
+    handed to the vehicle, the bus's other load [W] = ``f[F_BASEAUX]`` + the cooling loop).
+
+    The current limits are the BMS's divided by ``1 + rtol`` (``discharge_rtol``,
+    ``charge_rtol`` [-]: the relative excess over a limit the vehicle's feasibility test
+    accepts), so that no accepted step exceeds the BMS's own limit (issue 24 item 4)."""
+    sv = s.sv
+    i_dis = sv[SV_LIMD] / (1.0 + discharge_rtol)
+    i_chg = sv[SV_LIMC] / (1.0 + charge_rtol)
+    ocv, r_dis, r_chg = sv[SV_EDIS], sv[SV_ZDIS], sv[SV_ZCHG]
+    p_chg = battery_power_limits(ocv, r_dis, ocv, r_chg, i_dis, i_chg)[1]
+    if soc >= soc_max:  # full: no charging (regeneration goes to the friction brakes)
+        p_chg = 0.0
+    return ocv, r_dis, r_chg, p_chg, i_dis, i_chg, s.f[F_BASEAUX] + sv[SV_COOLW]
+
+
+@njit(**PACK_STEP)
+def pack_current_for_power(s, power_w):
+    """Pack current [A] whose step-average terminal power is ``power_w`` [W] (> 0 discharging)
+    over the step begun by :func:`pack_begin`, from the direction's ``E I - Z I^2 = P`` (the
+    root nearer zero; the maximum-power current when ``P`` exceeds ``E^2 / 4Z``)."""
+    if power_w == 0.0:
+        return 0.0
+    sv = s.sv
+    if power_w > 0.0:
+        e, z = sv[SV_EDIS], sv[SV_ZDIS]
+    else:
+        e, z = sv[SV_ECHG], sv[SV_ZCHG]
+    disc = e * e - 4.0 * z * power_w
+    return 2.0 * power_w / (e + math.sqrt(disc)) if disc > 0.0 else e / (2.0 * z)
+
+
+@njit(**PACK_STEP)
+def pack_finish_power(s, power_w):
+    """End the step at the bus's terminal power ``power_w`` [W] (:func:`pack_current_for_power`,
+    then :func:`pack_finish`); returns the mean cell SOC [-]."""
+    i_a = pack_current_for_power(s, power_w)
+    return pack_finish(s, i_a, i_a)
+
+
 def hot_spot_rounding(cand: np.ndarray, unit: np.ndarray) -> np.ndarray:
     """The constants of :func:`_module_hot_spots`'s rounding bound for the rows ``cand``
     (n_rows, r) and the uniform state ``unit`` (r,): ``gamma_{r+2}`` in single precision
@@ -663,7 +718,10 @@ __all__ = [
     "hot_spot_rounding",
     "modal_rom",
     "pack_begin",
+    "pack_bus_state",
+    "pack_current_for_power",
     "pack_finish",
+    "pack_finish_power",
     "pack_simulate",
     "rom_modal",
 ]

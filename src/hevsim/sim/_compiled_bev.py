@@ -27,11 +27,13 @@ from hevsim.sim._compiled_common import add_road_audit, track_step, write_summar
 from hevsim.sim._compiled_hev import (
     AUDIT_BASE,
     BASE_COLUMNS,
-    _battery,
     _demand,
     _electric,
     _feasible,
+    battery_begin,
+    battery_end,
     constants,
+    pack_arrays,
     threaded_batch,
 )
 from hevsim.sim._records import BISECTION_STEPS, BatchRecord, ForwardRecord
@@ -82,10 +84,12 @@ def _point(w_wheel, t_wheel, regen_ok, soc, dt, bat, h, wd, mtab):
 
 
 @njit(cache=True, nogil=True, **NO_REFCOUNT)
-def run_bev(soc0, t, v_des, gr, h, wd, mtab, ptab, cols, audit, summary):
+def run_bev(soc0, t, v_des, gr, h0, wd, mtab, ptab, cols, audit, summary, pk):
     """One run; fills ``cols`` (:data:`COLUMNS` x ``n + 1``), ``audit`` (:data:`AUDIT` [J])
     and ``summary`` (:data:`hevsim.sim.kernel.SUMMARY`). Returns (end speed [m/s], index of
-    a step with no feasible demand even when stopping, or -1)."""
+    a step with no feasible demand even when stopping, or -1). ``pk``: None, or the pack of a
+    ``[battery] model = "pack"`` vehicle (:func:`hevsim.sim._compiled_hev.battery_begin`)."""
+    h = h0
     n = t.shape[0] - 1
     dt = t[1] - t[0]
     r, q_as, m_eff = h.radius_m, h.capacity_as, h.mass_kg * h.mass_factor
@@ -93,7 +97,7 @@ def run_bev(soc0, t, v_des, gr, h, wd, mtab, ptab, cols, audit, summary):
     err_sq = err_max = dist = lim_s = 0.0
     nb = len(BASE_COLUMNS)
     for k in range(n):
-        bat = _battery(soc, h, ptab)
+        bat, h = battery_begin(soc, h0, ptab, pk)
         ocv = bat[0]
         v1 = v_des[k + 1]
         v_mid, a, g, f = _demand(v, v1, k, dt, gr, h)
@@ -112,7 +116,11 @@ def run_bev(soc0, t, v_des, gr, h, wd, mtab, ptab, cols, audit, summary):
                     hi = mid
             if not have:
                 bv, ba, bg, bf = _demand(v, 0.0, k, dt, gr, h)
-                if not _point(bv / r, bf * r, bv > 0.0, soc, dt, bat, h, wd, mtab)[0]:
+                ok = _point(bv / r, bf * r, bv > 0.0, soc, dt, bat, h, wd, mtab)[0]
+                if not ok and bf > 0.0 and pk is not None:  # coast to rest (forward._run, with a pack)
+                    bf = 0.0
+                    ok = _point(bv / r, bf * r, bv > 0.0, soc, dt, bat, h, wd, mtab)[0]
+                if not ok:
                     return v, k
             v_mid, a, g, f = bv, ba, bg, bf
             v1 = v_mid * 2.0 - v
@@ -140,14 +148,17 @@ def run_bev(soc0, t, v_des, gr, h, wd, mtab, ptab, cols, audit, summary):
         cols[nb + 7, k] = limited
         cols[nb + 8, k] = ocv
         cols[nb + 9, k] = p_bat / cur if cur != 0.0 else ocv
-        v, soc = v1, soc + d_soc
+        v, soc = v1, battery_end(soc, d_soc, p_bat, pk)
     write_summary(summary, v_des[n] - v, err_sq, err_max, n, dist, 0.0, soc, 0.0, 0.0, lim_s, t[n] - t[0])
     return v, -1
 
 
-def _run(model: B.BEV, grid: Any, soc0: float, soc_min: float, soc_max: float) -> tuple[Any, ...]:
+def _run(
+    model: B.BEV, grid: Any, soc0: float, soc_min: float, soc_max: float, pack: Any = None
+) -> tuple[Any, ...]:
     """One compiled run: (channel names, channels (:data:`COLUMNS` x n + 1), audit names,
-    audit [J], summary, end speed [m/s])."""
+    audit [J], summary, end speed [m/s]); ``pack``: a ``[battery] model = "pack"`` vehicle's
+    :class:`~hevsim.battery.bms.PackRun`."""
     # a BEV burns no fuel: the constants of the HEV loop with a fuel LHV of 0
     proxy = SimpleNamespace(
         motor=model.motor, battery=model.battery, body=model.body, tire=model.tire,
@@ -164,7 +175,7 @@ def _run(model: B.BEV, grid: Any, soc0: float, soc_min: float, soc_max: float) -
     summary = np.zeros(len(K.SUMMARY))
     v_end, failed = run_bev(
         float(soc0), t, v_des, gr, constants(proxy, soc_min, soc_max), wd, model.motor.kernel_tables(),
-        model.battery.kernel_tables(), cols, audit, summary,
+        model.battery.kernel_tables(), cols, audit, summary, pack_arrays(pack, model, t.size - 1),
     )  # fmt: skip
     if failed >= 0:
         soc_last = cols[COLUMNS.index("soc"), failed - 1] if failed > 0 else soc0
@@ -173,14 +184,16 @@ def _run(model: B.BEV, grid: Any, soc0: float, soc_min: float, soc_max: float) -
 
 
 def simulate_compiled(
-    model: B.BEV, grid: Any, controller: Any, *, soc_initial: float, soc_min: float, soc_max: float
-) -> ForwardRecord | None:
-    """One compiled run (the ``simulate_compiled`` hook of :mod:`hevsim.sim.forward`); None
-    for a controller other than :class:`~hevsim.control.simple.Direct`."""
+    model: B.BEV, grid: Any, controller: Any, *, soc_initial: float, soc_min: float, soc_max: float,
+    pack: Any = None,
+) -> ForwardRecord | None:  # fmt: skip
+    """One compiled run (the ``simulate_compiled`` hook of :mod:`hevsim.sim.forward`; ``pack``:
+    a ``[battery] model = "pack"`` vehicle's :class:`~hevsim.battery.bms.PackRun`, stepped in
+    the loop); None for a controller other than :class:`~hevsim.control.simple.Direct`."""
     if type(controller) is not Direct:
         return None
     controller.reset(float(soc_initial))
-    _, cols, _, audit, summary, v_end = _run(model, grid, soc_initial, soc_min, soc_max)
+    _, cols, _, audit, summary, v_end = _run(model, grid, soc_initial, soc_min, soc_max, pack)
     columns = {name: cols[j] for j, name in enumerate(COLUMNS)}
     return ForwardRecord(columns, dict(zip(AUDIT, audit.tolist(), strict=True)), summary, v_end)
 

@@ -32,6 +32,7 @@ from numba import njit
 from hevsim.architectures import parallel as P
 from hevsim.architectures import power_split as PS
 from hevsim.architectures._common import NO_REFCOUNT
+from hevsim.battery.pack_run import pack_begin, pack_bus_state, pack_finish_power
 from hevsim.components.battery import pack_ocv_r, soc_rate
 from hevsim.components.body import road_load_force
 from hevsim.components.bus import battery_power_limits, bus_balance, machine_request
@@ -65,6 +66,8 @@ PS_POWER_BAND, PS_POWER_BAND_MIN_W = PowerFollower.POWER_BAND, PowerFollower.POW
 AUX_RTOL = 1e-6
 """Relative round-off [-] of the battery power accepted as "the auxiliaries only" at the SOC
 floor (the bus balance returns the auxiliary load to a few ulps)."""
+P_AUX = P.LOSS_TERMS.index("aux")
+"""The parallel HEV's audit term of the bus's other load (its losses take it from the tables)."""
 ERR_NONE, ERR_STUCK = 0, 1
 """Status codes of the compiled loop: fine; no feasible control even when stopping."""
 
@@ -546,6 +549,49 @@ def _battery(soc, h, ptab):
     return ocv, r_dis, r_chg, p_chg
 
 
+@njit(cache=True, inline="always")
+def _step_constants(h, i_dis, i_chg, aux_w):
+    """``h`` with the battery's current limits [A] and the bus's other load [W] of one step
+    (a pack's BMS limits and cooling load, :func:`battery_begin`)."""
+    return HEVConstants(
+        h.motor_kind, h.motor_efficiency, h.motor_torque_scale, h.n_series, h.n_parallel, h.r_extra_ohm,
+        h.temperature_k, i_dis, i_chg, h.coulombic_efficiency, h.capacity_as, h.soc_min, h.soc_max, aux_w,
+        h.mass_kg, h.mass_factor, h.drag_coefficient, h.frontal_area_m2, h.air_density_kgpm3, h.headwind_mps,
+        h.rolling_resistance, h.rolling_resistance_speed_s_per_m, h.radius_m, h.lhv_jpkg,
+    )  # fmt: skip
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def battery_begin(soc, h, ptab, pk):
+    """The battery model's start of a step in every compiled forward loop: (the bus's battery
+    state ``(OCV [V], discharge and charge resistance [ohm], largest charge power [W])``,
+    the run constants for the step). ``pk`` None: the pack tables ``ptab`` at the vehicle's
+    ``soc`` [-] (:func:`_battery`) and ``h`` as it is. ``pk`` a pack's
+    :class:`~hevsim.battery.pack_run.PackArrays` (``[battery] model = "pack"``): the pack's
+    compiled step begins (:func:`~hevsim.battery.pack_run.pack_begin`: BMS limits, Thevenin
+    pairs, cooling decision) and :func:`~hevsim.battery.pack_run.pack_bus_state` gives the
+    state, the current limits and the cooling load on the bus (in ``h``), as the Python loop's
+    :meth:`hevsim.battery.bms.PackRun.vehicle_step`."""
+    if pk is None:
+        return _battery(soc, h, ptab), h
+    pack_begin(pk)
+    ocv, r_dis, r_chg, p_chg, i_dis, i_chg, aux_w = pack_bus_state(
+        pk, soc, h.soc_max, LIMIT_RTOL, REGEN_CURRENT_RTOL
+    )
+    return (ocv, r_dis, r_chg, p_chg), _step_constants(h, i_dis, i_chg, aux_w)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def battery_end(soc, d_soc, p_bat, pk):
+    """The battery model's end of a step: the SOC [-] after it. ``pk`` None: ``soc + d_soc``;
+    a pack: its step at the bus's terminal power ``p_bat`` [W]
+    (:func:`~hevsim.battery.pack_run.pack_finish_power`: cells, module thermal model, cooling
+    loop, ageing stress, records), its mean cell SOC."""
+    if pk is None:
+        return soc + d_soc
+    return pack_finish_power(pk, p_bat)
+
+
 @njit(cache=True, inline="always", error_model="numpy")
 def _demand(v0, v1, k, dt, gr, h):
     """(mid-step speed [m/s], acceleration [m/s²], grade [-], wheel force [N]) of a step."""
@@ -593,6 +639,7 @@ def run_hev(
     summary,
     state,
     buf,
+    pk,
 ):
     """One forward run (the compiled :func:`hevsim.sim.forward._run`) of the parallel HEV
     (tables ``dpar``, ``dps`` None) or the power split (``dps``, ``dpar`` None): numba
@@ -601,11 +648,11 @@ def run_hev(
     (channels x ``n + 1``: :data:`BASE_COLUMNS`, the details, :data:`TAIL_COLUMNS`),
     ``audit`` (:data:`AUDIT_BASE`, the loss terms but ``fuel`` and ``wheel``, battery loss;
     [J]) and ``summary`` (:data:`hevsim.sim.kernel.SUMMARY`). Returns (status, step index,
-    final speed [m/s])."""
+    final speed [m/s]). ``pk``: None, or the pack of a ``[battery] model = "pack"`` vehicle
+    (:func:`battery_begin`, :func:`battery_end`)."""
     n = t.shape[0] - 1
     dt = t[1] - t[0]
     cands = (cand0, cand1, thr_grid)
-    md = (h, etab, mtab, gtab)
     det, loss = buf[6], buf[7]
     nd = det.shape[0]
     nl = loss.shape[0]
@@ -620,7 +667,8 @@ def run_hev(
     err_sq = err_max = dist = eon = starts = lim_s = 0.0
     was_on = False
     for k in range(n):
-        bat = _battery(soc, h, ptab)
+        bat, hk = battery_begin(soc, h, ptab, pk)
+        md = (hk, etab, mtab, gtab)
         ocv = bat[0]
         e_soc = q_as * ocv
         v1 = v_des[k + 1]
@@ -649,6 +697,11 @@ def run_hev(
                 ok, bc0, bc1, _, _, _ = _choose(
                     dpar, dps, cc, state, cands, bv / r, bf * r, bv, soc, dt, e_soc, bat, md, buf
                 )
+                if not ok and bf > 0.0 and pk is not None:  # coast to rest (forward._run, with a pack)
+                    bf = 0.0
+                    ok, bc0, bc1, _, _, _ = _choose(
+                        dpar, dps, cc, state, cands, bv / r, bf * r, bv, soc, dt, e_soc, bat, md, buf
+                    )
                 if not ok:
                     return ERR_STUCK, k, v
             v_mid, a, g, f, c0, c1 = bv, ba, bg, bf, bc0, bc1
@@ -661,6 +714,8 @@ def run_hev(
             _, fuel_kg, d_soc, _ = _point(
                 dpar, dps, c0, c1, eng, v_mid / r, f * r, v_mid > 0.0, soc, dt, bat, md, True, det, loss
             )
+        if pk is not None and dpar is not None:  # the bus's other load of the step (the cooling too)
+            loss[P_AUX] = hk.aux_power_w
         if cc.code == AECMS:  # update: integrate the SOC error of the step taken
             state[2] += (state[3] - cc.kin * v_mid**2 / e_soc - soc) * dt
         # ---- energy audit [J]
@@ -700,7 +755,7 @@ def run_hev(
         cols[b + 3, k] = ocv
         i_bat = det[nd - 3]
         cols[b + 4, k] = p_bat / i_bat if i_bat != 0.0 else ocv
-        v, soc = v1, soc + d_soc
+        v, soc = v1, battery_end(soc, d_soc, p_bat, pk)
     write_summary(summary, v_des[n] - v, err_sq, err_max, n, dist, fuel, soc, eon, starts, lim_s, t[n] - t[0])
     return ERR_NONE, n, v
 
@@ -715,9 +770,13 @@ def writable(tab: Any) -> Any:
     return type(tab)(*(a.copy() if isinstance(a, np.ndarray) and not a.flags.writeable else a for a in tab))
 
 
-def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_max: float) -> tuple[Any, ...]:
+def _run_one(
+    model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_max: float, pack: Any = None
+) -> tuple[Any, ...]:
     """One compiled run: (channel names, channels (names x n + 1), audit names, audit [J],
-    summary, final speed [m/s]); the controller left as the Python loop leaves it."""
+    summary, final speed [m/s]); the controller left as the Python loop leaves it. ``pack``:
+    the :class:`~hevsim.battery.bms.PackRun` of a ``[battery] model = "pack"`` vehicle
+    (:func:`pack_arrays`)."""
     from hevsim.sim.checks import stuck_error
 
     cc = controller_code(ctl)
@@ -755,7 +814,8 @@ def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_m
     buf = (np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc, np.bool_), p_cand, order,
            np.zeros(len(mod.DETAILS)), np.zeros(len(mod.LOSS_TERMS)), e_flags, e_floats)  # fmt: skip
     status, k, v_end = run_hev(dpar, dps, cc, float(soc0), t, v_des, gr, cand0, cand1, thr, h, etab, mtab,
-                               gtab, ptab, cols, audit, summary, state, buf)  # fmt: skip
+                               gtab, ptab, cols, audit, summary, state, buf,
+                               pack_arrays(pack, model, t.size - 1))  # fmt: skip
     if status == ERR_STUCK:
         soc_last = cols[names.index("soc"), k - 1] if k > 0 else soc0
         raise stuck_error(model, float(t[k]), float(soc_last), soc_min)
@@ -766,18 +826,37 @@ def _run_one(model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_m
     return names, cols, audit_names, audit, summary, float(v_end)
 
 
+def pack_arrays(pack: Any, model: Any, steps: int) -> Any:
+    """The ``pk`` argument of the compiled loops: None without a pack; for a
+    :class:`~hevsim.battery.bms.PackRun`, its pack's
+    :class:`~hevsim.battery.pack_run.PackArrays` with room for ``steps`` record rows and the
+    model's own auxiliary load [W] as the base the cooling adds to (as
+    :meth:`~hevsim.battery.bms.PackRun.vehicle_step`)."""
+    if pack is None:
+        return None
+    from hevsim.battery.pack_run import F_BASEAUX
+
+    if pack.base_aux_w is None:
+        pack.base_aux_w = float(getattr(model, "aux_power_w", 0.0))
+    pack.pack.reserve(steps)
+    s = pack.pack.arrays
+    s.f[F_BASEAUX] = pack.base_aux_w
+    return s
+
+
 def simulate(
-    model: Any, grid: Any, ctl: Any, *, soc_initial: float, soc_min: float, soc_max: float
+    model: Any, grid: Any, ctl: Any, *, soc_initial: float, soc_min: float, soc_max: float, pack: Any = None
 ) -> ForwardRecord | None:
     """The compiled forward run of a parallel or power-split ``model`` (the
     ``simulate_compiled`` hook of :mod:`hevsim.sim.forward`, same arguments and
     :class:`~hevsim.sim.forward.ForwardRecord`); None for a controller without a compiled
     form. Leaves the controller as the Python loop does (shift-schedule gear, A-ECMS factor
-    and integral)."""
+    and integral). ``pack``: the :class:`~hevsim.battery.bms.PackRun` of a ``[battery] model =
+    "pack"`` vehicle, stepped inside the loop (:func:`battery_begin`, :func:`battery_end`)."""
     if controller_code(ctl) is None:
         return None
     names, cols, audit_names, audit, summary, v_end = _run_one(
-        model, grid, ctl, soc_initial, soc_min, soc_max
+        model, grid, ctl, soc_initial, soc_min, soc_max, pack
     )
     columns = {name: cols[j] for j, name in enumerate(names)}
     if not isinstance(model, P.ParallelHEV):  # clutch_closed is the parallel HEV's; the power split has none

@@ -201,7 +201,8 @@ def simulate_architecture(
     resampled to it. ``compiled``: use the architecture's compiled run where it has one for
     this controller (default: yes, unless ``HEVSIM_FORWARD=python``); False forces the
     Python loop. ``pack_run``: the :class:`~hevsim.battery.bms.PackRun` of a ``[battery]
-    model = "pack"`` vehicle (Python loop; without one such a vehicle goes to
+    model = "pack"`` vehicle, whose compiled step runs inside the compiled loop (or is called
+    step by step from the Python loop); without one such a vehicle goes to
     :func:`hevsim.sim.pack_vehicle.simulate_pack_vehicle`, which makes it). Returns a
     :class:`~hevsim.sim.simulator.SimulationResult`.
     """
@@ -243,9 +244,11 @@ def simulate_architecture(
         return simulate_pack_vehicle(model, cyc, dt, soc0, controller=ctl)
     t_k0 = time.perf_counter()
     window = (b.soc_min, b.soc_max) if b is not None else (0.0, 1.0)
-    compiled_ok = use_compiled(compiled) and pack_run is None  # a pack runs in the Python loop
-    hook = getattr(compiled_loop(name), "simulate_compiled", None) if compiled_ok else None
-    rec = hook(model, grid, ctl, soc_initial=soc0, soc_min=window[0], soc_max=window[1]) if hook else None
+    hook = getattr(compiled_loop(name), "simulate_compiled", None) if use_compiled(compiled) else None
+    rec = None
+    if hook is not None:  # a pack steps inside the compiled loop (its compiled step, issue 24)
+        extra = {"pack": pack_run} if pack_run is not None else {}
+        rec = hook(model, grid, ctl, soc_initial=soc0, soc_min=window[0], soc_max=window[1], **extra)
     ran_compiled = rec is not None
     if rec is None:
         rec = _run(mod, model, ctl, grid, soc0, window[0], window[1], pack=pack_run)
@@ -391,8 +394,9 @@ def simulate_batch_architecture(
     (:meth:`~hevsim.config._VehicleConfig.replace`). The architecture's compiled batch
     (``simulate_batch_compiled``, see the module docstring) runs them all at once where it
     covers the keys and the controller (``compiled`` as in :func:`simulate_architecture`);
-    otherwise (and always for a ``[battery] model = "pack"`` vehicle, whose pack the compiled
-    batch does not take) they are simulated in turn. Returns a
+    otherwise (and always for a ``[battery] model = "pack"`` vehicle, whose pack the threaded
+    compiled batch does not take) they are simulated in turn, each a compiled run where the
+    architecture has one (a pack vehicle's pack steps inside it). Returns a
     :class:`~hevsim.sim.simulator.BatchResult` (one row per variant: the variant's values and
     every metric).
     """

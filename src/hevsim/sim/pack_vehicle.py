@@ -12,10 +12,16 @@ and the ambient temperature.
   kind ``"pack"``: the pack's compiled step (:mod:`hevsim.battery.pack_run`) inside the
   kernel's loop (:mod:`hevsim.battery.vehicle`, section 3), one compiled loop with no Python
   per step.
-* **Parallel HEV** (and the other forward architectures): the Python loop of
-  :mod:`hevsim.sim.forward` (the compiled fast paths do not take a pack), which asks the run
-  for the step's model (battery limits, bus load) and battery state and hands back the
-  terminal power; the pack solves its current with the direction's own pair.
+* **Parallel HEV, power split, BEV**: the architecture's compiled forward loop
+  (:mod:`hevsim.sim._compiled_hev`, :mod:`hevsim.sim._compiled_bev`) with the same compiled
+  pack step inside (``battery_begin``/``battery_end`` of :mod:`hevsim.sim._compiled_hev`:
+  :func:`~hevsim.battery.pack_run.pack_begin`, :func:`~hevsim.battery.pack_run.pack_bus_state`,
+  :func:`~hevsim.battery.pack_run.pack_finish_power`), no Python per step. Controllers without a
+  compiled form (and ``HEVSIM_FORWARD=python``) run the Python loop of
+  :mod:`hevsim.sim.forward`, which asks the run for the step's model (battery limits, bus
+  load) and battery state (:meth:`~hevsim.battery.bms.PackRun.vehicle_step`, the same compiled
+  numbers) and hands back the terminal power; the pack solves its current with the
+  direction's own pair.
 
 The result is the vehicle's :class:`~hevsim.sim.simulator.SimulationResult` with the pack's
 channels (:data:`hevsim.battery.bms.CHANNELS`, one ``module<j>_hottest_cell_temp_k`` per
