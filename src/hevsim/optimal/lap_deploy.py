@@ -993,7 +993,7 @@ def run_cli(
     )
     res = solve_convex(prob) if method == "convex" else solve_dp(prob)
     lap_trk = load_track(track_arg, step_m=step_m)
-    replay = replay_qss(cfg, lap_trk, res, step_m=step_m, vehicle=veh)
+    replay = replay_qss(cfg, lap_trk, res, step_m=step_m)  # as `hevsim lap --deploy` replays it
     extra = {
         "qss_replay_lap_time_s": replay.lap_time_s,
         "qss_replay_battery_chemical_energy_kj": float(replay.summary.get("battery_chemical_energy_j", 0.0))
