@@ -95,7 +95,7 @@ def test_replay_in_the_qss_lap(built, convex):
     from hevsim.sim.lap import simulate_lap
     from hevsim.tracks import load_track
 
-    prob, veh = built
+    veh = built[1]
     trk = load_track(TRACK, step_m=STEP)
     rep = D.replay_qss(CFG, trk, convex, step_m=STEP, vehicle=veh)
     df = convex.frame()

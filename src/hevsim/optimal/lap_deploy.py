@@ -81,7 +81,8 @@ def _require_cvxpy() -> Any:
         ) from None
     if "CLARABEL" not in cp.installed_solvers():
         raise ConfigError(
-            "--optimize convex needs the Clarabel solver: install the optional extra `pip install 'hevsim[lap]'`."
+            "--optimize convex needs the Clarabel solver: install the optional extra "
+            "`pip install 'hevsim[lap]'`."
         )
     return cp
 
@@ -282,8 +283,8 @@ def build_problem(
         lo, hi = max(lo, -batt_j[1]), min(hi, batt_j[0])
         if budget > batt_j[0] or budget < -batt_j[1]:
             raise ConfigError(
-                f"option --budget-kj = {budget_kj:g}: the battery holds {batt_j[0] / 1e3:.0f} kJ to deploy and "
-                f"{batt_j[1] / 1e3:.0f} kJ to store between its SOC limits; expected a budget inside."
+                f"option --budget-kj = {budget_kj:g}: the battery holds {batt_j[0] / 1e3:.0f} kJ to deploy "
+                f"and {batt_j[1] / 1e3:.0f} kJ to store between its SOC limits; expected a budget inside."
             )
     prob = DeployProblem(
         vehicle=cfg.name,
@@ -340,12 +341,12 @@ def _bound_profile(prob: DeployProblem, power_w: float, *, lower: bool) -> np.nd
         f = min(max(power_w, 0.0) / v, prob.trac_a_n[i] + prob.trac_b_kg[i] * e[i])
         de = (f - prob.drag_kgpm * 2.0 * e[i] - prob.road0_n[i]) * ds / m
         e[i + 1] = min(max(e[i] + de, 0.5 * V_MIN_MPS**2), prob.e_max[i + 1])
-    v = np.sqrt(2.0 * e)
+    vs = np.sqrt(2.0 * e)
     vmax = np.sqrt(2.0 * prob.e_max)
     if lower:
-        out = np.maximum(0.95 * v, V_MIN_MPS)
+        out = np.maximum(0.95 * vs, V_MIN_MPS)
     else:
-        out = np.minimum(1.02 * v, vmax)
+        out = np.minimum(1.02 * vs, vmax)
     out[0] = vmax[0]
     return out
 
@@ -776,8 +777,9 @@ def solve_dp(
         k = int(np.flatnonzero((cum < prob.window_j[0] - tol) | (cum > prob.window_j[1] + tol))[0])
         raise InputError(
             f"optimal deployment (dp) of '{prob.vehicle}' on '{prob.track}': the cumulative battery energy "
-            f"{cum[k] / 1e3:.0f} kJ leaves the window [{prob.window_j[0] / 1e3:.0f}, {prob.window_j[1] / 1e3:.0f}] "
-            f"kJ at distance {prob.distance_m[k]:.1f} m (the DP keeps the budget by a multiplier, not the window); "
+            f"{cum[k] / 1e3:.0f} kJ leaves the window [{prob.window_j[0] / 1e3:.0f}, "
+            f"{prob.window_j[1] / 1e3:.0f}] kJ at distance {prob.distance_m[k]:.1f} m "
+            "(the DP keeps the budget by a multiplier, not the window); "
             "widen --window-kj or use --optimize convex."
         )
     return res
@@ -829,7 +831,8 @@ def _infeasible_message(prob: DeployProblem, method: str, status: str, **kw: Any
             if math.isfinite(prob.fuel_budget_j)
             else ""
         )
-        + f" within the energy window [{prob.window_j[0] / 1e3:.0f}, {prob.window_j[1] / 1e3:.0f}] kJ; {where}"
+        + f" within the energy window [{prob.window_j[0] / 1e3:.0f}, {prob.window_j[1] / 1e3:.0f}] kJ; "
+        + where
     )
 
 
@@ -906,11 +909,11 @@ def simulate_rule(prob: DeployProblem, fraction: np.ndarray) -> tuple[float, flo
         dt = 0.5 * ds * (1 / v + 1 / math.sqrt(2 * e1))
         wm[i] = frac * prob.machine_power_w * dt
         e[i + 1] = e1
-    v = np.sqrt(2 * e[:n])
-    dt = 0.5 * ds * (1 / v + 1 / np.roll(v, -1))
+    vs = np.sqrt(2 * e[:n])
+    dts = 0.5 * ds * (1 / vs + 1 / np.roll(vs, -1))
     if e[n] < prob.e_max[0] * (1 - 1e-9):
-        dt[-1] = 0.5 * ds * (1 / v[-1] + 1 / math.sqrt(2 * e[n]))
-    return float(dt.sum()), float(np.sum(prob.battery_energy_j(wm, dt)))
+        dts[-1] = 0.5 * ds * (1 / vs[-1] + 1 / math.sqrt(2 * e[n]))
+    return float(dts.sum()), float(np.sum(prob.battery_energy_j(wm, dts)))
 
 
 def read_deploy_map(path: str | Path, track: Track) -> np.ndarray:
@@ -933,8 +936,8 @@ def read_deploy_map(path: str | Path, track: Track) -> np.ndarray:
     if bad.size:
         k = int(bad[0])
         raise InputError(
-            f"deployment map {path}: row {k + 2} has distance_m = {df['distance_m'].iloc[k]!r}, battery_power_w = "
-            f"{df['battery_power_w'].iloc[k]!r}; expected finite numbers."
+            f"deployment map {path}: row {k + 2} has distance_m = {df['distance_m'].iloc[k]!r}, "
+            f"battery_power_w = {df['battery_power_w'].iloc[k]!r}; expected finite numbers."
         )
     if d.size < 2 or np.any(np.diff(d) <= 0):
         raise InputError(
@@ -982,7 +985,7 @@ def run_cli(
     if method == "convex":
         _require_cvxpy()
     trk = load_track(track_arg, step_m=deploy_step_m)
-    prob, veh = build_problem(
+    prob, _ = build_problem(
         cfg,
         trk,
         step_m=deploy_step_m,
