@@ -168,3 +168,14 @@ def test_without_cvxpy_names_the_extra(monkeypatch, built):
     monkeypatch.setitem(sys.modules, "cvxpy", None)
     with pytest.raises(ConfigError, match=r"hevsim\[lap\]"):
         D.solve_convex(built[0])
+
+
+def test_replay_in_the_forward_model(convex):
+    """The optimal speed trace driven by the forward model's driver, the supervisor following
+    the map's battery power: the lap (the time to cover its length) within 1 % and the net
+    battery energy per lap within 2 % of the energy deployed."""
+    out = D.replay_forward(CFG, convex)
+    assert out["forward_lap_time_s"] == pytest.approx(out["optimal_lap_time_s"], rel=0.01)
+    dep = out["optimal_battery_deployed_j"]
+    assert abs(out["forward_battery_net_j"] - out["optimal_battery_net_j"]) <= 0.02 * dep
+    assert out["forward_battery_deployed_j"] == pytest.approx(dep, rel=0.05)

@@ -1019,3 +1019,74 @@ __all__ = [
     "solve_convex",
     "solve_dp",
 ]
+
+
+def _follower_class() -> Any:
+    from hevsim.control.parallel import _argmin_feasible, _GridController
+
+    class BatteryPowerFollower(_GridController):
+        """Forward-model supervisor that follows a battery chemical power [W] schedule in time
+        (a deployment map replayed along the optimal speed trace): the feasible candidate
+        control whose battery power is nearest the scheduled one (ties: less fuel power)."""
+
+        name = "deploy_map"
+
+        def __init__(self, hev: Any, time_s: np.ndarray, power_w: np.ndarray, control_points: int) -> None:
+            super().__init__(hev, control_points)
+            self.time_s = np.asarray(time_s, np.float64)
+            self.power_w = np.asarray(power_w, np.float64)
+
+        def choose(self, step: Any) -> Any:
+            target = float(np.interp(step.time_s + 0.5 * step.dt_s, self.time_s, self.power_w))
+            st, feasible = step.evaluate(*self.controls)
+            p_fuel = st.cost_kg / step.dt_s * self.lhv
+            p_chem = -st.d_soc / step.dt_s * step.energy_per_soc_j
+            cost = np.abs(p_chem - target) + 1e-3 * p_fuel
+            return self.pick(_argmin_feasible(np.broadcast_to(cost, np.shape(feasible)), feasible))
+
+    return BatteryPowerFollower
+
+
+def replay_forward(model: Any, res: DeployResult, *, dt_s: float = 0.1) -> dict[str, float]:
+    """The optimal lap replayed in the forward vehicle model (:func:`hevsim.sim.simulate`):
+    the driver follows the optimal speed trace in time, the supervisor follows the map's
+    battery power in time. Returns the optimum's and the forward run's lap time [s] (the time
+    at which the forward run has covered the lap's length) and net battery chemical energy [J]."""
+    from hevsim.config import load_vehicle_config
+    from hevsim.cycles import DriveCycle
+    from hevsim.sim.performance import wheel_force_envelope
+    from hevsim.sim.simulator import simulate
+
+    if isinstance(model, str | Path):
+        model = load_vehicle_config(model)
+    cfg = getattr(model, "config", model)
+    v = np.append(res.speed_mps, res.speed_mps[0])
+    t = np.concatenate([[0.0], np.cumsum(res.dt_s)])
+    cycle = DriveCycle("optimal_lap", t, v, source=f"optimal deployment on {res.problem.track}")
+    hev = wheel_force_envelope(model, np.array([10.0, 20.0])).model
+    p_b = np.append(res.battery_power_w, res.battery_power_w[0])
+    ctl = _follower_class()(hev, t, p_b, int(cfg.controller.control_points))
+    sim = simulate(model, cycle, dt_s=dt_s, controller=ctl)
+    ts = sim.timeseries
+    d = np.concatenate(
+        [[0.0], np.cumsum(0.5 * (ts["speed_mps"].to_numpy()[1:] + ts["speed_mps"].to_numpy()[:-1]) * dt_s)]
+    )
+    length = res.problem.step_m * res.problem.n
+    tt = ts["time_s"].to_numpy()
+    lap_t = (
+        float(np.interp(length, d, tt))
+        if d[-1] >= length
+        else float(tt[-1] + (length - d[-1]) / max(v[-1], 1.0))
+    )
+    pb = ts["battery_power_w"].to_numpy()
+    eb = res.battery_energy_j
+    return {
+        "optimal_lap_time_s": res.lap_time_s,
+        "forward_lap_time_s": lap_t,
+        "optimal_battery_net_j": float(eb.sum()),
+        "forward_battery_net_j": float(sim.metrics["battery_energy_wh"]["value"]) * 3600.0,
+        "optimal_battery_deployed_j": float(np.sum(np.maximum(eb, 0.0))),
+        "forward_battery_deployed_j": float(np.sum(np.maximum(pb, 0.0)) * dt_s),
+        "forward_traction_limited_s": float(sim.metrics["traction_limited_s"]["value"]),
+        "forward_fuel_kg": float(sim.metrics["fuel_kg"]["value"]),
+    }
