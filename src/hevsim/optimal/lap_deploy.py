@@ -11,7 +11,7 @@ the slowest apex (the lap's speed there is its friction limit):
 * controls per step (wheel work [J] over ``ds``): engine ``W_e``, machine ``W_m`` (deploy > 0,
   harvest < 0) and brakes ``W_b >= 0``;
 * dynamics ``m delta (e_{i+1} - e_i) = W_e + W_m - W_b - ds (c_d (e_i + e_{i+1}) + F_0,i)``
-  (``c_d = rho C_d A``: drag ``0.5 rho C_d A v^2`` at the mean of the step's two kinetic energies;
+  (``c_d = 0.5 rho C_d A``: drag ``c_d v^2 = 2 c_d e`` at the mean of the step's two kinetic energies;
   ``F_0`` rolling resistance and grade at the sample);
 * step time ``dt_i = ds / 2 (1 / v_i + 1 / v_{i+1})`` (trapezoid on the slowness); the lap
   time is ``sum dt_i``;
@@ -106,7 +106,7 @@ class DeployProblem:
     trac_b_kg: np.ndarray  # (N,) its slope in e [N/(J/kg)] = [kg]
     road0_n: np.ndarray  # (N,) rolling + grade force [N]
     mass_eff_kg: float  # m * delta [kg]
-    drag_kgpm: float  # rho Cd A [kg/m]: drag = drag_kgpm * e
+    drag_kgpm: float  # 0.5 rho Cd A [kg/m]: drag force = drag_kgpm v^2 = 2 drag_kgpm e
     engine_power_w: float  # engine's largest wheel power [W]
     machine_power_w: float  # machine's largest wheel power [W]
     loss_alpha: float  # battery energy per wheel work, linear part [-] (>= 1)
@@ -297,7 +297,7 @@ def build_problem(
         trac_b_kg=b[order].copy(),
         road0_n=np.broadcast_to(road0, v_f.shape)[order].astype(np.float64),
         mass_eff_kg=veh.mass_kg * veh.mass_factor,
-        drag_kgpm=veh.air_density_kgpm3 * veh.drag_coefficient * veh.frontal_area_m2,
+        drag_kgpm=0.5 * veh.air_density_kgpm3 * veh.drag_coefficient * veh.frontal_area_m2,
         engine_power_w=p_e,
         machine_power_w=p_m,
         loss_alpha=alpha,
@@ -404,7 +404,8 @@ class DeployResult:
 
     def frame(self) -> pd.DataFrame:
         """The deployment map on the original track's distance (sorted): distance [m], speed
-        [m/s], battery, machine and engine power [W], cumulative battery energy [J]."""
+        [m/s], battery, machine and engine power [W] of the step starting there, battery energy
+        used from the track's start to the end of the step [J], step time [s]."""
         p = self.problem
         dt = self.dt_s
         df = pd.DataFrame(
@@ -414,11 +415,13 @@ class DeployResult:
                 "battery_power_w": self.battery_power_w,
                 "machine_power_w": self.machine_work_j / dt,
                 "engine_power_w": self.engine_work_j / dt,
-                "battery_energy_used_j": np.cumsum(self.battery_energy_j),
+                "battery_energy_j": self.battery_energy_j,
                 "dt_s": dt,
             }
         )
-        return df.sort_values("distance_m", kind="stable").reset_index(drop=True)
+        df = df.sort_values("distance_m", kind="stable").reset_index(drop=True)
+        df.insert(5, "battery_energy_used_j", np.cumsum(df.pop("battery_energy_j").to_numpy()))
+        return df
 
     def save(
         self,
