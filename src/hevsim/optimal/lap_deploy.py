@@ -15,8 +15,10 @@ the slowest apex (the lap's speed there is its friction limit):
   ``F_0`` rolling resistance and grade at the sample);
 * step time ``dt_i = ds / 2 (1 / v_i + 1 / v_{i+1})`` (trapezoid on the slowness); the lap
   time is ``sum dt_i``;
-* limits: ``0 <= W_e <= P_e dt_i`` (engine's largest wheel power), ``|W_m| <= P_m dt_i``
-  (machine's largest wheel power), traction ``W_e + W_m <= ds (a_i + b_i e_i)`` (the chord in
+* limits: ``0 <= W_e <= P_e,i dt_i`` (engine's largest wheel power),
+  ``|W_m| <= P_m,i dt_i`` (machine's largest wheel power added with the battery; both from the
+  architecture's envelope at the speed of the QSS lap without the battery at sample i),
+  traction ``W_e + W_m <= ds (a_i + b_i e_i)`` (the chord in
   ``e`` of the friction ellipse's traction limit of :mod:`hevsim.sim.lap` between standstill and
   the friction-limited speed), friction-limited speed ``e_i <= v_max,i^2 / 2`` (the QSS apex
   speeds and the braking limit integrated backward from them: braking is free below it);
@@ -115,6 +117,8 @@ class DeployProblem:
     budget_j: float  # net battery energy per lap [J]
     fuel_budget_j: float  # fuel energy per lap [J] (inf: none)
     window_j: tuple[float, float]  # cumulative battery energy window [J]
+    engine_power_i_w: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    machine_power_i_w: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
     v_lo: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))  # DP speed band [m/s]
     v_hi: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
 
@@ -241,6 +245,11 @@ def build_problem(
     ref = simulate_lap(model, trk, vehicle=veh, battery_power_max_w=0.0, step_m=trk.step_m)
     wheel = ref.timeseries["wheel_power_w"].to_numpy() * ref.timeseries["dt_s"].to_numpy()
     e_fuel = float(ref.summary.get("fuel_energy_j", 0.0))
+    # engine and machine wheel power at each sample: the envelope at the reference lap's speed
+    v_ref = ref.timeseries["speed_mps"].to_numpy()
+    ev = veh.envelope_speed_mps
+    p_e_i = np.interp(v_ref, ev, table[0]) * v_ref
+    p_m_i = np.maximum(np.interp(v_ref, ev, table[-1]) * v_ref - p_e_i, 0.0)
     e_batt = float(ref.summary.get("battery_chemical_energy_j", 0.0))
     eta = (float(np.sum(np.maximum(wheel, 0.0))) - e_batt) / e_fuel if e_fuel > 0 else 0.3
     eta = float(min(max(eta, 0.05), 0.6))
@@ -300,6 +309,8 @@ def build_problem(
         drag_kgpm=0.5 * veh.air_density_kgpm3 * veh.drag_coefficient * veh.frontal_area_m2,
         engine_power_w=p_e,
         machine_power_w=p_m,
+        engine_power_i_w=np.maximum(p_e_i, 0.0)[order].copy(),
+        machine_power_i_w=p_m_i[order].copy(),
         loss_alpha=alpha,
         loss_k_per_w=k,
         engine_efficiency=eta,
@@ -307,8 +318,9 @@ def build_problem(
         fuel_budget_j=fuel_j,
         window_j=(float(lo), float(hi)),
     )
-    v_lo = _bound_profile(prob, p_e - p_m, lower=True)
-    v_hi = _bound_profile(prob, p_e + p_m, lower=False)
+    pe_i, pm_i = prob.engine_power_i_w, prob.machine_power_i_w
+    v_lo = _bound_profile(prob, pe_i - pm_i, lower=True)
+    v_hi = _bound_profile(prob, pe_i + pm_i, lower=False)
     prob = DeployProblem(**{**prob.__dict__, "v_lo": v_lo, "v_hi": v_hi})
     return prob, veh
 
@@ -321,14 +333,14 @@ def _battery_window_j(veh: Any, cfg: Any) -> tuple[float, float] | None:
     if batt is None:
         return None
     try:
-        e_soc = float(batt.capacity_ah) * 3600.0 * float(batt.nominal_voltage_v)
-    except AttributeError:
+        e_soc = float(batt.capacity_ah) * 3600.0 * float(batt.ocv(float(veh.envelope.soc)))
+    except (AttributeError, TypeError):
         return None
     soc = float(veh.envelope.soc)
     return (soc - float(b.soc_min)) * e_soc, (float(b.soc_max) - soc) * e_soc
 
 
-def _bound_profile(prob: DeployProblem, power_w: float, *, lower: bool) -> np.ndarray:
+def _bound_profile(prob: DeployProblem, power_w: np.ndarray, *, lower: bool) -> np.ndarray:
     """Speed [m/s] of forward integration at a wheel power [W] (and the traction chord) from
     the first sample's friction speed, capped by the friction speed: the DP's speed band
     (lower: engine minus full harvest, widened by 5 %; upper: engine plus full deployment,
@@ -338,7 +350,7 @@ def _bound_profile(prob: DeployProblem, power_w: float, *, lower: bool) -> np.nd
     e[0] = prob.e_max[0]
     for i in range(n - 1):
         v = math.sqrt(2.0 * e[i])
-        f = min(max(power_w, 0.0) / v, prob.trac_a_n[i] + prob.trac_b_kg[i] * e[i])
+        f = min(max(power_w[i], 0.0) / v, prob.trac_a_n[i] + prob.trac_b_kg[i] * e[i])
         de = (f - prob.drag_kgpm * 2.0 * e[i] - prob.road0_n[i]) * ds / m
         e[i + 1] = min(max(e[i] + de, 0.5 * V_MIN_MPS**2), prob.e_max[i + 1])
     vs = np.sqrt(2.0 * e)
@@ -506,7 +518,7 @@ def solve_convex(prob: DeployProblem, *, verbose: bool = False) -> DeployResult:
     e1 = cp.hstack([e[1:], e[:1]])
     u1 = cp.hstack([u[1:], u[:1]])
     a = prob.loss_alpha
-    pe, pm = prob.engine_power_w / kj, prob.machine_power_w / kj
+    pe, pm = prob.engine_power_i_w / kj, prob.machine_power_i_w / kj
     cons = [
         m * (e1 - e) == we + wm - wb - ds * (prob.drag_kgpm * (e + e1) + prob.road0_n / kj),
         u >= cp.power(2.0 * kj * e, -0.5),
@@ -515,9 +527,9 @@ def solve_convex(prob: DeployProblem, *, verbose: bool = False) -> DeployResult:
         e >= 0.5 * V_MIN_MPS**2 / kj,
         e[0] == prob.e_max[0] / kj,
         we >= 0,
-        we <= pe * dt,
-        wm <= pm * dt,
-        wm >= -pm * dt,
+        we <= cp.multiply(pe, dt),
+        wm <= cp.multiply(pm, dt),
+        wm >= -cp.multiply(pm, dt),
         wb >= 0,
         we + wm <= ds * (prob.trac_a_n / kj + cp.multiply(prob.trac_b_kg, e)),
         # battery energy: linear part (deploy alpha, harvest 1/alpha) + resistive wm^2/dt, with
@@ -629,7 +641,7 @@ def _backward(nodes, ds, m, cd, road0, ta, tb, pe, pm, alpha, kl, eta, lam, wf):
                 e1 = nodes[i + 1, j]
                 dt = 0.5 * ds * (1.0 / math.sqrt(2.0 * e0) + 1.0 / math.sqrt(2.0 * e1))
                 w = m * (e1 - e0) + ds * (cd * (e0 + e1) + road0[i])
-                c, _, _ = _split_cost(w, dt, trac, pe, pm, alpha, kl, eta, lam, wf)
+                c, _, _ = _split_cost(w, dt, trac, pe[i], pm[i], alpha, kl, eta, lam, wf)
                 c += dt + J[i + 1, j]
                 if c < best:
                     best = c
@@ -671,8 +683,8 @@ def _dp_path(prob: DeployProblem, nodes: np.ndarray, lam: float, wf: float) -> t
         np.ascontiguousarray(pr.road0_n),
         np.ascontiguousarray(pr.trac_a_n),
         np.ascontiguousarray(pr.trac_b_kg),
-        pr.engine_power_w,
-        pr.machine_power_w,
+        np.ascontiguousarray(pr.engine_power_i_w),
+        np.ascontiguousarray(pr.machine_power_i_w),
         pr.loss_alpha,
         pr.loss_k_per_w,
         pr.engine_efficiency,
@@ -692,7 +704,18 @@ def _dp_path(prob: DeployProblem, nodes: np.ndarray, lam: float, wf: float) -> t
     we = np.empty(n)
     wm = np.empty(n)
     for i in range(n):
-        _, wm[i], we[i] = _split_cost(w[i], dt[i], trac[i], *args[6:], lam, wf)
+        _, wm[i], we[i] = _split_cost(
+            w[i],
+            dt[i],
+            trac[i],
+            args[6][i],
+            args[7][i],
+            pr.loss_alpha,
+            pr.loss_k_per_w,
+            pr.engine_efficiency,
+            lam,
+            wf,
+        )
     return np.sqrt(2.0 * e[:-1]), we, wm
 
 
@@ -844,11 +867,11 @@ def _failure_location(prob: DeployProblem) -> str:
     v = prob.v_lo.copy()
     n, ds = prob.n, prob.step_m
     dt = 0.5 * ds * (1.0 / v + 1.0 / np.roll(v, -1))
-    wm = -prob.machine_power_w * dt
+    wm = -prob.machine_power_i_w * dt
     eb = prob.battery_energy_j(wm, dt)
     # the harvest that pays: the loss model's most-charging machine power
     p_best = 1.0 / (2.0 * prob.loss_alpha * max(prob.loss_k_per_w, 1e-30))
-    wm2 = -np.minimum(prob.machine_power_w, p_best) * dt
+    wm2 = -np.minimum(prob.machine_power_i_w, p_best) * dt
     eb = np.minimum(eb, prob.battery_energy_j(wm2, dt))
     cum = np.cumsum(eb)
     out = np.flatnonzero(cum < prob.window_j[0])
@@ -902,7 +925,7 @@ def simulate_rule(prob: DeployProblem, fraction: np.ndarray) -> tuple[float, flo
         for _ in range(4):
             dt = 0.5 * ds * (1 / v + 1 / math.sqrt(2 * max(e1, 0.5)))
             w_max = min(
-                (prob.engine_power_w + frac * prob.machine_power_w) * dt,
+                (prob.engine_power_i_w[i] + frac * prob.machine_power_i_w[i]) * dt,
                 ds * (prob.trac_a_n[i] + prob.trac_b_kg[i] * e[i]),
             )
             e1 = (w_max - ds * (prob.drag_kgpm * e[i] + prob.road0_n[i]) + m * e[i]) / (
@@ -910,7 +933,7 @@ def simulate_rule(prob: DeployProblem, fraction: np.ndarray) -> tuple[float, flo
             )
         e1 = min(max(e1, 0.5 * V_MIN_MPS**2), e_nxt)
         dt = 0.5 * ds * (1 / v + 1 / math.sqrt(2 * e1))
-        wm[i] = frac * prob.machine_power_w * dt
+        wm[i] = frac * prob.machine_power_i_w[i] * dt
         e[i + 1] = e1
     vs = np.sqrt(2 * e[:n])
     dts = 0.5 * ds * (1 / vs + 1 / np.roll(vs, -1))
@@ -1088,6 +1111,10 @@ def replay_forward(model: Any, res: DeployResult, *, dt_s: float = 0.1) -> dict[
         "forward_lap_time_s": lap_t,
         "optimal_battery_net_j": float(eb.sum()),
         "forward_battery_net_j": float(sim.metrics["battery_energy_wh"]["value"]) * 3600.0,
+        "forward_battery_chemical_net_j": -float(ts["soc"].iloc[-1] - ts["soc"].iloc[0])
+        * float(hev.battery.capacity_ah)
+        * 3600.0
+        * float(np.mean(hev.battery.ocv(ts["soc"].to_numpy()))),
         "optimal_battery_deployed_j": float(np.sum(np.maximum(eb, 0.0))),
         "forward_battery_deployed_j": float(np.sum(np.maximum(pb, 0.0)) * dt_s),
         "forward_traction_limited_s": float(sim.metrics["traction_limited_s"]["value"]),
