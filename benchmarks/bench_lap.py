@@ -99,7 +99,7 @@ def bench_deploy(a: argparse.Namespace) -> None:
     t0 = time.perf_counter()
     prob, _ = D.build_problem(a.config, a.track, step_m=a.deploy_step, budget_kj=0.0)
     t_build = time.perf_counter() - t0
-    D.solve_dp(prob, passes=1, iters=2)  # compile
+    D.solve_dp(prob, passes=1)  # compile the DP kernels
     with OtherLoad() as load:
         t_cvx = median_time(lambda: D.solve_convex(prob), max(1, a.repeats // 2), warm=True)
         t_dp = median_time(lambda: D.solve_dp(prob), 1, warm=False)
