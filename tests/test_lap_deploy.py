@@ -180,3 +180,15 @@ def test_replay_in_the_forward_model(convex):
     dep = out["optimal_battery_deployed_j"]
     assert abs(out["forward_battery_chemical_net_j"] - out["optimal_battery_net_j"]) <= 0.10 * dep
     assert out["forward_battery_deployed_j"] == pytest.approx(dep, rel=0.10)
+
+
+def test_fuel_budget_binds(built, convex):
+    """A fuel budget 3 % below the fuel of the unconstrained optimum is met and costs time."""
+    import dataclasses
+
+    prob = built[0]
+    fuel = float(np.sum(convex.engine_work_j)) / prob.engine_efficiency
+    res = D.solve_convex(dataclasses.replace(prob, fuel_budget_j=0.97 * fuel))
+    assert float(np.sum(res.engine_work_j)) / prob.engine_efficiency <= 0.97 * fuel * (1 + 1e-6)
+    assert res.lap_time_s > convex.lap_time_s + 1e-3
+    assert float(res.battery_energy_j.sum()) <= prob.budget_j + 50.0
