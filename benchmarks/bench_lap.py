@@ -14,6 +14,11 @@ Prints the median of ``--repeats`` runs (after one warm-up) of
 * ``simulate_lap`` with the operating points along the lap (power flow over every candidate
   at every sample) and without them;
 
+* with ``--deploy`` (issue 29 item 3), the optimal deployment on the circuit at ``--deploy-step``
+  (default 10 m, charge-sustaining): the convex program (cvxpy + Clarabel; target <= 10 s) and
+  the DP (target <= 30 s), their lap times and the DP-vs-convex difference, the problem's build
+  (envelope rows + the reference lap) apart; and the DP's convergence in its passes;
+
 and the load of the other processes while it ran. The script only reports: it always exits 0.
 """
 
@@ -31,7 +36,14 @@ def main() -> int:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--config", default=str(REPO / "examples" / "high_performance_parallel_hev.toml"))
     ap.add_argument("--track", default="monza")
+    ap.add_argument("--deploy", action="store_true", help="also time the optimal deployment")
+    ap.add_argument("--deploy-only", action="store_true", help="only the optimal deployment")
+    ap.add_argument("--deploy-step", type=float, default=10.0)
     a = ap.parse_args()
+    if a.deploy or a.deploy_only:
+        bench_deploy(a)
+        if a.deploy_only:
+            return 0
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from _machine import OtherLoad, median_time
     from hevsim import tracks
@@ -74,6 +86,40 @@ def main() -> int:
     print(f"{'simulate_lap with operating points':<40}{t_lap * 1e3:>10.1f} ms")
     print(load.text())
     return 0
+
+
+def bench_deploy(a: argparse.Namespace) -> None:
+    """Optimal deployment: convex vs DP on the same problem (issue 29 item 3)."""
+    import time
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from _machine import OtherLoad, median_time
+    from hevsim.optimal import lap_deploy as D
+
+    t0 = time.perf_counter()
+    prob, _ = D.build_problem(a.config, a.track, step_m=a.deploy_step, budget_kj=0.0)
+    t_build = time.perf_counter() - t0
+    D.solve_dp(prob, passes=1)  # compile the DP kernels
+    with OtherLoad() as load:
+        t_cvx = median_time(lambda: D.solve_convex(prob), max(1, a.repeats // 2), warm=True)
+        t_dp = median_time(lambda: D.solve_dp(prob), 1, warm=False)
+    rc = D.solve_convex(prob)
+    rd = D.solve_dp(prob)
+    print(f"optimal deployment on {prob.track}: {prob.n} steps of {prob.step_m:.2f} m, charge-sustaining")
+    print(f"{'problem build (envelopes + ref. lap)':<40}{t_build:>10.2f} s")
+    print(f"{'convex (cvxpy + Clarabel)':<40}{t_cvx:>10.2f} s   (target <= 10 s)   lap {rc.lap_time_s:.4f} s")
+    print(
+        f"{'DP (31 nodes, 6 passes)':<40}{t_dp:>10.2f} s   (target <= 30 s)   lap {rd.lap_time_s:.4f} s  "
+        f"DP/convex - 1 = {(rd.lap_time_s / rc.lap_time_s - 1) * 100:+.4f} %"
+    )
+    for passes in (1, 2, 4, 6, 8):
+        r = D.solve_dp(prob, passes=passes)
+        print(
+            f"  DP passes {passes}: speed step {r.info['speed_step_mps']:.4f} m/s  lap {r.lap_time_s:.4f} s  "
+            f"vs convex {(r.lap_time_s / rc.lap_time_s - 1) * 100:+.4f} %  net battery "
+            f"{r.battery_energy_j.sum() / 1e3:+.2f} kJ"
+        )
+    print(load.text())
 
 
 if __name__ == "__main__":

@@ -279,8 +279,36 @@ def _cmd_lap(args: argparse.Namespace) -> int:
     check_option("--soc", args.soc, SimulationSection, "soc_initial")
     track_name = Path(args.track).stem if args.track not in TRACK_NAMES else args.track
     out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_{track_name}_lap"
-    _prepare(args, out, args.config, None if args.track in TRACK_NAMES else args.track)
-    res = simulate_lap(cfg, args.track, step_m=step, soc=args.soc)
+    _prepare(args, out, args.config, None if args.track in TRACK_NAMES else args.track, args.deploy)
+    if args.optimize:
+        from hevsim.optimal.lap_deploy import run_cli
+
+        opt = run_cli(
+            cfg,
+            args.track,
+            method=args.optimize,
+            budget_kj=args.budget_kj,
+            fuel_budget_kg=args.fuel_budget_kg,
+            window_kj=args.window_kj,
+            step_m=step,
+            deploy_step_m=check_step(args.deploy_step),
+            soc=args.soc,
+            out=out,
+            plots=not args.no_plots,
+            force=args.force,
+        )
+        print(f"{cfg.name} on {opt.problem.track}: optimal deployment ({args.optimize})")
+        print("\n".join(f"{k:<40}{v!s:>16}" for k, v in opt.summary().items()))
+        print(f"results written to {out}/ ({_written(out)})")
+        return 0
+    limit = None
+    if args.deploy:
+        from hevsim.optimal.lap_deploy import read_deploy_map
+        from hevsim.tracks import load_track
+
+        trk = load_track(args.track, step_m=step)
+        limit = read_deploy_map(args.deploy, trk)
+    res = simulate_lap(cfg, args.track, step_m=step, soc=args.soc, battery_power_max_w=limit)
     res.save(out, plots=not args.no_plots)
     print(f"{cfg.name} ({cfg.architecture}) on {res.track.name}: lap time {res.lap_time_s:.3f} s")
     print(res.format())
@@ -995,6 +1023,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--step", type=float, default=1.0, help="distance step [m] (default 1)")
     p.add_argument("--soc", type=float, help="battery SOC held for the lap [-] (default the initial SOC)")
     p.add_argument("--out", help="results folder (default results/<config>_<track>_lap)")
+    p.add_argument(
+        "--optimize",
+        choices=("convex", "dp"),
+        help="optimal deployment: minimum lap time under --budget-kj (writes deploy_map.csv, deploy.png)",
+    )
+    p.add_argument(
+        "--budget-kj", type=float, default=0.0, help="net battery energy per lap [kJ] (0: charge-sustaining)"
+    )
+    p.add_argument("--fuel-budget-kg", type=float, help="fuel per lap [kg] (default: none)")
+    p.add_argument("--window-kj", type=float, help="half-width of the cumulative battery-energy window [kJ]")
+    p.add_argument(
+        "--deploy-step", type=float, default=10.0, help="distance step of --optimize [m] (default 10)"
+    )
+    p.add_argument("--deploy", help="replay a deployment map CSV (distance_m, battery_power_w) in the lap")
     _add_force(p, "folder at --out")
     p.add_argument("--no-plots", action="store_true", help="skip the plots")
     p.set_defaults(func=_cmd_lap)
