@@ -7,8 +7,8 @@ integration, operating points), limited by the power the pack can give *now*, an
 lap in time:
 
 1. **Limit at the start of the lap.** The BMS's discharge current limit ``I_lim`` (temperature
-   derating at the hottest cell, SOC factors, the cells' voltage limits; zero once the pack's
-   mean SOC is at the vehicle's ``[battery] soc_min``) becomes the lap's deployment, the
+   derating at the hottest cell, SOC factors, the cells' voltage limits) becomes the lap's
+   deployment, the
    largest battery chemical power ``P = OCV I_lim`` (``OCV`` of the vehicle's nominal view of
    the pack at the envelope's SOC, :func:`hevsim.sim.pack_vehicle.nominal_battery`). A limit at
    or above the nominal battery's own current limit is no limit: that lap *is* the single QSS
@@ -22,7 +22,10 @@ lap in time:
    battery terminal power over its time window (the cumulative energy interpolated at the
    step's ends, so the energy is exact; a step that straddles two laps takes the end of one
    and the start of the next) plus the cooling loop's electrical power (pump, fan, chiller: a
-   bus load the pack carries). At each step the BMS's limits of *that* step apply.
+   bus load the pack carries). At each step the BMS's limits of *that* step apply, and no
+   discharge while the pack's mean SOC is at or below the vehicle's ``[battery] soc_min`` (nor
+   charge at ``soc_max``): a stint that empties the pack goes on charge-sustaining, deploying
+   only what it harvests.
 4. **Recomputing the lap when the limits change.** Where a pack step asks for more current
    than that step's BMS discharge limit (the pack heated, or its SOC fell, during the lap), the
    lap is recomputed from the pack's state at the start of the lap with the deployment at the
@@ -258,7 +261,8 @@ def _drive_pack(
 ) -> tuple[list[dict[str, float]], _Carry]:
     """Step ``run`` along ``lap`` (module docstring, item 3). Returns one dict per pack step
     completed during the lap (the window's start and end in lap time [s], the asked terminal
-    power [W] and current [A], the BMS's available discharge/charge current [A], the current
+    power [W] (the lap's mean battery power over the window + the cooling power [W]) and
+    current [A], the BMS's available discharge/charge current [A], the current
     used [A]) and the carry into the next lap."""
     t_nodes, e_nodes = _lap_power(lap)
     tau = float(t_nodes[-1])
@@ -275,7 +279,8 @@ def _drive_pack(
             run.begin()
         lim = run.limits
         soc = run.soc
-        p_ask = float(energy[j] / dt_s) + run.cooling_w
+        cooling_w = run.cooling_w
+        p_ask = float(energy[j] / dt_s) + cooling_w
         i_ask = run.current_for_power(p_ask)
         i_dis = lim.discharge_a if soc > soc_min else 0.0
         i_chg = lim.charge_a if soc < soc_max else 0.0
@@ -286,6 +291,7 @@ def _drive_pack(
                 "t0": float(ends[j] - dt_s),
                 "t1": float(ends[j]),
                 "power_asked_w": p_ask,
+                "cooling_asked_w": cooling_w,
                 "current_asked_a": i_ask,
                 "discharge_available_a": i_dis,
                 "charge_available_a": i_chg,
@@ -382,7 +388,7 @@ def simulate_stint(
                     np.broadcast_to(np.asarray(deployment(probe, trk), np.float64), trk.distance_m.shape)
                 )
             else:
-                i_avail = lim.discharge_a if soc_lap0 > soc_min else 0.0
+                i_avail = lim.discharge_a
                 p0 = math.inf if i_avail >= i_max * (1.0 - 1e-12) else ocv * i_avail
                 limit = np.full(trk.distance_m.size, p0)
             passes = 0
