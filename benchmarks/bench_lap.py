@@ -158,7 +158,8 @@ def bench_stint(track_name: str, laps: int, rom_arg: str | None, t_lap: float) -
                 f"uptime load {os.getloadavg()[0]:.2f})"
             )
             print(
-                f"    {res.metadata['n_cells']} cells; laps {s['fastest_lap_s']:.2f} .. {s['slowest_lap_s']:.2f} s; "
+                f"    {res.metadata['n_cells']} cells; laps {s['fastest_lap_s']:.2f} .. "
+                f"{s['slowest_lap_s']:.2f} s; "
                 f"peak cell {s['peak_cell_temp_c']:.1f} degC; passes {int(res.laps['passes'].sum())}; "
                 f"{laps} x the single lap with operating points {laps * t_lap:.2f} s "
                 f"(ratio {wall / (laps * t_lap):.1f}x)"

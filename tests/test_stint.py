@@ -35,7 +35,9 @@ def small_car(folder: Path, n_parallel: int = 3) -> Path:
         "max_current_a = 450.0 ": f"max_current_a = {150.0 * n_parallel} ",
         "capacity_spread = 0.02 ": "capacity_spread = 0.0 ",
         "resistance_spread = 0.05 ": "resistance_spread = 0.0 ",
-        'thermal_config = "module_thermal.toml"': f'cells = "representative"\nthermal_config = "{EX / "module_thermal.toml"}"',
+        'thermal_config = "module_thermal.toml"': (
+            f'cells = "representative"\nthermal_config = "{EX / "module_thermal.toml"}"'
+        ),
     }
     for old, new in edits.items():
         assert old in pack, old

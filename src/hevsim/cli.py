@@ -301,8 +301,8 @@ def _cmd_stint(args: argparse.Namespace) -> int:
     track_name = Path(args.track).stem if args.track not in TRACK_NAMES else args.track
     out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_{track_name}_stint"
     _prepare(args, out, args.config, None if args.track in TRACK_NAMES else args.track)
-    res = simulate_stint(cfg, args.track, laps, step_m=step, dt_s=args.dt, soc_initial=args.soc,
-                         ambient_temp_c=args.ambient, soak=args.soak, cooling_off=args.cooling_off)  # fmt: skip
+    opts = {"ambient_temp_c": args.ambient, "soak": args.soak, "cooling_off": args.cooling_off}
+    res = simulate_stint(cfg, args.track, laps, step_m=step, dt_s=args.dt, soc_initial=args.soc, **opts)
     res.save(out, plots=not args.no_plots)
     print(f"{cfg.name} ({cfg.architecture}) on {res.summary['track']}: stint of {laps} laps")
     print(res.format())
@@ -1013,7 +1013,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="skip the plots")
     p.set_defaults(func=_cmd_lap)
 
-    p = sub.add_parser("stint", help="N laps with the whole pack: lap time as the pack heats and derates (issue 29)")
+    p = sub.add_parser(
+        "stint", help="N laps with the whole pack: lap time as the pack heats and derates (issue 29)"
+    )
     p.add_argument("config", help="vehicle configuration (TOML) with [battery] model = 'pack'")
     p.add_argument("track", help="shipped track (skidpad, oval, handling, monza) or track CSV")
     p.add_argument("--laps", type=int, required=True, help="number of laps (>= 1)")

@@ -267,7 +267,7 @@ def _drive_pack(
     t_nodes, e_nodes = _lap_power(lap)
     tau = float(t_nodes[-1])
     first = dt_s - carry.time_s
-    n = int(math.floor((tau - first) / dt_s + 1e-9)) + 1 if tau >= first - 1e-12 else 0
+    n = math.floor((tau - first) / dt_s + 1e-9) + 1 if tau >= first - 1e-12 else 0
     ends = first + dt_s * np.arange(n)
     e_ends = np.interp(ends, t_nodes, e_nodes)
     energy = np.diff(np.r_[0.0, e_ends])
