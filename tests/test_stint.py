@@ -167,3 +167,12 @@ def test_table_battery_refused(tmp_path: Path, capsys) -> None:  # type: ignore[
     assert rc == 2
     err = capsys.readouterr().err
     assert "battery.model" in err and "'table'" in err and "pack" in err
+
+
+def test_pack_step_longer_than_half_a_lap_refused(setup) -> None:  # type: ignore[no-untyped-def]
+    from hevsim.errors import ConfigError
+
+    cfg, _, vehicle = setup
+    skidpad = tracks.load_track("skidpad", step_m=STEP_M)  # an 11 s lap
+    with pytest.raises(ConfigError, match=r"--dt = 8.0 s.*half a lap of 'skidpad'"):
+        simulate_stint(cfg, skidpad, 2, step_m=STEP_M, dt_s=8.0, vehicle=vehicle)

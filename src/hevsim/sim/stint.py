@@ -374,6 +374,11 @@ def simulate_stint(
     lv, ocv, i_max = vehicle if vehicle is not None else stint_vehicle(model, soc0, levels)
     with threadpool_limits(1, user_api="blas"):
         free = simulate_lap(model, trk, step_m=trk.step_m, vehicle=lv, battery_power_max_w=np.inf)
+        if free.lap_time_s < 2.0 * dt_s:
+            raise ConfigError(
+                f"option --dt = {dt_s!r} s: the pack's step is longer than half a lap of '{trk.name}' "
+                f"({free.lap_time_s:.2f} s); expected a step of at most {0.5 * free.lap_time_s:.3g} s."
+            )
         rows, records, results = [], [], []
         carry, clock = _Carry(), 0.0
         e_prev = run.energy()
