@@ -438,7 +438,7 @@ def simulate_stint(
         "soak": bool(soak),
         "pack_dt_s": float(dt_s),
         "lap_step_m": trk.step_m,
-        "envelope_soc": soc0,
+        "envelope_soc": float(lv.envelope.soc),
         "nominal_ocv_v": ocv,
         "nominal_max_current_a": i_max,
         "iterations": int(iterations),
