@@ -90,6 +90,7 @@ def run(laps: int, track_name: str, ambients: list[float]) -> tuple[pd.DataFrame
                     "fuel_kg": round(s["fuel_kg"], 3),
                     "clamped_s": s["clamped_s"],
                     "clamped_energy_kj": round(s["clamped_energy_j"] / 1e3, 1),
+                    "of_it_cooling_kj": round(s["clamped_cooling_j"] / 1e3, 1),
                     "soc_end": round(s["soc_end"], 4),
                     "max_energy_balance_relative": s["max_energy_balance_relative"],
                 }

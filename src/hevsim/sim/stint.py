@@ -35,7 +35,9 @@ lap in time:
    the friction brakes), are clamped to the limit and reported (``clamped_s``, the discharge
    energy asked but not given ``clamped_energy_j``, ``regen_clamped_s``): the lap's time is
    then a little optimistic. Most clamps come at the SOC floor, where the SOC hovers about
-   ``soc_min`` and the passes chase it.
+   ``soc_min``: there the cooling loop's own load (pump, fan, chiller) is refused by the pack
+   and is carried by the engine through the machine (``clamped_cooling_j``, the part of the
+   clamped energy that is cooling load; it is not in the lap's fuel).
 
 An optimal deployment over the lap (issue 29 item 3) can replace step 1's constant limit: the
 lap takes any ``battery_power_max_w`` profile (``deployment=`` of :func:`simulate_stint`, a
@@ -470,7 +472,10 @@ def _lap_row(
     clamp = np.abs(i_use - i_ask) > 1e-9 * np.maximum(1.0, np.abs(i_ask))
     p_ask = np.array([s["power_asked_w"] for s in steps])
     p_out = np.asarray(rows["pack_power_w"][sl])
-    short_j = float(np.sum(np.where(clamp & (i_ask > 0.0), p_ask - p_out, 0.0)) * dt_s)
+    short = np.where(clamp & (i_ask > 0.0), p_ask - p_out, 0.0)
+    cool = np.array([s["cooling_asked_w"] for s in steps])
+    short_j = float(np.sum(short) * dt_s)
+    short_cooling_j = float(np.sum(np.minimum(short, cool)) * dt_s)
     cooling = e["pump_work_j"] + e["chiller_electric_j"] + e["fan_electric_j"]
     s = lap.summary
     return {
@@ -486,6 +491,7 @@ def _lap_row(
         "min_deployment_kw": float(limit.min() / 1e3) if np.isfinite(limit.min()) else math.inf,
         "clamped_s": float(np.sum(clamp & (i_ask > 0.0)) * dt_s),
         "clamped_energy_j": short_j,
+        "clamped_cooling_j": short_cooling_j,
         "regen_clamped_s": float(np.sum(clamp & (i_ask < 0.0)) * dt_s),
         "cooling_energy_j": float(cooling),
         "fuel_kg": float(s.get("fuel_kg", 0.0)),
@@ -529,6 +535,7 @@ def _summary(
         "soc_end": float(laps["soc_end"].iloc[-1]),
         "clamped_s": float(laps["clamped_s"].sum()),
         "clamped_energy_j": float(laps["clamped_energy_j"].sum()),
+        "clamped_cooling_j": float(laps["clamped_cooling_j"].sum()),
         "regen_clamped_s": float(laps["regen_clamped_s"].sum()),
         "max_energy_balance_relative": float(laps["energy_balance_relative"].abs().max()),
         "stint_energy_balance_relative": float(run.energy()["residual_relative"]),
