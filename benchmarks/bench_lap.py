@@ -19,7 +19,20 @@ Prints the median of ``--repeats`` runs (after one warm-up) of
   the DP (target <= 30 s), their lap times and the DP-vs-convex difference, the problem's build
   (envelope rows + the reference lap) apart; and the DP's convergence in its passes;
 
-and the load of the other processes while it ran. The script only reports: it always exits 0.
+and the load of the other processes while it ran; then (issue 29 item 4, skipped with
+``--stint-laps 0``) a stint of ``--stint-laps`` laps (default 10) of the high-performance
+parallel HEV with
+
+* a 1200-cell pack on module ROMs (100 thesis 2s6p modules, every cell simulated, the module
+  ROM built once from examples/module_thermal.toml into a temporary folder or ``--rom FILE``,
+  not timed; the issue's target: <= 30 s), and
+* the shipped hot-lap pack (324 cells, coolant ports), the peer of the same run, and
+* the 1200-cell pack again with at most 2 passes of each lap instead of 3 (and how far its lap
+  times move),
+
+against the single lap with operating points times the laps (the stint's floor without the
+pack and the recomputed passes), with ``uptime``'s load. The script only reports: it always
+exits 0.
 """
 
 from __future__ import annotations
@@ -27,6 +40,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -39,6 +53,8 @@ def main() -> int:
     ap.add_argument("--deploy", action="store_true", help="also time the optimal deployment")
     ap.add_argument("--deploy-only", action="store_true", help="only the optimal deployment")
     ap.add_argument("--deploy-step", type=float, default=10.0)
+    ap.add_argument("--stint-laps", type=int, default=10, help="laps of the stint benchmark (0: skip)")
+    ap.add_argument("--rom", help="module ROM of examples/module_thermal.toml (built when omitted)")
     a = ap.parse_args()
     if a.deploy or a.deploy_only:
         bench_deploy(a)
@@ -85,6 +101,8 @@ def main() -> int:
     print(f"{'simulate_lap, speed profile only':<40}{t_lap0 * 1e3:>10.1f} ms")
     print(f"{'simulate_lap with operating points':<40}{t_lap * 1e3:>10.1f} ms")
     print(load.text())
+    if a.stint_laps > 0:
+        bench_stint(a.track, a.stint_laps, a.rom, t_lap)
     return 0
 
 
@@ -120,6 +138,91 @@ def bench_deploy(a: argparse.Namespace) -> None:
             f"{r.battery_energy_j.sum() / 1e3:+.2f} kJ"
         )
     print(load.text())
+def stint_car(folder: Path, rom: Path) -> Path:
+    """The high-performance parallel HEV with a 1200-cell pack on module ROMs: 100 thesis 2s6p
+    modules (examples/vehicle_pack.toml, as benchmarks/bench_pack_vehicle.py case (a))."""
+    ex = REPO / "examples"
+    pack = (ex / "vehicle_pack.toml").read_text()
+    edits = {
+        'thermal_config = "module_thermal.toml"': f'thermal_config = "{ex / "module_thermal.toml"}"',
+        "n_modules = 50 ": "n_modules = 100 ",
+        '\nthermal = "coolant"': f'\nthermal = "rom"\nrom_file = "{rom}"',
+        "flow_l_min = 20.0": "flow_l_min = 1000.0",  # 10 L/min per plate: the ROM's film range
+        "flow_ref_l_min = 10.0": "flow_ref_l_min = 1000.0",
+        "chiller_max_w = 3000.0": "chiller_max_w = 20000.0",
+    }
+    for old, new in edits.items():
+        assert old in pack, old
+        pack = pack.replace(old, new)
+    (folder / "rom_pack.toml").write_text(pack)
+    car = (ex / "high_performance_parallel_hev_pack.toml").read_text()
+    car = car.replace('pack = "hot_lap_pack.toml"', 'pack = "rom_pack.toml"').replace(
+        "bus_max_v = 450.0", "bus_max_v = 1000.0"
+    )  # 200 cells in series
+    path = folder / "hp_rom_pack.toml"
+    path.write_text(car)
+    return path
+
+
+def bench_stint(track_name: str, laps: int, rom_arg: str | None, t_lap: float) -> None:
+    """Time a stint (module docstring)."""
+    import os
+    import tempfile
+    import time
+
+    from _machine import OtherLoad
+    from hevsim import tracks
+    from hevsim.config import load_vehicle_config
+    from hevsim.sim.stint import ITERATIONS, simulate_stint
+
+    track = tracks.load_track(track_name, step_m=1.0)
+    with tempfile.TemporaryDirectory() as tmp_name:
+        tmp = Path(tmp_name)
+        rom = Path(rom_arg).resolve() if rom_arg else tmp / "module.rom.npz"
+        if not rom_arg:
+            from hevsim.thermal.rom import build_rom_from_config
+
+            t0 = time.perf_counter()
+            built, _ = build_rom_from_config(REPO / "examples" / "module_thermal.toml")
+            built.save(rom)
+            print(f"module ROM built in {time.perf_counter() - t0:.1f} s (order {built.order}; not timed)")
+        cases = {
+            "1200 cells, module ROMs + cooling loop": load_vehicle_config(stint_car(tmp, rom)),
+            "324 cells (shipped hot-lap pack), coolant ports": load_vehicle_config(
+                REPO / "examples" / "high_performance_parallel_hev_pack.toml"
+            ),
+        }
+        print(f"stint of {laps} laps on {track.name} at 1 m steps, pack step 1 s (wall and CPU, whole call):")
+        first: dict[str, Any] = {}
+        for label, cfg, passes in (
+            *((k, c, ITERATIONS) for k, c in cases.items()),
+            ("1200 cells, module ROMs, at most 2 passes per lap", next(iter(cases.values())), 2),
+        ):
+            simulate_stint(cfg, track, 1)  # warm-up: compilation and caches
+            with OtherLoad() as load:
+                w0, c0 = time.perf_counter(), time.process_time()
+                res = simulate_stint(cfg, track, laps, iterations=passes)
+                wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+            first.setdefault(str(res.metadata["n_cells"]), res)
+            s = res.summary
+            print(
+                f"  {label:<50}{wall:8.2f} s wall {cpu:7.2f} s CPU   (target <= 30 s; {load.text()}; "
+                f"uptime load {os.getloadavg()[0]:.2f})"
+            )
+            print(
+                f"    {res.metadata['n_cells']} cells; laps {s['fastest_lap_s']:.2f} .. "
+                f"{s['slowest_lap_s']:.2f} s; "
+                f"peak cell {s['peak_cell_temp_c']:.1f} degC; passes {int(res.laps['passes'].sum())}; "
+                f"{laps} x the single lap with operating points {laps * t_lap:.2f} s "
+                f"(ratio {wall / (laps * t_lap):.1f}x)"
+            )
+            ref = first[str(res.metadata["n_cells"])]
+            if ref is not res:
+                d = (res.laps["lap_time_s"] - ref.laps["lap_time_s"]).abs().max()
+                print(
+                    f"    against {ITERATIONS} passes: lap times differ by at most {d:.3f} s; clamped "
+                    f"{res.summary['clamped_s']:.0f} s (against {ref.summary['clamped_s']:.0f} s)"
+                )
 
 
 if __name__ == "__main__":

@@ -316,6 +316,28 @@ def _cmd_lap(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_stint(args: argparse.Namespace) -> int:
+    from hevsim.config import SimulationSection, load_vehicle_config
+    from hevsim.schema import check_option
+    from hevsim.sim.lap import check_step
+    from hevsim.sim.stint import check_laps, simulate_stint
+    from hevsim.tracks import TRACK_NAMES
+
+    cfg = load_vehicle_config(args.config)
+    laps, step = check_laps(args.laps), check_step(args.step)
+    check_option("--soc", args.soc, SimulationSection, "soc_initial")
+    track_name = Path(args.track).stem if args.track not in TRACK_NAMES else args.track
+    out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_{track_name}_stint"
+    _prepare(args, out, args.config, None if args.track in TRACK_NAMES else args.track)
+    opts = {"ambient_temp_c": args.ambient, "soak": args.soak, "cooling_off": args.cooling_off}
+    res = simulate_stint(cfg, args.track, laps, step_m=step, dt_s=args.dt, soc_initial=args.soc, **opts)
+    res.save(out, plots=not args.no_plots)
+    print(f"{cfg.name} ({cfg.architecture}) on {res.summary['track']}: stint of {laps} laps")
+    print(res.format())
+    print(f"results written to {out}/ ({_written(out)})")
+    return 0
+
+
 def _cmd_label(args: argparse.Namespace) -> int:
     from hevsim.sim.label import label
 
@@ -1040,6 +1062,23 @@ def build_parser() -> argparse.ArgumentParser:
     _add_force(p, "folder at --out")
     p.add_argument("--no-plots", action="store_true", help="skip the plots")
     p.set_defaults(func=_cmd_lap)
+
+    p = sub.add_parser(
+        "stint", help="N laps with the whole pack: lap time as the pack heats and derates (issue 29)"
+    )
+    p.add_argument("config", help="vehicle configuration (TOML) with [battery] model = 'pack'")
+    p.add_argument("track", help="shipped track (skidpad, oval, handling, monza) or track CSV")
+    p.add_argument("--laps", type=int, required=True, help="number of laps (>= 1)")
+    p.add_argument("--step", type=float, default=1.0, help="distance step of the lap [m] (default 1)")
+    p.add_argument("--dt", type=float, default=1.0, help="time step of the pack [s] (default 1)")
+    p.add_argument("--soc", type=float, help="initial pack SOC [-] (default the file's initial SOC)")
+    p.add_argument("--ambient", type=float, help="ambient temperature [degC] (default the pack file's)")
+    p.add_argument("--soak", action="store_true", help="start the cells and coolant at --ambient")
+    p.add_argument("--cooling-off", action="store_true", help="pump, fan and chiller off")
+    p.add_argument("--out", help="results folder (default results/<config>_<track>_stint)")
+    _add_force(p, "folder at --out")
+    p.add_argument("--no-plots", action="store_true", help="skip the plots")
+    p.set_defaults(func=_cmd_stint)
 
     p = sub.add_parser(
         "refinement", help="run the tutorial's sequential-refinement levels and tabulate MPGGE"
