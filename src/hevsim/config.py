@@ -305,11 +305,11 @@ class ControllerSection:
     at least ``engine_min_power_w`` below ``soc_high``, machine assist; the engine fired
     whatever the SOC and demand above ``engine_on_speed_mps``), ``"ecms"`` (equivalence
     factor ``equivalence_factor``, over ``control_points`` throttles per gear) or ``"aecms"``
-    (ECMS with the factor corrected by a PI loop on the SOC error from the run's initial SOC less the recoverable share
-    ``aecms_kinetic_fraction`` of the kinetic energy, gains ``aecms_kp`` [-] and ``aecms_ki``
-    [1/s]). Conventional: ``"shift_schedule"`` (the gear of the ``upshift_rpm`` /
-    ``downshift_rpm`` schedule, kick-down when the engine cannot give the torque; the engine
-    idles, or with ``stop_start = "on"`` stops, when there is no traction demand; braking
+    (ECMS with the factor corrected by a PI loop on the SOC error from the run's initial SOC
+    less the recoverable share ``aecms_kinetic_fraction`` of the kinetic energy, gains
+    ``aecms_kp`` [-] and ``aecms_ki`` [1/s]). Conventional: ``"shift_schedule"`` (the gear of
+    the ``upshift_rpm`` / ``downshift_rpm`` schedule, kick-down when the engine cannot give the
+    torque; the engine idles, or with ``stop_start = "on"`` stops, when there is no traction demand; braking
     with the gearbox input above ``fuel_cut_speed_rpm`` cuts the fuel and lets the engine
     drag). BEV:
     ``"direct"`` (the machine gives what the driver asks, within its and the battery's limits).
