@@ -267,3 +267,27 @@ def test_output_into_a_new_folder(tmp_path: Path) -> None:
     out = tmp_path / "new" / "folder" / "focus.toml"
     assert main(["import-vehicle", str(VEHDB / "2012_Ford_Focus.yaml"), "-o", str(out)]) == 0
     assert out.is_file() and (out.parent / "focus_engine" / "fuel_rate_map.csv").is_file()
+
+
+def test_hev_carries_fastsims_engine_on_rules(tmp_path: Path) -> None:
+    """Issue 25: an imported HEV's controller carries FASTSim's forced-on speed (``mph_fc_on``) and
+    the engine's peak-efficiency power (``fc_max_kw`` x the power fraction of ``fc_eff_map``'s
+    maximum), its engine map FASTSim's idle fuel; a conventional map has no idle floor."""
+    from hevsim.fuels import get_fuel
+
+    db = DATA / "FASTSim_py_veh_db.csv"
+    out = _import(tmp_path, db, "--row", "10", name="optima")  # 2016 Kia Optima Hybrid
+    ctl = tomllib.loads(out.read_text())["controller"]
+    v = read_vehicle(db, row=10)
+    assert ctl["kind"] == "electric_assist"
+    assert ctl["engine_on_speed_mps"] == pytest.approx(float(v["mph_fc_on"]) * 0.44704, rel=1e-12)
+    # the row's curve (fastsim-2's default power fractions): efficiency 0.40 first reached at 14 % of 119 kW
+    assert float(v["fc_max_kw"]) == 119.0
+    assert ctl["engine_min_power_w"] == pytest.approx(119e3 * 0.14, rel=1e-12)
+    lhv = get_fuel("gasoline").lower_heating_value_j_per_kg
+    eng = np.genfromtxt(tmp_path / "optima_engine" / "fuel_rate_map.csv", delimiter=",", names=True)
+    zero = eng["torque_N_m"] == 0.0
+    assert np.allclose(eng["fuel_rate_g_per_s"][zero], 2.38e6 / lhv, rtol=1e-12)  # idle_fc_kw = 2.38
+    _import(tmp_path, db, "--row", "1", name="corolla")  # conventional: no floor
+    conv = np.genfromtxt(tmp_path / "corolla_engine" / "fuel_rate_map.csv", delimiter=",", names=True)
+    assert (conv["fuel_rate_g_per_s"][conv["torque_N_m"] == 0.0] == 0.0).all()
