@@ -162,7 +162,8 @@ def test_written_file_comments_the_approximations(tmp_path: Path) -> None:
 
 
 def test_every_efficiency_map_point_is_fastsims_curve(tmp_path: Path) -> None:
-    """The written engine map burns P / eff(P / P_max) / LHV at every grid point (FASTSim's curve)."""
+    """The written engine map burns P / eff(P / P_max) / LHV at every grid point (FASTSim's curve),
+    and, this being an HEV, at least FASTSim's idle fuel power ``idle_fc_kw`` (its fired engine's floor)."""
     from hevsim.fuels import get_fuel
 
     _import(tmp_path, VEHDB / "2016_TOYOTA_Prius_Two.yaml")
@@ -171,10 +172,11 @@ def test_every_efficiency_map_point_is_fastsims_curve(tmp_path: Path) -> None:
     frac = np.minimum(p / 71e3, 1.0)
     x = [0.0, 0.005, 0.015, 0.04, 0.06, 0.1, 0.14, 0.2, 0.4, 0.6, 0.8, 1.0]
     e = [0.08, 0.1, 0.26, 0.33, 0.355, 0.37, 0.38, 0.38, 0.35, 0.34, 0.33, 0.32]
-    expected = np.where(
-        p > 0, p / np.interp(frac, x, e) / get_fuel("gasoline").lower_heating_value_j_per_kg * 1e3, 0.0
-    )
+    lhv = get_fuel("gasoline").lower_heating_value_j_per_kg
+    idle_w = 4.3e3  # the file's idle_fc_kw
+    expected = np.maximum(np.where(p > 0, p / np.interp(frac, x, e), 0.0), idle_w) / lhv * 1e3
     assert np.allclose(t["fuel_rate_g_per_s"], expected, rtol=1e-12, atol=0.0)
+    assert (t["fuel_rate_g_per_s"] > 0).all()  # the old map burned nothing at zero torque
 
 
 def _single_vehicle_files() -> list[Path]:
@@ -222,7 +224,15 @@ def test_fastsim3_file_gives_the_vehicle_of_its_fastsim2_file(tmp_path: Path, na
     fa, fb = (
         np.genfromtxt(tmp_path / f"{w}_engine" / "fuel_rate_map.csv", delimiter=",") for w in ("f3", "f2")
     )
-    assert np.array_equal(fa, fb, equal_nan=True)
+    # fastsim 3.1 converting a fastsim-2 file drops `idle_fc_kw` (its Prius has pwr_idle_fuel_watts 0,
+    # the fastsim-2 file 4.3 kW): the maps agree once the fastsim-2 file's idle-fuel floor (HEV) is applied
+    from hevsim.fuels import get_fuel
+
+    v2 = read_vehicle(VEHDB / f"{name}.yaml")
+    hev = str(v2["veh_pt_type"]).strip() == "HEV"
+    floor = float(v2["idle_fc_kw"]) * 1e6 / get_fuel("gasoline").lower_heating_value_j_per_kg if hev else 0.0
+    assert np.array_equal(fa[:, :2], fb[:, :2], equal_nan=True)
+    assert np.array_equal(np.maximum(fa[1:, 2], floor), fb[1:, 2])
     if (tmp_path / "f3_motor").is_dir():
         ma, mb = (
             np.genfromtxt(tmp_path / f"{w}_motor" / "efficiency_map.csv", delimiter=",") for w in ("f3", "f2")
@@ -257,3 +267,27 @@ def test_output_into_a_new_folder(tmp_path: Path) -> None:
     out = tmp_path / "new" / "folder" / "focus.toml"
     assert main(["import-vehicle", str(VEHDB / "2012_Ford_Focus.yaml"), "-o", str(out)]) == 0
     assert out.is_file() and (out.parent / "focus_engine" / "fuel_rate_map.csv").is_file()
+
+
+def test_hev_carries_fastsims_engine_on_rules(tmp_path: Path) -> None:
+    """Issue 25: an imported HEV's controller carries FASTSim's forced-on speed (``mph_fc_on``) and
+    the engine's peak-efficiency power (``fc_max_kw`` x the power fraction of ``fc_eff_map``'s
+    maximum), its engine map FASTSim's idle fuel; a conventional map has no idle floor."""
+    from hevsim.fuels import get_fuel
+
+    db = DATA / "FASTSim_py_veh_db.csv"
+    out = _import(tmp_path, db, "--row", "10", name="optima")  # 2016 Kia Optima Hybrid
+    ctl = tomllib.loads(out.read_text())["controller"]
+    v = read_vehicle(db, row=10)
+    assert ctl["kind"] == "electric_assist"
+    assert ctl["engine_on_speed_mps"] == pytest.approx(float(v["mph_fc_on"]) * 0.44704, rel=1e-12)
+    # the row's curve (fastsim-2's default power fractions): efficiency 0.40 first reached at 14 % of 119 kW
+    assert float(v["fc_max_kw"]) == 119.0
+    assert ctl["engine_min_power_w"] == pytest.approx(119e3 * 0.14, rel=1e-12)
+    lhv = get_fuel("gasoline").lower_heating_value_j_per_kg
+    eng = np.genfromtxt(tmp_path / "optima_engine" / "fuel_rate_map.csv", delimiter=",", names=True)
+    zero = eng["torque_N_m"] == 0.0
+    assert np.allclose(eng["fuel_rate_g_per_s"][zero], 2.38e6 / lhv, rtol=1e-12)  # idle_fc_kw = 2.38
+    _import(tmp_path, db, "--row", "1", name="corolla")  # conventional: no floor
+    conv = np.genfromtxt(tmp_path / "corolla_engine" / "fuel_rate_map.csv", delimiter=",", names=True)
+    assert (conv["fuel_rate_g_per_s"][conv["torque_N_m"] == 0.0] == 0.0).all()

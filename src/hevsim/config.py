@@ -301,14 +301,15 @@ class ControllerSection:
     ``"schedule"`` (a genset schedule CSV ``schedule``: time_s, engine_speed_rpm,
     engine_throttle, e.g. a DP optimum). Parallel HEV: ``"electric_assist"`` (rule-based:
     EV below ``ev_speed_mps`` and ``ev_power_w``, engine load-following in the gear of the
-    ``upshift_rpm``/``downshift_rpm`` schedule plus ``charge_power_w`` below ``soc_low``,
-    machine assist), ``"ecms"`` (equivalence factor ``equivalence_factor``, over
-    ``control_points`` throttles per gear) or ``"aecms"`` (ECMS with the factor corrected by
-    a PI loop on the SOC error from the run's initial SOC less the recoverable share
-    ``aecms_kinetic_fraction`` of the kinetic energy, gains ``aecms_kp`` [-] and ``aecms_ki``
-    [1/s]). Conventional: ``"shift_schedule"`` (the gear of the ``upshift_rpm`` /
-    ``downshift_rpm`` schedule, kick-down when the engine cannot give the torque; the engine
-    idles, or with ``stop_start = "on"`` stops, when there is no traction demand; braking
+    ``upshift_rpm``/``downshift_rpm`` schedule plus ``charge_power_w`` below ``soc_low`` and
+    at least ``engine_min_power_w`` below ``soc_high``, machine assist; the engine fired
+    whatever the SOC and demand above ``engine_on_speed_mps``), ``"ecms"`` (equivalence
+    factor ``equivalence_factor``, over ``control_points`` throttles per gear) or ``"aecms"``
+    (ECMS with the factor corrected by a PI loop on the SOC error from the run's initial SOC
+    less the recoverable share ``aecms_kinetic_fraction`` of the kinetic energy, gains
+    ``aecms_kp`` [-] and ``aecms_ki`` [1/s]). Conventional: ``"shift_schedule"`` (the gear of
+    the ``upshift_rpm`` / ``downshift_rpm`` schedule, kick-down when the engine cannot give the
+    torque; the engine idles, or with ``stop_start = "on"`` stops, when there is no traction demand; braking
     with the gearbox input above ``fuel_cut_speed_rpm`` cuts the fuel and lets the engine
     drag). BEV:
     ``"direct"`` (the machine gives what the driver asks, within its and the battery's limits).
@@ -336,9 +337,13 @@ class ControllerSection:
     ev_speed_mps: float = param(8.0, 0.0, 100.0, "m/s")
     ev_power_w: float = param(8000.0, 0.0, 1e7, "W")
     charge_power_w: float = param(4000.0, 0.0, 1e7, "W")
-    # power split (power_follower): the engine, once on, gives at least this power while the SOC is
-    # below soc_high (the surplus charges the battery): keeps it off the inefficient low-load end of
-    # its optimal operating line; 0 = the demand only
+    # electric assist: above this vehicle speed the engine is fired whatever the SOC and the demand
+    # (braking and coasting included, then at its smallest throttle): FASTSim's `mph_fc_on`;
+    # the default (1000 m/s) is above any road speed: never
+    engine_on_speed_mps: float = param(1000.0, 0.0, 1000.0, "m/s")
+    # power split (power_follower) and electric assist: the engine, once on, gives at least this power
+    # while the SOC is below soc_high (the surplus charges the battery): keeps it off the inefficient
+    # low-load end of its operating range; 0 = the demand only
     engine_min_power_w: float = param(0.0, 0.0, 1e7, "W")
     upshift_rpm: float = param(2000.0, 1.0, 1e5, "rpm")
     downshift_rpm: float = param(1100.0, 1.0, 1e5, "rpm")
@@ -1000,7 +1005,7 @@ SERIES_CONTROLLER_KEYS: dict[str, tuple[str, ...]] = {
 CONTROLLER_KEYS: dict[str, tuple[str, ...]] = {
     **SERIES_CONTROLLER_KEYS,
     "electric_assist": ("soc_low", "soc_high", "ev_speed_mps", "ev_power_w", "charge_power_w", "upshift_rpm",
-                        "downshift_rpm", "control_points"),
+                        "downshift_rpm", "control_points", "engine_on_speed_mps", "engine_min_power_w"),
     "ecms": ("equivalence_factor", "control_points"),
     "aecms": ("equivalence_factor", "aecms_kp", "aecms_ki", "aecms_kinetic_fraction", "control_points"),
     "shift_schedule": ("upshift_rpm", "downshift_rpm"),

@@ -189,20 +189,27 @@ class ElectricAssist(_RuleBased):
     Gear: the shift schedule (up above ``upshift_rpm``, down below ``downshift_rpm`` of
     engine speed). Engine off (EV) when braking or coasting, with SOC above ``soc_high``, or
     below ``ev_speed_mps`` and ``ev_power_w`` with SOC above ``soc_low`` (the charge-sustaining
-    band is ``soc_low``..``soc_high``). Otherwise the engine
+    band is ``soc_low``..``soc_high``). Above ``engine_on_speed_mps`` the engine is fired
+    whatever the SOC and the demand (braking or coasting: at its smallest throttle, the machine
+    regenerating the rest), as FASTSim's HEV forces its engine on above ``mph_fc_on``.
+    Otherwise the engine
     follows the load in the scheduled gear, plus a charging power ramping from 0 at
-    ``soc_high`` to ``charge_power_w`` at ``soc_low``; the machine assists beyond the
-    engine's torque. If that control is infeasible (a component limit), the feasible
-    candidate of least fuel is taken.
+    ``soc_high`` to ``charge_power_w`` at ``soc_low``, and gives at least
+    ``engine_min_power_w`` [W] while the SOC is below ``soc_high`` (the surplus charges the
+    battery); the machine assists beyond the engine's torque. If that control is infeasible
+    (a component limit), the feasible candidate of least fuel is taken.
     """
 
     name = "electric_assist"
 
     def __init__(self, hev: P.ParallelHEV, soc_low: float, soc_high: float, ev_speed_mps: float,
                  ev_power_w: float, charge_power_w: float, upshift_rpm: float, downshift_rpm: float,
-                 control_points: int) -> None:  # fmt: skip
+                 control_points: int, engine_on_speed_mps: float = 1000.0,
+                 engine_min_power_w: float = 0.0) -> None:  # fmt: skip
         super().__init__(hev, soc_low, soc_high, ev_speed_mps, ev_power_w, charge_power_w, control_points)
         self.w_up, self.w_down = rpm_to_radps(upshift_rpm), rpm_to_radps(downshift_rpm)
+        self.engine_on_speed = float(engine_on_speed_mps)
+        self.engine_min_power = float(engine_min_power_w)
         self.thr_grid = np.linspace(0.0, 1.0, int(control_points))[1:]
         self.gear = 1
 
@@ -226,7 +233,8 @@ class ElectricAssist(_RuleBased):
         low_load = self.low_load(step, p_dem)
         if self.holds(soc):  # charge-hold: ECMS with a charging-biased factor, every candidate
             return self.best(step, HOLD_EQUIVALENCE_FACTOR)
-        ev = p_dem <= 0.0 or soc > self.soc_high or (soc > self.soc_low and low_load)
+        forced = step.v_mid_mps > self.engine_on_speed
+        ev = not forced and (p_dem <= 0.0 or soc > self.soc_high or (soc > self.soc_low and low_load))
         control: Control = (float(g), 0.0)
         if not ev:
             w_e = w_fd * hev.gear_ratios[g - 1]
@@ -234,6 +242,8 @@ class ElectricAssist(_RuleBased):
             t_req = float(hev.gears[g - 1].input_torque(t_fd)) + (
                 self.charging_power(soc) / w_e if w_e > 0 else 0.0
             )
+            if soc < self.soc_high and w_e > 0:
+                t_req = max(t_req, self.engine_min_power / w_e)
             mech = P.mechanical(hev, step.wheel_speed_radps, 0.0, float(g), self.thr_grid)
             ok = ~mech["bad"]
             if ok.any():

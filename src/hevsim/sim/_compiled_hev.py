@@ -127,6 +127,7 @@ class ControllerConstants(NamedTuple):
     ev_power_w: float
     charge_power_w: float
     engine_min_power_w: float
+    engine_on_speed_mps: float
     w_up_radps: float
     w_down_radps: float
     thr_monotone: bool
@@ -158,6 +159,7 @@ def controller_code(ctl: Any) -> ControllerConstants | None:
         ev_power_w=g("ev_power"),
         charge_power_w=g("charge_power"),
         engine_min_power_w=g("engine_min_power"),
+        engine_on_speed_mps=float(getattr(ctl, "engine_on_speed", 1000.0)),
         w_up_radps=g("w_up"),
         w_down_radps=g("w_down"),
         thr_monotone=code == ELECTRIC_ASSIST and P.torque_rises_with_throttle(ctl.hev, ctl.thr_grid),
@@ -459,7 +461,8 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
             w_fd = w_wheel * dpar.final_drive_ratio
             g = shift_gear(int(state[0]), w_fd, dpar.gear_ratio, cc.w_up_radps, cc.w_down_radps)
             state[0] = g
-            ev = p_dem <= 0.0 or soc > cc.soc_high or (soc > cc.soc_low and low_load)
+            forced = v_mid > cc.engine_on_speed_mps
+            ev = not forced and (p_dem <= 0.0 or soc > cc.soc_high or (soc > cc.soc_low and low_load))
             c0, c1 = float(g), 0.0
             if not ev:
                 w_e = w_fd * dpar.gear_ratio[g - 1]
@@ -467,6 +470,8 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
                 t_req = gear_input_torque(t_fd, dpar.gear_ratio[g - 1], dpar.gear_efficiency[g - 1]) + (
                     p_charge / w_e if w_e > 0 else 0.0
                 )
+                if soc < cc.soc_high and w_e > 0:
+                    t_req = max(t_req, cc.engine_min_power_w / w_e)
                 c1 = _assist_throttle(w_wheel, g, t_req, thr_grid, cc.thr_monotone, dpar, etab)
             if soc < cc.soc_low and h.aux_power_w > 0.0:  # ElectricAssist.holds: charge-hold
                 s = HOLD_EQUIVALENCE_FACTOR
