@@ -669,7 +669,7 @@ def _check_parallel(cfg: ParallelHEVConfig, source: str) -> None:
     if cfg.battery.model == "cell":
         raise ConfigError(
             f"{source}: key 'battery.model' = 'cell' is not supported by the parallel HEV; "
-            "expected one of ideal, rint, table."
+            "expected one of ideal, rint, table, pack."
         )
     if cfg.engine.model != "map":
         raise ConfigError(
@@ -724,10 +724,15 @@ def _check_power_split(cfg: PowerSplitConfig, source: str) -> None:
             f"planetary set: the planets would need (ring - sun) / 2 = {(zr - zs) / 2:g} teeth; expected "
             "tooth numbers whose difference is even."
         )
-    if cfg.engine.model != "map" or cfg.battery.model == "cell":
+    if cfg.engine.model != "map":
         raise ConfigError(
-            f"{source}: the power split needs 'engine.model' = 'map' (got {cfg.engine.model!r}) and a "
-            f"battery model ideal, rint, table or pack (got {cfg.battery.model!r})."
+            f"{source}: key 'engine.model' = {cfg.engine.model!r} is not supported by the power split; "
+            "expected 'map' (its DP needs a fuel map)."
+        )
+    if cfg.battery.model == "cell":
+        raise ConfigError(
+            f"{source}: key 'battery.model' = 'cell' is not supported by the power split; expected one of "
+            "ideal, rint, table, pack."
         )
 
 
