@@ -597,8 +597,24 @@ def check_controller(cfg: Any, source: str) -> None:
     if spec is not None and kind not in spec.controllers:
         raise ConfigError(
             f"{source}: key 'controller.kind' = {kind!r} is not defined for the {spec.name} "
-            f"architecture; expected one of {', '.join(spec.controllers)}."
+            f"architecture{_energy_split_refusal(cfg, kind)}; expected one of {', '.join(spec.controllers)}."
         )
+
+
+ENERGY_SPLIT_CONTROLLERS: tuple[str, ...] = ("ecms", "aecms")
+"""Controllers that split the demand between fuel and battery energy (need both)."""
+
+
+def _energy_split_refusal(cfg: Any, kind: str) -> str:
+    """Why ``kind`` cannot run on ``cfg`` when it splits fuel and battery energy and ``cfg``
+    lacks one of them (", ..." to append to a refusal), else ""."""
+    if kind not in ENERGY_SPLIT_CONTROLLERS:
+        return ""
+    if not hasattr(cfg, "battery"):
+        return " (it splits the demand between fuel and battery; the vehicle has no [battery]: one source)"
+    if not hasattr(cfg, "engine"):
+        return " (it splits the demand between fuel and battery; the vehicle has no [engine]: one source)"
+    return ""
 
 
 _check_controller = check_controller
