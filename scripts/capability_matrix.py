@@ -24,7 +24,10 @@ def main() -> int:
     args = parser.parse_args()
     current = update_docs(PAGE, write=not args.check)
     if args.check and not current:
-        print(f"{PAGE}: the capability matrix is stale; run python scripts/capability_matrix.py", file=sys.stderr)
+        print(
+            f"{PAGE}: the capability matrix is stale; run python scripts/capability_matrix.py",
+            file=sys.stderr,
+        )
         return 1
     print(f"{PAGE}: capability matrix {'up to date' if current else 'rewritten'}")
     return 0

@@ -125,7 +125,9 @@ def dp(row: str) -> Any:
     if row not in _DP:
         from hevsim.optimal.hev import optimize
 
-        _DP[row] = optimize(base(row), CYCLE, soc_grid_points=21, input_grid_points=21, progress=False, threads=1)
+        _DP[row] = optimize(
+            base(row), CYCLE, soc_grid_points=21, input_grid_points=21, progress=False, threads=1
+        )
     return _DP[row]
 
 
@@ -194,8 +196,10 @@ def case_battery_cell(row: str, tmp: Path) -> None:
     text = base(row).read_text()
     start = text.index("[battery]")
     end = text.index("\n[", start + 1) + 1
-    cell = ('[battery]\nmodel = "cell"\ndata = "saft_li_ion_6ah"\nn_series = 100\nn_parallel = 1\n'
-            "max_discharge_current_a = 100.0\nmax_charge_current_a = 100.0\nsoc_min = 0.3\nsoc_max = 0.9\n\n")  # fmt: skip
+    cell = (
+        '[battery]\nmodel = "cell"\ndata = "saft_li_ion_6ah"\nn_series = 100\nn_parallel = 1\n'
+        "max_discharge_current_a = 100.0\nmax_charge_current_a = 100.0\nsoc_min = 0.3\nsoc_max = 0.9\n\n"
+    )
     (tmp / "car.toml").write_text(text[:start] + cell + text[end:])
     _copy_data(base(row), tmp)
     check(hevsim.simulate(tmp / "car.toml", CYCLE))
@@ -262,11 +266,19 @@ def case_pack_thermal_rom(row: str, tmp: Path, rom_dir: Path) -> None:
     import re
 
     text = (EX / tomllib.loads(pack(row).read_text())["battery"]["pack"]).read_text()
-    arrangement = {m: re.sub(r"\d+", n, m, count=1) for m, n in  # the ROM's module: 2 x 6 cells
-                   ((re.search(r"\nn_series = \d+", text)[0], "2"), (re.search(r"\nn_parallel = \d+", text)[0], "6"))}  # type: ignore[index]  # fmt: skip
-    edits = {**arrangement, '\nthermal = "coolant"': '\nthermal = "rom"',
-             '\nthermal_config = "module_thermal.toml"':
-             f'\nthermal_config = "{rom_dir / "module_coarse.toml"}"\nrom_file = "{rom_dir / "module.rom.npz"}"'}  # fmt: skip
+    arrangement = {}  # the ROM's module: 2 x 6 cells
+    for key, n in (("n_series", "2"), ("n_parallel", "6")):
+        found = re.search(rf"\n{key} = \d+", text)
+        assert found is not None, key
+        arrangement[found[0]] = f"\n{key} = {n}"
+    rom_keys = (
+        f'\nthermal_config = "{rom_dir / "module_coarse.toml"}"\nrom_file = "{rom_dir / "module.rom.npz"}"'
+    )
+    edits = {
+        **arrangement,
+        '\nthermal = "coolant"': '\nthermal = "rom"',
+        '\nthermal_config = "module_thermal.toml"': rom_keys,
+    }
     res = hevsim.simulate(_pack_copy(row, tmp, edits), CYCLE)
     check_pack(res)
     assert res.metadata["pack"]["thermal"] == "rom"
@@ -398,8 +410,10 @@ def _cli(args: list[str]) -> tuple[int, str]:
 
 def _with_battery(row: str, tmp: Path, model: str) -> Path:
     """The row's example with a ``[battery]`` section of ``model`` added."""
-    text = base(row).read_text() + f'\n[battery]\nmodel = "{model}"\n' + (
-        'pack = "vehicle_pack.toml"\n' if model == "pack" else ""
+    text = (
+        base(row).read_text()
+        + f'\n[battery]\nmodel = "{model}"\n'
+        + ('pack = "vehicle_pack.toml"\n' if model == "pack" else "")
     )
     _copy_data(base(row), tmp)
     (tmp / "car.toml").write_text(text)
@@ -414,14 +428,18 @@ def refuse_battery(row: str, tmp: Path, model: str) -> tuple[int, str, tuple[str
 
 def refuse_controller(kind: str) -> Callable[[str, Path], tuple[int, str, tuple[str, ...]]]:
     def refuse(row: str, tmp: Path) -> tuple[int, str, tuple[str, ...]]:
-        code, err = _cli(["simulate", str(base(row)), "--controller", kind, "--no-plots", "--out", str(tmp / "o")])
+        code, err = _cli(
+            ["simulate", str(base(row)), "--controller", kind, "--no-plots", "--out", str(tmp / "o")]
+        )
         return code, err, (base(row).name.removesuffix(".toml"), "controller.kind", repr(kind), _reason(row))
 
     return refuse
 
 
 def _reason(row: str) -> str:
-    return "no [battery]" if "battery" not in {f.name for f in dataclasses.fields(_spec(row))} else "no [engine]"
+    return (
+        "no [battery]" if "battery" not in {f.name for f in dataclasses.fields(_spec(row))} else "no [engine]"
+    )
 
 
 def _spec(row: str) -> type:
@@ -552,4 +570,6 @@ def test_series_pack_runs_the_online_controllers_and_the_dp_replay() -> None:
     replay = hevsim.simulate(path, CYCLE, soc_initial=soc0, controller=ControlSchedule.from_optimization(r))
     check_pack(replay)
     assert replay.value("fuel_kg") == pytest.approx(r.value("fuel_kg"), rel=1e-9)
-    assert replay.energy_audit["aux"] == pytest.approx(replay.metrics["pack_cooling_energy_j"]["value"], rel=1e-9)
+    assert replay.energy_audit["aux"] == pytest.approx(
+        replay.metrics["pack_cooling_energy_j"]["value"], rel=1e-9
+    )

@@ -179,7 +179,9 @@ def _builder_calls(path: Path, source: str | None = None) -> list[str]:
             f = node.func
             name = f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) else ""
             if name in own and own[name] != module:
-                hits.append(f"{path.relative_to(SRC)}:{node.lineno}: calls {name} (build through the registry)")
+                hits.append(
+                    f"{path.relative_to(SRC)}:{node.lineno}: calls {name} (build through the registry)"
+                )
     return hits
 
 

@@ -162,7 +162,9 @@ def _hybrid(works: Callable[[Row], str]) -> Callable[[Row], Status]:
 def _controller(kind: str) -> Callable[[Row], str]:
     def gap(row: Row) -> str:
         admitted = _spec(row).controllers
-        return "" if kind in admitted else f"[controller] kind = {kind!r} not admitted ({', '.join(admitted)})"
+        return (
+            "" if kind in admitted else f"[controller] kind = {kind!r} not admitted ({', '.join(admitted)})"
+        )
 
     return gap
 

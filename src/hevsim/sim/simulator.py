@@ -253,7 +253,9 @@ def _other_architecture(model: Any) -> str | None:
 def _prepare(
     model: SeriesHEV | VehicleConfig, cycle: DriveCycle | str | None, dt_s: float | None
 ) -> tuple[SeriesHEV, DriveCycle, DriveCycle, float]:
-    hev = model if isinstance(model, SeriesHEV) else architecture("series").build(model)  # the registry's builder
+    hev = (
+        model if isinstance(model, SeriesHEV) else architecture("series").build(model)
+    )  # the registry's builder
     cfg = hev.config
     from hevsim.sim.forward import cycle_and_step
 
