@@ -213,11 +213,12 @@ def test_study_runs_series_ecms_tuned_from_the_case_dp() -> None:
     assert rule["fuel_kg"] == pytest.approx(simulate(cfg, "hwfet").value("fuel_kg"), rel=1e-12)
 
 
-def test_python_api_refuses_online_control_of_a_pack_series() -> None:
-    """simulate(..., controller="ecms") on a series HEV with a pack: the ConfigError of the
-    file check (no quasi-static pack), before any run."""
+def test_python_api_refuses_online_control_of_a_cell_series() -> None:
+    """simulate(..., controller="ecms") on a series HEV with a ``cell`` battery: the ConfigError
+    of the file check (the quasi-static power flow has no cell ECM), before any run. (A pack
+    runs since issue 24: tests/test_capability_matrix.py.)"""
     from hevsim.config import load_vehicle_config
 
-    pack = load_vehicle_config(ROOT / "examples" / "series_hev_pack.toml")
-    with pytest.raises(ConfigError, match=r"'controller\.kind' = 'ecms'.*'battery\.model' = 'pack'"):
-        simulate(pack, "udds", controller="ecms")
+    cell = load_vehicle_config(ROOT / "examples" / "series_hev.toml").replace(**{"battery.model": "cell"})
+    with pytest.raises(ConfigError, match=r"'controller\.kind' = 'ecms'.*'battery\.model' = 'cell'"):
+        simulate(cell, "udds", controller="ecms")
