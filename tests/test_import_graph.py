@@ -154,3 +154,70 @@ def test_one_registry_maps_architectures_to_builders() -> None:
 )
 def test_the_scan_finds_a_second_registry(source: str) -> None:
     assert second_registries(Path("x.py"), source)
+
+
+# every dict literal keyed by two or more architecture names, with why it is not a second
+# registry (file, variable): a new one fails until it is folded into the registry or listed here
+PER_ARCHITECTURE_TABLES = {
+    # the file schema (ground layer): display names and the [controller] keys each architecture reads
+    ("config.py", "ARCHITECTURE_LABELS"), ("config.py", "ARCHITECTURE_CONTROLLER_KEYS"),
+    # kernel-group warm-ups (hevsim compile): groups named after architectures, not builders
+    ("warmup.py", "WARM"),
+}  # fmt: skip
+
+
+def _builder_calls(path: Path, source: str | None = None) -> list[str]:
+    """Calls of a registered builder by name outside the module that defines it (a model must be
+    built through the registry: ``architecture(name).build(cfg)`` or ``build_vehicle(cfg)``)."""
+    from hevsim.architectures import ARCHITECTURES
+
+    own = {a.builder.partition(":")[2]: a.builder.partition(":")[0] for a in ARCHITECTURES.values()}
+    module = "hevsim." + ".".join(path.relative_to(SRC).with_suffix("").parts).removesuffix(".__init__")
+    hits = []
+    for node in ast.walk(ast.parse(source if source is not None else path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Call):
+            f = node.func
+            name = f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) else ""
+            if name in own and own[name] != module:
+                hits.append(
+                    f"{path.relative_to(SRC)}:{node.lineno}: calls {name} (build through the registry)"
+                )
+    return hits
+
+
+def _architecture_tables(path: Path, source: str | None = None) -> list[tuple[str, str, int]]:
+    """(file, variable, line) of every assignment of a dict literal keyed by two or more
+    architecture names."""
+    names, _ = _names()
+    out = []
+    for node in ast.walk(ast.parse(source if source is not None else path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Assign | ast.AnnAssign) and isinstance(node.value, ast.Dict):
+            keys = {k.value for k in node.value.keys if isinstance(k, ast.Constant)}
+            if len(keys & names) >= 2:
+                target = node.targets[0] if isinstance(node, ast.Assign) else node.target
+                out.append((path.name, ast.unparse(target), node.lineno))
+    return out
+
+
+def test_no_builder_is_called_outside_the_registry() -> None:
+    hits = []
+    for path in sorted(SRC.rglob("*.py")):
+        hits += _builder_calls(path)
+    assert hits == []
+
+
+def test_per_architecture_tables_are_the_known_ones() -> None:
+    """A new table keyed by architecture names (a second registry in the making: a formulation,
+    builder, kernel or controller per architecture) fails until folded into
+    :data:`hevsim.architectures.ARCHITECTURES` or listed in :data:`PER_ARCHITECTURE_TABLES`."""
+    found = {(f, v) for path in sorted(SRC.rglob("*.py")) if path != REGISTRY
+             for f, v, _ in _architecture_tables(path)}  # fmt: skip
+    assert found - PER_ARCHITECTURE_TABLES == set(), "fold these into the registry"
+    assert PER_ARCHITECTURE_TABLES - found == set(), "gone: remove them from PER_ARCHITECTURE_TABLES"
+
+
+def test_the_scans_find_a_builder_call_and_a_table() -> None:
+    src = 'def f(cfg):\n    return build_bev(cfg)\nKERNELS = {"series": 1, "bev": 2}\n'
+    probe = SRC / "sim" / "x_probe.py"  # a module path in the package (never written)
+    assert _builder_calls(probe, src) == ["sim/x_probe.py:2: calls build_bev (build through the registry)"]
+    assert _architecture_tables(probe, src) == [("x_probe.py", "KERNELS", 3)]

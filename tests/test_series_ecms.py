@@ -164,8 +164,6 @@ def test_cli_series_ecms_from_a_dp_folder_and_aecms(
     [
         (BEV, ["--controller", "ecms"], ["--controller ecms", "'controller.kind' = 'ecms'", "bev", "direct"]),
         (BEV, ["--ecms-from", "DP"], ["--ecms-from", "'controller.kind' = 'ecms'", "bev", "direct"]),
-        (ROOT / "examples" / "series_hev_pack.toml", ["--controller", "aecms"],
-         ["'controller.kind' = 'aecms'", "'battery.model' = 'pack'", "ideal or rint or table"]),
         (SERIES, ["--controller", "electric_assist"],
          ["'controller.kind' = 'electric_assist'", "series", "thermostat, schedule, ecms, aecms"]),
         (SERIES, ["--controller", "ecms", "--schedule", "DP/timeseries.csv"], ["--schedule", "--controller"]),
@@ -174,9 +172,9 @@ def test_cli_series_ecms_from_a_dp_folder_and_aecms(
 def test_refused_controllers_exit_2(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], vehicle: Path, options: list[str], needles: list[str]
 ) -> None:
-    """ECMS on a BEV (no fuel to trade), on a series HEV whose battery is a pack (no
-    quasi-static pack), a parallel controller on the series HEV, a schedule with a
-    controller: exit 2 naming the key and value, no results folder."""
+    """ECMS on a BEV (no fuel to trade), a parallel controller on the series HEV, a schedule
+    with a controller: exit 2 naming the key and value, no results folder. (A series HEV whose
+    battery is a pack runs ECMS since issue 24: tests/test_capability_matrix.py.)"""
     dp = tmp_path / "DP"
     dp.mkdir()
     (dp / "costate.csv").write_text("time_s,equivalence_factor\n0,2.9\n1,3.0\n")
@@ -215,11 +213,12 @@ def test_study_runs_series_ecms_tuned_from_the_case_dp() -> None:
     assert rule["fuel_kg"] == pytest.approx(simulate(cfg, "hwfet").value("fuel_kg"), rel=1e-12)
 
 
-def test_python_api_refuses_online_control_of_a_pack_series() -> None:
-    """simulate(..., controller="ecms") on a series HEV with a pack: the ConfigError of the
-    file check (no quasi-static pack), before any run."""
+def test_python_api_refuses_online_control_of_a_cell_series() -> None:
+    """simulate(..., controller="ecms") on a series HEV with a ``cell`` battery: the ConfigError
+    of the file check (the quasi-static power flow has no cell ECM), before any run. (A pack
+    runs since issue 24: tests/test_capability_matrix.py.)"""
     from hevsim.config import load_vehicle_config
 
-    pack = load_vehicle_config(ROOT / "examples" / "series_hev_pack.toml")
-    with pytest.raises(ConfigError, match=r"'controller\.kind' = 'ecms'.*'battery\.model' = 'pack'"):
-        simulate(pack, "udds", controller="ecms")
+    cell = load_vehicle_config(ROOT / "examples" / "series_hev.toml").replace(**{"battery.model": "cell"})
+    with pytest.raises(ConfigError, match=r"'controller\.kind' = 'ecms'.*'battery\.model' = 'cell'"):
+        simulate(cell, "udds", controller="ecms")

@@ -161,13 +161,11 @@ def _age_state_option(cfg: Any, path: str | None, ecms_overrides: bool) -> Any:
         return None
     from hevsim.battery.life import load_or_new_age_state
     from hevsim.errors import ConfigError
-    from hevsim.sim.life import _pack_config
+    from hevsim.sim.life import _pack_config, require_pack
 
-    if cfg.battery.model != "pack" or ecms_overrides:
-        raise ConfigError(
-            f"--age-state {path}: ageing during the drive needs [battery] model = 'pack' (got "
-            f"{cfg.battery.model!r}) and no --ecms-from."
-        )
+    require_pack(cfg, f"--age-state {path}")
+    if ecms_overrides:
+        raise ConfigError(f"--age-state {path}: ageing during the drive needs no --ecms-from.")
     return load_or_new_age_state(path, _pack_config(cfg).n_cells)
 
 

@@ -602,8 +602,24 @@ def check_controller(cfg: Any, source: str) -> None:
     if spec is not None and kind not in spec.controllers:
         raise ConfigError(
             f"{source}: key 'controller.kind' = {kind!r} is not defined for the {spec.name} "
-            f"architecture; expected one of {', '.join(spec.controllers)}."
+            f"architecture{_energy_split_refusal(cfg, kind)}; expected one of {', '.join(spec.controllers)}."
         )
+
+
+ENERGY_SPLIT_CONTROLLERS: tuple[str, ...] = ("ecms", "aecms")
+"""Controllers that split the demand between fuel and battery energy (need both)."""
+
+
+def _energy_split_refusal(cfg: Any, kind: str) -> str:
+    """Why ``kind`` cannot run on ``cfg`` when it splits fuel and battery energy and ``cfg``
+    lacks one of them (", ..." to append to a refusal), else ""."""
+    if kind not in ENERGY_SPLIT_CONTROLLERS:
+        return ""
+    if not hasattr(cfg, "battery"):
+        return " (it splits the demand between fuel and battery; the vehicle has no [battery]: one source)"
+    if not hasattr(cfg, "engine"):
+        return " (it splits the demand between fuel and battery; the vehicle has no [engine]: one source)"
+    return ""
 
 
 _check_controller = check_controller
@@ -654,9 +670,10 @@ def check_series_online(cfg: SeriesHEVConfig, source: str, kind: str) -> None:
 
 def _series_online_refusal(cfg: SeriesHEVConfig) -> str:
     """Why a series HEV cannot run its online controllers (:data:`SERIES_ONLINE_CONTROLLERS`:
-    the quasi-static power flow has an engine genset and a table battery), "" when it can."""
+    the quasi-static power flow has an engine genset and a table battery or a pack stepped in the
+    loop), "" when it can."""
     needs = (("genset.kind", cfg.genset.kind, ("engine",)),
-             ("battery.model", cfg.battery.model, ("ideal", "rint", "table")))  # fmt: skip
+             ("battery.model", cfg.battery.model, ("ideal", "rint", "table", "pack")))  # fmt: skip
     for key, value, expected in needs:
         if value not in expected:
             return f"'{key}' = {' or '.join(expected)}; got '{key}' = {value!r}"
@@ -674,7 +691,7 @@ def _check_parallel(cfg: ParallelHEVConfig, source: str) -> None:
     if cfg.battery.model == "cell":
         raise ConfigError(
             f"{source}: key 'battery.model' = 'cell' is not supported by the parallel HEV; "
-            "expected one of ideal, rint, table."
+            "expected one of ideal, rint, table, pack."
         )
     if cfg.engine.model != "map":
         raise ConfigError(
@@ -729,10 +746,15 @@ def _check_power_split(cfg: PowerSplitConfig, source: str) -> None:
             f"planetary set: the planets would need (ring - sun) / 2 = {(zr - zs) / 2:g} teeth; expected "
             "tooth numbers whose difference is even."
         )
-    if cfg.engine.model != "map" or cfg.battery.model == "cell":
+    if cfg.engine.model != "map":
         raise ConfigError(
-            f"{source}: the power split needs 'engine.model' = 'map' (got {cfg.engine.model!r}) and a "
-            f"battery model ideal, rint, table or pack (got {cfg.battery.model!r})."
+            f"{source}: key 'engine.model' = {cfg.engine.model!r} is not supported by the power split; "
+            "expected 'map' (its DP needs a fuel map)."
+        )
+    if cfg.battery.model == "cell":
+        raise ConfigError(
+            f"{source}: key 'battery.model' = 'cell' is not supported by the power split; expected one of "
+            "ideal, rint, table, pack."
         )
 
 

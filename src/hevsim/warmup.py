@@ -87,16 +87,12 @@ def _cycle() -> Any:
 
 
 def _forward(examples: Path, *files: str, compiled: bool = True) -> None:
+    from hevsim.architectures import architecture
     from hevsim.config import load_vehicle_config
-    from hevsim.sim.forward import simulate_architecture
-    from hevsim.sim.simulator import simulate
 
     for f in files:
         cfg = load_vehicle_config(examples / f)
-        if cfg.architecture == "series":
-            simulate(cfg, _cycle())
-        else:
-            simulate_architecture(cfg.architecture, cfg, _cycle(), compiled=compiled)
+        architecture(cfg.architecture).simulate(cfg, _cycle(), **({} if compiled else {"compiled": False}))
 
 
 def _warm_series(examples: Path) -> None:

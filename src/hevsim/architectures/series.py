@@ -126,6 +126,12 @@ def _engine_points(hev: SeriesHEV, power_w: np.ndarray) -> tuple[np.ndarray, ...
     return tuple(rows[j, idx].reshape(np.shape(power_w)) for j in range(5))
 
 
+def aux_power_w(hev: SeriesHEV) -> float:
+    """The electrical auxiliary load on the bus [W]: the model's (a pack adds its cooling
+    power), else ``[controller] aux_power_w``."""
+    return float(hev.config.controller.aux_power_w if hev.aux_power_w is None else hev.aux_power_w)
+
+
 def quasi_static_model(hev: SeriesHEV) -> SeriesHEV:
     """The model the quasi-static loop drives: the traction motor's rotor inertia ``J``
     [kg·m²] moved into the body's rotating-mass factor, ``delta + J (ratio / r)^2 / m``, so
@@ -133,6 +139,8 @@ def quasi_static_model(hev: SeriesHEV) -> SeriesHEV:
     model has no inertia left, so a second call changes nothing)."""
     b, ratio, r = hev.body, hev.gear.ratio, hev.tire.radius_m
     extra = hev.traction_motor.inertia_kgm2 * (ratio / r) ** 2 / b.mass_kg
+    if hev.aux_power_w is None:  # the loop's model states its auxiliary load (a pack adds cooling to it)
+        hev = dataclasses.replace(hev, aux_power_w=aux_power_w(hev))
     if extra == 0.0:
         return hev
     return dataclasses.replace(
@@ -197,7 +205,7 @@ def power_flow(
     else:
         gs_ok, at_max = p_req <= 0.0, p_req > 0.0
     flow = electric_flow(
-        hev.traction_motor, hev.battery, t_fd, w_m, cfg.controller.aux_power_w - p_gen - source, soc, dt_s,
+        hev.traction_motor, hev.battery, t_fd, w_m, aux_power_w(hev) - p_gen - source, soc, dt_s,
         ok, bs,
     )  # fmt: skip
     shape = np.shape(flow.torque_nm)
@@ -255,7 +263,7 @@ def loss_powers(hev: SeriesHEV, stage: Any, wheel_speed_radps: Any, wheel_torque
         for a in (wheel_speed_radps, m["w_m"], m["t_fd"], flow.torque_nm, flow.power_elec_w)
     )
     rows = np.empty((len(DRIVE_LOSSES), w.size))
-    g, aux = hev.gear, float(hev.config.controller.aux_power_w)
+    g, aux = hev.gear, aux_power_w(hev)
     _losses_many(w, wm, tfd, tm, pel, float(g.ratio), float(g.efficiency), aux, rows)
     out = {name: row.reshape(shape) for name, row in zip(DRIVE_LOSSES, rows, strict=True)}
     lhv = hev.engine.fuel_lhv_jpkg if hev.engine is not None else 0.0

@@ -284,9 +284,12 @@ class ControlSchedule:
         :class:`~hevsim.optimal.OptimizationResult` (for the power split ``gear`` holds the
         engine speed [rad/s]; a series result gives an :class:`InputSchedule` of its genset
         electrical power)."""
+        from hevsim.architectures import ARCHITECTURES
+
         if result.architecture in SERIES_INPUTS:
             return InputSchedule.from_optimization(result)
-        first = {"parallel": "gear", "power_split": "engine_speed_radps"}.get(result.architecture)
+        entry = ARCHITECTURES.get(result.architecture)  # its first control input (gear, engine speed)
+        first = entry.controls[0] if entry is not None and entry.dp_formulation and entry.controls else None
         if first is None:
             raise ConfigError(
                 f"a control schedule needs a parallel, power-split or series DP result, got "

@@ -90,6 +90,7 @@ def run_life(
     if not 0.0 < soh_step < 0.5:
         raise ConfigError(f"--soh-step = {soh_step!r}; expected a value between 0 and 0.5.")
     cfg = load_vehicle_config(config) if isinstance(config, str | Path) else config
+    require_pack(cfg, "hevsim life")
     rows: list[dict[str, float]] = []
     state = age_state
     if resume and checkpoint is not None and Path(checkpoint).is_file():
@@ -136,6 +137,20 @@ def run_life(
 class _PackSize:
     n_cells: int
     params: Any
+
+
+def require_pack(cfg: Any, what: str) -> None:
+    """ConfigError unless the vehicle ``cfg`` has ``[battery] model = "pack"`` (the cells whose
+    age ``what`` follows), naming the vehicle, the key and its value."""
+    battery = getattr(cfg, "battery", None)
+    if battery is not None and battery.model == "pack":
+        return
+    got = (
+        "it has no [battery] section (no traction battery to age)"
+        if battery is None
+        else f"key 'battery.model' = {battery.model!r}"
+    )
+    raise ConfigError(f"{cfg.name}: {what} ages the cells of a [battery] model = 'pack'; {got}.")
 
 
 def _pack_config(cfg: Any) -> _PackSize:

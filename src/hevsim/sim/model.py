@@ -48,6 +48,9 @@ class SeriesHEV:
     battery: BatteryPack
     cell: Any = None
     """Cell parameters (:class:`hevsim.battery.CellParameters`) of a ``"cell"`` battery."""
+    aux_power_w: float | None = None
+    """Electrical auxiliary load on the bus [W] of the quasi-static power flow (None: ``[controller]
+    aux_power_w``; a pack's cooling power is added by :meth:`hevsim.battery.bms.PackRun.vehicle_step`)."""
 
     @property
     def name(self) -> str:

@@ -155,7 +155,7 @@ def simulate_pack_vehicle(
     # one BLAS thread: the per-step ROM products are small (100 modules x order 159), and BLAS
     # threads spinning for them cost 25x on a busy 2-core machine (105 ms -> 4 ms per step)
     with threadpool_limits(1, user_api="blas"):
-        if cfg.architecture == "series":
+        if cfg.architecture == "series" and _series_kernel_supervisor(controller, cfg):
             res = _simulate_series(model, cyc, dt, soc0, run, schedule)
         else:
             from hevsim.sim.forward import simulate_architecture
@@ -165,6 +165,16 @@ def simulate_pack_vehicle(
     if age_state is not None:
         age_state.end(run.pack, res)
     return res
+
+
+def _series_kernel_supervisor(controller: Any, cfg: Any) -> bool:
+    """Whether a series HEV's run with ``controller`` (None: the configuration's kind) is one of
+    its compiled kernel's supervisors; the online controllers and controller objects (ECMS,
+    A-ECMS, a DP schedule replay) run on its quasi-static power flow in the forward loop."""
+    from hevsim.config import SERIES_CONTROLLER_KEYS
+
+    kind = cfg.controller.kind if controller is None else controller
+    return isinstance(kind, str) and kind in SERIES_CONTROLLER_KEYS
 
 
 def _simulate_series(model: Any, cyc: DriveCycle, dt: float, soc0: float, run: PackRun, schedule: Any) -> Any:

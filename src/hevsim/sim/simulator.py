@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 import hevsim
+from hevsim.architectures import architecture
 from hevsim.battery.cell import soc_outside
 from hevsim.components.engine import Engine
 from hevsim.config import (
@@ -34,7 +35,7 @@ from hevsim.sim.checks import (
     tracking_message,
 )
 from hevsim.sim.metrics import compute_metrics, energy_audit, soc_correction_ocv
-from hevsim.sim.model import SeriesHEV, build_series_hev
+from hevsim.sim.model import SeriesHEV
 from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
 
 CSV_AUTO_MAX_ROWS = 50_000
@@ -98,11 +99,11 @@ class SimulationResult:
         return Path(out_dir)
 
 
-# Forward kernels per architecture: (single run, batch run). The driver, supervisory
-# controller and battery model are chosen inside a kernel by the codes of
+# The series HEV's compiled kernels (single run, batch run); which architecture runs where is
+# the registry's (hevsim.architectures.ARCHITECTURES), not a table here. The driver,
+# supervisory controller and battery model are chosen inside a kernel by the codes of
 # hevsim.sim.kernel.DRIVER_KINDS / SUPERVISOR_KINDS / BATTERY_KINDS (the battery kind follows
 # the model: "ecm" for a pack of dynamic cells, "tables" otherwise).
-ARCHITECTURES: dict[str, tuple[Any, Any]] = {"series": (K.run_series, K.run_series_batch)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -252,7 +253,9 @@ def _other_architecture(model: Any) -> str | None:
 def _prepare(
     model: SeriesHEV | VehicleConfig, cycle: DriveCycle | str | None, dt_s: float | None
 ) -> tuple[SeriesHEV, DriveCycle, DriveCycle, float]:
-    hev = model if isinstance(model, SeriesHEV) else build_series_hev(model)
+    hev = (
+        model if isinstance(model, SeriesHEV) else architecture("series").build(model)
+    )  # the registry's builder
     cfg = hev.config
     from hevsim.sim.forward import cycle_and_step
 
@@ -403,7 +406,7 @@ def simulate(
     assert not isinstance(model, str | Path)  # a path was loaded above
     hev, cyc, dt, args = kernel_inputs(model, cycle, dt_s, soc_initial, schedule)
     t_kernel = time.perf_counter()
-    ARCHITECTURES["series"][0](*args)
+    K.run_series(*args)
     t_done = time.perf_counter()
     p, out, energy, summary = args[0], args[-3], args[-2], args[-1]
     label = f"{hev.name} on {cyc.name}"
@@ -587,7 +590,7 @@ def simulate_batch(
     summary = np.zeros((n, len(K.SUMMARY)))
     t0 = time.perf_counter()
     sched = _plugins(hev, grid, None, pmat)
-    ARCHITECTURES["series"][1](
+    K.run_series_batch(
         pmat, eng, mot, gen, bat, sched, grid.time_s, grid.speed_mps, grid.grade, energy, summary
     )
     elapsed = time.perf_counter() - t0

@@ -61,7 +61,8 @@ class Solver:
 
     Attributes:
         name: registry key (``name`` of a ``[[solvers]]`` table).
-        architectures: architectures it supports.
+        architectures: architectures it supports: a tuple of names, or a callable returning
+            them from the registry on every call (an architecture registered later is found).
         check_options: ``(vehicle config, options, where) -> resolved options``.
         metric_names: ``(vehicle config) -> names`` of the metrics a case can keep.
         prepare: ``(study, solver case) -> context`` (runs once, in the client).
@@ -75,7 +76,7 @@ class Solver:
     """
 
     name: str
-    architectures: tuple[str, ...]
+    architectures: tuple[str, ...] | Callable[[], tuple[str, ...]]
     check_options: Callable[[Any, dict[str, Any], str], dict[str, Any]]
     metric_names: Callable[[Any], tuple[str, ...]]
     prepare: Callable[[Any, Any], Any]
@@ -86,11 +87,16 @@ class Solver:
     cycle_free: bool = False
     link: Callable[[dict[str, Any], tuple[Any, ...], str], dict[str, Any]] | None = None
 
+    def supported(self) -> tuple[str, ...]:
+        """The architectures it supports (``architectures``, called when it is a callable)."""
+        a = self.architectures
+        return tuple(a() if callable(a) else a)
+
     def check_architecture(self, cfg: Any, where: str) -> None:
         """Raise ConfigError if the solver does not support ``cfg``'s architecture."""
-        if cfg.architecture not in self.architectures:
+        if cfg.architecture not in self.supported():
             raise ConfigError(
-                f"{where}: solver '{self.name}' supports the {', '.join(self.architectures)} "
+                f"{where}: solver '{self.name}' supports the {', '.join(self.supported())} "
                 f"architecture(s); the vehicle is {cfg.architecture!r}."
             )
 
@@ -707,18 +713,39 @@ def _performance_run(
     return out
 
 
+def _every_architecture() -> tuple[str, ...]:
+    """Every architecture of the registry (each has a forward simulation and its controllers)."""
+    from hevsim.architectures import ARCHITECTURES
+
+    return tuple(ARCHITECTURES)
+
+
+def _dp_architectures() -> tuple[str, ...]:
+    """The architectures of the registry with a DP formulation."""
+    from hevsim.architectures import ARCHITECTURES
+
+    return tuple(n for n, a in ARCHITECTURES.items() if a.dp_formulation)
+
+
+def _performance_architectures() -> tuple[str, ...]:
+    """The architectures whose module has a performance envelope (``capability_controls``)."""
+    from hevsim.architectures import ARCHITECTURES
+
+    return tuple(n for n, a in ARCHITECTURES.items() if hasattr(a.power_module(), "capability_controls"))
+
+
 register_solver(Solver(
-    "simulate", ("series", "parallel", "conventional", "bev", "power_split"), _simulate_options,
+    "simulate", _every_architecture, _simulate_options,
     _simulate_metrics, _simulate_prepare, _simulate_group, _simulate_run, default_batch=0,
     description="forward simulation (a named controller) via simulate_batch", link=_simulate_link,
 ))  # fmt: skip
 register_solver(Solver(
-    "optimize", ("series", "parallel", "power_split"), _optimize_options, _optimize_metrics,
+    "optimize", _dp_architectures, _optimize_options, _optimize_metrics,
     _optimize_prepare, lambda ctx, row: (), _optimize_run, default_batch=1,
     description="fuel-optimal energy management by dynamic programming",
 ))  # fmt: skip
 register_solver(Solver(
-    "performance", ("series", "parallel", "conventional", "bev", "power_split"), _performance_options,
+    "performance", _performance_architectures, _performance_options,
     _performance_metrics, _optimize_prepare, lambda ctx, row: (), _performance_run, default_batch=1,
     description="0-60 mph, 0-100 km/h, quarter mile, 50-80 mph, top speed, gradeability", cycle_free=True,
 ))  # fmt: skip
