@@ -358,6 +358,40 @@ class ControllerSection:
     fuel_cut_speed_rpm: float = param(1200.0, 0.0, 1e5, "rpm")
 
 
+PLUGIN_MODES: tuple[str, ...] = ("off", "ev_first", "blended")
+"""``[plugin] mode`` values: ``"off"`` (a charge-sustaining hybrid) or a plug-in hybrid's
+charge-depleting strategy."""
+
+
+@dataclass(frozen=True)
+class PluginSection:
+    """Plug-in hybrid (PHEV): any series, parallel or power-split HEV with ``mode`` other than
+    ``"off"`` charges from the grid and runs charge-depleting (CD) while its SOC lies above
+    ``cs_soc`` [-], then charge-sustaining (CS) with its own ``[controller]``.
+
+    ``mode = "ev_first"``: in CD the vehicle drives electrically whenever it can (the engine
+    only helps where the machine or battery cannot give the demand; ECMS prices battery energy
+    at 0). ``mode = "blended"``: in CD the rule-based controllers start the engine only above
+    the wheel power ``blended_engine_power_w`` [W] (and add no charging power), ECMS / A-ECMS
+    use ``blended_equivalence_factor`` [-]. The usable window is the battery's
+    ``soc_min``..``soc_max``: a label's CD test starts full (``soc_max``) and ``cs_soc`` must
+    lie strictly inside it. ``charger_efficiency`` [-]: wall (AC) to battery energy, for the
+    label's electricity from the wall (default 0.86, FASTSim's ``chg_eff``).
+    """
+
+    mode: str = choice("off", *PLUGIN_MODES)
+    cs_soc: float = param(0.3, 0.0, 1.0, "-")
+    blended_engine_power_w: float = param(20000.0, 0.0, 1e7, "W")
+    blended_equivalence_factor: float = param(1.0, 0.0, 100.0, "-")
+    charger_efficiency: float = param(0.86, 0.01, 1.0, "-")
+
+
+def is_plugin(cfg: Any) -> bool:
+    """Whether a configuration is a plug-in hybrid (``[plugin] mode`` other than ``"off"``)."""
+    plugin = getattr(cfg, "plugin", None)
+    return plugin is not None and plugin.mode != "off"
+
+
 @dataclass(frozen=True)
 class OptimizationSection:
     """Dynamic-programming settings (``hevsim optimize``), one section for every architecture
@@ -365,8 +399,9 @@ class OptimizationSection:
     series and power split take :class:`SustainingOptimizationSection`'s.
 
     ``cycle`` (empty: the ``[simulation]`` cycle); ``soc_initial`` [-]; ``final_soc``
-    ``"window"`` (``final_soc_min``..``final_soc_max`` [-]) or ``"sustain"`` (within
-    ``soc_tolerance`` [-] of the initial SOC); ``soc_grid_points`` over the battery's SOC
+    ``"window"`` (``final_soc_min``..``final_soc_max`` [-]), ``"sustain"`` (within
+    ``soc_tolerance`` [-] of the initial SOC) or, for a plug-in hybrid, ``"deplete"`` (within
+    ``soc_tolerance`` of ``plugin.cs_soc``: the depletion target); ``soc_grid_points`` over the battery's SOC
     window; ``input_grid_points``: the control grid (parallel: throttles, series: genset
     electrical powers, power split: throttles per engine speed), 0 = the architecture's
     default (parallel: ``throttle_grid_points``, series: 101, power split:
@@ -375,7 +410,7 @@ class OptimizationSection:
 
     cycle: str = "udds"
     soc_initial: float = param(0.8, 0.0, 1.0, "-")
-    final_soc: str = choice("window", "window", "sustain")
+    final_soc: str = choice("window", "window", "sustain", "deplete")
     final_soc_min: float = param(0.7, 0.0, 1.0, "-")
     final_soc_max: float = param(0.8, 0.0, 1.0, "-")
     soc_tolerance: float = param(0.005, 0.0, 1.0, "-")
@@ -399,7 +434,7 @@ class SustainingOptimizationSection(OptimizationSection):
 
     cycle: str = ""
     soc_initial: float = param(SOC_INITIAL_FROM_SIMULATION, SOC_INITIAL_FROM_SIMULATION, 1.0, "-")
-    final_soc: str = choice("sustain", "window", "sustain")
+    final_soc: str = choice("sustain", "window", "sustain", "deplete")
     final_soc_min: float = param(0.0, 0.0, 1.0, "-")
     final_soc_max: float = param(1.0, 0.0, 1.0, "-")
     soc_grid_points: int = param(201, 2, 100_000, "-")
@@ -473,6 +508,7 @@ class SeriesHEVConfig(_VehicleConfig):
     optimization: SustainingOptimizationSection = field(default_factory=SustainingOptimizationSection)
     metrics: MetricsSection = field(default_factory=MetricsSection)
     fuel: FuelSection = field(default_factory=FuelSection)  # hevsim.fuels: choose/override the fuel
+    plugin: PluginSection = field(default_factory=PluginSection)  # plug-in hybrid (PHEV)
     base_dir: str = "."
 
 
@@ -502,6 +538,7 @@ class ParallelHEVConfig(_VehicleConfig):
     optimization: OptimizationSection = field(default_factory=OptimizationSection)
     metrics: MetricsSection = field(default_factory=MetricsSection)
     fuel: FuelSection = field(default_factory=FuelSection)  # hevsim.fuels: choose/override the fuel
+    plugin: PluginSection = field(default_factory=PluginSection)  # plug-in hybrid (PHEV)
     base_dir: str = "."
 
 
@@ -575,6 +612,7 @@ class PowerSplitConfig(_VehicleConfig):
     optimization: SustainingOptimizationSection = field(default_factory=SustainingOptimizationSection)
     metrics: MetricsSection = field(default_factory=MetricsSection)
     fuel: FuelSection = field(default_factory=FuelSection)
+    plugin: PluginSection = field(default_factory=PluginSection)  # plug-in hybrid (PHEV)
     base_dir: str = "."
 
 
@@ -626,8 +664,47 @@ def _check_optimization(cfg: Any, source: str) -> None:
         )
 
 
+RULE_BASED_CONTROLLERS: tuple[str, ...] = ("thermostat", "schedule", "electric_assist", "power_follower")
+"""Controller kinds that hold the SOC in a ``soc_low``..``soc_high`` band (charge sustaining)."""
+
+
+def _check_plugin(cfg: Any, source: str) -> None:
+    """The ``[plugin]`` section of a hybrid: ``cs_soc`` strictly inside the usable SOC window,
+    the rule-based controller's charge-sustaining band at or below it, a power rule for a
+    blended strategy, and the DP's ``"deplete"`` target only for a plug-in hybrid."""
+    pl, b = cfg.plugin, cfg.battery
+    o = getattr(cfg, "optimization", None)
+    if pl.mode == "off":
+        if o is not None and o.final_soc == "deplete":
+            raise ConfigError(
+                f"{source}: key 'optimization.final_soc' = 'deplete' needs a plug-in hybrid; got "
+                "'plugin.mode' = 'off' (expected 'ev_first' or 'blended', or final_soc 'sustain'/'window')."
+            )
+        return
+    if not b.soc_min < pl.cs_soc < b.soc_max:
+        raise ConfigError(
+            f"{source}: key 'plugin.cs_soc' = {pl.cs_soc} lies outside the usable SOC window "
+            f"('battery.soc_min', 'battery.soc_max') = ({b.soc_min}, {b.soc_max}); expected a value "
+            "strictly inside it (charge depleting runs from soc_max down to cs_soc)."
+        )
+    kind = cfg.controller.kind
+    if kind in RULE_BASED_CONTROLLERS and cfg.controller.soc_high > pl.cs_soc:
+        raise ConfigError(
+            f"{source}: key 'controller.soc_high' = {cfg.controller.soc_high} lies above 'plugin.cs_soc' = "
+            f"{pl.cs_soc}; expected the charge-sustaining band 'controller.soc_low'..'soc_high' at or below "
+            "the charge-depleting threshold."
+        )
+    if pl.mode == "blended" and cfg.architecture == "series" and kind in ("thermostat", "schedule"):
+        raise ConfigError(
+            f"{source}: key 'plugin.mode' = 'blended' needs a controller with a power rule; the series HEV's "
+            f"'controller.kind' = {kind!r} starts its genset on the SOC only; expected 'plugin.mode' = "
+            "'ev_first' or 'controller.kind' = 'ecms' / 'aecms'."
+        )
+
+
 def _check_series(cfg: SeriesHEVConfig, source: str) -> None:
     _check_controller(cfg, source)
+    _check_plugin(cfg, source)
     if cfg.controller.kind in SERIES_ONLINE_CONTROLLERS:
         check_series_online(cfg, source, cfg.controller.kind)
     _pairs_below(cfg, source, (("controller.soc_low", "controller.soc_high"),
@@ -660,6 +737,7 @@ def _series_online_refusal(cfg: SeriesHEVConfig) -> str:
 
 def _check_parallel(cfg: ParallelHEVConfig, source: str) -> None:
     _check_controller(cfg, source)
+    _check_plugin(cfg, source)
     _pairs_below(cfg, source, (("battery.soc_min", "battery.soc_max"),
                                ("controller.soc_low", "controller.soc_high"),
                                ("controller.downshift_rpm", "controller.upshift_rpm"),
@@ -712,6 +790,7 @@ def _check_bev(cfg: BEVConfig, source: str) -> None:
 
 def _check_power_split(cfg: PowerSplitConfig, source: str) -> None:
     _check_controller(cfg, source)
+    _check_plugin(cfg, source)
     _pairs_below(cfg, source, (("battery.soc_min", "battery.soc_max"),
                                ("controller.soc_low", "controller.soc_high"),
                                ("engine.stall_speed_rpm", "engine.redline_rpm"),
@@ -1054,6 +1133,14 @@ def inert_keys(cfg: Any) -> dict[str, str]:
     for f in dataclasses.fields(ControllerSection):
         if f.name not in reads:
             out[f"controller.{f.name}"] = f"none of its controllers ({', '.join(kinds)}) reads it"
+    plugin = getattr(cfg, "plugin", None)
+    if plugin is not None and plugin.mode != "blended":
+        why = "plugin.mode = 'off' (a charge-sustaining hybrid)" if plugin.mode == "off" else (
+            "plugin.mode = 'ev_first' (only 'blended' reads it)"
+        )  # fmt: skip
+        for f in dataclasses.fields(PluginSection):
+            if f.name != "mode" and (plugin.mode == "off" or f.name.startswith("blended_")):
+                out[f"plugin.{f.name}"] = why
     body = getattr(cfg, "body", None)
     if body is not None and body.test_mass_kg > 0.0:
         for name in ROAD_LOAD_PHYSICAL:
@@ -1159,7 +1246,9 @@ def check_inert(cfg: Any, keys: list[str], source: str) -> None:
     """ConfigError naming the first of the dotted ``keys`` (those a file sets) that does
     nothing for ``cfg``'s vehicle (:func:`inert_keys`)."""
     inert = inert_keys(cfg)
-    label = ARCHITECTURE_LABELS.get(cfg.architecture, f"{cfg.architecture} vehicle")
+    label = ("plug-in " if is_plugin(cfg) else "") + ARCHITECTURE_LABELS.get(
+        cfg.architecture, f"{cfg.architecture} vehicle"
+    )
     for key in keys:
         why = inert.get(key) or inert.get(f"{key.partition('.')[0]}.*")
         if not why and key in DATA_KEYS:
