@@ -421,7 +421,8 @@ class PowerFollower(_RuleBased):
     def target_power(self, p_dem: float, soc: float) -> float:
         """Engine power [W] to give at wheel power ``p_dem`` [W] and state of charge ``soc`` [-]."""
         target = max(p_dem, 0.0) + float(self.charge_fraction(soc)) * self.charge_power
-        return max(target, self.engine_min_power) if soc < self.soc_high and not self.depleting(soc) else target
+        floor = soc < self.soc_high and not self.depleting(soc)
+        return max(target, self.engine_min_power) if floor else target
 
     def choose(self, step: Any) -> Control | None:
         """EV or the most efficient engine operating point near the target power."""

@@ -110,8 +110,9 @@ class ControllerConstants(NamedTuple):
     """A controller's parameters (unused ones 0): code, equivalence factor and the A-ECMS PI
     gains and kinetic-energy term, the rule-based SOC band, EV speed [m/s] and power [W],
     charging power [W], shift speeds [rad/s], the plug-in hybrid's charge-depleting SOC [-],
-    EV power [W] and equivalence factor [-] (``cd_soc`` inf: never depleting), and whether the electric assist's engine torque
-    rises with its throttle grid (:func:`~hevsim.architectures.parallel.torque_rises_with_throttle`;
+    EV power [W] and equivalence factor [-] (``cd_soc`` inf: never depleting), and whether the
+    electric assist's engine torque rises with its throttle grid
+    (:func:`~hevsim.architectures.parallel.torque_rises_with_throttle`;
     :func:`_assist_throttle` then bisects)."""
 
     code: int
