@@ -798,9 +798,10 @@ def _add_dp_options(p: argparse.ArgumentParser, final_soc: str) -> None:
     p.add_argument(
         "--final-soc",
         default=final_soc,
-        choices=("config", "sustain", "window"),
+        choices=("config", "sustain", "window", "deplete"),
         help="final SOC: as configured, charge sustaining (initial within the configured "
-        f"tolerance) or the configured window (default {final_soc})",
+        "tolerance), the configured window or a plug-in hybrid's depletion target (plugin.cs_soc "
+        f"within the tolerance) (default {final_soc})",
     )
     p.add_argument("--soc-points", type=int, help="SOC grid points (default per architecture)")
     p.add_argument("--input-points", type=int, help="control grid points (default per architecture)")
