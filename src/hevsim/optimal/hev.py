@@ -188,8 +188,8 @@ def _final_target(s: Settings, soc_initial: float) -> tuple[FinalTarget, tuple[f
     elif s.final_soc == "deplete":
         if math.isnan(s.deplete_soc):
             raise DPSetupError(
-                "final_soc 'deplete' needs a plug-in hybrid ([plugin] mode 'ev_first' or 'blended'); expected "
-                "'sustain', 'window' or a (low, high) window."
+                "final_soc 'deplete' needs a plug-in hybrid ([plugin] mode 'ev_first' or 'blended'); "
+                "expected 'sustain', 'window' or a (low, high) window."
             )
         lo = max(s.soc_min, s.deplete_soc - s.soc_tolerance)
         hi = min(s.soc_max, s.deplete_soc + s.soc_tolerance)
