@@ -263,8 +263,14 @@ def _next_soc(runs: list[Run], lo: float, hi: float) -> float:
     return float(min(max(soc, lo), hi))
 
 
-def balance_soc(model: Any, cycle: str, name: str, tolerance: float, max_runs: int) -> LabelTest:
+def balance_soc(
+    model: Any, cycle: str, name: str, tolerance: float, max_runs: int, soc_start: float | None = None,
+    soc_cap: float | None = None,
+) -> LabelTest:  # fmt: skip
     """Run ``cycle`` until ``|NEC| / fuel energy <= tolerance`` (SAE J1711), else regress.
+
+    The first run starts at ``soc_start`` (None: the configuration's initial SOC); no run starts
+    above ``soc_cap`` (a plug-in hybrid's charge-sustaining test: its ``plugin.cs_soc``).
 
     Returns the :class:`LabelTest` with the accepted run (method ``"within tolerance"``) or, when
     ``max_runs`` runs never balanced, the fuel read at NEC = 0 from a linear fit of fuel
@@ -272,9 +278,9 @@ def balance_soc(model: Any, cycle: str, name: str, tolerance: float, max_runs: i
     """
     b = model.config.battery
     margin = 1e-6
-    lo, hi = b.soc_min + margin, b.soc_max - margin
+    lo, hi = b.soc_min + margin, (b.soc_max if soc_cap is None else soc_cap) - margin
     runs: list[Run] = []
-    soc: float | None = None
+    soc: float | None = soc_start
     for _ in range(max_runs):
         run = _run(model, cycle, soc)
         runs.append(run)
@@ -368,7 +374,9 @@ class Label:
                 "highway_slope": c.highway_slope,
             },
             "city_weight": k.city_weight,
-            "soc_balance_tolerance": k.soc_balance_tolerance if self.kind == "charge_sustaining" else None,
+            "soc_balance_tolerance": (
+                k.soc_balance_tolerance if self.kind in ("charge_sustaining", "plug_in") else None
+            ),
             "figures": self.figures,
             "tests": tests,
             "elapsed_s": self.elapsed_s,
@@ -388,8 +396,9 @@ class Label:
             f"{'':<26}{'city':>10}{'highway':>10}{'combined':>10}",
         ]
 
-        def row(label: str, key: str, fmt: str = "{:>10.1f}") -> None:
-            vals = [f[key][t] for t in ("city", "highway", "combined")]
+        def row(label: str, key: str, sub: str = "", fmt: str = "{:>10.1f}") -> None:
+            table = f[key][sub] if sub else f[key]
+            vals = [table[t] for t in ("city", "highway", "combined")]
             lines.append(f"{label:<26}" + "".join(fmt.format(v) for v in vals))
 
         if self.kind == "electric":
@@ -410,7 +419,29 @@ class Label:
                 f"mpg in US gallons of {self.fuel}"
                 + (" (the EPA label of a diesel car counts its own gallons)" if "diesel" in self.fuel else "")
             )
-        if self.kind == "charge_sustaining":
+        if self.kind == "plug_in":
+            lines[-1] = lines[-1].replace("mpg in US gallons", "charge-sustaining mpg in US gallons")
+            r = f["charge_depleting_range_mi"]
+            ra, rc = r["actual_unadjusted"], r["cycle_unadjusted"]
+            lines.append(
+                "charge-depleting range (SAE J1711, actual): "
+                + ", ".join(f"{t} {ra[t]:.1f} mi" for t in ("city", "highway", "combined"))
+                + f" unadjusted, {r['actual_adjusted']['combined']:.1f} mi adjusted combined "
+                f"(cycle range {rc['city']:.1f} / {rc['highway']:.1f} mi); {f['mode']} to SOC {f['cs_soc']:g}"
+            )
+            row("CD kWh/100 mi (wall)", "charge_depleting_kwh_per_100mi", "unadjusted")
+            row("CD kWh/100 mi adjusted", "charge_depleting_kwh_per_100mi", "adjusted")
+            row("CD MPGe", "charge_depleting_mpge", "unadjusted")
+            u = f["uf_weighted"]
+            uf = u["utility_factor"]
+            row("UF-weighted mpg", "uf_weighted", "mpg")
+            row("UF-weighted kWh/100 mi", "uf_weighted", "kwh_per_100mi")
+            row("UF-weighted MPGe", "uf_weighted", "mpge")
+            lines.append(
+                f"utility factors ({u['curve']}) at the CD cycle range: city {uf['city']:.3f}, "
+                f"highway {uf['highway']:.3f}; charger efficiency {f['charger_efficiency']:g}"
+            )
+        if self.kind in ("charge_sustaining", "plug_in"):
             tol = constants().soc_balance_tolerance
             for key, t in self.tests.items():
                 r = t.runs[-1]
@@ -441,8 +472,12 @@ def usable_energy_j(battery: Any, soc_min: float, soc_max: float, points: int = 
 
 
 def _kind(model: Any) -> str:
+    from hevsim.config import is_plugin
+
     if model.config.architecture == "bev":
         return "electric"
+    if is_plugin(model.config):
+        return "plug_in"
     return "charge_sustaining" if getattr(model, "battery", None) is not None else "conventional"
 
 
@@ -479,8 +514,17 @@ def label(config: Any, model_year: int | None = None, charger_efficiency: float 
     kind = _kind(model)
     fuel = config_fuel(model.config, getattr(model, "engine", None))
     tests: dict[str, LabelTest] = {}
+    depleting: dict[str, Any] = {}
     for name, cycle in TESTS:
-        if kind == "charge_sustaining":
+        if kind == "plug_in":
+            from hevsim.sim.plugin_label import charge_depleting_test
+
+            cs = float(model.config.plugin.cs_soc)
+            depleting[name] = charge_depleting_test(model, cycle)
+            tests[name] = balance_soc(
+                model, cycle, name, k.soc_balance_tolerance, k.soc_balance_max_runs, soc_start=cs
+            )
+        elif kind == "charge_sustaining":
             tests[name] = balance_soc(model, cycle, name, k.soc_balance_tolerance, k.soc_balance_max_runs)
         else:
             r = _run(model, cycle, None)
@@ -548,6 +592,18 @@ def label(config: Any, model_year: int | None = None, charger_efficiency: float 
             },
             "units": {"mpg": f"mi per US gallon of {fuel.name}", "l_per_100km": "L/100 km (adjusted)"},
         }
+        if kind == "plug_in":
+            from hevsim.sim.plugin_label import plugin_figures
+
+            figures.update(
+                plugin_figures(
+                    model, depleting, mpg, lambda kg: _gallons(kg, fuel.density_kg_per_m3), k, coef
+                )
+            )
+            figures["units"].update({
+                "charge_depleting_range_mi": "mi", "kwh_per_100mi": "kWh/100 mi from the wall",
+                "mpge": "mi/gal-equivalent", "charge_depleting_fuel_gal": "US gal",
+            })  # fmt: skip
     return Label(
         model.name,
         model.config.architecture,
