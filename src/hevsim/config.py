@@ -284,7 +284,7 @@ class DriverSection:
 
 CONTROLLER_KINDS: tuple[str, ...] = (
     "thermostat", "schedule", "electric_assist", "ecms", "aecms", "shift_schedule", "direct",
-    "power_follower",
+    "power_follower", "load_follower",
 )  # fmt: skip
 """Every ``[controller] kind``; which ones an architecture admits is in
 :data:`ARCHITECTURES` (``controllers``)."""
@@ -356,6 +356,24 @@ class ControllerSection:
     # 1,200 rpm in the 2007 Pontiac Vibe (Toyota 1ZZ-FE) service manual, "Fuel System
     # Description - Fuel Cutoff"; a value above the redline turns the fuel cut off.
     fuel_cut_speed_rpm: float = param(1200.0, 0.0, 1e5, "rpm")
+
+
+@dataclass(frozen=True)
+class FuelCellSection:
+    """Fuel-cell system of a fuel-cell vehicle (``architecture = "fcev"``,
+    :class:`hevsim.components.fuel_cell.FuelCellSystem`): ``data`` names a folder (shipped under
+    ``hevsim/data/components/fuel_cells`` or relative to the file) with ``efficiency.csv``, the
+    net system efficiency vs net power as a fraction of ``max_power_w`` [W]; ``min_power_w``
+    [W]: idle (the system never runs below it); ramp limits ``ramp_up_w_per_s`` and
+    ``ramp_down_w_per_s`` [W/s] on its net power; ``initial_power_w`` [W]: its power before the
+    first step (clipped to the idle and rated power)."""
+
+    data: str = "fastsim_h2fc"
+    max_power_w: float = param(114000.0, 1.0, 1e7, "W")
+    min_power_w: float = param(2000.0, 0.0, 1e7, "W")
+    ramp_up_w_per_s: float = param(20000.0, 1e-3, 1e9, "W/s")
+    ramp_down_w_per_s: float = param(40000.0, 1e-3, 1e9, "W/s")
+    initial_power_w: float = param(0.0, 0.0, 1e7, "W")
 
 
 PLUGIN_MODES: tuple[str, ...] = ("off", "ev_first", "blended")
@@ -588,6 +606,30 @@ class BEVConfig(_VehicleConfig):
 
 
 @dataclass(frozen=True)
+class FCEVConfig(_VehicleConfig):
+    """A fuel-cell vehicle: the series HEV's electric drive (machine on a single reduction,
+    battery on the DC bus, blended brakes) with a fuel-cell system in place of the genset."""
+
+    name: str = "fcev"
+    description: str = ""
+    preset: str = ""
+    powertrain: PowertrainSection = field(default_factory=lambda: PowertrainSection("fcev"))
+    body: BodySection = field(default_factory=BodySection)
+    tire: TireSection = field(default_factory=TireSection)
+    aero: AeroSection = field(default_factory=AeroSection)
+    final_drive: GearSection = field(default_factory=GearSection)
+    motor: MachineSection = field(default_factory=MachineSection)
+    fuel_cell: FuelCellSection = field(default_factory=FuelCellSection)
+    battery: BatterySection = field(default_factory=BatterySection)
+    brakes: BrakesSection = field(default_factory=BrakesSection)
+    simulation: SimulationSection = field(default_factory=SimulationSection)
+    controller: ControllerSection = field(default_factory=lambda: ControllerSection(kind="load_follower"))
+    metrics: MetricsSection = field(default_factory=MetricsSection)
+    fuel: FuelSection = field(default_factory=lambda: FuelSection(name="hydrogen"))
+    base_dir: str = "."
+
+
+@dataclass(frozen=True)
 class PowerSplitConfig(_VehicleConfig):
     """A power-split HEV (Toyota THS style): engine on the planet carrier, generator (MG1) on
     the sun, motor (MG2, through ``motor_coupling``) and the final drive on the ring."""
@@ -810,6 +852,23 @@ def _check_power_split(cfg: PowerSplitConfig, source: str) -> None:
         )
 
 
+def _check_fcev(cfg: FCEVConfig, source: str) -> None:
+    _check_controller(cfg, source)
+    _pairs_below(cfg, source, (("battery.soc_min", "battery.soc_max"),
+                               ("controller.soc_low", "controller.soc_high")))  # fmt: skip
+    fc = cfg.fuel_cell
+    if fc.min_power_w >= fc.max_power_w:
+        raise ConfigError(
+            f"{source}: key 'fuel_cell.min_power_w' = {fc.min_power_w} must be below 'fuel_cell.max_power_w' = "
+            f"{fc.max_power_w}."
+        )
+    if cfg.battery.model == "cell":
+        raise ConfigError(
+            f"{source}: key 'battery.model' = 'cell' is not supported by the fcev architecture; expected one of "
+            "ideal, rint, table, pack."
+        )
+
+
 def _series_required(data: dict[str, Any]) -> tuple[str, ...]:
     genset = data.get("genset", {})
     kind = genset.get("kind", GensetSection.kind) if isinstance(genset, dict) else GensetSection.kind
@@ -873,6 +932,12 @@ register_architecture(ArchitectureSpec(
     "power_split", PowerSplitConfig, ("power_follower", "ecms", "aecms"),
     lambda data: ("body", "tire", "final_drive", "planetary", "engine", "generator", "motor", "battery"),
     _check_power_split,
+))  # fmt: skip
+
+
+register_architecture(ArchitectureSpec(
+    "fcev", FCEVConfig, ("load_follower",),
+    lambda data: ("body", "tire", "final_drive", "motor", "fuel_cell", "battery"), _check_fcev,
 ))  # fmt: skip
 
 
@@ -1050,7 +1115,7 @@ def check_road_load_form(keys: list[str], source: str, label: str = "vehicle") -
 # ------------------------------------------------------------------------------------------
 ARCHITECTURE_LABELS: dict[str, str] = {
     "series": "series HEV", "parallel": "parallel HEV", "power_split": "power-split HEV",
-    "conventional": "conventional vehicle", "bev": "battery-electric vehicle",
+    "conventional": "conventional vehicle", "bev": "battery-electric vehicle", "fcev": "fuel-cell vehicle",
 }  # fmt: skip
 """How messages name the vehicle of an architecture."""
 
@@ -1086,6 +1151,7 @@ CONTROLLER_KEYS: dict[str, tuple[str, ...]] = {
     "power_follower": ("soc_low", "soc_high", "ev_speed_mps", "ev_power_w", "charge_power_w",
                        "engine_min_power_w", "control_points"),
     "direct": (),
+    "load_follower": ("soc_low", "soc_high", "charge_power_w"),
 }  # fmt: skip
 """``[controller]`` keys each controller kind reads (the one table: :data:`hevsim.control.CONTROLLERS`
 takes its ``parameters`` from here, and :func:`inert_keys` refuses the others)."""
@@ -1169,9 +1235,13 @@ def inert_keys(cfg: Any) -> dict[str, str]:
         out["brakes.max_decel_mps2"] = _SERIES_ONLY
         for sec in ("engine", "motor", "generator"):
             out[f"{sec}.inertia_kgm2"] = _SERIES_ONLY
-    if arch != "bev" and hasattr(cfg, "brakes"):
-        out.setdefault("brakes.regen_fraction", "only the battery-electric vehicle blends its brakes")
-    if arch not in ("series", "bev") and hasattr(cfg, "brakes"):  # the power split regenerates at any speed
+    if arch not in ("bev", "fcev") and hasattr(cfg, "brakes"):
+        out.setdefault(
+            "brakes.regen_fraction", "only the battery-electric and fuel-cell vehicles blend their brakes"
+        )
+    if arch not in ("series", "bev", "fcev") and hasattr(
+        cfg, "brakes"
+    ):  # the power split regenerates at any speed
         out.setdefault("brakes.regen_min_speed_mps", "it regenerates down to standstill")
     for sec in ("motor", "generator"):
         m = getattr(cfg, sec, None)
