@@ -859,13 +859,13 @@ def _check_fcev(cfg: FCEVConfig, source: str) -> None:
     fc = cfg.fuel_cell
     if fc.min_power_w >= fc.max_power_w:
         raise ConfigError(
-            f"{source}: key 'fuel_cell.min_power_w' = {fc.min_power_w} must be below 'fuel_cell.max_power_w' = "
-            f"{fc.max_power_w}."
+            f"{source}: key 'fuel_cell.min_power_w' = {fc.min_power_w} must be below "
+            f"'fuel_cell.max_power_w' = {fc.max_power_w}."
         )
     if cfg.battery.model == "cell":
         raise ConfigError(
-            f"{source}: key 'battery.model' = 'cell' is not supported by the fcev architecture; expected one of "
-            "ideal, rint, table, pack."
+            f"{source}: key 'battery.model' = 'cell' is not supported by the fcev architecture; expected "
+            "one of ideal, rint, table, pack."
         )
 
 
