@@ -139,8 +139,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     m = result.metrics
     print(f"{cfg.name} on {cycle.name}: {m['distance_mi']['value']:.2f} mi")
     for key in ("mpg", "mpgge", "l_per_100km", "co2_g_per_km", "soc_final",
-                "speed_error_rms_mph", "energy_audit_residual_pct"):  # fmt: skip
-        print(f"  {key:<28}{m[key]['value']:>12.4g} {m[key]['unit']}")
+                "speed_error_rms_mph", "energy_audit_residual_pct", "hydrogen_kg", "mpge"):  # fmt: skip
+        if key in m:  # hydrogen_kg, mpge: a fuel-cell vehicle's (hevsim.sim.fcev)
+            print(f"  {key:<28}{m[key]['value']:>12.4g} {m[key]['unit']}")
     if "pack_peak_cell_temp_c" in m:  # [battery] model = "pack"
         print(f"  pack: peak cell {m['pack_peak_cell_temp_c']['value']:.1f} degC, derated "
               f"{m['pack_derated_s']['value']:.0f} s, held back by the BMS "

@@ -289,8 +289,6 @@ simulate_bev = functools.partial(simulate_architecture, "bev")
 """Simulate a battery-electric vehicle forward (see :func:`simulate_architecture`)."""
 simulate_power_split = functools.partial(simulate_architecture, "power_split")
 """Simulate a power-split HEV forward (see :func:`simulate_architecture`)."""
-simulate_fcev = functools.partial(simulate_architecture, "fcev")
-"""Simulate a fuel-cell vehicle forward (see :func:`simulate_architecture`; the Python loop)."""
 
 
 def compiled_loop(architecture: str) -> Any:

@@ -375,7 +375,9 @@ class Label:
             },
             "city_weight": k.city_weight,
             "soc_balance_tolerance": (
-                k.soc_balance_tolerance if self.kind in ("charge_sustaining", "plug_in") else None
+                k.soc_balance_tolerance
+                if self.kind in ("charge_sustaining", "plug_in", "fuel_cell")
+                else None
             ),
             "figures": self.figures,
             "tests": tests,
@@ -412,6 +414,14 @@ class Label:
                 f"battery terminals / charger efficiency {f['charger_efficiency']:g}, "
                 f"{constants().kwh_per_gallon_equivalent:g} kWh per gallon equivalent"
             )
+        elif self.kind == "fuel_cell":
+            row("unadjusted MPGe", "unadjusted_mpge")
+            row("adjusted MPGe", "adjusted_mpge")
+            row("adjusted kg H2/100 mi", "hydrogen_kg_per_100mi", fmt="{:>10.2f}")
+            lines.append(
+                "MPGe = miles per kg of hydrogen (the EPA counts 1 kg of hydrogen as one gallon of gasoline "
+                "equivalent; LHV 120 MJ/kg)"
+            )
         else:
             row("unadjusted mpg", "unadjusted_mpg")
             row("adjusted mpg", "adjusted_mpg")
@@ -441,7 +451,7 @@ class Label:
                 f"utility factors ({u['curve']}) at the CD cycle range: city {uf['city']:.3f}, "
                 f"highway {uf['highway']:.3f}; charger efficiency {f['charger_efficiency']:g}"
             )
-        if self.kind in ("charge_sustaining", "plug_in"):
+        if self.kind in ("charge_sustaining", "plug_in", "fuel_cell"):
             tol = constants().soc_balance_tolerance
             for key, t in self.tests.items():
                 r = t.runs[-1]
@@ -478,6 +488,8 @@ def _kind(model: Any) -> str:
         return "electric"
     if is_plugin(model.config):
         return "plug_in"
+    if model.config.architecture == "fcev":
+        return "fuel_cell"
     return "charge_sustaining" if getattr(model, "battery", None) is not None else "conventional"
 
 
@@ -524,7 +536,7 @@ def label(config: Any, model_year: int | None = None, charger_efficiency: float 
             tests[name] = balance_soc(
                 model, cycle, name, k.soc_balance_tolerance, k.soc_balance_max_runs, soc_start=cs
             )
-        elif kind == "charge_sustaining":
+        elif kind in ("charge_sustaining", "fuel_cell"):
             tests[name] = balance_soc(model, cycle, name, k.soc_balance_tolerance, k.soc_balance_max_runs)
         else:
             r = _run(model, cycle, None)
@@ -592,6 +604,12 @@ def label(config: Any, model_year: int | None = None, charger_efficiency: float 
             },
             "units": {"mpg": f"mi per US gallon of {fuel.name}", "l_per_100km": "L/100 km (adjusted)"},
         }
+        if kind == "fuel_cell":  # hydrogen's "gallon" is 1 kg (fuels.toml): mpg = mi/kg = MPGe
+            figures["unadjusted_mpge"] = dict(mpg)
+            figures["adjusted_mpge"] = dict(adj)
+            figures["hydrogen_kg_per_100mi"] = {n: 100.0 / v for n, v in adj.items()}
+            figures["units"].update({"mpge": "mi per kg of hydrogen (1 kg = 1 gallon equivalent)",
+                                     "hydrogen_kg_per_100mi": "kg/100 mi (adjusted)"})  # fmt: skip
         if kind == "plug_in":
             from hevsim.sim.plugin_label import plugin_figures
 
