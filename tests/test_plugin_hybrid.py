@@ -182,7 +182,7 @@ def test_series_blended_needs_a_power_rule() -> None:
     data = read_toml(EXAMPLES / "series_hev.toml")
     data["plugin"] = {"mode": "blended", "cs_soc": 0.75}
     data.setdefault("controller", {})
-    with pytest.raises(ConfigError, match="'plugin.mode' = 'blended' needs a controller with a power rule"):
+    with pytest.raises(ConfigError, match=r"'plugin\.mode' = 'blended' needs a controller with a power rule"):
         config_from_dict(data, source="series-phev", base_dir=EXAMPLES)
 
 

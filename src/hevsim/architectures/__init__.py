@@ -137,7 +137,7 @@ register(Architecture(
 
 register(Architecture(
     name="fcev", module="hevsim.architectures.fcev", builder="hevsim.architectures.fcev:build_fcev",
-    controls=("fuel_cell_power_w",), forward="hevsim.sim.fcev:simulate_fcev", dp_formulation="",
+    controls=("fuel_cell_power_w",), forward="hevsim.sim.forward:simulate_fcev", dp_formulation="",
 ))  # fmt: skip
 
 

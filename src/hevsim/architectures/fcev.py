@@ -37,6 +37,7 @@ from hevsim.components.driveline import Gear, Tire
 from hevsim.components.electric_machine import ElectricMachine
 from hevsim.components.fuel_cell import FuelCellSystem
 from hevsim.config import FCEVConfig
+from hevsim.units import KWH_PER_GALLON_EQUIVALENT, M_PER_MILE
 
 ARCHITECTURE = "fcev"
 CONTROLS: tuple[str, ...] = ("fuel_cell_power_w",)
@@ -169,3 +170,18 @@ def capability_controls(fcev: FCEV) -> tuple[np.ndarray, ...]:
     """The fuel cell at idle and at its rating (the performance envelope's candidates)."""
     fc = fcev.fuel_cell
     return (np.array([fc.min_power_w, fc.max_power_w]),)
+
+
+def extra_metrics(fcev: FCEV, metrics: dict[str, dict[str, Any]]) -> None:
+    """Add ``hydrogen_kg`` [kg] and ``mpge`` [mi/gal-equivalent] to a run's ``metrics``: miles per
+    (kg of hydrogen + the battery's net energy at 33.705 kWh per gallon equivalent); the EPA counts
+    1 kg of hydrogen as one gallon of gasoline equivalent (hydrogen's LHV, 120 MJ/kg = 33.3 kWh/kg,
+    is 1.1 % below that gallon)."""
+    kg = float(metrics["fuel_kg"]["value"])
+    gallons = kg + float(metrics["battery_energy_wh"]["value"]) / 1000.0 / KWH_PER_GALLON_EQUIVALENT
+    miles = float(metrics["distance_m"]["value"]) / M_PER_MILE
+    metrics["hydrogen_kg"] = {"value": kg, "unit": "kg", "description": "hydrogen consumed"}
+    metrics["mpge"] = {
+        "value": miles / gallons if gallons > 0 else float("inf"), "unit": "mi/gal-equivalent",
+        "description": "mi per (kg of hydrogen + battery net energy / 33.705 kWh): EPA MPGe, 1 kg H2 = 1 gge",
+    }  # fmt: skip
