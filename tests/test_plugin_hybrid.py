@@ -83,7 +83,7 @@ def test_uf_weighting_is_sae_j1711s_sum() -> None:
 
 
 def test_cd_range_on_repeated_udds_is_the_energy_bookkeeping_closed_form(phev) -> None:
-    test = PL.charge_depleting_test(phev, "udds")
+    test = L.charge_depleting_test(phev, "udds")
     b = phev.config.battery
     usable_j = L.usable_energy_j(phev.battery, phev.config.plugin.cs_soc, b.soc_max)
     first = test.runs[0]
@@ -106,7 +106,7 @@ def test_plugin_label_figures(phev, tmp_path: Path) -> None:
     assert 15.0 < r["city"] < 60.0 and 15.0 < r["highway"] < 60.0
     assert f["charge_depleting_range_mi"]["actual_adjusted"]["combined"] == pytest.approx(0.7 * r["combined"])
     # electricity from the wall = DC energy / charger efficiency over the actual range
-    cd = PL.charge_depleting_test(phev, "udds")
+    cd = L.charge_depleting_test(phev, "udds")
     kwh = cd.dc_energy_j / 0.86 / J_PER_WH / 1000.0 / (cd.range_cda_m / M_PER_MILE)
     assert f["charge_depleting_kwh_per_100mi"]["unadjusted"]["city"] == pytest.approx(100 * kwh, rel=1e-9)
     uf = f["uf_weighted"]

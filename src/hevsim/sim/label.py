@@ -48,6 +48,13 @@ from hevsim.errors import ConfigError, InputError, TrackingError
 from hevsim.fuels import config_fuel
 from hevsim.io import atomic_directory, write_json
 from hevsim.sim.checks import TRACKING_BOUND, tracking_violation
+from hevsim.sim.plugin_label import (
+    CD_MAX_CYCLES,
+    DepletingRun,
+    DepletingTest,
+    distance_to_soc,
+    plugin_figures,
+)
 from hevsim.units import J_PER_WH, M3_PER_US_GALLON, M_PER_MILE, MPS_PER_MPH
 
 TABLE_PATH = "data/epa_label.toml"
@@ -320,6 +327,49 @@ def balance_soc(
     return LabelTest(name, cycle, distance, float(intercept), 0.0, "J1711 regression", runs, 0.0, best.result)
 
 
+# --- the plug-in hybrid's charge-depleting test (SAE J1711; hevsim.sim.plugin_label) ------------
+
+
+def charge_depleting_test(model: Any, cycle: str, max_cycles: int = CD_MAX_CYCLES) -> DepletingTest:
+    """Repeat ``cycle`` from ``battery.soc_max`` until the SOC reaches ``plugin.cs_soc`` in a run
+    (SAE J1711's charge-depleting test). Raises ConfigError when the battery does not deplete."""
+    from hevsim.sim.simulator import simulate
+
+    cfg = model.config
+    cs = float(cfg.plugin.cs_soc)
+    soc = float(cfg.battery.soc_max)
+    runs: list[DepletingRun] = []
+    before = 0.0
+    for _ in range(max_cycles):
+        res = simulate(model, cycle, soc_initial=soc, tracking=TRACKING_BOUND)
+        _check_tracking(res)
+        m = res.metrics
+        run = DepletingRun(
+            float(m["soc_initial"]["value"]),
+            float(m["soc_final"]["value"]),
+            float(m["distance_m"]["value"]),
+            float(m["fuel_kg"]["value"]),
+            float(m["battery_energy_wh"]["value"]) * J_PER_WH,
+            res,
+        )
+        runs.append(run)
+        if run.soc_final <= cs or float(res.timeseries["soc"].min()) <= cs:
+            cda = before + distance_to_soc(res, cs)
+            return DepletingTest(cycle, cs, runs, cda, before + run.distance_m)
+        if run.soc_final >= run.soc_initial - 1e-9:
+            raise ConfigError(
+                f"{model.name} on {cycle}: the charge-depleting test does not deplete the battery (run "
+                f"{len(runs)}: SOC {run.soc_initial:.4f} -> {run.soc_final:.4f}); expected the SOC to fall "
+                f"to 'plugin.cs_soc' = {cs} (check [plugin] and [controller])."
+            )
+        before += run.distance_m
+        soc = run.soc_final
+    raise ConfigError(
+        f"{model.name} on {cycle}: the SOC did not reach 'plugin.cs_soc' = {cs} in {max_cycles} cycles "
+        f"(last {runs[-1].soc_final:.4f}); expected a plug-in hybrid that depletes its battery."
+    )
+
+
 # --- the label -------------------------------------------------------------------------------
 
 
@@ -529,8 +579,6 @@ def label(config: Any, model_year: int | None = None, charger_efficiency: float 
     depleting: dict[str, Any] = {}
     for name, cycle in TESTS:
         if kind == "plug_in":
-            from hevsim.sim.plugin_label import charge_depleting_test
-
             cs = float(model.config.plugin.cs_soc)
             depleting[name] = charge_depleting_test(model, cycle)
             tests[name] = balance_soc(
@@ -611,11 +659,15 @@ def label(config: Any, model_year: int | None = None, charger_efficiency: float 
             figures["units"].update({"mpge": "mi per kg of hydrogen (1 kg = 1 gallon equivalent)",
                                      "hydrogen_kg_per_100mi": "kg/100 mi (adjusted)"})  # fmt: skip
         if kind == "plug_in":
-            from hevsim.sim.plugin_label import plugin_figures
-
             figures.update(
                 plugin_figures(
-                    model, depleting, mpg, lambda kg: _gallons(kg, fuel.density_kg_per_m3), k, coef
+                    model,
+                    depleting,
+                    mpg,
+                    lambda kg: _gallons(kg, fuel.density_kg_per_m3),
+                    k,
+                    coef,
+                    adjusted_electric_mpge,
                 )
             )
             figures["units"].update({

@@ -119,7 +119,7 @@ class DepletingTest:
         return float(sum(r.fuel_kg for r in self.runs))
 
 
-def _distance_to_soc(result: Any, soc_target: float) -> float:
+def distance_to_soc(result: Any, soc_target: float) -> float:
     """Distance [m] driven in a run until its SOC first reaches ``soc_target`` (linear between
     samples; the run's distance if it never does)."""
     ts = result.timeseries
@@ -137,48 +137,6 @@ def _distance_to_soc(result: Any, soc_target: float) -> float:
         return 0.0
     f = (soc[k - 1] - soc_target) / (soc[k - 1] - soc[k]) if soc[k - 1] != soc[k] else 1.0
     return float(scale * (dist[k - 1] + f * (dist[k] - dist[k - 1])))
-
-
-def charge_depleting_test(model: Any, cycle: str, max_cycles: int = CD_MAX_CYCLES) -> DepletingTest:
-    """Repeat ``cycle`` from ``battery.soc_max`` until the SOC reaches ``plugin.cs_soc`` in a run
-    (SAE J1711's charge-depleting test). Raises ConfigError when the battery does not deplete."""
-    from hevsim.sim.checks import TRACKING_BOUND
-    from hevsim.sim.label import _check_tracking
-    from hevsim.sim.simulator import simulate
-
-    cfg = model.config
-    cs = float(cfg.plugin.cs_soc)
-    soc = float(cfg.battery.soc_max)
-    runs: list[DepletingRun] = []
-    before = 0.0
-    for _ in range(max_cycles):
-        res = simulate(model, cycle, soc_initial=soc, tracking=TRACKING_BOUND)
-        _check_tracking(res)
-        m = res.metrics
-        run = DepletingRun(
-            float(m["soc_initial"]["value"]),
-            float(m["soc_final"]["value"]),
-            float(m["distance_m"]["value"]),
-            float(m["fuel_kg"]["value"]),
-            float(m["battery_energy_wh"]["value"]) * J_PER_WH,
-            res,
-        )
-        runs.append(run)
-        if run.soc_final <= cs or float(res.timeseries["soc"].min()) <= cs:
-            cda = before + _distance_to_soc(res, cs)
-            return DepletingTest(cycle, cs, runs, cda, before + run.distance_m)
-        if run.soc_final >= run.soc_initial - 1e-9:
-            raise ConfigError(
-                f"{model.name} on {cycle}: the charge-depleting test does not deplete the battery (run "
-                f"{len(runs)}: SOC {run.soc_initial:.4f} -> {run.soc_final:.4f}); expected the SOC to fall "
-                f"to 'plugin.cs_soc' = {cs} (check [plugin] and [controller])."
-            )
-        before += run.distance_m
-        soc = run.soc_final
-    raise ConfigError(
-        f"{model.name} on {cycle}: the SOC did not reach 'plugin.cs_soc' = {cs} in {max_cycles} cycles "
-        f"(last {runs[-1].soc_final:.4f}); expected a plug-in hybrid that depletes its battery."
-    )
 
 
 def uf_weighted(
@@ -204,11 +162,12 @@ def uf_weighted(
 
 def plugin_figures(
     model: Any, cd: dict[str, DepletingTest], cs_mpg: dict[str, float], gallons_of: Any, constants: Any,
-    coef: Any,
+    coef: Any, adjusted_electric_mpge: Any,
 ) -> dict[str, Any]:  # fmt: skip
     """The label figures of a plug-in hybrid from its charge-depleting tests ``cd`` and its
-    unadjusted charge-sustaining fuel economy ``cs_mpg`` [mi/gal] by test ("city", "highway")."""
-    from hevsim.sim.label import adjusted_electric_mpge
+    unadjusted charge-sustaining fuel economy ``cs_mpg`` [mi/gal] by test ("city", "highway");
+    ``adjusted_electric_mpge(mpge, test, coef, factor)``: the label's electric adjustment
+    (:func:`hevsim.sim.label.adjusted_electric_mpge`)."""
 
     pl = model.config.plugin
     eff = float(pl.charger_efficiency)
