@@ -1131,6 +1131,7 @@ COMMAND_KEYS: dict[str, str] = {
     "body.min_turning_radius_m": "hevsim lap (sharpest corner of a track)",
     "aero.*": "hevsim lap (downforce)",
     "optimization.*": "hevsim optimize (the DP problem)",
+    "plugin.charger_efficiency": "hevsim label (a plug-in hybrid's electricity from the wall)",
 }
 """Keys that act only in another command than ``simulate``, and where (kept, not refused)."""
 

@@ -469,8 +469,8 @@ class Label:
             row("adjusted MPGe", "adjusted_mpge")
             row("adjusted kg H2/100 mi", "hydrogen_kg_per_100mi", fmt="{:>10.2f}")
             lines.append(
-                "MPGe = miles per kg of hydrogen (the EPA counts 1 kg of hydrogen as one gallon of gasoline "
-                "equivalent; LHV 120 MJ/kg)"
+                "MPGe = miles per gallon of hydrogen as [fuel] counts it: 1 kg by default, the EPA's "
+                "gallon of gasoline equivalent (LHV 120 MJ/kg)"
             )
         else:
             row("unadjusted mpg", "unadjusted_mpg")
