@@ -191,3 +191,42 @@ def test_plugin_dataclass_defaults_are_charge_sustaining() -> None:
 
     assert PluginSection().mode == "off"
     assert {f.name for f in dataclasses.fields(PluginSection)} >= {"mode", "cs_soc", "charger_efficiency"}
+
+
+def _hybrid(example: str, plugin: dict, controller: dict | None = None):
+    data = read_toml(EXAMPLES / example)
+    data["plugin"] = plugin
+    if controller:
+        data["controller"] = {**data["controller"], **controller}
+    return build_vehicle(config_from_dict(data, source=example, base_dir=EXAMPLES))
+
+
+@pytest.mark.parametrize("kind", ["electric_assist", "ecms", "aecms"])
+def test_parallel_phev_depletes_first_then_sustains(kind: str) -> None:
+    cs = 0.72  # the appendix's band 0.6..0.7 lies below it
+    fuel, socs = {}, {}
+    for mode in ("off", "ev_first", "blended"):
+        plugin = {"mode": mode} if mode == "off" else {"mode": mode, "cs_soc": cs}
+        if mode == "blended":
+            plugin.update(blended_engine_power_w=5000.0, blended_equivalence_factor=2.0)
+        r = simulate(_hybrid("parallel_hev.toml", plugin, {"kind": kind}), "udds", soc_initial=0.8)
+        fuel[mode], socs[mode] = r.timeseries["fuel_kg"].to_numpy(), r.timeseries["soc"].to_numpy()
+    assert socs["ev_first"].min() < cs  # it depleted to the threshold, then sustains
+    k = int(np.flatnonzero(socs["ev_first"] <= cs)[0])  # the charge-depleting part of the EV-first run
+    assert fuel["ev_first"][k] < fuel["blended"][k]  # blended starts the engine above 5 kW while depleting
+    assert fuel["ev_first"][k] <= fuel["off"][k] * (1 + 1e-12) + 1e-12
+    assert abs(socs["ev_first"][-1] - cs) < 0.15
+
+
+def test_series_phev_thermostat_is_ev_first_and_ecms_blends() -> None:
+    ev = _hybrid("series_hev.toml", {"mode": "ev_first", "cs_soc": 0.75})
+    r = simulate(ev, "udds", soc_initial=0.9)
+    soc = r.timeseries["soc"].to_numpy()
+    fuel = r.timeseries["fuel_kg"].to_numpy()
+    below = np.flatnonzero(soc < ev.config.controller.soc_low)
+    start = int(below[0]) if below.size else soc.size - 1
+    assert fuel[start] == 0.0  # no fuel before the SOC leaves the charge-depleting region and the band
+    plugin = {"mode": "blended", "cs_soc": 0.75, "blended_equivalence_factor": 0.5}
+    blended = _hybrid("series_hev.toml", plugin, {"kind": "ecms"})
+    rb = simulate(blended, "udds", soc_initial=0.9)
+    assert rb.metrics["soc_final"]["value"] < 0.9
