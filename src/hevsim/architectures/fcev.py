@@ -166,10 +166,15 @@ def candidate_controls(fcev: FCEV, n: int) -> tuple[np.ndarray]:
     return (np.linspace(fc.min_power_w, fc.max_power_w, max(int(n), 2)),)
 
 
+CAPABILITY_POINTS = 41
+"""Fuel-cell powers the performance envelope tries, idle to rating (the battery must take or give
+the rest, so the rating alone is infeasible at light load)."""
+
+
 def capability_controls(fcev: FCEV) -> tuple[np.ndarray, ...]:
-    """The fuel cell at idle and at its rating (the performance envelope's candidates)."""
-    fc = fcev.fuel_cell
-    return (np.array([fc.min_power_w, fc.max_power_w]),)
+    """:data:`CAPABILITY_POINTS` fuel-cell powers from idle to the rating (the performance
+    envelope's candidates; the envelope ignores the ramp limits: a sustained capability)."""
+    return candidate_controls(fcev, CAPABILITY_POINTS)
 
 
 def extra_metrics(fcev: FCEV, metrics: dict[str, dict[str, Any]]) -> None:
