@@ -135,8 +135,8 @@ class LoadFollower:
 
     def target_w(self, step: Any) -> float:
         """The load-following target [W] of ``step`` before the ramp limits."""
-        st, _ = step.evaluate(np.array([0.0]), detail=True)
-        load = float(np.ravel(st.details["motor_power_elec_w"])[0]) + self.model.aux_power_w
+        st, _ = step.evaluate(np.array([0.0]))
+        load = float(np.ravel(st.flow.power_elec_w)[0]) + self.model.aux_power_w
         corr = (
             float(np.clip((self.soc_mid - step.soc) / self.half_band, -1.0, 1.0))
             if self.half_band > 0
