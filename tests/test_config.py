@@ -28,6 +28,7 @@ EXAMPLES = {
     "conventional": ROOT / "examples" / "conventional_sedan.toml",
     "bev": ROOT / "examples" / "bev.toml",
     "power_split": ROOT / "examples" / "prius_like_power_split.toml",
+    "fcev": ROOT / "examples" / "fcev.toml",
 }
 CONFIG_TYPES = {name: spec.config_type for name, spec in C.ARCHITECTURES.items()}
 NUMERIC = (float, int)

@@ -17,6 +17,7 @@ import pytest
 import yaml
 
 from hevsim.cli import main
+from hevsim.config import load_vehicle_config
 from hevsim.cycles import DriveCycle
 from hevsim.vehicle_import import fastsim_test_mass_kg, read_vehicle
 
@@ -139,11 +140,23 @@ def test_bad_input_exits_2_naming_file_key_value(tmp_path: Path, capsys: pytest.
     assert "odd.yaml" in err and "'warp_drive_kw'" in err
 
 
-def test_phev_and_fuel_cell_refused_by_name(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    err = _refused(capsys, str(DB), "--name", "2017 Prius Prime", "-o", str(tmp_path / "p.toml"))
-    assert "'veh_pt_type' = 'PHEV'" in err and "plug-in hybrids are not supported" in err
-    err = _refused(capsys, str(DB), "--name", "Toyota Mirai", "-o", str(tmp_path / "f.toml"))
-    assert "'fc_eff_type' = 'H2FC'" in err and "fuel-cell vehicles are not supported" in err
+def test_phev_and_fuel_cell_import_as_plugin_parallel_and_fcev(tmp_path: Path) -> None:
+    from hevsim.vehicle_import import hevsim_architecture, read_vehicle
+
+    prime = _import(tmp_path, DB, "--name", "2017 Prius Prime", name="prime")
+    cfg = load_vehicle_config(prime)
+    assert cfg.architecture == "parallel" and cfg.plugin.mode == "blended"
+    assert (
+        cfg.plugin.charger_efficiency == 0.86 and cfg.plugin.blended_engine_power_w == 68000.0
+    )  # chg_eff, kw
+    assert cfg.battery.soc_min < cfg.plugin.cs_soc < cfg.battery.soc_max
+    mirai = _import(tmp_path, DB, "--name", "Toyota Mirai", name="mirai")
+    cfg = load_vehicle_config(mirai)
+    assert cfg.architecture == "fcev" and cfg.fuel_cell.max_power_w == 114000.0
+    assert cfg.fuel_cell.ramp_up_w_per_s == pytest.approx(114000.0 / 5.0)  # fc_max_kw / fc_sec_to_peak_pwr
+    assert (tmp_path / "mirai_fuel_cell" / "efficiency.csv").is_file()
+    assert hevsim_architecture(read_vehicle(DB, name="Toyota Mirai")) == "fcev"
+    assert hevsim_architecture(read_vehicle(DB, name="2017 Prius Prime")) == "parallel"
 
 
 def test_written_file_comments_the_approximations(tmp_path: Path) -> None:

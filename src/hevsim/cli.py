@@ -139,8 +139,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     m = result.metrics
     print(f"{cfg.name} on {cycle.name}: {m['distance_mi']['value']:.2f} mi")
     for key in ("mpg", "mpgge", "l_per_100km", "co2_g_per_km", "soc_final",
-                "speed_error_rms_mph", "energy_audit_residual_pct"):  # fmt: skip
-        print(f"  {key:<28}{m[key]['value']:>12.4g} {m[key]['unit']}")
+                "speed_error_rms_mph", "energy_audit_residual_pct", "hydrogen_kg", "mpge"):  # fmt: skip
+        if key in m:  # hydrogen_kg, mpge: a fuel-cell vehicle's (hevsim.sim.fcev)
+            print(f"  {key:<28}{m[key]['value']:>12.4g} {m[key]['unit']}")
     if "pack_peak_cell_temp_c" in m:  # [battery] model = "pack"
         print(f"  pack: peak cell {m['pack_peak_cell_temp_c']['value']:.1f} degC, derated "
               f"{m['pack_derated_s']['value']:.0f} s, held back by the BMS "
@@ -854,9 +855,10 @@ def _add_dp_options(p: argparse.ArgumentParser, final_soc: str) -> None:
     p.add_argument(
         "--final-soc",
         default=final_soc,
-        choices=("config", "sustain", "window"),
+        choices=("config", "sustain", "window", "deplete"),
         help="final SOC: as configured, charge sustaining (initial within the configured "
-        f"tolerance) or the configured window (default {final_soc})",
+        "tolerance), the configured window or a plug-in hybrid's depletion target (plugin.cs_soc "
+        f"within the tolerance) (default {final_soc})",
     )
     p.add_argument("--soc-points", type=int, help="SOC grid points (default per architecture)")
     p.add_argument("--input-points", type=int, help="control grid points (default per architecture)")

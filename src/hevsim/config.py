@@ -284,7 +284,7 @@ class DriverSection:
 
 CONTROLLER_KINDS: tuple[str, ...] = (
     "thermostat", "schedule", "electric_assist", "ecms", "aecms", "shift_schedule", "direct",
-    "power_follower",
+    "power_follower", "load_follower",
 )  # fmt: skip
 """Every ``[controller] kind``; which ones an architecture admits is in
 :data:`ARCHITECTURES` (``controllers``)."""
@@ -364,14 +364,67 @@ class ControllerSection:
 
 
 @dataclass(frozen=True)
+class FuelCellSection:
+    """Fuel-cell system of a fuel-cell vehicle (``architecture = "fcev"``,
+    :class:`hevsim.components.fuel_cell.FuelCellSystem`): ``data`` names a folder (shipped under
+    ``hevsim/data/components/fuel_cells`` or relative to the file) with ``efficiency.csv``, the
+    net system efficiency vs net power as a fraction of ``max_power_w`` [W]; ``min_power_w``
+    [W]: idle (the system never runs below it); ramp limits ``ramp_up_w_per_s`` and
+    ``ramp_down_w_per_s`` [W/s] on its net power; ``initial_power_w`` [W]: its power before the
+    first step (clipped to the idle and rated power)."""
+
+    data: str = "fastsim_h2fc"
+    max_power_w: float = param(114000.0, 1.0, 1e7, "W")
+    min_power_w: float = param(2000.0, 0.0, 1e7, "W")
+    ramp_up_w_per_s: float = param(20000.0, 1e-3, 1e9, "W/s")
+    ramp_down_w_per_s: float = param(40000.0, 1e-3, 1e9, "W/s")
+    initial_power_w: float = param(0.0, 0.0, 1e7, "W")
+
+
+PLUGIN_MODES: tuple[str, ...] = ("off", "ev_first", "blended")
+"""``[plugin] mode`` values: ``"off"`` (a charge-sustaining hybrid) or a plug-in hybrid's
+charge-depleting strategy."""
+
+
+@dataclass(frozen=True)
+class PluginSection:
+    """Plug-in hybrid (PHEV): any series, parallel or power-split HEV with ``mode`` other than
+    ``"off"`` charges from the grid and runs charge-depleting (CD) while its SOC lies above
+    ``cs_soc`` [-], then charge-sustaining (CS) with its own ``[controller]``.
+
+    ``mode = "ev_first"``: in CD the vehicle drives electrically whenever it can (the engine
+    only helps where the machine or battery cannot give the demand; ECMS prices battery energy
+    at 0). ``mode = "blended"``: in CD the rule-based controllers start the engine only above
+    the wheel power ``blended_engine_power_w`` [W] (and add no charging power), ECMS / A-ECMS
+    use ``blended_equivalence_factor`` [-]. The usable window is the battery's
+    ``soc_min``..``soc_max``: a label's CD test starts full (``soc_max``) and ``cs_soc`` must
+    lie strictly inside it. ``charger_efficiency`` [-]: wall (AC) to battery energy, for the
+    label's electricity from the wall (default 0.86, FASTSim's ``chg_eff``).
+    """
+
+    mode: str = choice("off", *PLUGIN_MODES)
+    cs_soc: float = param(0.3, 0.0, 1.0, "-")
+    blended_engine_power_w: float = param(20000.0, 0.0, 1e7, "W")
+    blended_equivalence_factor: float = param(1.0, 0.0, 100.0, "-")
+    charger_efficiency: float = param(0.86, 0.01, 1.0, "-")
+
+
+def is_plugin(cfg: Any) -> bool:
+    """Whether a configuration is a plug-in hybrid (``[plugin] mode`` other than ``"off"``)."""
+    plugin = getattr(cfg, "plugin", None)
+    return plugin is not None and plugin.mode != "off"
+
+
+@dataclass(frozen=True)
 class OptimizationSection:
     """Dynamic-programming settings (``hevsim optimize``), one section for every architecture
     with a DP formulation; these defaults are the parallel HEV's (the appendix's problem), the
     series and power split take :class:`SustainingOptimizationSection`'s.
 
     ``cycle`` (empty: the ``[simulation]`` cycle); ``soc_initial`` [-]; ``final_soc``
-    ``"window"`` (``final_soc_min``..``final_soc_max`` [-]) or ``"sustain"`` (within
-    ``soc_tolerance`` [-] of the initial SOC); ``soc_grid_points`` over the battery's SOC
+    ``"window"`` (``final_soc_min``..``final_soc_max`` [-]), ``"sustain"`` (within
+    ``soc_tolerance`` [-] of the initial SOC) or, for a plug-in hybrid, ``"deplete"`` (within
+    ``soc_tolerance`` of ``plugin.cs_soc``: the depletion target); ``soc_grid_points`` over the battery's SOC
     window; ``input_grid_points``: the control grid (parallel: throttles, series: genset
     electrical powers, power split: throttles per engine speed), 0 = the architecture's
     default (parallel: ``throttle_grid_points``, series: 101, power split:
@@ -380,7 +433,7 @@ class OptimizationSection:
 
     cycle: str = "udds"
     soc_initial: float = param(0.8, 0.0, 1.0, "-")
-    final_soc: str = choice("window", "window", "sustain")
+    final_soc: str = choice("window", "window", "sustain", "deplete")
     final_soc_min: float = param(0.7, 0.0, 1.0, "-")
     final_soc_max: float = param(0.8, 0.0, 1.0, "-")
     soc_tolerance: float = param(0.005, 0.0, 1.0, "-")
@@ -404,7 +457,7 @@ class SustainingOptimizationSection(OptimizationSection):
 
     cycle: str = ""
     soc_initial: float = param(SOC_INITIAL_FROM_SIMULATION, SOC_INITIAL_FROM_SIMULATION, 1.0, "-")
-    final_soc: str = choice("sustain", "window", "sustain")
+    final_soc: str = choice("sustain", "window", "sustain", "deplete")
     final_soc_min: float = param(0.0, 0.0, 1.0, "-")
     final_soc_max: float = param(1.0, 0.0, 1.0, "-")
     soc_grid_points: int = param(201, 2, 100_000, "-")
@@ -478,6 +531,7 @@ class SeriesHEVConfig(_VehicleConfig):
     optimization: SustainingOptimizationSection = field(default_factory=SustainingOptimizationSection)
     metrics: MetricsSection = field(default_factory=MetricsSection)
     fuel: FuelSection = field(default_factory=FuelSection)  # hevsim.fuels: choose/override the fuel
+    plugin: PluginSection = field(default_factory=PluginSection)  # plug-in hybrid (PHEV)
     base_dir: str = "."
 
 
@@ -507,6 +561,7 @@ class ParallelHEVConfig(_VehicleConfig):
     optimization: OptimizationSection = field(default_factory=OptimizationSection)
     metrics: MetricsSection = field(default_factory=MetricsSection)
     fuel: FuelSection = field(default_factory=FuelSection)  # hevsim.fuels: choose/override the fuel
+    plugin: PluginSection = field(default_factory=PluginSection)  # plug-in hybrid (PHEV)
     base_dir: str = "."
 
 
@@ -556,6 +611,30 @@ class BEVConfig(_VehicleConfig):
 
 
 @dataclass(frozen=True)
+class FCEVConfig(_VehicleConfig):
+    """A fuel-cell vehicle: the series HEV's electric drive (machine on a single reduction,
+    battery on the DC bus, blended brakes) with a fuel-cell system in place of the genset."""
+
+    name: str = "fcev"
+    description: str = ""
+    preset: str = ""
+    powertrain: PowertrainSection = field(default_factory=lambda: PowertrainSection("fcev"))
+    body: BodySection = field(default_factory=BodySection)
+    tire: TireSection = field(default_factory=TireSection)
+    aero: AeroSection = field(default_factory=AeroSection)
+    final_drive: GearSection = field(default_factory=GearSection)
+    motor: MachineSection = field(default_factory=MachineSection)
+    fuel_cell: FuelCellSection = field(default_factory=FuelCellSection)
+    battery: BatterySection = field(default_factory=BatterySection)
+    brakes: BrakesSection = field(default_factory=BrakesSection)
+    simulation: SimulationSection = field(default_factory=SimulationSection)
+    controller: ControllerSection = field(default_factory=lambda: ControllerSection(kind="load_follower"))
+    metrics: MetricsSection = field(default_factory=MetricsSection)
+    fuel: FuelSection = field(default_factory=lambda: FuelSection(name="hydrogen"))
+    base_dir: str = "."
+
+
+@dataclass(frozen=True)
 class PowerSplitConfig(_VehicleConfig):
     """A power-split HEV (Toyota THS style): engine on the planet carrier, generator (MG1) on
     the sun, motor (MG2, through ``motor_coupling``) and the final drive on the ring."""
@@ -580,6 +659,7 @@ class PowerSplitConfig(_VehicleConfig):
     optimization: SustainingOptimizationSection = field(default_factory=SustainingOptimizationSection)
     metrics: MetricsSection = field(default_factory=MetricsSection)
     fuel: FuelSection = field(default_factory=FuelSection)
+    plugin: PluginSection = field(default_factory=PluginSection)  # plug-in hybrid (PHEV)
     base_dir: str = "."
 
 
@@ -647,8 +727,47 @@ def _check_optimization(cfg: Any, source: str) -> None:
         )
 
 
+RULE_BASED_CONTROLLERS: tuple[str, ...] = ("thermostat", "schedule", "electric_assist", "power_follower")
+"""Controller kinds that hold the SOC in a ``soc_low``..``soc_high`` band (charge sustaining)."""
+
+
+def _check_plugin(cfg: Any, source: str) -> None:
+    """The ``[plugin]`` section of a hybrid: ``cs_soc`` strictly inside the usable SOC window,
+    the rule-based controller's charge-sustaining band at or below it, a power rule for a
+    blended strategy, and the DP's ``"deplete"`` target only for a plug-in hybrid."""
+    pl, b = cfg.plugin, cfg.battery
+    o = getattr(cfg, "optimization", None)
+    if pl.mode == "off":
+        if o is not None and o.final_soc == "deplete":
+            raise ConfigError(
+                f"{source}: key 'optimization.final_soc' = 'deplete' needs a plug-in hybrid; got "
+                "'plugin.mode' = 'off' (expected 'ev_first' or 'blended', or final_soc 'sustain'/'window')."
+            )
+        return
+    if not b.soc_min < pl.cs_soc < b.soc_max:
+        raise ConfigError(
+            f"{source}: key 'plugin.cs_soc' = {pl.cs_soc} lies outside the usable SOC window "
+            f"('battery.soc_min', 'battery.soc_max') = ({b.soc_min}, {b.soc_max}); expected a value "
+            "strictly inside it (charge depleting runs from soc_max down to cs_soc)."
+        )
+    kind = cfg.controller.kind
+    if kind in RULE_BASED_CONTROLLERS and cfg.controller.soc_high > pl.cs_soc:
+        raise ConfigError(
+            f"{source}: key 'controller.soc_high' = {cfg.controller.soc_high} lies above 'plugin.cs_soc' = "
+            f"{pl.cs_soc}; expected the charge-sustaining band 'controller.soc_low'..'soc_high' at or below "
+            "the charge-depleting threshold."
+        )
+    if pl.mode == "blended" and cfg.architecture == "series" and kind in ("thermostat", "schedule"):
+        raise ConfigError(
+            f"{source}: key 'plugin.mode' = 'blended' needs a controller with a power rule; the series HEV's "
+            f"'controller.kind' = {kind!r} starts its genset on the SOC only; expected 'plugin.mode' = "
+            "'ev_first' or 'controller.kind' = 'ecms' / 'aecms'."
+        )
+
+
 def _check_series(cfg: SeriesHEVConfig, source: str) -> None:
     _check_controller(cfg, source)
+    _check_plugin(cfg, source)
     if cfg.controller.kind in SERIES_ONLINE_CONTROLLERS:
         check_series_online(cfg, source, cfg.controller.kind)
     _pairs_below(cfg, source, (("controller.soc_low", "controller.soc_high"),
@@ -682,6 +801,7 @@ def _series_online_refusal(cfg: SeriesHEVConfig) -> str:
 
 def _check_parallel(cfg: ParallelHEVConfig, source: str) -> None:
     _check_controller(cfg, source)
+    _check_plugin(cfg, source)
     _pairs_below(cfg, source, (("battery.soc_min", "battery.soc_max"),
                                ("controller.soc_low", "controller.soc_high"),
                                ("controller.downshift_rpm", "controller.upshift_rpm"),
@@ -734,6 +854,7 @@ def _check_bev(cfg: BEVConfig, source: str) -> None:
 
 def _check_power_split(cfg: PowerSplitConfig, source: str) -> None:
     _check_controller(cfg, source)
+    _check_plugin(cfg, source)
     _pairs_below(cfg, source, (("battery.soc_min", "battery.soc_max"),
                                ("controller.soc_low", "controller.soc_high"),
                                ("engine.stall_speed_rpm", "engine.redline_rpm"),
@@ -755,6 +876,23 @@ def _check_power_split(cfg: PowerSplitConfig, source: str) -> None:
         raise ConfigError(
             f"{source}: key 'battery.model' = 'cell' is not supported by the power split; expected one of "
             "ideal, rint, table, pack."
+        )
+
+
+def _check_fcev(cfg: FCEVConfig, source: str) -> None:
+    _check_controller(cfg, source)
+    _pairs_below(cfg, source, (("battery.soc_min", "battery.soc_max"),
+                               ("controller.soc_low", "controller.soc_high")))  # fmt: skip
+    fc = cfg.fuel_cell
+    if fc.min_power_w >= fc.max_power_w:
+        raise ConfigError(
+            f"{source}: key 'fuel_cell.min_power_w' = {fc.min_power_w} must be below "
+            f"'fuel_cell.max_power_w' = {fc.max_power_w}."
+        )
+    if cfg.battery.model == "cell":
+        raise ConfigError(
+            f"{source}: key 'battery.model' = 'cell' is not supported by the fcev architecture; expected "
+            "one of ideal, rint, table, pack."
         )
 
 
@@ -821,6 +959,12 @@ register_architecture(ArchitectureSpec(
     "power_split", PowerSplitConfig, ("power_follower", "ecms", "aecms"),
     lambda data: ("body", "tire", "final_drive", "planetary", "engine", "generator", "motor", "battery"),
     _check_power_split,
+))  # fmt: skip
+
+
+register_architecture(ArchitectureSpec(
+    "fcev", FCEVConfig, ("load_follower",),
+    lambda data: ("body", "tire", "final_drive", "motor", "fuel_cell", "battery"), _check_fcev,
 ))  # fmt: skip
 
 
@@ -998,7 +1142,7 @@ def check_road_load_form(keys: list[str], source: str, label: str = "vehicle") -
 # ------------------------------------------------------------------------------------------
 ARCHITECTURE_LABELS: dict[str, str] = {
     "series": "series HEV", "parallel": "parallel HEV", "power_split": "power-split HEV",
-    "conventional": "conventional vehicle", "bev": "battery-electric vehicle",
+    "conventional": "conventional vehicle", "bev": "battery-electric vehicle", "fcev": "fuel-cell vehicle",
 }  # fmt: skip
 """How messages name the vehicle of an architecture."""
 
@@ -1014,6 +1158,7 @@ COMMAND_KEYS: dict[str, str] = {
     "body.min_turning_radius_m": "hevsim lap (sharpest corner of a track)",
     "aero.*": "hevsim lap (downforce)",
     "optimization.*": "hevsim optimize (the DP problem)",
+    "plugin.charger_efficiency": "hevsim label (a plug-in hybrid's electricity from the wall)",
 }
 """Keys that act only in another command than ``simulate``, and where (kept, not refused)."""
 
@@ -1034,6 +1179,7 @@ CONTROLLER_KEYS: dict[str, tuple[str, ...]] = {
     "power_follower": ("soc_low", "soc_high", "ev_speed_mps", "ev_power_w", "charge_power_w",
                        "engine_min_power_w", "control_points"),
     "direct": (),
+    "load_follower": ("soc_low", "soc_high", "charge_power_w"),
 }  # fmt: skip
 """``[controller]`` keys each controller kind reads (the one table: :data:`hevsim.control.CONTROLLERS`
 takes its ``parameters`` from here, and :func:`inert_keys` refuses the others)."""
@@ -1081,6 +1227,14 @@ def inert_keys(cfg: Any) -> dict[str, str]:
     for f in dataclasses.fields(ControllerSection):
         if f.name not in reads:
             out[f"controller.{f.name}"] = f"none of its controllers ({', '.join(kinds)}) reads it"
+    plugin = getattr(cfg, "plugin", None)
+    if plugin is not None and plugin.mode != "blended":
+        why = "plugin.mode = 'off' (a charge-sustaining hybrid)" if plugin.mode == "off" else (
+            "plugin.mode = 'ev_first' (only 'blended' reads it)"
+        )  # fmt: skip
+        for f in dataclasses.fields(PluginSection):
+            if f.name != "mode" and (plugin.mode == "off" or f.name.startswith("blended_")):
+                out[f"plugin.{f.name}"] = why
     body = getattr(cfg, "body", None)
     if body is not None and body.test_mass_kg > 0.0:
         for name in ROAD_LOAD_PHYSICAL:
@@ -1109,9 +1263,13 @@ def inert_keys(cfg: Any) -> dict[str, str]:
         out["brakes.max_decel_mps2"] = _SERIES_ONLY
         for sec in ("engine", "motor", "generator"):
             out[f"{sec}.inertia_kgm2"] = _SERIES_ONLY
-    if arch != "bev" and hasattr(cfg, "brakes"):
-        out.setdefault("brakes.regen_fraction", "only the battery-electric vehicle blends its brakes")
-    if arch not in ("series", "bev") and hasattr(cfg, "brakes"):  # the power split regenerates at any speed
+    if arch not in ("bev", "fcev") and hasattr(cfg, "brakes"):
+        out.setdefault(
+            "brakes.regen_fraction", "only the battery-electric and fuel-cell vehicles blend their brakes"
+        )
+    if arch not in ("series", "bev", "fcev") and hasattr(
+        cfg, "brakes"
+    ):  # the power split regenerates at any speed
         out.setdefault("brakes.regen_min_speed_mps", "it regenerates down to standstill")
     for sec in ("motor", "generator"):
         m = getattr(cfg, sec, None)
@@ -1186,7 +1344,9 @@ def check_inert(cfg: Any, keys: list[str], source: str) -> None:
     """ConfigError naming the first of the dotted ``keys`` (those a file sets) that does
     nothing for ``cfg``'s vehicle (:func:`inert_keys`)."""
     inert = inert_keys(cfg)
-    label = ARCHITECTURE_LABELS.get(cfg.architecture, f"{cfg.architecture} vehicle")
+    label = ("plug-in " if is_plugin(cfg) else "") + ARCHITECTURE_LABELS.get(
+        cfg.architecture, f"{cfg.architecture} vehicle"
+    )
     for key in keys:
         why = inert.get(key) or inert.get(f"{key.partition('.')[0]}.*")
         if not why and key in DATA_KEYS:

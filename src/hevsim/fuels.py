@@ -110,8 +110,10 @@ def _table() -> tuple[dict[str, Fuel], float]:
         values: dict[str, Any] = {}
         for key in PROPERTIES:
             v = entry.get(key)
-            if isinstance(v, bool) or not isinstance(v, int | float) or not v > 0:
-                raise InputError(f"{path}: key 'fuels.{name}.{key}' = {v!r}; expected a positive number.")
+            zero_ok = key == "co2_kg_per_kg"  # a carbon-free fuel (hydrogen) emits none
+            if isinstance(v, bool) or not isinstance(v, int | float) or not (v > 0 or (zero_ok and v == 0)):
+                what = "a number >= 0" if zero_ok else "a positive number"
+                raise InputError(f"{path}: key 'fuels.{name}.{key}' = {v!r}; expected {what}.")
             values[key] = float(v)
         fuels[name] = Fuel(name=name, description=str(entry.get("description", "")), **values)
     ref = data.get("mpgge", {}).get("reference_heating_value_btu_per_us_gal")

@@ -185,7 +185,7 @@ GROUPS: tuple[KernelGroup, ...] = (
             "hevsim.architectures.conventional:_points_many",
             "hevsim.architectures.bev:_wheel_many",
         ),
-        ("python_loop",),
+        ("python_loop", "fcev"),  # the fuel-cell vehicle runs the Python loop on the BEV's wheel kernel
         15.0,
     ),
     KernelGroup(

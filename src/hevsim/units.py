@@ -13,6 +13,9 @@ M_PER_MILE = 1609.344
 """Metres in one international mile [m] (exact)."""
 M3_PER_US_GALLON = 3.785411784e-3
 """Cubic metres in one US liquid gallon [m^3] (exact)."""
+KWH_PER_GALLON_EQUIVALENT = 33.705
+"""Electricity [kWh] counted as one gallon of gasoline equivalent for MPGe (EPA/NHTSA fuel-economy
+label rule, 76 FR 39478, 2011; the label's ``hevsim/data/epa_label.toml`` holds the same value)."""
 J_PER_WH = 3600.0
 """Joules in one watt-hour [J] (exact)."""
 BTU_PER_WH = 3.412

@@ -8,9 +8,10 @@ vehicle.rs`` ``set_veh_mass`` / ``set_derived``, ``simdrive/simdrive_impl.rs`` a
 with the constants they use; the mapping of every key is :func:`key_treatment` (also in
 docs/import_vehicle.md). Nothing of FASTSim's code is copied.
 
-Architectures: ``Conv`` -> conventional, ``HEV`` -> parallel (P2: FASTSim's engine and motor
-add their power at the transmission input), ``BEV`` -> bev; ``PHEV`` and fuel-cell vehicles
-(``fc_eff_type = "H2FC"``) are refused (not supported yet).
+Architectures (:func:`hevsim_architecture`): ``Conv`` -> conventional, ``HEV`` -> parallel (P2:
+FASTSim's engine and motor add their power at the transmission input), ``BEV`` -> bev, ``PHEV`` ->
+a parallel HEV with a ``[plugin]`` section (blended: the engine starts above ``kw_demand_fc_on``
+while depleting), a fuel-cell vehicle (``fc_eff_type = "H2FC"``, any ``veh_pt_type``) -> fcev.
 """
 
 from __future__ import annotations
@@ -57,7 +58,39 @@ FUELS = {"SI": "gasoline", "Atkinson": "gasoline", "Diesel": "diesel", "HD_Diese
 """hevsim fuel (``hevsim/data/fuels.toml``) of each FASTSim ``fc_eff_type``."""
 ARCHITECTURE_OF = {"Conv": "conventional", "HEV": "parallel", "BEV": "bev"}
 """hevsim architecture of each FASTSim ``veh_pt_type`` that can be imported."""
-NOT_YET = {"PHEV": "plug-in hybrids", "FCEV": "fuel-cell vehicles"}
+NOT_YET: dict[str, str] = {}
+"""FASTSim powertrain types refused for now (none: PHEV and fuel-cell vehicles import since issue 25)."""
+PHEV_CS_FRACTION = 0.1
+"""An imported PHEV's ``plugin.cs_soc``: this share into its SOC window above ``min_soc`` [-] (assumed;
+FASTSim sustains the charge near ``min_soc``)."""
+PHEV_SOC_LOW_FRACTION = 0.05
+"""An imported PHEV's charge-sustaining ``controller.soc_low``: this share into the window [-] (assumed)."""
+FCEV_CHARGE_POWER_FRACTION = 0.1
+"""An imported FCEV's ``controller.charge_power_w`` as a share of its fuel cell's rating [-] (assumed)."""
+
+
+def is_fuel_cell(v: dict[str, Any]) -> bool:
+    """Whether the fastsim-2 vehicle ``v`` is a fuel-cell vehicle (``fc_eff_type = "H2FC"``)."""
+    return str(v.get("fc_eff_type", "")).strip() == "H2FC" or str(v.get("veh_pt_type", "")).strip() == "FCEV"
+
+
+def hevsim_architecture(v: dict[str, Any], source: str = "FASTSim vehicle") -> str:
+    """The hevsim architecture a fastsim-2 vehicle ``v`` imports as (``fcev`` for a fuel cell,
+    ``parallel`` with ``[plugin]`` for a PHEV, else :data:`ARCHITECTURE_OF`); ConfigError naming
+    ``veh_pt_type`` for an unknown type."""
+    pt = str(v.get("veh_pt_type", "")).strip()
+    if is_fuel_cell(v):
+        return "fcev"
+    if pt == "PHEV":
+        return "parallel"
+    if pt not in ARCHITECTURE_OF:
+        raise ConfigError(
+            f"{source}: key 'veh_pt_type' = {pt!r} is not a FASTSim powertrain type hevsim knows; "
+            f"expected one of {', '.join((*ARCHITECTURE_OF, 'PHEV'))} (or fc_eff_type 'H2FC' for a "
+            "fuel-cell vehicle)."
+        )
+    return ARCHITECTURE_OF[pt]
+
 
 # ----------------------------------------------------------------------------- hevsim choices
 ENGINE_IDLE_RPM = 700.0
@@ -608,30 +641,14 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
     """The commented hevsim vehicle TOML of the fastsim-2 vehicle ``v`` (maps in ``<stem>_engine``,
     ``<stem>_motor`` beside it)."""
     pt = str(v["veh_pt_type"]).strip()
-    if str(v.get("fc_eff_type", "")).strip() == "H2FC" or pt == "FCEV":
-        raise ConfigError(
-            f"{source}: key 'fc_eff_type' = 'H2FC' (a fuel-cell vehicle): fuel-cell vehicles are not "
-            "supported "
-            "by hevsim import-vehicle yet."
-        )
-    if pt in NOT_YET:
-        raise ConfigError(
-            f"{source}: key 'veh_pt_type' = {pt!r}: {NOT_YET[pt]} are not supported by hevsim "
-            "import-vehicle yet."
-        )
-    if pt not in ARCHITECTURE_OF:
-        raise ConfigError(
-            f"{source}: key 'veh_pt_type' = {pt!r} is not a FASTSim powertrain type hevsim knows; "
-            "expected one of "
-            f"{', '.join(ARCHITECTURE_OF)} (PHEV and fuel-cell vehicles are not supported yet)."
-        )
+    arch = hevsim_architecture(v, source)
+    plugin = pt == "PHEV" and arch == "parallel"
     if v.get("charging_on") or any(v.get("max_roadway_chg_kw") or []):
         raise ConfigError(
             f"{source}: keys 'charging_on' / 'max_roadway_chg_kw': roadway charging is not modelled; "
             "expected it off."
         )
-    arch = ARCHITECTURE_OF[pt]
-    has_engine = arch != "bev"
+    has_engine = arch not in ("bev", "fcev")
     fuel_type = str(v.get("fc_eff_type", "")).strip()
     if has_engine and fuel_type not in FUELS and not isinstance(v.get("fc_eff_map"), list):
         raise ConfigError(f"{source}: key 'fc_eff_type' = {fuel_type!r}; expected one of {', '.join(FUELS)}.")
@@ -729,12 +746,14 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
         a(f"heating_value_btu_per_us_gal = {_fmt(FASTSIM_KWH_PER_GGE * 3.6e6 / 1055.05585262)}")
         a("")
     else:
+        if arch == "fcev":
+            _fuel_cell_toml(a, v, stem)
         red = _motor_speed_max_radps() * r / 45.0
         a("[final_drive]   # single reduction (assumed: FASTSim has no gears)")
         a(f"ratio = {_fmt(red)}   # {MOTOR_MAX_RPM_AT_45_MPS:g} rpm at 45 m/s")
         a(f"efficiency = {_fmt(trans_eff)}   # trans_eff")
         a("")
-    electric = arch in ("parallel", "bev")
+    electric = arch in ("parallel", "bev", "fcev")
     if electric:
         a("[motor]")
         a('model = "map"')
@@ -771,7 +790,7 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
     a("dt_s = 1.0   # FASTSim's cycles are 1 s")
     if electric:
         lo, hi = float(v.get("min_soc") or 0.0), float(v.get("max_soc") or 1.0)
-        a(f"soc_initial = {_fmt(hi if arch == 'bev' else 0.5 * (lo + hi))}")
+        a(f"soc_initial = {_fmt(hi if arch == 'bev' or plugin else 0.5 * (lo + hi))}")
     a("")
     a("[controller]")
     aux = float(v["aux_kw"]) * 1e3
@@ -792,8 +811,16 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
         a(f"ev_power_w = {_fmt(min(float(v.get('kw_demand_fc_on') or 0.0) * 1e3, 1e7))}   # kw_demand_fc_on")
         a("# FASTSim's speed-dependent SOC buffers (max_accel_buffer_mph, its regen buffer) approximated by")
         a("# a fixed band; min_fc_time_on and max_regen are not carried (docs/import_vehicle.md)")
-        a(f"soc_low = {_fmt(lo + 0.25 * (hi - lo))}   # a quarter into the SOC window (assumed)")
-        a(f"soc_high = {_fmt(lo + 0.5 * (hi - lo))}   # mid-window (assumed)")
+        if plugin:
+            cs = lo + PHEV_CS_FRACTION * (hi - lo)
+            a(
+                f"soc_low = {_fmt(lo + PHEV_SOC_LOW_FRACTION * (hi - lo))}"
+                "   # charge sustaining below cs_soc (assumed)"
+            )
+            a(f"soc_high = {_fmt(cs)}   # = plugin.cs_soc")
+        else:
+            a(f"soc_low = {_fmt(lo + 0.25 * (hi - lo))}   # a quarter into the SOC window (assumed)")
+            a(f"soc_high = {_fmt(lo + 0.5 * (hi - lo))}   # mid-window (assumed)")
         a(
             f"engine_on_speed_mps = {_fmt(min(float(v.get('mph_fc_on') or 0.0) * 0.44704, 1000.0))}   "
             "# mph_fc_on: FASTSim forces the engine on above it whatever the SOC (braking too)"
@@ -806,6 +833,37 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
         a("# surplus charging the battery below soc_high; idle_fc_kw is the engine map's fuel floor")
         if aux > 0:
             a(f"aux_power_w = {_fmt(aux)}   # aux_kw (on the bus)")
+        if plugin:
+            a("")
+            a("[plugin]   # FASTSim PHEV: charge depleting, the engine on above kw_demand_fc_on (blended)")
+            a('mode = "blended"')
+            a(f"cs_soc = {_fmt(cs)}   # {PHEV_CS_FRACTION:g} into the SOC window above min_soc (assumed)")
+            a(
+                f"blended_engine_power_w = {_fmt(min(float(v.get('kw_demand_fc_on') or 0.0) * 1e3, 1e7))}"
+                "   # kw_demand_fc_on (mph_fc_on is not used while depleting: approximated)"
+            )
+            a(
+                f"charger_efficiency = {_fmt(min(max(float(v.get('chg_eff') or 0.86), 0.01), 1.0))}"
+                "   # chg_eff"
+            )
+    elif arch == "fcev":
+        lo, hi = float(v.get("min_soc") or 0.0), float(v.get("max_soc") or 1.0)
+        a('kind = "load_follower"   # the fuel cell follows the bus load, SOC-corrected (FASTSim: HEV rules)')
+        a(f"soc_low = {_fmt(lo + 0.25 * (hi - lo))}   # a quarter into the SOC window (assumed)")
+        a(f"soc_high = {_fmt(lo + 0.75 * (hi - lo))}   # (assumed)")
+        a(
+            f"charge_power_w = {_fmt(FCEV_CHARGE_POWER_FRACTION * float(v['fc_max_kw']) * 1e3)}   "
+            f"# {FCEV_CHARGE_POWER_FRACTION:g} x fc_max_kw (assumed)"
+        )
+        if aux > 0:
+            a(f"aux_power_w = {_fmt(aux)}   # aux_kw (on the bus)")
+        a("")
+        a("[brakes]")
+        a(f"regen_fraction = {_fmt(min(max(float(v.get('max_regen') or 0.0), 0.0), 1.0))}   # max_regen")
+        a(
+            f"regen_min_speed_mps = {_fmt(regen_half_speed_mps(v))}   # where FASTSim's regen curve "
+            "(regen_a, regen_b) reaches half"
+        )
     else:
         a('kind = "direct"')
         if aux > 0:
@@ -823,6 +881,47 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
     return "\n".join(L) + "\n"
 
 
+def _fuel_cell_toml(a: Any, v: dict[str, Any], stem: str) -> None:
+    """The ``[fuel_cell]`` and ``[fuel]`` sections of an imported fuel-cell vehicle."""
+    from hevsim.fuels import get_fuel
+
+    kw = float(v["fc_max_kw"])
+    secs = float(v.get("fc_sec_to_peak_pwr") or 0.0)
+    ramp = kw * 1e3 / secs if secs > 0 else 1e9
+    a("[fuel_cell]   # FASTSim's fuel converter of type H2FC")
+    a(f'data = "{stem}_fuel_cell"   # FASTSim\'s efficiency vs power fraction (fc_eff_map, meta.toml)')
+    a(f"max_power_w = {_fmt(kw * 1e3)}   # fc_max_kw")
+    a("min_power_w = 0.0   # FASTSim's fuel cell may stop (its idle fuel, idle_fc_kw, is not modelled)")
+    a(f"ramp_up_w_per_s = {_fmt(min(ramp, 1e9))}   # fc_max_kw / fc_sec_to_peak_pwr {secs:g} s")
+    a(f"ramp_down_w_per_s = {_fmt(min(ramp, 1e9))}   # (assumed, as up)")
+    a("initial_power_w = 0.0")
+    a("")
+    a("[fuel]   # hydrogen; a gallon holds FASTSim's 33.7 kWh (kwh_per_gge): mpg compares with its mpgge")
+    lhv = get_fuel("hydrogen").lower_heating_value_j_per_kg
+    a('name = "hydrogen"')
+    a(f"density_kg_per_m3 = {_fmt(FASTSIM_KWH_PER_GGE * 3.6e6 / (lhv * 3.785411784e-3))}")
+    a(f"heating_value_btu_per_us_gal = {_fmt(FASTSIM_KWH_PER_GGE * 3.6e6 / 1055.05585262)}")
+    a("")
+
+
+def _write_fuel_cell(folder: Path, v: dict[str, Any]) -> None:
+    eff = v.get("fc_eff_map")
+    if not isinstance(eff, list) or len(eff) != len(FC_PWR_OUT_PERC):
+        raise ConfigError(
+            f"FASTSim vehicle: key 'fc_eff_map' = {eff!r}; expected {len(FC_PWR_OUT_PERC)} efficiencies over "
+            "fc_pwr_out_perc."
+        )
+    rows = "".join(f"{x:g},{float(e):g}\n" for x, e in zip(FC_PWR_OUT_PERC, eff, strict=True))
+    (folder / "efficiency.csv").write_text("net_power_fraction,efficiency\n" + rows, encoding="utf-8")
+    (folder / "meta.toml").write_text(
+        f'name = "{folder.name}"\n'
+        f'description = "FASTSim fuel cell of {_esc(v.get("scenario_name"))}: {v["fc_max_kw"]:g} kW"\n'
+        'source = "NREL FASTSim vehicle file (Apache-2.0, Copyright 2020 Alliance for Sustainable Energy, '
+        'LLC): fc_eff_map over fc_pwr_out_perc"\n',
+        encoding="utf-8",
+    )
+
+
 def import_vehicle(
     path: str | Path, out: str | Path, row: int | None = None, name: str | None = None, force: bool = False
 ) -> Path:
@@ -837,9 +936,11 @@ def import_vehicle(
     stem = out_p.stem
     label = f"{src}" + (f" (row {row})" if row is not None else f" ({name})" if name else "")
     text = build_toml(v, label, stem)
-    arch = ARCHITECTURE_OF[str(v["veh_pt_type"]).strip()]
+    arch = hevsim_architecture(v, label)
     folders = []
-    if arch != "bev":
+    if arch == "fcev":
+        folders.append((out_p.with_name(f"{stem}_fuel_cell"), lambda d: _write_fuel_cell(d, v)))
+    if arch not in ("bev", "fcev"):
         folders.append(
             (
                 out_p.with_name(f"{stem}_engine"),

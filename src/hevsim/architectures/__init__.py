@@ -2,7 +2,8 @@
 
 Each architecture is a module here (:mod:`~hevsim.architectures.series`,
 :mod:`~hevsim.architectures.parallel`, :mod:`~hevsim.architectures.conventional`,
-:mod:`~hevsim.architectures.bev`, :mod:`~hevsim.architectures.power_split`) and one
+:mod:`~hevsim.architectures.bev`, :mod:`~hevsim.architectures.power_split`,
+:mod:`~hevsim.architectures.fcev`) and one
 :class:`Architecture` entry in :data:`ARCHITECTURES`, the only place that says what a vehicle
 file becomes: its builder, its control inputs, its forward simulation and its DP formulation
 (:mod:`hevsim.optimal` looks it up here), with its configuration type, required sections and
@@ -131,6 +132,12 @@ register(Architecture(
     builder="hevsim.architectures.power_split:build_power_split", controls=("engine_speed_radps", "throttle"),
     forward="hevsim.sim.forward:simulate_power_split",
     dp_formulation="hevsim.optimal._power_split_dp:PowerSplitFormulation",
+))  # fmt: skip
+
+
+register(Architecture(
+    name="fcev", module="hevsim.architectures.fcev", builder="hevsim.architectures.fcev:build_fcev",
+    controls=("fuel_cell_power_w",), forward="hevsim.sim.forward:simulate_fcev", dp_formulation="",
 ))  # fmt: skip
 
 

@@ -26,7 +26,7 @@ from hevsim.errors import ConfigError
 from hevsim.tables import Table1D
 from hevsim.units import c_to_k, rpm_to_radps
 
-COMPONENT_KINDS = {"engine": "engines", "motor": "motors", "battery": "batteries"}
+COMPONENT_KINDS = {"engine": "engines", "motor": "motors", "battery": "batteries", "fuel_cell": "fuel_cells"}
 
 
 def shipped_components(kind: str) -> list[str]:

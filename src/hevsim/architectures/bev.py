@@ -136,7 +136,8 @@ def _losses_many(w_wheel, w_m, t_fd, t_m, p_el, fd_ratio, fd_eff, aux_w, out):
         out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = q
 
 
-def _losses(bev: BEV, w_wheel: Any, w_m: Any, t_fd: Any, flow: Any) -> dict[str, np.ndarray]:
+def _losses(bev: Any, w_wheel: Any, w_m: Any, t_fd: Any, flow: Any) -> dict[str, np.ndarray]:
+    """:func:`point_losses` of a BEV or a fuel-cell vehicle (its ``final_drive`` and ``aux_power_w``)."""
     shape = np.shape(flow.torque_nm)
     w, wm, tfd, tm, pel = (np.ascontiguousarray(np.broadcast_to(np.asarray(a, np.float64), shape).ravel())
                            for a in (w_wheel, w_m, t_fd, flow.torque_nm, flow.power_elec_w))  # fmt: skip

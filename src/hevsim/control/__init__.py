@@ -66,6 +66,10 @@ CONTROLLERS: dict[str, ControllerEntry] = {
         "direct", "hevsim.control.simple:Direct", CONTROLLER_KEYS["direct"],
         "BEV: the machine meets the demand",
     ),
+    "load_follower": ControllerEntry(
+        "load_follower", "hevsim.control.simple:LoadFollower", CONTROLLER_KEYS["load_follower"],
+        "fuel-cell vehicle: the fuel cell follows the bus load with a SOC correction, within its ramp limits",
+    ),
 }  # fmt: skip
 """Online controllers by ``[controller] kind``."""
 

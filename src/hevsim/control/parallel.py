@@ -47,6 +47,10 @@ class _GridController:
         module = architecture(hev.config.architecture).power_module()
         self.controls: tuple[np.ndarray, ...] = module.candidate_controls(hev, int(control_points))
         self.lhv = hev.engine.fuel_lhv_jpkg
+        # plug-in hybrid ([plugin], hevsim.config.PluginSection): charge depleting above cd_soc,
+        # where the EV rule admits wheel powers below cd_ev_power [W] at any speed and ECMS
+        # takes the factor cd_s [-]; cd_soc = inf (never) for a charge-sustaining hybrid
+        self.cd_soc, self.cd_ev_power, self.cd_s = charge_depleting(hev.config)
 
     @property
     def gears(self) -> np.ndarray:
@@ -63,6 +67,10 @@ class _GridController:
 
     def update(self, step: Any, stage: Any) -> None:
         """After a step (nothing to remember)."""
+
+    def depleting(self, soc: float) -> bool:
+        """Charge depleting at ``soc`` [-] (a plug-in hybrid above its ``plugin.cs_soc``)."""
+        return bool(soc > self.cd_soc)
 
     def score(self, step: Any, s: float) -> tuple[np.ndarray, np.ndarray]:
         """(ECMS cost [W] = fuel power + s x battery chemical power, feasible) per candidate.
@@ -99,11 +107,17 @@ class _RuleBased(_GridController):
         )
 
     def low_load(self, step: Any, p_dem: float) -> bool:
-        """Below the EV speed and the EV power (wheel power ``p_dem`` [W])."""
+        """Below the EV speed and the EV power (wheel power ``p_dem`` [W]); charge depleting:
+        below the CD EV power at any speed."""
+        if self.depleting(step.soc):
+            return bool(p_dem < self.cd_ev_power)
         return bool(step.v_mid_mps < self.ev_speed and p_dem < self.ev_power)
 
     def charge_fraction(self, soc: float) -> Any:
-        """Share [-] of ``charge_power`` to add at ``soc``: 0 at ``soc_high``, 1 at ``soc_low``."""
+        """Share [-] of ``charge_power`` to add at ``soc``: 0 at ``soc_high`` (and charge
+        depleting), 1 at ``soc_low``."""
+        if self.depleting(soc):
+            return 0.0
         return np.clip((self.soc_high - soc) / (self.soc_high - self.soc_low), 0.0, 1.0)
 
     def charging_power(self, soc: float) -> float:
@@ -136,8 +150,9 @@ class ECMS(_GridController):
         self.s = float(equivalence_factor)
 
     def choose(self, step: Any) -> Control | None:
-        """The feasible candidate of least fuel power + s x battery chemical power."""
-        return self.best(step, self.s)
+        """The feasible candidate of least fuel power + s x battery chemical power (``cd_s``
+        while charge depleting)."""
+        return self.best(step, self.cd_s if self.depleting(step.soc) else self.s)
 
 
 class AdaptiveECMS(_GridController):
@@ -163,13 +178,16 @@ class AdaptiveECMS(_GridController):
         self.s = self.s0
 
     def reset(self, soc_initial: float) -> None:
-        """Target the initial SOC; clear the integrator."""
-        self.soc_ref = float(soc_initial)
+        """Target the initial SOC (a plug-in hybrid: at most its ``cs_soc``); clear the integrator."""
+        self.soc_ref = float(min(soc_initial, self.cd_soc))
         self.integral = 0.0
         self.s = self.s0
 
     def choose(self, step: Any) -> Control | None:
-        """ECMS with the current factor (floored at 0)."""
+        """ECMS with the current factor (floored at 0); ``cd_s`` while charge depleting."""
+        if self.depleting(step.soc):
+            self.s = self.cd_s
+            return self.best(step, self.s)
         err = self.error(step)
         self.s = max(0.0, self.s0 + self.kp * err + self.ki * self.integral)
         return self.best(step, self.s)
@@ -179,8 +197,9 @@ class AdaptiveECMS(_GridController):
         return self.soc_ref - self.kin * step.v_mid_mps**2 / step.energy_per_soc_j - step.soc
 
     def update(self, step: Any, stage: Any) -> None:
-        """Integrate the SOC error over the step."""
-        self.integral += self.error(step) * step.dt_s
+        """Integrate the SOC error over the step (not while charge depleting)."""
+        if not self.depleting(step.soc):
+            self.integral += self.error(step) * step.dt_s
 
 
 class ElectricAssist(_RuleBased):
@@ -234,7 +253,10 @@ class ElectricAssist(_RuleBased):
         if self.holds(soc):  # charge-hold: ECMS with a charging-biased factor, every candidate
             return self.best(step, HOLD_EQUIVALENCE_FACTOR)
         forced = step.v_mid_mps > self.engine_on_speed
-        ev = not forced and (p_dem <= 0.0 or soc > self.soc_high or (soc > self.soc_low and low_load))
+        if self.depleting(soc):
+            ev = not forced and (p_dem <= 0.0 or low_load)
+        else:
+            ev = not forced and (p_dem <= 0.0 or soc > self.soc_high or (soc > self.soc_low and low_load))
         control: Control = (float(g), 0.0)
         if not ev:
             w_e = w_fd * hev.gear_ratios[g - 1]
@@ -424,7 +446,10 @@ class PowerFollower(_RuleBased):
     def electric(self, p_dem: float, soc: float, low_load: bool) -> bool:
         """Engine off: braking or coasting, low load above ``soc_low``, or (with the SOC above
         ``soc_high``) a wheel power ``p_dem`` [W] below ``engine_min_power_w``: the surplus the
-        floor charged is spent instead of running the engine below its floor."""
+        floor charged is spent instead of running the engine below its floor. Charge
+        depleting: braking, coasting or low load (the CD EV rule)."""
+        if self.depleting(soc):
+            return p_dem <= 0.0 or low_load
         return (
             p_dem <= 0.0
             or (soc > self.soc_low and low_load)
@@ -434,7 +459,8 @@ class PowerFollower(_RuleBased):
     def target_power(self, p_dem: float, soc: float) -> float:
         """Engine power [W] to give at wheel power ``p_dem`` [W] and state of charge ``soc`` [-]."""
         target = max(p_dem, 0.0) + self.charging_power(soc)
-        return max(target, self.engine_min_power) if soc < self.soc_high else target
+        floor = soc < self.soc_high and not self.depleting(soc)
+        return max(target, self.engine_min_power) if floor else target
 
     def choose(self, step: Any) -> Control | None:
         """EV or the most efficient engine operating point near the target power."""
@@ -457,6 +483,22 @@ class PowerFollower(_RuleBased):
         if near.any():
             return self.pick(_argmin_feasible(specific_fuel(fuel, p_eng), near))
         return self.pick(_argmin_feasible(np.abs(p_eng - target), feasible))
+
+
+def charge_depleting(cfg: Any) -> tuple[float, float, float]:
+    """(SOC above which the vehicle runs charge depleting [-], wheel power below which the CD EV
+    rule drives electrically [W], ECMS equivalence factor while depleting [-]) of a
+    configuration's ``[plugin]`` section; (inf, inf, 0) for a charge-sustaining hybrid (never
+    depleting). EV first: every power is EV (the engine only where the electric drive cannot),
+    ECMS prices battery energy at 0; blended: the ``blended_*`` keys."""
+    from hevsim.config import is_plugin
+
+    if not is_plugin(cfg):
+        return np.inf, np.inf, 0.0
+    pl = cfg.plugin
+    if pl.mode == "ev_first":
+        return float(pl.cs_soc), np.inf, 0.0
+    return float(pl.cs_soc), float(pl.blended_engine_power_w), float(pl.blended_equivalence_factor)
 
 
 def specific_fuel(fuel: np.ndarray, engine_power_w: np.ndarray) -> np.ndarray:

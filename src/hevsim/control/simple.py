@@ -1,4 +1,5 @@
-"""Controllers of the conventional vehicle (shift schedule) and the BEV (direct drive)."""
+"""Controllers of the conventional vehicle (shift schedule), the BEV (direct drive) and the
+fuel-cell vehicle (load follower)."""
 
 from __future__ import annotations
 
@@ -95,3 +96,65 @@ class Direct:
         """() if the machine and battery can give the demand."""
         _, feasible = step.evaluate()
         return () if bool(np.ravel(feasible)[0]) else None
+
+
+class LoadFollower:
+    """Fuel-cell vehicle: the fuel cell follows the bus load with a SOC correction, within its
+    ramp limits.
+
+    Target net power [W] = the bus load with the fuel cell off (machine electrical power plus
+    the auxiliaries) + ``charge_power_w`` x ``clip((SOC_mid - SOC) / (half band), -1, 1)``, with
+    ``SOC_mid`` and the half band from ``soc_low`` .. ``soc_high`` (above ``soc_high`` it gives
+    ``charge_power_w`` less than the load, below ``soc_low`` that much more). The target is
+    clipped to what the system reaches in one step from its previous power (ramp limits
+    ``fuel_cell.ramp_up_w_per_s`` / ``ramp_down_w_per_s``, never below idle ``min_power_w`` nor
+    above ``max_power_w``); when the battery cannot take or give the difference, the feasible
+    power of that window nearest to the target is taken (``WINDOW_POINTS`` candidates).
+    """
+
+    name = "load_follower"
+    WINDOW_POINTS = 41
+    """Candidate powers across the ramp window when the clipped target is infeasible."""
+
+    def __init__(self, model: Any, soc_low: float, soc_high: float, charge_power_w: float) -> None:
+        self.model = model
+        self.soc_mid = 0.5 * (float(soc_low) + float(soc_high))
+        self.half_band = 0.5 * (float(soc_high) - float(soc_low))
+        self.charge_power = float(charge_power_w)
+        self.initial_w = float(model.config.fuel_cell.initial_power_w)
+        self.previous_w = self.initial_w
+
+    def reset(self, soc_initial: float) -> None:
+        """The fuel cell at its configured initial power (clipped to idle and rating)."""
+        fc = self.model.fuel_cell
+        self.previous_w = min(max(self.initial_w, fc.min_power_w), fc.max_power_w)
+
+    def update(self, step: Any, stage: Any) -> None:
+        """Remember the net power applied [W] (the ramp limits start from it)."""
+        self.previous_w = float(np.ravel(stage.details["fuel_cell_power_w"])[0])
+
+    def target_w(self, step: Any) -> float:
+        """The load-following target [W] of ``step`` before the ramp limits."""
+        st, _ = step.evaluate(np.array([0.0]))
+        load = float(np.ravel(st.flow.power_elec_w)[0]) + self.model.aux_power_w
+        corr = (
+            float(np.clip((self.soc_mid - step.soc) / self.half_band, -1.0, 1.0))
+            if self.half_band > 0
+            else 0.0
+        )
+        return load + self.charge_power * corr
+
+    def choose(self, step: Any) -> tuple[float] | None:
+        """The target within the ramp window, else the window's feasible power nearest to it."""
+        lo, hi = self.model.fuel_cell.ramp_window(self.previous_w, step.dt_s)
+        target = min(max(self.target_w(step), lo), hi)
+        _, feasible = step.evaluate(np.array([target]))
+        if bool(np.ravel(feasible)[0]):
+            return (target,)
+        cands = np.linspace(lo, hi, self.WINDOW_POINTS)
+        _, feasible = step.evaluate(cands)
+        ok = np.ravel(feasible)
+        if not ok.any():
+            return None
+        i = int(np.argmin(np.where(ok, np.abs(cands - target), np.inf)))
+        return (float(cands[i]),)

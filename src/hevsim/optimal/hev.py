@@ -21,6 +21,7 @@ and metadata. See ``docs/dp.md``.
 
 from __future__ import annotations
 
+import math
 import platform
 import time
 from collections.abc import Iterator, Mapping
@@ -33,7 +34,7 @@ import pandas as pd
 
 import hevsim
 from hevsim.components.engine import Engine
-from hevsim.config import SOC_INITIAL_FROM_SIMULATION, load_vehicle_config
+from hevsim.config import SOC_INITIAL_FROM_SIMULATION, is_plugin, load_vehicle_config
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DPInfeasibleError, DPSetupError
 from hevsim.io import atomic_directory, write_json
@@ -42,8 +43,9 @@ from hevsim.optimal._hev_common import DETAIL_COLUMNS, HEVFormulation, hev_metri
 from hevsim.optimal._problem import FinalTarget
 from hevsim.optimal.dp import FINAL_CONSTRAINTS, DPResult, solve_dp
 
-FINAL_SOC_MODES: tuple[str, ...] = ("sustain", "window")
-"""``final_soc`` choices: within ``soc_tolerance`` of the initial SOC, or a window."""
+FINAL_SOC_MODES: tuple[str, ...] = ("sustain", "window", "deplete")
+"""``final_soc`` choices: within ``soc_tolerance`` of the initial SOC, a window, or (a plug-in
+hybrid's depletion target) within ``soc_tolerance`` of its ``plugin.cs_soc``."""
 PENALTY_EQUIVALENCE_FACTOR = 100.0
 """Equivalence factor [-] of the default final-SOC penalty weight (``final_constraint=
 "penalty"``): far above the optimum's 2-4, so the penalty is exact (the target is met)."""
@@ -63,6 +65,9 @@ class Settings:
     final_window: tuple[float, float]
     soc_tolerance: float
     final_constraint: str
+    deplete_soc: float = math.nan
+    """A plug-in hybrid's charge-sustaining threshold ``plugin.cs_soc`` [-] (the ``"deplete"``
+    target); NaN for a charge-sustaining hybrid."""
 
 
 def _section_settings(hev: Any, default_input_points: int) -> Settings:
@@ -85,6 +90,7 @@ def _section_settings(hev: Any, default_input_points: int) -> Settings:
         final_window=(max(o.final_soc_min, b.soc_min), min(o.final_soc_max, b.soc_max)),
         soc_tolerance=o.soc_tolerance,
         final_constraint=o.final_constraint,
+        deplete_soc=float(c.plugin.cs_soc) if is_plugin(c) else math.nan,
     )
 
 
@@ -179,6 +185,14 @@ def _final_target(s: Settings, soc_initial: float) -> tuple[FinalTarget, tuple[f
     if s.final_soc == "sustain":
         lo = max(s.soc_min, soc_initial - s.soc_tolerance)
         hi = min(s.soc_max, soc_initial + s.soc_tolerance)
+    elif s.final_soc == "deplete":
+        if math.isnan(s.deplete_soc):
+            raise DPSetupError(
+                "final_soc 'deplete' needs a plug-in hybrid ([plugin] mode 'ev_first' or 'blended'); "
+                "expected 'sustain', 'window' or a (low, high) window."
+            )
+        lo = max(s.soc_min, s.deplete_soc - s.soc_tolerance)
+        hi = min(s.soc_max, s.deplete_soc + s.soc_tolerance)
     else:
         lo, hi = s.final_window
     if not (s.soc_min <= lo <= hi <= s.soc_max):

@@ -112,8 +112,10 @@ class HEVConstants(NamedTuple):
 class ControllerConstants(NamedTuple):
     """A controller's parameters (unused ones 0): code, equivalence factor and the A-ECMS PI
     gains and kinetic-energy term, the rule-based SOC band, EV speed [m/s] and power [W],
-    charging power [W], shift speeds [rad/s], and whether the electric assist's engine torque
-    rises with its throttle grid (:func:`~hevsim.architectures.parallel.torque_rises_with_throttle`;
+    charging power [W], shift speeds [rad/s], the plug-in hybrid's charge-depleting SOC [-],
+    EV power [W] and equivalence factor [-] (``cd_soc`` inf: never depleting), and whether the
+    electric assist's engine torque rises with its throttle grid
+    (:func:`~hevsim.architectures.parallel.torque_rises_with_throttle`;
     :func:`_assist_throttle` then bisects)."""
 
     code: int
@@ -131,6 +133,9 @@ class ControllerConstants(NamedTuple):
     w_up_radps: float
     w_down_radps: float
     thr_monotone: bool
+    cd_soc: float
+    cd_ev_power_w: float
+    cd_s: float
 
 
 def controller_code(ctl: Any) -> ControllerConstants | None:
@@ -163,6 +168,9 @@ def controller_code(ctl: Any) -> ControllerConstants | None:
         w_up_radps=g("w_up"),
         w_down_radps=g("w_down"),
         thr_monotone=code == ELECTRIC_ASSIST and P.torque_rises_with_throttle(ctl.hev, ctl.thr_grid),
+        cd_soc=float(ctl.cd_soc),
+        cd_ev_power_w=float(ctl.cd_ev_power),
+        cd_s=float(ctl.cd_s),
     )
 
 
@@ -452,8 +460,13 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
     regen_ok = v_mid > 0.0
     n = cand0.shape[0]
     p_dem = t_wheel * w_wheel
-    low_load = v_mid < cc.ev_speed_mps and p_dem < cc.ev_power_w
-    frac = min(max((cc.soc_high - soc) / (cc.soc_high - cc.soc_low), 0.0), 1.0)  # charge_fraction
+    depl = soc > cc.cd_soc  # a plug-in hybrid's charge depleting (_GridController.depleting)
+    if depl:
+        low_load = p_dem < cc.cd_ev_power_w
+        frac = 0.0
+    else:
+        low_load = v_mid < cc.ev_speed_mps and p_dem < cc.ev_power_w
+        frac = min(max((cc.soc_high - soc) / (cc.soc_high - cc.soc_low), 0.0), 1.0)  # charge_fraction
     p_charge = frac * cc.charge_power_w + (h.aux_power_w if soc < cc.soc_low else 0.0)  # charging_power
     s = 0.0
     if cc.code == ELECTRIC_ASSIST:
@@ -462,7 +475,10 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
             g = shift_gear(int(state[0]), w_fd, dpar.gear_ratio, cc.w_up_radps, cc.w_down_radps)
             state[0] = g
             forced = v_mid > cc.engine_on_speed_mps
-            ev = not forced and (p_dem <= 0.0 or soc > cc.soc_high or (soc > cc.soc_low and low_load))
+            if depl:
+                ev = not forced and (p_dem <= 0.0 or low_load)
+            else:
+                ev = not forced and (p_dem <= 0.0 or soc > cc.soc_high or (soc > cc.soc_low and low_load))
             c0, c1 = float(g), 0.0
             if not ev:
                 w_e = w_fd * dpar.gear_ratio[g - 1]
@@ -481,15 +497,19 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
                 if ok:
                     return True, c0, c1, True, fuel_kg, d_soc
     elif cc.code == AECMS:
-        err = state[3] - cc.kin * v_mid**2 / e_soc - soc
-        s = max(0.0, cc.s0 + cc.kp * err + cc.ki * state[2])
+        if depl:
+            s = cc.cd_s
+        else:
+            err = state[3] - cc.kin * v_mid**2 / e_soc - soc
+            s = max(0.0, cc.s0 + cc.kp * err + cc.ki * state[2])
         state[1] = s
     elif cc.code == ECMS:
-        s = cc.s0
+        s = cc.cd_s if depl else cc.s0
     elif (
         p_dem <= 0.0
-        or (soc > cc.soc_low and low_load)
-        or (soc > cc.soc_high and p_dem < cc.engine_min_power_w)
+        or (depl and low_load)
+        or (not depl and soc > cc.soc_low and low_load)
+        or (not depl and soc > cc.soc_high and p_dem < cc.engine_min_power_w)
     ):  # power follower (PowerFollower.electric): the first feasible EV candidate
         i = _scan(
             dpar, dps, np.int64(SCAN_EV), 0.0, 0.0, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
@@ -503,7 +523,7 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
         # near and feasible one is it (the argmin over all, as the Python controller takes it).
         # The rest only when none is feasible.
         target = max(p_dem, 0.0) + p_charge
-        if soc < cc.soc_high:  # PowerFollower.target_power
+        if soc < cc.soc_high and not depl:  # PowerFollower.target_power
             target = max(target, cc.engine_min_power_w)
         band = max(PS_POWER_BAND * target, PS_POWER_BAND_MIN_W)
         i = _scan(
@@ -667,7 +687,7 @@ def run_hev(
     state[0] = 1.0
     state[1] = cc.s0
     state[2] = 0.0
-    state[3] = soc0
+    state[3] = min(soc0, cc.cd_soc)
     v, soc, fuel = v_des[0], soc0, 0.0
     err_sq = err_max = dist = eon = starts = lim_s = 0.0
     was_on = False
@@ -721,7 +741,7 @@ def run_hev(
             )
         if pk is not None and dpar is not None:  # the bus's other load of the step (the cooling too)
             loss[P_AUX] = hk.aux_power_w
-        if cc.code == AECMS:  # update: integrate the SOC error of the step taken
+        if cc.code == AECMS and not soc > cc.cd_soc:  # update: integrate the SOC error of the step taken
             state[2] += (state[3] - cc.kin * v_mid**2 / e_soc - soc) * dt
         # ---- energy audit [J]
         audit[0] += loss[0] * dt

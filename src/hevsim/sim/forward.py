@@ -26,7 +26,8 @@ An architecture module used here provides ``power_flow(model, wheel_speed_radps,
 wheel_torque_nm, *controls, soc, dt_s, regen_ok, battery_state, detail=False)`` (a
 :class:`~hevsim.components.flow.Stage` with ``details``), ``loss_powers(model, stage,
 wheel_speed_radps, wheel_torque_nm)`` (W per audit term, with ``fuel`` and ``wheel``),
-``MODES`` and ``power_mode(details, wheel_force_n, v_mid_mps)``.
+``MODES`` and ``power_mode(details, wheel_force_n, v_mid_mps)``; optionally
+``extra_metrics(model, metrics)`` (adds its own figures to a run's metrics).
 
 **Compiled runs (optional hooks).** The Python loop above is the reference. A compiled loop
 of this package (``hevsim.sim._compiled_*``, found by :func:`compiled_loop` from the
@@ -256,6 +257,8 @@ def simulate_architecture(
     t_done = time.perf_counter()
     traction = float(np.sum(np.clip(ts["wheel_power_w"].to_numpy()[:-1], 0.0, None)) * dt)
     metrics = run_metrics(model, summary, audit, traction, soc0)
+    if hasattr(mod, "extra_metrics"):  # an architecture's own figures (the FCEV's hydrogen and MPGe)
+        mod.extra_metrics(model, metrics)
     f = config_fuel(cfg, getattr(model, "engine", None))
     bad = [k for k, m in metrics.items() if np.isnan(float(m["value"]))]
     if bad or not all(np.isfinite(c).all() for c in rec.columns.values()):
@@ -292,6 +295,8 @@ simulate_bev = functools.partial(simulate_architecture, "bev")
 """Simulate a battery-electric vehicle forward (see :func:`simulate_architecture`)."""
 simulate_power_split = functools.partial(simulate_architecture, "power_split")
 """Simulate a power-split HEV forward (see :func:`simulate_architecture`)."""
+simulate_fcev = functools.partial(simulate_architecture, "fcev")
+"""Simulate a fuel-cell vehicle forward (see :func:`simulate_architecture`; the Python loop)."""
 
 
 def compiled_loop(architecture: str) -> Any:

@@ -48,6 +48,13 @@ from hevsim.errors import ConfigError, InputError, TrackingError
 from hevsim.fuels import config_fuel
 from hevsim.io import atomic_directory, write_json
 from hevsim.sim.checks import TRACKING_BOUND, tracking_violation
+from hevsim.sim.plugin_label import (
+    CD_MAX_CYCLES,
+    DepletingRun,
+    DepletingTest,
+    distance_to_soc,
+    plugin_figures,
+)
 from hevsim.units import J_PER_WH, M3_PER_US_GALLON, M_PER_MILE, MPS_PER_MPH
 
 TABLE_PATH = "data/epa_label.toml"
@@ -263,8 +270,14 @@ def _next_soc(runs: list[Run], lo: float, hi: float) -> float:
     return float(min(max(soc, lo), hi))
 
 
-def balance_soc(model: Any, cycle: str, name: str, tolerance: float, max_runs: int) -> LabelTest:
+def balance_soc(
+    model: Any, cycle: str, name: str, tolerance: float, max_runs: int, soc_start: float | None = None,
+    soc_cap: float | None = None,
+) -> LabelTest:  # fmt: skip
     """Run ``cycle`` until ``|NEC| / fuel energy <= tolerance`` (SAE J1711), else regress.
+
+    The first run starts at ``soc_start`` (None: the configuration's initial SOC); no run starts
+    above ``soc_cap`` (a plug-in hybrid's charge-sustaining test: its ``plugin.cs_soc``).
 
     Returns the :class:`LabelTest` with the accepted run (method ``"within tolerance"``) or, when
     ``max_runs`` runs never balanced, the fuel read at NEC = 0 from a linear fit of fuel
@@ -272,9 +285,9 @@ def balance_soc(model: Any, cycle: str, name: str, tolerance: float, max_runs: i
     """
     b = model.config.battery
     margin = 1e-6
-    lo, hi = b.soc_min + margin, b.soc_max - margin
+    lo, hi = b.soc_min + margin, (b.soc_max if soc_cap is None else soc_cap) - margin
     runs: list[Run] = []
-    soc: float | None = None
+    soc: float | None = soc_start
     for _ in range(max_runs):
         run = _run(model, cycle, soc)
         runs.append(run)
@@ -312,6 +325,49 @@ def balance_soc(model: Any, cycle: str, name: str, tolerance: float, max_runs: i
     best = min(runs, key=lambda r: abs(r.balance))
     distance = float(np.mean([r.distance_m for r in runs]))
     return LabelTest(name, cycle, distance, float(intercept), 0.0, "J1711 regression", runs, 0.0, best.result)
+
+
+# --- the plug-in hybrid's charge-depleting test (SAE J1711; hevsim.sim.plugin_label) ------------
+
+
+def charge_depleting_test(model: Any, cycle: str, max_cycles: int = CD_MAX_CYCLES) -> DepletingTest:
+    """Repeat ``cycle`` from ``battery.soc_max`` until the SOC reaches ``plugin.cs_soc`` in a run
+    (SAE J1711's charge-depleting test). Raises ConfigError when the battery does not deplete."""
+    from hevsim.sim.simulator import simulate
+
+    cfg = model.config
+    cs = float(cfg.plugin.cs_soc)
+    soc = float(cfg.battery.soc_max)
+    runs: list[DepletingRun] = []
+    before = 0.0
+    for _ in range(max_cycles):
+        res = simulate(model, cycle, soc_initial=soc, tracking=TRACKING_BOUND)
+        _check_tracking(res)
+        m = res.metrics
+        run = DepletingRun(
+            float(m["soc_initial"]["value"]),
+            float(m["soc_final"]["value"]),
+            float(m["distance_m"]["value"]),
+            float(m["fuel_kg"]["value"]),
+            float(m["battery_energy_wh"]["value"]) * J_PER_WH,
+            res,
+        )
+        runs.append(run)
+        if run.soc_final <= cs or float(res.timeseries["soc"].min()) <= cs:
+            cda = before + distance_to_soc(res, cs)
+            return DepletingTest(cycle, cs, runs, cda, before + run.distance_m)
+        if run.soc_final >= run.soc_initial - 1e-9:
+            raise ConfigError(
+                f"{model.name} on {cycle}: the charge-depleting test does not deplete the battery (run "
+                f"{len(runs)}: SOC {run.soc_initial:.4f} -> {run.soc_final:.4f}); expected the SOC to fall "
+                f"to 'plugin.cs_soc' = {cs} (check [plugin] and [controller])."
+            )
+        before += run.distance_m
+        soc = run.soc_final
+    raise ConfigError(
+        f"{model.name} on {cycle}: the SOC did not reach 'plugin.cs_soc' = {cs} in {max_cycles} cycles "
+        f"(last {runs[-1].soc_final:.4f}); expected a plug-in hybrid that depletes its battery."
+    )
 
 
 # --- the label -------------------------------------------------------------------------------
@@ -368,7 +424,11 @@ class Label:
                 "highway_slope": c.highway_slope,
             },
             "city_weight": k.city_weight,
-            "soc_balance_tolerance": k.soc_balance_tolerance if self.kind == "charge_sustaining" else None,
+            "soc_balance_tolerance": (
+                k.soc_balance_tolerance
+                if self.kind in ("charge_sustaining", "plug_in", "fuel_cell")
+                else None
+            ),
             "figures": self.figures,
             "tests": tests,
             "elapsed_s": self.elapsed_s,
@@ -388,8 +448,9 @@ class Label:
             f"{'':<26}{'city':>10}{'highway':>10}{'combined':>10}",
         ]
 
-        def row(label: str, key: str, fmt: str = "{:>10.1f}") -> None:
-            vals = [f[key][t] for t in ("city", "highway", "combined")]
+        def row(label: str, key: str, sub: str = "", fmt: str = "{:>10.1f}") -> None:
+            table = f[key][sub] if sub else f[key]
+            vals = [table[t] for t in ("city", "highway", "combined")]
             lines.append(f"{label:<26}" + "".join(fmt.format(v) for v in vals))
 
         if self.kind == "electric":
@@ -403,6 +464,14 @@ class Label:
                 f"battery terminals / charger efficiency {f['charger_efficiency']:g}, "
                 f"{constants().kwh_per_gallon_equivalent:g} kWh per gallon equivalent"
             )
+        elif self.kind == "fuel_cell":
+            row("unadjusted MPGe", "unadjusted_mpge")
+            row("adjusted MPGe", "adjusted_mpge")
+            row("adjusted kg H2/100 mi", "hydrogen_kg_per_100mi", fmt="{:>10.2f}")
+            lines.append(
+                "MPGe = miles per gallon of hydrogen as [fuel] counts it: 1 kg by default, the EPA's "
+                "gallon of gasoline equivalent (LHV 120 MJ/kg)"
+            )
         else:
             row("unadjusted mpg", "unadjusted_mpg")
             row("adjusted mpg", "adjusted_mpg")
@@ -410,7 +479,29 @@ class Label:
                 f"mpg in US gallons of {self.fuel}"
                 + (" (the EPA label of a diesel car counts its own gallons)" if "diesel" in self.fuel else "")
             )
-        if self.kind == "charge_sustaining":
+        if self.kind == "plug_in":
+            lines[-1] = lines[-1].replace("mpg in US gallons", "charge-sustaining mpg in US gallons")
+            r = f["charge_depleting_range_mi"]
+            ra, rc = r["actual_unadjusted"], r["cycle_unadjusted"]
+            lines.append(
+                "charge-depleting range (SAE J1711, actual): "
+                + ", ".join(f"{t} {ra[t]:.1f} mi" for t in ("city", "highway", "combined"))
+                + f" unadjusted, {r['actual_adjusted']['combined']:.1f} mi adjusted combined "
+                f"(cycle range {rc['city']:.1f} / {rc['highway']:.1f} mi); {f['mode']} to SOC {f['cs_soc']:g}"
+            )
+            row("CD kWh/100 mi (wall)", "charge_depleting_kwh_per_100mi", "unadjusted")
+            row("CD kWh/100 mi adjusted", "charge_depleting_kwh_per_100mi", "adjusted")
+            row("CD MPGe", "charge_depleting_mpge", "unadjusted")
+            u = f["uf_weighted"]
+            uf = u["utility_factor"]
+            row("UF-weighted mpg", "uf_weighted", "mpg")
+            row("UF-weighted kWh/100 mi", "uf_weighted", "kwh_per_100mi")
+            row("UF-weighted MPGe", "uf_weighted", "mpge")
+            lines.append(
+                f"utility factors ({u['curve']}) at the CD cycle range: city {uf['city']:.3f}, "
+                f"highway {uf['highway']:.3f}; charger efficiency {f['charger_efficiency']:g}"
+            )
+        if self.kind in ("charge_sustaining", "plug_in", "fuel_cell"):
             tol = constants().soc_balance_tolerance
             for key, t in self.tests.items():
                 r = t.runs[-1]
@@ -441,8 +532,14 @@ def usable_energy_j(battery: Any, soc_min: float, soc_max: float, points: int = 
 
 
 def _kind(model: Any) -> str:
+    from hevsim.config import is_plugin
+
     if model.config.architecture == "bev":
         return "electric"
+    if is_plugin(model.config):
+        return "plug_in"
+    if model.config.architecture == "fcev":
+        return "fuel_cell"
     return "charge_sustaining" if getattr(model, "battery", None) is not None else "conventional"
 
 
@@ -479,8 +576,15 @@ def label(config: Any, model_year: int | None = None, charger_efficiency: float 
     kind = _kind(model)
     fuel = config_fuel(model.config, getattr(model, "engine", None))
     tests: dict[str, LabelTest] = {}
+    depleting: dict[str, Any] = {}
     for name, cycle in TESTS:
-        if kind == "charge_sustaining":
+        if kind == "plug_in":
+            cs = float(model.config.plugin.cs_soc)
+            depleting[name] = charge_depleting_test(model, cycle)
+            tests[name] = balance_soc(
+                model, cycle, name, k.soc_balance_tolerance, k.soc_balance_max_runs, soc_start=cs
+            )
+        elif kind in ("charge_sustaining", "fuel_cell"):
             tests[name] = balance_soc(model, cycle, name, k.soc_balance_tolerance, k.soc_balance_max_runs)
         else:
             r = _run(model, cycle, None)
@@ -548,6 +652,28 @@ def label(config: Any, model_year: int | None = None, charger_efficiency: float 
             },
             "units": {"mpg": f"mi per US gallon of {fuel.name}", "l_per_100km": "L/100 km (adjusted)"},
         }
+        if kind == "fuel_cell":  # hydrogen's "gallon" is 1 kg (fuels.toml): mpg = mi/kg = MPGe
+            figures["unadjusted_mpge"] = dict(mpg)
+            figures["adjusted_mpge"] = dict(adj)
+            figures["hydrogen_kg_per_100mi"] = {n: 100.0 / v for n, v in adj.items()}
+            figures["units"].update({"mpge": "mi per kg of hydrogen (1 kg = 1 gallon equivalent)",
+                                     "hydrogen_kg_per_100mi": "kg/100 mi (adjusted)"})  # fmt: skip
+        if kind == "plug_in":
+            figures.update(
+                plugin_figures(
+                    model,
+                    depleting,
+                    mpg,
+                    lambda kg: _gallons(kg, fuel.density_kg_per_m3),
+                    k,
+                    coef,
+                    adjusted_electric_mpge,
+                )
+            )
+            figures["units"].update({
+                "charge_depleting_range_mi": "mi", "kwh_per_100mi": "kWh/100 mi from the wall",
+                "mpge": "mi/gal-equivalent", "charge_depleting_fuel_gal": "US gal",
+            })  # fmt: skip
     return Label(
         model.name,
         model.config.architecture,

@@ -1,0 +1,192 @@
+"""Fuel-cell vehicle (FCEV): the battery-electric drive (one machine on a single reduction,
+battery on the DC bus, blended friction brakes) with a fuel-cell system feeding the bus in
+place of the series HEV's genset.
+
+Control input (:data:`CONTROLS`): the fuel-cell system's net power ``fuel_cell_power_w`` [W]. The
+power flow is the BEV's (:func:`hevsim.architectures.bev.wheel_point`, the shared bus balance
+:func:`hevsim.components.flow.electric_flow`) with the fuel cell as a source on the bus (the
+bus's other load is ``aux_power_w - P_fc``), and its hydrogen (:mod:`hevsim.components.fuel_cell`)
+as the stage's fuel. Energy-audit terms (:data:`LOSSES`): ``fuel`` is the hydrogen's chemical
+power (LHV basis), ``fuel_cell_loss`` what the system does not turn into net DC power.
+
+The ramp limits make the fuel cell's previous power a state the SOC-only DP cannot carry: the
+architecture has no DP formulation; its controller (``load_follower``,
+:class:`hevsim.control.simple.LoadFollower`) honours the limits at every step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hevsim.architectures import bev as B
+from hevsim.architectures._build import build_battery, build_machine, resolve_component
+from hevsim.architectures._common import (
+    NamedModel,
+    battery_details,
+    chassis,
+    machine_details,
+    max_machine_speed_radps,
+)
+from hevsim.components.battery import BatteryPack
+from hevsim.components.body import VehicleBody
+from hevsim.components.driveline import Gear, Tire
+from hevsim.components.electric_machine import ElectricMachine
+from hevsim.components.fuel_cell import FuelCellSystem
+from hevsim.config import FCEVConfig
+from hevsim.units import KWH_PER_GALLON_EQUIVALENT, M_PER_MILE
+
+ARCHITECTURE = "fcev"
+CONTROLS: tuple[str, ...] = ("fuel_cell_power_w",)
+MODES: tuple[str, ...] = ("standstill", "traction", "regen", "friction_braking")
+LOSSES: tuple[str, ...] = (
+    "fuel", "fuel_cell_loss", "motor_loss", "friction_brakes", "final_drive_loss", "aux", "wheel",
+)  # fmt: skip
+"""Energy-audit terms of :func:`loss_powers` [W]."""
+
+
+@dataclass(frozen=True, eq=False)
+class FCEV(NamedModel):
+    """A fuel-cell vehicle: configuration and component objects."""
+
+    config: FCEVConfig
+    body: VehicleBody
+    tire: Tire
+    final_drive: Gear
+    motor: ElectricMachine
+    fuel_cell: FuelCellSystem
+    battery: BatteryPack
+    regen_fraction: float
+    regen_min_speed_mps: float
+    aux_power_w: float
+
+
+def build_fcev(cfg: FCEVConfig) -> FCEV:
+    """Build the component objects of a fuel-cell vehicle from its configuration."""
+    from hevsim.fuels import config_fuel
+
+    base = Path(cfg.base_dir)
+    fc = cfg.fuel_cell
+    folder = resolve_component(fc.data, "fuel_cell", base, "fuel_cell.data")
+    lhv = config_fuel(cfg, None).lower_heating_value_j_per_kg
+    system = FuelCellSystem.from_directory(
+        folder, max_power_w=fc.max_power_w, min_power_w=fc.min_power_w, ramp_up_w_per_s=fc.ramp_up_w_per_s,
+        ramp_down_w_per_s=fc.ramp_down_w_per_s, lhv_j_per_kg=lhv,
+    )  # fmt: skip
+    return FCEV(
+        **chassis(cfg),
+        motor=build_machine(cfg.motor, "motor", base),
+        fuel_cell=system,
+        battery=build_battery(cfg.battery, base)[0],
+        regen_fraction=cfg.brakes.regen_fraction,
+        regen_min_speed_mps=cfg.brakes.regen_min_speed_mps,
+        aux_power_w=cfg.controller.aux_power_w,
+    )
+
+
+def power_flow(
+    fcev: FCEV,
+    wheel_speed_radps: Any,
+    wheel_torque_nm: Any,
+    fuel_cell_power_w: Any,
+    soc: Any,
+    dt_s: Any,
+    regen_ok: Any,
+    battery_state: Any = None,
+    *,
+    detail: bool = False,
+) -> Any:
+    """(wheel demand, fuel-cell net power [W], SOC) -> machine, fuel cell and battery operating
+    points, hydrogen [kg] (``cost_kg``), SOC change, limits (broadcast)."""
+    from hevsim.components.flow import Stage, electric_flow
+
+    arrays = np.broadcast_arrays(
+        *(np.asarray(a, np.float64) for a in (wheel_speed_radps, wheel_torque_nm, regen_ok))
+    )
+    shape0 = arrays[0].shape
+    w_wh, t_wh, ok_in = (np.ascontiguousarray(a.ravel()) for a in arrays)
+    rows = np.empty((5, w_wh.size))
+    fd = fcev.final_drive
+    B._wheel_many(
+        w_wh, t_wh, ok_in, float(fd.ratio), float(fd.efficiency), float(fcev.regen_fraction),
+        float(fcev.regen_min_speed_mps), float(fcev.tire.radius_m), max_machine_speed_radps(fcev.motor), rows,
+    )  # fmt: skip
+    w_m, t_fd, t_req, ok, over = (r.reshape(shape0) for r in rows)
+    p_fc = np.asarray(fuel_cell_power_w, np.float64)
+    flow = electric_flow(
+        fcev.motor, fcev.battery, t_req, w_m, fcev.aux_power_w - p_fc, soc, dt_s, ok > 0.0, battery_state
+    )
+    shape = np.shape(flow.torque_nm)
+    p_fc_b = np.broadcast_to(p_fc, shape)
+    fc = fcev.fuel_cell
+    out_of_range = (p_fc_b < fc.min_power_w * (1.0 - 1e-12)) | (p_fc_b > fc.max_power_w * (1.0 + 1e-12))
+    over_speed = np.broadcast_to(over > 0.0, shape)
+    flags = {**flow.flags, "motor_speed": over_speed, "fuel_cell_power": out_of_range}
+    h2_kg = fc.hydrogen_rate_kgps(p_fc_b) * np.asarray(dt_s, np.float64)
+    st = Stage(
+        d_soc=flow.d_soc, cost_kg=h2_kg, infeasible=flow.infeasible | over_speed | out_of_range, flags=flags
+    )
+    st.flow = flow
+    st.mech = {"w_fd": np.broadcast_to(w_m, shape), "t_fd": np.broadcast_to(t_fd, shape), "p_fc": p_fc_b}
+    if detail:
+        losses = B._losses(fcev, w_wh.reshape(shape0), w_m, t_fd, flow)
+        st.details = {
+            "fuel_cell_power_w": p_fc_b,
+            "fuel_cell_efficiency": fc.efficiency(p_fc_b),
+            "hydrogen_rate_kgps": fc.hydrogen_rate_kgps(p_fc_b),
+            **machine_details(flow, w_m, shape),
+            **battery_details(flow),
+            "friction_brake_power_w": losses["friction_brakes"],
+        }
+    return st
+
+
+def loss_powers(fcev: FCEV, stage: Any, wheel_speed_radps: Any, wheel_torque_nm: Any) -> dict[str, Any]:
+    """Power [W] of every energy-audit term (:data:`LOSSES`) of a :func:`power_flow` result:
+    the BEV's terms, the hydrogen's chemical power (``fuel``) and the fuel-cell system's loss."""
+    m = stage.mech
+    out = B._losses(fcev, wheel_speed_radps, m["w_fd"], m["t_fd"], stage.flow)
+    h2_w = fcev.fuel_cell.hydrogen_power_w(m["p_fc"])
+    out["fuel"] = h2_w
+    out["fuel_cell_loss"] = h2_w - m["p_fc"]
+    return {name: out[name] for name in LOSSES}
+
+
+def power_mode(details: dict[str, float], wheel_force_n: float, v_mid_mps: float) -> int:
+    """Index in :data:`MODES` of one step's operating point (the BEV's)."""
+    return int(B.power_mode_code(details["motor_torque_nm"], wheel_force_n, v_mid_mps))
+
+
+def candidate_controls(fcev: FCEV, n: int) -> tuple[np.ndarray]:
+    """``n`` fuel-cell net powers [W] from idle to the rating (what a scoring controller tries)."""
+    fc = fcev.fuel_cell
+    return (np.linspace(fc.min_power_w, fc.max_power_w, max(int(n), 2)),)
+
+
+CAPABILITY_POINTS = 41
+"""Fuel-cell powers the performance envelope tries, idle to rating (the battery must take or give
+the rest, so the rating alone is infeasible at light load)."""
+
+
+def capability_controls(fcev: FCEV) -> tuple[np.ndarray, ...]:
+    """:data:`CAPABILITY_POINTS` fuel-cell powers from idle to the rating (the performance
+    envelope's candidates; the envelope ignores the ramp limits: a sustained capability)."""
+    return candidate_controls(fcev, CAPABILITY_POINTS)
+
+
+def extra_metrics(fcev: FCEV, metrics: dict[str, dict[str, Any]]) -> None:
+    """Add ``hydrogen_kg`` [kg] and ``mpge`` [mi/gal-equivalent] to a run's ``metrics``: miles per
+    (kg of hydrogen + the battery's net energy at 33.705 kWh per gallon equivalent); the EPA counts
+    1 kg of hydrogen as one gallon of gasoline equivalent (hydrogen's LHV, 120 MJ/kg = 33.3 kWh/kg,
+    is 1.1 % below that gallon)."""
+    kg = float(metrics["fuel_kg"]["value"])
+    gallons = kg + float(metrics["battery_energy_wh"]["value"]) / 1000.0 / KWH_PER_GALLON_EQUIVALENT
+    miles = float(metrics["distance_m"]["value"]) / M_PER_MILE
+    metrics["hydrogen_kg"] = {"value": kg, "unit": "kg", "description": "hydrogen consumed"}
+    metrics["mpge"] = {
+        "value": miles / gallons if gallons > 0 else float("inf"), "unit": "mi/gal-equivalent",
+        "description": "mi per (kg of hydrogen + battery net energy / 33.705 kWh): EPA MPGe, 1 kg H2 = 1 gge",
+    }  # fmt: skip
