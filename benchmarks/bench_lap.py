@@ -138,6 +138,8 @@ def bench_deploy(a: argparse.Namespace) -> None:
             f"{r.battery_energy_j.sum() / 1e3:+.2f} kJ"
         )
     print(load.text())
+
+
 def stint_car(folder: Path, rom: Path) -> Path:
     """The high-performance parallel HEV with a 1200-cell pack on module ROMs: 100 thesis 2s6p
     modules (examples/vehicle_pack.toml, as benchmarks/bench_pack_vehicle.py case (a))."""
