@@ -2,7 +2,7 @@
 
 Run from the repository root (or anywhere; paths are resolved from this file)::
 
-    .venv/bin/python benchmarks/bench_label.py [--repeats 10] [--config examples/prius_2016_power_split.toml]
+    .venv/bin/python benchmarks/bench_label.py [--repeats 10] [--config examples/prius_2016_like_power_split.toml]
 
 What is timed (``time.perf_counter``, medians of ``--repeats`` after one warm-up call):
 
@@ -65,7 +65,7 @@ def bench_fastsim(repeats: int) -> dict[str, float] | None:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeats", type=int, default=10)
-    ap.add_argument("--config", default=str(ROOT / "examples" / "prius_2016_power_split.toml"))
+    ap.add_argument("--config", default=str(ROOT / "examples" / "prius_2016_like_power_split.toml"))
     a = ap.parse_args()
     t0 = time.perf_counter()
     from hevsim.sim.label import label

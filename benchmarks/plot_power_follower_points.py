@@ -36,7 +36,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=str(ROOT / "docs" / "power_follower_operating_points.png"))
     a = ap.parse_args()
-    cfg = load_vehicle_config(ROOT / "examples" / "prius_2016_power_split.toml")
+    cfg = load_vehicle_config(ROOT / "examples" / "prius_2016_like_power_split.toml")
     engine = architecture("power_split").build(cfg).engine
     w = np.linspace(engine.stall_speed_radps, engine.redline_radps, 121)
     t_max = np.asarray(engine.max_torque_nm(w))
@@ -65,7 +65,7 @@ def main() -> int:
                    label=f"{label}: {100 * e:.1f} %")  # fmt: skip
     ax.set_xlabel("engine speed [rpm]")
     ax.set_ylabel("engine torque [N·m]")
-    ax.set_title("prius_2016_power_split on UDDS: engine operating points on its efficiency map", fontsize=9)
+    ax.set_title("prius_2016_like_power_split on UDDS: engine operating points on its efficiency map", fontsize=9)
     ax.legend(fontsize=7, loc="lower right")
     save_png(fig, a.out, dpi=110)
     plt.close(fig)

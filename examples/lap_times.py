@@ -22,7 +22,7 @@ REPO = Path(__file__).resolve().parents[1]
 CARS = (
     "high_performance_parallel_hev",
     "parallel_hev",
-    "prius_2016_power_split",
+    "prius_2016_like_power_split",
     "prius_like_power_split",
     "series_hev",
     "conventional_sedan",

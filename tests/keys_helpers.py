@@ -19,7 +19,7 @@ from hevsim.errors import ConfigError, HevsimError, SimulationError
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 SHIPPED = (
-    "series_hev", "parallel_hev", "high_performance_parallel_hev", "prius_2016_power_split",
+    "series_hev", "parallel_hev", "high_performance_parallel_hev", "prius_2016_like_power_split",
     "prius_like_power_split", "conventional_sedan", "bev",
 )  # fmt: skip
 """Every architecture's shipped example (issue 26, item 2)."""

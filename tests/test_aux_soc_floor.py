@@ -30,7 +30,7 @@ HYBRIDS = [
     ("parallel", "parallel_hev"),
     ("parallel", "high_performance_parallel_hev"),
     ("power_split", "prius_like_power_split"),
-    ("power_split", "prius_2016_power_split"),
+    ("power_split", "prius_2016_like_power_split"),
     ("series", "series_hev"),
 ]
 

@@ -75,7 +75,7 @@ def test_one_compiled_run_per_architecture() -> None:
         ("parallel_hev.toml", {}),
         ("parallel_hev.toml", {"motor.model": "map", "motor.rating": "peak"}),
         ("prius_like_power_split.toml", {}),
-        ("prius_2016_power_split.toml", {}),
+        ("prius_2016_like_power_split.toml", {}),
     ]
     for name, changes in vehicles:
         cfg = C.load_vehicle_config(ROOT / "examples" / name)

@@ -26,7 +26,7 @@ VEHICLES = {
     "p3": ("examples/parallel_hev.toml", {}),
     "p2": ("examples/parallel_hev.toml", {"motor_coupling.position": "p2"}),
     "power_split": ("examples/prius_like_power_split.toml", {}),
-    "prius_2016": ("examples/prius_2016_power_split.toml", {}),
+    "prius_2016": ("examples/prius_2016_like_power_split.toml", {}),
 }
 
 

@@ -144,7 +144,7 @@ def test_diesel_car_counts_its_own_gallons() -> None:
 def test_cli_writes_label_json_and_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "lbl"
     assert (
-        main(["label", str(EXAMPLES / "prius_2016_power_split.toml"), "-o", str(out), "--model-year", "2016"])
+        main(["label", str(EXAMPLES / "prius_2016_like_power_split.toml"), "-o", str(out), "--model-year", "2016"])
         == 0
     )
     data = json.loads((out / "label.json").read_text())

@@ -50,7 +50,7 @@ def phev():
 def test_example_is_a_plugin_and_hybrids_default_to_charge_sustaining() -> None:
     cfg = load_vehicle_config(PHEV)
     assert is_plugin(cfg) and cfg.plugin.mode == "ev_first" and cfg.plugin.cs_soc == 0.3
-    assert not is_plugin(load_vehicle_config(EXAMPLES / "prius_2016_power_split.toml"))
+    assert not is_plugin(load_vehicle_config(EXAMPLES / "prius_2016_like_power_split.toml"))
 
 
 def test_fleet_utility_factor_matches_the_tabulated_j2841_curve() -> None:
@@ -145,7 +145,7 @@ def test_dp_with_depletion_target_ends_at_cs_soc(phev) -> None:
     assert soc[0] == pytest.approx(0.33)
     assert abs(soc[-1] - phev.config.plugin.cs_soc) <= tol + 1e-9
     with pytest.raises(Exception, match="deplete"):
-        plain = build_vehicle(load_vehicle_config(EXAMPLES / "prius_2016_power_split.toml"))
+        plain = build_vehicle(load_vehicle_config(EXAMPLES / "prius_2016_like_power_split.toml"))
         optimize(plain, cyc, final_soc="deplete", soc_grid_points=21, input_grid_points=3, progress=False)
 
 

@@ -21,7 +21,7 @@ from hevsim.sim.forward import simulate_architecture
 from hevsim.sim.label import label
 
 ROOT = Path(__file__).resolve().parents[1]
-PRIUS = ROOT / "examples" / "prius_2016_power_split.toml"
+PRIUS = ROOT / "examples" / "prius_2016_like_power_split.toml"
 OLD_SETTINGS = {"controller.ev_speed_mps": 12.5, "controller.engine_min_power_w": 0.0}
 """The example's controller before issue 25 (the selection rule changed as well)."""
 

@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 BATTERIES = ROOT / "src" / "hevsim" / "data" / "components" / "batteries"
 ASSEMBLED = BATTERIES / "li_ion_3p6ah_prius_2016_assembled"
 SAFT = BATTERIES / "saft_li_ion_6ah_li7"
-PRIUS = ROOT / "examples" / "prius_2016_power_split.toml"
+PRIUS = ROOT / "examples" / "prius_2016_like_power_split.toml"
 K = 3.6 / 7.035
 """Capacity factor of the assembly: 3.6 A·h over the Saft cell's 7.035 A·h at 25 degC [-]."""
 

@@ -25,7 +25,7 @@ A_N, B_N_PER_M_S, C_N_PER_M2_S2, TEST_MASS_KG = 130.0, 2.5, 0.42, 1600.0
 VEHICLES = {
     "series": "series_hev.toml",
     "parallel": "parallel_hev.toml",
-    "power_split": "prius_2016_power_split.toml",
+    "power_split": "prius_2016_like_power_split.toml",
     "conventional": "conventional_sedan.toml",
     "bev": "bev.toml",
 }

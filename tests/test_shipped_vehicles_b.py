@@ -1,5 +1,5 @@
 """Issue 11 item 5: the shipped high-performance parallel HEV and the 2016 Prius power split
-(examples/high_performance_parallel_hev.toml, examples/prius_2016_power_split.toml)."""
+(examples/high_performance_parallel_hev.toml, examples/prius_2016_like_power_split.toml)."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from hevsim.sim.performance import performance
 
 ROOT = Path(__file__).resolve().parents[1]
 HP = ROOT / "examples" / "high_performance_parallel_hev.toml"
-PRIUS = ROOT / "examples" / "prius_2016_power_split.toml"
+PRIUS = ROOT / "examples" / "prius_2016_like_power_split.toml"
 VALIDATION = ROOT / "examples" / "validation"
 
 

@@ -1,4 +1,4 @@
-"""2016 Prius: hevsim's power split (examples/prius_2016_power_split.toml) against NREL FASTSim 3
+"""2016 Prius: hevsim's power split (examples/prius_2016_like_power_split.toml) against NREL FASTSim 3
 on its bundled 2016 Prius Two (2016_TOYOTA_Prius_Two.yaml) and the EPA label, UDDS and HWFET.
 
     .venv/bin/python examples/validation/prius_2016_fastsim.py          # print the comparison
@@ -27,7 +27,7 @@ from typing import Any
 
 HERE = Path(__file__).resolve().parent
 STORE = HERE / "prius_2016_fastsim.toml"
-CONFIG = HERE.parent / "prius_2016_power_split.toml"
+CONFIG = HERE.parent / "prius_2016_like_power_split.toml"
 CYCLES = ("udds", "hwfet")
 J_PER_GALLON_GASOLINE_EQUIVALENT = 33.7 * 3.6e6
 """EPA gallon of gasoline equivalent, 33.7 kWh [J] (FASTSim's kWh per GGE)."""
