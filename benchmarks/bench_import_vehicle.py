@@ -23,7 +23,6 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from hevsim.sim.simulator import simulate
 from hevsim.vehicle_import import ARCHITECTURE_OF, import_vehicle, list_vehicles, read_vehicle
@@ -34,33 +33,14 @@ M_PER_MI = 1609.344
 
 
 def _fastsim_yaml(src: Path, tmp: Path) -> Path:
-    """A fastsim-2 YAML of ``src`` for fastsim 3 (a CSV becomes YAML on a template's schema)."""
+    """A fastsim-2 YAML of ``src`` for fastsim 3 (a CSV becomes YAML on a template's schema,
+    :func:`hevsim.validation.fastsim_db.fastsim_yaml`: fastsim-2's default efficiency curve
+    where the file has none, which fastsim 3 would refuse)."""
     if src.suffix == ".yaml":
         return src
-    template = yaml.safe_load((DATA / "vehdb" / "2016_TOYOTA_Prius_Two.yaml").read_text())
-    v = read_vehicle(src)
-    for k, val in v.items():
-        if k not in template:
-            continue
-        if isinstance(val, list):
-            template[k] = {"v": 1, "dim": [len(val)], "data": val}
-        elif val is None:
-            template[k] = None if k.endswith("override") or k == "veh_override_kg" else template[k]
-        else:
-            template[k] = val
-    if not isinstance(v.get("fc_eff_map"), list):
-        template.pop("fc_eff_map", None)
-    if not isinstance(v.get("mc_eff_map"), list):
-        template["mc_eff_map"] = {"v": 1, "dim": [11], "data": [0.0] * 11}
-    if v.get("fc_pwr_out_perc") is None:
-        template["fc_pwr_out_perc"] = {
-            "v": 1,
-            "dim": [12],
-            "data": [0, 0.005, 0.015, 0.04, 0.06, 0.1, 0.14, 0.2, 0.4, 0.6, 0.8, 1.0],
-        }
-    out = tmp / (src.stem + ".yaml")
-    out.write_text(yaml.safe_dump(template))
-    return out
+    from hevsim.validation.fastsim_db import fastsim_yaml
+
+    return fastsim_yaml(read_vehicle(src), tmp / (src.stem + ".yaml"))
 
 
 def fastsim_figures(src: Path, tmp: Path, pt: str) -> dict[str, float]:

@@ -2,7 +2,8 @@
 
 Run from the repository root (or anywhere; paths are resolved from this file)::
 
-    .venv/bin/python benchmarks/bench_label.py [--repeats 10] [--config examples/prius_2016_like_power_split.toml]
+    .venv/bin/python benchmarks/bench_label.py [--repeats 10] \
+        [--config examples/prius_2016_like_power_split.toml]
 
 What is timed (``time.perf_counter``, medians of ``--repeats`` after one warm-up call):
 

@@ -65,7 +65,9 @@ def main() -> int:
                    label=f"{label}: {100 * e:.1f} %")  # fmt: skip
     ax.set_xlabel("engine speed [rpm]")
     ax.set_ylabel("engine torque [N·m]")
-    ax.set_title("prius_2016_like_power_split on UDDS: engine operating points on its efficiency map", fontsize=9)
+    ax.set_title(
+        "prius_2016_like_power_split on UDDS: engine operating points on its efficiency map", fontsize=9
+    )
     ax.legend(fontsize=7, loc="lower right")
     save_png(fig, a.out, dpi=110)
     plt.close(fig)

@@ -143,10 +143,8 @@ def test_diesel_car_counts_its_own_gallons() -> None:
 
 def test_cli_writes_label_json_and_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "lbl"
-    assert (
-        main(["label", str(EXAMPLES / "prius_2016_like_power_split.toml"), "-o", str(out), "--model-year", "2016"])
-        == 0
-    )
+    prius = str(EXAMPLES / "prius_2016_like_power_split.toml")
+    assert main(["label", prius, "-o", str(out), "--model-year", "2016"]) == 0
     data = json.loads((out / "label.json").read_text())
     assert data["coefficients"]["set"] == "2008" and data["soc_balance_tolerance"] == 0.01
     assert set(data["figures"]["adjusted_mpg"]) == {"city", "highway", "combined"}

@@ -280,14 +280,7 @@ class MEParticipant(FMUParticipant):
         self.events += 1
         self.slave.enterEventMode()
         if self.fmi3 and (self._schedule or self._pending):
-            eps = 1e-9 * max(1.0, abs(t))
-            periodic = [
-                c for c, first, dt in self._schedule
-                if t >= first - eps and abs(t - first - round((t - first) / dt) * dt) <= eps
-            ]  # fmt: skip
-            due = [(c, v) for tk, c, v in self._pending if abs(tk - t) <= eps]
-            self._pending = [e for e in self._pending if abs(e[0] - t) > eps]
-            self._tick_inputs(t, periodic, due)
+            self._tick_due_inputs(t)
         self._time = t
         if self._iterate_events():
             return True

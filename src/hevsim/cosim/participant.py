@@ -822,6 +822,12 @@ class FMUParticipant(Participant):
                     vals = {k: out[k] for k in self._clocked_outputs[c]}
                     self.clock_ticks.setdefault(c, []).append((t, vals))
                     self.clock_log.append((t, c))
+        self._tick_due_inputs(t)
+        return self._update_discrete_states()
+
+    def _tick_due_inputs(self, t: float) -> None:
+        """Tick the input clocks due at ``t`` (to 1e-9 relative): the periodic ones whose
+        schedule lands on ``t`` and the pending triggered ticks (removed once delivered)."""
         eps = 1e-9 * max(1.0, abs(t))
         periodic = [
             c for c, first, dt in self._schedule
@@ -830,7 +836,6 @@ class FMUParticipant(Participant):
         due = [(c, v) for tk, c, v in self._pending if abs(tk - t) <= eps]
         self._pending = [e for e in self._pending if abs(e[0] - t) > eps]
         self._tick_inputs(t, periodic, due)
-        return self._update_discrete_states()
 
     def _do_step3(self, t: float, h: float) -> tuple[bool, float | None]:
         """The communication step from ``t`` by ``h`` of an FMI 3.0 FMU: with event mode (the

@@ -58,7 +58,7 @@ import pandas as pd
 from numba import njit
 
 from hevsim.errors import ConfigError, InputError
-from hevsim.sim.lap import _accel, _apex, _decel, _road
+from hevsim.sim.lap import _accel, _braking_speed, _road
 from hevsim.tracks import Track, load_track
 
 FUEL_WEIGHT_S_PER_J = 1e-9
@@ -144,26 +144,6 @@ class DeployProblem:
             "step_m": self.step_m,
             "samples": self.n,
         }
-
-
-@njit(cache=True)
-def _friction_speed(kappa, theta, beta, ds, p, v_cap):
-    """Apex speeds and the backward (braking-limited) integration from the slowest apex of a
-    closed lap: the friction-limited speed [m/s] at each sample (kernels of sim.lap)."""
-    n = kappa.size
-    vlim = np.empty(n)
-    for i in range(n):
-        vlim[i] = _apex(kappa[i], theta[i], beta[i], p, v_cap)
-    i0 = int(np.argmin(vlim))
-    bwd = np.empty(n)
-    bwd[i0] = vlim[i0]
-    for k in range(n - 1):
-        j = (i0 - k) % n
-        i = (j - 1) % n
-        d = _decel(bwd[j], kappa[j], theta[j], beta[j], p)
-        v2 = bwd[j] * bwd[j] + 2.0 * d * ds
-        bwd[i] = min(math.sqrt(v2) if v2 > 0.0 else 0.0, vlim[i])
-    return bwd, i0
 
 
 def _traction_force(veh: Any, trk: Track, v: np.ndarray) -> np.ndarray:
@@ -257,7 +237,7 @@ def build_problem(
     fuel_j = math.inf if fuel_budget_kg is None else fuel_budget_kg * lhv
 
     p = np.array(veh.params(), np.float64)
-    v_f, i0 = _friction_speed(
+    v_f, _, i0 = _braking_speed(
         np.ascontiguousarray(trk.curvature_1pm, np.float64),
         np.arctan(trk.grade),
         np.ascontiguousarray(trk.banking_rad, np.float64),

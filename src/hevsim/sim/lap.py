@@ -304,22 +304,15 @@ def _apex(kappa, theta, beta, p, v_cap):
 
 
 @njit(cache=True)
-def _qss_speed(kappa, theta, beta, ds, p, ev, table, levels, limit, v_cap):
-    """Speed [m/s] at each sample of a closed lap (n samples, step ds [m]); ``limit`` [W]:
-    the battery power limit of each sample (``inf``: none)."""
+def _braking_speed(kappa, theta, beta, ds, p, v_cap):
+    """(friction-limited speed [m/s] at each sample, apex-limit speed [m/s], index of the
+    slowest apex) of a closed lap: the apex speeds and the backward (braking-limited)
+    integration from the slowest apex (n samples, step ds [m])."""
     n = kappa.size
     vlim = np.empty(n)
     for i in range(n):
         vlim[i] = _apex(kappa[i], theta[i], beta[i], p, v_cap)
     i0 = int(np.argmin(vlim))
-    fwd = np.empty(n)
-    fwd[i0] = vlim[i0]
-    for k in range(n - 1):
-        i = (i0 + k) % n
-        j = (i + 1) % n
-        a = _accel(fwd[i], kappa[i], theta[i], beta[i], p, ev, table, levels, limit[i])
-        v2 = fwd[i] * fwd[i] + 2.0 * a * ds
-        fwd[j] = min(math.sqrt(v2) if v2 > 0.0 else 0.0, vlim[j])
     bwd = np.empty(n)
     bwd[i0] = vlim[i0]
     for k in range(n - 1):
@@ -328,6 +321,23 @@ def _qss_speed(kappa, theta, beta, ds, p, ev, table, levels, limit, v_cap):
         d = _decel(bwd[j], kappa[j], theta[j], beta[j], p)
         v2 = bwd[j] * bwd[j] + 2.0 * d * ds
         bwd[i] = min(math.sqrt(v2) if v2 > 0.0 else 0.0, vlim[i])
+    return bwd, vlim, i0
+
+
+@njit(cache=True)
+def _qss_speed(kappa, theta, beta, ds, p, ev, table, levels, limit, v_cap):
+    """Speed [m/s] at each sample of a closed lap (n samples, step ds [m]); ``limit`` [W]:
+    the battery power limit of each sample (``inf``: none)."""
+    n = kappa.size
+    bwd, vlim, i0 = _braking_speed(kappa, theta, beta, ds, p, v_cap)
+    fwd = np.empty(n)
+    fwd[i0] = vlim[i0]
+    for k in range(n - 1):
+        i = (i0 + k) % n
+        j = (i + 1) % n
+        a = _accel(fwd[i], kappa[i], theta[i], beta[i], p, ev, table, levels, limit[i])
+        v2 = fwd[i] * fwd[i] + 2.0 * a * ds
+        fwd[j] = min(math.sqrt(v2) if v2 > 0.0 else 0.0, vlim[j])
     v = np.empty(n)
     for i in range(n):
         v[i] = min(fwd[i], bwd[i])
