@@ -71,6 +71,9 @@ BUDGET_TOL_J = 1.0
 """Tolerance of the battery budget [J] a solution is checked against (plus the DP's grid)."""
 V_MIN_MPS = 1.0
 """Lowest speed of the problem [m/s] (the step time is 1/v)."""
+CATCH_UP_S = 1.0
+"""Forward replay: time [s] in which the supervisor catches up the battery energy by which
+it is behind or ahead of the map."""
 
 
 def _require_cvxpy() -> Any:
@@ -1028,12 +1031,21 @@ __all__ = [
 
 
 def _follower_class() -> Any:
+    import dataclasses
+
     from hevsim.control.parallel import _argmin_feasible, _GridController
 
     class BatteryPowerFollower(_GridController):
         """Forward-model supervisor that follows a battery chemical power [W] schedule in time
         (a deployment map replayed along the optimal speed trace): the feasible candidate
-        control whose battery power is nearest the scheduled one (ties: less fuel power)."""
+        control whose battery power is nearest the scheduled one (ties: less fuel power).
+
+        Its candidates (gear, throttle) set the engine; the machine takes the rest of the wheel
+        demand, and when braking it regenerates up to its own and the battery's limits. The
+        map harvests less than that (its loss model's largest harvest is ``1 / (4 alpha^2 k)``),
+        so the follower blends the brakes as the map does: it lowers the step's battery charge
+        power limit to the map's harvest (none where the map deploys) and the friction brakes
+        take the rest of the braking torque."""
 
         name = "deploy_map"
 
@@ -1041,9 +1053,31 @@ def _follower_class() -> Any:
             super().__init__(hev, control_points)
             self.time_s = np.asarray(time_s, np.float64)
             self.power_w = np.asarray(power_w, np.float64)
+            # the map's cumulative battery energy [J] at the step boundaries (its power holds
+            # over each step: exact piecewise-linear interpolation in time)
+            self.energy_j = np.concatenate([[0.0], np.cumsum(self.power_w[:-1] * np.diff(self.time_s))])
+            self.done_j = 0.0
+
+        def reset(self, soc_initial: float) -> None:
+            self.done_j = 0.0
+
+        def update(self, step: Any, stage: Any) -> None:
+            self.done_j += -float(np.ravel(stage.d_soc)[0]) * step.energy_per_soc_j
 
         def choose(self, step: Any) -> Any:
-            target = float(np.interp(step.time_s + 0.5 * step.dt_s, self.time_s, self.power_w))
+            # the map's power over the step plus the energy behind or ahead of it, caught up
+            # in CATCH_UP_S
+            t0 = step.time_s
+            e_end = float(np.interp(t0 + step.dt_s, self.time_s, self.energy_j))
+            e_now = float(np.interp(t0, self.time_s, self.energy_j))
+            target = (e_end - e_now) / step.dt_s + (e_now - self.done_j) / max(CATCH_UP_S, step.dt_s)
+            bs = step.battery_state
+            if bs is not None:  # the map's harvest [W, chemical] as the terminal charge limit
+                ocv = np.asarray(bs.ocv_v, np.float64)
+                i_a = max(-target, 0.0) / ocv  # charging current at the map's chemical power [A]
+                cap = (ocv + np.asarray(bs.r_charge_ohm, np.float64) * i_a) * i_a
+                cap = np.minimum(bs.p_charge_max_w, cap)
+                step.battery_state = dataclasses.replace(bs, p_charge_max_w=cap)
             st, feasible = step.evaluate(*self.controls)
             p_fuel = st.cost_kg / step.dt_s * self.lhv
             p_chem = -st.d_soc / step.dt_s * step.energy_per_soc_j
@@ -1056,8 +1090,11 @@ def _follower_class() -> Any:
 def replay_forward(model: Any, res: DeployResult, *, dt_s: float = 0.1) -> dict[str, float]:
     """The optimal lap replayed in the forward vehicle model (:func:`hevsim.sim.simulate`):
     the driver follows the optimal speed trace in time, the supervisor follows the map's
-    battery power in time. Returns the optimum's and the forward run's lap time [s] (the time
-    at which the forward run has covered the lap's length) and net battery chemical energy [J]."""
+    battery power in time (:func:`_follower_class`). Returns the optimum's and the forward
+    run's lap time [s] (the time at which the forward run has covered the lap's length), net,
+    deployed and harvested battery chemical energy [J] (``forward_battery_net_j`` and
+    ``forward_battery_deployed_j``: the battery's terminal energy), traction-limited time [s]
+    and fuel [kg]."""
     from hevsim.config import load_vehicle_config
     from hevsim.cycles import DriveCycle
     from hevsim.sim.performance import wheel_force_envelope
@@ -1086,16 +1123,20 @@ def replay_forward(model: Any, res: DeployResult, *, dt_s: float = 0.1) -> dict[
     )
     pb = ts["battery_power_w"].to_numpy()
     eb = res.battery_energy_j
+    # chemical energy of each step [J], as the run's energy audit counts it (-dSOC Q OCV at the
+    # step's start): the quantity the map's loss model and the follower's target are in
+    soc = ts["soc"].to_numpy()
+    e_chem = -np.diff(soc) * float(hev.battery.capacity_ah) * 3600.0 * ts["battery_ocv_v"].to_numpy()[:-1]
     return {
         "optimal_lap_time_s": res.lap_time_s,
         "forward_lap_time_s": lap_t,
         "optimal_battery_net_j": float(eb.sum()),
         "forward_battery_net_j": float(sim.metrics["battery_energy_wh"]["value"]) * 3600.0,
-        "forward_battery_chemical_net_j": -float(ts["soc"].iloc[-1] - ts["soc"].iloc[0])
-        * float(hev.battery.capacity_ah)
-        * 3600.0
-        * float(np.mean(hev.battery.ocv(ts["soc"].to_numpy()))),
+        "forward_battery_chemical_net_j": float(e_chem.sum()),
         "optimal_battery_deployed_j": float(np.sum(np.maximum(eb, 0.0))),
+        "optimal_battery_harvested_j": float(-np.sum(np.minimum(eb, 0.0))),
+        "forward_battery_chemical_deployed_j": float(np.sum(np.maximum(e_chem, 0.0))),
+        "forward_battery_chemical_harvested_j": float(-np.sum(np.minimum(e_chem, 0.0))),
         "forward_battery_deployed_j": float(np.sum(np.maximum(pb, 0.0)) * dt_s),
         "forward_traction_limited_s": float(sim.metrics["traction_limited_s"]["value"]),
         "forward_fuel_kg": float(sim.metrics["fuel_kg"]["value"]),
