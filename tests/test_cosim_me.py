@@ -130,13 +130,14 @@ def test_me_worker_runs_ahead_packed_and_pipelined(fmus: dict[str, Path]) -> Non
 
     ref = simulate([MEParticipant("v", fmus["VanDerPol"])], [], stop_time_s=20.0, step_s=H)
     p = WorkerFMUParticipant("v", fmus["VanDerPol"])
-    sent_with_buffered: list[int] = []
+    sent: list[tuple[int, int]] = []  # (the batch's first step, steps the master had taken)
+    taken = [0]
     packed: list[bool] = []
-    real_send, real_recv = p._send, p._recv
+    real_send, real_recv, real_step = p._send, p._recv, p.do_step
 
     def send(cmd: str, *args: object) -> None:
         if cmd == "steps":
-            sent_with_buffered.append(len(p._ahead))
+            sent.append((round(args[0][0][0] / H), taken[0]))  # type: ignore[index]
         real_send(cmd, *args)
 
     def recv(cmd: str) -> object:
@@ -145,11 +146,17 @@ def test_me_worker_runs_ahead_packed_and_pipelined(fmus: dict[str, Path]) -> Non
             packed.append(res[0][0] == "packed")  # type: ignore[index]
         return res
 
-    p._send, p._recv = send, recv  # type: ignore[method-assign]
+    def do_step(t: float, h: float) -> tuple[bool, float | None]:
+        res = real_step(t, h)
+        taken[0] += 1
+        return res
+
+    p._send, p._recv, p.do_step = send, recv, do_step  # type: ignore[method-assign]
     res = simulate([p], [], stop_time_s=20.0, step_s=H)
     assert np.array_equal(res.data, ref.data) and np.array_equal(res.time_s, ref.time_s)
     assert packed and all(packed)
-    assert sent_with_buffered[0] == 0 and min(sent_with_buffered[1:]) > 0  # pipelined
+    assert len(sent) > 2 and sent[0] == (0, 0)
+    assert all(first > done for first, done in sent[1:])  # pipelined: sent before the master needs it
 
 
 def test_me_fmu_clocks_against_the_closed_form(tmp_path: Path) -> None:
