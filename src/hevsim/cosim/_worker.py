@@ -467,8 +467,15 @@ def serve(rfd: int, wfd: int) -> None:
 
 def _other(p: Any, cmd: str, args: tuple[Any, ...]) -> Any:
     """The requests that are not on the per-step path."""
-    if cmd == "setup":
-        p.setup(*args)
+    if cmd == "setup":  # (t0, the run window or None): the outputs after it, None if unreadable
+        t0, *window = args
+        if window and window[0] is not None and hasattr(p, "run_window"):
+            p.run_window(*window[0])
+        p.setup(t0)
+        try:
+            return p.get_outputs()
+        except Exception:  # (reported by the master's own query)
+            return None
     elif cmd == "set":
         p.set_inputs(*args)
     elif cmd == "get":

@@ -120,6 +120,11 @@ class ForkedWorker:
 
     def wait(self, timeout: float | None = None) -> int:
         end = None if timeout is None else time.monotonic() + timeout
+        if self.poll() is None and not self.stdout.closed:  # its exit closes the reply pipe:
+            import select  # wake up then rather than after a sleep
+
+            with contextlib.suppress(OSError, ValueError):
+                select.select([self.stdout], [], [], timeout)
         delay = 1e-4
         while self.poll() is None:
             if end is not None and time.monotonic() >= end:
@@ -206,6 +211,8 @@ class WorkerFMUParticipant(Participant):
         self._upcoming: tuple[tuple[float, float], ...] = ()  # the batch after them
         self._in_names: tuple[str, ...] | None = None  # input names the worker holds
         self._out_names: tuple[str, ...] = ()
+        self._window: tuple[float, float] | None = None  # the run window, sent with setup
+        self._quit_sent = False
         try:
             info = self._rpc("open", name, str(self.fmu), dict(parameters or {}), log_level,
                              str(fmu_log) if fmu_log else None)  # fmt: skip
@@ -327,8 +334,9 @@ class WorkerFMUParticipant(Participant):
 
     def run_window(self, start_s: float, stop_s: float) -> None:
         """Tell the FMU the run's start and stop time (a Model Exchange FMU's solver takes its
-        maximum step from them: :meth:`hevsim.cosim.me.MEParticipant.run_window`)."""
-        self._rpc("window", start_s, stop_s)
+        maximum step from them: :meth:`hevsim.cosim.me.MEParticipant.run_window`); sent with
+        the next :meth:`setup` (one round trip less)."""
+        self._window = (float(start_s), float(stop_s))
 
     # Inputs are sent with the next step (or output query): one round trip per step.
     def setup(self, t0: float) -> None:
@@ -337,7 +345,11 @@ class WorkerFMUParticipant(Participant):
         self._out: dict[str, Any] | None = None
         self._started = False
         self._discard_ahead()
-        self._rpc("setup", t0)
+        # the reply holds the outputs after the set-up (the master's first query: one round
+        # trip less), None when they could not be read (the query then asks again and fails)
+        outs = self._rpc("setup", t0, self._window)
+        if outs is not None:
+            self._out = dict(outs)
 
     def set_inputs(self, values: Mapping[str, Any]) -> None:
         inputs = self.inputs
@@ -562,8 +574,11 @@ class WorkerFMUParticipant(Participant):
     def terminate(self) -> None:
         if self.proc.poll() is None:
             try:
-                if not self._broken:
-                    self._rpc("terminate")
+                if not self._broken:  # terminate and quit in one round trip
+                    self._send("terminate")
+                    self._write("terminate", encode_frame(("quit",)))
+                    self._quit_sent = True
+                    self._recv("terminate")
             finally:
                 self.close()
 
@@ -577,7 +592,7 @@ class WorkerFMUParticipant(Participant):
             self._fd = -1
         if self.proc.poll() is None:
             try:
-                if not self._broken:
+                if not self._broken and not self._quit_sent:
                     send_frame(self._wfd, ("quit",))
                 assert self.proc.stdin is not None
                 self.proc.stdin.close()
