@@ -468,9 +468,9 @@ def serve(rfd: int, wfd: int) -> None:
 def _other(p: Any, cmd: str, args: tuple[Any, ...]) -> Any:
     """The requests that are not on the per-step path."""
     if cmd == "setup":  # (t0, the run window or None): the outputs after it, None if unreadable
-        t0, *window = args
-        if window and window[0] is not None and hasattr(p, "run_window"):
-            p.run_window(*window[0])
+        t0, *run = args
+        if run and run[0] is not None and hasattr(p, "run_window"):
+            p.run_window(*run[0])
         p.setup(t0)
         try:
             return p.get_outputs()
