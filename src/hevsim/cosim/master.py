@@ -772,6 +772,7 @@ class Master:
         fixed_h = o.negotiation == "fixed" and not o.min_step_s and not o.max_step_s
         parts = [self.p[n] for n in self.order]
         grid = self._grid_fns()[0]
+        plain, step_plain = self._plain, self._step_plain
         while t < o.stop_time_s - eps:
             t_end = grid(t, h)
             h = t_end - t
@@ -779,7 +780,10 @@ class Master:
             guess = y
             it = 0
             while True:
-                new, reject_h, prefs = self._step_once(t, h, y, guess)
+                if plain:  # (the common case: one call less per step)
+                    new, reject_h, prefs = step_plain(t, h, y)
+                else:
+                    new, reject_h, prefs = self._step_once(t, h, y, guess)
                 if reject_h is not None:
                     self.stats["rejected"] += 1
                     if saved is None:
