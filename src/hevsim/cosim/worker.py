@@ -120,11 +120,13 @@ class ForkedWorker:
 
     def wait(self, timeout: float | None = None) -> int:
         end = None if timeout is None else time.monotonic() + timeout
-        if self.poll() is None and not self.stdout.closed:  # its exit closes the reply pipe:
-            import select  # wake up then rather than after a sleep
+        # its exit closes the reply pipe: wake up then rather than after a sleep (for at most
+        # 50 ms: a process the FMU started may hold the pipe open; then the sleeps below)
+        if self.poll() is None and not self.stdout.closed:
+            import select
 
             with contextlib.suppress(OSError, ValueError):
-                select.select([self.stdout], [], [], timeout)
+                select.select([self.stdout], [], [], min(0.05, timeout if timeout is not None else 0.05))
         delay = 1e-4
         while self.poll() is None:
             if end is not None and time.monotonic() >= end:
