@@ -130,13 +130,14 @@ def test_me_worker_runs_ahead_packed_and_pipelined(fmus: dict[str, Path]) -> Non
 
     ref = simulate([MEParticipant("v", fmus["VanDerPol"])], [], stop_time_s=20.0, step_s=H)
     p = WorkerFMUParticipant("v", fmus["VanDerPol"])
-    sent_with_buffered: list[int] = []
+    sent: list[tuple[int, int, int]] = []  # (the batch's first step, steps taken, steps buffered)
+    taken = [0]
     packed: list[bool] = []
-    real_send, real_recv = p._send, p._recv
+    real_send, real_recv, real_step = p._send, p._recv, p.do_step
 
     def send(cmd: str, *args: object) -> None:
         if cmd == "steps":
-            sent_with_buffered.append(len(p._ahead))
+            sent.append((round(args[0][0][0] / H), taken[0], len(p._ahead)))  # type: ignore[index]
         real_send(cmd, *args)
 
     def recv(cmd: str) -> object:
@@ -145,11 +146,43 @@ def test_me_worker_runs_ahead_packed_and_pipelined(fmus: dict[str, Path]) -> Non
             packed.append(res[0][0] == "packed")  # type: ignore[index]
         return res
 
-    p._send, p._recv = send, recv  # type: ignore[method-assign]
+    def do_step(t: float, h: float) -> tuple[bool, float | None]:
+        res = real_step(t, h)
+        taken[0] += 1
+        return res
+
+    p._send, p._recv, p.do_step = send, recv, do_step  # type: ignore[method-assign]
     res = simulate([p], [], stop_time_s=20.0, step_s=H)
     assert np.array_equal(res.data, ref.data) and np.array_equal(res.time_s, ref.time_s)
     assert packed and all(packed)
-    assert sent_with_buffered[0] == 0 and min(sent_with_buffered[1:]) > 0  # pipelined
+    assert len(sent) > 2 and sent[0] == (0, 0, 0)
+    assert all(first > done for first, done, _ in sent[1:])  # pipelined: sent before the master needs it
+    # and as soon as the last batch's reply is read, before it is unpacked into the buffer
+    assert all(buffered == 0 for _, _, buffered in sent)
+
+
+def test_me_worker_round_trips(fmus: dict[str, Path]) -> None:
+    """The ME Van der Pol in a worker process: the run window goes with ``setup``, whose reply
+    holds the first outputs (no ``window`` or ``get`` request), the batches run ahead are the
+    only other requests, ``terminate`` and ``quit`` end the worker in one round trip (it exits
+    with code 0); the results equal the in-process participant's bit for bit."""
+    from hevsim.cosim.worker import WorkerFMUParticipant
+
+    ref = simulate([MEParticipant("v", fmus["VanDerPol"])], [], stop_time_s=5.0, step_s=H)
+    p = WorkerFMUParticipant("v", fmus["VanDerPol"])
+    cmds: list[str] = []
+    real_send = p._send
+
+    def send(cmd: str, *args: object) -> None:
+        cmds.append(cmd)
+        real_send(cmd, *args)
+
+    p._send = send  # type: ignore[method-assign]
+    res = simulate([p], [], stop_time_s=5.0, step_s=H)
+    assert np.array_equal(res.data, ref.data) and np.array_equal(res.time_s, ref.time_s)
+    assert cmds[0] == "setup" and cmds[-1] == "terminate"
+    assert set(cmds[1:-1]) == {"steps"}
+    assert p.proc.poll() == 0
 
 
 def test_me_fmu_clocks_against_the_closed_form(tmp_path: Path) -> None:

@@ -266,12 +266,18 @@ class StepChannel:
         mm = self.mm
         t, h = STEP.unpack_from(mm, self.step_at)
         if self.set_inputs is not None:
-            with phase("set_inputs"):
+            try:  # (as phase("set_inputs"), without a generator per step)
                 self.set_inputs()
+            except Exception as exc:
+                exc.hevsim_call = "set_inputs"  # type: ignore[attr-defined]
+                raise
         ok, pref = p.do_step(t, h)
         if ok and self.get_outputs is not None:
-            with phase("get_outputs"):
+            try:
                 self.get_outputs()
+            except Exception as exc:
+                exc.hevsim_call = "get_outputs"  # type: ignore[attr-defined]
+                raise
         tt = p.terminate_time
         nan = math.nan
         _OUTCOME.pack_into(mm, OUTCOME_AT, ok, p.terminate_requested, nan if pref is None else pref,
@@ -356,11 +362,10 @@ class _Stepper:
         tail: tuple[bool, bool, float | None] = (True, False, None)
         err = None
         for t, h in schedule:
-            try:
+            try:  # (the failure is reported as text either way: no phase marked)
                 ok, pref = p.do_step(t, h)
                 if ok:
-                    with phase("get_outputs"):
-                        get()
+                    get()
             except Exception as exc:
                 err = f"{type(exc).__name__}: {exc}"
                 break
@@ -467,8 +472,15 @@ def serve(rfd: int, wfd: int) -> None:
 
 def _other(p: Any, cmd: str, args: tuple[Any, ...]) -> Any:
     """The requests that are not on the per-step path."""
-    if cmd == "setup":
-        p.setup(*args)
+    if cmd == "setup":  # (t0, the run window or None): the outputs after it, None if unreadable
+        t0, *run = args
+        if run and run[0] is not None and hasattr(p, "run_window"):
+            p.run_window(*run[0])
+        p.setup(t0)
+        try:
+            return p.get_outputs()
+        except Exception:  # (reported by the master's own query)
+            return None
     elif cmd == "set":
         p.set_inputs(*args)
     elif cmd == "get":

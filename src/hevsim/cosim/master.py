@@ -482,6 +482,12 @@ class Master:
 
     def _record(self, t: float, y: dict[str, dict[str, Any]]) -> None:
         row = [float(y[n][v]) for n, v in self._cols]
+        if not self._tcols and self._replay is None:  # (the common case, per step)
+            self._times.append(t)
+            self._rows.append(row)
+            if self._stream is not None:
+                self._stream.write(self._pack(t, *row))
+            return
         trow = [y[n][v] for n, v in self._tcols]  # String, then Integer / Enumeration: exact
         if len(trow) > self._ntext:
             trow[self._ntext :] = map(int, trow[self._ntext :])
@@ -587,23 +593,34 @@ class Master:
 
     def _next_end(self, t: float) -> float | None:
         """End of the fixed step from ``t`` [s] (None: ``t`` is the stop time)."""
-        o = self.opt
-        if t >= o.stop_time_s - 1e-9 * max(1.0, abs(o.stop_time_s)):
-            return None
-        return self._grid(t, o.step_s)
+        return self._grid_fns()[1](t)
 
     def _grid(self, t: float, h: float) -> float:
         """End of the step from ``t`` by ``h``: snapped to ``t_start + n * step_s`` when it is
         that point up to rounding (no drift over long runs), and to the stop time."""
+        return self._grid_fns()[0](t, h)
+
+    def _grid_fns(self) -> tuple[Callable[[float, float], float], Callable[[float], float | None]]:
+        """:meth:`_grid` and :meth:`_next_end` as functions of the current options with their
+        constants computed once (called per step: a few attribute look-ups less each)."""
         o = self.opt
-        t_end = t + h
-        k = round((t_end - o.start_time_s) / o.step_s)
-        g = o.start_time_s + k * o.step_s
-        if abs(t_end - g) <= 1e-9 * o.step_s:
-            t_end = g
-        if t_end >= o.stop_time_s - 1e-9 * max(1.0, abs(o.stop_time_s)):
-            t_end = o.stop_time_s
-        return t_end
+        start, step, stop = o.start_time_s, o.step_s, o.stop_time_s
+        snap = 1e-9 * step
+        last = stop - 1e-9 * max(1.0, abs(stop))
+
+        def grid(t: float, h: float) -> float:
+            t_end = t + h
+            g = start + round((t_end - start) / step) * step
+            if abs(t_end - g) <= snap:
+                t_end = g
+            if t_end >= last:
+                t_end = stop
+            return t_end
+
+        def next_end(t: float) -> float | None:
+            return None if t >= last else grid(t, step)
+
+        return grid, next_end
 
     # -- run -------------------------------------------------------------------------------
     def run(
@@ -639,7 +656,7 @@ class Master:
             for n in self.order:
                 run_ahead = getattr(self.p[n], "run_ahead", None)
                 if run_ahead is not None and not self.feeds[n] and self.rates[n] == 1:
-                    run_ahead(self._next_end)
+                    run_ahead(self._grid_fns()[1])
                     ahead.add(n)
         # Jacobi: participants that can step in the background (start_step: worker FMUs) get
         # their inputs and start first, so they step while the others do
@@ -754,14 +771,19 @@ class Master:
         need_state = o.max_iterations > 1 or o.negotiation != "fixed"
         fixed_h = o.negotiation == "fixed" and not o.min_step_s and not o.max_step_s
         parts = [self.p[n] for n in self.order]
+        grid = self._grid_fns()[0]
+        plain, step_plain = self._plain, self._step_plain
         while t < o.stop_time_s - eps:
-            t_end = self._grid(t, h)
+            t_end = grid(t, h)
             h = t_end - t
             saved = self._save(t) if need_state else None
             guess = y
             it = 0
             while True:
-                new, reject_h, prefs = self._step_once(t, h, y, guess)
+                if plain:  # (the common case: one call less per step)
+                    new, reject_h, prefs = step_plain(t, h, y)
+                else:
+                    new, reject_h, prefs = self._step_once(t, h, y, guess)
                 if reject_h is not None:
                     self.stats["rejected"] += 1
                     if saved is None:

@@ -120,6 +120,13 @@ class ForkedWorker:
 
     def wait(self, timeout: float | None = None) -> int:
         end = None if timeout is None else time.monotonic() + timeout
+        # its exit closes the reply pipe: wake up then rather than after a sleep (for at most
+        # 50 ms: a process the FMU started may hold the pipe open; then the sleeps below)
+        if self.poll() is None and not self.stdout.closed:
+            import select
+
+            with contextlib.suppress(OSError, ValueError):
+                select.select([self.stdout], [], [], min(0.05, timeout if timeout is not None else 0.05))
         delay = 1e-4
         while self.poll() is None:
             if end is not None and time.monotonic() >= end:
@@ -203,8 +210,11 @@ class WorkerFMUParticipant(Participant):
         self._max_batch = RUN_AHEAD_MAX
         self._ahead: collections.deque[tuple[float, float, Any]] = collections.deque()
         self._prefetched: tuple[tuple[float, float], ...] | None = None  # steps sent, reply due
+        self._upcoming: tuple[tuple[float, float], ...] = ()  # the batch after them
         self._in_names: tuple[str, ...] | None = None  # input names the worker holds
         self._out_names: tuple[str, ...] = ()
+        self._window: tuple[float, float] | None = None  # the run window, sent with setup
+        self._quit_sent = False
         try:
             info = self._rpc("open", name, str(self.fmu), dict(parameters or {}), log_level,
                              str(fmu_log) if fmu_log else None)  # fmt: skip
@@ -326,8 +336,9 @@ class WorkerFMUParticipant(Participant):
 
     def run_window(self, start_s: float, stop_s: float) -> None:
         """Tell the FMU the run's start and stop time (a Model Exchange FMU's solver takes its
-        maximum step from them: :meth:`hevsim.cosim.me.MEParticipant.run_window`)."""
-        self._rpc("window", start_s, stop_s)
+        maximum step from them: :meth:`hevsim.cosim.me.MEParticipant.run_window`); sent with
+        the next :meth:`setup` (one round trip less)."""
+        self._window = (float(start_s), float(stop_s))
 
     # Inputs are sent with the next step (or output query): one round trip per step.
     def setup(self, t0: float) -> None:
@@ -336,7 +347,11 @@ class WorkerFMUParticipant(Participant):
         self._out: dict[str, Any] | None = None
         self._started = False
         self._discard_ahead()
-        self._rpc("setup", t0)
+        # the reply holds the outputs after the set-up (the master's first query: one round
+        # trip less), None when they could not be read (the query then asks again and fails)
+        outs = self._rpc("setup", t0, self._window)
+        if outs is not None:
+            self._out = dict(outs)
 
     def set_inputs(self, values: Mapping[str, Any]) -> None:
         inputs = self.inputs
@@ -418,37 +433,38 @@ class WorkerFMUParticipant(Participant):
         """Take the next steps from ``t``: those the worker is running already, else run
         them now; then let the worker run the batch after them while the master takes these
         (the worker computes while the master records: on two free cores the run costs the
-        larger of the two, not their sum)."""
+        larger of the two, not their sum). The next batch's schedule is made while the
+        worker runs this one, and sent as soon as this one's reply is read (before it is
+        unpacked): the worker waits for the master only for a pipe round trip."""
         if self._prefetched is None:
             schedule = self._schedule(t)
             if not schedule:
                 raise SimulationError(f"participant {self.name!r}: asked to step from the stop time {t!r} s.")
             self._send("steps", schedule)
             self._prefetched = schedule
-        self._take()
-        last = self._ahead[-1][2] if self._ahead else None
-        if isinstance(last, tuple) and last[0] and not last[2]:  # accepted, no termination
-            nxt = self._schedule(self._ahead[-1][0] + self._ahead[-1][1])
-            if nxt:
-                self._send("steps", nxt)
-                self._prefetched = nxt
+            self._upcoming = self._schedule(schedule[-1][0] + schedule[-1][1])  # (made while it runs)
+        self._take(prefetch=True)
 
     def _schedule(self, t: float) -> tuple[tuple[float, float], ...]:
         """The next batch of (t, h) steps from ``t`` (empty at the stop time)."""
         assert self._next_end is not None
+        next_end = self._next_end
         schedule: list[tuple[float, float]] = []
+        append = schedule.append
         tk = t
-        while len(schedule) < self._batch:
-            te = self._next_end(tk)
+        for _ in range(self._batch):
+            te = next_end(tk)
             if te is None:
                 break
-            schedule.append((tk, te - tk))
+            append((tk, te - tk))
             tk = te
         self._batch = min(2 * self._batch, self._max_batch)
         return tuple(schedule)
 
-    def _take(self) -> None:
-        """Read the reply of the steps run ahead (:attr:`_prefetched`) into the buffer."""
+    def _take(self, prefetch: bool = False) -> None:
+        """Read the reply of the steps run ahead (:attr:`_prefetched`) into the buffer; with
+        ``prefetch``, send the next batch (:attr:`_upcoming`) first when these steps all
+        went through (accepted, no termination, no failure)."""
         schedule, self._prefetched = self._prefetched, None
         assert schedule is not None
         try:
@@ -461,7 +477,19 @@ class WorkerFMUParticipant(Participant):
                 f"{schedule[0][0]:g} s to {sum(schedule[-1]):g} s (a worker without inputs steps "
                 "ahead of the exchange)"
             ) from None
-        if isinstance(replies, tuple) and replies and replies[0] == PACKED:
+        packed = isinstance(replies, tuple) and replies and replies[0] == PACKED
+        if prefetch and err is None:
+            if packed:
+                go = replies[4][0] and not replies[4][1] and len(replies[3]) == len(schedule)
+            else:
+                last = replies[-1] if replies else None
+                go = isinstance(last, tuple) and last[0] and not last[2] and len(replies) == len(schedule)
+            nxt = self._upcoming
+            if go and nxt:
+                self._send("steps", nxt)
+                self._prefetched = nxt
+                self._upcoming = self._schedule(nxt[-1][0] + nxt[-1][1])
+        if packed:
             self._out_names, replies = unpack_steps(replies)
         self._ahead.extend((*step, r) for step, r in zip(schedule, replies, strict=False))
         if err is not None:
@@ -518,6 +546,7 @@ class WorkerFMUParticipant(Participant):
         if self._prefetched is not None:
             self._ready()
         self._ahead.clear()
+        self._upcoming = ()
 
     def _flush(self) -> None:
         if self._pending:
@@ -547,8 +576,11 @@ class WorkerFMUParticipant(Participant):
     def terminate(self) -> None:
         if self.proc.poll() is None:
             try:
-                if not self._broken:
-                    self._rpc("terminate")
+                if not self._broken:  # terminate and quit in one round trip
+                    self._send("terminate")
+                    self._write("terminate", encode_frame(("quit",)))
+                    self._quit_sent = True
+                    self._recv("terminate")
             finally:
                 self.close()
 
@@ -562,7 +594,7 @@ class WorkerFMUParticipant(Participant):
             self._fd = -1
         if self.proc.poll() is None:
             try:
-                if not self._broken:
+                if not self._broken and not self._quit_sent:
                     send_frame(self._wfd, ("quit",))
                 assert self.proc.stdin is not None
                 self.proc.stdin.close()
