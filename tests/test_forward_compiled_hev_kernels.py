@@ -68,8 +68,8 @@ def test_torque_rises_with_throttle_needs_ascending_throttles_and_no_torque_map(
 
 def test_one_compiled_run_per_architecture() -> None:
     """Vehicles whose machine tables are read-only arrays (map machines) and writable ones
-    (constant efficiency) share one compiled run per architecture (another type would
-    compile it again: about 20 s)."""
+    (constant efficiency) share one compiled run per architecture and pack kind (another type
+    would compile it again: about 20 s)."""
     grid = load_cycle("udds").resampled(1.0)
     vehicles = [
         ("parallel_hev.toml", {}),
@@ -82,8 +82,12 @@ def test_one_compiled_run_per_architecture() -> None:
         cfg = cfg.replace(**changes) if changes else cfg
         model = architecture(cfg.architecture).build(cfg)
         H._run_one(model, grid, make_controller(model), cfg.simulation.soc_initial, 0.0, 1.0)
+    # count the runs without a pack (the last argument None): a pack vehicle compiled by an
+    # earlier test in this process is its own, legitimate signature
     tables = {P.ParallelTables.__name__: 0, "PowerSplitTables": 0}
     for sig in H.run_hev.signatures:
+        if not str(sig[-1]).startswith("none"):
+            continue
         first = sig[0] if not str(sig[0]).startswith("none") else sig[1]
         tables[str(first).split("(")[0]] += 1
     assert tables == {"ParallelTables": 1, "PowerSplitTables": 1}, H.run_hev.signatures
