@@ -629,6 +629,7 @@ class FCEVConfig(_VehicleConfig):
     brakes: BrakesSection = field(default_factory=BrakesSection)
     simulation: SimulationSection = field(default_factory=SimulationSection)
     controller: ControllerSection = field(default_factory=lambda: ControllerSection(kind="load_follower"))
+    optimization: SustainingOptimizationSection = field(default_factory=SustainingOptimizationSection)
     metrics: MetricsSection = field(default_factory=MetricsSection)
     fuel: FuelSection = field(default_factory=lambda: FuelSection(name="hydrogen"))
     base_dir: str = "."
@@ -894,6 +895,7 @@ def _check_fcev(cfg: FCEVConfig, source: str) -> None:
             f"{source}: key 'battery.model' = 'cell' is not supported by the fcev architecture; expected "
             "one of ideal, rint, table, pack."
         )
+    _check_optimization(cfg, source)
 
 
 def _series_required(data: dict[str, Any]) -> tuple[str, ...]:
@@ -963,7 +965,7 @@ register_architecture(ArchitectureSpec(
 
 
 register_architecture(ArchitectureSpec(
-    "fcev", FCEVConfig, ("load_follower",),
+    "fcev", FCEVConfig, ("load_follower", "ecms", "aecms"),
     lambda data: ("body", "tire", "final_drive", "motor", "fuel_cell", "battery"), _check_fcev,
 ))  # fmt: skip
 
