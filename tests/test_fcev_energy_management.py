@@ -107,7 +107,7 @@ def test_dp_reaches_the_convex_envelope_of_the_efficiency_curve(fcev: F.FCEV) ->
     h2, e_fc, stored = _dp_energy_terms(model, res)
     bound_kg = (_bus_energy_j(model, res) + stored) / (eta_max * HYDROGEN_LHV_J_PER_KG)
     assert e_fc == pytest.approx(_bus_energy_j(model, res) + stored, rel=1e-9)  # bus balance, no loss
-    assert bound_kg * (1 - 1e-9) <= h2 <= bound_kg * 1.002
+    assert bound_kg * (1 - 1e-9) <= h2 <= bound_kg * 1.001  # 2e-4 above it (the SOC grid)
     p = res.timeseries["fuel_cell_power_w"].to_numpy()[:-1]
     on = p > 0.0
     assert np.sum(p[on & np.isclose(p, p_star)]) >= 0.95 * np.sum(p)  # bang-bang at the peak point
@@ -124,12 +124,12 @@ def test_dp_reaches_jensens_bound_with_a_convex_hydrogen_curve(fcev: F.FCEV) -> 
     model = dataclasses.replace(model, fuel_cell=fc)
     cyc = load_cycle("udds").truncated(400.0)
     res = optimize(model, cyc, soc_grid_points=401, input_grid_points=101, progress=False)
-    h2, e_fc, stored = _dp_energy_terms(model, res)
+    h2, _, stored = _dp_energy_terms(model, res)
     t_total = float(res.cycle.time_s[-1] - res.cycle.time_s[0])
     p_mean = (_bus_energy_j(model, res) + stored) / t_total
     f = p_mean / fc.max_power_w
     jensen_kg = t_total * p_mean / (0.6 - 0.2 * f) / HYDROGEN_LHV_J_PER_KG
-    assert jensen_kg * (1 - 1e-9) <= h2 <= jensen_kg * 1.002
+    assert jensen_kg * (1 - 1e-9) <= h2 <= jensen_kg * 1.001  # 1.2e-4 above it
     p = res.timeseries["fuel_cell_power_w"].to_numpy()[:-1]
     assert np.percentile(np.abs(p - p_mean), 90) <= 2 * fc.max_power_w / 100  # near the mean power
 
@@ -183,7 +183,8 @@ def _assert_ramps_hold(model: F.FCEV, res: object) -> None:
         elif a == 0.0:
             assert fc.min_power_w <= b <= max(fc.min_power_w, fc.ramp_up_w_per_s * dt) * (1 + 1e-12)
         else:
-            assert up <= fc.ramp_up_w_per_s * dt * (1 + 1e-12) and down <= fc.ramp_down_w_per_s * dt * (1 + 1e-12)
+            assert up <= fc.ramp_up_w_per_s * dt * (1 + 1e-12)
+            assert down <= fc.ramp_down_w_per_s * dt * (1 + 1e-12)
 
 
 def _assert_hydrogen_is_energy_over_efficiency(res: object) -> None:
@@ -227,7 +228,9 @@ def test_online_controllers_honour_a_slow_ramp(fcev: F.FCEV) -> None:
 
 
 @pytest.mark.parametrize("cycle", ["udds", "hwfet"])
-def test_dp_replay_burns_the_dp_hydrogen(fcev: F.FCEV, dp_runs: dict[str, OptimizationResult], cycle: str) -> None:
+def test_dp_replay_burns_the_dp_hydrogen(
+    fcev: F.FCEV, dp_runs: dict[str, OptimizationResult], cycle: str
+) -> None:
     """The DP's fuel-cell powers replayed in the forward loop: hydrogen and the SOC trace to 1e-9
     (the same power flow; the FCEV's machine inertia is in the vehicle mass for both)."""
     dp = dp_runs[cycle]
@@ -242,6 +245,7 @@ def test_dp_replay_burns_the_dp_hydrogen(fcev: F.FCEV, dp_runs: dict[str, Optimi
 
 def test_power_between_off_and_idle_is_infeasible(fcev: F.FCEV) -> None:
     fc = fcev.fuel_cell
-    st = F.power_flow(fcev, 50.0, 100.0, np.array([0.0, 0.5 * fc.min_power_w, fc.min_power_w]), 0.6, 1.0, True)
+    p = np.array([0.0, 0.5 * fc.min_power_w, fc.min_power_w])
+    st = F.power_flow(fcev, 50.0, 100.0, p, 0.6, 1.0, True)
     assert st.flags["fuel_cell_power"].tolist() == [False, True, False]
     assert float(np.ravel(st.cost_kg)[0]) == 0.0  # off: no hydrogen

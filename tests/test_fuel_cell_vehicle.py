@@ -124,7 +124,7 @@ def _data(**sections: dict) -> dict:
         ({"fuel_cell": {"min_power_w": 200000.0}}, r"'fuel_cell.min_power_w' = 200000.0 must be below"),
         ({"fuel_cell": {"ramp_up_w_per_s": -1.0}}, r"fuel_cell.ramp_up_w_per_s"),
         ({"fuel_cell": {"data": "no_such_stack"}}, r"'fuel_cell.data' = 'no_such_stack'"),
-        ({"controller": {"kind": "electric_assist"}}, r"'controller.kind' = 'electric_assist' is not defined for the fcev"),
+        ({"controller": {"kind": "direct"}}, r"'controller.kind' = 'direct' is not defined for the fcev"),
         ({"plugin": {"mode": "ev_first"}}, r"\[plugin\]"),
     ],
 )

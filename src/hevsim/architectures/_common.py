@@ -12,7 +12,6 @@ from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
 from hevsim.components.electric_machine import ElectricMachine
 
-
 FUEL_CONVERTERS: tuple[str, ...] = ("engine", "fuel_cell")
 """Model fields that hold a vehicle's fuel converter (an engine, a fuel-cell system), in the order
 :func:`fuel_converter` looks for them."""

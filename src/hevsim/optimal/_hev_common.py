@@ -39,7 +39,8 @@ from hevsim.units import M3_PER_US_GALLON
 
 __all__ = [
     "DETAIL_COLUMNS", "LIMITS", "LIMIT_RTOL", "BatteryCache", "BatteryState", "BoolArray", "CycleSteps",
-    "ElectricFlow", "FloatArray", "FuelConverter", "HEVFormulation", "Stage", "electric_flow", "hev_metrics", "soc_invariant",
+    "ElectricFlow", "FloatArray", "FuelConverter", "HEVFormulation", "Stage", "electric_flow", "hev_metrics",
+    "soc_invariant",
 ]  # fmt: skip
 
 
