@@ -47,6 +47,9 @@ from hevsim.units import KWH_PER_GALLON_EQUIVALENT, M_PER_MILE
 
 ARCHITECTURE = "fcev"
 CONTROLS: tuple[str, ...] = ("fuel_cell_power_w",)
+DP_INPUTS: tuple[str, ...] = ("fuel_cell_power_w",)
+"""The DP formulation's inputs, which :func:`power_flow` takes as they are (a DP optimum replays
+them: :class:`hevsim.control.parallel.InputSchedule`)."""
 MODES: tuple[str, ...] = ("standstill", "traction", "regen", "friction_braking")
 LOSSES: tuple[str, ...] = (
     "fuel", "fuel_cell_loss", "motor_loss", "friction_brakes", "final_drive_loss", "aux", "wheel",

@@ -332,7 +332,7 @@ class ControlSchedule:
         electrical power)."""
         from hevsim.architectures import ARCHITECTURES
 
-        if result.architecture in SERIES_INPUTS:
+        if replayed_inputs(result.architecture):
             return InputSchedule.from_optimization(result)
         entry = ARCHITECTURES.get(result.architecture)  # its first control input (gear, engine speed)
         first = entry.controls[0] if entry is not None and entry.dp_formulation and entry.controls else None
@@ -360,10 +360,14 @@ class ControlSchedule:
         return (max(g, 1.0), u) if feasible[0] else None
 
 
-SERIES_INPUTS: dict[str, tuple[str, ...]] = {"series": ("genset_power_w",), "fcev": ("fuel_cell_power_w",)}
-"""DP results whose inputs are the controls of the architecture's ``power_flow`` as they are:
-architecture -> the time-series columns holding them (what :class:`InputSchedule` replays: the
-series HEV's genset electrical power, the fuel cell's net power)."""
+def replayed_inputs(architecture: str) -> tuple[str, ...]:
+    """The DP inputs of ``architecture`` that its ``power_flow`` takes as controls as they are
+    (the module's ``DP_INPUTS``: the series HEV's genset electrical power, the fuel cell's net
+    power; the time-series columns an :class:`InputSchedule` replays), () where it has none."""
+    from hevsim.architectures import ARCHITECTURES
+
+    entry = ARCHITECTURES.get(architecture)
+    return tuple(getattr(entry.power_module(), "DP_INPUTS", ())) if entry is not None else ()
 
 
 @dataclass
@@ -388,12 +392,12 @@ class InputSchedule:
 
     @classmethod
     def from_optimization(cls, result: Any) -> InputSchedule:
-        """The optimal inputs of a DP result of an architecture in :data:`SERIES_INPUTS`."""
-        columns = SERIES_INPUTS.get(result.architecture)
-        if columns is None:
+        """The optimal inputs of a DP result of an architecture with :func:`replayed_inputs`."""
+        columns = replayed_inputs(result.architecture)
+        if not columns:
             raise ConfigError(
-                f"an input schedule needs a DP result of {', '.join(SERIES_INPUTS)}, got "
-                f"{result.architecture!r}."
+                f"an input schedule needs a DP result whose inputs are the power flow's controls (the "
+                f"series HEV's, the fuel-cell vehicle's), got {result.architecture!r}."
             )
         ts = result.timeseries
         return cls(ts["time_s"].to_numpy(), tuple(ts[c].to_numpy() for c in columns),

@@ -26,7 +26,7 @@ class FCEVFormulation(HEVFormulation):
     """The fuel-cell vehicle: input the fuel cell's net power (0 = off)."""
 
     architecture = "fcev"
-    input_names = ("fuel_cell_power_w",)
+    input_names = F.DP_INPUTS  # replayed as they are (hevsim.control.parallel.InputSchedule)
     input_units = ("W",)
 
     @classmethod
