@@ -249,3 +249,22 @@ def test_power_between_off_and_idle_is_infeasible(fcev: F.FCEV) -> None:
     st = F.power_flow(fcev, 50.0, 100.0, p, 0.6, 1.0, True)
     assert st.flags["fuel_cell_power"].tolist() == [False, True, False]
     assert float(np.ravel(st.cost_kg)[0]) == 0.0  # off: no hydrogen
+
+
+def test_cli_simulate_takes_ecms_from_a_saved_dp_result(
+    dp_runs: dict[str, OptimizationResult], tmp_path: Path
+) -> None:
+    """`hevsim simulate examples/fcev.toml --ecms-from DP_DIR` (was: exit 2, 'ecms' not admitted)."""
+    import json
+
+    from hevsim.cli import main
+
+    dp = dp_runs["udds"]
+    dp.save(tmp_path / "dp")
+    out = tmp_path / "ecms"
+    assert main(["simulate", str(FCEV), "--cycle", "udds", "--ecms-from", str(tmp_path / "dp"), "--no-plots",
+                 "--out", str(out)]) == 0  # fmt: skip
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["controller"] == "ecms"
+    s = ecms_from_dp(dp)["equivalence_factor"]
+    assert meta["equivalence_factor_final"] == pytest.approx(s, rel=1e-7)  # costate.csv: 9 digits
