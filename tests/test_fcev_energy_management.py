@@ -268,3 +268,26 @@ def test_cli_simulate_takes_ecms_from_a_saved_dp_result(
     assert meta["controller"] == "ecms"
     s = ecms_from_dp(dp)["equivalence_factor"]
     assert meta["equivalence_factor_final"] == pytest.approx(s, rel=1e-7)  # costate.csv: 9 digits
+
+
+def test_study_ecms_tuned_from_the_case_dp(fcev: F.FCEV) -> None:
+    """A study's ``simulate`` solver with ``controller = "ecms_dp"`` on the FCEV (admitted now
+    that it has ECMS and a DP): the same hydrogen as ECMS with the case DP's factor."""
+    from hevsim.config import with_overrides
+    from hevsim.studies.runner import run_study
+    from hevsim.studies.spec import study_from_dict
+
+    dp = {"soc_grid_points": 21, "input_grid_points": 21}
+    study = study_from_dict({
+        "name": "fcev_ecms_dp", "vehicle": str(FCEV), "cycles": ["hwfet"],
+        "metrics": ["fuel_kg", "soc_final"],
+        "parameters": {"body.mass_kg": [2000.0]},
+        "solvers": [{"name": "simulate", "controller": "ecms_dp"}, {"name": "optimize", **dp}],
+    })  # fmt: skip
+    rows = run_study(study, scheduler="in-process", progress=False)
+    assert (rows["status"] == "ok").all(), rows["error"].tolist()
+    cfg = with_overrides(study.vehicle, {"body.mass_kg": 2000.0})
+    s = ecms_from_dp(optimize(cfg, "hwfet", progress=False, **dp))["equivalence_factor"]
+    ref = hevsim.simulate(cfg, "hwfet", controller="ecms", equivalence_factor=s)
+    got = rows[rows["solver"] == "simulate[controller=ecms_dp]"].iloc[0]
+    assert got["fuel_kg"] == pytest.approx(ref.value("fuel_kg"), rel=1e-12)
