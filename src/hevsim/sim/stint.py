@@ -41,7 +41,9 @@ lap in time:
 
 An optimal deployment over the lap (issue 29 item 3) can replace step 1's constant limit: the
 lap takes any ``battery_power_max_w`` profile (``deployment=`` of :func:`simulate_stint`, a
-function of the lap's start state returning the profile).
+function of the lap's start state returning the profile or a :class:`DeploymentPlan`);
+:func:`hevsim.optimal.stint_deploy.simulate_stint_optimized` re-solves the optimal deployment
+with the BMS's power limits and the pack's SOC at the start of a lap when they changed.
 
 Outputs per lap: lap time (and its loss against the unlimited lap), SOC at start and end, peak
 cell temperature, time derated by the BMS (temperature factor < 1), time the lap's deployment
@@ -113,6 +115,8 @@ class StintResult:
             "fuel_kg": "{:.3f}",
             "passes": "{:d}",
         }
+        if "reoptimized" in self.laps:
+            cols["reoptimized"] = "{:d}"
         t = self.laps.assign(cooling_energy_kj=self.laps["cooling_energy_j"] / 1e3)
         head = "".join(f"{c:>18}" for c in cols)
         rows = [
@@ -196,6 +200,17 @@ class StintResult:
         fig.tight_layout()
         save_png(fig, folder / "speed.png", 100)
         plt.close(fig)
+
+
+@dataclass
+class DeploymentPlan:
+    """What a ``deployment`` callable of :func:`simulate_stint` may return instead of a bare
+    power: the lap's deployment ``battery_power_max_w`` (the largest battery chemical power [W]
+    at each sample or everywhere) and ``info``, scalars added to the lap's row of the per-lap
+    table (e.g. whether the deployment was re-optimised and the limits it was solved for)."""
+
+    battery_power_max_w: Any
+    info: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -393,10 +408,12 @@ def simulate_stint(
             probe.begin()
             lim = probe.limits
             soc_lap0 = start.soc
+            info: dict[str, Any] = {}
             if deployment is not None:
-                limit = np.array(
-                    np.broadcast_to(np.asarray(deployment(probe, trk), np.float64), trk.distance_m.shape)
-                )
+                plan = deployment(probe, trk)
+                if isinstance(plan, DeploymentPlan):
+                    info, plan = dict(plan.info), plan.battery_power_max_w
+                limit = np.array(np.broadcast_to(np.asarray(plan, np.float64), trk.distance_m.shape))
             else:
                 i_avail = lim.discharge_a
                 p0 = math.inf if i_avail >= i_max * (1.0 - 1e-12) else ocv * i_avail
@@ -417,7 +434,9 @@ def simulate_stint(
             e_now = run.energy()
             e_lap = {key: e_now[key] - e_prev[key] for key in e_now if key != "residual_relative"}
             e_prev = e_now
-            rows.append(_lap_row(k, lap, free, steps, e_lap, run, soc_lap0, limit, passes, float(dt_s)))
+            rows.append(
+                {**_lap_row(k, lap, free, steps, e_lap, run, soc_lap0, limit, passes, float(dt_s)), **info}
+            )
             for s in steps:
                 records.append({"stint_time_s": clock + s["t1"], "lap": k + 1, **s})
             clock += lap.lap_time_s
@@ -447,7 +466,9 @@ def simulate_stint(
         "nominal_ocv_v": ocv,
         "nominal_max_current_a": i_max,
         "iterations": int(iterations),
-        "deployment": "custom" if deployment is not None else "BMS limit at the start of each lap",
+        "deployment": str(getattr(deployment, "label", "custom"))
+        if deployment is not None
+        else "BMS limit at the start of each lap",
     }
     return StintResult(laps_df, timeseries, summary, results, meta)
 
@@ -543,4 +564,4 @@ def _summary(
     }
 
 
-__all__ = ["StintResult", "check_laps", "simulate_stint", "stint_vehicle"]
+__all__ = ["DeploymentPlan", "StintResult", "check_laps", "simulate_stint", "stint_vehicle"]
