@@ -13,16 +13,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.test_stint import STEP_M, small_car
+
+from hevsim import tracks
+from hevsim.cli import main
+from hevsim.config import load_vehicle_config
+from hevsim.optimal import lap_deploy as D
+from hevsim.optimal.stint_deploy import simulate_stint_optimized
+from hevsim.sim.stint import stint_vehicle
 
 pytest.importorskip("cvxpy")
-
-from hevsim import tracks  # noqa: E402
-from hevsim.cli import main  # noqa: E402
-from hevsim.config import load_vehicle_config  # noqa: E402
-from hevsim.optimal import lap_deploy as D  # noqa: E402
-from hevsim.optimal.stint_deploy import simulate_stint_optimized  # noqa: E402
-from hevsim.sim.stint import stint_vehicle  # noqa: E402
-from tests.test_stint import STEP_M, small_car  # noqa: E402
 
 HOT = {"ambient_temp_c": 46.0, "soak": True, "cooling_off": True}
 """A stint that derates: the pack soaked above the BMS's derating onset, no cooling."""
