@@ -17,7 +17,10 @@ the slowest apex (the lap's speed there is its friction limit):
   time is ``sum dt_i``;
 * limits: ``0 <= W_e <= P_e,i dt_i`` (engine's largest wheel power),
   ``|W_m| <= P_m,i dt_i`` (machine's largest wheel power added with the battery; both from the
-  architecture's envelope at the speed of the QSS lap without the battery at sample i),
+  architecture's envelope at the speed of the QSS lap without the battery at sample i; with
+  the battery's chemical power limits of :meth:`DeployProblem.with_battery`, ``P_m,i`` is also
+  at most the machine power whose battery power under the loss model below is the discharge
+  limit, and the harvest the one whose charge power is the charge limit),
   traction ``W_e + W_m <= ds (a_i + b_i e_i)`` (the chord in
   ``e`` of the friction ellipse's traction limit of :mod:`hevsim.sim.lap` between standstill and
   the friction-limited speed), friction-limited speed ``e_i <= v_max,i^2 / 2`` (the QSS apex
