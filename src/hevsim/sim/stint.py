@@ -38,6 +38,11 @@ lap in time:
    ``soc_min``: there the cooling loop's own load (pump, fan, chiller) is refused by the pack
    and is carried by the engine through the machine (``clamped_cooling_j``, the part of the
    clamped energy that is cooling load; it is not in the lap's fuel).
+5. **Trial passes.** With module ROMs, a pass that may not be the lap's last one steps the
+   pack without the ROMs' hot-spot search (records only: it drives neither the BMS nor the
+   cells; :meth:`~hevsim.battery.bms.PackRun.skip_hot_spots`); the pass that turns out to be
+   the last is stepped again from the lap's start with it, so the kept run is the same bit for
+   bit.
 
 An optimal deployment over the lap (issue 29 item 3) can replace step 1's constant limit: the
 lap takes any ``battery_power_max_w`` profile (``deployment=`` of :func:`simulate_stint`, a
@@ -362,6 +367,7 @@ def simulate_stint(
     levels: int = ENVELOPE_LEVELS,
     deployment: Callable[[Any, Track], Any] | None = None,
     vehicle: tuple[LapVehicle, float, float] | None = None,
+    hot_spots_every_pass: bool = False,
 ) -> StintResult:
     """A stint of ``laps`` laps of a ``[battery] model = "pack"`` vehicle (file, configuration
     or built model) on ``track`` (module docstring).
@@ -373,7 +379,9 @@ def simulate_stint(
     ``deployment``: optional ``f(pack_run, track) -> battery_power_max_w`` (a number or one
     power [W] per sample) taking the place of the BMS's limit at the start of each lap (the
     pack's limits along the lap still apply); ``vehicle``: a :func:`stint_vehicle` already
-    built for ``model`` (several stints of one car share it)."""
+    built for ``model`` (several stints of one car share it); ``hot_spots_every_pass``: search
+    the module ROMs' hot spots in every pass, not only the last (module docstring, item 5; the
+    same results, slower: the reference of ``benchmarks/bench_lap.py``)."""
     from threadpoolctl import threadpool_limits
 
     from hevsim.config import load_vehicle_config
@@ -402,6 +410,7 @@ def simulate_stint(
         rows, records, results = [], [], []
         carry, clock = _Carry(), 0.0
         e_prev = run.energy()
+        rom = bool(run.has_rom) and not hot_spots_every_pass
         for k in range(n_laps):
             start = run
             probe = copy.deepcopy(start)
@@ -422,6 +431,9 @@ def simulate_stint(
             while True:
                 passes += 1
                 work = probe if passes == 1 else copy.deepcopy(start)
+                trial = rom and passes < iterations  # maybe not the last pass (item 5)
+                if trial:
+                    work.skip_hot_spots()
                 lap = (
                     free
                     if np.all(np.isinf(limit))
@@ -429,6 +441,9 @@ def simulate_stint(
                 )
                 steps, new_carry = _drive_pack(work, lap, carry, passes == 1, float(dt_s), soc_min, soc_max)
                 if passes >= iterations or not _lower_deployment(limit, lap, steps):
+                    if trial:  # the last pass after all: its records count, so again with the hot spots
+                        work = copy.deepcopy(start)
+                        steps, new_carry = _drive_pack(work, lap, carry, False, float(dt_s), soc_min, soc_max)
                     break
             run, carry = work, new_carry
             e_now = run.energy()
