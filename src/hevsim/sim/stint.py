@@ -428,6 +428,7 @@ def simulate_stint(
                 p0 = math.inf if i_avail >= i_max * (1.0 - 1e-12) else ocv * i_avail
                 limit = np.full(trk.distance_m.size, p0)
             passes = 0
+            lap: LapResult | None = None
             while True:
                 passes += 1
                 work = probe if passes == 1 else copy.deepcopy(start)
@@ -437,8 +438,10 @@ def simulate_stint(
                 lap = (
                     free
                     if np.all(np.isinf(limit))
-                    else simulate_lap(model, trk, step_m=trk.step_m, vehicle=lv, battery_power_max_w=limit)
-                )
+                    else simulate_lap(
+                        model, trk, step_m=trk.step_m, vehicle=lv, battery_power_max_w=limit, reuse=lap
+                    )
+                )  # a further pass keeps the previous one's operating points where its samples are the same
                 steps, new_carry = _drive_pack(work, lap, carry, passes == 1, float(dt_s), soc_min, soc_max)
                 if passes >= iterations or not _lower_deployment(limit, lap, steps):
                     if trial:  # the last pass after all: its records count, so again with the hot spots
