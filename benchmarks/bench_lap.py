@@ -27,9 +27,10 @@ parallel HEV with
   ROM built once from examples/module_thermal.toml into a temporary folder or ``--rom FILE``,
   not timed; the issue's target: <= 30 s), and
 * the shipped hot-lap pack (324 cells, coolant ports), the peer of the same run, and
-* the 1200-cell pack again with the module ROMs' hot-spot search in every pass of a lap (the
-  code before the trial passes skipped it, ``simulate_stint(..., hot_spots_every_pass=True)``):
-  the baseline of the same run, its ratio, and that the results are the same bit for bit,
+* the 1200-cell pack again with every pass of a lap stepped in full (the code before the trial
+  passes skipped the module ROMs' hot-spot search and reused the operating points,
+  ``simulate_stint(..., full_passes=True)``): the baseline of the same run, its ratio, and
+  that the results are the same bit for bit,
 * the 1200-cell pack again with at most 2 passes of each lap instead of 3 (and how far its lap
   times move),
 * the 1200-cell pack driving the optimal deployment re-solved with the BMS's limits at the
@@ -206,13 +207,13 @@ def bench_stint(track_name: str, laps: int, rom_arg: str | None, t_lap: float) -
         rom_cfg = next(iter(cases.values()))
         for label, cfg, passes, every in (
             *((k, c, ITERATIONS, False) for k, c in cases.items()),
-            ("1200 cells, hot spots in every pass (before)", rom_cfg, ITERATIONS, True),
+            ("1200 cells, every pass in full (before)", rom_cfg, ITERATIONS, True),
             ("1200 cells, module ROMs, at most 2 passes per lap", rom_cfg, 2, False),
         ):
             simulate_stint(cfg, track, 1)  # warm-up: compilation and caches
             with OtherLoad() as load:
                 w0, c0 = time.perf_counter(), time.process_time()
-                res = simulate_stint(cfg, track, laps, iterations=passes, hot_spots_every_pass=every)
+                res = simulate_stint(cfg, track, laps, iterations=passes, full_passes=every)
                 wall, cpu = time.perf_counter() - w0, time.process_time() - c0
             first.setdefault(str(res.metadata["n_cells"]), res)
             s = res.summary
@@ -233,7 +234,7 @@ def bench_stint(track_name: str, laps: int, rom_arg: str | None, t_lap: float) -
             if every:
                 same = ref.laps.equals(res.laps) and ref.timeseries.equals(res.timeseries)
                 print(
-                    f"    the default (hot spots in the last pass only) / this: {base[0] / wall:.2f} wall, "
+                    f"    the default (trial passes) / this: {base[0] / wall:.2f} wall, "
                     f"{base[1] / cpu:.2f} CPU; per-lap table and pack time series the same bit for bit: "
                     f"{same}"
                 )

@@ -179,9 +179,9 @@ def test_pack_step_longer_than_half_a_lap_refused(setup) -> None:  # type: ignor
 
 
 def test_trial_passes_without_hot_spots_same_bit_for_bit(tmp_path: Path) -> None:
-    """With module ROMs, the passes that may not be a lap's last skip the hot-spot search
-    (``hevsim.sim.stint``, item 5): the stint is the same bit for bit as with the search in
-    every pass (the 600-cell pack of examples/vehicle_pack.toml on a coarse-mesh ROM, soaked
+    """With module ROMs, the passes that may not be a lap's last skip the hot-spot search and a
+    further pass reuses the previous one's operating points (``hevsim.sim.stint``, item 5): the
+    stint is the same bit for bit as with every pass in full (the 600-cell pack of examples/vehicle_pack.toml on a coarse-mesh ROM, soaked
     at 46 degC with the cooling off, so that the laps take more than one pass)."""
     pytest.importorskip("skfem")
     pytest.importorskip("gmsh")
@@ -211,7 +211,7 @@ def test_trial_passes_without_hot_spots_same_bit_for_bit(tmp_path: Path) -> None
     track = tracks.load_track("handling", step_m=STEP_M)
     kw = {"step_m": STEP_M, "ambient_temp_c": 46.0, "soak": True, "cooling_off": True}
     fast = simulate_stint(cfg, track, 2, **kw)
-    ref = simulate_stint(cfg, track, 2, hot_spots_every_pass=True, **kw)
+    ref = simulate_stint(cfg, track, 2, full_passes=True, **kw)
     assert fast.metadata["thermal"] == "rom"
     assert fast.laps["passes"].max() > 1  # trial passes were taken
     assert fast.laps.equals(ref.laps)

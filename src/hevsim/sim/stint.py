@@ -42,7 +42,8 @@ lap in time:
    pack without the ROMs' hot-spot search (records only: it drives neither the BMS nor the
    cells; :meth:`~hevsim.battery.bms.PackRun.skip_hot_spots`); the pass that turns out to be
    the last is stepped again from the lap's start with it, so the kept run is the same bit for
-   bit.
+   bit. A further pass keeps the previous pass's operating-point search at the samples that
+   are the same (``simulate_lap(..., reuse=)``).
 
 An optimal deployment over the lap (issue 29 item 3) can replace step 1's constant limit: the
 lap takes any ``battery_power_max_w`` profile (``deployment=`` of :func:`simulate_stint`, a
@@ -367,7 +368,7 @@ def simulate_stint(
     levels: int = ENVELOPE_LEVELS,
     deployment: Callable[[Any, Track], Any] | None = None,
     vehicle: tuple[LapVehicle, float, float] | None = None,
-    hot_spots_every_pass: bool = False,
+    full_passes: bool = False,
 ) -> StintResult:
     """A stint of ``laps`` laps of a ``[battery] model = "pack"`` vehicle (file, configuration
     or built model) on ``track`` (module docstring).
@@ -379,9 +380,10 @@ def simulate_stint(
     ``deployment``: optional ``f(pack_run, track) -> battery_power_max_w`` (a number or one
     power [W] per sample) taking the place of the BMS's limit at the start of each lap (the
     pack's limits along the lap still apply); ``vehicle``: a :func:`stint_vehicle` already
-    built for ``model`` (several stints of one car share it); ``hot_spots_every_pass``: search
-    the module ROMs' hot spots in every pass, not only the last (module docstring, item 5; the
-    same results, slower: the reference of ``benchmarks/bench_lap.py``)."""
+    built for ``model`` (several stints of one car share it); ``full_passes``: step every pass
+    in full, without item 5's shortcuts (the module ROMs' hot-spot search in every pass, each
+    pass's operating points computed afresh: the same results, slower; the reference of
+    ``benchmarks/bench_lap.py``)."""
     from threadpoolctl import threadpool_limits
 
     from hevsim.config import load_vehicle_config
@@ -410,7 +412,7 @@ def simulate_stint(
         rows, records, results = [], [], []
         carry, clock = _Carry(), 0.0
         e_prev = run.energy()
-        rom = bool(run.has_rom) and not hot_spots_every_pass
+        rom = bool(run.has_rom) and not full_passes
         for k in range(n_laps):
             start = run
             probe = copy.deepcopy(start)
@@ -439,7 +441,12 @@ def simulate_stint(
                     free
                     if np.all(np.isinf(limit))
                     else simulate_lap(
-                        model, trk, step_m=trk.step_m, vehicle=lv, battery_power_max_w=limit, reuse=lap
+                        model,
+                        trk,
+                        step_m=trk.step_m,
+                        vehicle=lv,
+                        battery_power_max_w=limit,
+                        reuse=None if full_passes else lap,
                     )
                 )  # a further pass keeps the previous one's operating points where its samples are the same
                 steps, new_carry = _drive_pack(work, lap, carry, passes == 1, float(dt_s), soc_min, soc_max)
