@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from tests.test_stint import STEP_M, small_car
+from tests.test_stint import ROOT, STEP_M, small_car
 
 from hevsim import tracks
 from hevsim.cli import main
@@ -141,3 +141,8 @@ def test_cli_stint_optimize(setup, tmp_path: Path, capsys) -> None:  # type: ign
     assert laps["reoptimized"].tolist() == [1]
     assert main([*argv, "--reoptimize-rtol", "-1", "--out", str(tmp_path / "x")]) == 2
     assert "--reoptimize-rtol" in capsys.readouterr().err
+    table_car = str(ROOT / "examples" / "high_performance_parallel_hev.toml")
+    bad = ["stint", table_car, "handling", "--laps", "1", "--optimize", "convex"]
+    bad += ["--out", str(tmp_path / "y")]
+    assert main(bad) == 2
+    assert "battery.model" in capsys.readouterr().err

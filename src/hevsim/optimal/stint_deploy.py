@@ -193,8 +193,10 @@ def simulate_stint_optimized(
     if isinstance(model, str | Path):
         model = load_vehicle_config(model)
     cfg = getattr(model, "config", model)
-    if cfg.battery.model != "pack":
-        simulate_stint(model, track, laps, step_m=step_m, soc_initial=soc_initial, **stint)  # its error
+    if getattr(getattr(cfg, "battery", None), "model", None) != "pack":
+        # simulate_stint's own refusal (naming battery.model), before the problem is built
+        simulate_stint(model, track, laps, step_m=step_m, soc_initial=soc_initial, **stint)
+        raise ConfigError(f"{cfg.name}: a stint needs [battery] model = 'pack'.")
     trk = track if isinstance(track, Track) else load_track(track, step_m=step_m)
     soc0 = float(cfg.simulation.soc_initial if soc_initial is None else soc_initial)
     veh = vehicle if vehicle is not None else stint_vehicle(model, soc0)
