@@ -181,8 +181,9 @@ def test_pack_step_longer_than_half_a_lap_refused(setup) -> None:  # type: ignor
 def test_trial_passes_without_hot_spots_same_bit_for_bit(tmp_path: Path) -> None:
     """With module ROMs, the passes that may not be a lap's last skip the hot-spot search and a
     further pass reuses the previous one's operating points (``hevsim.sim.stint``, item 5): the
-    stint is the same bit for bit as with every pass in full (the 600-cell pack of examples/vehicle_pack.toml on a coarse-mesh ROM, soaked
-    at 46 degC with the cooling off, so that the laps take more than one pass)."""
+    stint is the same bit for bit as with every pass in full (the 600-cell pack of
+    examples/vehicle_pack.toml on a coarse-mesh ROM, soaked at 46 degC with the cooling off, so
+    that the laps take more than one pass)."""
     pytest.importorskip("skfem")
     pytest.importorskip("gmsh")
     from tests.thermal_helpers import COARSE_TOML
