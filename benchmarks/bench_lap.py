@@ -27,8 +27,15 @@ parallel HEV with
   ROM built once from examples/module_thermal.toml into a temporary folder or ``--rom FILE``,
   not timed; the issue's target: <= 30 s), and
 * the shipped hot-lap pack (324 cells, coolant ports), the peer of the same run, and
+* the 1200-cell pack again with every pass of a lap stepped in full (the code before the trial
+  passes skipped the module ROMs' hot-spot search and reused the operating points,
+  ``simulate_stint(..., full_passes=True)``): the baseline of the same run, its ratio, and
+  that the results are the same bit for bit,
 * the 1200-cell pack again with at most 2 passes of each lap instead of 3 (and how far its lap
   times move),
+* the 1200-cell pack driving the optimal deployment re-solved with the BMS's limits at the
+  start of each lap (``hevsim stint --optimize convex``, :mod:`hevsim.optimal.stint_deploy`;
+  skipped without cvxpy), as a ratio to the plain 1200-cell stint of the same run,
 
 against the single lap with operating points times the laps (the stint's floor without the
 pack and the recomputed passes), with ``uptime``'s load. The script only reports: it always
@@ -196,14 +203,17 @@ def bench_stint(track_name: str, laps: int, rom_arg: str | None, t_lap: float) -
         }
         print(f"stint of {laps} laps on {track.name} at 1 m steps, pack step 1 s (wall and CPU, whole call):")
         first: dict[str, Any] = {}
-        for label, cfg, passes in (
-            *((k, c, ITERATIONS) for k, c in cases.items()),
-            ("1200 cells, module ROMs, at most 2 passes per lap", next(iter(cases.values())), 2),
+        base = (float("nan"), float("nan"))
+        rom_cfg = next(iter(cases.values()))
+        for label, cfg, passes, every in (
+            *((k, c, ITERATIONS, False) for k, c in cases.items()),
+            ("1200 cells, every pass in full (before)", rom_cfg, ITERATIONS, True),
+            ("1200 cells, module ROMs, at most 2 passes per lap", rom_cfg, 2, False),
         ):
             simulate_stint(cfg, track, 1)  # warm-up: compilation and caches
             with OtherLoad() as load:
                 w0, c0 = time.perf_counter(), time.process_time()
-                res = simulate_stint(cfg, track, laps, iterations=passes)
+                res = simulate_stint(cfg, track, laps, iterations=passes, full_passes=every)
                 wall, cpu = time.perf_counter() - w0, time.process_time() - c0
             first.setdefault(str(res.metadata["n_cells"]), res)
             s = res.summary
@@ -219,12 +229,45 @@ def bench_stint(track_name: str, laps: int, rom_arg: str | None, t_lap: float) -
                 f"(ratio {wall / (laps * t_lap):.1f}x)"
             )
             ref = first[str(res.metadata["n_cells"])]
+            if label.startswith("1200") and passes == ITERATIONS and not every:
+                base = (wall, cpu)
+            if every:
+                same = ref.laps.equals(res.laps) and ref.timeseries.equals(res.timeseries)
+                print(
+                    f"    the default (trial passes) / this: {base[0] / wall:.2f} wall, "
+                    f"{base[1] / cpu:.2f} CPU; per-lap table and pack time series the same bit for bit: "
+                    f"{same}"
+                )
+                continue
             if ref is not res:
                 d = (res.laps["lap_time_s"] - ref.laps["lap_time_s"]).abs().max()
                 print(
                     f"    against {ITERATIONS} passes: lap times differ by at most {d:.3f} s; clamped "
                     f"{res.summary['clamped_s']:.0f} s (against {ref.summary['clamped_s']:.0f} s)"
                 )
+        try:
+            import cvxpy  # noqa: F401
+        except ImportError:
+            print("  optimal deployment re-solved per lap: skipped (no cvxpy: pip install 'hevsim[lap]')")
+            return
+        from hevsim.optimal.stint_deploy import simulate_stint_optimized
+
+        cfg = next(iter(cases.values()))
+        with OtherLoad() as load:
+            w0, c0 = time.perf_counter(), time.process_time()
+            res = simulate_stint_optimized(cfg, track, laps)
+            wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+        s = res.summary
+        print(
+            f"  {'1200 cells, optimal deployment re-solved (convex)':<50}{wall:8.2f} s wall "
+            f"{cpu:7.2f} s CPU   "
+            f"(ratio to the plain 1200-cell stint above: {wall / base[0]:.2f} wall, {cpu / base[1]:.2f} CPU; "
+            f"{load.text()}; uptime load {os.getloadavg()[0]:.2f})"
+        )
+        print(
+            f"    {s['deploy_solves']} solves; laps {s['fastest_lap_s']:.2f} .. {s['slowest_lap_s']:.2f} s; "
+            f"peak cell {s['peak_cell_temp_c']:.1f} degC; passes {int(res.laps['passes'].sum())}"
+        )
 
 
 if __name__ == "__main__":

@@ -219,6 +219,27 @@ def test_deployment_limit_caps_the_battery_power_and_slows_the_lap(hp_vehicle: L
     assert simulate_lap(HP, tr, vehicle=hp_vehicle, operating_points=False).lap_time_s == free.lap_time_s
 
 
+def test_reused_operating_points_are_the_same_bit_for_bit() -> None:
+    """``simulate_lap(..., reuse=)`` keeps a previous lap's operating-point search where the
+    samples are the same (a stint's further pass): the lap is the one computed afresh, bit for
+    bit, with part of its samples reused."""
+    tr = tracks.handling_circuit()
+    veh = lap_vehicle(HP, battery_levels_w=np.linspace(0.0, 150e3, 5))
+    limit = np.full(tr.distance_m.size, 100e3)
+    first = simulate_lap(HP, tr, vehicle=veh, battery_power_max_w=limit)
+    limit[400:600] = 40e3  # a window lowered, as a stint's pass does
+    fresh = simulate_lap(HP, tr, vehicle=veh, battery_power_max_w=limit)
+    again = simulate_lap(HP, tr, vehicle=veh, battery_power_max_w=limit, reuse=first)
+    assert fresh.timeseries.equals(again.timeseries)
+    assert fresh.summary == again.summary
+    assert first.search is not None and again.search is not None
+    v0, f0, d0, l0 = first.search[:4]
+    v1, f1, d1, l1 = again.search[:4]
+    same = (v0 == v1) & (f0 == f1) & (d0 == d1) & (l0 == l1)
+    assert 0.2 < same.mean() < 1.0, same.mean()  # part reused, part searched again
+    assert fresh.lap_time_s > first.lap_time_s
+
+
 def test_deployment_rows_interpolate_the_envelope(hp_vehicle: LapVehicle) -> None:
     veh = lap_vehicle(HP, battery_levels_w=[0.0, 50e3, 100e3])
     v = np.array([20.0, 40.0])

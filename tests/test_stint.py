@@ -176,3 +176,46 @@ def test_pack_step_longer_than_half_a_lap_refused(setup) -> None:  # type: ignor
     skidpad = tracks.load_track("skidpad", step_m=STEP_M)  # an 11 s lap
     with pytest.raises(ConfigError, match=r"--dt = 8.0 s.*half a lap of 'skidpad'"):
         simulate_stint(cfg, skidpad, 2, step_m=STEP_M, dt_s=8.0, vehicle=vehicle)
+
+
+def test_trial_passes_without_hot_spots_same_bit_for_bit(tmp_path: Path) -> None:
+    """With module ROMs, the passes that may not be a lap's last skip the hot-spot search and a
+    further pass reuses the previous one's operating points (``hevsim.sim.stint``, item 5): the
+    stint is the same bit for bit as with every pass in full (the 600-cell pack of
+    examples/vehicle_pack.toml on a coarse-mesh ROM, soaked at 46 degC with the cooling off, so
+    that the laps take more than one pass)."""
+    pytest.importorskip("skfem")
+    pytest.importorskip("gmsh")
+    from tests.thermal_helpers import COARSE_TOML
+
+    from hevsim.thermal.rom import BuildOptions, build_rom_from_config
+
+    (tmp_path / "module_coarse.toml").write_text(COARSE_TOML)
+    rom, _ = build_rom_from_config(tmp_path / "module_coarse.toml", BuildOptions(tol_k=0.1))
+    rom.save(tmp_path / "module.rom.npz")
+    pack = (EX / "vehicle_pack.toml").read_text()
+    edits = {
+        '\nthermal = "coolant"': '\nthermal = "rom"',
+        '\nthermal_config = "module_thermal.toml"': (
+            '\nthermal_config = "module_coarse.toml"\nrom_file = "module.rom.npz"'
+        ),
+        "flow_l_min = 20.0": "flow_l_min = 500.0",  # 10 L/min per plate: the ROM's film range
+        "flow_ref_l_min = 10.0": "flow_ref_l_min = 500.0",
+    }
+    for old, new in edits.items():
+        assert pack.count(old) == 1, old
+        pack = pack.replace(old, new)
+    (tmp_path / "rom_pack.toml").write_text(pack)
+    car = HP_PACK.read_text().replace('pack = "hot_lap_pack.toml"', 'pack = "rom_pack.toml"')
+    (tmp_path / "car.toml").write_text(car)
+    cfg = load_vehicle_config(tmp_path / "car.toml")
+    track = tracks.load_track("handling", step_m=STEP_M)
+    kw = {"step_m": STEP_M, "ambient_temp_c": 46.0, "soak": True, "cooling_off": True}
+    fast = simulate_stint(cfg, track, 2, **kw)
+    ref = simulate_stint(cfg, track, 2, full_passes=True, **kw)
+    assert fast.metadata["thermal"] == "rom"
+    assert fast.laps["passes"].max() > 1  # trial passes were taken
+    assert fast.laps.equals(ref.laps)
+    assert fast.timeseries.equals(ref.timeseries)
+    assert not fast.timeseries.isna().any().any()
+    assert fast.timeseries["hot_spot_temp_k"].max() > 46.0 + 273.15

@@ -15,6 +15,16 @@ bound, cooling energy, SOC at start and end), ``summary.csv`` (one row per case)
 ``report.md`` (the tables as markdown) and ``stint.png`` (lap time and peak cell temperature vs
 lap for the four cases).
 
+Re-optimising the deployment (with ``--optimize convex`` or ``dp``, default convex; ``none``
+skips it): at the hotter ambient with the cooling off, the same stint driving the optimal
+charge-sustaining deployment of :mod:`hevsim.optimal.stint_deploy`, solved once before the
+first lap and held (``reoptimize_rtol = inf``), and re-solved with the BMS's power limits at
+the start of each lap whenever they changed by more than 2 %
+(:func:`~hevsim.optimal.stint_deploy.simulate_stint_optimized`): ``reoptimize_table.csv`` (per
+lap: both lap times, the gain, the lap-start discharge limit, the limit the held map was solved
+for, peak cell temperature, time derated, SOC, re-optimised or not) and its section in
+``report.md``.
+
     python examples/stint_study/run_stint_study.py [--laps 10] [--track monza] [--out results/stint_study]
 """
 
@@ -24,6 +34,7 @@ import argparse
 import time
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from hevsim.config import load_vehicle_config
@@ -98,6 +109,55 @@ def run(laps: int, track_name: str, ambients: list[float]) -> tuple[pd.DataFrame
     return pd.concat(rows, ignore_index=True), pd.DataFrame(cases)
 
 
+def reoptimize(laps: int, track_name: str, ambient: float, method: str) -> pd.DataFrame:
+    """Per-lap table of the optimal deployment held and re-solved (module docstring), at
+    ``ambient`` [degC] with the cooling off."""
+    import math
+
+    from hevsim.optimal.lap_deploy import build_problem
+    from hevsim.optimal.stint_deploy import DEPLOY_STEP_M, simulate_stint_optimized
+
+    cfg = load_vehicle_config(CAR)
+    track = load_track(track_name, step_m=1.0)
+    soc0 = cfg.simulation.soc_initial
+    vehicle = stint_vehicle(cfg, soc0)
+    prob, _ = build_problem(cfg, track.resampled(DEPLOY_STEP_M), step_m=DEPLOY_STEP_M, soc=soc0)
+    opts = {"ambient_temp_c": ambient, "soak": True, "cooling_off": True, "method": method}
+    out = {}
+    for label, rtol in (("held", math.inf), ("re-solved", 0.02)):
+        t0 = time.perf_counter()
+        res = simulate_stint_optimized(
+            cfg, track, laps, problem=prob, vehicle=vehicle, reoptimize_rtol=rtol, **opts
+        )
+        s = res.summary
+        print(
+            f"{ambient:5.1f} degC, cooling off, optimal deployment {label:<9} "
+            f"{time.perf_counter() - t0:6.1f} s: total {s['total_time_s']:.2f} s, "
+            f"{s['deploy_solves']} solves, peak cell {s['peak_cell_temp_c']:.1f} degC"
+        )
+        out[label] = res.laps
+    held, again = out["held"], out["re-solved"]
+    return pd.DataFrame(
+        {
+            "lap": again["lap"],
+            "lap_time_held_s": held["lap_time_s"].round(3),
+            "lap_time_resolved_s": again["lap_time_s"].round(3),
+            "gain_s": (held["lap_time_s"] - again["lap_time_s"]).round(3),
+            "lap_start_limit_kw": again["lap_start_discharge_limit_kw"].round(1),
+            "held_map_limit_kw": held["deploy_discharge_limit_kw"].round(1),
+            "reoptimized": again["reoptimized"],
+            "peak_cell_held_c": held["peak_cell_temp_c"].round(2),
+            "peak_cell_resolved_c": again["peak_cell_temp_c"].round(2),
+            "derated_resolved_s": again["derated_s"],
+            "soc_end_held": held["soc_end"].round(4),
+            "soc_end_resolved": again["soc_end"].round(4),
+            "max_energy_balance_relative": np.maximum(
+                held["energy_balance_relative"].abs(), again["energy_balance_relative"].abs()
+            ),
+        }
+    )
+
+
 def markdown(df: pd.DataFrame) -> str:
     """A data frame as a markdown table (no extra dependency)."""
     rows = df.itertuples(index=False)
@@ -139,8 +199,10 @@ def main() -> int:
     ap.add_argument("--ambients", type=float, nargs=2, default=[20.0, 35.0])
     ap.add_argument("--out", default="results/stint_study")
     ap.add_argument("--force", action="store_true", help="replace a folder at --out hevsim did not write")
+    ap.add_argument("--optimize", choices=("convex", "dp", "none"), default="convex")
     a = ap.parse_args()
     table, summary = run(a.laps, a.track, list(a.ambients))
+    reopt = None if a.optimize == "none" else reoptimize(a.laps, a.track, max(a.ambients), a.optimize)
     with atomic_directory(a.out, force=a.force) as tmp:
         table.to_csv(tmp / "stint_table.csv", index=False)
         summary.to_csv(tmp / "summary.csv", index=False)
@@ -152,9 +214,19 @@ def main() -> int:
             markdown(table.drop(columns=["energy_balance_relative"])),
             "",
         ]
+        if reopt is not None:
+            reopt.to_csv(tmp / "reoptimize_table.csv", index=False)
+            text += [
+                f"## Optimal deployment ({a.optimize}) held vs re-solved: "
+                f"{max(a.ambients):g} degC, cooling off",
+                "",
+                markdown(reopt.drop(columns=["max_energy_balance_relative"])),
+                "",
+            ]
         (tmp / "report.md").write_text("\n".join(text))
         plot(table, tmp / "stint.png")
-    print(f"results written to {a.out}/ (stint_table.csv, summary.csv, report.md, stint.png)")
+    extra = "" if reopt is None else ", reoptimize_table.csv"
+    print(f"results written to {a.out}/ (stint_table.csv, summary.csv{extra}, report.md, stint.png)")
     return 0
 
 

@@ -329,7 +329,25 @@ def _cmd_stint(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_{track_name}_stint"
     _prepare(args, out, args.config, None if args.track in TRACK_NAMES else args.track)
     opts = {"ambient_temp_c": args.ambient, "soak": args.soak, "cooling_off": args.cooling_off}
-    res = simulate_stint(cfg, args.track, laps, step_m=step, dt_s=args.dt, soc_initial=args.soc, **opts)
+    if args.optimize:
+        from hevsim.optimal.stint_deploy import simulate_stint_optimized
+
+        res = simulate_stint_optimized(
+            cfg,
+            args.track,
+            laps,
+            method=args.optimize,
+            budget_kj=args.budget_kj,
+            reoptimize_rtol=args.reoptimize_rtol,
+            deploy_step_m=check_step(args.deploy_step),
+            window_kj=args.window_kj,
+            step_m=step,
+            dt_s=args.dt,
+            soc_initial=args.soc,
+            **opts,
+        )
+    else:
+        res = simulate_stint(cfg, args.track, laps, step_m=step, dt_s=args.dt, soc_initial=args.soc, **opts)
     res.save(out, plots=not args.no_plots)
     print(f"{cfg.name} ({cfg.architecture}) on {res.summary['track']}: stint of {laps} laps")
     print(res.format())
@@ -1075,6 +1093,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ambient", type=float, help="ambient temperature [degC] (default the pack file's)")
     p.add_argument("--soak", action="store_true", help="start the cells and coolant at --ambient")
     p.add_argument("--cooling-off", action="store_true", help="pump, fan and chiller off")
+    p.add_argument(
+        "--optimize",
+        choices=("convex", "dp"),
+        help="drive each lap's optimal deployment, re-solved with the BMS limits at the lap's start",
+    )
+    p.add_argument(
+        "--budget-kj",
+        type=float,
+        default=0.0,
+        help="--optimize: net battery energy per lap [kJ] (0: charge-sustaining)",
+    )
+    p.add_argument(
+        "--reoptimize-rtol",
+        type=float,
+        default=0.02,
+        help="--optimize: re-solve when a BMS power limit changed by more than this fraction "
+        "(default 0.02; 0: before every lap; inf: once)",
+    )
+    p.add_argument("--window-kj", type=float, help="--optimize: half-width of the battery-energy window [kJ]")
+    p.add_argument(
+        "--deploy-step",
+        type=float,
+        default=10.0,
+        help="--optimize: distance step of the problem [m] (default 10)",
+    )
     p.add_argument("--out", help="results folder (default results/<config>_<track>_stint)")
     _add_force(p, "folder at --out")
     p.add_argument("--no-plots", action="store_true", help="skip the plots")

@@ -155,6 +155,23 @@ class PackRun:
         self.pack.thevenin(direction, e, z)
         return e, z
 
+    @property
+    def has_rom(self) -> bool:
+        """Whether the modules' thermal model is a reduced-order model (with a hot-spot search)."""
+        from hevsim.battery.pack_run import F_ROM
+
+        return bool(self.pack.arrays.f[F_ROM] > 0.0)
+
+    def skip_hot_spots(self, skip: bool = True) -> None:
+        """Skip (``skip``) or not the module ROMs' hot-spot search in the following steps: for a
+        trial run whose records are discarded (:mod:`hevsim.sim.stint`'s passes of a lap). The
+        hot spots are records only (the BMS derates on the hottest cell core, the ROM's ports
+        feed the cells): the run's state evolves the same; its recorded hot spots are NaN and
+        its search state is left as it was (so a run that skipped it must not be kept)."""
+        from hevsim.battery.pack_run import F_HSSKIP
+
+        self.pack.arrays.f[F_HSSKIP] = 1.0 if skip else 0.0
+
     def begin(self) -> None:
         """Start a step: Thevenin pair per direction, BMS limits, cooling power."""
         self.start = self.pack.begin_step()

@@ -49,11 +49,11 @@ F_NAMES = (
     "weight", "n_modules", "sim_per_module", "max_current_a", "ambient_k", "linear", "ez_valid", "rom",
     "h_plate", "time_s", "step", "soc", "soc_min", "soc_max", "stress", "v_min", "v_max", "base_aux_w",
     "rom_b_amb_w_k", "rom_f_const_w", "activation_k", "hot_spot_started",
-    "hot_spot_rows", "hot_spot_rebase_k", "hot_spot_rows_double",
+    "hot_spot_rows", "hot_spot_rebase_k", "hot_spot_rows_double", "hot_spot_skip",
 )  # fmt: skip
 (F_DT, F_NG, F_NP, F_REP, F_NS, F_NPAR, F_WEIGHT, F_NMOD, F_SIMPM, F_IMAX, F_AMB, F_LINEAR, F_EZVALID,
  F_ROM, F_H, F_TIME, F_STEP, F_SOC, F_SOCMIN, F_SOCMAX, F_STRESS, F_VMIN, F_VMAX, F_BASEAUX, F_BAMB,
- F_FCONST, F_ACT, F_HSINIT, F_HSROWS, F_HSREBASE, F_HSROWS64) = range(
+ F_FCONST, F_ACT, F_HSINIT, F_HSROWS, F_HSREBASE, F_HSROWS64, F_HSSKIP) = range(
     len(F_NAMES))  # fmt: skip
 
 #: the step vector :attr:`PackArrays.sv` that :func:`pack_begin` fills
@@ -472,7 +472,10 @@ def rom_modal(s, port_w, hot):
         else:
             for c in range(nc):
                 s.port_k[m * nc + c] = y[m, c]
-    _module_hot_spots(s, w, hot)
+    if f[F_HSSKIP] > 0.0:  # a trial run whose records are discarded: the hot spots drive nothing
+        hot[:] = np.nan
+    else:
+        _module_hot_spots(s, w, hot)
     return to_amb
 
 

@@ -17,7 +17,10 @@ the slowest apex (the lap's speed there is its friction limit):
   time is ``sum dt_i``;
 * limits: ``0 <= W_e <= P_e,i dt_i`` (engine's largest wheel power),
   ``|W_m| <= P_m,i dt_i`` (machine's largest wheel power added with the battery; both from the
-  architecture's envelope at the speed of the QSS lap without the battery at sample i),
+  architecture's envelope at the speed of the QSS lap without the battery at sample i; with
+  the battery's chemical power limits of :meth:`DeployProblem.with_battery`, ``P_m,i`` is also
+  at most the machine power whose battery power under the loss model below is the discharge
+  limit, and the harvest the one whose charge power is the charge limit),
   traction ``W_e + W_m <= ds (a_i + b_i e_i)`` (the chord in
   ``e`` of the friction ellipse's traction limit of :mod:`hevsim.sim.lap` between standstill and
   the friction-limited speed), friction-limited speed ``e_i <= v_max,i^2 / 2`` (the QSS apex
@@ -124,10 +127,54 @@ class DeployProblem:
     machine_power_i_w: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
     v_lo: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))  # DP speed band [m/s]
     v_hi: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    battery_discharge_max_w: float = math.inf  # battery chemical power limit, discharge [W]
+    battery_charge_max_w: float = math.inf  # battery chemical power limit, charge [W]
 
     @property
     def n(self) -> int:
         return int(self.e_max.size)
+
+    @property
+    def machine_deploy_i_w(self) -> np.ndarray:
+        """Largest machine wheel power [W] per sample (deploy): the machine's own and the one
+        whose battery power (the loss model) is the battery's discharge limit."""
+        cap = machine_power_at_battery_limit(
+            self.battery_discharge_max_w, self.loss_alpha, self.loss_k_per_w, charge=False
+        )
+        return np.minimum(self.machine_power_i_w, cap)
+
+    @property
+    def machine_harvest_i_w(self) -> np.ndarray:
+        """Largest machine wheel power [W] per sample (harvest, > 0): the machine's own and the
+        one whose battery charge power (the loss model) is the battery's charge limit."""
+        cap = machine_power_at_battery_limit(
+            self.battery_charge_max_w, self.loss_alpha, self.loss_k_per_w, charge=True
+        )
+        return np.minimum(self.machine_power_i_w, cap)
+
+    def with_battery(
+        self,
+        *,
+        discharge_max_w: float = math.inf,
+        charge_max_w: float = math.inf,
+        budget_j: float | None = None,
+        window_j: tuple[float, float] | None = None,
+    ) -> DeployProblem:
+        """The same problem with the battery's chemical power limits [W] (discharge, charge;
+        inf: none), and optionally another budget [J] and energy window [J] (a stint's pack
+        state at the start of a lap)."""
+        import dataclasses
+
+        for key, val in (("discharge_max_w", discharge_max_w), ("charge_max_w", charge_max_w)):
+            if math.isnan(val) or val < 0.0:
+                raise ConfigError(f"battery {key} = {val!r} W: expected a power >= 0 W (inf: no limit).")
+        return dataclasses.replace(
+            self,
+            battery_discharge_max_w=float(discharge_max_w),
+            battery_charge_max_w=float(charge_max_w),
+            budget_j=self.budget_j if budget_j is None else float(budget_j),
+            window_j=self.window_j if window_j is None else (float(window_j[0]), float(window_j[1])),
+        )
 
     def battery_energy_j(self, w_m: np.ndarray, dt: np.ndarray) -> np.ndarray:
         """Battery energy [J] of machine wheel work ``w_m`` [J] over steps ``dt`` [s]."""
@@ -144,9 +191,27 @@ class DeployProblem:
             "budget_kj": self.budget_j / 1e3,
             "fuel_budget_kj": self.fuel_budget_j / 1e3,
             "window_kj": [w / 1e3 for w in self.window_j],
+            "battery_discharge_max_kw": self.battery_discharge_max_w / 1e3,
+            "battery_charge_max_kw": self.battery_charge_max_w / 1e3,
             "step_m": self.step_m,
             "samples": self.n,
         }
+
+
+def machine_power_at_battery_limit(power_w: float, alpha: float, k_per_w: float, *, charge: bool) -> float:
+    """Machine wheel power [W] (> 0) whose battery chemical power under the loss model
+    (``alpha p + k p^2`` deploying, ``p / alpha + k p^2`` harvesting, ``p < 0``) is the limit
+    ``power_w`` [W] (discharge, or charge with ``charge``); inf when the limit is inf or, when
+    charging, beyond the model's largest charge power ``1 / (4 alpha^2 k)``."""
+    if not math.isfinite(power_w):
+        return math.inf
+    if charge:
+        lin = 1.0 / alpha
+        disc = lin * lin - 4.0 * k_per_w * power_w
+        if disc < 0.0:
+            return math.inf
+        return 2.0 * power_w / (lin + math.sqrt(disc))
+    return 2.0 * power_w / (alpha + math.sqrt(alpha * alpha + 4.0 * k_per_w * power_w))
 
 
 def _traction_force(veh: Any, trk: Track, v: np.ndarray) -> np.ndarray:
@@ -501,7 +566,7 @@ def solve_convex(prob: DeployProblem, *, verbose: bool = False) -> DeployResult:
     e1 = cp.hstack([e[1:], e[:1]])
     u1 = cp.hstack([u[1:], u[:1]])
     a = prob.loss_alpha
-    pe, pm = prob.engine_power_i_w / kj, prob.machine_power_i_w / kj
+    pe, pm_d, pm_c = prob.engine_power_i_w / kj, prob.machine_deploy_i_w / kj, prob.machine_harvest_i_w / kj
     cons = [
         m * (e1 - e) == we + wm - wb - ds * (prob.drag_kgpm * (e + e1) + prob.road0_n / kj),
         u >= cp.power(2.0 * kj * e, -0.5),
@@ -511,8 +576,8 @@ def solve_convex(prob: DeployProblem, *, verbose: bool = False) -> DeployResult:
         e[0] == prob.e_max[0] / kj,
         we >= 0,
         we <= cp.multiply(pe, dt),
-        wm <= cp.multiply(pm, dt),
-        wm >= -cp.multiply(pm, dt),
+        wm <= cp.multiply(pm_d, dt),
+        wm >= -cp.multiply(pm_c, dt),
         wb >= 0,
         we + wm <= ds * (prob.trac_a_n / kj + cp.multiply(prob.trac_b_kg, e)),
         # battery energy: linear part (deploy alpha, harvest 1/alpha) + resistive wm^2/dt, with
@@ -556,14 +621,14 @@ def solve_convex(prob: DeployProblem, *, verbose: bool = False) -> DeployResult:
 # DP
 # ------------------------------------------------------------------------------------------
 @njit(cache=True)
-def _split_cost(w, dt, trac, pe, pm, alpha, kl, eta, lam, wf):
+def _split_cost(w, dt, trac, pe, pm, pmc, alpha, kl, eta, lam, wf):
     """Best machine work [J] for a step needing wheel work ``w`` [J] over ``dt`` [s]:
     minimises ``lam E_b(wm) + wf max(w - wm, 0) / eta`` (convex in wm) on the feasible interval
-    (engine 0..pe dt, machine -pm dt..pm dt, traction); returns (cost, wm, engine work) or
+    (engine 0..pe dt, machine -pmc dt..pm dt, traction); returns (cost, wm, engine work) or
     (inf, 0, 0)."""
     if w > trac + 1e-9 or w > (pe + pm) * dt:
         return np.inf, 0.0, 0.0
-    lower = max(-pm * dt, w - pe * dt)
+    lower = max(-pmc * dt, w - pe * dt)
     upper = pm * dt
     if w > lower and w < upper:
         upper = max(w, 0.0) if w > 0.0 else upper
@@ -604,7 +669,7 @@ def _split_cost(w, dt, trac, pe, pm, alpha, kl, eta, lam, wf):
 
 
 @njit(cache=True)
-def _backward(nodes, ds, m, cd, road0, ta, tb, pe, pm, alpha, kl, eta, lam, wf):
+def _backward(nodes, ds, m, cd, road0, ta, tb, pe, pm, pmc, alpha, kl, eta, lam, wf):
     """Cost-to-go (N+1, nv) [s] and arg-min next node (N, nv) over the per-step kinetic-energy
     nodes (N+1, nv) [J/kg]: cost = step time + lam x battery energy + wf x fuel energy."""
     n1, nv = nodes.shape
@@ -624,7 +689,7 @@ def _backward(nodes, ds, m, cd, road0, ta, tb, pe, pm, alpha, kl, eta, lam, wf):
                 e1 = nodes[i + 1, j]
                 dt = 0.5 * ds * (1.0 / math.sqrt(2.0 * e0) + 1.0 / math.sqrt(2.0 * e1))
                 w = m * (e1 - e0) + ds * (cd * (e0 + e1) + road0[i])
-                c, _, _ = _split_cost(w, dt, trac, pe[i], pm[i], alpha, kl, eta, lam, wf)
+                c, _, _ = _split_cost(w, dt, trac, pe[i], pm[i], pmc[i], alpha, kl, eta, lam, wf)
                 c += dt + J[i + 1, j]
                 if c < best:
                     best = c
@@ -667,7 +732,8 @@ def _dp_path(prob: DeployProblem, nodes: np.ndarray, lam: float, wf: float) -> t
         np.ascontiguousarray(pr.trac_a_n),
         np.ascontiguousarray(pr.trac_b_kg),
         np.ascontiguousarray(pr.engine_power_i_w),
-        np.ascontiguousarray(pr.machine_power_i_w),
+        np.ascontiguousarray(pr.machine_deploy_i_w),
+        np.ascontiguousarray(pr.machine_harvest_i_w),
         pr.loss_alpha,
         pr.loss_k_per_w,
         pr.engine_efficiency,
@@ -693,6 +759,7 @@ def _dp_path(prob: DeployProblem, nodes: np.ndarray, lam: float, wf: float) -> t
             trac[i],
             args[6][i],
             args[7][i],
+            args[8][i],
             pr.loss_alpha,
             pr.loss_k_per_w,
             pr.engine_efficiency,
@@ -850,11 +917,11 @@ def _failure_location(prob: DeployProblem) -> str:
     v = prob.v_lo.copy()
     n, ds = prob.n, prob.step_m
     dt = 0.5 * ds * (1.0 / v + 1.0 / np.roll(v, -1))
-    wm = -prob.machine_power_i_w * dt
+    wm = -prob.machine_harvest_i_w * dt
     eb = prob.battery_energy_j(wm, dt)
     # the harvest that pays: the loss model's most-charging machine power
     p_best = 1.0 / (2.0 * prob.loss_alpha * max(prob.loss_k_per_w, 1e-30))
-    wm2 = -np.minimum(prob.machine_power_i_w, p_best) * dt
+    wm2 = -np.minimum(prob.machine_harvest_i_w, p_best) * dt
     eb = np.minimum(eb, prob.battery_energy_j(wm2, dt))
     cum = np.cumsum(eb)
     out = np.flatnonzero(cum < prob.window_j[0])
@@ -899,16 +966,18 @@ def simulate_rule(prob: DeployProblem, fraction: np.ndarray) -> tuple[float, flo
     e = np.empty(n + 1)
     e[0] = prob.e_max[0]
     wm = np.zeros(n)
+    p_dep, p_har = prob.machine_deploy_i_w, prob.machine_harvest_i_w
     for i in range(n):
         e_nxt = prob.e_max[(i + 1) % n]
         v = math.sqrt(2 * e[i])
         frac = float(fraction[i])
+        pm_i = p_dep[i] if frac >= 0.0 else p_har[i]
         # largest e1 reachable: engine + machine (fixed point on the step time)
         e1 = e[i]
         for _ in range(4):
             dt = 0.5 * ds * (1 / v + 1 / math.sqrt(2 * max(e1, 0.5)))
             w_max = min(
-                (prob.engine_power_i_w[i] + frac * prob.machine_power_i_w[i]) * dt,
+                (prob.engine_power_i_w[i] + frac * pm_i) * dt,
                 ds * (prob.trac_a_n[i] + prob.trac_b_kg[i] * e[i]),
             )
             e1 = (w_max - ds * (prob.drag_kgpm * e[i] + prob.road0_n[i]) + m * e[i]) / (
@@ -916,7 +985,7 @@ def simulate_rule(prob: DeployProblem, fraction: np.ndarray) -> tuple[float, flo
             )
         e1 = min(max(e1, 0.5 * V_MIN_MPS**2), e_nxt)
         dt = 0.5 * ds * (1 / v + 1 / math.sqrt(2 * e1))
-        wm[i] = frac * prob.machine_power_i_w[i] * dt
+        wm[i] = frac * pm_i * dt
         e[i + 1] = e1
     vs = np.sqrt(2 * e[:n])
     dts = 0.5 * ds * (1 / vs + 1 / np.roll(vs, -1))

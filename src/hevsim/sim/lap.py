@@ -386,6 +386,10 @@ class LapResult:
     summary: dict[str, Any]
     track: Track
     metadata: dict[str, Any] = field(default_factory=dict)
+    search: tuple[np.ndarray, ...] | None = field(default=None, repr=False, compare=False)
+    """The operating-point search per sample (its inputs: mid-step speed, wheel force, step
+    time, deployment limit; its outcome: control index, force delivered, shortfall flag), for
+    ``simulate_lap(..., reuse=)``."""
 
     @property
     def lap_time_s(self) -> float:
@@ -470,8 +474,11 @@ def _operating_points(
     limit_w: np.ndarray,
     lhv_j_per_kg: float,
     equivalence_factor: float,
-) -> tuple[pd.DataFrame, dict[str, float]]:
-    """Per-step operating points of the powertrain (module docstring, item 4)."""
+    reuse: tuple[np.ndarray, ...] | None = None,
+) -> tuple[pd.DataFrame, dict[str, float], tuple[np.ndarray, ...]]:
+    """Per-step operating points of the powertrain (module docstring, item 4) and the search's
+    state (:attr:`LapResult.search`); ``reuse``: a previous lap's search state, whose outcome
+    is taken at the samples with the same inputs bit for bit (each sample's search is its own)."""
     env = vehicle.envelope
     v_mid = ts["v_mid_mps"].to_numpy()
     dt = ts["dt_s"].to_numpy()
@@ -482,6 +489,10 @@ def _operating_points(
     used = force.copy()
     short = np.zeros(n, bool)
     todo = np.arange(n)
+    if reuse is not None and reuse[0].size == n:
+        same = (reuse[0] == v_mid) & (reuse[1] == force) & (reuse[2] == dt) & (reuse[3] == limit_w)
+        chosen[same], used[same], short[same] = reuse[4][same], reuse[5][same], reuse[6][same]
+        todo = np.flatnonzero(~same)
     for frac in (1.0, *SHORTFALL_STEPS):
         if todo.size == 0:
             break
@@ -529,7 +540,8 @@ def _operating_points(
         "soc_change": float(d_soc.sum()),
         "powertrain_shortfall_steps": int(short.sum()),
     }
-    return pd.DataFrame(out), totals
+    search = (v_mid.copy(), force.copy(), dt.copy(), np.array(limit_w, np.float64), chosen, used, short)
+    return pd.DataFrame(out), totals, search
 
 
 def simulate_lap(
@@ -541,6 +553,7 @@ def simulate_lap(
     battery_power_max_w: Any = None,
     operating_points: bool = True,
     vehicle: LapVehicle | None = None,
+    reuse: LapResult | None = None,
 ) -> LapResult:
     """QSS lap of a vehicle (file, configuration or built model) on a track (a :class:`Track`,
     shipped name or CSV path) at ``step_m`` [m].
@@ -550,7 +563,10 @@ def simulate_lap(
     (discharge > 0) at each sample (an array) or everywhere (a number): the envelope and the
     operating points keep to it (module docstring, item 4); ``operating_points``: False skips
     the power flow along the lap (speed profile only); ``vehicle``: a :class:`LapVehicle`
-    already built for ``model``.
+    already built for ``model``; ``reuse``: a lap of the same ``vehicle`` on the same track
+    (e.g. one with another deployment) whose operating-point search is kept at the samples
+    where speed, wheel force, step time and deployment limit are the same bit for bit (the
+    same result, faster).
     """
     from hevsim.config import load_vehicle_config
     from hevsim.fuels import config_fuel
@@ -642,11 +658,15 @@ def simulate_lap(
     }
     f_env = veh.force_n(v_mid, limit)
     summary["full_power_fraction"] = float(np.sum(dt[force >= 0.98 * f_env]) / lap_t)
+    search = None
     if operating_points:
         lhv = float(
             config_fuel(cfg, getattr(veh.envelope.model, "engine", None)).lower_heating_value_j_per_kg
         )
-        ops, totals = _operating_points(veh, ts, limit, lhv, float(cfg.controller.equivalence_factor))
+        prev = reuse.search if reuse is not None else None
+        ops, totals, search = _operating_points(
+            veh, ts, limit, lhv, float(cfg.controller.equivalence_factor), prev
+        )
         ts = pd.concat([ts, ops], axis=1)
         summary.update(totals)
         if "gear" in ts:
@@ -661,7 +681,7 @@ def simulate_lap(
         "mu_y": veh.mu_y,
         "downforce_coefficient": veh.downforce_coefficient,
     }
-    return LapResult(ts, summary, trk, meta)
+    return LapResult(ts, summary, trk, meta, search)
 
 
 def check_step(step_m: float) -> float:

@@ -38,10 +38,18 @@ lap in time:
    ``soc_min``: there the cooling loop's own load (pump, fan, chiller) is refused by the pack
    and is carried by the engine through the machine (``clamped_cooling_j``, the part of the
    clamped energy that is cooling load; it is not in the lap's fuel).
+5. **Trial passes.** With module ROMs, a pass that may not be the lap's last one steps the
+   pack without the ROMs' hot-spot search (records only: it drives neither the BMS nor the
+   cells; :meth:`~hevsim.battery.bms.PackRun.skip_hot_spots`); the pass that turns out to be
+   the last is stepped again from the lap's start with it, so the kept run is the same bit for
+   bit. A further pass keeps the previous pass's operating-point search at the samples that
+   are the same (``simulate_lap(..., reuse=)``).
 
 An optimal deployment over the lap (issue 29 item 3) can replace step 1's constant limit: the
 lap takes any ``battery_power_max_w`` profile (``deployment=`` of :func:`simulate_stint`, a
-function of the lap's start state returning the profile).
+function of the lap's start state returning the profile or a :class:`DeploymentPlan`);
+:func:`hevsim.optimal.stint_deploy.simulate_stint_optimized` re-solves the optimal deployment
+with the BMS's power limits and the pack's SOC at the start of a lap when they changed.
 
 Outputs per lap: lap time (and its loss against the unlimited lap), SOC at start and end, peak
 cell temperature, time derated by the BMS (temperature factor < 1), time the lap's deployment
@@ -113,6 +121,8 @@ class StintResult:
             "fuel_kg": "{:.3f}",
             "passes": "{:d}",
         }
+        if "reoptimized" in self.laps:
+            cols["reoptimized"] = "{:d}"
         t = self.laps.assign(cooling_energy_kj=self.laps["cooling_energy_j"] / 1e3)
         head = "".join(f"{c:>18}" for c in cols)
         rows = [
@@ -196,6 +206,17 @@ class StintResult:
         fig.tight_layout()
         save_png(fig, folder / "speed.png", 100)
         plt.close(fig)
+
+
+@dataclass
+class DeploymentPlan:
+    """What a ``deployment`` callable of :func:`simulate_stint` may return instead of a bare
+    power: the lap's deployment ``battery_power_max_w`` (the largest battery chemical power [W]
+    at each sample or everywhere) and ``info``, scalars added to the lap's row of the per-lap
+    table (e.g. whether the deployment was re-optimised and the limits it was solved for)."""
+
+    battery_power_max_w: Any
+    info: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -347,6 +368,7 @@ def simulate_stint(
     levels: int = ENVELOPE_LEVELS,
     deployment: Callable[[Any, Track], Any] | None = None,
     vehicle: tuple[LapVehicle, float, float] | None = None,
+    full_passes: bool = False,
 ) -> StintResult:
     """A stint of ``laps`` laps of a ``[battery] model = "pack"`` vehicle (file, configuration
     or built model) on ``track`` (module docstring).
@@ -358,7 +380,10 @@ def simulate_stint(
     ``deployment``: optional ``f(pack_run, track) -> battery_power_max_w`` (a number or one
     power [W] per sample) taking the place of the BMS's limit at the start of each lap (the
     pack's limits along the lap still apply); ``vehicle``: a :func:`stint_vehicle` already
-    built for ``model`` (several stints of one car share it)."""
+    built for ``model`` (several stints of one car share it); ``full_passes``: step every pass
+    in full, without item 5's shortcuts (the module ROMs' hot-spot search in every pass, each
+    pass's operating points computed afresh: the same results, slower; the reference of
+    ``benchmarks/bench_lap.py``)."""
     from threadpoolctl import threadpool_limits
 
     from hevsim.config import load_vehicle_config
@@ -387,37 +412,56 @@ def simulate_stint(
         rows, records, results = [], [], []
         carry, clock = _Carry(), 0.0
         e_prev = run.energy()
+        rom = bool(run.has_rom) and not full_passes
         for k in range(n_laps):
             start = run
             probe = copy.deepcopy(start)
             probe.begin()
             lim = probe.limits
             soc_lap0 = start.soc
+            info: dict[str, Any] = {}
             if deployment is not None:
-                limit = np.array(
-                    np.broadcast_to(np.asarray(deployment(probe, trk), np.float64), trk.distance_m.shape)
-                )
+                plan = deployment(probe, trk)
+                if isinstance(plan, DeploymentPlan):
+                    info, plan = dict(plan.info), plan.battery_power_max_w
+                limit = np.array(np.broadcast_to(np.asarray(plan, np.float64), trk.distance_m.shape))
             else:
                 i_avail = lim.discharge_a
                 p0 = math.inf if i_avail >= i_max * (1.0 - 1e-12) else ocv * i_avail
                 limit = np.full(trk.distance_m.size, p0)
             passes = 0
+            lap: LapResult | None = None
             while True:
                 passes += 1
                 work = probe if passes == 1 else copy.deepcopy(start)
+                trial = rom and passes < iterations  # maybe not the last pass (item 5)
+                if trial:
+                    work.skip_hot_spots()
                 lap = (
                     free
                     if np.all(np.isinf(limit))
-                    else simulate_lap(model, trk, step_m=trk.step_m, vehicle=lv, battery_power_max_w=limit)
-                )
+                    else simulate_lap(
+                        model,
+                        trk,
+                        step_m=trk.step_m,
+                        vehicle=lv,
+                        battery_power_max_w=limit,
+                        reuse=None if full_passes else lap,
+                    )
+                )  # a further pass keeps the previous one's operating points where its samples are the same
                 steps, new_carry = _drive_pack(work, lap, carry, passes == 1, float(dt_s), soc_min, soc_max)
                 if passes >= iterations or not _lower_deployment(limit, lap, steps):
+                    if trial:  # the last pass after all: its records count, so again with the hot spots
+                        work = copy.deepcopy(start)
+                        steps, new_carry = _drive_pack(work, lap, carry, False, float(dt_s), soc_min, soc_max)
                     break
             run, carry = work, new_carry
             e_now = run.energy()
             e_lap = {key: e_now[key] - e_prev[key] for key in e_now if key != "residual_relative"}
             e_prev = e_now
-            rows.append(_lap_row(k, lap, free, steps, e_lap, run, soc_lap0, limit, passes, float(dt_s)))
+            rows.append(
+                {**_lap_row(k, lap, free, steps, e_lap, run, soc_lap0, limit, passes, float(dt_s)), **info}
+            )
             for s in steps:
                 records.append({"stint_time_s": clock + s["t1"], "lap": k + 1, **s})
             clock += lap.lap_time_s
@@ -447,7 +491,9 @@ def simulate_stint(
         "nominal_ocv_v": ocv,
         "nominal_max_current_a": i_max,
         "iterations": int(iterations),
-        "deployment": "custom" if deployment is not None else "BMS limit at the start of each lap",
+        "deployment": str(getattr(deployment, "label", "custom"))
+        if deployment is not None
+        else "BMS limit at the start of each lap",
     }
     return StintResult(laps_df, timeseries, summary, results, meta)
 
@@ -543,4 +589,4 @@ def _summary(
     }
 
 
-__all__ = ["StintResult", "check_laps", "simulate_stint", "stint_vehicle"]
+__all__ = ["DeploymentPlan", "StintResult", "check_laps", "simulate_stint", "stint_vehicle"]
