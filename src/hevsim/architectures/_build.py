@@ -110,11 +110,9 @@ def build_battery(bs: BatterySection, base: Path) -> tuple[BatteryPack, Any]:
     if bs.model == "pack":  # the vehicle's view of it; the pack itself: hevsim.sim.pack_vehicle
         return nominal_battery(bs, base), None
     if bs.model == "cell":
-        from hevsim.battery import load_cell_parameters
         from hevsim.battery.vehicle import quasi_static_pack
 
-        path = base / bs.data
-        cell = load_cell_parameters(path if path.suffix == ".toml" and path.is_file() else bs.data)
+        cell = cell_parameters(bs, base)
         pack = quasi_static_pack(
             cell,
             bs.n_series,
@@ -134,6 +132,15 @@ def build_battery(bs: BatterySection, base: Path) -> tuple[BatteryPack, Any]:
         **limits,
     )
     return pack, None
+
+
+def cell_parameters(bs: Any, base: Path) -> Any:
+    """The cell (:class:`~hevsim.battery.params.CellParameters`) of a ``[battery] model =
+    "cell"`` section: ``data`` a cell TOML relative to the vehicle file, or a shipped cell's name."""
+    from hevsim.battery import load_cell_parameters
+
+    path = base / bs.data
+    return load_cell_parameters(path if path.suffix == ".toml" and path.is_file() else bs.data)
 
 
 def pack_file(bs: Any, base: Path) -> Path:

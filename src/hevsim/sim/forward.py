@@ -204,7 +204,9 @@ def simulate_architecture(
     Python loop. ``pack_run``: the :class:`~hevsim.battery.bms.PackRun` of a ``[battery]
     model = "pack"`` vehicle, whose compiled step runs inside the compiled loop (or is called
     step by step from the Python loop); without one such a vehicle goes to
-    :func:`hevsim.sim.pack_vehicle.simulate_pack_vehicle`, which makes it). Returns a
+    :func:`hevsim.sim.pack_vehicle.simulate_pack_vehicle`, which makes it), or the
+    :class:`~hevsim.battery.cell_run.CellRun` of a ``[battery] model = "cell"`` vehicle (the
+    same protocol; without one: :func:`hevsim.sim.cell_vehicle.simulate_cell_vehicle`). Returns a
     :class:`~hevsim.sim.simulator.SimulationResult`.
     """
     from hevsim.architectures import architecture
@@ -239,6 +241,10 @@ def simulate_architecture(
             f"soc_initial = {soc0:g} lies outside [battery.soc_min, battery.soc_max] = "
             f"[{b.soc_min:g}, {b.soc_max:g}]."
         )
+    if b is not None and b.model == "cell" and pack_run is None and name != "series":  # sim.cell_vehicle
+        from hevsim.sim.cell_vehicle import simulate_cell_vehicle
+
+        return simulate_cell_vehicle(model, cyc, dt, soc0, controller=ctl, compiled=compiled)
     if b is not None and b.model == "pack" and pack_run is None:  # hevsim.sim.pack_vehicle
         from hevsim.sim.pack_vehicle import simulate_pack_vehicle
 
@@ -423,7 +429,8 @@ def simulate_batch_architecture(
     arch = architecture(cfg.architecture, cfg.name)
     sections: dict[str, dict[str, Any]] = {}
     cfgs = [variant_config(cfg, v, arch.spec, sections) for v in values]
-    pack = getattr(getattr(cfg, "battery", None), "model", "") == "pack"  # the pack runs variant by variant
+    # a pack or a cell battery (their cells' state) runs variant by variant
+    pack = getattr(getattr(cfg, "battery", None), "model", "") in ("pack", "cell")
     loop = compiled_loop(arch.name) if use_compiled(compiled) and not pack else None
     hook = getattr(loop, "simulate_batch_compiled", None)
     rec = None
