@@ -428,15 +428,25 @@ def cell_bus_state(s, soc, soc_max, i_dis_max_a, i_chg_max_a):
 @njit(**CELL_STEP)
 def cell_finish_power(s, power_w):
     """End the step of the cell kind at the bus's terminal power ``power_w`` [W] (> 0
-    discharging): the pack current from the direction's pair
+    discharging): the pack current from the pair of the direction the cells take
     (:func:`hevsim.battery.pack_run.pair_current_for_power`), the cells' step at its share
     (:func:`hevsim.battery.kernel.cell_step`, as :func:`battery_ecm_advance`), one record row;
-    returns the cells' SOC [-] at the end of the step."""
+    returns the cells' SOC [-] at the end of the step.
+
+    The cells' direction (their OCV table and RC set) follows the current with a dead band
+    (:func:`hevsim.battery.kernel.step_direction`): a cell current within ``switch_band_a``
+    keeps the last direction. The current is solved with the power's direction's pair; when
+    that current leaves the cells in the other direction and the other pair's current does
+    too, that one is taken, so the pack's step-average power is the bus's exactly."""
     sv, aux, f = s.sv, s.aux, s.f
-    if power_w > 0.0:
-        i_pack = pair_current_for_power(sv[CSV_EDIS], sv[CSV_ZDIS], power_w)
-    else:
-        i_pack = pair_current_for_power(sv[CSV_ECHG], sv[CSV_ZCHG], power_w)
+    pos = 1.0 if power_w > 0.0 else -1.0
+    j, o = (CSV_EDIS, CSV_ECHG) if pos > 0.0 else (CSV_ECHG, CSV_EDIS)
+    i_pack = pair_current_for_power(sv[j], sv[j + 1], power_w)
+    band, last = s.params[K.IBAND], s.state[K.SDIR]
+    if K.step_direction(i_pack / aux[A_NP], last, band) != pos:  # inside the dead band, kept the other way
+        i_other = pair_current_for_power(sv[o], sv[o + 1], power_w)
+        if K.step_direction(i_other / aux[A_NP], last, band) == -pos:
+            i_pack = i_other
     k = int(f[CF_STEP])
     row = s.rec[min(k, s.rec.shape[0] - 1)]
     i_cell = i_pack / aux[A_NP]

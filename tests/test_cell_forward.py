@@ -1,0 +1,150 @@
+"""``[battery] model = "cell"`` on the forward loop of every architecture (issue 24 item 3).
+
+The reference is the standalone cell of :mod:`hevsim.battery` (:class:`hevsim.battery.Cell`,
+the same kernel run on its own, with no vehicle): driven by the cell current the vehicle
+recorded, it must give the vehicle's cell trajectory (step-average terminal voltage, SOC, core
+temperature) to round-off. The bus must take exactly the pack's power, the vehicle's energy
+audit and the cells' energy balance must close, and the compiled loop must equal the Python
+reference loop. Before this change the parallel HEV, BEV, power split and FCEV refused the
+model (ConfigError).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hevsim
+from hevsim.battery import Cell
+from hevsim.cli import main
+from hevsim.config import load_vehicle_config
+from hevsim.sim.forward import simulate_architecture
+
+ROOT = Path(__file__).resolve().parents[1]
+EX = ROOT / "examples"
+CASES = {  # row of the capability matrix -> (example, architecture, cells in series, in parallel)
+    "parallel_p2": ("high_performance_parallel_hev.toml", "parallel", 100, 6),
+    "parallel_p3": ("parallel_hev.toml", "parallel", 100, 6),
+    "bev": ("bev.toml", "bev", 100, 40),
+    "power_split": ("prius_like_power_split.toml", "power_split", 60, 8),
+}
+CELL = "thesis_table_4_1"  # one RC pair, lumped thermal (its charge OCV lies above the discharge OCV)
+
+
+def cell_car(tmp: Path, example: str, n_s: int, n_p: int, cell: str = CELL, temp_c: float = 25.0) -> Path:
+    """The shipped ``example`` with its ``[battery]`` replaced by a ``cell`` pack."""
+    text = (EX / example).read_text()
+    start = text.index("[battery]")
+    end = text.index("\n[", start + 1) + 1
+    section = (
+        f'[battery]\nmodel = "cell"\ndata = "{cell}"\nn_series = {n_s}\nn_parallel = {n_p}\n'
+        f"temperature_c = {temp_c}\nmax_discharge_current_a = 200.0\nmax_charge_current_a = 200.0\n"
+        "soc_min = 0.3\nsoc_max = 0.9\n\n"
+    )
+    for p in EX.iterdir():
+        if not (tmp / p.name).exists():
+            (tmp / p.name).symlink_to(p)
+    out = tmp / f"cell_{example}"
+    out.write_text(text[:start] + section + text[end:])
+    return out
+
+
+def check_against_cell(res: object, n_s: int, n_p: int, port_k: float, temp0_k: float, soc0: float) -> None:
+    """The vehicle's cell trajectory = the standalone cell driven by the recorded current."""
+    ts = res.timeseries  # type: ignore[attr-defined]
+    n = len(ts) - 1
+    dt = float(ts["time_s"].iloc[1] - ts["time_s"].iloc[0])
+    i_cell = ts["cell_current_a"].to_numpy()[:n]
+    assert np.abs(i_cell).max() > 1.0  # the battery works
+    ref = Cell(CELL, soc_initial=soc0, temp_k=temp0_k).simulate(i_cell, dt, port_temperature=port_k).timeseries
+    for ours, theirs in (("cell_voltage_avg_v", "voltage_avg_v"), ("cell_voltage_v", "voltage_v"),
+                         ("cell_soc", "soc"), ("cell_temp_k", "temp_k")):  # fmt: skip
+        np.testing.assert_allclose(ts[ours].to_numpy()[:n], ref[theirs].to_numpy(), rtol=1e-9, err_msg=ours)
+    # the vehicle's SOC is the cell's, and its bus takes exactly the pack's power
+    np.testing.assert_allclose(ts["soc"].to_numpy()[1:], ref["soc"].to_numpy(), rtol=1e-9)
+    p_pack = n_s * n_p * ref["voltage_avg_v"].to_numpy() * i_cell
+    p_bus = ts["battery_power_w"].to_numpy()[:n]
+    np.testing.assert_allclose(p_bus, p_pack, rtol=1e-9, atol=1e-9 * np.abs(p_pack).max())
+
+
+@pytest.mark.parametrize("row", sorted(CASES))
+def test_cell_battery_in_the_vehicle_is_the_standalone_cell(row: str, tmp_path: Path) -> None:
+    example, arch, n_s, n_p = CASES[row]
+    path = cell_car(tmp_path, example, n_s, n_p)
+    cfg = load_vehicle_config(path)
+    res = hevsim.simulate(cfg, "udds")
+    assert res.metadata["compiled"]  # the architecture's compiled loop
+    assert res.metadata["architecture"] == arch
+    check_against_cell(res, n_s, n_p, 298.15, 298.15, cfg.simulation.soc_initial)
+    # energy: the vehicle's audit and the cells' own balance close to round-off
+    assert res.value("energy_audit_residual_traction_pct") < 1e-9
+    e = res.extra["cell_energy"]
+    assert e["throughput_j"] > 0.0 and abs(e["residual_relative"]) < 1e-9
+    assert res.value("battery_peak_cell_temp_c") > 25.0  # the cells warm up
+    # the compiled loop is the Python reference loop
+    ref = simulate_architecture(arch, cfg, "udds", compiled=False)
+    assert not ref.metadata["compiled"]
+    for col in res.timeseries.columns:
+        a, b = res.timeseries[col], ref.timeseries[col]
+        if a.dtype.kind == "f":
+            np.testing.assert_allclose(a.to_numpy(), b.to_numpy(), rtol=1e-12, atol=1e-12, err_msg=col)
+    assert res.value("fuel_kg") == ref.value("fuel_kg")
+
+
+def test_fcev_cell_battery(tmp_path: Path) -> None:
+    """The fuel-cell vehicle (Python loop) takes the same battery step."""
+    path = cell_car(tmp_path, "fcev.toml", 100, 6)
+    cfg = load_vehicle_config(path)
+    res = hevsim.simulate(cfg, "udds")
+    check_against_cell(res, 100, 6, 298.15, 298.15, cfg.simulation.soc_initial)
+    assert res.value("energy_audit_residual_traction_pct") < 1e-9
+
+
+def test_ambient_and_soak(tmp_path: Path) -> None:
+    """The cells' heat port at the run's ambient (``ambient_c``); with ``soak`` the cells start
+    at it too; the standalone cell with that port (and start) temperature gives the trajectory."""
+    path = cell_car(tmp_path, "bev.toml", 100, 40, temp_c=20.0)
+    cfg = load_vehicle_config(path)
+    soc0 = cfg.simulation.soc_initial
+    warm = hevsim.simulate(cfg, "udds", ambient_c=40.0)
+    check_against_cell(warm, 100, 40, 313.15, 293.15, soc0)
+    assert warm.timeseries["cell_temp_k"].iloc[-1] > 300.0  # the port pulls the cells towards 40 degC
+    cold = hevsim.simulate(cfg, "udds", ambient_c=0.0, soak=True)
+    check_against_cell(cold, 100, 40, 273.15, 273.15, soc0)
+    assert cold.metadata["cell"]["initial_temp_c"] == pytest.approx(0.0)
+    assert cold.timeseries["cell_temp_k"].max() < warm.timeseries["cell_temp_k"].min()
+    # the thesis cell's capacity (eq 35) falls with temperature (alpha_c < 0): the same drive
+    # takes less SOC from the cold pack
+    assert cold.value("soc_final") > warm.value("soc_final")
+    with pytest.raises(hevsim.errors.ConfigError, match="cooling"):
+        hevsim.simulate(cfg, "udds", ambient_c=0.0, cooling_off=True)
+
+
+def test_cli_simulate_with_ambient(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = cell_car(tmp_path, "prius_like_power_split.toml", 60, 8)
+    out = tmp_path / "out"
+    code = main(["simulate", str(path), "--cycle", "udds", "--ambient-c", "35", "--soak", "--no-plots",
+                 "--out", str(out)])  # fmt: skip
+    assert code == 0
+    import pandas as pd
+
+    ts = pd.read_csv(out / "timeseries.csv") if (out / "timeseries.csv").is_file() else None
+    if ts is None:
+        ts = pd.read_parquet(out / "timeseries.parquet")
+    assert ts["cell_temp_k"].iloc[0] == pytest.approx(308.15, abs=0.5)
+    assert "cell" in capsys.readouterr().out
+    code = main(["simulate", str(path), "--cycle", "udds", "--cooling-off", "--no-plots", "--out", str(out)])
+    assert code == 2
+
+
+def test_batch_runs_each_variant_with_its_own_cells(tmp_path: Path) -> None:
+    path = cell_car(tmp_path, "parallel_hev.toml", 100, 6)
+    cfg = load_vehicle_config(path)
+    m = cfg.body.mass_kg
+    b = hevsim.simulate_batch(cfg, {"body.mass_kg": [m, m + 300.0]}, "udds")
+    one = hevsim.simulate(cfg.replace(**{"body.mass_kg": m + 300.0}), "udds")
+    frame = b.frame if hasattr(b, "frame") else b.table
+    assert frame["soc_final"].iloc[1] == pytest.approx(one.value("soc_final"), rel=1e-12)
+    assert frame["soc_final"].iloc[0] != frame["soc_final"].iloc[1]
