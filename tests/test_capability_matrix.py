@@ -41,12 +41,9 @@ CAPS = {c.key: c for c in capabilities()}
 CELLS = [(r, c, c.status(ROWS[r])) for r in ROWS for c in CAPS.values()]
 
 KNOWN_GAPS = {  # meaningful, not working today (listed in the issue's closing note; a fix removes a line)
-    ("parallel_p2", "battery_cell"), ("parallel_p3", "battery_cell"), ("bev", "battery_cell"),
-    ("power_split", "battery_cell"),
     # the fuel-cell vehicle (issue 25): its fuel-cell ramp makes the last fuel-cell power a second
-    # DP state (no formulation yet), so no DP, replay or ECMS with s from it; no cell model
-    ("fcev", "ecms_dp"), ("fcev", "aecms"), ("fcev", "dp"), ("fcev", "dp_replay"), ("fcev", "battery_cell"),
-    ("fcev", "study_optimize"),
+    # DP state (no formulation yet), so no DP, replay or ECMS with s from it
+    ("fcev", "ecms_dp"), ("fcev", "aecms"), ("fcev", "dp"), ("fcev", "dp_replay"), ("fcev", "study_optimize"),
 }  # fmt: skip
 
 
