@@ -148,3 +148,20 @@ def test_batch_runs_each_variant_with_its_own_cells(tmp_path: Path) -> None:
     frame = b.frame if hasattr(b, "frame") else b.table
     assert frame["soc_final"].iloc[1] == pytest.approx(one.value("soc_final"), rel=1e-12)
     assert frame["soc_final"].iloc[0] != frame["soc_final"].iloc[1]
+
+
+def test_series_cell_ambient_and_soak(tmp_path: Path) -> None:
+    """The series HEV's kernel (ECM battery kind) takes the same options: with ``soak`` the run
+    is the file with ``battery.temperature_c`` at the ambient; without, only the heat port
+    moves (the cells start at the file's temperature and drift towards the ambient)."""
+    path = cell_car(tmp_path, "series_hev.toml", 100, 6, temp_c=25.0)
+    cfg = load_vehicle_config(path)
+    soaked = hevsim.simulate(cfg, "udds", ambient_c=40.0, soak=True)
+    hot = hevsim.simulate(cfg.replace(**{"battery.temperature_c": 40.0}), "udds")
+    np.testing.assert_array_equal(soaked.timeseries["soc"], hot.timeseries["soc"])
+    port = hevsim.simulate(cfg, "udds", ambient_c=40.0)
+    base = hevsim.simulate(cfg, "udds")
+    soc = [r.timeseries["soc"].to_numpy() for r in (base, port, hot)]
+    assert soc[1][10] == pytest.approx(soc[0][10], abs=1e-6)  # the cells start at 25 degC
+    assert not np.array_equal(soc[1], soc[0])  # the port warms them
+    assert not np.array_equal(soc[1], soc[2])

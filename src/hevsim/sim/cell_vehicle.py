@@ -6,7 +6,8 @@ The pack is ``n_series`` x ``n_parallel`` identical electro-thermal cells of
 cell scaled to the pack as the series HEV's ECM kind does (:mod:`hevsim.battery.vehicle`),
 with its RC and lumped thermal dynamics; its heat port is at the ambient (``[battery]
 temperature_c``, or ``ambient_temp_c`` of a run). The vehicle's forward loop
-(:func:`hevsim.sim.forward.simulate_architecture`, compiled or Python) steps it through the
+(:func:`hevsim.sim.forward.simulate_architecture`, compiled or Python; a run at another ambient:
+:func:`hevsim.sim.forward.simulate_cell_architecture`) steps it through the
 battery protocol the pack uses (:class:`hevsim.battery.cell_run.CellRun`): every step the
 cell's exact step Thevenin pairs feed the bus balance, and the cell advances at the solved
 terminal power. The vehicle's SOC is the cell's (eq 37).
@@ -27,8 +28,6 @@ import pandas as pd
 
 from hevsim.architectures._build import cell_parameters
 from hevsim.battery.cell_run import CellRun
-from hevsim.cycles import DriveCycle
-from hevsim.errors import ConfigError
 from hevsim.sim.metrics import metric
 from hevsim.units import c_to_k
 
@@ -49,49 +48,10 @@ def make_cell_run(
     )  # fmt: skip
 
 
-def simulate_cell_vehicle(
-    model: Any,
-    cycle: DriveCycle | str | None = None,
-    dt_s: float | None = None,
-    soc_initial: float | None = None,
-    *,
-    controller: Any = None,
-    ambient_temp_c: float | None = None,
-    soak: bool = False,
-    compiled: bool | None = None,
-) -> Any:
-    """Simulate a ``[battery] model = "cell"`` vehicle (a file, configuration or built model)
-    of any architecture but the series HEV over ``cycle`` (module docstring).
-    ``ambient_temp_c`` [degC]: the cells' heat port (default ``battery.temperature_c``);
-    ``soak``: the cells also start at it (a car parked long enough: the configuration's
-    ``battery.temperature_c`` becomes the ambient). ``controller`` and ``compiled`` as in
-    :func:`hevsim.sim.forward.simulate_architecture`."""
-    from hevsim.architectures import architecture
-    from hevsim.config import load_vehicle_config
-    from hevsim.sim.forward import cycle_and_step, simulate_architecture
-
-    if isinstance(model, str | Path):
-        model = load_vehicle_config(model)
-    cfg = getattr(model, "config", model)
-    b = getattr(cfg, "battery", None)
-    if b is None or b.model != "cell":
-        got = "no [battery]" if b is None else f"key 'battery.model' = {b.model!r}"
-        raise ConfigError(f"{cfg.name}: {got}; expected [battery] model = 'cell' here.")
-    if soak and ambient_temp_c is None:
-        raise ConfigError("soak starts the cells at the ambient; give the ambient temperature with it.")
-    if soak:  # the cells start at the ambient: the configuration's battery temperature
-        cfg = cfg.replace(**{"battery.temperature_c": float(ambient_temp_c)})  # type: ignore[arg-type]
-        model = cfg
-    if not hasattr(model, "config"):
-        model = architecture(cfg.architecture, cfg.name).build(cfg)
-    cyc, dt = cycle_and_step(cycle, dt_s, cfg.simulation)
-    soc0 = float(cfg.simulation.soc_initial if soc_initial is None else soc_initial)
-    steps = len(cyc.resampled(dt).time_s) - 1
-    run = make_cell_run(cfg, dt, soc0, steps, ambient_temp_c=ambient_temp_c)
-    res = simulate_architecture(cfg.architecture, model, cyc, dt, soc0, controller, compiled=compiled,
-                                pack_run=run)  # fmt: skip
-    attach_cells(res, run, cfg)
-    return res
+def soaked(cfg: Any, ambient_temp_c: float) -> Any:
+    """``cfg`` with its cells starting at the ambient ``ambient_temp_c`` [degC] (a car parked
+    long enough: ``battery.temperature_c`` becomes the ambient)."""
+    return cfg.replace(**{"battery.temperature_c": float(ambient_temp_c)})
 
 
 def attach_cells(res: Any, run: CellRun, cfg: Any) -> None:
@@ -129,4 +89,4 @@ def attach_cells(res: Any, run: CellRun, cfg: Any) -> None:
     }  # fmt: skip
 
 
-__all__ = ["attach_cells", "make_cell_run", "simulate_cell_vehicle"]
+__all__ = ["attach_cells", "make_cell_run", "soaked"]

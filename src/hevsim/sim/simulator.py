@@ -325,7 +325,7 @@ def _simulate_cell_options(
     """:func:`simulate` of a ``[battery] model = "cell"`` vehicle at another ambient: the
     cells' heat port at ``ambient_c`` [degC]; with ``soak`` the cells start at it too (the
     configuration's ``battery.temperature_c``). The series HEV runs its kernel's ECM battery
-    kind with that port; the other architectures :func:`hevsim.sim.cell_vehicle.simulate_cell_vehicle`.
+    kind with that port; the other architectures :func:`hevsim.sim.forward.simulate_cell_architecture`.
     ConfigError for the pack's cooling and age options (a cell battery has neither)."""
     cfg: Any = getattr(model, "config", model)
     bad = [k for k in ("cooling_off", "age_state") if k in given]
@@ -338,16 +338,18 @@ def _simulate_cell_options(
     ambient, soak = options["ambient_c"], options["soak"]
     if soak and ambient is None:
         raise ConfigError(f"{cfg.name}: soak starts the cells at the ambient; give ambient_c with it.")
-    if _other_architecture(model) is not None:
-        from hevsim.sim.cell_vehicle import simulate_cell_vehicle
+    from hevsim.sim.cell_vehicle import soaked
+
+    if soak:  # the cells start at the ambient
+        cfg = model = soaked(cfg, ambient)
+    other = _other_architecture(model)
+    if other is not None:
+        from hevsim.sim.forward import simulate_cell_architecture
 
         if controller_params:
-            cfg = cfg.replace(**{f"controller.{k}": v for k, v in controller_params.items()})
-            model = cfg
-        return simulate_cell_vehicle(model, cycle, dt_s, soc_initial, controller=controller,
-                                     ambient_temp_c=ambient, soak=soak)  # fmt: skip
-    if soak:  # the series HEV: its cells start at the ambient ...
-        model = cfg.replace(**{"battery.temperature_c": float(ambient)})
+            model = cfg.replace(**{f"controller.{k}": v for k, v in controller_params.items()})
+        return simulate_cell_architecture(other, model, cycle, dt_s, soc_initial, controller,
+                                          ambient_temp_c=ambient)  # fmt: skip
     hev = model if isinstance(model, SeriesHEV) else architecture("series").build(model)
     if ambient is not None:  # ... and their heat port is at it
         hev = dataclasses.replace(hev, cell_port_temp_k=c_to_k(float(ambient)))
@@ -378,7 +380,7 @@ def simulate(
     ambient, cells and coolant starting at it, the cooling loop stopped, the cells' age
     (:func:`hevsim.sim.pack_vehicle.simulate_pack_vehicle`). ``ambient_c`` and ``soak`` also
     serve ``[battery] model = "cell"``: the cells' heat port at the ambient, with ``soak`` their
-    start too (:func:`hevsim.sim.cell_vehicle.simulate_cell_vehicle`). ``hevsim.simulate`` is this
+    start too (:func:`hevsim.sim.forward.simulate_cell_architecture`). ``hevsim.simulate`` is this
     function.
 
     ``cycle`` is a :class:`DriveCycle`, a registered name or a CSV path (default: the
