@@ -58,7 +58,8 @@ def check_against_cell(res: object, n_s: int, n_p: int, port_k: float, temp0_k: 
     dt = float(ts["time_s"].iloc[1] - ts["time_s"].iloc[0])
     i_cell = ts["cell_current_a"].to_numpy()[:n]
     assert np.abs(i_cell).max() > 1.0  # the battery works
-    ref = Cell(CELL, soc_initial=soc0, temp_k=temp0_k).simulate(i_cell, dt, port_temperature=port_k).timeseries
+    cell = Cell(CELL, soc_initial=soc0, temp_k=temp0_k)
+    ref = cell.simulate(i_cell, dt, port_temperature=port_k).timeseries
     for ours, theirs in (("cell_voltage_avg_v", "voltage_avg_v"), ("cell_voltage_v", "voltage_v"),
                          ("cell_soc", "soc"), ("cell_temp_k", "temp_k")):  # fmt: skip
         np.testing.assert_allclose(ts[ours].to_numpy()[:n], ref[theirs].to_numpy(), rtol=1e-9, err_msg=ours)

@@ -405,7 +405,7 @@ def cell_bus_tables(
     bat = ecm_kernel_tables(params, n_series, n_parallel, soc_initial, temp_k, dt_s, port_temp_k, r_extra_ohm)
     f = np.zeros(len(CELL_F))
     f[CF_SOC] = soc_initial
-    return CellBusTables(*bat, np.zeros(len(CELL_SV)), np.zeros((max(steps, 1), len(CELL_RECORD))), f)
+    return CellBusTables(*bat, np.zeros(len(CELL_SV)), np.zeros((max(steps, 1), len(CELL_RECORD))), f)  # type: ignore[call-arg]
 
 
 @njit(**CELL_STEP)

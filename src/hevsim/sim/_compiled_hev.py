@@ -604,8 +604,9 @@ def battery_begin(soc, h, ptab, pk):
     if pk is None:
         return _battery(soc, h, ptab), h
     ocv, r_dis, r_chg, p_chg, i_dis, i_chg, aux_w = vehicle_bus_begin(
-        pk, soc, h.soc_max, h.i_discharge_max_a, h.i_charge_max_a, h.aux_power_w, LIMIT_RTOL, REGEN_CURRENT_RTOL
-    )
+        pk, soc, h.soc_max, h.i_discharge_max_a, h.i_charge_max_a, h.aux_power_w, LIMIT_RTOL,
+        REGEN_CURRENT_RTOL,
+    )  # fmt: skip
     return (ocv, r_dis, r_chg, p_chg), _step_constants(h, i_dis, i_chg, aux_w)
 
 

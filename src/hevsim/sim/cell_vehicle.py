@@ -29,7 +29,7 @@ import pandas as pd
 from hevsim.architectures._build import cell_parameters
 from hevsim.battery.cell_run import CellRun
 from hevsim.sim.metrics import metric
-from hevsim.units import c_to_k
+from hevsim.units import KELVIN_OFFSET, c_to_k
 
 
 def make_cell_run(
@@ -76,16 +76,18 @@ def attach_cells(res: Any, run: CellRun, cfg: Any) -> None:
     e = run.energy()
     res.extra["cell_energy"] = e
     temp = np.asarray(ts["cell_temp_k"])[:steps]
+    peak, final = float(temp.max()) - KELVIN_OFFSET, float(temp[-1]) - KELVIN_OFFSET
     res.metrics.update({
-        "battery_peak_cell_temp_c": metric(float(temp.max()) - 273.15, "degC", "hottest cell core temperature"),
-        "battery_final_cell_temp_c": metric(float(temp[-1]) - 273.15, "degC", "cell core temperature at the end"),
+        "battery_peak_cell_temp_c": metric(peak, "degC", "hottest cell core temperature"),
+        "battery_final_cell_temp_c": metric(final, "degC", "cell core temperature at the end"),
         "battery_cell_energy_balance_relative": metric(
             e["residual_relative"], "-", "cells' energy-balance residual / electrical throughput"
         ),
     })  # fmt: skip
     res.metadata["cell"] = {
         "name": run.params.name, "n_series": run.n_series, "n_parallel": run.n_parallel,
-        "initial_temp_c": run.temp_initial_k - 273.15, "ambient_temp_c": run.port_temp_k - 273.15,
+        "initial_temp_c": run.temp_initial_k - KELVIN_OFFSET,
+        "ambient_temp_c": run.port_temp_k - KELVIN_OFFSET,
     }  # fmt: skip
 
 

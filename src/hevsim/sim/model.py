@@ -159,7 +159,7 @@ class SeriesHEV:
             bat = ecm_kernel_tables(
                 self.cell, b.n_series, b.n_parallel, soc0, b.temperature_k, dt_s, self.cell_port_temp_k,
                 r_extra_ohm=b.r_extra_ohm,
-            )
+            )  # fmt: skip
         else:
             bat = pad_tables_kind(self.battery.kernel_tables())
         if self.engine is not None:

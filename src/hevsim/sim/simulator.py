@@ -292,8 +292,8 @@ def _simulate_pack_options(
     given = [k for k, v in pack_options.items() if v is not None and v is not False]
     battery = getattr(cfg, "battery", None)
     if battery is not None and battery.model == "cell":
-        return _simulate_cell_options(model, cycle, dt_s, soc_initial, schedule, controller, controller_params,
-                                      given, **pack_options)  # fmt: skip
+        return _simulate_cell_options(model, cycle, dt_s, soc_initial, schedule, controller,
+                                      controller_params, given, **pack_options)  # fmt: skip
     if battery is None or battery.model != "pack":
         got = "no [battery]" if battery is None else f"key 'battery.model' = {battery.model!r}"
         raise ConfigError(
