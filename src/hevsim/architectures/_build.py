@@ -136,11 +136,20 @@ def build_battery(bs: BatterySection, base: Path) -> tuple[BatteryPack, Any]:
 
 def cell_parameters(bs: Any, base: Path) -> Any:
     """The cell (:class:`~hevsim.battery.params.CellParameters`) of a ``[battery] model =
-    "cell"`` section: ``data`` a cell TOML relative to the vehicle file, or a shipped cell's name."""
-    from hevsim.battery import load_cell_parameters
+    "cell"`` section: ``data`` a cell TOML relative to the vehicle file, or a shipped cell's name.
+    Parsed once per file content (:func:`hevsim.io.cached_by_content`; the vehicle's runs only
+    read the cell's arrays)."""
+    from importlib import resources
+
+    from hevsim.battery.params import load_cell_parameters, shipped_cells
+    from hevsim.io import cached_by_content
 
     path = base / bs.data
-    return load_cell_parameters(path if path.suffix == ".toml" and path.is_file() else bs.data)
+    if not (path.suffix == ".toml" and path.is_file()):
+        if bs.data not in shipped_cells():
+            return load_cell_parameters(bs.data)  # a path elsewhere, or the error naming the shipped sets
+        path = Path(str(resources.files("hevsim") / "data" / "cells" / f"{bs.data}.toml"))
+    return cached_by_content(path, load_cell_parameters)
 
 
 def pack_file(bs: Any, base: Path) -> Path:

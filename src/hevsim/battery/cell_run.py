@@ -169,14 +169,12 @@ class CellRun:
     def frame(self, n_rows: int) -> pd.DataFrame:
         """The cell channels (:data:`CHANNELS`) as ``n_rows`` rows (one per vehicle sample: the
         last step's values repeated on the final sample, as the vehicle's own channels)."""
-        rec = self.records()
-        ts = pd.DataFrame(rec[:, _COLUMNS], columns=list(CHANNELS))
-        if len(ts) < n_rows and len(ts):
-            ts = pd.concat([ts, ts.iloc[[-1] * (n_rows - len(ts))]], ignore_index=True)
-        out = ts.iloc[:n_rows].reset_index(drop=True)
-        n = self.n_series * self.n_parallel
-        out["battery_heat_w"] = out["cell_heat_w"] * n  # the pack's heat (identical cells)
-        return out
+        rec = self.records()[:n_rows, _COLUMNS]
+        if 0 < rec.shape[0] < n_rows:
+            rec = np.concatenate([rec, np.repeat(rec[-1:], n_rows - rec.shape[0], axis=0)])
+        cols = {name: rec[:, j] for j, name in enumerate(CHANNELS)}
+        cols["battery_heat_w"] = cols["cell_heat_w"] * (self.n_series * self.n_parallel)  # identical cells
+        return pd.DataFrame(cols)
 
     def energy(self) -> dict[str, float]:
         """The pack's energy terms since the run began [J] (every cell's, times the number of
