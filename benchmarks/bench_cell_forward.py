@@ -26,9 +26,8 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _machine import OtherLoad, median_time
-
 import hevsim
+from _machine import OtherLoad, median_time
 from hevsim.config import load_vehicle_config
 from hevsim.cycles import load_cycle
 
@@ -85,7 +84,9 @@ def main() -> None:
                         del os.environ["HEVSIM_FORWARD"]
             py = f"{t_py * 1e3:>16.1f}" if t_py is not None else (f"{'-':>16}" if args.python else "")
             cores = f"{load.cores:.2f}" if load.cores is not None else "?"
-            print(f"{label:<14}{t_tab * 1e3:>10.1f}{t_cell * 1e3:>10.1f}{t_cell / t_tab:>12.2f}{py}{cores:>12}")
+            print(
+                f"{label:<14}{t_tab * 1e3:>10.1f}{t_cell * 1e3:>10.1f}{t_cell / t_tab:>12.2f}{py}{cores:>12}"
+            )
     print(f"uptime: {subprocess.run(['uptime'], capture_output=True, text=True).stdout.strip()}")
 
 

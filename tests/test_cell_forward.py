@@ -166,3 +166,16 @@ def test_series_cell_ambient_and_soak(tmp_path: Path) -> None:
     assert soc[1][10] == pytest.approx(soc[0][10], abs=1e-6)  # the cells start at 25 degC
     assert not np.array_equal(soc[1], soc[0])  # the port warms them
     assert not np.array_equal(soc[1], soc[2])
+
+
+def test_series_online_controller_with_cells(tmp_path: Path) -> None:
+    """The series HEV's ECMS (its quasi-static power flow in the forward loop; was refused with
+    a cell battery) steps the same cells: the standalone cell reproduces them, at an ambient too."""
+    path = cell_car(tmp_path, "series_hev.toml", 100, 6)
+    cfg = load_vehicle_config(path)
+    res = hevsim.simulate(cfg, "udds", controller="ecms")
+    assert res.metadata["controller"] == "ecms"
+    check_against_cell(res, 100, 6, 298.15, 298.15, cfg.simulation.soc_initial)
+    assert res.value("energy_audit_residual_traction_pct") < 1e-9
+    warm = hevsim.simulate(cfg, "udds", controller="ecms", ambient_c=35.0)
+    check_against_cell(warm, 100, 6, 308.15, 298.15, cfg.simulation.soc_initial)

@@ -790,10 +790,10 @@ def check_series_online(cfg: SeriesHEVConfig, source: str, kind: str) -> None:
 
 def _series_online_refusal(cfg: SeriesHEVConfig) -> str:
     """Why a series HEV cannot run its online controllers (:data:`SERIES_ONLINE_CONTROLLERS`:
-    the quasi-static power flow has an engine genset and a table battery or a pack stepped in the
-    loop), "" when it can."""
+    the quasi-static power flow has an engine genset and a table battery, or a cell or pack
+    battery stepped in the loop), "" when it can."""
     needs = (("genset.kind", cfg.genset.kind, ("engine",)),
-             ("battery.model", cfg.battery.model, ("ideal", "rint", "table", "pack")))  # fmt: skip
+             ("battery.model", cfg.battery.model, ("ideal", "rint", "table", "cell", "pack")))  # fmt: skip
     for key, value, expected in needs:
         if value not in expected:
             return f"'{key}' = {' or '.join(expected)}; got '{key}' = {value!r}"

@@ -241,7 +241,7 @@ def simulate_architecture(
             f"soc_initial = {soc0:g} lies outside [battery.soc_min, battery.soc_max] = "
             f"[{b.soc_min:g}, {b.soc_max:g}]."
         )
-    if b is not None and b.model == "cell" and pack_run is None and name != "series":  # sim.cell_vehicle
+    if b is not None and b.model == "cell" and pack_run is None:  # hevsim.sim.cell_vehicle
         return simulate_cell_architecture(name, model, cyc, dt, soc0, ctl, compiled)
     if b is not None and b.model == "pack" and pack_run is None:  # hevsim.sim.pack_vehicle
         from hevsim.sim.pack_vehicle import simulate_pack_vehicle
@@ -301,7 +301,8 @@ def simulate_cell_architecture(
     ambient_temp_c: float | None = None,
 ) -> Any:
     """:func:`simulate_architecture` of a ``[battery] model = "cell"`` vehicle of architecture
-    ``name`` (not the series HEV, whose kernel steps its cells): a fresh
+    ``name`` (the series HEV's online controllers too; its kernel supervisors step the cells in
+    its kernel, :func:`hevsim.sim.simulator.simulate`): a fresh
     :class:`~hevsim.battery.cell_run.CellRun` of its ``[battery]`` (the cells' heat port at
     ``ambient_temp_c`` [degC], default ``battery.temperature_c``; for a soaked start pass a
     configuration from :func:`hevsim.sim.cell_vehicle.soaked`) stepped in the loop, then its
@@ -314,10 +315,10 @@ def simulate_cell_architecture(
     if isinstance(model, str | Path):
         model = load_vehicle_config(model)
     cfg = getattr(model, "config", model)
-    if getattr(getattr(cfg, "battery", None), "model", "") != "cell" or name == "series":
+    if getattr(getattr(cfg, "battery", None), "model", "") != "cell":
         raise ConfigError(
-            f"{cfg.name}: a cell run needs [battery] model = 'cell' on a forward architecture; got "
-            f"architecture {name!r}, battery {getattr(getattr(cfg, 'battery', None), 'model', None)!r}."
+            f"{cfg.name}: a cell run needs [battery] model = 'cell'; got "
+            f"{getattr(getattr(cfg, 'battery', None), 'model', None)!r}."
         )
     if not hasattr(model, "config"):
         model = architecture(name, cfg.name).build(cfg)

@@ -343,12 +343,18 @@ def _simulate_cell_options(
     if soak:  # the cells start at the ambient
         cfg = model = soaked(cfg, ambient)
     other = _other_architecture(model)
-    if other is not None:
+    kind = cfg.controller.kind if controller is None else controller
+    online = not isinstance(kind, str) or kind not in SERIES_CONTROLLER_KEYS  # the series HEV's ECMS, replay
+    if other is not None or online:
         from hevsim.sim.forward import simulate_cell_architecture
 
         if controller_params:
             model = cfg.replace(**{f"controller.{k}": v for k, v in controller_params.items()})
-        return simulate_cell_architecture(other, model, cycle, dt_s, soc_initial, controller,
+        if other is None and schedule is not None:
+            raise ConfigError(
+                f"simulate: a genset schedule replaces the series HEV's supervisor; got {kind!r}."
+            )
+        return simulate_cell_architecture(other or "series", model, cycle, dt_s, soc_initial, controller,
                                           ambient_temp_c=ambient)  # fmt: skip
     hev = model if isinstance(model, SeriesHEV) else architecture("series").build(model)
     if ambient is not None:  # ... and their heat port is at it
