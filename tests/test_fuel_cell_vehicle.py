@@ -31,12 +31,10 @@ def udds(fcev):
     return simulate(fcev, "udds")
 
 
-def test_registered_with_its_controller_and_no_dp() -> None:
+def test_registered_with_its_controllers() -> None:
     arch = ARCHITECTURES["fcev"]
-    assert arch.controllers == ("load_follower",)
+    assert arch.controllers == ("load_follower", "ecms", "aecms")  # DP and ECMS: test_fcev_energy_management
     assert arch.controls == ("fuel_cell_power_w",)
-    with pytest.raises(ConfigError, match="no DP formulation"):
-        arch.formulation()
 
 
 def test_efficiency_map_is_fastsims_h2fc_and_hydrogen_rate_is_p_over_eta_lhv(fcev) -> None:
@@ -126,7 +124,7 @@ def _data(**sections: dict) -> dict:
         ({"fuel_cell": {"min_power_w": 200000.0}}, r"'fuel_cell.min_power_w' = 200000.0 must be below"),
         ({"fuel_cell": {"ramp_up_w_per_s": -1.0}}, r"fuel_cell.ramp_up_w_per_s"),
         ({"fuel_cell": {"data": "no_such_stack"}}, r"'fuel_cell.data' = 'no_such_stack'"),
-        ({"controller": {"kind": "ecms"}}, r"'controller.kind' = 'ecms' is not defined for the fcev"),
+        ({"controller": {"kind": "direct"}}, r"'controller.kind' = 'direct' is not defined for the fcev"),
         ({"plugin": {"mode": "ev_first"}}, r"\[plugin\]"),
     ],
 )

@@ -971,7 +971,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--controller",
         help="supervisory controller, overriding [controller] kind (series: thermostat, schedule, ecms, "
         "aecms; parallel: electric_assist, ecms, aecms; power split: power_follower, ecms, aecms; "
-        "conventional: shift_schedule; BEV: direct)",
+        "conventional: shift_schedule; BEV: direct; FCEV: load_follower, ecms, aecms)",
     )
     p.add_argument(
         "--ecms-from",

@@ -319,7 +319,10 @@ class ControllerSection:
     least ``engine_min_power_w`` while the SOC is below ``soc_high``, at the candidate of least
     fuel per unit of engine work near that power: its optimal operating line), ``"ecms"``,
     ``"aecms"`` (candidates: ``engine_speed_points``
-    engine speeds x ``control_points`` throttles, and engine off).
+    engine speeds x ``control_points`` throttles, and engine off). Fuel-cell vehicle:
+    ``"load_follower"`` (the fuel cell follows the bus load, ``soc_low``..``soc_high``,
+    ``charge_power_w``), ``"ecms"``, ``"aecms"`` (candidates: ``control_points`` net powers from
+    0 = off to the rating, moved into the ramp window of each step).
     """
 
     kind: str = choice("thermostat", *CONTROLLER_KINDS)
@@ -427,9 +430,10 @@ class OptimizationSection:
     ``soc_tolerance`` [-] of the initial SOC) or, for a plug-in hybrid, ``"deplete"`` (within
     ``soc_tolerance`` of ``plugin.cs_soc``: the depletion target); ``soc_grid_points`` over the battery's SOC
     window; ``input_grid_points``: the control grid (parallel: throttles, series: genset
-    electrical powers, power split: throttles per engine speed), 0 = the architecture's
-    default (parallel: ``throttle_grid_points``, series: 101, power split:
-    ``controller.control_points``); ``final_constraint``: the solver's final-state method.
+    electrical powers, power split: throttles per engine speed, fuel-cell vehicle: fuel-cell
+    net powers), 0 = the architecture's default (parallel: ``throttle_grid_points``, series: 101,
+    power split and fuel-cell vehicle: ``controller.control_points``); ``final_constraint``: the
+    solver's final-state method.
     """
 
     cycle: str = "udds"
@@ -451,8 +455,8 @@ SOC_INITIAL_FROM_SIMULATION = -1.0
 
 @dataclass(frozen=True)
 class SustainingOptimizationSection(OptimizationSection):
-    """The ``[optimization]`` defaults of the series and power-split HEV: charge sustaining on
-    the ``[simulation]`` cycle from its initial SOC (``soc_initial`` default
+    """The ``[optimization]`` defaults of the series and power-split HEV and the fuel-cell
+    vehicle: charge sustaining on the ``[simulation]`` cycle from its initial SOC (``soc_initial`` default
     :data:`SOC_INITIAL_FROM_SIMULATION`), 201 SOC points; a ``"window"`` final SOC defaults
     to the battery's SOC window (``final_soc_min``/``max`` clipped to it)."""
 
@@ -614,7 +618,8 @@ class BEVConfig(_VehicleConfig):
 @dataclass(frozen=True)
 class FCEVConfig(_VehicleConfig):
     """A fuel-cell vehicle: the series HEV's electric drive (machine on a single reduction,
-    battery on the DC bus, blended brakes) with a fuel-cell system in place of the genset."""
+    battery on the DC bus, blended brakes) with a fuel-cell system in place of the genset;
+    ``[optimization]`` as the series HEV's (charge sustaining, input the fuel cell's net power)."""
 
     name: str = "fcev"
     description: str = ""
@@ -630,6 +635,7 @@ class FCEVConfig(_VehicleConfig):
     brakes: BrakesSection = field(default_factory=BrakesSection)
     simulation: SimulationSection = field(default_factory=SimulationSection)
     controller: ControllerSection = field(default_factory=lambda: ControllerSection(kind="load_follower"))
+    optimization: SustainingOptimizationSection = field(default_factory=SustainingOptimizationSection)
     metrics: MetricsSection = field(default_factory=MetricsSection)
     fuel: FuelSection = field(default_factory=lambda: FuelSection(name="hydrogen"))
     base_dir: str = "."
@@ -875,6 +881,7 @@ def _check_fcev(cfg: FCEVConfig, source: str) -> None:
             f"{source}: key 'fuel_cell.min_power_w' = {fc.min_power_w} must be below "
             f"'fuel_cell.max_power_w' = {fc.max_power_w}."
         )
+    _check_optimization(cfg, source)
 
 
 def _series_required(data: dict[str, Any]) -> tuple[str, ...]:
@@ -944,7 +951,7 @@ register_architecture(ArchitectureSpec(
 
 
 register_architecture(ArchitectureSpec(
-    "fcev", FCEVConfig, ("load_follower",),
+    "fcev", FCEVConfig, ("load_follower", "ecms", "aecms"),
     lambda data: ("body", "tire", "final_drive", "motor", "fuel_cell", "battery"), _check_fcev,
 ))  # fmt: skip
 

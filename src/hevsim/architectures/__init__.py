@@ -137,7 +137,8 @@ register(Architecture(
 
 register(Architecture(
     name="fcev", module="hevsim.architectures.fcev", builder="hevsim.architectures.fcev:build_fcev",
-    controls=("fuel_cell_power_w",), forward="hevsim.sim.forward:simulate_fcev", dp_formulation="",
+    controls=("fuel_cell_power_w",), forward="hevsim.sim.forward:simulate_fcev",
+    dp_formulation="hevsim.optimal._fcev_dp:FCEVFormulation",
 ))  # fmt: skip
 
 

@@ -12,6 +12,21 @@ from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
 from hevsim.components.electric_machine import ElectricMachine
 
+FUEL_CONVERTERS: tuple[str, ...] = ("engine", "fuel_cell")
+"""Model fields that hold a vehicle's fuel converter (an engine, a fuel-cell system), in the order
+:func:`fuel_converter` looks for them."""
+
+
+def fuel_converter(model: Any) -> Any:
+    """A vehicle model's fuel converter: its engine, or a fuel-cell vehicle's fuel-cell system
+    (both carry ``name``, ``fuel_name``, ``fuel_lhv_jpkg`` [J/kg], ``fuel_density_kgpm3``,
+    ``heating_value_btu_per_gal``, ``co2_kg_per_kg``); None when it has none (a BEV)."""
+    for name in FUEL_CONVERTERS:
+        conv = getattr(model, name, None)
+        if conv is not None:
+            return conv
+    return None
+
 
 class NamedModel:
     """Mixin of the architecture models (frozen dataclasses with a ``config`` field)."""

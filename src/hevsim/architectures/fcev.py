@@ -2,16 +2,22 @@
 battery on the DC bus, blended friction brakes) with a fuel-cell system feeding the bus in
 place of the series HEV's genset.
 
-Control input (:data:`CONTROLS`): the fuel-cell system's net power ``fuel_cell_power_w`` [W]. The
-power flow is the BEV's (:func:`hevsim.architectures.bev.wheel_point`, the shared bus balance
+Control input (:data:`CONTROLS`): the fuel-cell system's net power ``fuel_cell_power_w`` [W], 0
+(off, no hydrogen) or idle ``min_power_w`` .. ``max_power_w``. The power flow is the BEV's
+(:func:`hevsim.architectures.bev.wheel_point`, the shared bus balance
 :func:`hevsim.components.flow.electric_flow`) with the fuel cell as a source on the bus (the
 bus's other load is ``aux_power_w - P_fc``), and its hydrogen (:mod:`hevsim.components.fuel_cell`)
 as the stage's fuel. Energy-audit terms (:data:`LOSSES`): ``fuel`` is the hydrogen's chemical
 power (LHV basis), ``fuel_cell_loss`` what the system does not turn into net DC power.
 
-The ramp limits make the fuel cell's previous power a state the SOC-only DP cannot carry: the
-architecture has no DP formulation; its controller (``load_follower``,
-:class:`hevsim.control.simple.LoadFollower`) honours the limits at every step.
+Controllers: ``load_follower`` (:class:`hevsim.control.simple.LoadFollower`), and the generic
+ECMS / A-ECMS of :mod:`hevsim.control` over :func:`candidate_controls` (0 and the DP's power
+grid), each step's candidates moved into what the ramp limits reach from the previous power
+(:func:`reachable_controls`, :meth:`~hevsim.components.fuel_cell.FuelCellSystem.project`).
+DP formulation: :class:`hevsim.optimal._fcev_dp.FCEVFormulation` (state SOC, input the net
+power on the same grid). The ramp limits make the previous power a second state the SOC-only
+DP does not carry: the DP, and the replay of its optimum, are quasi-static (no ramp limits, as
+the series DP has no cranking); the online controllers honour them at every step.
 """
 
 from __future__ import annotations
@@ -41,6 +47,9 @@ from hevsim.units import KWH_PER_GALLON_EQUIVALENT, M_PER_MILE
 
 ARCHITECTURE = "fcev"
 CONTROLS: tuple[str, ...] = ("fuel_cell_power_w",)
+DP_INPUTS: tuple[str, ...] = ("fuel_cell_power_w",)
+"""The DP formulation's inputs, which :func:`power_flow` takes as they are (a DP optimum replays
+them: :class:`hevsim.control.parallel.InputSchedule`)."""
 MODES: tuple[str, ...] = ("standstill", "traction", "regen", "friction_braking")
 LOSSES: tuple[str, ...] = (
     "fuel", "fuel_cell_loss", "motor_loss", "friction_brakes", "final_drive_loss", "aux", "wheel",
@@ -71,10 +80,13 @@ def build_fcev(cfg: FCEVConfig) -> FCEV:
     base = Path(cfg.base_dir)
     fc = cfg.fuel_cell
     folder = resolve_component(fc.data, "fuel_cell", base, "fuel_cell.data")
-    lhv = config_fuel(cfg, None).lower_heating_value_j_per_kg
+    fuel = config_fuel(cfg, None)
+    lhv = fuel.lower_heating_value_j_per_kg
     system = FuelCellSystem.from_directory(
         folder, max_power_w=fc.max_power_w, min_power_w=fc.min_power_w, ramp_up_w_per_s=fc.ramp_up_w_per_s,
-        ramp_down_w_per_s=fc.ramp_down_w_per_s, lhv_j_per_kg=lhv,
+        ramp_down_w_per_s=fc.ramp_down_w_per_s, lhv_j_per_kg=lhv, fuel_name=fuel.name,
+        fuel_density_kgpm3=fuel.density_kg_per_m3,
+        heating_value_btu_per_gal=fuel.heating_value_btu_per_us_gal, co2_kg_per_kg=fuel.co2_kg_per_kg,
     )  # fmt: skip
     return FCEV(
         **chassis(cfg),
@@ -99,8 +111,9 @@ def power_flow(
     *,
     detail: bool = False,
 ) -> Any:
-    """(wheel demand, fuel-cell net power [W], SOC) -> machine, fuel cell and battery operating
-    points, hydrogen [kg] (``cost_kg``), SOC change, limits (broadcast)."""
+    """(wheel demand, fuel-cell net power [W]: 0 = off, else idle..rating; SOC) -> machine, fuel
+    cell and battery operating points, hydrogen [kg] (``cost_kg``), SOC change, limits
+    (broadcast; ``fuel_cell_power`` flags a power between 0 and idle or above the rating)."""
     from hevsim.components.flow import Stage, electric_flow
 
     arrays = np.broadcast_arrays(
@@ -122,7 +135,9 @@ def power_flow(
     shape = np.shape(flow.torque_nm)
     p_fc_b = np.broadcast_to(p_fc, shape)
     fc = fcev.fuel_cell
-    out_of_range = (p_fc_b < fc.min_power_w * (1.0 - 1e-12)) | (p_fc_b > fc.max_power_w * (1.0 + 1e-12))
+    out_of_range = ((p_fc_b < fc.min_power_w * (1.0 - 1e-12)) & (p_fc_b != 0.0)) | (
+        p_fc_b > fc.max_power_w * (1.0 + 1e-12)
+    )  # 0 = off
     over_speed = np.broadcast_to(over > 0.0, shape)
     flags = {**flow.flags, "motor_speed": over_speed, "fuel_cell_power": out_of_range}
     h2_kg = fc.hydrogen_rate_kgps(p_fc_b) * np.asarray(dt_s, np.float64)
@@ -161,9 +176,30 @@ def power_mode(details: dict[str, float], wheel_force_n: float, v_mid_mps: float
 
 
 def candidate_controls(fcev: FCEV, n: int) -> tuple[np.ndarray]:
-    """``n`` fuel-cell net powers [W] from idle to the rating (what a scoring controller tries)."""
-    fc = fcev.fuel_cell
-    return (np.linspace(fc.min_power_w, fc.max_power_w, max(int(n), 2)),)
+    """``n`` fuel-cell net powers [W] evenly spaced from 0 (off) to the rating, as the DP's input
+    grid (:class:`hevsim.optimal._fcev_dp.FCEVFormulation`): what ECMS and A-ECMS score (a
+    power between 0 and idle is infeasible)."""
+    return (np.linspace(0.0, fcev.fuel_cell.max_power_w, max(int(n), 2)),)
+
+
+def control_state(fcev: FCEV, stage: Any = None) -> float:
+    """The fuel cell's net power [W] the next step's ramp limits start from: after ``stage``
+    (a :func:`power_flow` result of the control applied), or before a run its
+    ``fuel_cell.initial_power_w`` (0 stays off; else clipped to idle..rating)."""
+    if stage is not None:
+        return float(np.ravel(stage.mech["p_fc"])[0])
+    fc, p0 = fcev.fuel_cell, float(fcev.config.fuel_cell.initial_power_w)
+    return 0.0 if p0 <= 0.0 else min(max(p0, fc.min_power_w), fc.max_power_w)
+
+
+def reachable_controls(
+    fcev: FCEV, state: float, dt_s: float, controls: tuple[np.ndarray, ...]
+) -> tuple[np.ndarray]:
+    """``controls`` (fuel-cell net powers [W]) moved into what the ramp limits reach in ``dt_s``
+    [s] from the net power ``state`` [W] (:meth:`~hevsim.components.fuel_cell.FuelCellSystem.project`):
+    the candidates an online controller scores at a step."""
+    (p,) = controls
+    return (fcev.fuel_cell.project(state, dt_s, p),)
 
 
 CAPABILITY_POINTS = 41
@@ -174,7 +210,8 @@ the rest, so the rating alone is infeasible at light load)."""
 def capability_controls(fcev: FCEV) -> tuple[np.ndarray, ...]:
     """:data:`CAPABILITY_POINTS` fuel-cell powers from idle to the rating (the performance
     envelope's candidates; the envelope ignores the ramp limits: a sustained capability)."""
-    return candidate_controls(fcev, CAPABILITY_POINTS)
+    fc = fcev.fuel_cell
+    return (np.linspace(fc.min_power_w, fc.max_power_w, CAPABILITY_POINTS),)
 
 
 def extra_metrics(fcev: FCEV, metrics: dict[str, dict[str, Any]]) -> None:

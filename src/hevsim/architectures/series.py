@@ -52,6 +52,9 @@ ARCHITECTURE = "series"
 CONTROLS: tuple[str, ...] = ("genset_state", "engine_throttle")
 """Controls of the forward kernel's supervisors (the quasi-static :func:`power_flow` takes the
 genset's electrical power instead, as the DP)."""
+DP_INPUTS: tuple[str, ...] = ("genset_power_w",)
+"""The DP formulation's inputs, which :func:`power_flow` takes as they are (a DP optimum replays
+them: :class:`hevsim.control.parallel.InputSchedule`)."""
 MODES: tuple[str, ...] = K.POWER_MODES
 """Power modes (thesis Table 2.1), as the kernel's."""
 LOSSES: tuple[str, ...] = (
@@ -68,7 +71,8 @@ GENSET_AT_MAX_RTOL = 1e-6
 """A genset request within this fraction of the largest power is "at its maximum" [-]."""
 
 __all__ = [
-    "ARCHITECTURE", "CONTROLS", "LOSSES", "MODES", "SeriesHEV", "build_series_hev", "candidate_controls",
+    "ARCHITECTURE", "CONTROLS", "DP_INPUTS", "LOSSES", "MODES", "SeriesHEV", "build_series_hev",
+    "candidate_controls",
     "capability_controls",
     "genset_max_power_w", "loss_powers", "power_flow", "power_mode", "quasi_static_model", "run_series",
     "run_series_batch",

@@ -5,7 +5,13 @@ balance of plant included) is a measured curve over the net power as a fraction 
 (``efficiency.csv``: ``net_power_fraction``, ``efficiency``), linear between points. At net power
 ``P`` [W] the system draws hydrogen at ``P / (eta(P) LHV)`` [kg/s] (``LHV`` [J/kg], 120 MJ/kg for
 hydrogen); it runs between ``min_power_w`` (idle) and ``max_power_w`` and its net power changes
-by at most ``ramp_up_w_per_s`` / ``ramp_down_w_per_s`` [W/s].
+by at most ``ramp_up_w_per_s`` / ``ramp_down_w_per_s`` [W/s]. Net power 0 is the system off
+(no hydrogen): it starts at or below idle plus one step's ramp-up and stops from at most idle plus
+one step's ramp-down (:meth:`FuelCellSystem.reachable`).
+
+As a fuel converter it carries the fuel fields an :class:`~hevsim.components.engine.Engine`
+carries (``fuel_name``, ``fuel_lhv_jpkg``, ``fuel_density_kgpm3``, ``heating_value_btu_per_gal``,
+``co2_kg_per_kg``), so the DP's metrics and the ECMS score read either alike.
 """
 
 from __future__ import annotations
@@ -21,6 +27,11 @@ from hevsim.errors import ConfigError
 HYDROGEN_LHV_J_PER_KG = 120.0e6
 """Lower heating value of hydrogen [J/kg] (120 MJ/kg; U.S. DOE Hydrogen Program Record 9002, and
 FASTSim's ``H2FC`` vehicles' fuel)."""
+HYDROGEN_KG_PER_M3_GALLON = 264.1720524
+"""Density of hydrogen's "gallon" [kg/m^3]: 1 kg per US gallon (hevsim/data/fuels.toml: the EPA
+counts 1 kg of hydrogen as a gallon of gasoline equivalent)."""
+HYDROGEN_BTU_PER_GALLON = 113738.5978
+"""Heating value of that "gallon" (1 kg at 120 MJ/kg) [BTU/gal] (hevsim/data/fuels.toml)."""
 
 
 @dataclass(frozen=True)
@@ -37,6 +48,20 @@ class FuelCellSystem:
     ramp_down_w_per_s: float
     lhv_j_per_kg: float = HYDROGEN_LHV_J_PER_KG
     source: str = ""
+    fuel_name: str = "hydrogen"
+    fuel_density_kgpm3: float = HYDROGEN_KG_PER_M3_GALLON
+    heating_value_btu_per_gal: float = HYDROGEN_BTU_PER_GALLON
+    co2_kg_per_kg: float = 0.0
+
+    @property
+    def name(self) -> str:
+        """The efficiency curve's folder name (its source), else ``"fuel_cell"``."""
+        return Path(self.source).parent.name if self.source else "fuel_cell"
+
+    @property
+    def fuel_lhv_jpkg(self) -> float:
+        """Lower heating value of its fuel [J/kg] (``lhv_j_per_kg``; the engine's field name)."""
+        return float(self.lhv_j_per_kg)
 
     def efficiency(self, net_power_w: Any) -> Any:
         """Net system efficiency [-] at ``net_power_w`` [W] (array-like; linear in the curve)."""
@@ -58,6 +83,36 @@ class FuelCellSystem:
         lo = max(self.min_power_w, previous_w - self.ramp_down_w_per_s * dt_s)
         hi = min(self.max_power_w, previous_w + self.ramp_up_w_per_s * dt_s)
         return (lo, hi) if lo <= hi else (hi, hi)
+
+    def reachable(self, previous_w: float, dt_s: float, net_power_w: Any) -> Any:
+        """Whether each net power ``net_power_w`` [W] (array-like) is reachable in ``dt_s`` [s]
+        from ``previous_w`` [W]: 0 (off) from off or from at most ``min_power_w + ramp_down x
+        dt``; a running power within idle..rating and the ramp window from the previous power
+        (from off: idle up to ``max(idle, ramp_up x dt)``). Boolean array."""
+        lo, hi, off_ok = self.reachable_window(previous_w, dt_s)
+        p = np.asarray(net_power_w, dtype=np.float64)
+        tol = 1e-9 * self.max_power_w
+        return ((p == 0.0) & off_ok) | ((p >= lo - tol) & (p <= hi + tol))
+
+    def reachable_window(self, previous_w: float, dt_s: float) -> tuple[float, float, bool]:
+        """(lowest, highest running net power [W], off reachable) in ``dt_s`` [s] from
+        ``previous_w`` [W] (0 = off; see :meth:`reachable`)."""
+        if previous_w <= 0.0:
+            return (
+                self.min_power_w,
+                max(self.min_power_w, min(self.max_power_w, self.ramp_up_w_per_s * dt_s)),
+                True,
+            )
+        lo, hi = self.ramp_window(previous_w, dt_s)
+        return lo, hi, bool(previous_w - self.ramp_down_w_per_s * dt_s <= self.min_power_w)
+
+    def project(self, previous_w: float, dt_s: float, net_power_w: Any) -> Any:
+        """``net_power_w`` [W] moved into what is reachable in ``dt_s`` [s] from
+        ``previous_w`` [W]: 0 stays 0 where off is reachable, every other value is clipped to
+        the running window (:meth:`reachable_window`)."""
+        lo, hi, off_ok = self.reachable_window(previous_w, dt_s)
+        p = np.asarray(net_power_w, dtype=np.float64)
+        return np.where((p == 0.0) & off_ok, 0.0, np.clip(p, lo, hi))
 
     @classmethod
     def from_directory(cls, folder: Path, key: str = "fuel_cell.data", **kw: Any) -> FuelCellSystem:

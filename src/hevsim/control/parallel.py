@@ -38,15 +38,25 @@ def _argmin_feasible(cost: np.ndarray, feasible: np.ndarray) -> int | None:
 
 class _GridController:
     """Shared part: the architecture's candidate grid (``candidate_controls`` of its module)
-    and the ECMS score."""
+    and the ECMS score.
+
+    An architecture whose controls cannot change freely from step to step (the fuel cell's ramp
+    limits) gives its module ``control_state(model, stage=None)`` (what the limits start from:
+    before a run, or after the ``stage`` applied) and ``reachable_controls(model, state, dt_s,
+    controls)`` (the candidates moved into what is reachable in the step): the scored candidates
+    of a step are then ``reachable_controls`` of the grid (:meth:`candidates`)."""
 
     def __init__(self, hev: Any, control_points: int) -> None:
         from hevsim.architectures import architecture
+        from hevsim.architectures._common import fuel_converter
 
         self.hev = hev
         module = architecture(hev.config.architecture).power_module()
         self.controls: tuple[np.ndarray, ...] = module.candidate_controls(hev, int(control_points))
-        self.lhv = hev.engine.fuel_lhv_jpkg
+        self.lhv = fuel_converter(hev).fuel_lhv_jpkg
+        self._reachable = getattr(module, "reachable_controls", None)
+        self._control_state = getattr(module, "control_state", None)
+        self.control_state: Any = None
         # plug-in hybrid ([plugin], hevsim.config.PluginSection): charge depleting above cd_soc,
         # where the EV rule admits wheel powers below cd_ev_power [W] at any speed and ECMS
         # takes the factor cd_s [-]; cd_soc = inf (never) for a charge-sustaining hybrid
@@ -63,10 +73,21 @@ class _GridController:
         return self.controls[-1]
 
     def reset(self, soc_initial: float) -> None:
-        """Before a run."""
+        """Before a run: the architecture's control state at the start (if it has one)."""
+        if self._control_state is not None:
+            self.control_state = self._control_state(self.hev)
 
     def update(self, step: Any, stage: Any) -> None:
-        """After a step (nothing to remember)."""
+        """After a step: the architecture's control state after it (if it has one)."""
+        if self._control_state is not None:
+            self.control_state = self._control_state(self.hev, stage)
+
+    def candidates(self, step: Any) -> tuple[np.ndarray, ...]:
+        """The candidate controls of ``step``: the grid, moved into what the architecture can
+        reach from its control state within the step where it limits that."""
+        if self._reachable is None:
+            return self.controls
+        return tuple(self._reachable(self.hev, self.control_state, step.dt_s, self.controls))
 
     def depleting(self, soc: float) -> bool:
         """Charge depleting at ``soc`` [-] (a plug-in hybrid above its ``plugin.cs_soc``)."""
@@ -76,20 +97,21 @@ class _GridController:
         """(ECMS cost [W] = fuel power + s x battery chemical power, feasible) per candidate.
 
         The battery chemical power is ``-dSOC/dt x Q x OCV`` (the energy the DP's costate
-        prices: ``s = -costate x LHV / (Q OCV)``).
+        prices: ``s = -costate x LHV / (Q OCV)``). Candidates: :meth:`candidates`.
         """
-        st, feasible = step.evaluate(*self.controls)
+        st, feasible = step.evaluate(*self.candidates(step))
         p_fuel = st.cost_kg / step.dt_s * self.lhv
         p_chem = -st.d_soc / step.dt_s * step.energy_per_soc_j
         return p_fuel + s * p_chem, feasible
 
     def best(self, step: Any, s: float) -> Control | None:
         cost, feasible = self.score(step, s)
-        return self.pick(_argmin_feasible(cost, feasible))
+        return self.pick(_argmin_feasible(cost, feasible), self.candidates(step))
 
-    def pick(self, i: int | None) -> Control | None:
-        """Candidate ``i`` as a control tuple (None for None)."""
-        return None if i is None else tuple(float(c[i]) for c in self.controls)
+    def pick(self, i: int | None, controls: tuple[np.ndarray, ...] | None = None) -> Control | None:
+        """Candidate ``i`` of ``controls`` (default the grid) as a control tuple (None for None)."""
+        grid = self.controls if controls is None else controls
+        return None if i is None else tuple(float(c[i]) for c in grid)
 
 
 class _RuleBased(_GridController):
@@ -179,6 +201,7 @@ class AdaptiveECMS(_GridController):
 
     def reset(self, soc_initial: float) -> None:
         """Target the initial SOC (a plug-in hybrid: at most its ``cs_soc``); clear the integrator."""
+        super().reset(soc_initial)
         self.soc_ref = float(min(soc_initial, self.cd_soc))
         self.integral = 0.0
         self.s = self.s0
@@ -198,6 +221,7 @@ class AdaptiveECMS(_GridController):
 
     def update(self, step: Any, stage: Any) -> None:
         """Integrate the SOC error over the step (not while charge depleting)."""
+        super().update(step, stage)
         if not self.depleting(step.soc):
             self.integral += self.error(step) * step.dt_s
 
@@ -308,7 +332,7 @@ class ControlSchedule:
         electrical power)."""
         from hevsim.architectures import ARCHITECTURES
 
-        if result.architecture in SERIES_INPUTS:
+        if replayed_inputs(result.architecture):
             return InputSchedule.from_optimization(result)
         entry = ARCHITECTURES.get(result.architecture)  # its first control input (gear, engine speed)
         first = entry.controls[0] if entry is not None and entry.dp_formulation and entry.controls else None
@@ -336,9 +360,14 @@ class ControlSchedule:
         return (max(g, 1.0), u) if feasible[0] else None
 
 
-SERIES_INPUTS: dict[str, tuple[str, ...]] = {"series": ("genset_power_w",)}
-"""DP results whose inputs are the controls of the architecture's ``power_flow`` as they are:
-architecture -> the time-series columns holding them (what :class:`InputSchedule` replays)."""
+def replayed_inputs(architecture: str) -> tuple[str, ...]:
+    """The DP inputs of ``architecture`` that its ``power_flow`` takes as controls as they are
+    (the module's ``DP_INPUTS``: the series HEV's genset electrical power, the fuel cell's net
+    power; the time-series columns an :class:`InputSchedule` replays), () where it has none."""
+    from hevsim.architectures import ARCHITECTURES
+
+    entry = ARCHITECTURES.get(architecture)
+    return tuple(getattr(entry.power_module(), "DP_INPUTS", ())) if entry is not None else ()
 
 
 @dataclass
@@ -363,12 +392,12 @@ class InputSchedule:
 
     @classmethod
     def from_optimization(cls, result: Any) -> InputSchedule:
-        """The optimal inputs of a DP result of an architecture in :data:`SERIES_INPUTS`."""
-        columns = SERIES_INPUTS.get(result.architecture)
-        if columns is None:
+        """The optimal inputs of a DP result of an architecture with :func:`replayed_inputs`."""
+        columns = replayed_inputs(result.architecture)
+        if not columns:
             raise ConfigError(
-                f"an input schedule needs a DP result of {', '.join(SERIES_INPUTS)}, got "
-                f"{result.architecture!r}."
+                f"an input schedule needs a DP result whose inputs are the power flow's controls (the "
+                f"series HEV's, the fuel-cell vehicle's), got {result.architecture!r}."
             )
         ts = result.timeseries
         return cls(ts["time_s"].to_numpy(), tuple(ts[c].to_numpy() for c in columns),

@@ -12,12 +12,11 @@ from __future__ import annotations
 
 import re
 from abc import ABC, abstractmethod
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
 from hevsim.components.battery import BatteryPack
-from hevsim.components.engine import Engine
 from hevsim.components.flow import (  # the point kernels, re-exported here for the formulations
     DETAIL_COLUMNS,
     LIMIT_RTOL,
@@ -40,8 +39,28 @@ from hevsim.units import M3_PER_US_GALLON
 
 __all__ = [
     "DETAIL_COLUMNS", "LIMITS", "LIMIT_RTOL", "BatteryCache", "BatteryState", "BoolArray", "CycleSteps",
-    "ElectricFlow", "FloatArray", "HEVFormulation", "Stage", "electric_flow", "hev_metrics", "soc_invariant",
+    "ElectricFlow", "FloatArray", "FuelConverter", "HEVFormulation", "Stage", "electric_flow", "hev_metrics",
+    "soc_invariant",
 ]  # fmt: skip
+
+
+class FuelConverter(Protocol):
+    """What the DP reads of a vehicle's fuel converter (an
+    :class:`~hevsim.components.engine.Engine` or a fuel cell's
+    :class:`~hevsim.components.fuel_cell.FuelCellSystem`): its name and fuel properties."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def fuel_name(self) -> str: ...
+    @property
+    def fuel_lhv_jpkg(self) -> float: ...
+    @property
+    def fuel_density_kgpm3(self) -> float: ...
+    @property
+    def heating_value_btu_per_gal(self) -> float: ...
+    @property
+    def co2_kg_per_kg(self) -> float: ...
 
 
 class HEVFormulation(ABC):
@@ -66,7 +85,7 @@ class HEVFormulation(ABC):
         input_grids: tuple[FloatArray, ...],
         soc_initial: float,
         target: FinalTarget,
-        engine: Engine,
+        engine: FuelConverter,
         battery: BatteryPack,
         conversion_efficiency: float,
     ) -> None:
@@ -76,7 +95,7 @@ class HEVFormulation(ABC):
         self.input_grids = input_grids
         self.soc_initial = soc_initial
         self.target = target
-        self.engine = engine
+        self.engine = engine  # the fuel converter: an engine, or an FCEV's fuel-cell system
         self.battery = battery
         self.conversion_efficiency = conversion_efficiency
         self.soc_invariant = soc_invariant(battery, soc_grid)
@@ -311,7 +330,7 @@ def hev_metrics(
     soc_initial: float,
     soc_final: float,
     battery: BatteryPack,
-    engine: Engine,
+    engine: FuelConverter,
     conversion_efficiency: float,
     engine_on_time_s: float,
     compute_time_s: float,

@@ -12,6 +12,8 @@ generic solver :func:`hevsim.optimal.solve_dp`. Architectures are looked up by n
   genset electrical power, engine on its fuel-optimal operating line);
 * ``"power_split"``: the THS-style power split (:mod:`hevsim.architectures.power_split`;
   inputs engine speed and throttle; SOC grid 201, charge-sustaining by default).
+* ``"fcev"``: the fuel-cell vehicle (:mod:`hevsim.architectures.fcev`; input the fuel cell's
+  net power, 0 = off; cost hydrogen; its ramp limits not modelled).
 
 The result (:class:`OptimizationResult`) holds the optimal time series with operating
 points, powers and the costate (the slope of the cost-to-go with respect to SOC and the

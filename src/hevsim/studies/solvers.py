@@ -577,11 +577,12 @@ def _optimize_options(cfg: Any, options: dict[str, Any], where: str) -> dict[str
 
 def _optimize_metrics(cfg: Any) -> tuple[str, ...]:
     from hevsim.architectures import build_vehicle
+    from hevsim.architectures._common import fuel_converter
     from hevsim.optimal._hev_common import hev_metrics
 
     hev = build_vehicle(cfg)
-    engine = hev.engine
-    if engine is None:  # pragma: no cover - every DP architecture has an engine
+    engine = fuel_converter(hev)  # an engine, or a fuel-cell vehicle's fuel cell
+    if engine is None:  # pragma: no cover - every DP architecture has a fuel converter
         return ()
     with np.errstate(all="ignore"):
         m = hev_metrics(fuel_kg=1.0, distance_m=1.0, duration_s=1.0, soc_initial=0.5, soc_final=0.5,
