@@ -10,6 +10,7 @@ builder, so they live in the architectures layer, below the simulator (moved fro
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import replace
 from importlib import resources
 from pathlib import Path
@@ -139,17 +140,21 @@ def cell_parameters(bs: Any, base: Path) -> Any:
     "cell"`` section: ``data`` a cell TOML relative to the vehicle file, or a shipped cell's name.
     Parsed once per file content (:func:`hevsim.io.cached_by_content`; the vehicle's runs only
     read the cell's arrays)."""
-    from importlib import resources
-
-    from hevsim.battery.params import load_cell_parameters, shipped_cells
+    from hevsim.battery.params import load_cell_parameters
     from hevsim.io import cached_by_content
 
     path = base / bs.data
     if not (path.suffix == ".toml" and path.is_file()):
-        if bs.data not in shipped_cells():
+        path = _shipped_cells_dir() / f"{bs.data}.toml"
+        if Path(bs.data).suffix or not path.is_file():
             return load_cell_parameters(bs.data)  # a path elsewhere, or the error naming the shipped sets
-        path = Path(str(resources.files("hevsim") / "data" / "cells" / f"{bs.data}.toml"))
     return cached_by_content(path, load_cell_parameters)
+
+
+@functools.cache
+def _shipped_cells_dir() -> Path:
+    """The folder of the shipped cell parameter sets (``hevsim/data/cells``)."""
+    return Path(str(resources.files("hevsim") / "data" / "cells"))
 
 
 def pack_file(bs: Any, base: Path) -> Path:
