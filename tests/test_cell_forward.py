@@ -247,3 +247,12 @@ def test_pack_with_one_cell_per_module_equals_the_cell_battery(row: str, tmp_pat
         u, v = a[x].to_numpy(), b[y].to_numpy() * scale
         np.testing.assert_allclose(u, v, rtol=1e-6, atol=1e-6 * max(np.abs(v).max(), 1e-12), err_msg=x)
     assert np.ptp(b["cell_temp_k"]) > 0.01 and i.max() > 20.0 and i.min() < -5.0
+
+
+def test_unknown_cell_exits_2_naming_the_key(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = cell_car(tmp_path, "parallel_hev.toml", 100, 6, cell="unobtainium")
+    code = main(["simulate", str(path), "--cycle", "udds", "--no-plots", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2
+    for word in ("battery.data", "'unobtainium'", "thesis_table_4_1", str(tmp_path)):
+        assert word in err, (word, err)

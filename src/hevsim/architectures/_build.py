@@ -144,11 +144,14 @@ def cell_parameters(bs: Any, base: Path) -> Any:
     from hevsim.io import cached_by_content
 
     path = base / bs.data
-    if not (path.suffix == ".toml" and path.is_file()):
-        path = _shipped_cells_dir() / f"{bs.data}.toml"
-        if Path(bs.data).suffix or not path.is_file():
-            return load_cell_parameters(bs.data)  # a path elsewhere, or the error naming the shipped sets
-    return cached_by_content(path, load_cell_parameters)
+    try:
+        if not (path.suffix == ".toml" and path.is_file()):
+            path = _shipped_cells_dir() / f"{bs.data}.toml"
+            if Path(bs.data).suffix or not path.is_file():
+                return load_cell_parameters(bs.data)  # a path elsewhere, or the error naming the shipped sets
+        return cached_by_content(path, load_cell_parameters)
+    except ConfigError as exc:
+        raise ConfigError(f"{base}: key 'battery.data' = {bs.data!r}: {exc}") from exc
 
 
 @functools.cache
