@@ -256,3 +256,14 @@ def test_unknown_cell_exits_2_naming_the_key(tmp_path: Path, capsys: pytest.Capt
     assert code == 2
     for word in ("battery.data", "'unobtainium'", "thesis_table_4_1", str(tmp_path)):
         assert word in err, (word, err)
+
+
+def test_cold_ambient_beyond_the_cell_tables_warns(tmp_path: Path) -> None:
+    """The Saft cell's tables start at 273.15 K: a soak at -20 degC runs on their edge column,
+    with the standalone cell's warning."""
+    from hevsim.battery.params import TemperatureRangeWarning
+
+    cfg = load_vehicle_config(cell_car(tmp_path, "bev.toml", 100, 8, cell="saft_li_ion_6ah"))
+    with pytest.warns(TemperatureRangeWarning, match="vehicle's cell temperature"):
+        res = hevsim.simulate(cfg, "udds", ambient_c=-20.0, soak=True)
+    assert res.timeseries["cell_temp_k"].iloc[0] < 260.0

@@ -73,9 +73,12 @@ def attach_cells(res: Any, run: CellRun, cfg: Any) -> None:
         np.asarray(ts["cell_capacity_c"])[:steps],
         soc=np.asarray(ts["cell_soc"])[:steps],
     )
+    temp = np.asarray(ts["cell_temp_k"])[:steps]
+    # beyond the cell tables' temperature axis they are held at its edge: a warning, as a Cell's
+    run.params.check_temperature_coverage(np.r_[run.port_temp_k, run.temp_initial_k, temp],
+                                          "the vehicle's cell temperature")  # fmt: skip
     e = run.energy()
     res.extra["cell_energy"] = e
-    temp = np.asarray(ts["cell_temp_k"])[:steps]
     peak, final = float(temp.max()) - KELVIN_OFFSET, float(temp[-1]) - KELVIN_OFFSET
     res.metrics.update({
         "battery_peak_cell_temp_c": metric(peak, "degC", "hottest cell core temperature"),
