@@ -213,12 +213,17 @@ def test_study_runs_series_ecms_tuned_from_the_case_dp() -> None:
     assert rule["fuel_kg"] == pytest.approx(simulate(cfg, "hwfet").value("fuel_kg"), rel=1e-12)
 
 
-def test_python_api_refuses_online_control_of_a_cell_series() -> None:
-    """simulate(..., controller="ecms") on a series HEV with a ``cell`` battery: the ConfigError
-    of the file check (the quasi-static power flow has no cell ECM), before any run. (A pack
-    runs since issue 24: tests/test_capability_matrix.py.)"""
+def test_python_api_runs_online_control_of_a_cell_series() -> None:
+    """simulate(..., controller="ecms") on a series HEV with a ``cell`` battery: the cells step
+    in the forward loop (were refused before issue 24 item 3; tests/test_cell_forward.py
+    compares them with the standalone cell)."""
     from hevsim.config import load_vehicle_config
 
-    cell = load_vehicle_config(ROOT / "examples" / "series_hev.toml").replace(**{"battery.model": "cell"})
-    with pytest.raises(ConfigError, match=r"'controller\.kind' = 'ecms'.*'battery\.model' = 'cell'"):
-        simulate(cell, "udds", controller="ecms")
+    cell = load_vehicle_config(ROOT / "examples" / "series_hev.toml").replace(**{
+        "battery.model": "cell", "battery.data": "saft_li_ion_6ah", "battery.n_series": 100,
+        "battery.n_parallel": 2, "battery.soc_min": 0.3, "battery.soc_max": 0.9,
+    })  # fmt: skip
+    res = simulate(cell, "udds", controller="ecms")
+    assert res.metadata["controller"] == "ecms"
+    assert res.timeseries["cell_temp_k"].max() > 298.15
+    assert res.value("energy_audit_residual_traction_pct") < 1e-9

@@ -117,7 +117,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     pack_options = _pack_options(cfg, args)
     simulation_preflight(cfg, cycle, args.dt)  # memory refusal, long-run line, compile notice
     age = _age_state_option(cfg, args.age_state, bool(overrides))
-    if age is not None or pack_options:  # a pack that ages over the run, or at another ambient
+    if "ambient_c" in pack_options:  # [battery] model = "cell" at another ambient
+        result = simulate(cfg, cycle, dt_s=args.dt, soc_initial=args.soc_initial, schedule=schedule,
+                          controller=kind, **pack_options)  # fmt: skip
+    elif age is not None or pack_options:  # a pack that ages over the run, or at another ambient
         from hevsim.sim.pack_vehicle import simulate_pack_vehicle
 
         result = simulate_pack_vehicle(cfg, cycle, args.dt, args.soc_initial, controller=kind,
@@ -148,6 +151,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
               f"{m['pack_bms_limited_s']['value']:.0f} s, "
               f"cooling {m['pack_cooling_energy_j']['value'] / 3600:.1f} Wh, energy balance "
               f"{m['pack_energy_balance_relative']['value']:.1e}")  # fmt: skip
+    if "battery_peak_cell_temp_c" in m:  # [battery] model = "cell" (forward architectures)
+        print(f"  cell: peak {m['battery_peak_cell_temp_c']['value']:.1f} degC, final "
+              f"{m['battery_final_cell_temp_c']['value']:.1f} degC, energy balance "
+              f"{m['battery_cell_energy_balance_relative']['value']:.1e}")  # fmt: skip
     if age is not None:
         age.save(args.age_state)
         soh = age.soh(*_eol(cfg))
@@ -186,6 +193,11 @@ def _pack_options(cfg: Any, args: argparse.Namespace) -> dict[str, Any]:
     if not used:
         return {}
     battery = getattr(cfg, "battery", None)
+    if battery is not None and battery.model == "cell" and not args.cooling_off:  # the cells' ambient
+        if args.soak and args.ambient_c is None:
+            raise ConfigError("--soak starts the cells at the ambient; give it with --ambient-c.")
+        check_option("--ambient-c", args.ambient_c, PackSection, "ambient_temp_c")
+        return {"ambient_c": args.ambient_c, "soak": args.soak}
     if battery is None or battery.model != "pack":
         got = "no [battery]" if battery is None else f"key 'battery.model' = {battery.model!r}"
         raise ConfigError(
@@ -995,7 +1007,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--ambient-c",
         type=float,
-        help="[battery] model = 'pack': ambient temperature [degC] (default the pack file's)",
+        help="[battery] model = 'pack': ambient temperature [degC] (default the pack file's); 'cell': the "
+        "cells' heat-port temperature (default [battery] temperature_c)",
     )
     p.add_argument(
         "--soak",

@@ -241,10 +241,11 @@ class GensetSection:
 class BatterySection:
     """Battery: model "ideal" | "rint" | "table" (cell tables in ``data``) | "cell" | "pack".
 
-    ``"cell"`` (series only): an ``n_series`` x ``n_parallel`` pack of the electro-thermal
-    cell model of :mod:`hevsim.battery` (``data`` names a shipped cell parameter set or a TOML
-    path), with its RC and thermal dynamics; ``temperature_c`` is its initial and heat-port
-    temperature. The current limits accept ``inf`` (the default): no limit.
+    ``"cell"`` (every architecture with a traction battery): an ``n_series`` x ``n_parallel``
+    pack of the electro-thermal cell model of :mod:`hevsim.battery` (``data`` names a shipped
+    cell parameter set or a TOML path), with its RC and thermal dynamics; ``temperature_c`` is
+    its initial and heat-port temperature (a run's ambient may replace the port's,
+    :mod:`hevsim.sim.cell_vehicle`). The current limits accept ``inf`` (the default): no limit.
 
     ``"pack"`` (every architecture with a traction battery: series, parallel, power split,
     BEV): the pack file ``pack`` (a pack TOML as
@@ -795,10 +796,10 @@ def check_series_online(cfg: SeriesHEVConfig, source: str, kind: str) -> None:
 
 def _series_online_refusal(cfg: SeriesHEVConfig) -> str:
     """Why a series HEV cannot run its online controllers (:data:`SERIES_ONLINE_CONTROLLERS`:
-    the quasi-static power flow has an engine genset and a table battery or a pack stepped in the
-    loop), "" when it can."""
+    the quasi-static power flow has an engine genset and a table battery, or a cell or pack
+    battery stepped in the loop), "" when it can."""
     needs = (("genset.kind", cfg.genset.kind, ("engine",)),
-             ("battery.model", cfg.battery.model, ("ideal", "rint", "table", "pack")))  # fmt: skip
+             ("battery.model", cfg.battery.model, ("ideal", "rint", "table", "cell", "pack")))  # fmt: skip
     for key, value, expected in needs:
         if value not in expected:
             return f"'{key}' = {' or '.join(expected)}; got '{key}' = {value!r}"
@@ -814,11 +815,6 @@ def _check_parallel(cfg: ParallelHEVConfig, source: str) -> None:
                                ("engine.stall_speed_rpm", "engine.redline_rpm")))  # fmt: skip
     _check_shift_schedule(cfg, source)
     _check_optimization(cfg, source)
-    if cfg.battery.model == "cell":
-        raise ConfigError(
-            f"{source}: key 'battery.model' = 'cell' is not supported by the parallel HEV; "
-            "expected one of ideal, rint, table, pack."
-        )
     if cfg.engine.model != "map":
         raise ConfigError(
             f"{source}: key 'engine.model' = {cfg.engine.model!r} is not supported by the parallel "
@@ -851,11 +847,6 @@ def _check_conventional(cfg: ConventionalConfig, source: str) -> None:
 def _check_bev(cfg: BEVConfig, source: str) -> None:
     _check_controller(cfg, source)
     _pairs_below(cfg, source, (("battery.soc_min", "battery.soc_max"),))
-    if cfg.battery.model == "cell":
-        raise ConfigError(
-            f"{source}: key 'battery.model' = 'cell' is not supported by the bev "
-            "architecture; expected one of ideal, rint, table, pack."
-        )
 
 
 def _check_power_split(cfg: PowerSplitConfig, source: str) -> None:
@@ -878,11 +869,6 @@ def _check_power_split(cfg: PowerSplitConfig, source: str) -> None:
             f"{source}: key 'engine.model' = {cfg.engine.model!r} is not supported by the power split; "
             "expected 'map' (its DP needs a fuel map)."
         )
-    if cfg.battery.model == "cell":
-        raise ConfigError(
-            f"{source}: key 'battery.model' = 'cell' is not supported by the power split; expected one of "
-            "ideal, rint, table, pack."
-        )
 
 
 def _check_fcev(cfg: FCEVConfig, source: str) -> None:
@@ -894,11 +880,6 @@ def _check_fcev(cfg: FCEVConfig, source: str) -> None:
         raise ConfigError(
             f"{source}: key 'fuel_cell.min_power_w' = {fc.min_power_w} must be below "
             f"'fuel_cell.max_power_w' = {fc.max_power_w}."
-        )
-    if cfg.battery.model == "cell":
-        raise ConfigError(
-            f"{source}: key 'battery.model' = 'cell' is not supported by the fcev architecture; expected "
-            "one of ideal, rint, table, pack."
         )
     _check_optimization(cfg, source)
 

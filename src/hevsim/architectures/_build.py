@@ -10,6 +10,7 @@ builder, so they live in the architectures layer, below the simulator (moved fro
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import replace
 from importlib import resources
 from pathlib import Path
@@ -110,11 +111,9 @@ def build_battery(bs: BatterySection, base: Path) -> tuple[BatteryPack, Any]:
     if bs.model == "pack":  # the vehicle's view of it; the pack itself: hevsim.sim.pack_vehicle
         return nominal_battery(bs, base), None
     if bs.model == "cell":
-        from hevsim.battery import load_cell_parameters
         from hevsim.battery.vehicle import quasi_static_pack
 
-        path = base / bs.data
-        cell = load_cell_parameters(path if path.suffix == ".toml" and path.is_file() else bs.data)
+        cell = cell_parameters(bs, base)
         pack = quasi_static_pack(
             cell,
             bs.n_series,
@@ -134,6 +133,31 @@ def build_battery(bs: BatterySection, base: Path) -> tuple[BatteryPack, Any]:
         **limits,
     )
     return pack, None
+
+
+def cell_parameters(bs: Any, base: Path) -> Any:
+    """The cell (:class:`~hevsim.battery.params.CellParameters`) of a ``[battery] model =
+    "cell"`` section: ``data`` a cell TOML relative to the vehicle file, or a shipped cell's name.
+    Parsed once per file content (:func:`hevsim.io.cached_by_content`; the vehicle's runs only
+    read the cell's arrays)."""
+    from hevsim.battery.params import load_cell_parameters
+    from hevsim.io import cached_by_content
+
+    path = base / bs.data
+    try:
+        if not (path.suffix == ".toml" and path.is_file()):
+            path = _shipped_cells_dir() / f"{bs.data}.toml"
+            if Path(bs.data).suffix or not path.is_file():
+                return load_cell_parameters(bs.data)  # a path elsewhere, or the error naming the shipped sets
+        return cached_by_content(path, load_cell_parameters)
+    except ConfigError as exc:
+        raise ConfigError(f"{base}: key 'battery.data' = {bs.data!r}: {exc}") from exc
+
+
+@functools.cache
+def _shipped_cells_dir() -> Path:
+    """The folder of the shipped cell parameter sets (``hevsim/data/cells``)."""
+    return Path(str(resources.files("hevsim") / "data" / "cells"))
 
 
 def pack_file(bs: Any, base: Path) -> Path:

@@ -647,15 +647,21 @@ def pack_current_for_power(s, power_w):
     """Pack current [A] whose step-average terminal power is ``power_w`` [W] (> 0 discharging)
     over the step begun by :func:`pack_begin`, from the direction's ``E I - Z I^2 = P`` (the
     root nearer zero; the maximum-power current when ``P`` exceeds ``E^2 / 4Z``)."""
-    if power_w == 0.0:
-        return 0.0
     sv = s.sv
     if power_w > 0.0:
-        e, z = sv[SV_EDIS], sv[SV_ZDIS]
-    else:
-        e, z = sv[SV_ECHG], sv[SV_ZCHG]
-    disc = e * e - 4.0 * z * power_w
-    return 2.0 * power_w / (e + math.sqrt(disc)) if disc > 0.0 else e / (2.0 * z)
+        return pair_current_for_power(sv[SV_EDIS], sv[SV_ZDIS], power_w)
+    return pair_current_for_power(sv[SV_ECHG], sv[SV_ZCHG], power_w)
+
+
+@njit(cache=True, inline="always")
+def pair_current_for_power(e_v, z_ohm, power_w):
+    """Current [A] whose step-average terminal power over a step pair ``V = E - Z I`` (``e_v``
+    [V], ``z_ohm`` [ohm]) is ``power_w`` [W] (> 0 discharging): the root of ``E I - Z I^2 = P``
+    nearer zero; the maximum-power current ``E / 2Z`` when ``P`` exceeds ``E^2 / 4Z``."""
+    if power_w == 0.0:
+        return 0.0
+    disc = e_v * e_v - 4.0 * z_ohm * power_w
+    return 2.0 * power_w / (e_v + math.sqrt(disc)) if disc > 0.0 else e_v / (2.0 * z_ohm)
 
 
 @njit(**PACK_STEP)

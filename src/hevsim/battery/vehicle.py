@@ -42,8 +42,10 @@ from numba import njit, types
 from numba.extending import overload
 
 from hevsim.battery import kernel as K
+from hevsim.battery.pack_run import pair_current_for_power
 from hevsim.battery.params import CellParameters, load_cell_parameters
 from hevsim.components.battery import BatteryPack, PackTables, pack_resistance
+from hevsim.components.bus import battery_power_limits
 from hevsim.tables import FloatArray, Table2D
 
 # aux vector of the ECM tuple (entry 11)
@@ -359,3 +361,155 @@ def _battery_pack_advance(p, bat, i_pack, dt):
         return pack_finish(bat.pack, i_pack, i_pack)
 
     return impl
+
+
+# -- 4. the cell kind in the forward loops of the other architectures -------------------------------
+CELL_SV = ("e_dis_v", "z_dis_ohm", "e_chg_v", "z_chg_ohm")
+"""The step vector of a :data:`CellBusTables` (the pack's step pairs of both directions)."""
+CSV_EDIS, CSV_ZDIS, CSV_ECHG, CSV_ZCHG = range(len(CELL_SV))
+CELL_RECORD = ("current_a", *K.RECORD)
+"""One record row per step of a :data:`CellBusTables`: the cell current [A], then the cell
+kernel's record (:data:`hevsim.battery.kernel.RECORD`) of the step."""
+CR_I = 0
+CELL_F = ("step", "soc")
+"""Scalars of a :data:`CellBusTables`: the next record row and the cells' SOC [-] after the last step."""
+CF_STEP, CF_SOC = range(len(CELL_F))
+
+CellBusTables: Any = namedtuple("CellBusTables", [*ECM_TUPLE, "sv", "rec", "f"])  # type: ignore[misc]
+"""The ``"cell"`` battery of a forward loop (:mod:`hevsim.sim.forward` and its compiled loops):
+the :class:`EcmTables` of the series HEV's ECM kind (one representative cell, its state, the
+pack's ``n_series`` x ``n_parallel`` and heat-port temperature in ``aux``), the step vector
+``sv`` (:data:`CELL_SV`), the records ``rec`` (steps x :data:`CELL_RECORD`) and ``f``
+(:data:`CELL_F`). A step is :func:`cell_bus_state` (the pairs, as the ECM kind's
+:func:`battery_ecm`) then :func:`cell_finish_power` (the cell step of :func:`battery_ecm_advance`)."""
+
+CELL_STEP: dict[str, Any] = {"cache": True, "_nrt": True}
+"""Options of the cell kind's entry points: reference counting on, so that the forward loops
+compiled without it can call them (as :data:`hevsim.battery.pack_run.PACK_STEP`)."""
+
+
+def cell_bus_tables(
+    params: CellParameters | str | Path,
+    n_series: int,
+    n_parallel: int,
+    soc_initial: float,
+    temp_k: float,
+    dt_s: float,
+    steps: int,
+    port_temp_k: float | None = None,
+    r_extra_ohm: float = 0.0,
+) -> Any:
+    """A fresh :data:`CellBusTables` for one run of ``steps`` steps of ``dt_s`` [s]: the cells
+    start at ``soc_initial`` [-] and ``temp_k`` [K]; their heat port is at ``port_temp_k`` [K]
+    (default ``temp_k``)."""
+    bat = ecm_kernel_tables(params, n_series, n_parallel, soc_initial, temp_k, dt_s, port_temp_k, r_extra_ohm)
+    f = np.zeros(len(CELL_F))
+    f[CF_SOC] = soc_initial
+    return CellBusTables(*bat, np.zeros(len(CELL_SV)), np.zeros((max(steps, 1), len(CELL_RECORD))), f)  # type: ignore[call-arg]
+
+
+@njit(**CELL_STEP)
+def cell_bus_state(s, soc, soc_max, i_dis_max_a, i_chg_max_a):
+    """The bus side of a step of the cell kind (as :func:`hevsim.battery.pack_run.pack_bus_state`
+    for a pack): fills ``s.sv`` with the pack's step pairs ``(E, Z)`` of each direction
+    (:func:`battery_ecm`: exact step-average terminal voltage ``E - Z I``) and returns (OCV [V] =
+    the discharge ``E``, discharge and charge resistance [ohm], largest charge power [W] at the
+    current limits [A], 0 when the vehicle's SOC ``soc`` [-] is at ``soc_max``)."""
+    sv = s.sv
+    e_d, z_d = battery_ecm(sv, s, soc, 1.0)
+    e_c, z_c = battery_ecm(sv, s, soc, -1.0)
+    sv[CSV_EDIS], sv[CSV_ZDIS], sv[CSV_ECHG], sv[CSV_ZCHG] = e_d, z_d, e_c, z_c
+    p_chg = battery_power_limits(e_d, z_d, e_d, z_c, i_dis_max_a, i_chg_max_a)[1]
+    if soc >= soc_max:  # full: no charging (regeneration goes to the friction brakes)
+        p_chg = 0.0
+    return e_d, z_d, z_c, p_chg
+
+
+@njit(**CELL_STEP)
+def cell_finish_power(s, power_w):
+    """End the step of the cell kind at the bus's terminal power ``power_w`` [W] (> 0
+    discharging): the pack current from the pair of the direction the cells take
+    (:func:`hevsim.battery.pack_run.pair_current_for_power`), the cells' step at its share
+    (:func:`hevsim.battery.kernel.cell_step`, as :func:`battery_ecm_advance`), one record row;
+    returns the cells' SOC [-] at the end of the step.
+
+    The cells' direction (their OCV table and RC set) follows the current with a dead band
+    (:func:`hevsim.battery.kernel.step_direction`): a cell current within ``switch_band_a``
+    keeps the last direction. The current is solved with the power's direction's pair; when
+    that current leaves the cells in the other direction and the other pair's current does
+    too, that one is taken, so the pack's step-average power is the bus's exactly."""
+    sv, aux, f = s.sv, s.aux, s.f
+    pos = 1.0 if power_w > 0.0 else -1.0
+    j, o = (CSV_EDIS, CSV_ECHG) if pos > 0.0 else (CSV_ECHG, CSV_EDIS)
+    i_pack = pair_current_for_power(sv[j], sv[j + 1], power_w)
+    band, last = s.params[K.IBAND], s.state[K.SDIR]
+    if K.step_direction(i_pack / aux[A_NP], last, band) != pos:  # inside the dead band, kept the other way
+        i_other = pair_current_for_power(sv[o], sv[o + 1], power_w)
+        if K.step_direction(i_other / aux[A_NP], last, band) == -pos:
+            i_pack = i_other
+    k = int(f[CF_STEP])
+    row = s.rec[min(k, s.rec.shape[0] - 1)]
+    i_cell = i_pack / aux[A_NP]
+    K.cell_step(*cell_arguments(s), i_cell, aux[A_DT], aux[A_TPORT], row[1:])
+    row[CR_I] = i_cell
+    aux[A_HEAT] = row[1 + K.RHEAT] * aux[A_NS] * aux[A_NP]
+    aux[A_TCELL] = row[1 + K.RTEMP]
+    f[CF_STEP] = k + 1
+    f[CF_SOC] = row[1 + K.RSOC]
+    return f[CF_SOC]
+
+
+# -- 5. one battery step protocol for the forward loops: the pack and the cell kind -----------------
+def vehicle_bus_begin(
+    s: Any, soc: float, soc_max: float, i_dis_max_a: float, i_chg_max_a: float, aux_w: float,
+    discharge_rtol: float, charge_rtol: float,
+) -> tuple[float, float, float, float, float, float, float]:  # fmt: skip
+    """Begin a step of the battery ``s`` of a compiled forward loop: (OCV [V], discharge and
+    charge resistance [ohm], largest charge power [W], the step's discharge and charge current
+    limits [A], the bus's other load [W]).
+
+    ``s`` a pack's :class:`~hevsim.battery.pack_run.PackArrays`: the pack's step begins
+    (:func:`~hevsim.battery.pack_run.pack_begin`: BMS limits, Thevenin pairs, cooling) and
+    :func:`~hevsim.battery.pack_run.pack_bus_state` gives the rest (its limits divided by ``1 +
+    rtol``, its base load plus the cooling). ``s`` a :data:`CellBusTables`:
+    :func:`cell_bus_state` with the vehicle's limits ``i_dis_max_a``, ``i_chg_max_a`` and load
+    ``aux_w``, unchanged. (Compiled only: a numba overload.)"""
+    raise NotImplementedError("compiled only (numba overload)")
+
+
+def vehicle_bus_finish_power(s: Any, power_w: float) -> float:
+    """End the step of the battery ``s`` (as :func:`vehicle_bus_begin`) at the bus's terminal
+    power ``power_w`` [W]; returns its SOC [-] (:func:`~hevsim.battery.pack_run.pack_finish_power`,
+    :func:`cell_finish_power`). (Compiled only: a numba overload.)"""
+    raise NotImplementedError("compiled only (numba overload)")
+
+
+def _is_cell_bus(s: Any) -> bool:
+    return isinstance(s, types.BaseNamedTuple) and getattr(s, "instance_class", None) is CellBusTables
+
+
+@overload(vehicle_bus_begin)
+def _vehicle_bus_begin(s, soc, soc_max, i_dis_max_a, i_chg_max_a, aux_w, discharge_rtol, charge_rtol):
+    if _is_cell_bus(s):
+
+        def cell_impl(s, soc, soc_max, i_dis_max_a, i_chg_max_a, aux_w, discharge_rtol, charge_rtol):
+            ocv, r_dis, r_chg, p_chg = cell_bus_state(s, soc, soc_max, i_dis_max_a, i_chg_max_a)
+            return ocv, r_dis, r_chg, p_chg, i_dis_max_a, i_chg_max_a, aux_w
+
+        return cell_impl
+    from hevsim.battery.pack_run import pack_begin, pack_bus_state
+
+    def pack_impl(s, soc, soc_max, i_dis_max_a, i_chg_max_a, aux_w, discharge_rtol, charge_rtol):
+        pack_begin(s)
+        return pack_bus_state(s, soc, soc_max, discharge_rtol, charge_rtol)
+
+    return pack_impl
+
+
+@overload(vehicle_bus_finish_power)
+def _vehicle_bus_finish_power(s, power_w):
+    if _is_cell_bus(s):
+        return lambda s, power_w: cell_finish_power(s, power_w)
+    from hevsim.battery.pack_run import pack_finish_power
+
+    return lambda s, power_w: pack_finish_power(s, power_w)

@@ -32,7 +32,7 @@ from numba import njit
 from hevsim.architectures import parallel as P
 from hevsim.architectures import power_split as PS
 from hevsim.architectures._common import NO_REFCOUNT
-from hevsim.battery.pack_run import pack_begin, pack_bus_state, pack_finish_power
+from hevsim.battery.vehicle import vehicle_bus_begin, vehicle_bus_finish_power
 from hevsim.components.battery import pack_ocv_r, soc_rate
 from hevsim.components.body import road_load_force
 from hevsim.components.bus import battery_power_limits, bus_balance, machine_request
@@ -596,13 +596,17 @@ def battery_begin(soc, h, ptab, pk):
     compiled step begins (:func:`~hevsim.battery.pack_run.pack_begin`: BMS limits, Thevenin
     pairs, cooling decision) and :func:`~hevsim.battery.pack_run.pack_bus_state` gives the
     state, the current limits and the cooling load on the bus (in ``h``), as the Python loop's
-    :meth:`hevsim.battery.bms.PackRun.vehicle_step`."""
+    :meth:`hevsim.battery.bms.PackRun.vehicle_step`. ``pk`` a ``[battery] model = "cell"``
+    battery's :data:`~hevsim.battery.vehicle.CellBusTables`: the pack's step pairs of its
+    representative cell (:func:`~hevsim.battery.vehicle.cell_bus_state`), the limits and load of
+    ``h``, as :meth:`hevsim.battery.cell_run.CellRun.vehicle_step`. Both through
+    :func:`~hevsim.battery.vehicle.vehicle_bus_begin`."""
     if pk is None:
         return _battery(soc, h, ptab), h
-    pack_begin(pk)
-    ocv, r_dis, r_chg, p_chg, i_dis, i_chg, aux_w = pack_bus_state(
-        pk, soc, h.soc_max, LIMIT_RTOL, REGEN_CURRENT_RTOL
-    )
+    ocv, r_dis, r_chg, p_chg, i_dis, i_chg, aux_w = vehicle_bus_begin(
+        pk, soc, h.soc_max, h.i_discharge_max_a, h.i_charge_max_a, h.aux_power_w, LIMIT_RTOL,
+        REGEN_CURRENT_RTOL,
+    )  # fmt: skip
     return (ocv, r_dis, r_chg, p_chg), _step_constants(h, i_dis, i_chg, aux_w)
 
 
@@ -611,10 +615,11 @@ def battery_end(soc, d_soc, p_bat, pk):
     """The battery model's end of a step: the SOC [-] after it. ``pk`` None: ``soc + d_soc``;
     a pack: its step at the bus's terminal power ``p_bat`` [W]
     (:func:`~hevsim.battery.pack_run.pack_finish_power`: cells, module thermal model, cooling
-    loop, ageing stress, records), its mean cell SOC."""
+    loop, ageing stress, records), its mean cell SOC; a cell battery: its cell's step
+    (:func:`~hevsim.battery.vehicle.cell_finish_power`), its SOC."""
     if pk is None:
         return soc + d_soc
-    return pack_finish_power(pk, p_bat)
+    return vehicle_bus_finish_power(pk, p_bat)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -859,6 +864,8 @@ def pack_arrays(pack: Any, model: Any, steps: int) -> Any:
     :meth:`~hevsim.battery.bms.PackRun.vehicle_step`)."""
     if pack is None:
         return None
+    if hasattr(pack, "loop_arrays"):  # a "cell" battery (hevsim.battery.cell_run.CellRun)
+        return pack.loop_arrays(float(getattr(model, "aux_power_w", 0.0)), steps)
     from hevsim.battery.pack_run import F_BASEAUX
 
     if pack.base_aux_w is None:

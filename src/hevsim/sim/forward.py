@@ -204,7 +204,9 @@ def simulate_architecture(
     Python loop. ``pack_run``: the :class:`~hevsim.battery.bms.PackRun` of a ``[battery]
     model = "pack"`` vehicle, whose compiled step runs inside the compiled loop (or is called
     step by step from the Python loop); without one such a vehicle goes to
-    :func:`hevsim.sim.pack_vehicle.simulate_pack_vehicle`, which makes it). Returns a
+    :func:`hevsim.sim.pack_vehicle.simulate_pack_vehicle`, which makes it), or the
+    :class:`~hevsim.battery.cell_run.CellRun` of a ``[battery] model = "cell"`` vehicle (the
+    same protocol; without one: :func:`simulate_cell_architecture`). Returns a
     :class:`~hevsim.sim.simulator.SimulationResult`.
     """
     from hevsim.architectures import architecture
@@ -239,6 +241,8 @@ def simulate_architecture(
             f"soc_initial = {soc0:g} lies outside [battery.soc_min, battery.soc_max] = "
             f"[{b.soc_min:g}, {b.soc_max:g}]."
         )
+    if b is not None and b.model == "cell" and pack_run is None:  # hevsim.sim.cell_vehicle
+        return simulate_cell_architecture(name, model, cyc, dt, soc0, ctl, compiled)
     if b is not None and b.model == "pack" and pack_run is None:  # hevsim.sim.pack_vehicle
         from hevsim.sim.pack_vehicle import simulate_pack_vehicle
 
@@ -284,6 +288,46 @@ def simulate_architecture(
     if hasattr(ctl, "s"):
         metadata["equivalence_factor_final"] = float(ctl.s)
     return SimulationResult(ts, metrics, audit, events, metadata, model, cyc)
+
+
+def simulate_cell_architecture(
+    name: str,
+    model: Any,
+    cycle: DriveCycle | str | None = None,
+    dt_s: float | None = None,
+    soc_initial: float | None = None,
+    controller: Any = None,
+    compiled: bool | None = None,
+    ambient_temp_c: float | None = None,
+) -> Any:
+    """:func:`simulate_architecture` of a ``[battery] model = "cell"`` vehicle of architecture
+    ``name`` (the series HEV's online controllers too; its kernel supervisors step the cells in
+    its kernel, :func:`hevsim.sim.simulator.simulate`): a fresh
+    :class:`~hevsim.battery.cell_run.CellRun` of its ``[battery]`` (the cells' heat port at
+    ``ambient_temp_c`` [degC], default ``battery.temperature_c``; for a soaked start pass a
+    configuration from :func:`hevsim.sim.cell_vehicle.soaked`) stepped in the loop, then its
+    channels, metrics and energy terms added to the result
+    (:func:`hevsim.sim.cell_vehicle.attach_cells`)."""
+    from hevsim.architectures import architecture
+    from hevsim.config import load_vehicle_config
+    from hevsim.sim.cell_vehicle import attach_cells, make_cell_run
+
+    if isinstance(model, str | Path):
+        model = load_vehicle_config(model)
+    cfg = getattr(model, "config", model)
+    if getattr(getattr(cfg, "battery", None), "model", "") != "cell":
+        raise ConfigError(
+            f"{cfg.name}: a cell run needs [battery] model = 'cell'; got "
+            f"{getattr(getattr(cfg, 'battery', None), 'model', None)!r}."
+        )
+    if not hasattr(model, "config"):
+        model = architecture(name, cfg.name).build(cfg)
+    cyc, dt = cycle_and_step(cycle, dt_s, cfg.simulation)
+    soc0 = float(cfg.simulation.soc_initial if soc_initial is None else soc_initial)
+    run = make_cell_run(cfg, dt, soc0, len(cyc.resampled(dt).time_s) - 1, ambient_temp_c=ambient_temp_c)
+    res = simulate_architecture(name, model, cyc, dt, soc0, controller, compiled, pack_run=run)
+    attach_cells(res, run, cfg)
+    return res
 
 
 # One entry point per architecture: simulate_architecture with the name fixed.
@@ -423,7 +467,8 @@ def simulate_batch_architecture(
     arch = architecture(cfg.architecture, cfg.name)
     sections: dict[str, dict[str, Any]] = {}
     cfgs = [variant_config(cfg, v, arch.spec, sections) for v in values]
-    pack = getattr(getattr(cfg, "battery", None), "model", "") == "pack"  # the pack runs variant by variant
+    # a pack or a cell battery (their cells' state) runs variant by variant
+    pack = getattr(getattr(cfg, "battery", None), "model", "") in ("pack", "cell")
     loop = compiled_loop(arch.name) if use_compiled(compiled) and not pack else None
     hook = getattr(loop, "simulate_batch_compiled", None)
     rec = None

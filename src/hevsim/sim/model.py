@@ -51,6 +51,9 @@ class SeriesHEV:
     aux_power_w: float | None = None
     """Electrical auxiliary load on the bus [W] of the quasi-static power flow (None: ``[controller]
     aux_power_w``; a pack's cooling power is added by :meth:`hevsim.battery.bms.PackRun.vehicle_step`)."""
+    cell_port_temp_k: float | None = None
+    """The heat-port (ambient) temperature [K] of a ``"cell"`` battery's cells (None: their
+    initial temperature, ``[battery] temperature_c``)."""
 
     @property
     def name(self) -> str:
@@ -154,8 +157,9 @@ class SeriesHEV:
             soc0 = self.config.simulation.soc_initial if soc_initial is None else soc_initial
             b = self.battery
             bat = ecm_kernel_tables(
-                self.cell, b.n_series, b.n_parallel, soc0, b.temperature_k, dt_s, r_extra_ohm=b.r_extra_ohm
-            )
+                self.cell, b.n_series, b.n_parallel, soc0, b.temperature_k, dt_s, self.cell_port_temp_k,
+                r_extra_ohm=b.r_extra_ohm,
+            )  # fmt: skip
         else:
             bat = pad_tables_kind(self.battery.kernel_tables())
         if self.engine is not None:

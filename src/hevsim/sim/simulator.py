@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import platform
 import time
@@ -36,7 +37,7 @@ from hevsim.sim.checks import (
 )
 from hevsim.sim.metrics import compute_metrics, energy_audit, soc_correction_ocv
 from hevsim.sim.model import SeriesHEV
-from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
+from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM, c_to_k
 
 CSV_AUTO_MAX_ROWS = 50_000
 """Longest time series [rows] that :meth:`SimulationResult.save` also writes as CSV unless
@@ -290,6 +291,9 @@ def _simulate_pack_options(
     cfg: Any = getattr(model, "config", model)
     given = [k for k, v in pack_options.items() if v is not None and v is not False]
     battery = getattr(cfg, "battery", None)
+    if battery is not None and battery.model == "cell":
+        return _simulate_cell_options(model, cycle, dt_s, soc_initial, schedule, controller,
+                                      controller_params, given, **pack_options)  # fmt: skip
     if battery is None or battery.model != "pack":
         got = "no [battery]" if battery is None else f"key 'battery.model' = {battery.model!r}"
         raise ConfigError(
@@ -305,6 +309,57 @@ def _simulate_pack_options(
                                  ambient_temp_c=pack_options["ambient_c"], soak=pack_options["soak"],
                                  cooling_off=pack_options["cooling_off"],
                                  age_state=pack_options["age_state"])  # fmt: skip
+
+
+def _simulate_cell_options(
+    model: Any,
+    cycle: Any,
+    dt_s: float | None,
+    soc_initial: float | None,
+    schedule: Any,
+    controller: Any,
+    controller_params: dict[str, Any],
+    given: list[str],
+    **options: Any,
+) -> SimulationResult:
+    """:func:`simulate` of a ``[battery] model = "cell"`` vehicle at another ambient: the
+    cells' heat port at ``ambient_c`` [degC]; with ``soak`` the cells start at it too (the
+    configuration's ``battery.temperature_c``). The series HEV runs its kernel's ECM battery
+    kind with that port; the other architectures :func:`hevsim.sim.forward.simulate_cell_architecture`.
+    ConfigError for the pack's cooling and age options (a cell battery has neither)."""
+    cfg: Any = getattr(model, "config", model)
+    bad = [k for k in ("cooling_off", "age_state") if k in given]
+    if bad:
+        raise ConfigError(
+            f"{cfg.name}: simulate({', '.join(bad)}=...) sets a pack's cooling loop or cell ages; "
+            "key 'battery.model' = 'cell' has neither (expected [battery] model = 'pack'); 'cell' takes "
+            "ambient_c and soak."
+        )
+    ambient, soak = options["ambient_c"], options["soak"]
+    if soak and ambient is None:
+        raise ConfigError(f"{cfg.name}: soak starts the cells at the ambient; give ambient_c with it.")
+    from hevsim.sim.cell_vehicle import soaked
+
+    if soak:  # the cells start at the ambient
+        cfg = model = soaked(cfg, ambient)
+    other = _other_architecture(model)
+    kind = cfg.controller.kind if controller is None else controller
+    online = not isinstance(kind, str) or kind not in SERIES_CONTROLLER_KEYS  # the series HEV's ECMS, replay
+    if other is not None or online:
+        from hevsim.sim.forward import simulate_cell_architecture
+
+        if controller_params:
+            model = cfg.replace(**{f"controller.{k}": v for k, v in controller_params.items()})
+        if other is None and schedule is not None:
+            raise ConfigError(
+                f"simulate: a genset schedule replaces the series HEV's supervisor; got {kind!r}."
+            )
+        return simulate_cell_architecture(other or "series", model, cycle, dt_s, soc_initial, controller,
+                                          ambient_temp_c=ambient)  # fmt: skip
+    hev = model if isinstance(model, SeriesHEV) else architecture("series").build(model)
+    if ambient is not None:  # ... and their heat port is at it
+        hev = dataclasses.replace(hev, cell_port_temp_k=c_to_k(float(ambient)))
+    return simulate(hev, cycle, dt_s, soc_initial, schedule, controller=controller, **controller_params)
 
 
 def simulate(
@@ -329,7 +384,9 @@ def simulate(
     :class:`hevsim.battery.life.PackAgeState`, advanced in place) are for a vehicle with
     ``[battery] model = "pack"`` (any architecture but the conventional car): the pack's
     ambient, cells and coolant starting at it, the cooling loop stopped, the cells' age
-    (:func:`hevsim.sim.pack_vehicle.simulate_pack_vehicle`). ``hevsim.simulate`` is this
+    (:func:`hevsim.sim.pack_vehicle.simulate_pack_vehicle`). ``ambient_c`` and ``soak`` also
+    serve ``[battery] model = "cell"``: the cells' heat port at the ambient, with ``soak`` their
+    start too (:func:`hevsim.sim.forward.simulate_cell_architecture`). ``hevsim.simulate`` is this
     function.
 
     ``cycle`` is a :class:`DriveCycle`, a registered name or a CSV path (default: the
