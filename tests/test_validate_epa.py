@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -115,6 +116,86 @@ def test_held_out_sample_and_the_fit_is_linear(tmp_path: Path) -> None:
         assert np.percentile(e, 90) <= p90_max, (cat, np.percentile(e, 90))
 
 
+def test_shift_rules_by_transmission_class(tmp_path: Path) -> None:
+    """Every conventional car of the list has a transmission class whose fitted rule its gearbox
+    can follow without hunting; :func:`T.shift_feasible` agrees with the configuration's own check."""
+    vehicles, _ = T.read_test_cars()
+    g = T.generic()
+    camry = next(x for x in vehicles if x.vehicle_id == "18-AV2A")
+    assert g.shift_rule(camry)[0] == "automatic, 8 to 10 gears"
+    assert g.shift_rule(next(v for v in vehicles if v.transmission_code == "M"))[0] == "manual"
+    assert (
+        g.shift_rule(next(v for v in vehicles if v.transmission_code == "CVT"))[0] == "continuously variable"
+    )
+    for v in vehicles:
+        name, up, down = g.shift_rule(v)
+        assert name != "other" and T.shift_feasible(v, g, up, down), (v.vehicle_id, name)
+    six = next(v for v in vehicles if v.gears == 6 and v.transmission_code == "A")
+    bad = g.with_shift("automatic, up to 7 gears", 1500.0, 1150.0)
+    assert not T.shift_feasible(six, bad, 1500.0, 1150.0)
+    with pytest.raises(ConfigError, match="hunt"):
+        T.vehicle_config(six, tmp_path / "e", bad)
+    assert T.shift_feasible(six, g, *g.shift_rule(six)[1:])
+    T.vehicle_config(six, tmp_path / "e", g)
+
+
+def test_search_shift_rules_fits_on_the_training_half(tmp_path: Path, monkeypatch: Any) -> None:
+    """The search simulates training vehicles only and ends no worse (engine-fit loss) than it
+    started; every rule it returns is from the grid or the start."""
+    vehicles, _ = T.read_test_cars()
+    g = T.generic()
+    sample = []
+    for name in ("automatic, 8 to 10 gears", "manual"):
+        of = [v for v in vehicles if g.shift_rule(v)[0] == name]
+        sample += [v for v in of if T.split(v.vehicle_id) == "train"][:4] + [
+            v for v in of if T.split(v.vehicle_id) == "test"
+        ][:2]
+    seen: list[T.TestVehicle] = []
+    real = T.run_all
+
+    def spy(vs: list[T.TestVehicle], *a: Any, **k: Any) -> list[T.TestRun]:
+        seen.extend(vs)
+        return real(vs, *a, **k)
+
+    monkeypatch.setattr(T, "run_all", spy)
+    grid = ((1600.0, 1000.0), (2600.0, 1300.0))
+    found, log = T.search_shift_rules(sample, tmp_path, g, grid=grid, rounds=1)
+    monkeypatch.undo()
+    assert seen and all(T.split(v.vehicle_id) == "train" for v in seen)
+    start = {r.name: (r.upshift_rpm, r.downshift_rpm) for r in g.shift_rules}
+    for r in found.shift_rules:
+        assert (r.upshift_rpm, r.downshift_rpm) in (*grid, start[r.name])
+    train = [v for v in sample if T.split(v.vehicle_id) == "train"]
+
+    def loss(gg: T.Generic) -> float:
+        runs = T.run_all(train, tmp_path / "check", gg)
+        return T.fit_loss(runs, T.fit(runs))
+
+    assert loss(found) <= loss(g) + 1e-12
+    assert len(log) == 1 + len(g.shift_rules)
+
+
+def test_bags_give_the_ftp_composite() -> None:
+    """40 CFR 600.114: the FTP fuel economy is 1 / (0.43 / cold UDDS + 0.57 / hot UDDS), cold UDDS =
+    bags 1 + 2, hot = bags 3 + 2 (by distance): the list's bag figures give its RND_ADJ_FE to rounding."""
+    bags = T.ftp_bags()
+    vehicles, _ = T.read_test_cars()
+    d1, d2, d3 = T.BAG_MILES
+    diff = []
+    for v in vehicles[::10]:
+        for cat, number, mpg in v.tests:
+            if cat != "FTP" or number not in bags:
+                continue
+            b1, b2, b3 = bags[number]
+            hot, cold_gal = T.bag_split(bags[number])
+            cold = (d1 + d2) / (d1 / b1 + d2 / b2)
+            assert hot == pytest.approx((d3 + d2) / (d3 / b3 + d2 / b2), rel=1e-12)
+            assert cold_gal == pytest.approx((d1 + d2) / cold - (d3 + d2) / hot, rel=1e-9)
+            diff.append(1 / (0.43 / cold + 0.57 / hot) / mpg - 1)
+    assert len(diff) >= 50
+    assert np.median(np.abs(diff)) <= 0.003 and np.percentile(np.abs(diff), 90) <= 0.01
+
+
 def test_fit_recovers_known_weights() -> None:
     """NNLS on runs whose measured fuel is exactly a known weighting of their integrals."""
     rng = np.random.default_rng(1)
@@ -137,6 +218,9 @@ def test_bad_generic_file_names_the_key(tmp_path: Path) -> None:
     bad = tmp_path / "g.toml"
     bad.write_text(src.read_text().replace("brake_work = ", "brake_wrok = "))
     with pytest.raises(ConfigError, match="brake_wrok"):
+        T.generic(str(bad))
+    bad.write_text(src.read_text().replace('codes = ["M"]', 'codes = "M"'))
+    with pytest.raises(ConfigError, match="'codes' = 'M'"):
         T.generic(str(bad))
 
 
