@@ -101,19 +101,25 @@ def test_split_is_deterministic_and_halves() -> None:
 
 
 def test_held_out_sample_and_the_fit_is_linear(tmp_path: Path) -> None:
-    """Every 16th held-out vehicle: the simulated fuel equals the fitted weights times the
-    run's energy integrals (the linearity the fit relies on), and the errors are within bounds."""
+    """Every 4th held-out vehicle (148 FTP, 152 HWY tests): the simulated fuel equals the fitted
+    weights times the run's energy integrals (the linearity the fit relies on), and the errors are
+    the shipped models' (docs/validation.md). This sample gives FTP 5.5 % median / 14.3 % 90th
+    percentile, HWY 3.9 % / 12.2 % (the whole held-out half: 5.7 / 14.5 and 3.7 / 9.9); the bounds
+    are those figures rounded up. The models before the shift rules by transmission class gave
+    6.4 / 16.3 and 4.3 / 13.7 here and fail them. The HWY median is within the issue's 5 % goal;
+    the FTP is not (docs/validation.md, "Honest failures")."""
     vehicles, _ = T.read_test_cars()
-    held = [v for v in vehicles if T.split(v.vehicle_id) == "test"][::16]
+    held = [v for v in vehicles if T.split(v.vehicle_id) == "test"][::4]
     g = T.generic()
     runs = T.run_all(held, tmp_path, g)
-    assert len(runs) >= 60
+    assert len(runs) == 300
     for r in runs:
         assert T.linear_mpg(r, g.fitted) == pytest.approx(r.predicted_mpg, rel=2e-3)
-    for cat, median_max, p90_max in (("HWY", 0.05, 0.12), ("FTP", 0.07, 0.17)):
+    for cat, median_max, p90_max in (("HWY", 0.04, 0.125), ("FTP", 0.057, 0.145)):
         e = np.abs([r.error for r in runs if r.category == cat])
         assert np.median(e) <= median_max, (cat, np.median(e))
         assert np.percentile(e, 90) <= p90_max, (cat, np.percentile(e, 90))
+    assert np.median(np.abs([r.error for r in runs if r.category == "HWY"])) <= 0.05  # the goal
 
 
 def test_shift_rules_by_transmission_class(tmp_path: Path) -> None:
