@@ -8,21 +8,25 @@ N/(m/s)^2) at the *equivalent test weight* (the body's coast-down form), a gearb
 number of gears (a CVT: a many-step box) whose top gear gives the listed *N/V ratio* (engine rpm
 per mph in top gear) with the listed *axle ratio* as final drive, the listed drive axle, and a
 generic gasoline engine (:func:`write_engine`) sized by the listed *displacement* and *rated
-power*, shifted by a generic rule. The measured figure is ``RND_ADJ_FE`` [mpg]: the test's fuel
-economy as certified, before the label's 5-cycle adjustment (the FTP's is the 3-bag composite:
-its ``FE Bag 1..3`` columns combine to it with the FTP weights 0.43 cold / 0.57 hot).
+power*, shifted by the rule of its transmission class (:attr:`Generic.shift_rules`, fitted on
+the training half by :func:`search_shift_rules`). The measured figure is ``RND_ADJ_FE`` [mpg]:
+the test's fuel economy as certified, before the label's 5-cycle adjustment (the FTP's is the
+3-bag composite: its ``FE Bag 1..3`` columns combine to it with the FTP weights 0.43 cold /
+0.57 hot).
 
 **The generic engine** is a Willans-type map (fuel power linear in brake power with a
 speed-dependent friction and a load-dependent pumping term)::
 
     P_fuel = [w T + w V_d / (4 pi) (fmep0 + fmep1 s + fmep2 s^2 + pmep (1 - T / T_max(w)))] / eta_i
 
-with ``s`` = rpm / reference rpm. Its five parameters and the FTP's cold-start fuel
-(``cold_start_j_per_m3`` x V_d, added to the cold UDDS that weighs 0.43 in the composite) are
-fitted, all together, by non-negative least squares on the relative fuel error of a *training
-half* of the test vehicles (:func:`split`: by a hash of the Test Vehicle ID). The fit is
-linear: the operating points of a test do not depend on the fuel map (the shift rule reads
-engine speed, the kick-down the torque curve, the fuel-cut drag its own fixed constant), so
+with ``s`` = rpm / reference rpm (and a few more terms: :data:`POINT_TERMS`). Its weights and
+the FTP term (``cold_start`` x V_d, added to the cold UDDS that weighs 0.43 in the composite; the
+bag figures, :func:`ftp_bags`, show that a fifth of it is the cold start, the rest a city
+penalty the model lacks) are fitted, all together, by non-negative least squares on the
+relative fuel error of a *training half* of the test vehicles (:func:`split`: by a hash of
+the Test Vehicle ID). The fit is linear: the operating points of a test do not depend on the
+fuel map (the shift rule reads engine speed, the kick-down the torque curve, the fuel-cut drag
+its own fixed constant), so
 one simulation per test with any map gives the energy integrals (:data:`FEATURES`) the fuel of
 every map is a linear combination of; :func:`fit` solves for the weights and the figures
 reported are then full simulations with the fitted map.
