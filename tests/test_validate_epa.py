@@ -228,6 +228,9 @@ def test_bad_generic_file_names_the_key(tmp_path: Path) -> None:
     bad.write_text(src.read_text().replace('codes = ["M"]', 'codes = "M"'))
     with pytest.raises(ConfigError, match="'codes' = 'M'"):
         T.generic(str(bad))
+    bad.write_text(src.read_text().split("\n[[transmission.shift]]")[0] + '\nshift = "manual"\n')
+    with pytest.raises(ConfigError, match="'shift' = 'manual'"):
+        T.generic(str(bad))
 
 
 def test_camry_example_within_ten_percent_of_its_epa_figures(tmp_path: Path) -> None:

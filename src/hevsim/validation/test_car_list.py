@@ -227,7 +227,13 @@ def generic(path: str | None = None) -> Generic:
     kw.update({k: int(_num(e, k, f"{w} [engine]")) for k in ("speed_points", "torque_points")})
     kw["cvt_steps"] = int(_num(t, "cvt_steps", f"{w} [transmission]"))
     rules = []
-    for i, r in enumerate(t.get("shift", [])):
+    shift = t.get("shift", [])
+    if not isinstance(shift, list) or not all(isinstance(r, dict) for r in shift):
+        raise ConfigError(
+            f"{w} [transmission]: key 'shift' = {shift!r}; expected an array of tables "
+            "[[transmission.shift]]."
+        )
+    for i, r in enumerate(shift):
         where = f"{w} [[transmission.shift]] #{i + 1}"
         codes = r.get("codes")
         if not isinstance(codes, list) or not codes or not all(isinstance(c, str) for c in codes):
