@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -100,19 +101,105 @@ def test_split_is_deterministic_and_halves() -> None:
 
 
 def test_held_out_sample_and_the_fit_is_linear(tmp_path: Path) -> None:
-    """Every 16th held-out vehicle: the simulated fuel equals the fitted weights times the
-    run's energy integrals (the linearity the fit relies on), and the errors are within bounds."""
+    """Every 4th held-out vehicle (148 FTP, 152 HWY tests): the simulated fuel equals the fitted
+    weights times the run's energy integrals (the linearity the fit relies on), and the errors are
+    the shipped models' (docs/validation.md). This sample gives FTP 5.5 % median / 14.3 % 90th
+    percentile, HWY 3.9 % / 12.2 % (the whole held-out half: 5.7 / 14.5 and 3.7 / 9.9); the bounds
+    are those figures rounded up. The models before the shift rules by transmission class gave
+    6.4 / 16.3 and 4.3 / 13.7 here and fail them. The HWY median is within the issue's 5 % goal;
+    the FTP is not (docs/validation.md, "Honest failures")."""
     vehicles, _ = T.read_test_cars()
-    held = [v for v in vehicles if T.split(v.vehicle_id) == "test"][::16]
+    held = [v for v in vehicles if T.split(v.vehicle_id) == "test"][::4]
     g = T.generic()
     runs = T.run_all(held, tmp_path, g)
-    assert len(runs) >= 60
+    assert len(runs) == 300
     for r in runs:
         assert T.linear_mpg(r, g.fitted) == pytest.approx(r.predicted_mpg, rel=2e-3)
-    for cat, median_max, p90_max in (("HWY", 0.05, 0.12), ("FTP", 0.07, 0.17)):
+    for cat, median_max, p90_max in (("HWY", 0.04, 0.125), ("FTP", 0.057, 0.145)):
         e = np.abs([r.error for r in runs if r.category == cat])
         assert np.median(e) <= median_max, (cat, np.median(e))
         assert np.percentile(e, 90) <= p90_max, (cat, np.percentile(e, 90))
+    assert np.median(np.abs([r.error for r in runs if r.category == "HWY"])) <= 0.05  # the goal
+
+
+def test_shift_rules_by_transmission_class(tmp_path: Path) -> None:
+    """Every conventional car of the list has a transmission class whose fitted rule its gearbox
+    can follow without hunting; :func:`T.shift_feasible` agrees with the configuration's own check."""
+    vehicles, _ = T.read_test_cars()
+    g = T.generic()
+    camry = next(x for x in vehicles if x.vehicle_id == "18-AV2A")
+    assert g.shift_rule(camry)[0] == "automatic, 8 to 10 gears"
+    assert g.shift_rule(next(v for v in vehicles if v.transmission_code == "M"))[0] == "manual"
+    assert (
+        g.shift_rule(next(v for v in vehicles if v.transmission_code == "CVT"))[0] == "continuously variable"
+    )
+    for v in vehicles:
+        name, up, down = g.shift_rule(v)
+        assert name != "other" and T.shift_feasible(v, g, up, down), (v.vehicle_id, name)
+    six = next(v for v in vehicles if v.gears == 6 and v.transmission_code == "A")
+    bad = g.with_shift("automatic, up to 7 gears", 1500.0, 1150.0)
+    assert not T.shift_feasible(six, bad, 1500.0, 1150.0)
+    with pytest.raises(ConfigError, match="hunt"):
+        T.vehicle_config(six, tmp_path / "e", bad)
+    assert T.shift_feasible(six, g, *g.shift_rule(six)[1:])
+    T.vehicle_config(six, tmp_path / "e", g)
+
+
+def test_search_shift_rules_fits_on_the_training_half(tmp_path: Path, monkeypatch: Any) -> None:
+    """The search simulates training vehicles only and ends no worse (engine-fit loss) than it
+    started; every rule it returns is from the grid or the start."""
+    vehicles, _ = T.read_test_cars()
+    g = T.generic()
+    sample = []
+    for name in ("automatic, 8 to 10 gears", "manual"):
+        of = [v for v in vehicles if g.shift_rule(v)[0] == name]
+        sample += [v for v in of if T.split(v.vehicle_id) == "train"][:4] + [
+            v for v in of if T.split(v.vehicle_id) == "test"
+        ][:2]
+    seen: list[T.TestVehicle] = []
+    real = T.run_all
+
+    def spy(vs: list[T.TestVehicle], *a: Any, **k: Any) -> list[T.TestRun]:
+        seen.extend(vs)
+        return real(vs, *a, **k)
+
+    monkeypatch.setattr(T, "run_all", spy)
+    grid = ((1600.0, 1000.0), (2600.0, 1300.0))
+    found, log = T.search_shift_rules(sample, tmp_path, g, grid=grid, rounds=1)
+    monkeypatch.undo()
+    assert seen and all(T.split(v.vehicle_id) == "train" for v in seen)
+    start = {r.name: (r.upshift_rpm, r.downshift_rpm) for r in g.shift_rules}
+    for r in found.shift_rules:
+        assert (r.upshift_rpm, r.downshift_rpm) in (*grid, start[r.name])
+    train = [v for v in sample if T.split(v.vehicle_id) == "train"]
+
+    def loss(gg: T.Generic) -> float:
+        runs = T.run_all(train, tmp_path / "check", gg)
+        return T.fit_loss(runs, T.fit(runs))
+
+    assert loss(found) <= loss(g) + 1e-12
+    assert len(log) == 1 + len(g.shift_rules)
+
+
+def test_bags_give_the_ftp_composite() -> None:
+    """40 CFR 600.114: the FTP fuel economy is 1 / (0.43 / cold UDDS + 0.57 / hot UDDS), cold UDDS =
+    bags 1 + 2, hot = bags 3 + 2 (by distance): the list's bag figures give its RND_ADJ_FE to rounding."""
+    bags = T.ftp_bags()
+    vehicles, _ = T.read_test_cars()
+    d1, d2, d3 = T.BAG_MILES
+    diff = []
+    for v in vehicles[::10]:
+        for cat, number, mpg in v.tests:
+            if cat != "FTP" or number not in bags:
+                continue
+            b1, b2, b3 = bags[number]
+            hot, cold_gal = T.bag_split(bags[number])
+            cold = (d1 + d2) / (d1 / b1 + d2 / b2)
+            assert hot == pytest.approx((d3 + d2) / (d3 / b3 + d2 / b2), rel=1e-12)
+            assert cold_gal == pytest.approx((d1 + d2) / cold - (d3 + d2) / hot, rel=1e-9)
+            diff.append(1 / (0.43 / cold + 0.57 / hot) / mpg - 1)
+    assert len(diff) >= 50
+    assert np.median(np.abs(diff)) <= 0.003 and np.percentile(np.abs(diff), 90) <= 0.01
 
 
 def test_fit_recovers_known_weights() -> None:
@@ -137,6 +224,12 @@ def test_bad_generic_file_names_the_key(tmp_path: Path) -> None:
     bad = tmp_path / "g.toml"
     bad.write_text(src.read_text().replace("brake_work = ", "brake_wrok = "))
     with pytest.raises(ConfigError, match="brake_wrok"):
+        T.generic(str(bad))
+    bad.write_text(src.read_text().replace('codes = ["M"]', 'codes = "M"'))
+    with pytest.raises(ConfigError, match="'codes' = 'M'"):
+        T.generic(str(bad))
+    bad.write_text(src.read_text().split("\n[[transmission.shift]]")[0] + '\nshift = "manual"\n')
+    with pytest.raises(ConfigError, match="'shift' = 'manual'"):
         T.generic(str(bad))
 
 

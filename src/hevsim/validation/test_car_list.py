@@ -8,21 +8,25 @@ N/(m/s)^2) at the *equivalent test weight* (the body's coast-down form), a gearb
 number of gears (a CVT: a many-step box) whose top gear gives the listed *N/V ratio* (engine rpm
 per mph in top gear) with the listed *axle ratio* as final drive, the listed drive axle, and a
 generic gasoline engine (:func:`write_engine`) sized by the listed *displacement* and *rated
-power*, shifted by a generic rule. The measured figure is ``RND_ADJ_FE`` [mpg]: the test's fuel
-economy as certified, before the label's 5-cycle adjustment (the FTP's is the 3-bag composite:
-its ``FE Bag 1..3`` columns combine to it with the FTP weights 0.43 cold / 0.57 hot).
+power*, shifted by the rule of its transmission class (:attr:`Generic.shift_rules`, fitted on
+the training half by :func:`search_shift_rules`). The measured figure is ``RND_ADJ_FE`` [mpg]:
+the test's fuel economy as certified, before the label's 5-cycle adjustment (the FTP's is the
+3-bag composite: its ``FE Bag 1..3`` columns combine to it with the FTP weights 0.43 cold /
+0.57 hot).
 
 **The generic engine** is a Willans-type map (fuel power linear in brake power with a
 speed-dependent friction and a load-dependent pumping term)::
 
     P_fuel = [w T + w V_d / (4 pi) (fmep0 + fmep1 s + fmep2 s^2 + pmep (1 - T / T_max(w)))] / eta_i
 
-with ``s`` = rpm / reference rpm. Its five parameters and the FTP's cold-start fuel
-(``cold_start_j_per_m3`` x V_d, added to the cold UDDS that weighs 0.43 in the composite) are
-fitted, all together, by non-negative least squares on the relative fuel error of a *training
-half* of the test vehicles (:func:`split`: by a hash of the Test Vehicle ID). The fit is
-linear: the operating points of a test do not depend on the fuel map (the shift rule reads
-engine speed, the kick-down the torque curve, the fuel-cut drag its own fixed constant), so
+with ``s`` = rpm / reference rpm (and a few more terms: :data:`POINT_TERMS`). Its weights and
+the FTP term (``cold_start`` x V_d, added to the cold UDDS that weighs 0.43 in the composite; the
+bag figures, :func:`ftp_bags`, show that a fifth of it is the cold start, the rest a city
+penalty the model lacks) are fitted, all together, by non-negative least squares on the
+relative fuel error of a *training half* of the test vehicles (:func:`split`: by a hash of
+the Test Vehicle ID). The fit is linear: the operating points of a test do not depend on the
+fuel map (the shift rule reads engine speed, the kick-down the torque curve, the fuel-cut drag
+its own fixed constant), so
 one simulation per test with any map gives the energy integrals (:data:`FEATURES`) the fuel of
 every map is a linear combination of; :func:`fit` solves for the weights and the figures
 reported are then full simulations with the fitted map.
@@ -33,6 +37,7 @@ from __future__ import annotations
 import csv
 import functools
 import hashlib
+import itertools
 import math
 import re
 import tomllib
@@ -125,6 +130,24 @@ class EngineParams:
 
 
 @dataclass(frozen=True)
+class ShiftRule:
+    """The shift schedule of one transmission class: the list's ``Tested Transmission Type Code``
+    in ``codes`` and ``# of Gears`` in ``min_gears`` .. ``max_gears``; up above ``upshift_rpm``,
+    down below ``downshift_rpm`` [rpm]."""
+
+    name: str
+    codes: tuple[str, ...]
+    min_gears: int
+    max_gears: int
+    upshift_rpm: float
+    downshift_rpm: float
+
+    def matches(self, v: TestVehicle) -> bool:
+        """Whether test vehicle ``v`` is of this class."""
+        return v.transmission_code in self.codes and self.min_gears <= v.gears <= self.max_gears
+
+
+@dataclass(frozen=True)
 class Generic:
     """The generic models of :data:`GENERIC_FILE` (units in the names)."""
 
@@ -145,11 +168,26 @@ class Generic:
     upshift_rpm: float
     downshift_rpm: float
     tire_radius_m: float
-    manual_codes: tuple[str, ...]
-    manual_upshift_rpm: float
-    manual_downshift_rpm: float
+    shift_rules: tuple[ShiftRule, ...]
+    """By transmission class, the first that matches a vehicle; :attr:`upshift_rpm` /
+    :attr:`downshift_rpm` for a vehicle no rule matches."""
     fitted: EngineParams
     source: str = ""
+
+    def shift_rule(self, v: TestVehicle) -> tuple[str, float, float]:
+        """(class name, upshift, downshift [rpm]) of test vehicle ``v``."""
+        for r in self.shift_rules:
+            if r.matches(v):
+                return r.name, r.upshift_rpm, r.downshift_rpm
+        return "other", self.upshift_rpm, self.downshift_rpm
+
+    def with_shift(self, name: str, upshift_rpm: float, downshift_rpm: float) -> Generic:
+        """These models with the rule of class ``name`` changed."""
+        rules = tuple(
+            replace(r, upshift_rpm=upshift_rpm, downshift_rpm=downshift_rpm) if r.name == name else r
+            for r in self.shift_rules
+        )
+        return replace(self, shift_rules=rules)
 
 
 def _num(d: dict[str, Any], key: str, where: str) -> float:
@@ -183,14 +221,33 @@ def generic(path: str | None = None) -> Generic:
         )
     eng = ("idle_rpm", "redline_rpm", "knee_rpm", "full_torque_rpm", "idle_torque_fraction", "reference_rpm",
            "closed_throttle_mep_pa", "inertia_kgm2_per_l")  # fmt: skip
-    trans = ("gearbox_efficiency", "final_drive_efficiency", "upshift_rpm", "downshift_rpm", "tire_radius_m",
-             "manual_upshift_rpm", "manual_downshift_rpm")  # fmt: skip
+    trans = ("gearbox_efficiency", "final_drive_efficiency", "upshift_rpm", "downshift_rpm", "tire_radius_m")
     kw: dict[str, Any] = {k: _num(e, k, f"{w} [engine]") for k in eng}
     kw.update({k: _num(t, k, f"{w} [transmission]") for k in trans})
     kw.update({k: int(_num(e, k, f"{w} [engine]")) for k in ("speed_points", "torque_points")})
     kw["cvt_steps"] = int(_num(t, "cvt_steps", f"{w} [transmission]"))
-    kw["manual_codes"] = tuple(str(c) for c in t.get("manual_codes", []))
-    return Generic(**kw, spread=spread, fitted=fitted, source=w)
+    rules = []
+    shift = t.get("shift", [])
+    if not isinstance(shift, list) or not all(isinstance(r, dict) for r in shift):
+        raise ConfigError(
+            f"{w} [transmission]: key 'shift' = {shift!r}; expected an array of tables "
+            "[[transmission.shift]]."
+        )
+    for i, r in enumerate(shift):
+        where = f"{w} [[transmission.shift]] #{i + 1}"
+        codes = r.get("codes")
+        if not isinstance(codes, list) or not codes or not all(isinstance(c, str) for c in codes):
+            raise ConfigError(
+                f"{where}: key 'codes' = {codes!r}; expected a list of transmission type codes."
+            )
+        rules.append(
+            ShiftRule(
+                str(r.get("name", f"rule {i + 1}")), tuple(codes), int(_num(r, "min_gears", where)),
+                int(_num(r, "max_gears", where)), _num(r, "upshift_rpm", where),
+                _num(r, "downshift_rpm", where),
+            )
+        )  # fmt: skip
+    return Generic(**kw, spread=spread, shift_rules=tuple(rules), fitted=fitted, source=w)
 
 
 # ============================================================================ the list
@@ -321,6 +378,34 @@ def read_test_cars(path: str | Path | None = None) -> tuple[list[TestVehicle], d
     return out, skipped
 
 
+BAG_MILES = (3.59, 3.91, 3.59)
+"""Distances of the FTP's three bags [mi]: bag 1 the cold-start transient (UDDS 0-505 s), bag 2
+the stabilised phase (505-1372 s), bag 3 the hot-start repeat of bag 1 (40 CFR 86.144)."""
+
+
+def ftp_bags(path: str | Path | None = None) -> dict[str, tuple[float, float, float]]:
+    """``FE Bag 1..3`` [mpg] of every FTP test of the list with all three, by test number."""
+    p = Path(path) if path else Path(str(resources.files("hevsim") / TEST_CAR_LIST))
+    out = {}
+    with p.open(newline="", encoding="utf-8-sig") as f:
+        for r in csv.DictReader(f):
+            try:
+                b = tuple(float(r[f"FE Bag {i}"]) for i in (1, 2, 3))
+            except (KeyError, ValueError):
+                continue
+            if r.get("Test Category") == "FTP" and min(b) > 0:
+                out[r.get("Test Number", "")] = (b[0], b[1], b[2])
+    return out
+
+
+def bag_split(bags: tuple[float, float, float]) -> tuple[float, float]:
+    """(hot UDDS fuel economy [mpg] = bags 3 + 2, cold-start excess fuel [US gal] = bag 1's fuel
+    less bag 3's) of one FTP test's bag figures [mpg]."""
+    d1, d2, d3 = BAG_MILES
+    b1, b2, b3 = bags
+    return (d3 + d2) / (d3 / b3 + d2 / b2), d1 / b1 - d3 / b3
+
+
 # ============================================================================ the vehicle
 def gear_ratios(v: TestVehicle, g: Generic) -> list[float]:
     """Gearbox ratios [-], first gear first: top gear from N/V and the axle ratio, the others
@@ -418,8 +503,7 @@ def vehicle_config(v: TestVehicle, engine_dir: Path, g: Generic) -> Any:
     from hevsim.config import config_from_dict
 
     axle = {"F": "front", "R": "rear"}.get(v.drive, "all")
-    manual = v.transmission_code in g.manual_codes
-    up, down = (g.manual_upshift_rpm, g.manual_downshift_rpm) if manual else (g.upshift_rpm, g.downshift_rpm)
+    _, up, down = g.shift_rule(v)
     data = {
         "name": f"tcl_{v.vehicle_id}",
         "description": f"{v.name} (EPA Test Car List MY2022, test vehicle {v.vehicle_id})",
@@ -540,6 +624,76 @@ def fit(runs: list[TestRun]) -> EngineParams:
             "the engine fit gave no brake-work weight (1 / indicated efficiency = 0); check the data."
         )
     return EngineParams.from_weights(x)
+
+
+def fit_loss(runs: list[TestRun], p: EngineParams) -> float:
+    """Root mean square of the relative fuel error of ``runs`` with weights ``p`` [-] (what
+    :func:`fit` minimises)."""
+    gal_j = gallon_energy_j()
+    rel = [
+        float(r.features @ p.weights()) / (r.distance_m / M_PER_MILE / r.measured_mpg * gal_j) - 1
+        for r in runs
+    ]
+    return float(np.sqrt(np.mean(np.square(rel))))
+
+
+SHIFT_GRID = tuple(
+    (u, d)
+    for u in (1300.0, 1500.0, 1600.0, 1800.0, 1900.0, 2200.0, 2600.0, 3000.0)
+    for d in (800.0, 1000.0, 1150.0, 1300.0, 1500.0)
+    if u >= 1.3 * d
+)
+"""Upshift / downshift pairs [rpm] :func:`search_shift_rules` tries for each transmission class."""
+
+
+def shift_feasible(v: TestVehicle, g: Generic, upshift_rpm: float, downshift_rpm: float) -> bool:
+    """Whether the pair keeps ``v``'s gearbox from hunting: after every upshift the engine stays
+    above the downshift speed (the configuration's own check)."""
+    r = gear_ratios(v, g)
+    return all(upshift_rpm * b / a > downshift_rpm for a, b in itertools.pairwise(r))
+
+
+def search_shift_rules(
+    vehicles: list[TestVehicle],
+    work: Path,
+    g: Generic,
+    grid: tuple[tuple[float, float], ...] = SHIFT_GRID,
+    rounds: int = 2,
+) -> tuple[Generic, list[str]]:
+    """Fit the shift rule of every transmission class (:attr:`Generic.shift_rules`) on the
+    training half of ``vehicles``: each class's vehicles are simulated with every pair of
+    ``grid`` that no vehicle of the class (either half: only its gear ratios are read) would
+    hunt with; then, class after class for ``rounds`` rounds, the pair is kept whose runs give
+    the engine fit (:func:`fit`, all training runs) the least :func:`fit_loss`. Returns the
+    models with the chosen rules and a log of the search. The held-out half is not simulated."""
+    train = [v for v in vehicles if split(v.vehicle_id) == "train"]
+    names = [r.name for r in g.shift_rules]
+    of_class = {n: [v for v in train if g.shift_rule(v)[0] == n] for n in names}
+    every = {n: [v for v in vehicles if g.shift_rule(v)[0] == n] for n in names}
+    fixed = run_all([v for v in train if g.shift_rule(v)[0] not in names], work, g)
+    runs_of: dict[tuple[str, tuple[float, float]], list[TestRun]] = {}
+    choice = {r.name: (r.upshift_rpm, r.downshift_rpm) for r in g.shift_rules}
+    for n in names:
+        for pair in sorted(set(grid) | {choice[n]}):
+            if all(shift_feasible(v, g, *pair) for v in every[n]):
+                runs_of[n, pair] = run_all(of_class[n], work, g.with_shift(n, *pair))
+
+    def loss(c: dict[str, tuple[float, float]]) -> float:
+        runs = fixed + [r for n in names for r in runs_of[n, c[n]]]
+        return fit_loss(runs, fit(runs))
+
+    log = [f"start {choice}: loss {loss(choice):.5f}"]
+    for _ in range(rounds):
+        for n in names:
+            tried = {pair: loss({**choice, n: pair}) for (m, pair) in runs_of if m == n}
+            choice[n] = min(tried, key=lambda pair: tried[pair])
+            log.append(
+                f"{n}: {choice[n][0]:g} / {choice[n][1]:g} rpm "
+                f"(loss {tried[choice[n]]:.5f}, {len(tried)} pairs)"
+            )
+    for n, (u, d) in choice.items():
+        g = g.with_shift(n, u, d)
+    return g, log
 
 
 def linear_mpg(r: TestRun, p: EngineParams) -> float:
