@@ -12,9 +12,13 @@ with a rounding bound, and the few that can still be the largest in double. The 
 times ``Pack.simulate`` under US06 with the kernel evaluating the rows in double
 (``hs_const[0] = 0``, the screening before the single-precision pass) and as shipped, alternated
 in the same run, and checks that every module's hot spot is bit-identical (``--kernel-only``
-stops there). Then it keeps the modules' modal states and replays them offline through other
-exact screenings, counting the rows each one evaluates and the multiply-adds per module step
-relative to the kernel in double (``rows x order``; the variants add their own per-row work):
+stops after the next part): it replays the run's modal states through the compiled screening
+with the modules screened together (as the pack does: a row's single-precision coefficients
+are read once per step for every module) and one module per call (each module reads its rows
+itself, as before), checking that both give the same hot spots. Then it keeps the modules'
+modal states and replays them offline through other exact screenings, counting the rows each
+one evaluates and the multiply-adds per module step relative to the kernel in double
+(``rows x order``; the variants add their own per-row work):
 
 * ``anchor``: a full evaluation when the deviation has moved ``thr`` (in |G|max |d - d_a| K)
   from the anchor ``d_a``, rows bounded by ``|G_j| (|d - d_a| + |d_j - d_a|)`` (norm of the
@@ -59,6 +63,59 @@ def screen(b: np.ndarray, g: np.ndarray, w: np.ndarray) -> int:
     return 1 + int(need.size)
 
 
+def replay(cfg, current: np.ndarray) -> tuple[float, float, float, float, float]:  # type: ignore[no-untyped-def]
+    """The compiled screening (:func:`hevsim.battery.pack_run._module_hot_spots`) on the modal
+    states of a pack run at ``current``: the modules screened together (as the pack does) and
+    one module per call with its own arrays (each module reads the rows it needs itself, as
+    before the modules were screened together); both give the same hot spots, checked. Returns
+    the best of 3 [us per module step], wall and process CPU time, and the rows read per
+    module step together."""
+    from hevsim.battery import pack_run as R
+    from hevsim.battery.pack import Pack
+
+    pack = Pack(cfg)
+    states = []
+    for i_a in current:
+        pack.step(float(i_a))
+        states.append(pack.arrays.rom_w.copy())
+    n_mod = states[0].shape[0]
+    per = len(states) * n_mod
+
+    def fresh() -> list:  # type: ignore[type-arg]
+        s = Pack(cfg).arrays
+        alone = [
+            s._replace(f=s.f.copy(), hs_ub=s.hs_ub[m : m + 1].copy(), hs_prev=s.hs_prev[m : m + 1].copy(),
+                       hs_blk=s.hs_blk[m : m + 1].copy(), hs_d32=s.hs_d32[m : m + 1].copy(),
+                       hs_cand=s.hs_cand[m : m + 1].copy())
+            for m in range(n_mod)
+        ]  # fmt: skip
+        return [s, alone]
+
+    hot, hot1 = np.empty(n_mod), np.empty(n_mod)
+    times: dict[str, list[tuple[float, float]]] = {"together": [], "alone": []}
+    reads = 0.0
+    for _ in range(3):
+        s, alone = fresh()
+        t0, c0 = time.perf_counter(), time.process_time()
+        for w in states:
+            R._module_hot_spots(s, w, hot)
+        times["together"].append((time.perf_counter() - t0, time.process_time() - c0))
+        reads = s.f[R.F_HSREAD] / per
+        t0, c0 = time.perf_counter(), time.process_time()
+        for w in states:
+            for m in range(n_mod):
+                R._module_hot_spots(alone[m], w[m : m + 1], hot1[m : m + 1])
+        times["alone"].append((time.perf_counter() - t0, time.process_time() - c0))
+    s, alone = fresh()
+    for w in states:
+        R._module_hot_spots(s, w, hot)
+        for m in range(n_mod):
+            R._module_hot_spots(alone[m], w[m : m + 1], hot1[m : m + 1])
+        assert np.array_equal(hot, hot1), (hot, hot1)
+    best = {k: (min(t[0] for t in v) / per * 1e6, min(t[1] for t in v) / per * 1e6) for k, v in times.items()}
+    return best["together"][0], best["alone"][0], best["together"][1], best["alone"][1], reads
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     ap.add_argument("--pack", default=str(ROOT / "examples" / "pack.toml"))
@@ -87,6 +144,7 @@ def main() -> int:
     # the compiled kernel in double (hs_const[0] = 0, the screening before issue 26's single-
     # precision pass) and as shipped (single precision, then double), alternated, same run
     runs: dict[str, list[float]] = {"double": [], "single": []}
+    cpu: dict[str, list[float]] = {"double": [], "single": []}
     hots: dict[str, np.ndarray] = {}
     rows: dict[str, tuple[float, float]] = {}
     with OtherLoad() as load:
@@ -98,24 +156,33 @@ def main() -> int:
             p = Pack(cfg)
             if mode == "double":
                 p._modal["hs_const"][0] = 0.0
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             res = p.simulate(current)
             runs[mode].append(time.perf_counter() - t0)
+            cpu[mode].append(time.process_time() - c0)
             ts = res.timeseries
             hots[mode] = ts[[c for c in ts.columns if "hot_spot" in c]].to_numpy()
             per = steps * n_mod
             rows[mode] = (p._f[R.F_HSROWS] / per, p._f[R.F_HSROWS64] / per)
+    together_us, alone_us, cpu_together_us, cpu_alone_us, reads = replay(cfg, current)
     same = bool(np.array_equal(hots["double"], hots["single"]))
     t_d, t_s = min(runs["double"]), min(runs["single"])
+    c_d, c_s = (min(cpu[k]) / (steps * n_mod) * 1e6 for k in ("double", "single"))
     print(
         f"pack.simulate, {steps} s of US06, {n_mod} modules (best of 2; other load "
         f"{load.cores if load.cores is not None else float('nan'):.2f} cores):"
     )
-    print(f"  kernel in double   {t_d:.3f} s = {t_d / (steps * n_mod) * 1e6:6.1f} us per module step, "
+    us_d, us_s = (t / (steps * n_mod) * 1e6 for t in (t_d, t_s))
+    print(f"  kernel in double   {t_d:.3f} s = {us_d:6.1f} us (CPU {c_d:5.1f}) per module step, "
           f"{rows['double'][0]:.0f} rows per module step")  # fmt: skip
-    print(f"  single then double {t_s:.3f} s = {t_s / (steps * n_mod) * 1e6:6.1f} us per module step, "
+    print(f"  single then double {t_s:.3f} s = {us_s:6.1f} us (CPU {c_s:5.1f}) per module step, "
           f"{rows['single'][0]:.0f} rows in single and {rows['single'][1]:.1f} in double per module step; "
           f"ratio {t_d / t_s:.2f}x; hot spots identical: {same}")  # fmt: skip
+    print("  the screening alone, replaying the run's modal states (best of 3, wall / process CPU):")
+    print(f"    modules together {together_us:6.1f} / {cpu_together_us:6.1f} us per module step "
+          f"({reads:.0f} single-precision rows read per module step)")  # fmt: skip
+    print(f"    one at a time    {alone_us:6.1f} / {cpu_alone_us:6.1f} us per module step (as before); "
+          f"ratio {alone_us / together_us:.2f}x (CPU {cpu_alone_us / cpu_together_us:.2f}x)")  # fmt: skip
     if args.kernel_only:
         return 0
     run_s = t_d

@@ -127,7 +127,10 @@ def test_hot_spot_screening_equals_all_rows_on_random_states(
     bounds, then single precision with its rounding bound, then double) equals the maximum over
     every row evaluated in double (1e-12 K; the same product): random walks with steps from
     1e-6 to 10 times the typical deviation, jumps, the exactly uniform field (every row equal
-    to rounding: all ties), a field peaked on one node, and states far from the ROM's range."""
+    to rounding: all ties), a field peaked on one node, and states far from the ROM's range.
+    The modules are screened together, row by row: each module's hot spot and evaluated rows
+    equal those of the module screened alone (bit for bit), and a row's single-precision
+    coefficients are read once per step for all the modules that evaluate it."""
     from hevsim.battery.pack import Pack
 
     cfg, rom = rom_pack["cfg"], rom_pack["rom"]
@@ -141,6 +144,13 @@ def test_hot_spot_screening_equals_all_rows_on_random_states(
     d = rng.standard_normal((n_mod, r)) * scale
     t_ref = 300.0 + 10.0 * rng.standard_normal(n_mod)
     hot = np.empty(n_mod)
+    alone_hot = np.empty(n_mod)
+    alone = [
+        s._replace(f=s.f.copy(), hs_ub=s.hs_ub[m : m + 1].copy(), hs_prev=s.hs_prev[m : m + 1].copy(),
+                   hs_blk=s.hs_blk[m : m + 1].copy(), hs_d32=s.hs_d32[m : m + 1].copy(),
+                   hs_cand=s.hs_cand[m : m + 1].copy())
+        for m in range(n_mod)
+    ]  # fmt: skip
     worst, equal, steps = 0.0, 0, 0
     for k in range(600):
         kind = k % 100
@@ -156,6 +166,9 @@ def test_hot_spot_screening_equals_all_rows_on_random_states(
             w = t_ref[:, None] * unit + d
         w = np.ascontiguousarray(w)
         R._module_hot_spots(s, w, hot)
+        for m in range(n_mod):
+            R._module_hot_spots(alone[m], w[m : m + 1], alone_hot[m : m + 1])
+        np.testing.assert_array_equal(hot, alone_hot)
         brute = _all_rows_max(g, w)
         worst = max(worst, float(np.abs(hot - brute).max()))
         equal += int(np.sum(hot == brute))
@@ -164,6 +177,11 @@ def test_hot_spot_screening_equals_all_rows_on_random_states(
     assert equal >= 0.99 * steps * n_mod, (equal, steps * n_mod)
     # few rows in double: the single-precision pass leaves a handful per module step
     assert s.f[R.F_HSROWS64] < 0.05 * steps * n_mod * g.shape[0], s.f[R.F_HSROWS64]
+    # the same rows as alone; each read once for the modules together
+    assert s.f[R.F_HSROWS] == sum(a.f[R.F_HSROWS] for a in alone)
+    assert s.f[R.F_HSROWS64] == sum(a.f[R.F_HSROWS64] for a in alone)
+    assert s.f[R.F_HSREAD] * n_mod >= s.f[R.F_HSROWS] - steps * n_mod
+    assert s.f[R.F_HSREAD] < 0.8 * s.f[R.F_HSROWS], (s.f[R.F_HSREAD], s.f[R.F_HSROWS])
 
 
 def test_cooling_loop_reaches_its_closed_form_steady_state() -> None:

@@ -871,7 +871,7 @@ class Pack:
             self._modal = {"rom_decay": e1, "rom_in": e2, "rom_out": e2, "rom_cand": e2, "hs_norm": e1,
                            "hs_unit": e1, "energy": e1, "hs_ub": e2, "hs_prev": e2, "hs_blk": e2,
                            "hs_block": e1, "hs_gmax": e1, "hs_g32": np.zeros((0, 0), np.float32),
-                           "hs_d32": np.zeros(0, np.float32), "hs_cand": np.zeros(0, np.int64),
+                           "hs_d32": np.zeros((0, 0), np.float32), "hs_cand": np.zeros((0, 0), np.int64),
                            "hs_const": np.zeros(4)}  # fmt: skip
             self._rom_w, self._rom_u, self._rom_y = (np.zeros((n_mod, 0)) for _ in range(3))
             self._channel = (e1, e1, e1)
@@ -881,10 +881,10 @@ class Pack:
         f[R.F_BAMB], f[R.F_FCONST] = rom.b_amb_total, rom.f_const_total
         self._modal = R.modal_rom(rom, cfg.pack.dt_s, self.h_plate)
         self._modal["hs_ub"] = np.zeros((n_mod, self._modal["rom_cand"].shape[0]))
-        self._modal["hs_prev"] = np.zeros((n_mod, rom.order + 4))
+        self._modal["hs_prev"] = np.zeros((n_mod, rom.order + len(R.HP_NAMES)))
         self._modal["hs_blk"] = np.zeros((n_mod, self._modal["hs_gmax"].shape[0]))
-        self._modal["hs_d32"] = np.zeros(rom.order, np.float32)
-        self._modal["hs_cand"] = np.zeros(self._modal["rom_cand"].shape[0], np.int64)
+        self._modal["hs_d32"] = np.zeros((n_mod, rom.order), np.float32)
+        self._modal["hs_cand"] = np.zeros((n_mod, self._modal["rom_cand"].shape[0]), np.int64)
         w0 = t0 * (rom.unit_state @ self._modal["q"])
         self._rom_w = np.ascontiguousarray(np.repeat(w0[None, :], n_mod, axis=0))
         self._rom_u = np.zeros((n_mod, rom.n_cells + rom.n_segments + 2))

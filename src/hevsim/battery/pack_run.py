@@ -49,11 +49,11 @@ F_NAMES = (
     "weight", "n_modules", "sim_per_module", "max_current_a", "ambient_k", "linear", "ez_valid", "rom",
     "h_plate", "time_s", "step", "soc", "soc_min", "soc_max", "stress", "v_min", "v_max", "base_aux_w",
     "rom_b_amb_w_k", "rom_f_const_w", "activation_k", "hot_spot_started",
-    "hot_spot_rows", "hot_spot_rebase_k", "hot_spot_rows_double", "hot_spot_skip",
+    "hot_spot_rows", "hot_spot_rebase_k", "hot_spot_rows_double", "hot_spot_skip", "hot_spot_rows_read",
 )  # fmt: skip
 (F_DT, F_NG, F_NP, F_REP, F_NS, F_NPAR, F_WEIGHT, F_NMOD, F_SIMPM, F_IMAX, F_AMB, F_LINEAR, F_EZVALID,
  F_ROM, F_H, F_TIME, F_STEP, F_SOC, F_SOCMIN, F_SOCMAX, F_STRESS, F_VMIN, F_VMAX, F_BASEAUX, F_BAMB,
- F_FCONST, F_ACT, F_HSINIT, F_HSROWS, F_HSREBASE, F_HSROWS64, F_HSSKIP) = range(
+ F_FCONST, F_ACT, F_HSINIT, F_HSROWS, F_HSREBASE, F_HSROWS64, F_HSSKIP, F_HSREAD) = range(
     len(F_NAMES))  # fmt: skip
 
 #: the step vector :attr:`PackArrays.sv` that :func:`pack_begin` fills
@@ -276,8 +276,13 @@ HOT_SPOT_SLACK_K = 1e-10
 #: the bounds' running sums [K] beyond which every row is evaluated afresh and the sums restart
 #: (their rounding, ~1e-16 of them, stays far below the slack): ``f[F_HSREBASE]``'s default
 HOT_SPOT_REBASE_K = 1e3
-#: columns of :attr:`PackArrays.hs_prev` after the modal deviation ``d`` (r columns)
-HP_TREF, HP_BEST, HP_RISE, HP_GROW = range(4)
+#: columns of :attr:`PackArrays.hs_prev` after the modal deviation ``d`` (r columns): the
+#: module's kept values (mean, hottest row, running sums) and the step's (rounding terms, lower
+#: bound, hottest value, full scan, kept rows, block flag and top)
+HP_NAMES = ("t_ref", "best", "rise", "grow", "big_e", "small_e", "low", "best_value", "full", "n_cand",
+            "need", "top")  # fmt: skip
+(HP_TREF, HP_BEST, HP_RISE, HP_GROW, HP_BIGE, HP_SMALLE, HP_LOW, HP_BESTV, HP_FULL, HP_NCAND, HP_NEED,
+ HP_TOP) = range(len(HP_NAMES))  # fmt: skip
 
 
 @njit(cache=True, fastmath=True)
@@ -344,11 +349,18 @@ def _module_hot_spots(s, w, hot):
     row left out has ``v_j <= L <=`` that maximum, so it is the maximum of ``v_j`` over all rows
     (bit for bit). The first step (and one whose sums passed ``f[F_HSREBASE]``, by default
     :data:`HOT_SPOT_REBASE_K`) scans every row. With ``hs_const[0] = 0`` the scan evaluates
-    in double (as before issue 26's single-precision pass; benchmarks compare the two)."""
+    in double (as before issue 26's single-precision pass; benchmarks compare the two).
+
+    The modules are screened together, row by row (each module's own bounds, in the same
+    order as one module alone, so the same rows and values): a row's single-precision
+    coefficients are read once per step for every module that needs it, instead of once per
+    module (the rows of all the cells, ``4 n r`` bytes, exceed the cache; reading them was the
+    screening's cost; ``f[F_HSREAD]`` counts the rows read, ``f[F_HSROWS]`` the rows evaluated).
+    Per-module values of the step live in ``hs_prev``'s columns ``HP_*``."""
     g, gn, unit, en = s.rom_cand, s.hs_norm, s.hs_unit, s.hs_energy
     a, prev, blk, start, gmax = s.hs_ub, s.hs_prev, s.hs_blk, s.hs_block, s.hs_gmax
     g32, d32, cand, hc = s.hs_g32, s.hs_d32, s.hs_cand, s.hs_const
-    r = w.shape[1]
+    n_mod, r = w.shape
     n_blocks = gmax.shape[0]
     e_u = _dot(en, unit)
     first = s.f[F_HSINIT] == 0.0
@@ -356,71 +368,103 @@ def _module_hot_spots(s, w, hot):
     single = hc[0] > 0.0
     evaluated = 0
     doubles = 0
-    for m in range(w.shape[0]):
+    reads = 0
+    for m in range(n_mod):
         wm = w[m]
+        pm = prev[m]
         t_ref = _dot(en, wm) / e_u
-        dd2 = _deviation_change(wm, unit, t_ref, prev[m, :r])
-        rise = prev[m, r + HP_RISE] + (t_ref - prev[m, r + HP_TREF] + HOT_SPOT_SLACK_K)
-        grow = prev[m, r + HP_GROW] + math.sqrt(dd2) * (1.0 + 1e-12)
-        prev[m, r + HP_TREF] = t_ref
-        j_best = int(prev[m, r + HP_BEST])
+        dd2 = _deviation_change(wm, unit, t_ref, pm[:r])
+        rise = pm[r + HP_RISE] + (t_ref - pm[r + HP_TREF] + HOT_SPOT_SLACK_K)
+        grow = pm[r + HP_GROW] + math.sqrt(dd2) * (1.0 + 1e-12)
+        pm[r + HP_TREF] = t_ref
         d_norm2 = 0.0
         w_norm2 = 0.0
         for i in range(r):
-            di = prev[m, i]
-            d32[i] = np.float32(di)
+            di = pm[i]
+            d32[m, i] = np.float32(di)
             d_norm2 += di * di
             w_norm2 += wm[i] * wm[i]
         # e_j = |G_j| big_e + small_e (hs_const: g32, g64, eta, |u|); 1 % for these sums' rounding
-        big_e = 1.01 * (hc[0] * math.sqrt(d_norm2) + hc[1] * (math.sqrt(w_norm2) + abs(t_ref) * hc[3]))
-        small_e = 1.01 * abs(t_ref) * 2.0 * hc[2] + 1e-12
-        n_cand = 0
-        low = best = -np.inf
+        big_e = hc[0] * math.sqrt(d_norm2) + hc[1] * (math.sqrt(w_norm2) + abs(t_ref) * hc[3])
+        pm[r + HP_BIGE] = 1.01 * big_e
+        pm[r + HP_SMALLE] = 1.01 * abs(t_ref) * 2.0 * hc[2] + 1e-12
+        pm[r + HP_NCAND] = 0.0
         full = first or grow > rebase or abs(rise) > rebase
+        pm[r + HP_FULL] = 1.0 if full else 0.0
         if full:
-            rise = grow = 0.0
+            pm[r + HP_RISE] = pm[r + HP_GROW] = 0.0
+            pm[r + HP_LOW] = pm[r + HP_BESTV] = -np.inf
         else:
-            low = best = _dot(g[j_best], wm)
+            pm[r + HP_RISE], pm[r + HP_GROW] = rise, grow
+            j_best = int(pm[r + HP_BEST])
+            low = _dot(g[j_best], wm)
+            pm[r + HP_LOW] = pm[r + HP_BESTV] = low
             a[m, j_best] = low - rise - gn[j_best] * grow
             doubles += 1
             evaluated += 1
-        for k in range(n_blocks):
-            if not full and blk[m, k] + rise + gmax[k] * grow <= low:
-                continue
-            top = -np.inf
-            for j in range(int(start[k]), int(start[k + 1])):
+    for k in range(n_blocks):
+        need_any = False
+        for m in range(n_mod):
+            pm = prev[m]
+            reach = blk[m, k] + pm[r + HP_RISE] + gmax[k] * pm[r + HP_GROW]
+            need = pm[r + HP_FULL] > 0.0 or reach > pm[r + HP_LOW]
+            pm[r + HP_NEED] = 1.0 if need else 0.0
+            pm[r + HP_TOP] = -np.inf
+            need_any = need_any or need
+        if not need_any:
+            continue
+        for j in range(int(start[k]), int(start[k + 1])):
+            read = False
+            for m in range(n_mod):
+                pm = prev[m]
+                if pm[r + HP_NEED] == 0.0:
+                    continue
+                rise, grow, low = pm[r + HP_RISE], pm[r + HP_GROW], pm[r + HP_LOW]
                 bound = a[m, j] + rise + gn[j] * grow
-                if full or (bound > low and j != j_best):
+                if pm[r + HP_FULL] > 0.0 or (bound > low and j != int(pm[r + HP_BEST])):
                     if single:
-                        e_j = gn[j] * big_e + small_e
-                        y = t_ref + _dot32(g32[j], d32)
+                        e_j = gn[j] * pm[r + HP_BIGE] + pm[r + HP_SMALLE]
+                        y = pm[r + HP_TREF] + _dot32(g32[j], d32[m])
                     else:  # hs_const[0] = 0: every row in double (the reference for benchmarks)
                         e_j = 0.0
-                        y = _dot(g[j], wm)
+                        y = _dot(g[j], w[m])
                     bound = y + e_j
                     a[m, j] = bound - rise - gn[j] * grow
                     evaluated += 1
+                    read = True
                     if y - e_j > low:
                         low = y - e_j
+                        pm[r + HP_LOW] = low
                     if bound >= low:
-                        cand[n_cand] = j
-                        n_cand += 1
-                top = max(top, bound)
-            blk[m, k] = top + HOT_SPOT_SLACK_K - rise - gmax[k] * grow
-        for c in range(n_cand):
-            j = cand[c]
+                        nc = int(pm[r + HP_NCAND])
+                        cand[m, nc] = j
+                        pm[r + HP_NCAND] = nc + 1
+                if bound > pm[r + HP_TOP]:
+                    pm[r + HP_TOP] = bound
+            reads += read
+        for m in range(n_mod):
+            pm = prev[m]
+            if pm[r + HP_NEED] > 0.0:
+                blk[m, k] = pm[r + HP_TOP] + HOT_SPOT_SLACK_K - pm[r + HP_RISE] - gmax[k] * pm[r + HP_GROW]
+    for m in range(n_mod):
+        pm = prev[m]
+        wm = w[m]
+        rise, grow, low = pm[r + HP_RISE], pm[r + HP_GROW], pm[r + HP_LOW]
+        best = pm[r + HP_BESTV]
+        j_best = int(pm[r + HP_BEST])
+        for c in range(int(pm[r + HP_NCAND])):
+            j = cand[m, c]
             if a[m, j] + rise + gn[j] * grow >= low - 1e-12:  # (the offset's rounding)
                 y = _dot(g[j], wm)
                 a[m, j] = y - rise - gn[j] * grow
                 doubles += 1
                 if y > best:
                     best, j_best = y, j
-        prev[m, r + HP_RISE] = rise
-        prev[m, r + HP_GROW] = grow
-        prev[m, r + HP_BEST] = j_best
+        pm[r + HP_BEST] = j_best
         hot[m] = best
     s.f[F_HSROWS] += evaluated
     s.f[F_HSROWS64] += doubles
+    s.f[F_HSREAD] += reads
     s.f[F_HSINIT] = 1.0
 
 
