@@ -18,6 +18,7 @@ live above them, in :mod:`hevsim.warmup` (issue 24).
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import sys
 from collections.abc import Sequence
@@ -55,18 +56,26 @@ def cache_probe(module: str, name: str) -> Any:
     return types.SimpleNamespace(_cache=FunctionCache(func))
 
 
-def specialisation_probe(dispatcher: Any, none_arg: int) -> Any:
+def specialisation_probe(dispatcher: Any, none_arg: int, last_arg: str = "") -> Any:
     """A stand-in for ``dispatcher`` whose cache index holds only the compiled versions whose
-    argument ``none_arg`` is None (numba's index keys start with the signature)."""
+    argument ``none_arg`` is None (``-1``: any) and whose last argument's type name starts
+    with ``last_arg`` (``""``: any; ``"none"``, ``"PackArrays"``, ``"CellBusTables"``: the
+    battery of a forward loop) (numba's index keys start with the signature)."""
     import types
 
     cache_file = dispatcher._cache._cache_file
 
+    def wanted(sig: Any) -> bool:
+        if not isinstance(sig, tuple):
+            return False
+        if none_arg >= 0 and (len(sig) <= none_arg or str(sig[none_arg]) != "none"):
+            return False
+        return not last_arg or (len(sig) > 0 and str(sig[-1]).startswith(last_arg))
+
     def load_index() -> dict[Any, Any]:
         out = {}
         for key, value in cache_file._load_index().items():
-            sig = key[0] if isinstance(key, tuple) and key else ()
-            if isinstance(sig, tuple) and len(sig) > none_arg and str(sig[none_arg]) == "none":
+            if wanted(key[0] if isinstance(key, tuple) and key else ()):
                 out[key] = value
         return out
 
@@ -92,6 +101,11 @@ class KernelGroup:
             specialisation (a kernel compiled once per architecture, the other
             architecture's tables None); only those entries of the cache index count. -1:
             every entry counts.
+        battery_arg: whether the entries' last argument is the forward loop's battery step
+            (None for a table battery, a pack's ``PackArrays``, a cell's ``CellBusTables``:
+            each compiles the loop again); :func:`run_groups` then narrows the probe to the
+            run's battery with ``last_arg``.
+        last_arg: type-name prefix of the entries' last argument that counts ("": any).
     """
 
     name: str
@@ -100,6 +114,8 @@ class KernelGroup:
     serves: tuple[str, ...]
     cold_compile_s: float
     none_arg: int = -1
+    battery_arg: bool = False
+    last_arg: str = ""
 
     def dispatchers(self) -> list[Any]:
         """The numba dispatchers of :attr:`entries` (their modules imported)."""
@@ -118,7 +134,8 @@ class KernelGroup:
             module, _, name = ref.partition(":")
             loaded = sys.modules.get(module)
             probe = getattr(loaded, name) if loaded is not None else cache_probe(module, name)
-            out.append(probe if self.none_arg < 0 else specialisation_probe(probe, self.none_arg))
+            narrow = self.none_arg >= 0 or self.last_arg
+            out.append(specialisation_probe(probe, self.none_arg, self.last_arg) if narrow else probe)
         return out
 
     def is_cold(self) -> bool:
@@ -152,7 +169,8 @@ GROUPS: tuple[KernelGroup, ...] = (
         ("hevsim.sim._compiled_hev:run_hev",),
         ("parallel",),
         33.0,
-        none_arg=1,  # run_hev(dpar, dps = None, ...)
+        none_arg=1,  # run_hev(dpar, dps = None, ..., pk)
+        battery_arg=True,
     ),
     KernelGroup(
         "power_split",
@@ -160,7 +178,8 @@ GROUPS: tuple[KernelGroup, ...] = (
         ("hevsim.sim._compiled_hev:run_hev",),
         ("power_split",),
         27.0,
-        none_arg=0,  # run_hev(dpar = None, dps, ...)
+        none_arg=0,  # run_hev(dpar = None, dps, ..., pk)
+        battery_arg=True,
     ),
     KernelGroup(
         "conventional",
@@ -175,6 +194,7 @@ GROUPS: tuple[KernelGroup, ...] = (
         ("hevsim.sim._compiled_bev:run_bev",),
         ("bev",),
         15.0,
+        battery_arg=True,  # run_bev(..., pk)
     ),
     KernelGroup(
         "power_flow",
@@ -223,18 +243,36 @@ def group(name: str) -> KernelGroup:
     )
 
 
+BATTERY_STEPS: dict[str, tuple[str, str]] = {
+    "pack": ("PackArrays", "with a battery pack"),
+    "cell": ("CellBusTables", "with a cell battery"),
+}
+"""``[battery] model`` -> (type name of the compiled loops' battery argument, what the notice
+adds to the loop's description); every other model runs the loop with None there."""
+
+
 def run_groups(cfg: Any, python_loop: bool = False, series_online: bool = False) -> list[KernelGroup]:
     """The groups a forward run of the vehicle configuration ``cfg`` compiles: its
-    architecture's compiled loop, or the power flows of the Python loop (``python_loop``, or
-    a pack battery outside the series HEV, or ``series_online``: a series HEV with an online
-    controller, which runs its quasi-static power flow in the Python loop), plus the pack step
-    for ``[battery] model = "pack"``."""
+    architecture's compiled loop (for a loop taking the battery step, :attr:`KernelGroup.battery_arg`,
+    its version for this battery model: a pack or a cell battery compiles the loop once more),
+    or the power flows of the Python loop (``python_loop``, or ``series_online``: a series HEV
+    with an online controller, which runs its quasi-static power flow in the Python loop),
+    plus the pack step for ``[battery] model = "pack"``."""
     arch = str(getattr(cfg, "architecture", "series"))
-    pack = getattr(getattr(cfg, "battery", None), "model", None) == "pack"
-    wanted = {"pack"} if pack else set()
-    loop = series_online if arch == "series" else python_loop or pack
+    model = str(getattr(getattr(cfg, "battery", None), "model", ""))
+    wanted = {"pack"} if model == "pack" else set()
+    loop = series_online if arch == "series" else python_loop
     wanted.add("python_loop" if loop else arch)
-    return [g for g in GROUPS if wanted.intersection(g.serves)]
+    last_arg, what = BATTERY_STEPS.get(model, ("none", ""))
+    out = []
+    for g in GROUPS:
+        if not wanted.intersection(g.serves):
+            continue
+        if g.battery_arg:
+            description = f"{g.description} {what}" if what else g.description
+            g = dataclasses.replace(g, last_arg=last_arg, description=description)
+        out.append(g)
+    return out
 
 
 def compile_notice_for(groups: Sequence[KernelGroup], stream: IO[str] | None = None) -> bool:
