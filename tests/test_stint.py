@@ -219,3 +219,36 @@ def test_trial_passes_without_hot_spots_same_bit_for_bit(tmp_path: Path) -> None
     assert fast.timeseries.equals(ref.timeseries)
     assert not fast.timeseries.isna().any().any()
     assert fast.timeseries["hot_spot_temp_k"].max() > 46.0 + 273.15
+
+
+def test_cooling_design_by_pack_changes(setup, on_off) -> None:  # type: ignore[no-untyped-def]
+    """Another cooling design without another file: the loop without its chiller runs hotter
+    and spends less cooling energy than the shipped loop, above the pack with its cooling off;
+    no change is the file itself (bit for bit)."""
+    cfg, track, vehicle = setup
+    on, off = on_off
+    same = simulate_stint(cfg, track, 3, step_m=STEP_M, vehicle=vehicle, pack_changes={})
+    assert same.laps.equals(on.laps)
+    no_chiller = simulate_stint(
+        cfg, track, 3, step_m=STEP_M, vehicle=vehicle, pack_changes={"cooling.chiller": 0}
+    )
+    assert on.summary["cooling_energy_j"] > no_chiller.summary["cooling_energy_j"] > 0.0
+    assert on.summary["peak_cell_temp_c"] < no_chiller.summary["peak_cell_temp_c"]
+    assert no_chiller.summary["peak_cell_temp_c"] < off.summary["peak_cell_temp_c"]
+    assert no_chiller.metadata["pack_changes"] == {"cooling.chiller": 0}
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--pack-set", "cooling.chiler=0"], "chiler"),  # an unknown key of the pack file
+        (["--pack-set", "cooling.flow_l_min=-5"], "flow_l_min"),  # out of range
+        (["--pack-set", "chiller=0"], "expected a key 'section.key'"),
+        (["--pack-set", "cooling.chiller"], "expected section.key=VALUE"),
+    ],
+)
+def test_bad_pack_changes_exit_2(argv, message, tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    rc = main(["stint", str(HP_PACK), "handling", "--laps", "1", *argv, "--out", str(tmp_path / "o")])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err

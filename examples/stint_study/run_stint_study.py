@@ -4,8 +4,9 @@ The shipped high-performance parallel HEV with its whole pack
 (``examples/high_performance_parallel_hev_pack.toml``: 108s3p Saft 6 Ah cells, coolant ports,
 cooling loop with a chiller, BMS derating from 45 degC) runs ``--laps`` laps of ``--track``
 (default 10 laps of Monza) at two ambients (``--ambients``, default 20 and 35 degC; the pack
-and the coolant soaked at the ambient) with two cooling designs: the shipped loop (pump 30
-L/min, radiator, 6 kW chiller switched on at 35 degC) and the cooling off (no pump, fan nor
+and the coolant soaked at the ambient) with three cooling designs: the shipped loop (pump 30
+L/min, radiator, 6 kW chiller switched on at 35 degC), the same loop without its chiller
+(radiator only: ``pack_changes={"cooling.chiller": 0}``) and the cooling off (no pump, fan nor
 chiller). Each case is :func:`hevsim.sim.stint.simulate_stint`; the car's envelope is built
 once and shared.
 
@@ -13,7 +14,7 @@ Writes into ``--out`` (default results/stint_study), atomically: ``stint_table.c
 per case and lap: lap time, peak cell temperature, time derated, time the lap's deployment
 bound, cooling energy, SOC at start and end), ``summary.csv`` (one row per case),
 ``report.md`` (the tables as markdown) and ``stint.png`` (lap time and peak cell temperature vs
-lap for the four cases).
+lap for every case).
 
 Re-optimising the deployment (with ``--optimize convex`` or ``dp``, default convex; ``none``
 skips it): at the hotter ambient with the cooling off, the same stint driving the optimal
@@ -44,8 +45,13 @@ from hevsim.tracks import load_track
 
 HERE = Path(__file__).resolve().parent
 CAR = HERE.parent / "high_performance_parallel_hev_pack.toml"
-DESIGNS = {"loop + chiller": False, "cooling off": True}
-"""Cooling design label -> cooling_off."""
+DESIGNS: dict[str, dict[str, object]] = {
+    "loop + chiller": {},
+    "loop, no chiller": {"pack_changes": {"cooling.chiller": 0}},
+    "cooling off": {"cooling_off": True},
+}
+"""Cooling design label -> the stint's options that make it (the pack file's loop as shipped,
+without its chiller, or everything off)."""
 
 
 def run(laps: int, track_name: str, ambients: list[float]) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -55,9 +61,9 @@ def run(laps: int, track_name: str, ambients: list[float]) -> tuple[pd.DataFrame
     vehicle = stint_vehicle(cfg, cfg.simulation.soc_initial)
     rows, cases = [], []
     for amb in ambients:
-        for design, off in DESIGNS.items():
+        for design, design_opts in DESIGNS.items():
             t0 = time.perf_counter()
-            opts = {"ambient_temp_c": amb, "soak": True, "cooling_off": off}
+            opts = {"ambient_temp_c": amb, "soak": True, **design_opts}
             res = simulate_stint(cfg, track, laps, vehicle=vehicle, **opts)
             s = res.summary
             print(
@@ -176,7 +182,7 @@ def plot(table: pd.DataFrame, path: Path) -> None:
 
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
     for (amb, design), g in table.groupby(["ambient_c", "cooling"], sort=False):
-        style = "-" if design == "loop + chiller" else "--"
+        style = {"loop + chiller": "-", "loop, no chiller": "-."}.get(design, "--")
         label = f"{amb:g} degC, {design}"
         a1.plot(g["lap"], g["lap_time_s"], style, marker="o", label=label)
         a2.plot(g["lap"], g["peak_cell_temp_c"], style, marker="s", label=label)

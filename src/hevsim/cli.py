@@ -327,6 +327,28 @@ def _cmd_lap(args: argparse.Namespace) -> int:
     return 0
 
 
+def _pack_changes(items: list[str]) -> dict[str, Any]:
+    """``--pack-set section.key=VALUE`` options as dotted keys and values (VALUE read as a TOML
+    value: ``0``, ``15.0``, ``"pi"``, ``true``; a bare word is a string)."""
+    import tomllib
+
+    from hevsim.errors import ConfigError
+
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip() or not text.strip():
+            raise ConfigError(
+                f"option --pack-set = {item!r}; expected section.key=VALUE (e.g. cooling.chiller=0)."
+            )
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()
+        out[key.strip()] = value
+    return out
+
+
 def _cmd_stint(args: argparse.Namespace) -> int:
     from hevsim.config import SimulationSection, load_vehicle_config
     from hevsim.schema import check_option
@@ -341,6 +363,8 @@ def _cmd_stint(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("results") / f"{cfg.name}_{track_name}_stint"
     _prepare(args, out, args.config, None if args.track in TRACK_NAMES else args.track)
     opts = {"ambient_temp_c": args.ambient, "soak": args.soak, "cooling_off": args.cooling_off}
+    if args.pack_set:
+        opts["pack_changes"] = _pack_changes(args.pack_set)
     if args.optimize:
         from hevsim.optimal.stint_deploy import simulate_stint_optimized
 
@@ -1106,6 +1130,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ambient", type=float, help="ambient temperature [degC] (default the pack file's)")
     p.add_argument("--soak", action="store_true", help="start the cells and coolant at --ambient")
     p.add_argument("--cooling-off", action="store_true", help="pump, fan and chiller off")
+    p.add_argument(
+        "--pack-set",
+        action="append",
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="set a key of the pack file for this stint, e.g. another cooling design: "
+        "--pack-set cooling.chiller=0 --pack-set cooling.flow_l_min=15 (repeatable)",
+    )
     p.add_argument(
         "--optimize",
         choices=("convex", "dp"),

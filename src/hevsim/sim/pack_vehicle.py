@@ -33,8 +33,10 @@ pack file's ``pack.dt_s`` is replaced by it).
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -44,23 +46,33 @@ import pandas as pd
 
 from hevsim.architectures._build import nominal_battery, pack_file  # re-exported
 from hevsim.battery.bms import LIMIT_NAMES, PackRun
-from hevsim.battery.pack import Pack, PackConfig, load_pack_config
+from hevsim.battery.pack import Pack, PackConfig, load_pack_config, pack_config_from_dict
 from hevsim.cycles import DriveCycle
 from hevsim.errors import ConfigError
+from hevsim.schema import read_toml
 from hevsim.sim.metrics import metric
 
 LOG = logging.getLogger("hevsim")
 
 
 def vehicle_pack_config(
-    cfg: Any, dt_s: float, ambient_temp_c: float | None = None, soak: bool = False, cooling_off: bool = False
+    cfg: Any,
+    dt_s: float,
+    ambient_temp_c: float | None = None,
+    soak: bool = False,
+    cooling_off: bool = False,
+    pack_changes: Mapping[str, Any] | None = None,
 ) -> tuple[PackConfig, Path]:
     """The pack configuration of a vehicle configuration for a run at step ``dt_s`` [s]:
     ``ambient_temp_c`` [degC] replaces the pack file's ambient; ``soak`` also starts the cells
     and the coolant at it (a car parked long enough); ``cooling_off`` stops the pump, the
-    radiator fan and the chiller (the stagnant coolant still takes heat)."""
+    radiator fan and the chiller (the stagnant coolant still takes heat); ``pack_changes``:
+    dotted keys of the pack file and their values (``{"cooling.chiller": 0,
+    "cooling.flow_l_min": 15.0}``: another cooling design), validated as the file is (an
+    unknown key or a value out of range: :class:`~hevsim.errors.ConfigError` naming the
+    file, the key and the value)."""
     path = pack_file(cfg.battery, Path(cfg.base_dir))
-    pc = load_pack_config(path)
+    pc = load_pack_config(path) if not pack_changes else changed_pack_config(path, pack_changes)
     pk = replace(pc.pack, dt_s=float(dt_s))
     cooling = pc.cooling
     if cooling_off:
@@ -72,6 +84,27 @@ def vehicle_pack_config(
             pk = replace(pk, initial_temp_c=float(ambient_temp_c))
             cooling = replace(cooling, supply_temp_c=float(ambient_temp_c))
     return replace(pc, pack=pk, cooling=cooling), path
+
+
+def changed_pack_config(path: Path, changes: Mapping[str, Any]) -> PackConfig:
+    """The pack file ``path`` with the dotted ``section.key`` values of ``changes`` set, then
+    validated as a file is (the error names the file with its changes, the key and the value)."""
+    data = copy.deepcopy(read_toml(path))
+    for dotted, value in changes.items():
+        section, _, key = str(dotted).partition(".")
+        if not section or not key or "." in key:
+            raise ConfigError(
+                f"{path}: pack change {dotted!r} = {value!r}; expected a key 'section.key' of the pack file "
+                "(e.g. 'cooling.chiller' or 'cooling.flow_l_min')."
+            )
+        table = data.setdefault(section, {})
+        if not isinstance(table, dict):
+            raise ConfigError(
+                f"{path}: pack change {dotted!r}: '{section}' is not a section of the pack file."
+            )
+        table[key] = value
+    shown = ", ".join(f"{k} = {v!r}" for k, v in changes.items())
+    return pack_config_from_dict(data, f"{path} (with {shown})", path.parent)
 
 
 def check_voltage_window(pack: Pack, cfg: Any, path: Path) -> None:
@@ -101,10 +134,12 @@ def make_pack_run(
     soak: bool = False,
     cooling_off: bool = False,
     age_state: Any = None,
+    pack_changes: Mapping[str, Any] | None = None,
 ) -> PackRun:
     """A fresh :class:`~hevsim.battery.bms.PackRun` for one vehicle run (``age_state``: a
-    :class:`hevsim.battery.life.PackAgeState` applied to the cells and tracked over the run)."""
-    pcfg, path = vehicle_pack_config(cfg, dt_s, ambient_temp_c, soak, cooling_off)
+    :class:`hevsim.battery.life.PackAgeState` applied to the cells and tracked over the run;
+    ``pack_changes``: as :func:`vehicle_pack_config`)."""
+    pcfg, path = vehicle_pack_config(cfg, dt_s, ambient_temp_c, soak, cooling_off, pack_changes)
     try:
         pack = Pack(pcfg)
     except ConfigError as exc:  # name the pack file (Pack names the pack)

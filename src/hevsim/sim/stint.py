@@ -68,7 +68,7 @@ from __future__ import annotations
 import copy
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -369,6 +369,7 @@ def simulate_stint(
     deployment: Callable[[Any, Track], Any] | None = None,
     vehicle: tuple[LapVehicle, float, float] | None = None,
     full_passes: bool = False,
+    pack_changes: Mapping[str, Any] | None = None,
 ) -> StintResult:
     """A stint of ``laps`` laps of a ``[battery] model = "pack"`` vehicle (file, configuration
     or built model) on ``track`` (module docstring).
@@ -383,7 +384,9 @@ def simulate_stint(
     built for ``model`` (several stints of one car share it); ``full_passes``: step every pass
     in full, without item 5's shortcuts (the module ROMs' hot-spot search in every pass, each
     pass's operating points computed afresh: the same results, slower; the reference of
-    ``benchmarks/bench_lap.py``)."""
+    ``benchmarks/bench_lap.py``); ``pack_changes``: dotted keys of the pack file set for this
+    stint (another cooling design: ``{"cooling.chiller": 0}``; see
+    :func:`hevsim.sim.pack_vehicle.vehicle_pack_config`)."""
     from threadpoolctl import threadpool_limits
 
     from hevsim.config import load_vehicle_config
@@ -398,8 +401,9 @@ def simulate_stint(
     trk = track if isinstance(track, Track) else load_track(track, step_m=step_m)
     soc0 = float(cfg.simulation.soc_initial if soc_initial is None else soc_initial)
     run = make_pack_run(
-        cfg, float(dt_s), soc0, ambient_temp_c=ambient_temp_c, soak=soak, cooling_off=cooling_off
-    )
+        cfg, float(dt_s), soc0, ambient_temp_c=ambient_temp_c, soak=soak, cooling_off=cooling_off,
+        pack_changes=pack_changes,
+    )  # fmt: skip
     soc_min, soc_max = float(cfg.battery.soc_min), float(cfg.battery.soc_max)
     lv, ocv, i_max = vehicle if vehicle is not None else stint_vehicle(model, soc0, levels)
     with threadpool_limits(1, user_api="blas"):
@@ -484,6 +488,7 @@ def simulate_stint(
         "initial_temp_c": pc.pack.initial_temp_c,
         "cooling_controller": pc.controller.kind,
         "cooling_off": bool(cooling_off),
+        "pack_changes": dict(pack_changes or {}),
         "soak": bool(soak),
         "pack_dt_s": float(dt_s),
         "lap_step_m": trk.step_m,
