@@ -17,8 +17,10 @@ in ``docs/dp.md`` are ``main`` before issue 26 and the branch after)::
     .venv/bin/python benchmarks/bench_dp_refinement.py [--quick]
     PYTHONPATH=/path/to/other/src .venv/bin/python benchmarks/bench_dp_refinement.py
 
-Reports and never asserts (exit 0). CPU seconds per solution are printed (wall time on a
-shared machine is the load's).
+``--no-fwd-refine`` switches off the forward pass's input refinement in the cell the
+level set's admission boundary cuts (``_solver.FWD_REFINE``), to compare with and without
+it in one run. Reports and never asserts (exit 0). CPU seconds per solution are printed
+(wall time on a shared machine is the load's).
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ import numpy as np
 
 import hevsim
 from hevsim.errors import DPInfeasibleError
-from hevsim.optimal import DPProblem, FinalTarget, solve_dp
+from hevsim.optimal import DPProblem, FinalTarget, _solver, solve_dp
 
 # --------------------------------------------------------------------------- two tanks
 DT_TT = 0.01
@@ -106,14 +108,17 @@ def row(label: str, p: DPProblem, x0: list[float], j_star: float, lo: np.ndarray
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="smaller sizes only")
+    ap.add_argument("--no-fwd-refine", action="store_true", help="grid inputs only in the forward pass")
     args = ap.parse_args()
-    print(f"hevsim from {hevsim.__file__}")
+    if args.no_fwd_refine:
+        _solver.FWD_REFINE = False
+    print(f"hevsim from {hevsim.__file__}; forward input refinement {_solver.FWD_REFINE}")
     head = f"{'grid (states x inputs)':>16} {'cost':>10} {'error %':>9} {'x_N miss':>9} "
     head += f"{'fallb':>5} {'land':>5} {'cpu s':>6}"
     j_tt = two_tank_optimum()
     lo_tt, hi_tt = np.array([0.5, 0.5]), np.array([1.0, 1.0])
     print(f"\ntwo tanks, optimum {j_tt:.6f}: states refined (11 values per input)\n{head}")
-    for n in (41, 51) if args.quick else (41, 51, 101):
+    for n in (41, 51) if args.quick else (41, 51, 101, 201):
         row(f"{n}^2 x 11^2", two_tank(n, 11), [0.0, 0.0], j_tt, lo_tt, hi_tt)
     sizes = ((51,),) if args.quick else ((51,), (101,))
     for (n,) in sizes:

@@ -4,7 +4,10 @@ Problem (see ``tests/test_dp_two_tank_elbert.py`` for the derivation of the opti
 ``x1' = -0.5 x1 + u1 u2``, ``x2' = -0.5 x2 + u1 (1 - u2)``, ``x(0) = (0, 0)``, cost
 ``int_0^2 u1 + 0.1 |u2 - 0.5| dt``, ``x(2) >= (0.5, 0.5)``, explicit Euler ``dt = 0.01``
 (200 steps). Discrete optimum 1.382831 (closed form ``dt (n + f)``). Inputs 11 x 11 (steps
-of 0.1: the input grid alone costs 0.012 %), level-set method, re-optimising forward pass.
+of 0.1: the input grid alone costs 0.012 % at 101 x 101 with grid inputs in the forward pass,
+0.005 % since the forward pass refines the input in the cell the level set's admission
+boundary cuts; 201 x 201: +0.085 % -> +0.019 %, see docs/dp.md), level-set method,
+re-optimising forward pass.
 
 Targets (issue 15 item 6): <= 0.3 % above the optimum at 101 x 101 nodes and <= 0.1 % at
 201 x 201, each in <= 10 s on 2 cores. Before the level-set fix: +1.51 % (118 s) and +0.99 %

@@ -24,6 +24,8 @@ _MODE = {
 REFINE_POINTS = 17  # states evaluated per boundary-line refinement
 LAND_STEPS_PER_STATE = 8  # the landing corrects at most this many final steps per state
 POLISH = True  # re-optimise the landed window for cost (SLSQP)
+FWD_REFINE = True  # level set, 2+ states: refine the forward pass's grid arg-min input
+FWD_REFINE_SUB = 10  # sub-steps tried in the grid cell the admission boundary cuts
 PARALLEL_MIN_PAIRS = 20_000  # blocks smaller than this run the serial kernel
 _DUMMY_MASK = np.zeros((1, 1), dtype=np.bool_)
 _DUMMY_X = np.zeros((1, 1))
@@ -894,12 +896,29 @@ class DPSolver:
                 status = int(out.status[0])
                 if status == kn.ST_BAD:
                     raise self.ev.bad_output_error(k, blk, 0)
+                near_set = False
                 if status != kn.ST_FEASIBLE and Vn is not None and k < N - 1:
                     relaxed = self._near_set_step(blk, k, x, out, bw, band, band_i)
                     if relaxed is not None:  # counted as a fallback step all the same
                         out, status = relaxed, kn.ST_FEASIBLE
                         n_fallback += 0 if policy_mode else 1
+                        near_set = True
                 m = int(out.arg[0])
+                if (
+                    FWD_REFINE
+                    and Vn is not None
+                    and sp.d >= 2
+                    and k < N - 1
+                    and status == kn.ST_FEASIBLE
+                    and not near_set
+                    and m >= 0
+                ):
+                    fine = self._refine_input(k, x, data_k, m, bw)
+                    if fine is not None:
+                        us[k], gs[k], xs[k + 1] = fine
+                        if bar is not None:
+                            bar.update(1)
+                        continue
                 frac = self.last_fractional.get(0) if k == N - 1 else None
                 landed = None if frac is None else self._land(k, x, data_k, frac, bw)
                 if landed is not None:
@@ -926,6 +945,83 @@ class DPSolver:
             if bar is not None:
                 bar.update(1)
         return xs, us, gs, n_fallback
+
+    def _refine_input(
+        self, k: int, x: FloatArray, data_k: Any, m: int, bw: Backward
+    ) -> tuple[FloatArray, float, FloatArray] | None:
+        """Level set, forward pass: the grid arg-min input ``m`` refined between its grid
+        neighbours, one continuous input at a time, with the same interpolated cost-to-go
+        and the same admission test (next level value <= ``VTOL``, mask, state bounds).
+
+        Only where the admission boundary cuts a grid cell on the cheaper side of the
+        grid arg-min (the grid neighbour there costs less but is not admitted: a path on
+        the boundary of the reachable set, where cost falls towards the boundary), that
+        cell is tried at ``FWD_REFINE_SUB`` sub-steps and the cheapest admitted one is
+        taken. Inputs inside the set are left alone: there the refined choice would be
+        driven by interpolation error of the cost-to-go (tried: the flow split then
+        wandered off its optimum for a few 1e-6 each), and a value bisected onto the
+        boundary leaves no margin for the next steps (tried: the path then slipped out of
+        the interpolated set at every later step). Returns ``(input, stage cost, next
+        state)`` when a refined input is admitted and strictly cheaper, else None.
+
+        Why (issue 26): the level set at a node is the minimum over the *grid* inputs, so
+        where reaching the set needs an input between two grid values (the two tanks' flow
+        split ``u2 = 0.25`` at the nodes one cell off the diagonal of a 201^2 grid, with
+        ``u2`` on a 0.1 grid) it is over-estimated, and interpolation carries that into the
+        cells the optimal path crosses: the two tanks at 201^2 x 11^2 admitted the start
+        of the filling at ``u1 = 0.4`` but not ``0.3`` (exact: 0.28), +0.085 % against
+        +0.012 % at 101^2. The refinement recovers most of that step in the forward pass
+        without changing the recursion.
+        """
+        sp = self.space
+        assert bw.J is not None and bw.V is not None
+        Jn = bw.J[k + 1]
+        Vn = bw.V[k + 1]
+        idx = np.unravel_index(m, sp.input_shape)
+        u0 = np.array([float(sp.inputs[j][idx[j]]) for j in range(sp.q)])
+        zb = np.zeros(4)
+        zbi = np.zeros(2, dtype=np.int64)
+
+        def evaluate(us: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+            """Cost (inf where not admitted), cost regardless of the level set, stage cost
+            and next states of the inputs ``us`` (P, q)."""
+            P = us.shape[0]
+            ins = tuple(us[:, j].reshape((1,) * sp.d + (P,) + (1,) * (sp.q - 1)) for j in range(sp.q))
+            blk = self.ev(self._state_arrays(x), k, data_k, self.ev.pre_at(k, data_k, ins), inputs=ins)
+            g = np.array(blk.g[0], dtype=np.float64)
+            xn = np.stack([np.asarray(blk.next_state(j)[0], dtype=np.float64) for j in range(sp.d)], 1)
+            ok = np.isfinite(g) & np.all(np.isfinite(xn), axis=1)
+            if blk.mask is not None:
+                ok &= ~blk.mask[0]
+            pts = np.where(ok[:, None], xn, sp.lo)
+            pb = self.point_blocks(pts)
+            jo = self.step(pb, Jn, None, zb, zbi, False, mode=kn.MODE_PLAIN)
+            vo = self.step(pb, Vn, None, zb, zbi, False, mode=kn.MODE_PLAIN)
+            ok &= (jo.status == kn.ST_FEASIBLE) & (vo.status == kn.ST_FEASIBLE)
+            raw = np.where(ok, g + jo.J, np.inf)
+            return np.where(vo.J <= kn.VTOL, raw, np.inf), raw, g, xn
+
+        best_c = np.inf
+        best: tuple[FloatArray, float, FloatArray] | None = None
+        for a in range(sp.q):
+            grid = sp.inputs[a]
+            if sp.discrete[a] or grid.size < 2:
+                continue
+            i = int(idx[a])
+            for nb in (i - 1, i + 1):
+                if not 0 <= nb < grid.size:
+                    continue
+                vals = np.linspace(float(grid[i]), float(grid[nb]), FWD_REFINE_SUB + 1)
+                cand = np.repeat(u0.reshape(1, -1), vals.size, axis=0)
+                cand[:, a] = vals
+                c, raw, g, xn = evaluate(cand)
+                if not np.isfinite(c[0]) or np.isfinite(c[-1]) or not raw[-1] < c[0]:
+                    continue
+                j = int(np.argmin(c[1:-1])) + 1
+                if c[j] < min(c[0], best_c):
+                    best_c = float(c[j])
+                    best = (cand[j].copy(), float(g[j]), xn[j].copy())
+        return best
 
     def _near_set_step(
         self,
