@@ -219,7 +219,8 @@ def child_json(repeats: int) -> None:
 
     h = bench_hevsim(repeats)
     keys = ("e2e", "path_warm", "path_cold", "kernel")
-    print(json.dumps({"src": str(Path(hevsim.__file__).parent), **{k: _median(h[k]) for k in keys}}))
+    mins = {f"{k}_min": min(h[k]) for k in keys}
+    print(json.dumps({"src": str(Path(hevsim.__file__).parent), **{k: _median(h[k]) for k in keys}, **mins}))
 
 
 # --------------------------------------------------------------------------- FASTSim
@@ -402,8 +403,9 @@ def main(argv: list[str] | None = None) -> int:
             now = _median(h[key])
             s = f"    {label:36s} {base[key] * 1e3:8.3f} ms -> {now * 1e3:8.3f} ms ({now / base[key]:.2f}x)"
             if f is not None:
-                ro = _median(f["run_once"])
+                ro, ro_min = _median(f["run_once"]), min(f["run_once"])
                 s += f"; /run_once {base[key] / ro:.3f} -> {now / ro:.3f}"
+                s += f" (minima: {base[key + '_min'] / ro_min:.3f} -> {min(h[key]) / ro_min:.3f})"
             print(s)
     print()
     print(f"  {single_load.text()}")
@@ -417,11 +419,17 @@ def main(argv: list[str] | None = None) -> int:
                 f"  target hevsim <= 1/5 of FASTSim run(), {label:17s}: {ok} "
                 f"(ratio {x / ref:.3f}, {ref / x:.1f}x faster)"
             )
-        ro = _median(f["run_once"])
-        for label, x, goal in (("(a) built model", e2e, GOAL_MODEL),
-                               ("(a') path, cache warm", _median(h["path_warm"]), GOAL_PATH)):  # fmt: skip
+        ro, ro_min = _median(f["run_once"]), min(f["run_once"])
+        for label, key, goal in (
+            ("(a) built model", "e2e", GOAL_MODEL),
+            ("(a') path, cache warm", "path_warm", GOAL_PATH),
+        ):
+            x, x_min = _median(h[key]), min(h[key])
             ok = "MET" if x / ro <= goal else "NOT met"
-            print(f"  issue 24 goal {label:22s} <= {goal:g}x FASTSim run_once(): {ok} (ratio {x / ro:.3f})")
+            print(
+                f"  issue 24 goal {label:22s} <= {goal:g}x FASTSim run_once(): {ok} (ratio of medians "
+                f"{x / ro:.3f}; of minima {x_min / ro_min:.3f}, less hit by other load)"
+            )
     else:
         print(
             "  FASTSim: skipped (package 'fastsim' not importable). Install it with\n"

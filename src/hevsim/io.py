@@ -604,9 +604,9 @@ def cached_build(folder: str | Path, build: Callable[..., Any], *args: Any, **kw
         if entry is not None:
             _CONTENT_CACHE.move_to_end(key)
     if entry is not None:
-        value, reads, listing = entry
-        if _listing(folder_s) == listing and all(_file_digest(f) == d for f, d in reads.items()):
-            for f, d in reads.items():  # an outer cached_build depends on them too
+        value, seen, names = entry
+        if _listing(folder_s) == names and all(_file_digest(f) == d for f, d in seen.items()):
+            for f, d in seen.items():  # an outer cached_build depends on them too
                 _note_read(Path(f), d)
             return copy.deepcopy(value)
     stack = getattr(_READS, "stack", None)

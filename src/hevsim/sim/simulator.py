@@ -6,6 +6,7 @@ import dataclasses
 import os
 import platform
 import time
+import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -301,9 +302,27 @@ def _prepare(
     from hevsim.sim.forward import cycle_and_step
 
     cyc, dt = cycle_and_step(cycle, dt_s, cfg.simulation)
+    return hev, cyc, _grid(cyc, dt), dt
+
+
+_GRIDS: dict[tuple[int, float], tuple[weakref.ref[DriveCycle], DriveCycle]] = {}
+"""Resampled cycles of :func:`_grid` by (cycle identity, step [s])."""
+
+
+def _grid(cyc: DriveCycle, dt: float) -> DriveCycle:
+    """``cyc`` resampled every ``dt`` [s], made once per cycle object and step: a
+    :class:`DriveCycle` is frozen with read-only arrays, so the same object resamples to
+    the same grid (kept while the cycle lives; at most 32)."""
+    key = (id(cyc), dt)
+    hit = _GRIDS.get(key)
+    if hit is not None and hit[0]() is cyc:
+        return hit[1]
     res = cyc.resampled(dt)
     grid = DriveCycle(res.name, np.array(res.time_s), np.array(res.speed_mps), np.array(res.grade))
-    return hev, cyc, grid, dt
+    if len(_GRIDS) >= 32:
+        _GRIDS.clear()
+    _GRIDS[key] = (weakref.ref(cyc), grid)
+    return grid
 
 
 def _energy_keys(hev: SeriesHEV) -> tuple[float, float, float, float]:
@@ -576,7 +595,7 @@ def _assemble(
         "kernel_time_s": t_kernel,
         "total_time_s": t_total,
     }
-    return SimulationResult(ts, metrics, audit, events, metadata, hev, cyc)
+    return SimulationResult(ts, metrics, audit, events, metadata, hev, cyc)  # type: ignore[arg-type]  # _Later: _Deferred
 
 
 INT_CHANNELS = ("genset_state", "power_mode", "mode_reason", "battery_limited")
