@@ -14,6 +14,14 @@ is >= 1000 variant-cycles/s on UDDS for the conventional and parallel vehicles o
 2-core machine. Whether an architecture has a compiled batch is shown (``compiled``: it has a
 compiled loop, :func:`hevsim.sim.forward.compiled_loop`). The script only reports: it always
 exits 0.
+
+When FASTSim 3 is installed (the ``bench`` extra), its ``run_once()`` on its 2016 Prius UDDS
+is timed just before each row (median of 10, a fresh ``SimDrive`` each, so both see the same
+load) and the row shows ``x FASTSim``: the batch's variant-cycles per wall second times that
+time, i.e. the batch's throughput over FASTSim's sequential throughput; ``x per CPU`` is the
+same per CPU second of each (load-independent, but without the batch's parallelism).
+Issue 24's goal is >= 40 for every architecture; the series HEV (its kernel batch, variants
+of ``mass_kg``) is a row too.
 """
 
 from __future__ import annotations
@@ -23,13 +31,16 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from _machine import OtherLoad
 
 REPO = Path(__file__).resolve().parents[1]
+GOAL_FASTSIM = 40.0  # issue 24: batch throughput >= 40x FASTSim's sequential run_once()
 VEHICLES = {
+    "series": "examples/series_hev.toml",
     "conventional": "examples/conventional_sedan.toml",
     "parallel (P3)": "examples/parallel_hev.toml",
     "power split": "examples/prius_like_power_split.toml",
@@ -42,10 +53,40 @@ def _rate(cfg: object, n: int, compiled: bool | None) -> tuple[float, float]:
     from hevsim.sim.simulator import simulate_batch
 
     masses = np.linspace(0.85, 1.15, n) * float(cfg.body.mass_kg)  # type: ignore[attr-defined]
+    series = getattr(cfg, "architecture", "series") == "series"
+    key = "mass_kg" if series else "body.mass_kg"  # the series kernel's batch takes kernel names
     c0, t0 = time.process_time(), time.perf_counter()
-    simulate_batch(cfg, {"body.mass_kg": masses}, "udds", compiled=compiled)  # type: ignore[arg-type]
+    if series:
+        simulate_batch(cfg, {key: masses}, "udds")  # type: ignore[arg-type]
+    else:
+        simulate_batch(cfg, {key: masses}, "udds", compiled=compiled)  # type: ignore[arg-type]
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     return n / wall, n / cpu
+
+
+def fastsim_timer() -> Any:
+    """A function ``f(repeats)`` giving (median wall [s], median CPU [s]) of FASTSim 3's
+    ``run_once()`` on its 2016 Prius UDDS (a fresh ``SimDrive`` each, construction untimed);
+    None when FASTSim is not installed."""
+    try:
+        import fastsim as fsim
+    except ImportError:
+        return None
+    veh = fsim.Vehicle.from_resource("2016_TOYOTA_Prius_Two.yaml")
+    cyc = fsim.Cycle.from_resource("udds.csv")
+
+    def timed(repeats: int) -> tuple[float, float]:
+        wall, cpu = [], []
+        for i in range(repeats + 2):
+            sd = fsim.SimDrive(veh, cyc)
+            c0, t0 = time.process_time(), time.perf_counter()
+            (sd.run_once if hasattr(sd, "run_once") else sd.walk_once)()
+            if i >= 2:
+                wall.append(time.perf_counter() - t0)
+                cpu.append(time.process_time() - c0)
+        return float(np.median(wall)), float(np.median(cpu))
+
+    return timed
 
 
 def main() -> int:
@@ -58,18 +99,40 @@ def main() -> int:
 
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     print(f"cores available: {cores}")
-    head = ("vehicle", "compiled", "variants", "per wall s", "per CPU s", "python loop/s", "ratio")
-    print("{:<16}{:>9}{:>9}{:>12}{:>11}{:>15}{:>8}".format(*head))
+    head = ("vehicle", "compiled", "variants", "per wall s", "per CPU s", "python loop/s", "ratio",
+            "x FASTSim", "x per CPU")  # fmt: skip
+    print("{:<16}{:>9}{:>9}{:>12}{:>11}{:>15}{:>8}{:>10}{:>10}".format(*head))
+    worst = float("inf")
+    fs_times = []
     with OtherLoad() as load:
+        fs = fastsim_timer()
         for label, path in VEHICLES.items():
             cfg = C.load_vehicle_config(REPO / path)
-            compiled = hasattr(compiled_loop(cfg.architecture), "simulate_batch_compiled")
+            series = cfg.architecture == "series"
+            compiled = series or hasattr(compiled_loop(cfg.architecture), "simulate_batch_compiled")
             _rate(cfg, 4, None)  # warm-up (compilation)
-            wall, cpu = _rate(cfg, a.variants, None)
-            base, _ = _rate(cfg, a.baseline, False)
-            row = (label, str(compiled), a.variants, wall, cpu, base, wall / base)
-            print("{:<16}{:>9}{:>9}{:>12.0f}{:>11.0f}{:>15.1f}{:>8.1f}".format(*row))
+            fs_wall, fs_cpu = fs(10) if fs is not None else (float("nan"), float("nan"))
+            wall, cpu = _rate(cfg, a.variants, None)  # FASTSim timed just before: the same load
+            base = float("nan") if series else _rate(cfg, a.baseline, False)[0]
+            fs_times.append(fs_wall)
+            x_fs, x_cpu = wall * fs_wall, cpu * fs_cpu
+            worst = min(worst, x_fs)
+            row = (label, str(compiled), a.variants, wall, cpu, base, wall / base, x_fs, x_cpu)
+            print("{:<16}{:>9}{:>9}{:>12.0f}{:>11.0f}{:>15.1f}{:>8.1f}{:>10.1f}{:>10.1f}".format(*row))
+    if fs is None:
+        print("FASTSim not installed (pip install -e '.[bench]'): no x FASTSim columns")
+    else:
+        ok = "MET" if worst >= GOAL_FASTSIM else "NOT met"
+        print(
+            f"FASTSim run_once() {min(fs_times) * 1e3:.2f}-{max(fs_times) * 1e3:.2f} ms (median of 10 before "
+            "each row); x FASTSim = per wall s x its wall time, x per CPU = per CPU s x its CPU time"
+        )
+        print(
+            f"issue 24 goal: every architecture >= {GOAL_FASTSIM:g}x FASTSim throughput: {ok} "
+            f"(worst {worst:.1f}x)"
+        )
     print(load.text())
+    print(f"load average now: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0
 
 

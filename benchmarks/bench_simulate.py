@@ -17,6 +17,11 @@ What is timed (``time.perf_counter``, loading always excluded):
     repetition, timing ``run()`` (``walk()`` in older 3.x); ``run_once()`` is shown too;
 (d) ``simulate_batch`` with N mass variants and N driver-gain variants.
 
+Issue 24's goals, as ratios to FASTSim's ``run_once()`` in the same run: (a) <= 0.1, (a')
+with the cache warm <= 0.2. ``--baseline-src DIR`` also times (a), (a') and (b) for the
+hevsim source tree in ``DIR`` (e.g. a copy of ``src`` before a change) in a child process
+right after this tree's, so the before and after figures come from the same run.
+
 Single-run numbers are medians of ``--repeats`` runs after warm-up; the first call in this
 process (numba cache load, or compilation when the cache is cold) is reported separately.
 The script only reports: it always exits 0.
@@ -42,6 +47,8 @@ from _machine import OtherLoad
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "examples" / "series_hev.toml"
 TARGET_RATIO = 0.2  # hevsim single run at most 1/5 of FASTSim's time
+GOAL_MODEL = 0.1  # issue 24: simulate(built model, loaded cycle) <= 0.1x FASTSim run_once()
+GOAL_PATH = 0.2  # issue 24: simulate("examples/x.toml", "udds"), cache warm, <= 0.2x run_once()
 TARGET_RATE = 1000.0  # variant-cycles per second
 FASTSIM_VEHICLE = "2016_TOYOTA_Prius_Two.yaml"
 FASTSIM_CYCLE = "udds.csv"
@@ -188,6 +195,34 @@ def bench_hevsim(repeats: int) -> dict[str, Any]:
     }
 
 
+def bench_baseline(src: str, repeats: int) -> dict[str, Any] | None:
+    """(a), (a'), (b) medians [s] of the hevsim in source tree ``src``, timed in a child
+    process (this script with ``--child-json``); None when it fails."""
+    import json
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": str(Path(src).resolve())}
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--child-json", "--repeats", str(repeats)]
+    try:
+        done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=1800, check=True)
+        return dict(json.loads(done.stdout.strip().splitlines()[-1]))
+    except (subprocess.SubprocessError, ValueError, IndexError) as exc:
+        print(f"baseline {src}: failed ({type(exc).__name__}: {exc})", file=sys.stderr)
+        return None
+
+
+def child_json(repeats: int) -> None:
+    """Print one JSON line of this process's hevsim medians (for :func:`bench_baseline`)."""
+    import json
+
+    import hevsim
+
+    h = bench_hevsim(repeats)
+    keys = ("e2e", "path_warm", "path_cold", "kernel")
+    mins = {f"{k}_min": min(h[k]) for k in keys}
+    print(json.dumps({"src": str(Path(hevsim.__file__).parent), **{k: _median(h[k]) for k in keys}, **mins}))
+
+
 # --------------------------------------------------------------------------- FASTSim
 def bench_fastsim(repeats: int) -> dict[str, Any] | None:
     t0 = time.perf_counter()
@@ -295,8 +330,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--variants", type=int, default=1000, help="variants per batch")
     ap.add_argument("--batch-repeats", type=int, default=5, help="timed batches per case")
     ap.add_argument("--no-fastsim", action="store_true", help="skip FASTSim even if installed")
+    ap.add_argument(
+        "--baseline-src", help="also time (a), (a'), (b) of the hevsim source tree in this folder"
+    )
+    ap.add_argument("--child-json", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     repeats = max(1, a.repeats)
+    if a.child_json:
+        child_json(repeats)
+        return 0
 
     t_start = time.perf_counter()
     print(f"hevsim benchmark: one UDDS run, {repeats} repetitions (median), loading excluded\n")
@@ -304,6 +346,7 @@ def main(argv: list[str] | None = None) -> int:
 
     with OtherLoad() as single_load:
         h = bench_hevsim(repeats)
+        base = bench_baseline(a.baseline_src, repeats) if a.baseline_src else None
         f = None if a.no_fastsim else bench_fastsim(repeats)
 
     print("First call in this process")
@@ -346,6 +389,24 @@ def main(argv: list[str] | None = None) -> int:
         print(f"      {f['steps']} steps of 1 s, {f['dist_m'] / 1e3:.2f} km{soc}")
         line("    FASTSim run_once() (one pass, no SOC balance)", f["run_once"])
         print(f"      SimDrive(veh, cyc) construction (untimed above): {f['ctor_s'] * 1e3:.3f} ms")
+    if base is not None:
+        import hevsim
+
+        print(f"  baseline {base['src']} (this tree: {Path(hevsim.__file__).parent}):")
+        rows = (
+            ("(a) end to end", "e2e"),
+            ("(a') from the path, cache warm", "path_warm"),
+            ("(a') from the path, cache cleared", "path_cold"),
+            ("(b) kernel alone", "kernel"),
+        )
+        for label, key in rows:
+            now = _median(h[key])
+            s = f"    {label:36s} {base[key] * 1e3:8.3f} ms -> {now * 1e3:8.3f} ms ({now / base[key]:.2f}x)"
+            if f is not None:
+                ro, ro_min = _median(f["run_once"]), min(f["run_once"])
+                s += f"; /run_once {base[key] / ro:.3f} -> {now / ro:.3f}"
+                s += f" (minima: {base[key + '_min'] / ro_min:.3f} -> {min(h[key]) / ro_min:.3f})"
+            print(s)
     print()
     print(f"  {single_load.text()}")
     asm_share = _median(h["e2e_assemble"]) / e2e
@@ -357,6 +418,17 @@ def main(argv: list[str] | None = None) -> int:
             print(
                 f"  target hevsim <= 1/5 of FASTSim run(), {label:17s}: {ok} "
                 f"(ratio {x / ref:.3f}, {ref / x:.1f}x faster)"
+            )
+        ro, ro_min = _median(f["run_once"]), min(f["run_once"])
+        for label, key, goal in (
+            ("(a) built model", "e2e", GOAL_MODEL),
+            ("(a') path, cache warm", "path_warm", GOAL_PATH),
+        ):
+            x, x_min = _median(h[key]), min(h[key])
+            ok = "MET" if x / ro <= goal else "NOT met"
+            print(
+                f"  issue 24 goal {label:22s} <= {goal:g}x FASTSim run_once(): {ok} (ratio of medians "
+                f"{x / ro:.3f}; of minima {x_min / ro_min:.3f}, less hit by other load)"
             )
     else:
         print(

@@ -126,3 +126,114 @@ def test_a_missing_or_bad_file_still_names_the_file(tmp_path: Path) -> None:
         read_toml(bad)
     bad.write_text("a = 1\n")  # fixed: read again, not the cached error
     assert read_toml(bad)["a"] == 1
+
+
+# --------------------------------------------------------------------------- built components
+# hevsim.io.cached_build: a component made from its data folder (maps parsed, tables checked)
+# once per content of the files it read and the names in the folder.
+
+
+def _engine_section(folder: Path) -> object:
+    import dataclasses
+
+    from hevsim.config import load_vehicle_config
+
+    cfg = load_vehicle_config(ROOT / "examples/series_hev.toml")
+    assert cfg.engine.model == "map"
+    return dataclasses.replace(cfg.engine, data=str(folder))
+
+
+def _engine_folder(tmp_path: Path) -> Path:
+    folder = tmp_path / "engine"
+    shutil.copytree(ROOT / "src/hevsim/data/components/engines/geo_1p0_si41", folder)
+    return folder
+
+
+def test_a_changed_component_map_is_built_again(tmp_path: Path) -> None:
+    from hevsim.architectures._build import build_engine
+
+    folder = _engine_folder(tmp_path)
+    sec = _engine_section(folder)
+    first = build_engine(sec, tmp_path)  # type: ignore[arg-type]
+    again = build_engine(sec, tmp_path)  # type: ignore[arg-type]
+    np.testing.assert_array_equal(again.max_torque.y, first.max_torque.y)
+    csv = folder / "max_torque.csv"
+    lines = csv.read_text().splitlines()
+    st = csv.stat()
+    head, rows = lines[0], lines[1:]
+    scaled = []
+    for row in rows:  # every torque x 1.1, written back in the same format
+        x, y = row.split(",")
+        scaled.append(f"{x},{float(y) * 1.1!r}")
+    csv.write_text("\n".join([head, *scaled]) + "\n")
+    _same_stamp(csv, st)
+    changed = build_engine(sec, tmp_path)  # type: ignore[arg-type]
+    np.testing.assert_allclose(changed.max_torque.y, first.max_torque.y * 1.1, rtol=1e-12)
+
+
+def test_a_file_added_to_a_component_folder_rebuilds_it(tmp_path: Path) -> None:
+    from hevsim.architectures._build import build_engine
+
+    folder = _engine_folder(tmp_path)
+    ct = folder / "closed_throttle_torque.csv"
+    saved = ct.read_bytes()
+    ct.unlink()  # optional file: without it the closed-throttle torque is zero
+    sec = _engine_section(folder)
+    without = build_engine(sec, tmp_path)  # type: ignore[arg-type]
+    assert np.all(without.closed_throttle_torque.y == 0.0)
+    ct.write_bytes(saved)
+    with_file = build_engine(sec, tmp_path)  # type: ignore[arg-type]
+    assert np.any(with_file.closed_throttle_torque.y != 0.0)
+
+
+def test_a_built_component_is_a_copy(tmp_path: Path) -> None:
+    from hevsim.architectures._build import build_engine
+
+    sec = _engine_section(_engine_folder(tmp_path))
+    first = build_engine(sec, tmp_path)  # type: ignore[arg-type]
+    reference = first.max_torque.y.copy()
+    first.max_torque.y[:] = -1.0  # a caller scribbling on its own component
+    again = build_engine(sec, tmp_path)  # type: ignore[arg-type]
+    assert again is not first
+    np.testing.assert_array_equal(again.max_torque.y, reference)
+
+
+# --------------------------------------------------------------------------- deferred result fields
+
+
+def test_the_series_result_time_series_and_events_are_made_on_demand_and_agree() -> None:
+    """The series run hands its DataFrame and events over unmade (simulator._Deferred); once
+    read they are what the kernel recorded, and the events are the state changes of the time
+    series (checked here with pandas, independently of the numpy code that makes them)."""
+    import copy
+    import pickle
+
+    import pandas as pd
+
+    from hevsim.sim import kernel as K
+
+    res = simulate(ROOT / "examples/series_hev.toml", "udds")
+    from hevsim.sim.simulator import _Later
+
+    assert isinstance(res.__dict__["_timeseries_value"], _Later)  # not made yet
+    assert isinstance(res.__dict__["_events_value"], _Later)
+    ts, ev = res.timeseries, res.events
+    assert res.timeseries is ts and res.events is ev  # made once
+    rows = []
+    for col, kind, names in (
+        ("genset_state", "genset", K.GENSET_STATES),
+        ("power_mode", "power_mode", K.POWER_MODES),
+    ):
+        s = ts[col]
+        changed = s.ne(s.shift()) & s.shift().notna()
+        for i in np.flatnonzero(changed.to_numpy()):
+            rows.append((ts["time_s"].iat[i], kind, names[s.iat[i - 1]], names[s.iat[i]],
+                         K.REASONS[ts["mode_reason"].iat[i]]))  # fmt: skip
+    rows.sort(key=lambda r: (r[0], r[1]))
+    assert len(ev) == len(rows) > 10
+    assert list(ev.itertuples(index=False, name=None)) == rows
+    back = pickle.loads(pickle.dumps(res))
+    pd.testing.assert_frame_equal(back.timeseries, ts)
+    pd.testing.assert_frame_equal(copy.deepcopy(res).events, ev)
+    res.events = ev.iloc[0:0]  # still settable (tests and reports do this)
+    assert len(res.events) == 0

@@ -536,9 +536,11 @@ def cached_by_content(path: str | Path, load: Callable[..., Any], *args: Any) ->
     try:
         data = p.read_bytes()
     except OSError:
+        _note_read(p, None)
         return load(p, *args)
     name = (getattr(load, "__module__", ""), getattr(load, "__qualname__", repr(load)))
     key = (*name, str(p), os.path.abspath(p), args, _digest(data))  # abspath: no system calls
+    _note_read(p, key[-1])
     with _CONTENT_LOCK:
         if key in _CONTENT_CACHE:
             _CONTENT_CACHE.move_to_end(key)
@@ -556,8 +558,79 @@ def cached_by_content(path: str | Path, load: Callable[..., Any], *args: Any) ->
     return value
 
 
+_READS = threading.local()  # .stack: the files each running cached_build has read so far
+
+
+def _note_read(path: Path, digest: bytes | None) -> None:
+    """Tell every :func:`cached_build` running on this thread that ``path`` was read
+    (``digest`` of its bytes; None: it could not be read)."""
+    for reads in getattr(_READS, "stack", ()):
+        reads[os.path.abspath(path)] = digest
+
+
+def _file_digest(path: str) -> bytes | None:
+    try:
+        return _digest(Path(path).read_bytes())
+    except OSError:
+        return None
+
+
+def _listing(folder: str) -> tuple[str, ...] | None:
+    try:
+        return tuple(sorted(os.listdir(folder)))
+    except OSError:
+        return None
+
+
+def cached_build(folder: str | Path, build: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    """``build(folder, *args, **kwargs)`` (a component read from its data folder) made once
+    per content: the object is kept with the files ``build`` parsed through
+    :func:`cached_by_content` (their hashes) and the names in ``folder``; a later call returns
+    a deep copy of it while every one of those files has the same bytes and the folder the
+    same names, and builds it again otherwise (a file changed, added or removed). Skips the
+    parsing and the table checks of every call after the first: about 0.3 ms a component.
+    Arguments must be hashable (else no caching). Errors are not cached."""
+    import copy
+
+    folder_s = os.path.abspath(folder)
+    name = (getattr(build, "__module__", ""), getattr(build, "__qualname__", repr(build)))
+    try:
+        key = ("build", *name, folder_s, args, tuple(sorted(kwargs.items())))
+        hash(key)
+    except TypeError:
+        return build(folder, *args, **kwargs)
+    with _CONTENT_LOCK:
+        entry = _CONTENT_CACHE.get(key)
+        if entry is not None:
+            _CONTENT_CACHE.move_to_end(key)
+    if entry is not None:
+        value, seen, names = entry
+        if _listing(folder_s) == names and all(_file_digest(f) == d for f, d in seen.items()):
+            for f, d in seen.items():  # an outer cached_build depends on them too
+                _note_read(Path(f), d)
+            return copy.deepcopy(value)
+    stack = getattr(_READS, "stack", None)
+    if stack is None:
+        stack = _READS.stack = []
+    reads: dict[str, bytes | None] = {}
+    listing = _listing(folder_s)
+    stack.append(reads)
+    try:
+        value = build(folder, *args, **kwargs)
+    finally:
+        stack.pop()
+    for f, d in reads.items():
+        _note_read(Path(f), d)
+    with _CONTENT_LOCK:
+        _CONTENT_CACHE[key] = (value, reads, listing)
+        while len(_CONTENT_CACHE) > CONTENT_CACHE_ENTRIES:
+            _CONTENT_CACHE.popitem(last=False)
+    return copy.deepcopy(value)
+
+
 def clear_content_cache() -> None:
-    """Forget every parsed file of :func:`cached_by_content`."""
+    """Forget every parsed file of :func:`cached_by_content` and every component of
+    :func:`cached_build`."""
     with _CONTENT_LOCK:
         _CONTENT_CACHE.clear()
 

@@ -24,6 +24,7 @@ from hevsim.components.electric_machine import ElectricMachine
 from hevsim.components.engine import Engine
 from hevsim.config import BatterySection, EngineSection, MachineSection
 from hevsim.errors import ConfigError
+from hevsim.io import cached_build
 from hevsim.tables import Table1D
 from hevsim.units import c_to_k, rpm_to_radps
 
@@ -57,8 +58,9 @@ def build_machine(sec: MachineSection, label: str, base: Path) -> ElectricMachin
     """
     if sec.model == "map":
         folder = resolve_component(sec.data, "motor", base, f"{label}.data")
-        return ElectricMachine.from_directory(
+        return cached_build(  # parsed and checked once per content of the folder's files
             folder,
+            ElectricMachine.from_directory,
             rating=sec.rating,
             torque_scale=sec.torque_scale,
             inertia_kgm2=sec.inertia_kgm2,
@@ -84,7 +86,7 @@ def build_engine(e: EngineSection, base: Path) -> Engine:
     }
     if e.model == "map":
         folder = resolve_component(e.data, "engine", base, "engine.data")
-        return Engine.from_directory(folder, **common)
+        return cached_build(folder, Engine.from_directory, **common)  # once per content
     x = np.array([0.0])
     return Engine(
         name=f"constant {e.max_torque_nm:g} N·m engine (ideal fuel)",
@@ -107,7 +109,7 @@ def build_battery(bs: BatterySection, base: Path) -> tuple[BatteryPack, Any]:
     }
     if bs.model == "table":
         folder = resolve_component(bs.data, "battery", base, "battery.data")
-        return BatteryPack.from_directory(folder, **limits), None
+        return cached_build(folder, BatteryPack.from_directory, **limits), None  # once per content
     if bs.model == "pack":  # the vehicle's view of it; the pack itself: hevsim.sim.pack_vehicle
         return nominal_battery(bs, base), None
     if bs.model == "cell":

@@ -500,9 +500,10 @@ def simulate_batch_architecture(
 
 def variant_config(cfg: Any, changes: dict[str, Any], spec: Any, sections: dict[str, dict[str, Any]]) -> Any:
     """``cfg.replace(**changes)`` validated as a file would be, faster for a batch: only the
-    sections ``changes`` touch are validated again (every key of them, with the same checks),
-    then the architecture's cross-key checks (``spec.check``) run on the result. ``sections``
-    caches the sections' values as plain dicts across the variants of a batch."""
+    changed keys are checked again (with a file's per-key checks; the others are ``cfg``'s,
+    already checked), then the architecture's cross-key checks (``spec.check``) run on the
+    result. ``sections`` caches the sections' values as plain dicts across the variants of a
+    batch (for a key a section does not know, refused by the whole section's check)."""
     from hevsim import schema
 
     by_section: dict[str, dict[str, Any]] = {}
@@ -518,10 +519,20 @@ def variant_config(cfg: Any, changes: dict[str, Any], spec: Any, sections: dict[
     new = {}
     for section, vals in by_section.items():
         current = getattr(cfg, section)
-        if section not in sections:
+        cls = type(current)
+        fields = {f.name: f for f in dataclasses.fields(cls)}
+        if all(k in fields for k in vals):  # the changed keys checked; the others are cfg's, checked
+            hints = schema.type_hints(cls)
+            checked = {
+                k: schema.check_value(v, hints[k], source, f"{section}.{k}", {}, {}, fields[k].metadata)
+                for k, v in vals.items()
+            }
+            new[section] = dataclasses.replace(current, **checked)
+            continue
+        if section not in sections:  # an unknown key: the whole section's check names it
             sections[section] = schema.to_dict(current)
         data = {**sections[section], **vals}
-        new[section] = schema.build_section(type(current), data, source, section, {}, {})
+        new[section] = schema.build_section(cls, data, source, section, {}, {})
     out = dataclasses.replace(cfg, **new)
     spec.check(out, source)
     return out
