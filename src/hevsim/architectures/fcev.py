@@ -202,6 +202,16 @@ def reachable_controls(
     return (fcev.fuel_cell.project(state, dt_s, p),)
 
 
+def committed_energy_j(fcev: FCEV, controls: tuple[np.ndarray, ...], dt_s: float) -> np.ndarray:
+    """Energy [J] each candidate (fuel-cell net powers [W] applied over a step) commits the
+    battery to take after the step if the bus load falls to the auxiliaries at once (the car
+    coasts or brakes, regeneration to the friction brakes): the fuel cell's fastest ramp down to
+    off (:meth:`~hevsim.components.fuel_cell.FuelCellSystem.shutdown_energy_j`). ECMS and A-ECMS
+    keep that much room below ``battery.soc_max`` (:class:`hevsim.control.parallel._GridController`)."""
+    (p,) = controls
+    return np.asarray(fcev.fuel_cell.shutdown_energy_j(p, dt_s, fcev.aux_power_w))
+
+
 CAPABILITY_POINTS = 41
 """Fuel-cell powers the performance envelope tries, idle to rating (the battery must take or give
 the rest, so the rating alone is infeasible at light load)."""

@@ -44,7 +44,12 @@ class _GridController:
     limits) gives its module ``control_state(model, stage=None)`` (what the limits start from:
     before a run, or after the ``stage`` applied) and ``reachable_controls(model, state, dt_s,
     controls)`` (the candidates moved into what is reachable in the step): the scored candidates
-    of a step are then ``reachable_controls`` of the grid (:meth:`candidates`)."""
+    of a step are then ``reachable_controls`` of the grid (:meth:`candidates`). Such an
+    architecture also gives ``committed_energy_j(model, controls, dt_s)``: the energy [J] a
+    candidate commits the battery to take after the step should the bus load fall at once (a
+    fuel cell cannot drop to off faster than its ramp-down limit); the candidates that keep
+    that room below ``battery.soc_max`` come first (:meth:`admissible`), else a full battery
+    and a source still ramping down leave no feasible control even when stopping."""
 
     def __init__(self, hev: Any, control_points: int) -> None:
         from hevsim.architectures import architecture
@@ -56,6 +61,7 @@ class _GridController:
         self.lhv = fuel_converter(hev).fuel_lhv_jpkg
         self._reachable = getattr(module, "reachable_controls", None)
         self._control_state = getattr(module, "control_state", None)
+        self._committed = getattr(module, "committed_energy_j", None)
         self.control_state: Any = None
         # plug-in hybrid ([plugin], hevsim.config.PluginSection): charge depleting above cd_soc,
         # where the EV rule admits wheel powers below cd_ev_power [W] at any speed and ECMS
@@ -99,14 +105,38 @@ class _GridController:
         The battery chemical power is ``-dSOC/dt x Q x OCV`` (the energy the DP's costate
         prices: ``s = -costate x LHV / (Q OCV)``). Candidates: :meth:`candidates`.
         """
-        st, feasible = step.evaluate(*self.candidates(step))
+        cost, feasible, _ = self._score(step, s, self.candidates(step))
+        return cost, feasible
+
+    def _score(self, step: Any, s: float, controls: tuple[np.ndarray, ...]) -> tuple[Any, np.ndarray, Any]:
+        st, feasible = step.evaluate(*controls)
         p_fuel = st.cost_kg / step.dt_s * self.lhv
         p_chem = -st.d_soc / step.dt_s * step.energy_per_soc_j
-        return p_fuel + s * p_chem, feasible
+        return p_fuel + s * p_chem, feasible, st
 
     def best(self, step: Any, s: float) -> Control | None:
-        cost, feasible = self.score(step, s)
-        return self.pick(_argmin_feasible(cost, feasible), self.candidates(step))
+        controls = self.candidates(step)
+        cost, feasible, st = self._score(step, s, controls)
+        return self.pick(_argmin_feasible(cost, self.admissible(step, controls, feasible, st)), controls)
+
+    def admissible(
+        self, step: Any, controls: tuple[np.ndarray, ...], feasible: np.ndarray, stage: Any
+    ) -> np.ndarray:
+        """``feasible`` narrowed to the candidates (``controls``, their power flow ``stage``)
+        whose SOC after the step leaves room below ``step.soc_max`` for the energy they commit
+        the battery to (``committed_energy_j`` of the architecture; Q x OCV per unit SOC, an upper
+        bound of what charging losses let in), when any feasible candidate does; else the
+        feasible ones that overrun that room least (e.g. braking at the top of the window: the
+        fuel cell off, regeneration alone over ``soc_max``, as every controller lets it)."""
+        if self._committed is None or not feasible.any():
+            return feasible
+        room = (step.soc_max - step.soc - np.asarray(stage.d_soc)) * step.energy_per_soc_j
+        excess = np.asarray(self._committed(self.hev, controls, step.dt_s)) - room
+        ok = feasible & (excess <= 0.0)
+        if ok.any():
+            return ok
+        least = float(np.min(excess[feasible]))
+        return feasible & (excess <= least + 1e-9 * max(abs(least), 1.0))
 
     def pick(self, i: int | None, controls: tuple[np.ndarray, ...] | None = None) -> Control | None:
         """Candidate ``i`` of ``controls`` (default the grid) as a control tuple (None for None)."""
