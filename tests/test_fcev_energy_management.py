@@ -238,6 +238,8 @@ def test_dp_replay_burns_the_dp_hydrogen(
     assert isinstance(schedule, InputSchedule)
     r = hevsim.simulate(fcev, cycle, dt_s=1.0, controller=schedule)
     assert r.value("traction_limited_s") == 0.0
+    assert r.metadata["schedule_deviated_steps"] == 0  # the battery the DP saw: every step follows it
+    assert abs(r.metadata["schedule_fuel_difference_kg"]) <= 1e-9 * dp.value("fuel_kg")
     assert abs(r.value("fuel_kg") - dp.dp.total_cost) <= 1e-9 * dp.value("fuel_kg")
     assert np.max(np.abs(r.timeseries["soc"].to_numpy() - dp.timeseries["soc"].to_numpy())) < 1e-9
     _assert_hydrogen_is_energy_over_efficiency(r)
