@@ -13,7 +13,9 @@ power (LHV basis), ``fuel_cell_loss`` what the system does not turn into net DC 
 Controllers: ``load_follower`` (:class:`hevsim.control.simple.LoadFollower`), and the generic
 ECMS / A-ECMS of :mod:`hevsim.control` over :func:`candidate_controls` (0 and the DP's power
 grid), each step's candidates moved into what the ramp limits reach from the previous power
-(:func:`reachable_controls`, :meth:`~hevsim.components.fuel_cell.FuelCellSystem.project`).
+(:func:`reachable_controls`, :meth:`~hevsim.components.fuel_cell.FuelCellSystem.project`),
+preferring those that leave room below ``battery.soc_max`` for the fuel cell's ramp down to off
+(:func:`committed_energy_j`).
 DP formulation: :class:`hevsim.optimal._fcev_dp.FCEVFormulation` (state SOC, input the net
 power on the same grid). The ramp limits make the previous power a second state the SOC-only
 DP does not carry: the DP, and the replay of its optimum, are quasi-static (no ramp limits, as
