@@ -393,29 +393,29 @@ class _Replay:
     reference: dict[str, float]
     deviated_steps: int
     deviated_first_s: float
-    _deviated: bool
+    _deviated: dict[int, bool]
 
     def _clear(self) -> None:
-        self.deviated_steps, self.deviated_first_s, self._deviated = 0, float("nan"), False
+        self.deviated_steps, self.deviated_first_s, self._deviated = 0, float("nan"), {}
 
     def reset(self, soc_initial: float) -> None:
         """Clear the count of deviated steps."""
         self._clear()
 
     def update(self, step: Any, stage: Any) -> None:
-        """Count the step if its control was not the scheduled one."""
-        if self._deviated:
+        """Count the step if its control was not the scheduled one (of the choices made this
+        step, at the trial end speeds of a traction limit too, the one for ``step``)."""
+        if self._deviated.get(id(step), False):
             if self.deviated_steps == 0:
                 self.deviated_first_s = float(step.time_s)
             self.deviated_steps += 1
+        self._deviated.clear()
 
     def follow(self, step: Any, scheduled: Control, continuous: tuple[bool, ...]) -> Control | None:
         """``scheduled`` where feasible, else :func:`closest_feasible` (None if nothing is)."""
         _, feasible = step.evaluate(*(np.array([c]) for c in scheduled))
-        self._deviated = not bool(np.ravel(feasible)[0])
-        if not self._deviated:
-            return scheduled
-        return closest_feasible(step, scheduled, continuous)
+        deviated = self._deviated[id(step)] = not bool(np.ravel(feasible)[0])
+        return closest_feasible(step, scheduled, continuous) if deviated else scheduled
 
     def report(self, metrics: dict[str, Any]) -> dict[str, Any]:
         """``schedule_deviated_steps`` (steps whose scheduled control was infeasible and a
