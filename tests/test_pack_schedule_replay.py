@@ -99,3 +99,46 @@ def test_power_split_pack_replay_runs_through_a_cold_bms() -> None:
     p_run = ts["engine_power_w"].to_numpy()[:-1]
     p_dp = dp.timeseries["engine_power_w"].to_numpy()[:-1]
     assert np.all(p_run[deviated] < p_dp[deviated])  # the engine charges less
+
+
+def _ramp_down_violations(model: object, ts: object) -> np.ndarray:
+    """Steps whose fuel-cell power fell faster than the ramp-down limit allows (to off: from above
+    idle + one step's ramp-down); asserts the ramp-up limit holds at every step."""
+    from hevsim.architectures import fcev as F
+
+    fc = model.fuel_cell  # type: ignore[attr-defined]
+    p = ts["fuel_cell_power_w"].to_numpy()[:-1]  # type: ignore[index]
+    dt = float(np.diff(ts["time_s"].to_numpy())[0])  # type: ignore[index]
+    prev = np.concatenate(([F.control_state(model)], p[:-1]))  # type: ignore[arg-type]
+    up_ok = np.where(prev == 0.0, p <= max(fc.min_power_w, fc.ramp_up_w_per_s * dt) * (1 + 1e-12),
+                     p - prev <= fc.ramp_up_w_per_s * dt * (1 + 1e-12))  # fmt: skip
+    assert up_ok.all()
+    step = fc.ramp_down_w_per_s * dt * (1 + 1e-12)
+    return np.where(p == 0.0, (prev > 0.0) & (prev - step > fc.min_power_w), prev - p > step)
+
+
+@pytest.mark.parametrize(("name", "window", "controller", "cycle"), [
+    ("fcev_pack.toml", {}, {"controller": "load_follower"}, "us06"),
+    ("fcev_pack.toml", {"battery.soc_min": 0.3, "battery.soc_max": 0.9},
+     {"controller": "ecms", "equivalence_factor": 2.0}, "udds"),
+])  # fmt: skip
+def test_fuel_cell_sheds_power_where_the_bms_cannot_take_its_ramp_down(
+    name: str, window: dict[str, float], controller: dict[str, object], cycle: str
+) -> None:
+    """fcev_pack: a fuel cell at 68 kW whose bus load falls to a coast within a second (US06 at
+    13 s) can only drop to 45.6 kW at 22.8 kW/s, and the cold-derated pack takes 49 A: the load
+    follower (the default controller) stopped with 'no feasible control'; ECMS at s = 2 in a
+    0.3-0.9 window at UDDS 196 s the same (BMS charge limit 23 A). Now the fuel cell sheds power
+    faster than its ramp-down limit there, the highest feasible power (the battery at its BMS
+    charge limit), and the run counts those steps (metadata ``ramp_down_overrides``)."""
+    import hevsim
+
+    model = build_vehicle(load_vehicle_config(EXAMPLES / name).replace(**window))
+    r = hevsim.simulate(model, cycle, **controller)
+    ts = r.timeseries
+    shed = _ramp_down_violations(model, ts)
+    assert r.metadata["ramp_down_overrides"] == int(shed.sum()) >= 1
+    _assert_bms_held(ts, np.zeros(shed.shape, dtype=bool))
+    i = ts["pack_current_a"].to_numpy()[:-1]
+    chg = ts["bms_charge_limit_a"].to_numpy()[:-1]
+    assert np.all(-i[shed] >= 0.9 * chg[shed])  # it sheds no more than the BMS makes it (65-point grid)

@@ -214,6 +214,22 @@ def committed_energy_j(fcev: FCEV, controls: tuple[np.ndarray, ...], dt_s: float
     return np.asarray(fcev.fuel_cell.shutdown_energy_j(p, dt_s, fcev.aux_power_w))
 
 
+SHED_POINTS = 65
+"""Running powers from idle to the ramp window's lowest that :func:`shed_controls` offers."""
+
+
+def shed_controls(fcev: FCEV, state: float, dt_s: float) -> tuple[np.ndarray]:
+    """The fallback candidates [W] of a step where no power within the ramp window is feasible
+    (the battery's charge limit, a derated pack's, cannot take what the fuel cell still gives
+    after the bus load fell faster than its ramp-down limit): off and :data:`SHED_POINTS` powers
+    from idle up to the window's lowest, ascending. The fuel cell then sheds power faster than
+    its ``ramp_down_w_per_s``; the controllers take the highest feasible one (the least shed)
+    and count the step (``ramp_down_overrides``)."""
+    fc = fcev.fuel_cell
+    lo, _, _ = fc.reachable_window(state, dt_s)
+    return (np.concatenate(([0.0], np.linspace(fc.min_power_w, max(lo, fc.min_power_w), SHED_POINTS))),)
+
+
 CAPABILITY_POINTS = 41
 """Fuel-cell powers the performance envelope tries, idle to rating (the battery must take or give
 the rest, so the rating alone is infeasible at light load)."""

@@ -62,6 +62,9 @@ class _GridController:
         self._reachable = getattr(module, "reachable_controls", None)
         self._control_state = getattr(module, "control_state", None)
         self._committed = getattr(module, "committed_energy_j", None)
+        self._shed = getattr(module, "shed_controls", None)
+        self.ramp_down_overrides = 0
+        self._shedding: dict[int, bool] = {}
         self.control_state: Any = None
         # plug-in hybrid ([plugin], hevsim.config.PluginSection): charge depleting above cd_soc,
         # where the EV rule admits wheel powers below cd_ev_power [W] at any speed and ECMS
@@ -82,11 +85,31 @@ class _GridController:
         """Before a run: the architecture's control state at the start (if it has one)."""
         if self._control_state is not None:
             self.control_state = self._control_state(self.hev)
+        self.ramp_down_overrides = 0
+        self._shedding = {}
 
     def update(self, step: Any, stage: Any) -> None:
-        """After a step: the architecture's control state after it (if it has one)."""
+        """After a step: the architecture's control state after it (if it has one); count a
+        step whose control had to leave the reachable window (:meth:`shed`)."""
         if self._control_state is not None:
             self.control_state = self._control_state(self.hev, stage)
+        self.ramp_down_overrides += int(self._shedding.get(id(step), False))
+        self._shedding.clear()
+
+    def shed(self, step: Any) -> Control | None:
+        """Where no reachable candidate is feasible: the architecture's ``shed_controls(model,
+        state, dt_s)`` (a fuel cell dropping faster than its ramp-down limit, ascending), the
+        highest feasible one (the least shed), counted in ``ramp_down_overrides``; None if the
+        architecture has none or none is feasible (the forward loop then lowers the end speed)."""
+        if self._shed is None or self.control_state is None:
+            return None
+        controls = tuple(self._shed(self.hev, self.control_state, step.dt_s))
+        _, feasible = step.evaluate(*controls)
+        ok = np.flatnonzero(np.ravel(feasible))
+        if ok.size == 0:
+            return None
+        self._shedding[id(step)] = True
+        return self.pick(int(ok[-1]), controls)
 
     def candidates(self, step: Any) -> tuple[np.ndarray, ...]:
         """The candidate controls of ``step``: the grid, moved into what the architecture can
@@ -117,6 +140,9 @@ class _GridController:
     def best(self, step: Any, s: float) -> Control | None:
         controls = self.candidates(step)
         cost, feasible, st = self._score(step, s, controls)
+        if not feasible.any():
+            return self.shed(step)
+        self._shedding.pop(id(step), None)
         return self.pick(_argmin_feasible(cost, self.admissible(step, controls, feasible, st)), controls)
 
     def admissible(

@@ -290,6 +290,8 @@ def simulate_architecture(
     }  # fmt: skip
     if hasattr(ctl, "s"):
         metadata["equivalence_factor_final"] = float(ctl.s)
+    if getattr(ctl, "_shed", True) is not None and hasattr(ctl, "ramp_down_overrides"):  # a fuel cell
+        metadata["ramp_down_overrides"] = int(ctl.ramp_down_overrides)
     if hasattr(ctl, "deviated_steps"):  # a schedule replay: steps it could not follow (hevsim.control)
         metadata.update(ctl.report(metrics))
         if ctl.deviated_steps:
