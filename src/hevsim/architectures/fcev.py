@@ -19,7 +19,9 @@ preferring those that leave room below ``battery.soc_max`` for the fuel cell's r
 DP formulation: :class:`hevsim.optimal._fcev_dp.FCEVFormulation` (state SOC, input the net
 power on the same grid). The ramp limits make the previous power a second state the SOC-only
 DP does not carry: the DP, and the replay of its optimum, are quasi-static (no ramp limits, as
-the series DP has no cranking); the online controllers honour them at every step.
+the series DP has no cranking); the online controllers honour them at every step, but shed
+power faster than the ramp-down limit where no power of the ramp window is feasible
+(:func:`shed_controls`, counted).
 """
 
 from __future__ import annotations
