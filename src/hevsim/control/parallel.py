@@ -138,11 +138,11 @@ class _GridController:
         return p_fuel + s * p_chem, feasible, st
 
     def best(self, step: Any, s: float) -> Control | None:
+        self._shedding[id(step)] = False  # (ids of steps gone are reused)
         controls = self.candidates(step)
         cost, feasible, st = self._score(step, s, controls)
         if not feasible.any():
             return self.shed(step)
-        self._shedding.pop(id(step), None)
         return self.pick(_argmin_feasible(cost, self.admissible(step, controls, feasible, st)), controls)
 
     def admissible(
@@ -446,8 +446,8 @@ class _Replay:
     def report(self, metrics: dict[str, Any]) -> dict[str, Any]:
         """``schedule_deviated_steps`` (steps whose scheduled control was infeasible and a
         closest feasible one was applied), ``schedule_deviated_first_s`` [s] (None: none) and,
-        for a DP schedule, ``schedule_fuel_difference_kg`` and ``schedule_soc_final_difference``
-        (this run less the DP's)."""
+        for a DP schedule, ``schedule_fuel_difference_kg``, ``schedule_soc_final_difference`` and
+        ``schedule_soc_initial_difference`` (this run less the DP's)."""
         out: dict[str, Any] = {
             "schedule_deviated_steps": int(self.deviated_steps),
             "schedule_deviated_first_s": self.deviated_first_s if self.deviated_steps else None,
@@ -455,6 +455,7 @@ class _Replay:
         for key, name in (
             ("fuel_kg", "schedule_fuel_difference_kg"),
             ("soc_final", "schedule_soc_final_difference"),
+            ("soc_initial", "schedule_soc_initial_difference"),  # a DP from another SOC: not a deviation
         ):
             if key in self.reference and key in metrics:
                 out[name] = float(metrics[key]["value"]) - self.reference[key]
@@ -462,7 +463,8 @@ class _Replay:
 
 
 def _dp_reference(result: Any) -> dict[str, float]:
-    return {k: float(result.metrics[k]["value"]) for k in ("fuel_kg", "soc_final") if k in result.metrics}
+    keys = ("fuel_kg", "soc_final", "soc_initial")
+    return {k: float(result.metrics[k]["value"]) for k in keys if k in result.metrics}
 
 
 @dataclass

@@ -152,6 +152,7 @@ class LoadFollower:
 
     def choose(self, step: Any) -> tuple[float] | None:
         """The target within the ramp window, else the window's feasible power nearest to it."""
+        self._shedding[id(step)] = False  # (ids of steps gone are reused)
         lo, hi = self.model.fuel_cell.ramp_window(self.previous_w, step.dt_s)
         target = min(max(self.target_w(step), lo), hi)
         _, feasible = step.evaluate(np.array([target]))
@@ -162,7 +163,6 @@ class LoadFollower:
         ok = np.ravel(feasible)
         if not ok.any():
             return self.shed(step)
-        self._shedding.pop(id(step), None)
         i = int(np.argmin(np.where(ok, np.abs(cands - target), np.inf)))
         return (float(cands[i]),)
 
@@ -177,5 +177,6 @@ class LoadFollower:
         ok = np.flatnonzero(np.ravel(feasible))
         if ok.size == 0:
             return None
-        self._shedding[id(step)] = True
-        return (float(cands[ok[-1]]),)
+        p = float(cands[ok[-1]])  # off may be reachable (the ramp window holds none)
+        self._shedding[id(step)] = not bool(self.model.fuel_cell.reachable(self.previous_w, step.dt_s, p))
+        return (p,)
