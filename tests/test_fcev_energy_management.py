@@ -238,6 +238,8 @@ def test_dp_replay_burns_the_dp_hydrogen(
     assert isinstance(schedule, InputSchedule)
     r = hevsim.simulate(fcev, cycle, dt_s=1.0, controller=schedule)
     assert r.value("traction_limited_s") == 0.0
+    assert r.metadata["schedule_deviated_steps"] == 0  # the battery the DP saw: every step follows it
+    assert abs(r.metadata["schedule_fuel_difference_kg"]) <= 1e-9 * dp.value("fuel_kg")
     assert abs(r.value("fuel_kg") - dp.dp.total_cost) <= 1e-9 * dp.value("fuel_kg")
     assert np.max(np.abs(r.timeseries["soc"].to_numpy() - dp.timeseries["soc"].to_numpy())) < 1e-9
     _assert_hydrogen_is_energy_over_efficiency(r)
@@ -291,3 +293,57 @@ def test_study_ecms_tuned_from_the_case_dp(fcev: F.FCEV) -> None:
     ref = hevsim.simulate(cfg, "hwfet", controller="ecms", equivalence_factor=s)
     got = rows[rows["solver"] == "simulate[controller=ecms_dp]"].iloc[0]
     assert got["fuel_kg"] == pytest.approx(ref.value("fuel_kg"), rel=1e-12)
+
+
+def test_shutdown_energy_is_the_ramp_down_sum(fcev: F.FCEV) -> None:
+    """The energy a fuel cell at power P still gives on its fastest way to off (22.8 kW/s ramp,
+    idle 1.5 kW, bus load 0.3 kW), summed by hand: from 114 kW it runs 91.2, 68.4, 45.6 and
+    22.8 kW (from 22.8 kW off is reachable: 22.8 - 22.8 <= 1.5); from 30 kW, 7.2 kW; with
+    0.5 s steps from 30 kW, 18.6 and 7.2 kW; from idle + one step's ramp-down or less, and
+    off, nothing."""
+    fc = fcev.fuel_cell
+    assert (fc.ramp_down_w_per_s, fc.min_power_w) == (22800.0, 1500.0)
+    e = fc.shutdown_energy_j(np.array([114e3, 30e3, 24.3e3, 1500.0, 0.0]), 1.0, 300.0)
+    want = [(91.2e3 + 68.4e3 + 45.6e3 + 22.8e3) - 4 * 300.0, 7.2e3 - 300.0, 0.0, 0.0, 0.0]
+    assert e == pytest.approx(want, rel=1e-12, abs=1e-9)
+    assert fc.shutdown_energy_j(30e3, 0.5, 300.0) == pytest.approx((18.6e3 + 7.2e3 - 600.0) * 0.5, rel=1e-12)
+
+
+def _wide_window(fcev: F.FCEV) -> F.FCEV:
+    """The reported vehicle: SOC window 0.3-0.9 and 200 A current limits."""
+    return build_vehicle(
+        fcev.config.replace(**{"battery.soc_min": 0.3, "battery.soc_max": 0.9,
+                               "battery.max_discharge_current_a": 200.0,
+                               "battery.max_charge_current_a": 200.0})
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(("cycle", "s"), [("udds", 3.0), ("hwfet", 3.0), ("us06", 3.0), ("us06", 2.0),
+                                          ("udds", 2.5)])  # fmt: skip
+def test_ecms_keeps_room_for_the_fuel_cells_ramp_down(fcev: F.FCEV, cycle: str, s: float) -> None:
+    """A factor that charges hard drove the SOC to ``soc_max`` with the fuel cell at tens of kW;
+    the next step the full battery may not charge, the fuel cell cannot reach off within its
+    ramp-down limit, and the run stopped with 'no feasible control ... even when stopping'
+    (UDDS s = 3 at 72 s, HWFET at 74 s, US06 s = 2 at 422 s; the load follower ran). ECMS now
+    keeps room for the fuel cell's ramp down (:meth:`FuelCellSystem.shutdown_energy_j`): the run
+    ends, the ramps and the current limits hold, and the SOC exceeds ``soc_max`` at most by
+    one step of braking (as with any controller)."""
+    wide = _wide_window(fcev)
+    assert hevsim.simulate(wide, cycle, controller="load_follower").value("fuel_kg") > 0.0
+    r = hevsim.simulate(wide, cycle, controller="ecms", equivalence_factor=s)
+    _assert_ramps_hold(wide, r)
+    ts = r.timeseries
+    assert np.max(np.abs(ts["battery_current_a"].to_numpy()[:-1])) <= 200.0 * (1 + 1e-9)
+    assert ts["soc"].max() < 0.9 + 0.01
+    assert abs(r.energy_audit["residual"]) < 1e-11 * r.value("traction_energy_j")
+
+
+@pytest.mark.parametrize("cycle", ["udds", "hwfet", "us06"])
+def test_aecms_runs_in_the_wide_window(fcev: F.FCEV, cycle: str) -> None:
+    """The same vehicle with A-ECMS starting near the top (SOC 0.85) from a factor that charges
+    hard (s0 = 5, kp = 5): it stopped 8 s into each cycle."""
+    wide = _wide_window(fcev)
+    r = hevsim.simulate(wide, cycle, controller="aecms", equivalence_factor=5.0, aecms_kp=5.0,
+                        soc_initial=0.85)  # fmt: skip
+    _assert_ramps_hold(wide, r)
+    assert r.timeseries["soc"].max() < 0.9 + 0.01

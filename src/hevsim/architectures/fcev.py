@@ -13,11 +13,15 @@ power (LHV basis), ``fuel_cell_loss`` what the system does not turn into net DC 
 Controllers: ``load_follower`` (:class:`hevsim.control.simple.LoadFollower`), and the generic
 ECMS / A-ECMS of :mod:`hevsim.control` over :func:`candidate_controls` (0 and the DP's power
 grid), each step's candidates moved into what the ramp limits reach from the previous power
-(:func:`reachable_controls`, :meth:`~hevsim.components.fuel_cell.FuelCellSystem.project`).
+(:func:`reachable_controls`, :meth:`~hevsim.components.fuel_cell.FuelCellSystem.project`),
+preferring those that leave room below ``battery.soc_max`` for the fuel cell's ramp down to off
+(:func:`committed_energy_j`).
 DP formulation: :class:`hevsim.optimal._fcev_dp.FCEVFormulation` (state SOC, input the net
 power on the same grid). The ramp limits make the previous power a second state the SOC-only
 DP does not carry: the DP, and the replay of its optimum, are quasi-static (no ramp limits, as
-the series DP has no cranking); the online controllers honour them at every step.
+the series DP has no cranking); the online controllers honour them at every step, but shed
+power faster than the ramp-down limit where no power of the ramp window is feasible
+(:func:`shed_controls`, counted).
 """
 
 from __future__ import annotations
@@ -200,6 +204,32 @@ def reachable_controls(
     the candidates an online controller scores at a step."""
     (p,) = controls
     return (fcev.fuel_cell.project(state, dt_s, p),)
+
+
+def committed_energy_j(fcev: FCEV, controls: tuple[np.ndarray, ...], dt_s: float) -> np.ndarray:
+    """Energy [J] each candidate (fuel-cell net powers [W] applied over a step) commits the
+    battery to take after the step if the bus load falls to the auxiliaries at once (the car
+    coasts or brakes, regeneration to the friction brakes): the fuel cell's fastest ramp down to
+    off (:meth:`~hevsim.components.fuel_cell.FuelCellSystem.shutdown_energy_j`). ECMS and A-ECMS
+    keep that much room below ``battery.soc_max`` (:class:`hevsim.control.parallel._GridController`)."""
+    (p,) = controls
+    return np.asarray(fcev.fuel_cell.shutdown_energy_j(p, dt_s, fcev.aux_power_w))
+
+
+SHED_POINTS = 65
+"""Running powers from idle to the ramp window's lowest that :func:`shed_controls` offers."""
+
+
+def shed_controls(fcev: FCEV, state: float, dt_s: float) -> tuple[np.ndarray]:
+    """The fallback candidates [W] of a step where no power within the ramp window is feasible
+    (the battery's charge limit, a derated pack's, cannot take what the fuel cell still gives
+    after the bus load fell faster than its ramp-down limit): off and :data:`SHED_POINTS` powers
+    from idle up to the window's lowest, ascending. The fuel cell then sheds power faster than
+    its ``ramp_down_w_per_s``; the controllers take the highest feasible one (the least shed)
+    and count the step (``ramp_down_overrides``)."""
+    fc = fcev.fuel_cell
+    lo, _, _ = fc.reachable_window(state, dt_s)
+    return (np.concatenate(([0.0], np.linspace(fc.min_power_w, max(lo, fc.min_power_w), SHED_POINTS))),)
 
 
 CAPABILITY_POINTS = 41

@@ -114,6 +114,27 @@ class FuelCellSystem:
         p = np.asarray(net_power_w, dtype=np.float64)
         return np.where((p == 0.0) & off_ok, 0.0, np.clip(p, lo, hi))
 
+    def shutdown_energy_j(self, net_power_w: Any, dt_s: float, load_w: float = 0.0) -> Any:
+        """Net energy [J] the system still delivers above a bus load ``load_w`` [W] on its fastest
+        way from ``net_power_w`` [W] (array-like) to off, in steps of ``dt_s`` [s]: each step at
+        the lowest power the ramp-down limit reaches (never below idle) until off is reachable
+        (:meth:`reachable_window`): ``sum_j max(P_j - load, 0) dt`` with ``P_j = max(P - j r dt,
+        idle)`` while ``P_{j-1} - r dt > idle``. 0 where off is reachable in the next step. What
+        the battery must be able to take if the bus load falls to ``load_w`` at once (a full
+        battery cannot: :class:`hevsim.control.parallel._GridController`)."""
+        p = np.asarray(net_power_w, dtype=np.float64)
+        step = self.ramp_down_w_per_s * float(dt_s)
+        out = np.zeros(p.shape)
+        cur = p.copy()
+        if step <= 0.0:
+            return np.where(p > 0.0, np.inf, 0.0)
+        while True:
+            running = cur - step > self.min_power_w  # off is not reachable from cur yet
+            if not running.any():
+                return out
+            cur = np.where(running, np.maximum(cur - step, self.min_power_w), 0.0)
+            out += np.where(running, np.maximum(cur - load_w, 0.0) * float(dt_s), 0.0)
+
     @classmethod
     def from_directory(cls, folder: Path, key: str = "fuel_cell.data", **kw: Any) -> FuelCellSystem:
         """Read ``folder/efficiency.csv`` (columns ``net_power_fraction``, ``efficiency``),

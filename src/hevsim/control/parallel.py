@@ -10,7 +10,7 @@ function the DP evaluates over its grid. The candidate grid is
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -44,7 +44,12 @@ class _GridController:
     limits) gives its module ``control_state(model, stage=None)`` (what the limits start from:
     before a run, or after the ``stage`` applied) and ``reachable_controls(model, state, dt_s,
     controls)`` (the candidates moved into what is reachable in the step): the scored candidates
-    of a step are then ``reachable_controls`` of the grid (:meth:`candidates`)."""
+    of a step are then ``reachable_controls`` of the grid (:meth:`candidates`). Such an
+    architecture also gives ``committed_energy_j(model, controls, dt_s)``: the energy [J] a
+    candidate commits the battery to take after the step should the bus load fall at once (a
+    fuel cell cannot drop to off faster than its ramp-down limit); the candidates that keep
+    that room below ``battery.soc_max`` come first (:meth:`admissible`), else a full battery
+    and a source still ramping down leave no feasible control even when stopping."""
 
     def __init__(self, hev: Any, control_points: int) -> None:
         from hevsim.architectures import architecture
@@ -56,6 +61,10 @@ class _GridController:
         self.lhv = fuel_converter(hev).fuel_lhv_jpkg
         self._reachable = getattr(module, "reachable_controls", None)
         self._control_state = getattr(module, "control_state", None)
+        self._committed = getattr(module, "committed_energy_j", None)
+        self._shed = getattr(module, "shed_controls", None)
+        self.ramp_down_overrides = 0
+        self._shedding: dict[int, bool] = {}
         self.control_state: Any = None
         # plug-in hybrid ([plugin], hevsim.config.PluginSection): charge depleting above cd_soc,
         # where the EV rule admits wheel powers below cd_ev_power [W] at any speed and ECMS
@@ -76,11 +85,31 @@ class _GridController:
         """Before a run: the architecture's control state at the start (if it has one)."""
         if self._control_state is not None:
             self.control_state = self._control_state(self.hev)
+        self.ramp_down_overrides = 0
+        self._shedding = {}
 
     def update(self, step: Any, stage: Any) -> None:
-        """After a step: the architecture's control state after it (if it has one)."""
+        """After a step: the architecture's control state after it (if it has one); count a
+        step whose control had to leave the reachable window (:meth:`shed`)."""
         if self._control_state is not None:
             self.control_state = self._control_state(self.hev, stage)
+        self.ramp_down_overrides += int(self._shedding.get(id(step), False))
+        self._shedding.clear()
+
+    def shed(self, step: Any) -> Control | None:
+        """Where no reachable candidate is feasible: the architecture's ``shed_controls(model,
+        state, dt_s)`` (a fuel cell dropping faster than its ramp-down limit, ascending), the
+        highest feasible one (the least shed), counted in ``ramp_down_overrides``; None if the
+        architecture has none or none is feasible (the forward loop then lowers the end speed)."""
+        if self._shed is None or self.control_state is None:
+            return None
+        controls = tuple(self._shed(self.hev, self.control_state, step.dt_s))
+        _, feasible = step.evaluate(*controls)
+        ok = np.flatnonzero(np.ravel(feasible))
+        if ok.size == 0:
+            return None
+        self._shedding[id(step)] = True
+        return self.pick(int(ok[-1]), controls)
 
     def candidates(self, step: Any) -> tuple[np.ndarray, ...]:
         """The candidate controls of ``step``: the grid, moved into what the architecture can
@@ -99,14 +128,41 @@ class _GridController:
         The battery chemical power is ``-dSOC/dt x Q x OCV`` (the energy the DP's costate
         prices: ``s = -costate x LHV / (Q OCV)``). Candidates: :meth:`candidates`.
         """
-        st, feasible = step.evaluate(*self.candidates(step))
+        cost, feasible, _ = self._score(step, s, self.candidates(step))
+        return cost, feasible
+
+    def _score(self, step: Any, s: float, controls: tuple[np.ndarray, ...]) -> tuple[Any, np.ndarray, Any]:
+        st, feasible = step.evaluate(*controls)
         p_fuel = st.cost_kg / step.dt_s * self.lhv
         p_chem = -st.d_soc / step.dt_s * step.energy_per_soc_j
-        return p_fuel + s * p_chem, feasible
+        return p_fuel + s * p_chem, feasible, st
 
     def best(self, step: Any, s: float) -> Control | None:
-        cost, feasible = self.score(step, s)
-        return self.pick(_argmin_feasible(cost, feasible), self.candidates(step))
+        self._shedding[id(step)] = False  # (ids of steps gone are reused)
+        controls = self.candidates(step)
+        cost, feasible, st = self._score(step, s, controls)
+        if not feasible.any():
+            return self.shed(step)
+        return self.pick(_argmin_feasible(cost, self.admissible(step, controls, feasible, st)), controls)
+
+    def admissible(
+        self, step: Any, controls: tuple[np.ndarray, ...], feasible: np.ndarray, stage: Any
+    ) -> np.ndarray:
+        """``feasible`` narrowed to the candidates (``controls``, their power flow ``stage``)
+        whose SOC after the step leaves room below ``step.soc_max`` for the energy they commit
+        the battery to (``committed_energy_j`` of the architecture; Q x OCV per unit SOC, an upper
+        bound of what charging losses let in), when any feasible candidate does; else the
+        feasible ones that overrun that room least (e.g. braking at the top of the window: the
+        fuel cell off, regeneration alone over ``soc_max``, as every controller lets it)."""
+        if self._committed is None or not feasible.any():
+            return feasible
+        room = (step.soc_max - step.soc - np.asarray(stage.d_soc)) * step.energy_per_soc_j
+        excess = np.asarray(self._committed(self.hev, controls, step.dt_s)) - room
+        ok = feasible & (excess <= 0.0)
+        if ok.any():
+            return ok
+        least = float(np.min(excess[feasible]))
+        return feasible & (excess <= least + 1e-9 * max(abs(least), 1.0))
 
     def pick(self, i: int | None, controls: tuple[np.ndarray, ...] | None = None) -> Control | None:
         """Candidate ``i`` of ``controls`` (default the grid) as a control tuple (None for None)."""
@@ -304,17 +360,127 @@ class ElectricAssist(_RuleBased):
         return self.pick(_argmin_feasible(cost, feasible))
 
 
+REPLAY_SEGMENT_POINTS = 65
+"""Points per pass (two passes) along the segment from an infeasible scheduled control to the
+closest feasible candidate: the replay's fallback lands within 1/4096 of that segment of the
+feasibility boundary."""
+
+
+def closest_feasible(step: Any, scheduled: Control, continuous: tuple[bool, ...]) -> Control | None:
+    """The feasible control of ``step`` closest to ``scheduled`` (None if no candidate is).
+
+    Candidates: the architecture's ``candidate_controls`` grid (``[controller] control_points``);
+    the closest feasible one by the sum over controls of ``|c - scheduled| / range of c``. Then,
+    when it differs from ``scheduled`` in ``continuous`` controls only (``continuous[j]``: control
+    ``j`` varies continuously, e.g. a throttle or a power, not a gear), the feasible point of the
+    straight segment between them nearest to ``scheduled`` (two passes of
+    :data:`REPLAY_SEGMENT_POINTS`): where the BMS limits the battery below what the schedule
+    needs, the fuel converter gives or takes only the difference (the friction brakes take the
+    regeneration the battery may not)."""
+    from hevsim.architectures import architecture
+
+    model = step.model
+    cfg = model.config
+    module = architecture(cfg.architecture).power_module()
+    grid = tuple(np.asarray(g, dtype=np.float64) for g in module.candidate_controls(
+        model, int(getattr(cfg.controller, "control_points", 21))))  # fmt: skip
+    _, feasible = step.evaluate(*grid)
+    ok = np.ravel(feasible)
+    if not ok.any():
+        return None
+    dist = np.zeros(ok.shape)
+    for g, c in zip(grid, scheduled, strict=True):
+        dist += np.abs(g - c) / max(float(np.ptp(g)), 1e-12)
+    i = int(np.argmin(np.where(ok, dist, np.inf)))
+    good = np.array([float(g[i]) for g in grid])
+    bad = np.asarray(scheduled, dtype=np.float64)
+    fixed = ~np.asarray(continuous, dtype=bool)
+    if np.any(good[fixed] != bad[fixed]):
+        return tuple(float(x) for x in good)
+    lo, hi = 0.0, 1.0  # segment parameter: 0 = scheduled (infeasible), 1 = good (feasible)
+    for _ in range(2):
+        t = np.linspace(lo, hi, REPLAY_SEGMENT_POINTS)
+        pts = bad[:, None] + (good - bad)[:, None] * t[None, :]
+        _, f = step.evaluate(*pts)
+        j = int(np.flatnonzero(np.ravel(f))[0]) if np.ravel(f).any() else t.size - 1
+        lo, hi = (t[j - 1], t[j]) if j > 0 else (t[0], t[0])
+    x = bad + (good - bad) * hi
+    _, f = step.evaluate(*(np.array([v]) for v in x))
+    return tuple(float(v) for v in (x if np.ravel(f)[0] else good))
+
+
+class _Replay:
+    """Shared part of the schedule replays: where the scheduled control is infeasible (a pack's
+    BMS limits the battery below the nominal limits the DP saw, a derated or full pack) the
+    replay takes the closest feasible control (:func:`closest_feasible`) instead of stopping,
+    and counts those steps. :meth:`report` gives the run's metadata: the steps that deviated,
+    and, for a schedule from a DP result, the fuel and final SOC differences to it."""
+
+    reference: dict[str, float]
+    deviated_steps: int
+    deviated_first_s: float
+    _deviated: dict[int, bool]
+
+    def _clear(self) -> None:
+        self.deviated_steps, self.deviated_first_s, self._deviated = 0, float("nan"), {}
+
+    def reset(self, soc_initial: float) -> None:
+        """Clear the count of deviated steps."""
+        self._clear()
+
+    def update(self, step: Any, stage: Any) -> None:
+        """Count the step if its control was not the scheduled one (of the choices made this
+        step, at the trial end speeds of a traction limit too, the one for ``step``)."""
+        if self._deviated.get(id(step), False):
+            if self.deviated_steps == 0:
+                self.deviated_first_s = float(step.time_s)
+            self.deviated_steps += 1
+        self._deviated.clear()
+
+    def follow(self, step: Any, scheduled: Control, continuous: tuple[bool, ...]) -> Control | None:
+        """``scheduled`` where feasible, else :func:`closest_feasible` (None if nothing is)."""
+        _, feasible = step.evaluate(*(np.array([c]) for c in scheduled))
+        deviated = self._deviated[id(step)] = not bool(np.ravel(feasible)[0])
+        return closest_feasible(step, scheduled, continuous) if deviated else scheduled
+
+    def report(self, metrics: dict[str, Any]) -> dict[str, Any]:
+        """``schedule_deviated_steps`` (steps whose scheduled control was infeasible and a
+        closest feasible one was applied), ``schedule_deviated_first_s`` [s] (None: none) and,
+        for a DP schedule, ``schedule_fuel_difference_kg``, ``schedule_soc_final_difference`` and
+        ``schedule_soc_initial_difference`` (this run less the DP's)."""
+        out: dict[str, Any] = {
+            "schedule_deviated_steps": int(self.deviated_steps),
+            "schedule_deviated_first_s": self.deviated_first_s if self.deviated_steps else None,
+        }
+        for key, name in (
+            ("fuel_kg", "schedule_fuel_difference_kg"),
+            ("soc_final", "schedule_soc_final_difference"),
+            ("soc_initial", "schedule_soc_initial_difference"),  # a DP from another SOC: not a deviation
+        ):
+            if key in self.reference and key in metrics:
+                out[name] = float(metrics[key]["value"]) - self.reference[key]
+        return out
+
+
+def _dp_reference(result: Any) -> dict[str, float]:
+    keys = ("fuel_kg", "soc_final", "soc_initial")
+    return {k: float(result.metrics[k]["value"]) for k in keys if k in result.metrics}
+
+
 @dataclass
-class ControlSchedule:
+class ControlSchedule(_Replay):
     """Replay a control sequence: ``gear`` [1..G, 0 = engine off] (the engine speed [rad/s]
     for the power split) and ``throttle`` [-] per step starting at ``time_s`` [s] (each holds
-    until the next time), e.g. a DP optimum."""
+    until the next time), e.g. a DP optimum. Where the scheduled control is infeasible the
+    closest feasible one is applied and counted (:class:`_Replay`); ``reference``: the DP's
+    ``fuel_kg`` and ``soc_final`` the report compares with."""
 
     time_s: np.ndarray
     gear: np.ndarray
     throttle: np.ndarray
     source: str = "schedule"
     name: str = "schedule"
+    reference: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         t, g, u = (np.asarray(a, dtype=np.float64) for a in (self.time_s, self.gear, self.throttle))
@@ -323,6 +489,7 @@ class ControlSchedule:
         if np.any(~np.isfinite(u)) or np.any((u < 0) | (u > 1)):
             raise ConfigError(f"{self.source}: throttle must be finite and within 0..1.")
         self.time_s, self.gear, self.throttle = t, g, u
+        self._clear()
 
     @classmethod
     def from_optimization(cls, result: Any) -> ControlSchedule | InputSchedule:
@@ -343,21 +510,16 @@ class ControlSchedule:
             )
         ts = result.timeseries
         return cls(ts["time_s"].to_numpy(), ts[first].to_numpy(), ts["engine_throttle"].to_numpy(),
-                   source=f"DP optimum on {result.cycle.name}")  # fmt: skip
-
-    def reset(self, soc_initial: float) -> None:
-        """Nothing to reset."""
-
-    def update(self, step: Any, stage: Any) -> None:
-        """Nothing to remember."""
+                   source=f"DP optimum on {result.cycle.name}", reference=_dp_reference(result))  # fmt: skip
 
     def choose(self, step: Any) -> Control | None:
-        """The scheduled control at the step's start time (None if infeasible)."""
+        """The scheduled control at the step's start time; where infeasible, the closest
+        feasible one (None if no control is feasible)."""
         i = int(np.clip(np.searchsorted(self.time_s, step.time_s + 1e-9, side="right") - 1, 0, None))
         u = float(self.throttle[i])
         g = float(self.gear[i]) if u > 0 else 1.0
-        _, feasible = step.evaluate(np.array([max(g, 1.0)]), np.array([u]))
-        return (max(g, 1.0), u) if feasible[0] else None
+        speed = step.model.config.architecture != "parallel"  # the power split's engine speed; a gear is not
+        return self.follow(step, (max(g, 1.0), u), (speed, True))
 
 
 def replayed_inputs(architecture: str) -> tuple[str, ...]:
@@ -371,15 +533,17 @@ def replayed_inputs(architecture: str) -> tuple[str, ...]:
 
 
 @dataclass
-class InputSchedule:
+class InputSchedule(_Replay):
     """Replay the inputs of a DP optimum as the DP took them: ``controls`` holds one array per
     control of the architecture's ``power_flow`` (the series HEV: genset electrical power [W]),
-    each value applying from ``time_s`` [s] until the next time."""
+    each value applying from ``time_s`` [s] until the next time. Where the scheduled control is
+    infeasible the closest feasible one is applied and counted (:class:`_Replay`)."""
 
     time_s: np.ndarray
     controls: tuple[np.ndarray, ...]
     source: str = "schedule"
     name: str = "schedule"
+    reference: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         t = np.asarray(self.time_s, dtype=np.float64)
@@ -389,6 +553,7 @@ class InputSchedule:
         if not all(np.isfinite(c).all() for c in cs):
             raise ConfigError(f"{self.source}: every control value must be finite.")
         self.time_s, self.controls = t, cs
+        self._clear()
 
     @classmethod
     def from_optimization(cls, result: Any) -> InputSchedule:
@@ -401,20 +566,13 @@ class InputSchedule:
             )
         ts = result.timeseries
         return cls(ts["time_s"].to_numpy(), tuple(ts[c].to_numpy() for c in columns),
-                   source=f"DP optimum on {result.cycle.name}")  # fmt: skip
-
-    def reset(self, soc_initial: float) -> None:
-        """Nothing to reset."""
-
-    def update(self, step: Any, stage: Any) -> None:
-        """Nothing to remember."""
+                   source=f"DP optimum on {result.cycle.name}", reference=_dp_reference(result))  # fmt: skip
 
     def choose(self, step: Any) -> Control | None:
-        """The scheduled control at the step's start time (None if infeasible)."""
+        """The scheduled control at the step's start time; where infeasible, the closest
+        feasible one (None if no control is feasible)."""
         i = int(np.clip(np.searchsorted(self.time_s, step.time_s + 1e-9, side="right") - 1, 0, None))
-        control = tuple(float(c[i]) for c in self.controls)
-        _, feasible = step.evaluate(*(np.array([c]) for c in control))
-        return control if feasible[0] else None
+        return self.follow(step, tuple(float(c[i]) for c in self.controls), (True,) * len(self.controls))
 
 
 def ecms_from_dp(result: Any) -> dict[str, float]:

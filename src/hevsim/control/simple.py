@@ -123,15 +123,21 @@ class LoadFollower:
         self.charge_power = float(charge_power_w)
         self.initial_w = float(model.config.fuel_cell.initial_power_w)
         self.previous_w = self.initial_w
+        self.ramp_down_overrides = 0
+        self._shedding: dict[int, bool] = {}
 
     def reset(self, soc_initial: float) -> None:
         """The fuel cell at its configured initial power (clipped to idle and rating)."""
         fc = self.model.fuel_cell
         self.previous_w = min(max(self.initial_w, fc.min_power_w), fc.max_power_w)
+        self.ramp_down_overrides = 0
+        self._shedding = {}
 
     def update(self, step: Any, stage: Any) -> None:
         """Remember the net power applied [W] (the ramp limits start from it)."""
         self.previous_w = float(np.ravel(stage.details["fuel_cell_power_w"])[0])
+        self.ramp_down_overrides += int(self._shedding.get(id(step), False))
+        self._shedding.clear()
 
     def target_w(self, step: Any) -> float:
         """The load-following target [W] of ``step`` before the ramp limits."""
@@ -146,6 +152,7 @@ class LoadFollower:
 
     def choose(self, step: Any) -> tuple[float] | None:
         """The target within the ramp window, else the window's feasible power nearest to it."""
+        self._shedding[id(step)] = False  # (ids of steps gone are reused)
         lo, hi = self.model.fuel_cell.ramp_window(self.previous_w, step.dt_s)
         target = min(max(self.target_w(step), lo), hi)
         _, feasible = step.evaluate(np.array([target]))
@@ -155,6 +162,21 @@ class LoadFollower:
         _, feasible = step.evaluate(cands)
         ok = np.ravel(feasible)
         if not ok.any():
-            return None
+            return self.shed(step)
         i = int(np.argmin(np.where(ok, np.abs(cands - target), np.inf)))
         return (float(cands[i]),)
+
+    def shed(self, step: Any) -> tuple[float] | None:
+        """No power of the ramp window feasible: the highest feasible of
+        :func:`hevsim.architectures.fcev.shed_controls` (faster than the ramp-down limit; counted
+        in ``ramp_down_overrides``), else None."""
+        from hevsim.architectures.fcev import shed_controls
+
+        (cands,) = shed_controls(self.model, self.previous_w, step.dt_s)
+        _, feasible = step.evaluate(cands)
+        ok = np.flatnonzero(np.ravel(feasible))
+        if ok.size == 0:
+            return None
+        p = float(cands[ok[-1]])  # off may be reachable (the ramp window holds none)
+        self._shedding[id(step)] = not bool(self.model.fuel_cell.reachable(self.previous_w, step.dt_s, p))
+        return (p,)

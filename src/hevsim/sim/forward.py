@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import logging
 import os
 import platform
 import time
@@ -90,6 +91,8 @@ SOURCES = ("fuel", "genset_source", "battery_chemical")
 INT_COLUMNS = ("gear", "power_mode", "traction_limited")
 BOOL_COLUMNS = ("engine_on", "clutch_closed", "clutch_slipping", "fuel_cut")
 
+
+LOG = logging.getLogger("hevsim")
 
 FORWARD_ENV = "HEVSIM_FORWARD"
 """Environment variable: ``python`` makes :func:`simulate_architecture` default to the Python
@@ -287,6 +290,20 @@ def simulate_architecture(
     }  # fmt: skip
     if hasattr(ctl, "s"):
         metadata["equivalence_factor_final"] = float(ctl.s)
+    if getattr(ctl, "_shed", True) is not None and hasattr(ctl, "ramp_down_overrides"):  # a fuel cell
+        metadata["ramp_down_overrides"] = int(ctl.ramp_down_overrides)
+    if hasattr(ctl, "deviated_steps"):  # a schedule replay: steps it could not follow (hevsim.control)
+        metadata.update(ctl.report(metrics))
+        if ctl.deviated_steps:
+            LOG.warning(
+                "%s on %s: the schedule's control was infeasible at %d step(s) from t = %g s (e.g. "
+                "the BMS limits the battery below what the schedule needs); the closest feasible "
+                "control was applied (metadata schedule_*).",
+                model.name,
+                cyc.name,
+                ctl.deviated_steps,
+                ctl.deviated_first_s,
+            )
     return SimulationResult(ts, metrics, audit, events, metadata, model, cyc)
 
 
