@@ -54,6 +54,18 @@ METHODS = ("convex", "dp")
 """Deployment solvers by name."""
 
 
+def check_options(method: str, reoptimize_rtol: float) -> None:
+    """ConfigError naming the option when ``method`` is not one of :data:`METHODS` or
+    ``reoptimize_rtol`` is not a relative change >= 0."""
+    if method not in METHODS:
+        raise ConfigError(f"option --optimize = {method!r}: expected one of {', '.join(METHODS)}.")
+    if math.isnan(reoptimize_rtol) or reoptimize_rtol < 0.0:
+        raise ConfigError(
+            f"option --reoptimize-rtol = {reoptimize_rtol!r}: expected a relative change >= 0 "
+            "(0: before every lap, inf: once)."
+        )
+
+
 class StintDeployment:
     """The ``deployment`` callable of a stint (module docstring, items 2-4): called with the
     pack run at the start of a lap and the track, returns a
@@ -70,13 +82,7 @@ class StintDeployment:
         soc_max: float,
         reoptimize_rtol: float = REOPTIMIZE_RTOL,
     ) -> None:
-        if method not in METHODS:
-            raise ConfigError(f"option --optimize = {method!r}: expected one of {', '.join(METHODS)}.")
-        if math.isnan(reoptimize_rtol) or reoptimize_rtol < 0.0:
-            raise ConfigError(
-                f"option --reoptimize-rtol = {reoptimize_rtol!r}: expected a relative change >= 0 "
-                "(0: before every lap, inf: once)."
-            )
+        check_options(method, reoptimize_rtol)
         self.problem = problem
         self.method = method
         self.ocv_v = float(ocv_v)
@@ -179,13 +185,7 @@ def simulate_stint_optimized(
     ``vehicle``: a :func:`~hevsim.sim.stint.stint_vehicle` already built."""
     from hevsim.config import load_vehicle_config
 
-    if method not in METHODS:
-        raise ConfigError(f"option --optimize = {method!r}: expected one of {', '.join(METHODS)}.")
-    if math.isnan(reoptimize_rtol) or reoptimize_rtol < 0.0:
-        raise ConfigError(
-            f"option --reoptimize-rtol = {reoptimize_rtol!r}: expected a relative change >= 0 "
-            "(0: before every lap, inf: once)."
-        )
+    check_options(method, reoptimize_rtol)
     if method == "convex":
         from hevsim.optimal.lap_deploy import _require_cvxpy
 
