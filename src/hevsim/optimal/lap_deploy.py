@@ -494,7 +494,8 @@ class DeployResult:
     ) -> Path:
         """deploy_map.csv, deploy_summary.json and (plots) deploy.png, atomically; with
         ``replay`` (the :class:`~hevsim.sim.lap.LapResult` of the map replayed in the QSS lap)
-        also its lap.csv and summary.json (and plots)."""
+        also its lap.csv, summary.json and metadata.json (and plots):
+        :meth:`hevsim.sim.lap.LapResult.write`."""
         from hevsim.io import atomic_directory, write_json
 
         with atomic_directory(out_dir, force=force) as tmp:
@@ -506,11 +507,7 @@ class DeployResult:
             if plots:
                 self.plot(tmp / "deploy.png")
             if replay is not None:
-                replay.timeseries.to_csv(tmp / "lap.csv", index=False, float_format="%.6g")
-                write_json(tmp / "summary.json", replay.summary)
-                write_json(tmp / "metadata.json", replay.metadata)
-                if plots:
-                    replay.plot(tmp)
+                replay.write(tmp, plots)
         return Path(out_dir)
 
     def plot(self, path: str | Path, soc_energy_j: float | None = None) -> Path:

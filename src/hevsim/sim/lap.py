@@ -407,15 +407,22 @@ class LapResult:
     def save(self, out_dir: str | Path, plots: bool = True, force: bool = False) -> Path:
         """Write lap.csv, summary.json, metadata.json and, with ``plots``, speed.png, gg.png,
         track_speed.png and track.png, atomically."""
-        from hevsim.io import atomic_directory, write_json
+        from hevsim.io import atomic_directory
 
         with atomic_directory(out_dir, force=force) as tmp:
-            self.timeseries.to_csv(tmp / "lap.csv", index=False, float_format="%.6g")
-            write_json(tmp / "summary.json", self.summary)
-            write_json(tmp / "metadata.json", self.metadata)
-            if plots:
-                self.plot(tmp)
+            self.write(tmp, plots)
         return Path(out_dir)
+
+    def write(self, folder: Path, plots: bool = True) -> None:
+        """Write the files of :meth:`save` into ``folder`` as it is (a folder being written
+        atomically: :meth:`save`, or a deployment's :meth:`~hevsim.optimal.lap_deploy.DeployResult.save`)."""
+        from hevsim.io import write_json
+
+        self.timeseries.to_csv(folder / "lap.csv", index=False, float_format="%.6g")
+        write_json(folder / "summary.json", self.summary)
+        write_json(folder / "metadata.json", self.metadata)
+        if plots:
+            self.plot(folder)
 
     def plot(self, folder: str | Path) -> None:
         """speed.png (speed and apex limit vs distance), gg.png (g-g diagram), track_speed.png

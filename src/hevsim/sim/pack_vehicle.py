@@ -49,7 +49,7 @@ from hevsim.battery.bms import LIMIT_NAMES, PackRun
 from hevsim.battery.pack import Pack, PackConfig, load_pack_config, pack_config_from_dict
 from hevsim.cycles import DriveCycle
 from hevsim.errors import ConfigError
-from hevsim.schema import read_toml
+from hevsim.schema import read_toml, with_changes
 from hevsim.sim.metrics import metric
 
 LOG = logging.getLogger("hevsim")
@@ -97,12 +97,11 @@ def changed_pack_config(path: Path, changes: Mapping[str, Any]) -> PackConfig:
                 f"{path}: pack change {dotted!r} = {value!r}; expected a key 'section.key' of the pack file "
                 "(e.g. 'cooling.chiller' or 'cooling.flow_l_min')."
             )
-        table = data.setdefault(section, {})
-        if not isinstance(table, dict):
+        if not isinstance(data.get(section, {}), dict):
             raise ConfigError(
                 f"{path}: pack change {dotted!r}: '{section}' is not a section of the pack file."
             )
-        table[key] = value
+    with_changes(data, changes)
     shown = ", ".join(f"{k} = {v!r}" for k, v in changes.items())
     return pack_config_from_dict(data, f"{path} (with {shown})", path.parent)
 
