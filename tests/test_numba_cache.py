@@ -71,11 +71,36 @@ def test_configure_creates_marks_and_prunes_only_its_own(
     assert not made[0].exists()  # the oldest stale folder went
 
 
-def test_user_setting_wins(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "mine"))
+def test_user_folder_is_the_parent_of_the_digest_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A NUMBA_CACHE_DIR the user set held the old machine code after an update (a kernel inlines
+    other modules' functions): the digest folder now goes inside it."""
+    mine = tmp_path / "mine"
+    (mine / "notes").mkdir(parents=True)  # the user's own content stays
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(mine))
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
-    assert nc.configure(_package(tmp_path / "pkg"), "1.0") is None
+    root = _package(tmp_path / "pkg")
+    folder = nc.configure(root, "1.0")
+    assert folder == mine / nc.code_digest(root, "1.0") and (folder / nc.MARKER).is_file()
+    assert os.environ["NUMBA_CACHE_DIR"] == str(folder) and (mine / "notes").is_dir()
     assert not (tmp_path / "cache").exists()
+    assert nc.configure(root, "1.0") == folder  # a process hevsim starts: no folder inside it
+    assert os.environ["NUMBA_CACHE_DIR"] == str(folder) and not (folder / folder.name).exists()
+    (root / "sub" / "inner.py").write_text(
+        "from numba import njit\n\n@njit(cache=True)\ndef g(x):\n    return 3 * x\n"
+    )
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(mine))  # the user's setting after an update
+    changed = nc.configure(root, "1.0")
+    assert changed is not None and changed.parent == mine and changed != folder
+
+
+def test_unwritable_user_folder_is_left_alone(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(blocker))
+    assert nc.configure(_package(tmp_path / "pkg"), "1.0") is None
+    assert os.environ["NUMBA_CACHE_DIR"] == str(blocker) and blocker.read_text() == "not a folder"
 
 
 def test_hevsim_import_points_numba_at_its_folder(tmp_path: Path) -> None:

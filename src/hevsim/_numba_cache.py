@@ -10,8 +10,11 @@ lives in ``<user cache>/hevsim/numba/<digest>``, where the digest covers the ver
 content of every hevsim module that uses numba: any change to compiled code starts a fresh
 cache (one compilation, about a minute), and unchanged code keeps its cache across processes.
 
-``NUMBA_CACHE_DIR`` set by the user wins. If the user cache folder cannot be written, numba's
-default (``__pycache__`` next to the sources) is kept. hevsim keeps the
+A ``NUMBA_CACHE_DIR`` set by the user chooses the parent instead: the cache is
+``$NUMBA_CACHE_DIR/<digest>`` (the same staleness hazard applies to a folder the user picked; a
+value that already names this digest's marked folder, as in the processes hevsim starts, is
+used as it is). If the folder cannot be written, the setting is left alone (the user's folder,
+or numba's default ``__pycache__`` next to the sources). hevsim keeps the
 :data:`KEEP` most recently used of its own cache folders (those holding :data:`MARKER`) and
 removes older ones unused for :data:`STALE_S`; it never touches anything else. The setting is
 also exported in the environment, so the processes hevsim starts (workers, FMU hosts) use the
@@ -63,12 +66,14 @@ def cache_root() -> Path:
 
 def configure(package_root: Path, version: str) -> Path | None:
     """Point numba's cache at this code version's folder (see the module docstring); returns
-    it, or None when the user chose ``NUMBA_CACHE_DIR`` or the folder cannot be written."""
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        return None
+    it, or None when the folder cannot be written."""
+    user = os.environ.get("NUMBA_CACHE_DIR")
     try:
-        root = cache_root()
-        folder = root / code_digest(package_root, version)
+        digest = code_digest(package_root, version)
+        if user and Path(user).name == digest and (Path(user) / MARKER).is_file():
+            return Path(user)  # a process hevsim started: its parent chose the folder
+        root = Path(user) if user else cache_root()
+        folder = root / digest
         folder.mkdir(parents=True, exist_ok=True)
         (folder / MARKER).touch()  # raises if the folder cannot be written
         _prune(root, folder)
