@@ -93,6 +93,60 @@ def test_road_load_and_mass_are_the_lists_converted() -> None:
     assert T.is_hybrid_name("LC 500h") and not T.is_hybrid_name("IS 350")
 
 
+def _list_rows(path: Path, rows: list[dict[str, str]]) -> Path:
+    """A Test Car List CSV of the real header with ``rows`` (columns not given: the first
+    conventional FTP row of the real list, the Aston Martin DB11 V8)."""
+    import csv
+
+    src = Path(T.__file__).parents[1] / T.TEST_CAR_LIST
+    with src.open(newline="", encoding="utf-8-sig") as f:
+        reader = csv.DictReader(f)
+        base = next(r for r in reader if r["Test Vehicle ID"] == "562TT5348" and r["Test Category"] == "FTP")
+        header = list(base)
+    with path.open("w", newline="", encoding="utf-8") as f:
+        w = csv.DictWriter(f, header)
+        w.writeheader()
+        for r in rows:
+            w.writerow({**base, **r})
+    return path
+
+
+def test_a_test_counts_once_and_inconsistent_tests_are_left_out(tmp_path: Path) -> None:
+    """The selection rules of the measurement side (T.read_test_cars), each on rows made for it: a
+    test number on two rows counts once; an FTP whose RND_ADJ_FE is off the 0.43 / 0.57 composite of
+    its own bags by more than 5 % is left out; a configuration whose repeats of one cycle differ by
+    more than 10 % (highest / lowest) is left out whole, one within 10 % is kept."""
+    hwy = {"Test Category": "HWY", "Test Procedure Description": "HWFE", "FE Bag 1": "", "FE Bag 2": "",
+           "FE Bag 3": ""}  # fmt: skip
+    bags = {"FE Bag 1": "20", "FE Bag 2": "20", "FE Bag 3": "20"}  # composite 20 mpg
+    rows = [
+        {"Test Vehicle ID": "A", "Test Number": "A1", "RND_ADJ_FE": "20.0", **bags},
+        {"Test Vehicle ID": "A", "Test Number": "A1", "RND_ADJ_FE": "20.0", **bags},  # the same test again
+        {"Test Vehicle ID": "A", "Test Number": "A2", "RND_ADJ_FE": "30.0", **hwy},
+        {"Test Vehicle ID": "B", "Test Number": "B1", "RND_ADJ_FE": "21.2", **bags},  # 6 % off its bags
+        {"Test Vehicle ID": "B", "Test Number": "B2", "RND_ADJ_FE": "20.9", **bags},  # 4.5 % off: kept
+        {"Test Vehicle ID": "B", "Test Number": "B3", "RND_ADJ_FE": "30.0", **hwy},
+        {"Test Vehicle ID": "C", "Test Number": "C1", "RND_ADJ_FE": "20.0", **bags},
+        {"Test Vehicle ID": "C", "Test Number": "C2", "RND_ADJ_FE": "30.0", **hwy},
+        {"Test Vehicle ID": "C", "Test Number": "C3", "RND_ADJ_FE": "33.3", **hwy},  # 11 % above C2
+        {"Test Vehicle ID": "D", "Test Number": "D1", "RND_ADJ_FE": "30.0", **hwy},
+        {"Test Vehicle ID": "D", "Test Number": "D2", "RND_ADJ_FE": "32.9", **hwy},  # 9.7 % above D1
+    ]
+    vehicles, skipped = T.read_test_cars(_list_rows(tmp_path / "list.csv", rows))
+    tests = {v.vehicle_id: sorted(n for _, n, _ in v.tests) for v in vehicles}
+    assert tests == {"A": ["A1", "A2"], "B": ["B2", "B3"], "D": ["D1", "D2"]}
+    assert skipped["a repeated row of a test already counted (same test number)"] == 1
+    assert skipped["FTP figure off its own bags' composite by more than 5 %"] == 1
+    assert skipped["tested in several modes (repeats of one cycle more than 10 % apart)"] == 3
+    # the real list: the Infiniti Q50 AWD's four tests are on eight rows; the Elantra N's two FTPs
+    # (27.7 and 20.7 mpg, same fields) are two modes
+    real, skipped = T.read_test_cars()
+    q50 = next(v for v in real if v.vehicle_id == "HTE511")
+    assert len(q50.tests) == len({n for _, n, _ in q50.tests}) == 4
+    assert not any(v.vehicle_id == "CN7U1H0TD062F" for v in real)
+    assert skipped["a repeated row of a test already counted (same test number)"] == 35
+
+
 def test_split_is_deterministic_and_halves() -> None:
     vehicles, _ = T.read_test_cars()
     halves = [T.split(v.vehicle_id) for v in vehicles]
@@ -101,21 +155,22 @@ def test_split_is_deterministic_and_halves() -> None:
 
 
 def test_held_out_sample_and_the_fit_is_linear(tmp_path: Path) -> None:
-    """Every 4th held-out vehicle (148 FTP, 152 HWY tests): the simulated fuel equals the fitted
+    """Every 4th held-out vehicle (129 FTP, 129 HWY tests): the simulated fuel equals the fitted
     weights times the run's energy integrals (the linearity the fit relies on), and the errors are
-    the shipped models' (docs/validation.md). This sample gives FTP 5.5 % median / 14.3 % 90th
-    percentile, HWY 3.9 % / 12.2 % (the whole held-out half: 5.7 / 14.5 and 3.7 / 9.9); the bounds
-    are those figures rounded up. The models before the shift rules by transmission class gave
-    6.4 / 16.3 and 4.3 / 13.7 here and fail them. The HWY median is within the issue's 5 % goal;
-    the FTP is not (docs/validation.md, "Honest failures")."""
+    the shipped models' (docs/validation.md). This sample gives FTP 5.9 % median / 13.2 % 90th
+    percentile, HWY 4.1 % / 8.5 % (the whole held-out half: 5.4 / 13.1 and 3.4 / 8.9); the bounds
+    are those figures rounded up. The models before the FTP term by transmission class (one FTP
+    term, the earlier shift rules) give 5.4 / 13.9 and 4.0 / 9.0 on the same sample and fail the
+    90th-percentile bounds (their median FTP is lower here, not on the whole half). The HWY median
+    is within the issue's 5 % goal; the FTP is not (docs/validation.md, "Honest failures")."""
     vehicles, _ = T.read_test_cars()
     held = [v for v in vehicles if T.split(v.vehicle_id) == "test"][::4]
     g = T.generic()
     runs = T.run_all(held, tmp_path, g)
-    assert len(runs) == 300
+    assert len(runs) == 258
     for r in runs:
         assert T.linear_mpg(r, g.fitted) == pytest.approx(r.predicted_mpg, rel=2e-3)
-    for cat, median_max, p90_max in (("HWY", 0.04, 0.125), ("FTP", 0.057, 0.145)):
+    for cat, median_max, p90_max in (("HWY", 0.042, 0.086), ("FTP", 0.059, 0.133)):
         e = np.abs([r.error for r in runs if r.category == cat])
         assert np.median(e) <= median_max, (cat, np.median(e))
         assert np.percentile(e, 90) <= p90_max, (cat, np.percentile(e, 90))
@@ -219,6 +274,33 @@ def test_fit_recovers_known_weights() -> None:
     assert got == pytest.approx(true.weights(), rel=1e-6, abs=1e-6)
 
 
+def test_fit_gives_each_transmission_class_its_ftp_term() -> None:
+    """Runs of two transmission classes whose measured fuel carries different FTP terms (3e9 and
+    5e9 J/m^3, the same map otherwise): the fit recovers both, the fallback ``cold_start`` is their
+    mean weighted by FTP runs (10 and 30: 4.5e9), and the prediction of each run uses its own."""
+    rng = np.random.default_rng(2)
+    point = np.array([2.4, 3e4, 0, 9e3, 0, 0.1, 0, 0, 2500.0])
+    runs = []
+    for i in range(80):
+        cls, term = ("a", 3e9) if i < 20 else ("b", 5e9)
+        f = np.abs(rng.normal(size=len(T.FEATURES))) * np.array(
+            [2e7, 300, 300, 300, 300, 50, 50, 2e7, 1000, 1e-3]
+        )
+        if i % 2:
+            f[-1] = 0.0  # a HWY run
+        dist = 12000.0
+        fuel_j = float(f[:-1] @ point) + term * f[-1]
+        mpg = dist / 1609.344 / (fuel_j / T.gallon_energy_j())
+        runs.append(T.TestRun(None, "FTP" if f[-1] else "HWY", str(i), mpg, mpg, f, dist, "train", cls))  # type: ignore[arg-type]
+    got = T.fit(runs)
+    assert got.weights()[:-1] == pytest.approx(point, rel=1e-6, abs=1e-6)
+    assert got.cold_start("a") == pytest.approx(3e9, rel=1e-6)
+    assert got.cold_start("b") == pytest.approx(5e9, rel=1e-6)
+    assert got.cold_start("other") == pytest.approx((10 * 3e9 + 30 * 5e9) / 40, rel=1e-6)
+    assert T.fit_loss(runs, got) == pytest.approx(0.0, abs=1e-6)
+    assert all(T.linear_mpg(r, got) == pytest.approx(r.measured_mpg, rel=1e-6) for r in runs)
+
+
 def test_bad_generic_file_names_the_key(tmp_path: Path) -> None:
     src = Path(T.__file__).parents[1] / T.GENERIC_FILE
     bad = tmp_path / "g.toml"
@@ -230,6 +312,9 @@ def test_bad_generic_file_names_the_key(tmp_path: Path) -> None:
         T.generic(str(bad))
     bad.write_text(src.read_text().split("\n[[transmission.shift]]")[0] + '\nshift = "manual"\n')
     with pytest.raises(ConfigError, match="'shift' = 'manual'"):
+        T.generic(str(bad))
+    bad.write_text(src.read_text().replace('"manual" = ', '"manuel" = '))
+    with pytest.raises(ConfigError, match=r"cold_start_by_class.*manuel"):
         T.generic(str(bad))
 
 

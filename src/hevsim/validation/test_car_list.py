@@ -86,6 +86,16 @@ HYBRID_PATTERN = re.compile(r"\b\d{3}h\+?(\s|$)")
 HYBRID_FTP_HWY_RATIO = 0.95
 """A test vehicle whose measured FTP mpg is at least this share of its HWY mpg is taken for a hybrid
 (regenerative braking: a conventional car's city figure is well below its highway one)."""
+REPEAT_SPREAD_MAX = 1.10
+"""Tests of one configuration on one cycle whose highest / lowest mpg exceeds this are not repeats
+of one car: repeats of an FTP or HWY agree within a few per cent (in the list, 188 of the 244
+groups of repeats within 8 %), while a second cluster, 51 groups 15 to 55 % apart, is cars tested
+in different driver-selectable modes (sport / track / stop-start off) that the list's fields do
+not tell apart (5 groups lie between, 8.4 to 14.3 %). Such a configuration is left out whole, in
+both halves."""
+BAG_TOLERANCE = 0.05
+"""An FTP test whose ``RND_ADJ_FE`` differs from the composite of its own ``FE Bag 1..3`` figures by
+more than this share is a data error (they agree within 0.3 % in the median) and is left out."""
 
 POINT_TERMS = (
     "brake_work",
@@ -109,14 +119,27 @@ cold start's ``0.43 V_d`` [m^3]) whose weighted sum is the fuel energy [J]."""
 
 @dataclass(frozen=True)
 class EngineParams:
-    """The generic engine's fitted weights, one per :data:`FEATURES` name (module docstring)."""
+    """The generic engine's fitted weights, one per :data:`FEATURES` name (module docstring), and
+    the FTP term by transmission class (:attr:`Generic.shift_rules` name; ``cold_start`` for a
+    class not given)."""
 
     weights_by_name: tuple[tuple[str, float], ...]
+    cold_start_by_class: tuple[tuple[str, float], ...] = ()
 
     def weights(self) -> np.ndarray:
         """The weights in the order of :data:`FEATURES` (0 for a name not given)."""
         d = dict(self.weights_by_name)
         return np.array([float(d.get(k, 0.0)) for k in FEATURES])
+
+    def cold_start(self, shift_class: str) -> float:
+        """The FTP term [J/m^3] of a car of transmission class ``shift_class``."""
+        return float(dict(self.cold_start_by_class).get(shift_class, self.weights()[-1]))
+
+    def weights_for(self, shift_class: str) -> np.ndarray:
+        """:meth:`weights` with the FTP term of ``shift_class``."""
+        w = self.weights()
+        w[-1] = self.cold_start(shift_class)
+        return w
 
     @classmethod
     def from_weights(cls, w: np.ndarray) -> EngineParams:
@@ -209,12 +232,21 @@ def generic(path: str | None = None) -> Generic:
     f = e.get("fitted", {})
     w = str(p)
     spread = {int(k): _num(t.get("spread", {}), k, f"{w} [transmission.spread]") for k in t.get("spread", {})}
-    unknown = sorted(set(f) - set(FEATURES))
+    unknown = sorted(set(f) - set(FEATURES) - {"cold_start_by_class"})
     if unknown:
         raise ConfigError(
             f"{w} [engine.fitted]: key(s) {unknown} unknown; expected some of {', '.join(FEATURES)}."
         )
-    fitted = EngineParams(tuple((k, _num(f, k, f"{w} [engine.fitted]")) for k in FEATURES if k in f))
+    by_class = f.get("cold_start_by_class", {})
+    if not isinstance(by_class, dict):
+        raise ConfigError(
+            f"{w} [engine.fitted]: key 'cold_start_by_class' = {by_class!r}; expected a table of "
+            "transmission class name = FTP term [J/m^3]."
+        )
+    fitted = EngineParams(
+        tuple((k, _num(f, k, f"{w} [engine.fitted]")) for k in FEATURES if k in f),
+        tuple((k, _num(by_class, k, f"{w} [engine.fitted.cold_start_by_class]")) for k in by_class),
+    )
     if fitted.weights()[0] <= 0:
         raise ConfigError(
             f"{w} [engine.fitted]: key 'brake_work' = 0; expected 1 / indicated efficiency > 1."
@@ -247,6 +279,13 @@ def generic(path: str | None = None) -> Generic:
                 _num(r, "downshift_rpm", where),
             )
         )  # fmt: skip
+    names = {r.name for r in rules} | {"other"}
+    stray = sorted(set(by_class) - names)
+    if stray:
+        raise ConfigError(
+            f"{w} [engine.fitted.cold_start_by_class]: key(s) {stray} name no transmission class; "
+            f"expected some of {sorted(names)} (the [[transmission.shift]] names, or other)."
+        )
     return Generic(**kw, spread=spread, shift_rules=tuple(rules), fitted=fitted, source=w)
 
 
@@ -309,7 +348,10 @@ def is_hybrid_name(model: str) -> bool:
 
 def read_test_cars(path: str | Path | None = None) -> tuple[list[TestVehicle], dict[str, int]]:
     """The conventional gasoline test vehicles of the list with their measured FTP and HWY
-    tests, and the count of tests left out per reason."""
+    tests, and the count of tests left out per reason. A test counts once (the list repeats some
+    rows: same test number, another averaging group); a test whose figure disagrees with its own
+    bags (:data:`BAG_TOLERANCE`) and a configuration tested in several modes
+    (:data:`REPEAT_SPREAD_MAX`) are left out."""
     p = Path(path) if path else Path(str(resources.files("hevsim") / TEST_CAR_LIST))
     try:
         with p.open(newline="", encoding="utf-8-sig") as f:
@@ -323,6 +365,7 @@ def read_test_cars(path: str | Path | None = None) -> tuple[list[TestVehicle], d
 
     cd_ids = {r["Test Vehicle ID"] for r in rows if r.get("Test Category") == "CD"}
     vehicles: dict[str, TestVehicle] = {}
+    counted: set[str] = set()
     for n, r in enumerate(rows, start=2):
         where = f"{p}, line {n}"
         cat = r.get("Test Category", "")
@@ -364,10 +407,27 @@ def read_test_cars(path: str | Path | None = None) -> tuple[list[TestVehicle], d
         if min(v.displacement_m3, v.rated_power_w, v.test_mass_kg, v.axle_ratio, v.nv_rpm_per_mph, mpg) <= 0:
             skip("a field zero")
             continue
+        number = r.get("Test Number", "")
+        if number in counted:
+            skip("a repeated row of a test already counted (same test number)")
+            continue
+        counted.add(number)
+        bags = _bag_composite(r) if cat == "FTP" else None
+        if bags is not None and abs(mpg / bags - 1) > BAG_TOLERANCE:
+            skip(f"FTP figure off its own bags' composite by more than {100 * BAG_TOLERANCE:g} %")
+            continue
         v = vehicles.setdefault(v.key, v)
-        v.tests.append((cat, r.get("Test Number", ""), mpg))
+        v.tests.append((cat, number, mpg))
     out = []
     for v in vehicles.values():
+        spread = [max(m) / min(m) for c in PROCEDURES if (m := [x for k, _, x in v.tests if k == c])]
+        if max(spread) > REPEAT_SPREAD_MAX:
+            for _ in v.tests:
+                skip(
+                    f"tested in several modes (repeats of one cycle more than "
+                    f"{100 * (REPEAT_SPREAD_MAX - 1):.0f} % apart)"
+                )
+            continue
         ftp = [m for c, _, m in v.tests if c == "FTP"]
         hwy = [m for c, _, m in v.tests if c == "HWY"]
         if ftp and hwy and np.mean(ftp) >= HYBRID_FTP_HWY_RATIO * np.mean(hwy):
@@ -381,6 +441,19 @@ def read_test_cars(path: str | Path | None = None) -> tuple[list[TestVehicle], d
 BAG_MILES = (3.59, 3.91, 3.59)
 """Distances of the FTP's three bags [mi]: bag 1 the cold-start transient (UDDS 0-505 s), bag 2
 the stabilised phase (505-1372 s), bag 3 the hot-start repeat of bag 1 (40 CFR 86.144)."""
+
+
+def _bag_composite(r: dict[str, str]) -> float | None:
+    """The FTP composite [mpg] of a row's ``FE Bag 1..3`` (None without all three above 0)."""
+    try:
+        b = tuple(float(r[f"FE Bag {i}"]) for i in (1, 2, 3))
+    except (KeyError, ValueError):
+        return None
+    if not min(b) > 0:  # also NaN
+        return None
+    hot, cold_gal = bag_split((b[0], b[1], b[2]))
+    cold = (BAG_MILES[0] + BAG_MILES[1]) / ((BAG_MILES[2] + BAG_MILES[1]) / hot + cold_gal)
+    return 1.0 / (FTP_COLD_WEIGHT / cold + (1 - FTP_COLD_WEIGHT) / hot)
 
 
 def ftp_bags(path: str | Path | None = None) -> dict[str, tuple[float, float, float]]:
@@ -540,6 +613,8 @@ class TestRun:
     features: np.ndarray
     distance_m: float
     half: str
+    shift_class: str = "other"
+    """The vehicle's transmission class (:meth:`Generic.shift_rule`): its FTP term."""
 
     @property
     def error(self) -> float:
@@ -580,7 +655,8 @@ def run_vehicle(v: TestVehicle, work: Path, g: Generic, p: EngineParams) -> list
     write_engine(folder, v, g, p, get_fuel("gasoline").lower_heating_value_j_per_kg)
     model = build_vehicle(vehicle_config(v, folder, g))
     gal_j = gallon_energy_j()
-    cold = float(p.weights()[-1])
+    shift_class = g.shift_rule(v)[0]
+    cold = p.cold_start(shift_class)
     out = []
     cache: dict[str, tuple[float, np.ndarray, float]] = {}
     for cat, number, mpg in v.tests:
@@ -594,7 +670,7 @@ def run_vehicle(v: TestVehicle, work: Path, g: Generic, p: EngineParams) -> list
             dist = float(res.metrics["distance_m"]["value"])
             cache[cat] = (dist / M_PER_MILE / (fuel_j / gal_j), f, dist)
         pred, f, dist = cache[cat]
-        out.append(TestRun(v, cat, number, mpg, pred, f, dist, split(v.vehicle_id)))
+        out.append(TestRun(v, cat, number, mpg, pred, f, dist, split(v.vehicle_id), shift_class))
     return out
 
 
@@ -611,11 +687,19 @@ def run_all(
 
 def fit(runs: list[TestRun]) -> EngineParams:
     """Non-negative least squares of the relative fuel error over ``runs`` (the training half):
-    weights ``x`` >= 0 minimising sum((features . x) / measured fuel energy - 1)^2."""
+    weights ``x`` >= 0 minimising sum((features . x) / measured fuel energy - 1)^2, with one FTP
+    term per transmission class of the runs (``cold_start_by_class``; ``cold_start``, for a
+    class not fitted: their mean weighted by FTP runs)."""
     from scipy.optimize import nnls
 
     gal_j = gallon_energy_j()
-    a = np.array([r.features / (r.distance_m / M_PER_MILE / r.measured_mpg * gal_j) for r in runs])
+    classes = sorted({r.shift_class for r in runs})
+    n = len(POINT_TERMS)
+    a = np.zeros((len(runs), n + len(classes)))
+    for i, r in enumerate(runs):
+        a[i, :n] = r.features[:n]
+        a[i, n + classes.index(r.shift_class)] = r.features[n]
+        a[i] /= r.distance_m / M_PER_MILE / r.measured_mpg * gal_j
     scale = np.maximum(np.abs(a).max(axis=0), 1e-30)
     x, _ = nnls(a / scale, np.ones(len(runs)))
     x = x / scale
@@ -623,7 +707,12 @@ def fit(runs: list[TestRun]) -> EngineParams:
         raise ConfigError(
             "the engine fit gave no brake-work weight (1 / indicated efficiency = 0); check the data."
         )
-    return EngineParams.from_weights(x)
+    ftp = np.array([sum(1 for r in runs if r.shift_class == c and r.features[n] > 0) for c in classes])
+    mean = float(ftp @ x[n:] / ftp.sum()) if ftp.sum() else 0.0
+    return EngineParams(
+        EngineParams.from_weights(np.append(x[:n], mean)).weights_by_name,
+        tuple((c, float(w)) for c, w in zip(classes, x[n:], strict=True)),
+    )
 
 
 def fit_loss(runs: list[TestRun], p: EngineParams) -> float:
@@ -631,7 +720,9 @@ def fit_loss(runs: list[TestRun], p: EngineParams) -> float:
     :func:`fit` minimises)."""
     gal_j = gallon_energy_j()
     rel = [
-        float(r.features @ p.weights()) / (r.distance_m / M_PER_MILE / r.measured_mpg * gal_j) - 1
+        float(r.features @ p.weights_for(r.shift_class))
+        / (r.distance_m / M_PER_MILE / r.measured_mpg * gal_j)
+        - 1
         for r in runs
     ]
     return float(np.sqrt(np.mean(np.square(rel))))
@@ -698,7 +789,7 @@ def search_shift_rules(
 
 def linear_mpg(r: TestRun, p: EngineParams) -> float:
     """The mpg the fitted weights predict from a run's integrals (the fit's own prediction) [mpg]."""
-    return r.distance_m / M_PER_MILE / (float(r.features @ p.weights()) / gallon_energy_j())
+    return r.distance_m / M_PER_MILE / (float(r.features @ p.weights_for(r.shift_class)) / gallon_energy_j())
 
 
 def summary(runs: list[TestRun]) -> dict[str, dict[str, float]]:
