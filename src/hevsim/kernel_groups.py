@@ -56,9 +56,10 @@ def cache_probe(module: str, name: str) -> Any:
     return types.SimpleNamespace(_cache=FunctionCache(func))
 
 
-def specialisation_probe(dispatcher: Any, none_arg: int, last_arg: str = "") -> Any:
+def specialisation_probe(dispatcher: Any, first_arg: str = "", last_arg: str = "") -> Any:
     """A stand-in for ``dispatcher`` whose cache index holds only the compiled versions whose
-    argument ``none_arg`` is None (``-1``: any) and whose last argument's type name starts
+    first argument's type name starts with ``first_arg`` (``""``: any; the one forward loop's
+    plug-in, ``"ParallelPlug"``: the architecture) and whose last argument's type name starts
     with ``last_arg`` (``""``: any; ``"none"``, ``"PackArrays"``, ``"CellBusTables"``: the
     battery of a forward loop) (numba's index keys start with the signature)."""
     import types
@@ -68,7 +69,7 @@ def specialisation_probe(dispatcher: Any, none_arg: int, last_arg: str = "") -> 
     def wanted(sig: Any) -> bool:
         if not isinstance(sig, tuple):
             return False
-        if none_arg >= 0 and (len(sig) <= none_arg or str(sig[none_arg]) != "none"):
+        if first_arg and (len(sig) == 0 or not str(sig[0]).startswith(first_arg)):
             return False
         return not last_arg or (len(sig) > 0 and str(sig[-1]).startswith(last_arg))
 
@@ -97,10 +98,9 @@ class KernelGroup:
             (``[battery] model = "pack"``), ``"batch"``, ``"dp"``.
         cold_compile_s: compile time of the group on an empty cache [s] (CPU time of the
             warm-up run in a fresh process, ``benchmarks/bench_compile.py``).
-        none_arg: position of an argument of the entries that is None in this group's
-            specialisation (a kernel compiled once per architecture, the other
-            architecture's tables None); only those entries of the cache index count. -1:
-            every entry counts.
+        first_arg: type-name prefix of the entries' first argument that counts ("": any): the
+            one forward loop (:func:`hevsim.sim._loop.run_loop`) is compiled once per
+            architecture, its plug-in (``"ParallelPlug"``, ``"BEVPlug"``) first.
         battery_arg: whether the entries' last argument is the forward loop's battery step
             (None for a table battery, a pack's ``PackArrays``, a cell's ``CellBusTables``:
             each compiles the loop again); :func:`run_groups` then narrows the probe to the
@@ -113,7 +113,7 @@ class KernelGroup:
     entries: tuple[str, ...]
     serves: tuple[str, ...]
     cold_compile_s: float
-    none_arg: int = -1
+    first_arg: str = ""
     battery_arg: bool = False
     last_arg: str = ""
 
@@ -134,8 +134,8 @@ class KernelGroup:
             module, _, name = ref.partition(":")
             loaded = sys.modules.get(module)
             probe = getattr(loaded, name) if loaded is not None else cache_probe(module, name)
-            narrow = self.none_arg >= 0 or self.last_arg
-            out.append(specialisation_probe(probe, self.none_arg, self.last_arg) if narrow else probe)
+            narrow = self.first_arg or self.last_arg
+            out.append(specialisation_probe(probe, self.first_arg, self.last_arg) if narrow else probe)
         return out
 
     def is_cold(self) -> bool:
@@ -166,19 +166,19 @@ GROUPS: tuple[KernelGroup, ...] = (
     KernelGroup(
         "parallel",
         "parallel HEV forward loop",
-        ("hevsim.sim._compiled_hev:run_hev",),
+        ("hevsim.sim._loop:run_loop",),
         ("parallel",),
         33.0,
-        none_arg=1,  # run_hev(dpar, dps = None, ..., pk)
+        first_arg="ParallelPlug",  # run_loop(plug, ..., pk)
         battery_arg=True,
     ),
     KernelGroup(
         "power_split",
         "power-split HEV forward loop",
-        ("hevsim.sim._compiled_hev:run_hev",),
+        ("hevsim.sim._loop:run_loop",),
         ("power_split",),
         27.0,
-        none_arg=0,  # run_hev(dpar = None, dps, ..., pk)
+        first_arg="PowerSplitPlug",
         battery_arg=True,
     ),
     KernelGroup(
@@ -191,10 +191,11 @@ GROUPS: tuple[KernelGroup, ...] = (
     KernelGroup(
         "bev",
         "battery-electric vehicle forward loop",
-        ("hevsim.sim._compiled_bev:run_bev",),
+        ("hevsim.sim._loop:run_loop",),
         ("bev",),
         15.0,
-        battery_arg=True,  # run_bev(..., pk)
+        first_arg="BEVPlug",
+        battery_arg=True,
     ),
     KernelGroup(
         "power_flow",

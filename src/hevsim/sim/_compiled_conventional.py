@@ -32,7 +32,7 @@ from hevsim.components.body import road_load_force
 from hevsim.control.simple import ShiftSchedule, kickdown_gear, shift_gear
 from hevsim.errors import DomainError
 from hevsim.sim import kernel as K
-from hevsim.sim._compiled_common import add_road_audit, track_step, write_summary
+from hevsim.sim._loop import add_road_audit, track_step, write_summary
 from hevsim.sim._records import BISECTION_STEPS, BatchRecord, ForwardRecord
 from hevsim.units import RADPS_PER_RPM
 

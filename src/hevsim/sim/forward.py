@@ -76,7 +76,7 @@ from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DomainError, InputError
 from hevsim.fuels import config_fuel
 from hevsim.sim import kernel as K
-from hevsim.sim._compiled_common import AUDIT_ROAD, add_road_audit, track_step, write_summary
+from hevsim.sim._loop import AUDIT_ROAD, add_road_audit, track_step, write_summary
 from hevsim.sim._records import (  # re-exported: the records every forward loop fills
     BISECTION_STEPS,
     REGEN_CURRENT_RTOL,
