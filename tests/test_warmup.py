@@ -68,7 +68,7 @@ def test_one_kernel_compiled_per_architecture_is_probed_per_architecture() -> No
     assert not progress.cache_is_cold([specialisation_probe(Dispatcher, "ParallelPlug")])  # compiled
     assert progress.cache_is_cold([specialisation_probe(Dispatcher, "PowerSplitPlug")])  # power split: cold
     assert progress.cache_is_cold([specialisation_probe(Dispatcher, "BEVPlug")])
-    loop = ("parallel", "power_split", "bev")
+    loop = ("parallel", "power_split", "bev", "fcev")
     firsts = [group(a).first_arg for a in loop]
     assert len(set(firsts)) == len(firsts) and all(firsts), firsts  # one specialisation each
     assert {group(a).entries for a in loop} == {("hevsim.sim._loop:run_loop",)}
@@ -92,6 +92,8 @@ def test_every_architecture_has_its_forward_kernels() -> None:
         ("series_hev_pack.toml", False, ["series", "pack"]),
         ("parallel_hev_pack.toml", False, ["parallel", "pack"]),  # the pack steps in the compiled loop
         ("bev_pack.toml", False, ["bev", "pack"]),
+        ("fcev.toml", False, ["fcev"]),  # compiled since the one loop (issue 24)
+        ("fcev.toml", True, ["power_flow"]),
         ("parallel_hev_pack.toml", True, ["power_flow", "pack"]),
     ],
 )

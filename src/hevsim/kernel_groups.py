@@ -198,6 +198,15 @@ GROUPS: tuple[KernelGroup, ...] = (
         battery_arg=True,
     ),
     KernelGroup(
+        "fcev",
+        "fuel-cell vehicle forward loop",
+        ("hevsim.sim._loop:run_loop",),
+        ("fcev",),
+        15.0,
+        first_arg="FCEVPlug",
+        battery_arg=True,
+    ),
+    KernelGroup(
         "power_flow",
         "vectorised power-flow (Python loop, ECMS grid)",
         (
@@ -206,7 +215,7 @@ GROUPS: tuple[KernelGroup, ...] = (
             "hevsim.architectures.conventional:_points_many",
             "hevsim.architectures.bev:_wheel_many",
         ),
-        ("python_loop", "fcev"),  # the fuel-cell vehicle runs the Python loop on the BEV's wheel kernel
+        ("python_loop",),
         15.0,
     ),
     KernelGroup(
