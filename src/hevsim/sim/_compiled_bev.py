@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 from hevsim.architectures import bev as B
-from hevsim.architectures._common import NO_REFCOUNT, max_machine_speed_radps
+from hevsim.architectures._common import max_machine_speed_radps
 from hevsim.control.simple import Direct
 from hevsim.sim import kernel as K
 from hevsim.sim._compiled_hev import _electric, _feasible
@@ -92,15 +92,15 @@ class BEVPlug(NamedTuple):
     mtab: Any
 
 
-@njit(cache=True, **NO_REFCOUNT)
+@njit(cache=True, inline="always")
 def bev_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
     """The plug-in's ``choose`` (:mod:`hevsim.sim._loop`): the ``direct`` controller has one
     control, feasible or not."""
-    ok = _point(w_wheel, t_wheel, v_mid > 0.0, soc, dt, bat, hk, plug.wd, plug.mtab)[0]
+    ok, _, _, _, _, _, _, _ = _point(w_wheel, t_wheel, v_mid > 0.0, soc, dt, bat, hk, plug.wd, plug.mtab)
     return ok, 0.0, 0.0, False, 0.0, 0.0
 
 
-@njit(cache=True, **NO_REFCOUNT)
+@njit(cache=True, inline="always")
 def bev_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
     """The plug-in's ``point``: the details (:data:`DETAILS`) and audit powers
     (:data:`hevsim.architectures.bev.LOSSES`) into ``work``; (fuel 0 [kg], SOC change [-])."""
@@ -115,7 +115,7 @@ def bev_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, 
     return 0.0, d_soc
 
 
-@njit(cache=True, **NO_REFCOUNT)
+@njit(cache=True, inline="always")
 def bev_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
     """The plug-in's ``commit``: (engine on: never, power mode, battery power [W], current [A],
     wheel power [W])."""

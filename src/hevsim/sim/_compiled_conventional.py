@@ -200,14 +200,14 @@ def conventional_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_s
     return False, 0.0, 0.0, False, 0.0, 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def conventional_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
     """The plug-in's ``point`` in gear ``c0``: (fuel [kg], SOC change 0)."""
     rate = _fill(plug, work, w_wheel, _operating_point(plug, w_wheel, t_wheel, int(c0)))
     return rate * dt, 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def conventional_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
     """The plug-in's ``commit``: the gear taken is the schedule's next start; (engine on, power
     mode, no battery power or current, wheel power [W])."""

@@ -162,7 +162,7 @@ def fcev_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat,
     return False, 0.0, 0.0, False, 0.0, 0.0
 
 
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
+@njit(cache=True, inline="always", error_model="numpy")
 def fcev_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
     """The plug-in's ``point`` at the net power ``c0`` [W]: the details (:data:`DETAILS`) and
     audit powers (:data:`hevsim.architectures.fcev.LOSSES`) into ``work``, the shed flag ``c1``
@@ -183,7 +183,7 @@ def fcev_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat,
     return rate * dt, d_soc
 
 
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
+@njit(cache=True, inline="always", error_model="numpy")
 def fcev_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
     """The plug-in's ``commit``: the net power applied becomes the ramp limits' start, a shed
     step is counted (:meth:`LoadFollower.update <hevsim.control.simple.LoadFollower.update>`);

@@ -4,9 +4,10 @@
 The loop reproduces the Python reference loop of :mod:`hevsim.sim.forward` step for step;
 this module gives it the supervisory controllers ``electric_assist`` (parallel),
 ``power_follower`` (power split), ``ecms`` and ``aecms`` (both) over the architectures' point
-kernels (:class:`ParallelPlug`, :class:`PowerSplitPlug`: :func:`hev_choose`,
-:func:`hev_point`, :func:`hev_commit`). Nothing physical is written here: every operating
-point is the architecture's scalar kernel (:func:`hevsim.architectures.parallel.mechanical_point`,
+kernels (:class:`ParallelPlug`: :func:`parallel_choose`, :func:`parallel_point`,
+:func:`parallel_commit`; :class:`PowerSplitPlug`: ``power_split_*``). Nothing physical is
+written here: every operating point is the architecture's scalar kernel
+(:func:`hevsim.architectures.parallel.mechanical_point`,
 :func:`hevsim.architectures.power_split.mechanical_point`, their ``losses_point``,
 ``details_point`` and ``power_mode_point``), the shared bus balance
 (:func:`hevsim.components.bus.machine_request`, :func:`~hevsim.components.bus.bus_balance`)
@@ -531,75 +532,98 @@ class PowerSplitPlug(NamedTuple):
     gtab: Any
 
 
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _hev_choose(dpar, dps, plug, state, buf, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
-    """:func:`_choose` of the step (``dpar``, ``dps``: the plug-in's, as arguments so numba
-    prunes the other architecture's branches)."""
-    md = (hk, plug.etab, plug.mtab, plug.gtab)
-    cands = (plug.cand0, plug.cand1, plug.thr_grid)
-    return _choose(dpar, dps, plug.cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md, buf)
+@njit(cache=True, inline="always", error_model="numpy")
+def _step_data(plug, hk):
+    """The ``md`` and ``cands`` arguments of :func:`_choose` and :func:`_point` at a step."""
+    return (hk, plug.etab, plug.mtab, plug.gtab), (plug.cand0, plug.cand1, plug.thr_grid)
 
 
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _hev_point(dpar, dps, plug, buf, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
-    """The chosen control's details and audit terms (:func:`_point` with ``want``): (fuel
-    [kg], SOC change [-])."""
-    md = (hk, plug.etab, plug.mtab, plug.gtab)
-    eng = NO_ENGINE
-    if dps is not None:
-        eng = PS.engine_point(c0, c1, dps, plug.etab)
-    _, fuel_kg, d_soc, _ = _point(
-        dpar, dps, c0, c1, eng, w_wheel, t_wheel, v_mid > 0.0, soc, dt, bat, md, True, buf[6], buf[7]
-    )
-    return fuel_kg, d_soc
-
-
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _hev_commit(dpar, dps, plug, state, buf, ext, v_mid, f, soc, dt, e_soc, hk, has_pack):
-    """The step taken: the bus's other load with a pack (the cooling too), the A-ECMS update
-    (integrate the SOC error of the step), the power mode and the clutch (``ext[0]``):
-    (engine on, power mode, battery power [W], current [A], wheel power [W])."""
-    det, loss = buf[6], buf[7]
-    cc = plug.cc
-    nd, nl = det.shape[0], loss.shape[0]
-    if has_pack and dpar is not None:  # the bus's other load of the step (the cooling too)
-        loss[P_AUX] = hk.aux_power_w
-    if cc.code == AECMS and not soc > cc.cd_soc:  # update: integrate the SOC error of the step taken
+@njit(cache=True, inline="always", error_model="numpy")
+def _aecms_update(cc, state, v_mid, soc, dt, e_soc):
+    """The A-ECMS update of the step taken: integrate its SOC error (as
+    :meth:`hevsim.control.parallel.AdaptiveECMS.update`)."""
+    if cc.code == AECMS and not soc > cc.cd_soc:
         state[2] += (state[3] - cc.kin * v_mid**2 / e_soc - soc) * dt
-    i_on, mode = 0, 0.0
-    if dpar is not None:
-        i_on, mode = 1, P.power_mode_point(det[1], det[9], f, v_mid)
-    if dps is not None:
-        mode = PS.power_mode_point(det[0], det[14], f, v_mid)
-    ext[0] = det[i_on]  # clutch_closed (the parallel HEV's: closed iff the engine is on)
-    return det[i_on] > 0.0, mode, det[nd - 2], det[nd - 3], loss[nl - 1]
 
 
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def hev_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
-    """The plug-in's ``choose`` (:mod:`hevsim.sim._loop`; ``work``: (:func:`_choose`'s
-    ``buf``, the extra channels))."""
-    return _hev_choose(
-        plug.dpar, plug.dps, plug, state, work[0], v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk
+# The plug-ins' functions (hevsim.sim._loop): one set per architecture, each passing the other
+# architecture's tables as a literal None, so that numba prunes their branches in the shared
+# kernels (_choose, _point) before typing; inlined into the loop (no call with every table).
+@njit(cache=True, inline="always", error_model="numpy")
+def parallel_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
+    """The parallel HEV's ``choose``: :func:`_choose` (``work``: (its ``buf``, the extra
+    channels))."""
+    md, cands = _step_data(plug, hk)
+    return _choose(plug.dpar, None, plug.cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md,
+                   work[0])  # fmt: skip
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def parallel_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
+    """The parallel HEV's ``point``: :func:`_point` with its details and audit terms; (fuel [kg],
+    SOC change [-])."""
+    md, _ = _step_data(plug, hk)
+    buf = work[0]
+    r = _point(plug.dpar, None, c0, c1, NO_ENGINE, w_wheel, t_wheel, v_mid > 0.0, soc, dt, bat, md, True,
+               buf[6], buf[7])  # fmt: skip
+    return r[1], r[2]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def parallel_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
+    """The parallel HEV's ``commit``: the bus's other load with a pack (the cooling too), the
+    A-ECMS update, the clutch (``ext[0]``: closed iff the engine is on); (engine on, power mode,
+    battery power [W], current [A], wheel power [W])."""
+    buf, ext = work
+    det, loss = buf[6], buf[7]
+    nd, nl = det.shape[0], loss.shape[0]
+    if has_pack:  # the bus's other load of the step (the cooling too)
+        loss[P_AUX] = hk.aux_power_w
+    _aecms_update(plug.cc, state, v_mid, soc, dt, e_soc)
+    ext[0] = det[1]
+    return det[1] > 0.0, P.power_mode_point(det[1], det[9], f, v_mid), det[nd - 2], det[nd - 3], loss[nl - 1]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def power_split_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
+    """The power split's ``choose``: :func:`_choose`."""
+    md, cands = _step_data(plug, hk)
+    return _choose(None, plug.dps, plug.cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md,
+                   work[0])  # fmt: skip
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def power_split_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
+    """The power split's ``point``: its engine point, then :func:`_point` with its details and
+    audit terms; (fuel [kg], SOC change [-])."""
+    md, _ = _step_data(plug, hk)
+    buf = work[0]
+    eng = PS.engine_point(c0, c1, plug.dps, plug.etab)
+    r = _point(None, plug.dps, c0, c1, eng, w_wheel, t_wheel, v_mid > 0.0, soc, dt, bat, md, True, buf[6],
+               buf[7])  # fmt: skip
+    return r[1], r[2]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def power_split_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
+    """The power split's ``commit``: the A-ECMS update; (engine on, power mode, battery power
+    [W], current [A], wheel power [W]); ``ext[0]`` the engine flag (the record drops it)."""
+    buf, ext = work
+    det, loss = buf[6], buf[7]
+    nd, nl = det.shape[0], loss.shape[0]
+    _aecms_update(plug.cc, state, v_mid, soc, dt, e_soc)
+    ext[0] = det[0]
+    return (
+        det[0] > 0.0,
+        PS.power_mode_point(det[0], det[14], f, v_mid),
+        det[nd - 2],
+        det[nd - 3],
+        loss[nl - 1],
     )
 
 
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def hev_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
-    """The plug-in's ``point``."""
-    return _hev_point(plug.dpar, plug.dps, plug, work[0], c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk)
-
-
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def hev_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
-    """The plug-in's ``commit``."""
-    return _hev_commit(
-        plug.dpar, plug.dps, plug, state, work[0], work[1], v_mid, f, soc, dt, e_soc, hk, has_pack
-    )
-
-
-register(ParallelPlug, hev_choose, hev_point, hev_commit)
-register(PowerSplitPlug, hev_choose, hev_point, hev_commit)
+register(ParallelPlug, parallel_choose, parallel_point, parallel_commit)
+register(PowerSplitPlug, power_split_choose, power_split_point, power_split_commit)
 
 
 # ------------------------------------------------------------------------- Python side
