@@ -178,52 +178,52 @@ def _plugin(plug: Any, role: str) -> Any:
     return None if found is None else getattr(found, role)
 
 
-def plug_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):  # type: ignore[no-untyped-def]
+def plug_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
     """The plug-in's ``choose`` (compiled code only)."""
     raise NotImplementedError
 
 
-def plug_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):  # type: ignore[no-untyped-def]
+def plug_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
     """The plug-in's ``point`` (compiled code only)."""
     raise NotImplementedError
 
 
-def plug_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):  # type: ignore[no-untyped-def]
+def plug_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
     """The plug-in's ``commit`` (compiled code only)."""
     raise NotImplementedError
 
 
 @overload(plug_choose, inline="always")
-def _ov_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):  # type: ignore[no-untyped-def]
+def _ov_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
     fn = _plugin(plug, "choose")
     if fn is None:
         return None
 
-    def impl(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):  # type: ignore[no-untyped-def]
+    def impl(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
         return fn(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk)
 
     return impl
 
 
 @overload(plug_point, inline="always")
-def _ov_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):  # type: ignore[no-untyped-def]
+def _ov_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
     fn = _plugin(plug, "point")
     if fn is None:
         return None
 
-    def impl(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):  # type: ignore[no-untyped-def]
+    def impl(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
         return fn(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk)
 
     return impl
 
 
 @overload(plug_commit, inline="always")
-def _ov_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):  # type: ignore[no-untyped-def]
+def _ov_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
     fn = _plugin(plug, "commit")
     if fn is None:
         return None
 
-    def impl(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):  # type: ignore[no-untyped-def]
+    def impl(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
         return fn(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack)
 
     return impl
