@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 from hevsim.architectures import bev as B
-from hevsim.architectures._common import NO_REFCOUNT, max_machine_speed_radps
+from hevsim.architectures._common import max_machine_speed_radps
 from hevsim.control.simple import Direct
 from hevsim.sim import kernel as K
 from hevsim.sim._compiled_hev import _electric, _feasible
@@ -100,13 +100,6 @@ def bev_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, 
     return ok, 0.0, 0.0, False, 0.0, 0.0
 
 
-@njit(cache=True, **NO_REFCOUNT)
-def bev_choose_again(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
-    """:func:`bev_choose` as a function of its own (the driver's bisection calls it: the power
-    flow compiled twice, not at every call site)."""
-    return bev_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk)
-
-
 @njit(cache=True, inline="always")
 def bev_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
     """The plug-in's ``point``: the details (:data:`DETAILS`) and audit powers
@@ -130,7 +123,7 @@ def bev_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
     return False, float(B.power_mode_code(det[1], f, v_mid)), det[4], det[3], loss[loss.shape[0] - 1]
 
 
-register(BEVPlug, bev_choose, bev_point, bev_commit, bev_choose_again)
+register(BEVPlug, bev_choose, bev_point, bev_commit)
 
 
 def _run(

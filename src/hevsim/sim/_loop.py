@@ -24,14 +24,12 @@ candidate grids) registered with :func:`register` together with three compiled f
         -> (engine_on, power_mode, battery_power_w, battery_current_a, wheel_power_w)
 
 (``filled``: ``choose`` has already filled the chosen control's details and audit powers, so
-``point`` is not called; an optional fourth, ``choose_again``, serves the driver's rarer
-attempts: see :class:`Plugin`.) numba compiles :func:`run_loop` once per plug-in type: the
-dispatch (:func:`plug_choose`, :func:`plug_point`, :func:`plug_commit`) is an ``@overload``
-resolved while typing, looking the type up in :data:`PLUGINS`, and inlines the plug-in's
-functions into the loop (a call passing every table costs more than the point at ~100 ns). So
-each architecture gets its own machine code, cached on disk like any kernel; numba dispatchers
-passed as arguments would specialise the same way but are not cacheable (their type holds the
-object, another in every process), so each process would compile the loop again.
+``point`` is not called.) numba compiles :func:`run_loop` once per plug-in type (the
+dispatch :func:`plug_choose`, :func:`plug_point`, :func:`plug_commit` is resolved while
+typing, an ``@overload`` looking the type up in :data:`PLUGINS`), so each architecture gets
+its own machine code, cached on disk like any kernel: numba dispatchers passed as arguments
+would do the same but are not cacheable (their type holds the object, another in every
+process), so each process would compile the loop again.
 
 The pieces every forward loop shares, the Python reference loop too, live here as well: the
 road side of the energy audit (:func:`add_road_audit`), the trace-following bookkeeping
@@ -158,24 +156,20 @@ def constants(model: Any, soc_min: float, soc_max: float, lhv_jpkg: float | None
 
 # ------------------------------------------------------------------------- plug-ins
 class Plugin(NamedTuple):
-    """An architecture's compiled functions (module docstring); ``choose_again``: ``choose``
-    for the driver's rarer attempts (the bisection, the stop, the coast), by default
-    ``choose`` itself (a plug-in whose ``choose`` inlines its whole power flow gives a function
-    that does not inline, so numba compiles that flow twice, not at every call site)."""
+    """An architecture's compiled functions (module docstring)."""
 
     choose: Any
     point: Any
     commit: Any
-    choose_again: Any
 
 
 PLUGINS: dict[type, Plugin] = {}
 """Plug-in data type (a named tuple class) -> its :class:`Plugin`."""
 
 
-def register(data_type: type, choose: Any, point: Any, commit: Any, choose_again: Any = None) -> None:
+def register(data_type: type, choose: Any, point: Any, commit: Any) -> None:
     """Make ``data_type`` (a named tuple class) a plug-in of :func:`run_loop`."""
-    PLUGINS[data_type] = Plugin(choose, point, commit, choose if choose_again is None else choose_again)
+    PLUGINS[data_type] = Plugin(choose, point, commit)
 
 
 def _plugin(plug: Any, role: str) -> Any:
@@ -186,11 +180,6 @@ def _plugin(plug: Any, role: str) -> Any:
 
 def plug_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
     """The plug-in's ``choose`` (compiled code only)."""
-    raise NotImplementedError
-
-
-def plug_choose_again(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
-    """The plug-in's ``choose_again`` (compiled code only)."""
     raise NotImplementedError
 
 
@@ -207,18 +196,6 @@ def plug_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
 @overload(plug_choose, inline="always")
 def _ov_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
     fn = _plugin(plug, "choose")
-    if fn is None:
-        return None
-
-    def impl(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
-        return fn(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk)
-
-    return impl
-
-
-@overload(plug_choose_again, inline="always")
-def _ov_choose_again(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
-    fn = _plugin(plug, "choose_again")
     if fn is None:
         return None
 
@@ -252,13 +229,16 @@ def _ov_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
     return impl
 
 
-# numba inlines a plug-in's choice (with the point kernels inlined in it) at each call site of
-# plug_choose and plug_choose_again, as the loops before it inlined the point kernels; its SSA
-# reconstruction may then report the phi variables of the copies with an "internal pedantic
-# check". The code is right (the compiled runs equal the Python loop to the last bit,
-# tests/test_forward_compiled_*.py); the warning, for these inlined copies only, would reach a
-# user at the first compile.
-warnings.filterwarnings("ignore", message="variable '_ov_choose", category=NumbaIRAssumptionWarning)
+# numba inlines a plug-in's choice (with the point kernels inlined in it) at each of the loop's
+# four call sites of plug_choose, as the loops before it inlined the point kernels; its SSA
+# reconstruction then reports the phi variables of the copies (the BEV's _feasible) with an
+# "internal pedantic check". The code is right (the compiled runs equal the Python loop to the
+# last bit, tests/test_forward_compiled_*.py); the warning, for these inlined copies only, would
+# reach a user at the first compile. (One call site instead: no warning, but numba's LLVM then
+# inlines the HEV controller into the loop, 20 % slower.)
+warnings.filterwarnings(
+    "ignore", message="variable '_ov_choose__locals__impl", category=NumbaIRAssumptionWarning
+)
 
 
 # ------------------------------------------------------------------------- shared pieces
@@ -436,7 +416,7 @@ def run_loop(plug, soc0, t, v_des, gr, h, ptab, state, work, det, loss, ext, slo
             for _ in range(BISECTION_STEPS):
                 mid = 0.5 * (lo + hi)
                 tv, ta, tg, tf = demand(v, mid, k, dt, gr, h)
-                ok, x0, x1, _, _, _ = plug_choose_again(
+                ok, x0, x1, _, _, _ = plug_choose(
                     plug, state, work, tv, tv / r, tf * r, soc, dt, e_soc, bat, hk
                 )
                 if not ok:
@@ -446,12 +426,12 @@ def run_loop(plug, soc0, t, v_des, gr, h, ptab, state, work, det, loss, ext, slo
                     bv, ba, bg, bf, bc0, bc1 = tv, ta, tg, tf, x0, x1
             if not have:
                 bv, ba, bg, bf = demand(v, 0.0, k, dt, gr, h)
-                ok, bc0, bc1, _, _, _ = plug_choose_again(
+                ok, bc0, bc1, _, _, _ = plug_choose(
                     plug, state, work, bv, bv / r, bf * r, soc, dt, e_soc, bat, hk
                 )
                 if not ok and bf > 0.0 and has_pack:  # coast to rest (forward._run, with a pack)
                     bf = 0.0
-                    ok, bc0, bc1, _, _, _ = plug_choose_again(
+                    ok, bc0, bc1, _, _, _ = plug_choose(
                         plug, state, work, bv, bv / r, bf * r, soc, dt, e_soc, bat, hk
                     )
                 if not ok:
