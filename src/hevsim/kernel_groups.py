@@ -154,7 +154,11 @@ class KernelGroup:
 # split 27.2 s after helper A's compile-time work, conventional 9.3 s, bev 15.1 s, power_flow
 # 14.8 s, dp 50.4 s); pack 77.6 s - 48.5 s warm and batch
 # 82.5 s - 29.4 s warm (CPU time of the same run on the filled cache: building the pack,
-# running the variants).
+# running the variants). The one compiled loop (issue 24 item 2, 2026-12-06, other processes
+# 0.1-1.9 cores; the same run of the tree before it in brackets): parallel 20.9 s (19.3 s),
+# power split 18.7 s (16.1 s), bev 39.5 s (8.1 s: the loop inlines the BEV's whole power flow at
+# its four calls of the controller), fcev 22.1 s (new), conventional 16.5 s (6.2 s), batch
+# 52.2 s (44.9 s).
 GROUPS: tuple[KernelGroup, ...] = (
     KernelGroup(
         "series",
@@ -186,14 +190,14 @@ GROUPS: tuple[KernelGroup, ...] = (
         "conventional vehicle forward loop",
         ("hevsim.sim._compiled_conventional:_run_variant",),
         ("conventional",),
-        10.0,
+        17.0,
     ),
     KernelGroup(
         "bev",
         "battery-electric vehicle forward loop",
         ("hevsim.sim._loop:run_loop",),
         ("bev",),
-        15.0,
+        40.0,
         first_arg="BEVPlug",
         battery_arg=True,
     ),
@@ -202,7 +206,7 @@ GROUPS: tuple[KernelGroup, ...] = (
         "fuel-cell vehicle forward loop",
         ("hevsim.sim._loop:run_loop",),
         ("fcev",),
-        15.0,
+        22.0,
         first_arg="FCEVPlug",
         battery_arg=True,
     ),
