@@ -34,6 +34,7 @@ CASES = {  # vehicle example, cycle, seconds (short: the Python reference loop i
     "power_split": ("prius_like_power_split_pack.toml", "us06", 120.0),
     "parallel_p3": ("parallel_hev_pack.toml", "udds", 150.0),
     "parallel_p2": ("high_performance_parallel_hev_pack.toml", "us06", 120.0),
+    "fcev": ("fcev_pack.toml", "us06", 60.0),  # sheds fuel-cell power at 13 s (the BMS charge limit)
 }
 
 

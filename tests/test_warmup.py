@@ -34,12 +34,25 @@ def test_every_group_probes_cached_numba_kernels() -> None:
         assert g.cold_compile_s > 0.0
 
 
-def test_one_kernel_compiled_per_architecture_is_probed_per_architecture() -> None:
-    """run_hev is compiled once for the parallel HEV (dps None) and once for the power split
-    (dpar None): a cache holding only the parallel one is cold for the power split."""
+def _named_type(name: str) -> object:
+    """A numba type printed as ``name`` (what a cache index key holds)."""
     from numba import types
 
-    parallel_only = {((types.float64, types.none, types.int64), ("magic",)): "run_hev-1.nbc"}
+    class Named(types.Type):
+        def __init__(self) -> None:
+            super().__init__(name=name)
+
+    return Named()
+
+
+def test_one_kernel_compiled_per_architecture_is_probed_per_architecture() -> None:
+    """The one forward loop run_loop is compiled once per architecture, its plug-in first
+    (ParallelPlug, PowerSplitPlug, BEVPlug): a cache holding only the parallel one is cold for
+    the power split and the BEV."""
+    from numba import types
+
+    plug = _named_type("ParallelPlug(ParallelTables(array(float64, 1d, C)), none)")
+    parallel_only = {((plug, types.float64, types.none), ("magic",)): "run_loop-1.nbc"}
 
     class CacheFile:
         _index_path = __file__  # exists
@@ -52,9 +65,13 @@ def test_one_kernel_compiled_per_architecture_is_probed_per_architecture() -> No
         class _cache:
             _cache_file = CacheFile
 
-    assert not progress.cache_is_cold([specialisation_probe(Dispatcher, 1)])  # parallel: compiled
-    assert progress.cache_is_cold([specialisation_probe(Dispatcher, 0)])  # power split: cold
-    assert [g.none_arg for g in (group("parallel"), group("power_split"))] == [1, 0]
+    assert not progress.cache_is_cold([specialisation_probe(Dispatcher, "ParallelPlug")])  # compiled
+    assert progress.cache_is_cold([specialisation_probe(Dispatcher, "PowerSplitPlug")])  # power split: cold
+    assert progress.cache_is_cold([specialisation_probe(Dispatcher, "BEVPlug")])
+    loop = ("parallel", "power_split", "bev", "fcev")
+    firsts = [group(a).first_arg for a in loop]
+    assert len(set(firsts)) == len(firsts) and all(firsts), firsts  # one specialisation each
+    assert {group(a).entries for a in loop} == {("hevsim.sim._loop:run_loop",)}
 
 
 def test_every_architecture_has_its_forward_kernels() -> None:
@@ -75,6 +92,8 @@ def test_every_architecture_has_its_forward_kernels() -> None:
         ("series_hev_pack.toml", False, ["series", "pack"]),
         ("parallel_hev_pack.toml", False, ["parallel", "pack"]),  # the pack steps in the compiled loop
         ("bev_pack.toml", False, ["bev", "pack"]),
+        ("fcev.toml", False, ["fcev"]),  # compiled since the one loop (issue 24)
+        ("fcev.toml", True, ["power_flow"]),
         ("parallel_hev_pack.toml", True, ["power_flow", "pack"]),
     ],
 )
@@ -86,17 +105,15 @@ def test_run_groups_follow_the_architecture_and_battery(
 
 
 def test_a_pack_or_cell_battery_probes_its_own_version_of_the_loop() -> None:
-    """run_hev / run_bev compile once more for a pack (PackArrays) or a cell (CellBusTables)
-    battery: a cache holding only the table-battery version is cold for a cell run (before,
-    the first cell run of an architecture compiled for 15-35 s without a notice)."""
+    """run_loop compiles once more for a pack (PackArrays) or a cell (CellBusTables) battery: a
+    cache holding only the table-battery version is cold for a cell run (before, the first
+    cell run of an architecture compiled for 15-35 s without a notice)."""
     from numba import types
 
-    class Cell(types.Type):
-        def __init__(self) -> None:
-            super().__init__(name="CellBusTables(array(float64, 1d, C))")
-
-    table_only = {((types.float64, types.none, types.none), ("magic",)): "run_hev-1.nbc"}
-    with_cell = {**table_only, ((types.float64, types.none, Cell()), ("magic",)): "run_hev-2.nbc"}
+    plug = _named_type("ParallelPlug(ParallelTables(array(float64, 1d, C)), none)")
+    cell = _named_type("CellBusTables(array(float64, 1d, C))")
+    table_only = {((plug, types.float64, types.none), ("magic",)): "run_loop-1.nbc"}
+    with_cell = {**table_only, ((plug, types.float64, cell), ("magic",)): "run_loop-2.nbc"}
 
     def dispatcher(index: dict[object, str]) -> object:
         cache_file = type(
@@ -105,8 +122,11 @@ def test_a_pack_or_cell_battery_probes_its_own_version_of_the_loop() -> None:
         return type("Dispatcher", (), {"_cache": type("Cache", (), {"_cache_file": cache_file})})
 
     for index, cold in ((table_only, True), (with_cell, False)):
-        assert progress.cache_is_cold([specialisation_probe(dispatcher(index), 1, "CellBusTables")]) is cold
-    assert not progress.cache_is_cold([specialisation_probe(dispatcher(table_only), 1, "none")])
+        assert (
+            progress.cache_is_cold([specialisation_probe(dispatcher(index), "ParallelPlug", "CellBusTables")])
+            is cold
+        )
+    assert not progress.cache_is_cold([specialisation_probe(dispatcher(table_only), "ParallelPlug", "none")])
 
     cfg = load_vehicle_config(EXAMPLES / "parallel_hev.toml")
     kinds = {}
@@ -130,9 +150,9 @@ def _with_model(cfg: object, model: str) -> object:
 @pytest.mark.parametrize(
     ("example", "kernels"),
     [
-        ("parallel_hev.toml", ["run_hev"]),
+        ("parallel_hev.toml", ["run_loop"]),
         ("series_hev.toml", ["run_series"]),
-        ("bev.toml", ["run_bev"]),
+        ("bev.toml", ["run_loop"]),
         ("series_hev_pack.toml", ["run_series", "pack_begin"]),
     ],
 )

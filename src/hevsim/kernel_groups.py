@@ -56,9 +56,10 @@ def cache_probe(module: str, name: str) -> Any:
     return types.SimpleNamespace(_cache=FunctionCache(func))
 
 
-def specialisation_probe(dispatcher: Any, none_arg: int, last_arg: str = "") -> Any:
+def specialisation_probe(dispatcher: Any, first_arg: str = "", last_arg: str = "") -> Any:
     """A stand-in for ``dispatcher`` whose cache index holds only the compiled versions whose
-    argument ``none_arg`` is None (``-1``: any) and whose last argument's type name starts
+    first argument's type name starts with ``first_arg`` (``""``: any; the one forward loop's
+    plug-in, ``"ParallelPlug"``: the architecture) and whose last argument's type name starts
     with ``last_arg`` (``""``: any; ``"none"``, ``"PackArrays"``, ``"CellBusTables"``: the
     battery of a forward loop) (numba's index keys start with the signature)."""
     import types
@@ -68,7 +69,7 @@ def specialisation_probe(dispatcher: Any, none_arg: int, last_arg: str = "") -> 
     def wanted(sig: Any) -> bool:
         if not isinstance(sig, tuple):
             return False
-        if none_arg >= 0 and (len(sig) <= none_arg or str(sig[none_arg]) != "none"):
+        if first_arg and (len(sig) == 0 or not str(sig[0]).startswith(first_arg)):
             return False
         return not last_arg or (len(sig) > 0 and str(sig[-1]).startswith(last_arg))
 
@@ -97,10 +98,9 @@ class KernelGroup:
             (``[battery] model = "pack"``), ``"batch"``, ``"dp"``.
         cold_compile_s: compile time of the group on an empty cache [s] (CPU time of the
             warm-up run in a fresh process, ``benchmarks/bench_compile.py``).
-        none_arg: position of an argument of the entries that is None in this group's
-            specialisation (a kernel compiled once per architecture, the other
-            architecture's tables None); only those entries of the cache index count. -1:
-            every entry counts.
+        first_arg: type-name prefix of the entries' first argument that counts ("": any): the
+            one forward loop (:func:`hevsim.sim._loop.run_loop`) is compiled once per
+            architecture, its plug-in (``"ParallelPlug"``, ``"BEVPlug"``) first.
         battery_arg: whether the entries' last argument is the forward loop's battery step
             (None for a table battery, a pack's ``PackArrays``, a cell's ``CellBusTables``:
             each compiles the loop again); :func:`run_groups` then narrows the probe to the
@@ -113,7 +113,7 @@ class KernelGroup:
     entries: tuple[str, ...]
     serves: tuple[str, ...]
     cold_compile_s: float
-    none_arg: int = -1
+    first_arg: str = ""
     battery_arg: bool = False
     last_arg: str = ""
 
@@ -134,8 +134,8 @@ class KernelGroup:
             module, _, name = ref.partition(":")
             loaded = sys.modules.get(module)
             probe = getattr(loaded, name) if loaded is not None else cache_probe(module, name)
-            narrow = self.none_arg >= 0 or self.last_arg
-            out.append(specialisation_probe(probe, self.none_arg, self.last_arg) if narrow else probe)
+            narrow = self.first_arg or self.last_arg
+            out.append(specialisation_probe(probe, self.first_arg, self.last_arg) if narrow else probe)
         return out
 
     def is_cold(self) -> bool:
@@ -154,7 +154,11 @@ class KernelGroup:
 # split 27.2 s after helper A's compile-time work, conventional 9.3 s, bev 15.1 s, power_flow
 # 14.8 s, dp 50.4 s); pack 77.6 s - 48.5 s warm and batch
 # 82.5 s - 29.4 s warm (CPU time of the same run on the filled cache: building the pack,
-# running the variants).
+# running the variants). The one compiled loop (issue 24 item 2, 2026-12-06, other processes
+# 0.1-1.9 cores; the same run of the tree before it in brackets): parallel 20.9 s (19.3 s),
+# power split 18.7 s (16.1 s), bev 39.5 s (8.1 s: the loop inlines the BEV's whole power flow at
+# its four calls of the controller), fcev 22.1 s (new), conventional 16.5 s (6.2 s), batch
+# 52.2 s (44.9 s).
 GROUPS: tuple[KernelGroup, ...] = (
     KernelGroup(
         "series",
@@ -166,19 +170,19 @@ GROUPS: tuple[KernelGroup, ...] = (
     KernelGroup(
         "parallel",
         "parallel HEV forward loop",
-        ("hevsim.sim._compiled_hev:run_hev",),
+        ("hevsim.sim._loop:run_loop",),
         ("parallel",),
         33.0,
-        none_arg=1,  # run_hev(dpar, dps = None, ..., pk)
+        first_arg="ParallelPlug",  # run_loop(plug, ..., pk)
         battery_arg=True,
     ),
     KernelGroup(
         "power_split",
         "power-split HEV forward loop",
-        ("hevsim.sim._compiled_hev:run_hev",),
+        ("hevsim.sim._loop:run_loop",),
         ("power_split",),
         27.0,
-        none_arg=0,  # run_hev(dpar = None, dps, ..., pk)
+        first_arg="PowerSplitPlug",
         battery_arg=True,
     ),
     KernelGroup(
@@ -186,15 +190,25 @@ GROUPS: tuple[KernelGroup, ...] = (
         "conventional vehicle forward loop",
         ("hevsim.sim._compiled_conventional:_run_variant",),
         ("conventional",),
-        10.0,
+        17.0,
     ),
     KernelGroup(
         "bev",
         "battery-electric vehicle forward loop",
-        ("hevsim.sim._compiled_bev:run_bev",),
+        ("hevsim.sim._loop:run_loop",),
         ("bev",),
-        15.0,
-        battery_arg=True,  # run_bev(..., pk)
+        40.0,
+        first_arg="BEVPlug",
+        battery_arg=True,
+    ),
+    KernelGroup(
+        "fcev",
+        "fuel-cell vehicle forward loop",
+        ("hevsim.sim._loop:run_loop",),
+        ("fcev",),
+        22.0,
+        first_arg="FCEVPlug",
+        battery_arg=True,
     ),
     KernelGroup(
         "power_flow",
@@ -205,7 +219,7 @@ GROUPS: tuple[KernelGroup, ...] = (
             "hevsim.architectures.conventional:_points_many",
             "hevsim.architectures.bev:_wheel_many",
         ),
-        ("python_loop", "fcev"),  # the fuel-cell vehicle runs the Python loop on the BEV's wheel kernel
+        ("python_loop",),
         15.0,
     ),
     KernelGroup(

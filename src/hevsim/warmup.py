@@ -115,6 +115,10 @@ def _warm_bev(examples: Path) -> None:
     _forward(examples, "bev.toml")
 
 
+def _warm_fcev(examples: Path) -> None:
+    _forward(examples, "fcev.toml")
+
+
 def _warm_power_flow(examples: Path) -> None:
     names = ("parallel_hev.toml", "prius_like_power_split.toml", "conventional_sedan.toml", "bev.toml")
     _forward(examples, *names, compiled=False)
@@ -155,6 +159,7 @@ WARM: dict[str, Callable[[Path], None]] = {
     "power_split": _warm_power_split,
     "conventional": _warm_conventional,
     "bev": _warm_bev,
+    "fcev": _warm_fcev,
     "power_flow": _warm_power_flow,
     "pack": _warm_pack,
     "batch": _warm_batch,

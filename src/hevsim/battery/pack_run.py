@@ -210,7 +210,7 @@ def _binding(i_max, a, b, c):
 PACK_STEP: dict[str, Any] = {"cache": True, "_nrt": True}
 """Options of the pack step's entry points (:func:`pack_begin`, :func:`pack_finish`, the bus side):
 numba's reference counting on explicitly, so that the forward loops compiled without it
-(``_nrt=False``, :mod:`hevsim.sim._compiled_hev`) can call them (a callee otherwise inherits
+(``_nrt=False``, :mod:`hevsim.sim._loop`) can call them (a callee otherwise inherits
 its caller's option, and the step's work arrays need it)."""
 
 

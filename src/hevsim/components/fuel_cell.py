@@ -21,8 +21,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from hevsim.errors import ConfigError
+from hevsim.tables import interp1
 
 HYDROGEN_LHV_J_PER_KG = 120.0e6
 """Lower heating value of hydrogen [J/kg] (120 MJ/kg; U.S. DOE Hydrogen Program Record 9002, and
@@ -32,6 +34,57 @@ HYDROGEN_KG_PER_M3_GALLON = 264.1720524
 counts 1 kg of hydrogen as a gallon of gasoline equivalent)."""
 HYDROGEN_BTU_PER_GALLON = 113738.5978
 """Heating value of that "gallon" (1 kg at 120 MJ/kg) [BTU/gal] (hevsim/data/fuels.toml)."""
+
+
+@njit(cache=True, inline="always")
+def ramp_window_point(previous_w, dt_s, min_power_w, max_power_w, ramp_up_w_per_s, ramp_down_w_per_s):
+    """(lowest, highest) net power [W] reachable in ``dt_s`` [s] from ``previous_w`` [W], within
+    idle ``min_power_w`` and the rating ``max_power_w`` [W], ramp limits [W/s] (scalar kernel of
+    :meth:`FuelCellSystem.ramp_window`)."""
+    lo = max(min_power_w, previous_w - ramp_down_w_per_s * dt_s)
+    hi = min(max_power_w, previous_w + ramp_up_w_per_s * dt_s)
+    if lo <= hi:
+        return lo, hi
+    return hi, hi
+
+
+@njit(cache=True, inline="always")
+def reachable_window_point(previous_w, dt_s, min_power_w, max_power_w, ramp_up_w_per_s, ramp_down_w_per_s):
+    """(lowest, highest running net power [W], off reachable) in ``dt_s`` [s] from ``previous_w``
+    [W] (0 = off; scalar kernel of :meth:`FuelCellSystem.reachable_window`)."""
+    if previous_w <= 0.0:
+        return min_power_w, max(min_power_w, min(max_power_w, ramp_up_w_per_s * dt_s)), True
+    lo, hi = ramp_window_point(previous_w, dt_s, min_power_w, max_power_w, ramp_up_w_per_s, ramp_down_w_per_s)
+    return lo, hi, previous_w - ramp_down_w_per_s * dt_s <= min_power_w
+
+
+@njit(cache=True, inline="always")
+def reachable_point(
+    previous_w, dt_s, net_power_w, min_power_w, max_power_w, ramp_up_w_per_s, ramp_down_w_per_s
+):
+    """Whether the net power ``net_power_w`` [W] is reachable in ``dt_s`` [s] from ``previous_w``
+    [W] (scalar kernel of :meth:`FuelCellSystem.reachable`)."""
+    lo, hi, off_ok = reachable_window_point(
+        previous_w, dt_s, min_power_w, max_power_w, ramp_up_w_per_s, ramp_down_w_per_s
+    )
+    tol = 1e-9 * max_power_w
+    return (net_power_w == 0.0 and off_ok) or (net_power_w >= lo - tol and net_power_w <= hi + tol)
+
+
+@njit(cache=True, inline="always")
+def efficiency_point(net_power_w, max_power_w, power_fraction, efficiency_curve):
+    """Net system efficiency [-] at ``net_power_w`` [W] (scalar kernel of
+    :meth:`FuelCellSystem.efficiency`: linear in the curve, held at its ends; numpy's ``interp``
+    to round-off)."""
+    return interp1(power_fraction, efficiency_curve, net_power_w / max_power_w, False)
+
+
+@njit(cache=True, inline="always")
+def hydrogen_power_point(net_power_w, max_power_w, power_fraction, efficiency_curve):
+    """(net efficiency [-], hydrogen chemical power [W], LHV basis) at ``net_power_w`` [W]: ``P /
+    eta(P)``, 0 when off (scalar kernel of :meth:`FuelCellSystem.hydrogen_power_w`)."""
+    eta = efficiency_point(net_power_w, max_power_w, power_fraction, efficiency_curve)
+    return eta, (net_power_w / eta if net_power_w > 0.0 else 0.0)
 
 
 @dataclass(frozen=True)
@@ -80,9 +133,13 @@ class FuelCellSystem:
     def ramp_window(self, previous_w: float, dt_s: float) -> tuple[float, float]:
         """(lowest, highest) net power [W] reachable in ``dt_s`` [s] from ``previous_w`` [W],
         within the idle and rated power."""
-        lo = max(self.min_power_w, previous_w - self.ramp_down_w_per_s * dt_s)
-        hi = min(self.max_power_w, previous_w + self.ramp_up_w_per_s * dt_s)
-        return (lo, hi) if lo <= hi else (hi, hi)
+        lo, hi = ramp_window_point(float(previous_w), float(dt_s), *self._limits())
+        return float(lo), float(hi)
+
+    def _limits(self) -> tuple[float, float, float, float]:
+        """(idle, rating [W], ramp up, ramp down [W/s]) as the scalar kernels take them."""
+        return (float(self.min_power_w), float(self.max_power_w), float(self.ramp_up_w_per_s),
+                float(self.ramp_down_w_per_s))  # fmt: skip
 
     def reachable(self, previous_w: float, dt_s: float, net_power_w: Any) -> Any:
         """Whether each net power ``net_power_w`` [W] (array-like) is reachable in ``dt_s`` [s]
@@ -97,14 +154,8 @@ class FuelCellSystem:
     def reachable_window(self, previous_w: float, dt_s: float) -> tuple[float, float, bool]:
         """(lowest, highest running net power [W], off reachable) in ``dt_s`` [s] from
         ``previous_w`` [W] (0 = off; see :meth:`reachable`)."""
-        if previous_w <= 0.0:
-            return (
-                self.min_power_w,
-                max(self.min_power_w, min(self.max_power_w, self.ramp_up_w_per_s * dt_s)),
-                True,
-            )
-        lo, hi = self.ramp_window(previous_w, dt_s)
-        return lo, hi, bool(previous_w - self.ramp_down_w_per_s * dt_s <= self.min_power_w)
+        lo, hi, off_ok = reachable_window_point(float(previous_w), float(dt_s), *self._limits())
+        return float(lo), float(hi), bool(off_ok)
 
     def project(self, previous_w: float, dt_s: float, net_power_w: Any) -> Any:
         """``net_power_w`` [W] moved into what is reachable in ``dt_s`` [s] from

@@ -1,15 +1,15 @@
-"""Compiled forward run of the conventional vehicle with its shift-schedule controller.
+"""The conventional vehicle's plug-in of the one compiled forward loop
+(:func:`hevsim.sim._loop.run_loop`, issue 24), with its shift-schedule controller.
 
-The same loop as :func:`hevsim.sim.forward._run` (driver with bisection on the end speed,
-shift schedule with kick-down, the architecture's power flow, energy audit, bookkeeping),
-compiled: one run is one call of :func:`_run_variant`, a batch of variants one parallel loop
-over it (:func:`_run_batch`). The power flow is the architecture's own scalar kernel
+One run is one call of the loop with :class:`ConventionalPlug`; a batch of variants one parallel
+loop over it (:func:`_run_batch`, each variant's plug-in and constants made in compiled code
+from :class:`RunScalars`). The controller is the shift schedule with kick-down
+(:func:`hevsim.control.simple.shift_gear`, :func:`kickdown_gear`: the first gear of the
+kick-down order the engine can drive); the power flow is the architecture's own scalar kernel
 (:func:`hevsim.architectures.conventional.operating_point`, :func:`point_details`,
-:func:`point_losses`, :func:`power_mode_code`), the road load :func:`road_load_force`, the
-schedule :func:`hevsim.control.simple.shift_gear` and :func:`kickdown_gear`: nothing is
-restated here. Parameters cross into compiled code by name (:class:`RunScalars`,
-:class:`~hevsim.architectures.conventional.DrivelineData`,
-:class:`~hevsim.components.engine.EngineTables`).
+:func:`point_losses`, :func:`power_mode_code`): nothing is restated here. The driver, the
+bisection, the audit and the bookkeeping are the loop's; the vehicle has no traction battery
+(the loop's battery tables None).
 """
 
 from __future__ import annotations
@@ -28,12 +28,11 @@ from hevsim.architectures.conventional import (
     point_losses,
     power_mode_code,
 )
-from hevsim.components.body import road_load_force
 from hevsim.control.simple import ShiftSchedule, kickdown_gear, shift_gear
 from hevsim.errors import DomainError
 from hevsim.sim import kernel as K
-from hevsim.sim._compiled_common import add_road_audit, track_step, write_summary
-from hevsim.sim._records import BISECTION_STEPS, BatchRecord, ForwardRecord
+from hevsim.sim._loop import ERR_STUCK, RunConstants, audit_slots, grid_arrays, register, run_loop, writable
+from hevsim.sim._records import BatchRecord, ForwardRecord
 from hevsim.units import RADPS_PER_RPM
 
 COLUMNS: tuple[str, ...] = (
@@ -46,7 +45,8 @@ AUDIT: tuple[str, ...] = (
     *(term for term in LOSSES if term not in ("fuel", "wheel", "battery_chemical")),
 )  # fmt: skip
 """Energy-audit terms of a run [J], in the Python loop's order."""
-_LOSS_SLOT = tuple(AUDIT.index(term) if term != "wheel" else -1 for term in LOSSES)
+SLOTS = audit_slots(LOSSES, AUDIT)
+"""Audit index of each of :data:`~hevsim.architectures.conventional.LOSSES` (the loop's ``slots``)."""
 
 ARCHITECTURES = ("conventional",)
 """The architectures this compiled loop runs (:func:`hevsim.sim.forward.compiled_loop`)."""
@@ -127,180 +127,152 @@ def run_scalars(veh: ConventionalVehicle, ctl: ShiftSchedule, n: int = 1) -> Run
     return RunScalars(**{k: np.full(n, float(v)) for k, v in values.items()})
 
 
-@njit(cache=True)
-def _try_speed(
-    v0, v1, k, dt, grade, gear_prev, m, mf, cd, area, rho, wind, crr, crrv, r, ratios, effs, fd, fd_eff, idle,
-    w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down, tmax_x, tmax_y, tct_x,
-    tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
-):  # fmt: skip
-    """The driver's demand for end speed ``v1`` and the shift schedule's choice (0: none):
-    (gear, mid-step speed, acceleration, grade, wheel force, :func:`operating_point` of the
-    last gear tried: the chosen one)."""
-    v_mid = 0.5 * (v0 + v1)
-    a = (v1 - v0) / dt
-    g = 0.5 * (grade[k] + grade[k + 1])
-    f = road_load_force(v_mid, a, g, m, mf, cd, area, rho, wind, crr, crrv) if v_mid > 0.0 else 0.0
-    w_wheel, t_wheel = v_mid / r, f * r
-    sched = shift_gear(gear_prev, w_wheel * fd, ratios, w_up, w_down)
-    for j in range(ratios.shape[0]):
-        gear = kickdown_gear(j, sched)
-        p = operating_point(
-            w_wheel, t_wheel, float(gear), ratios, effs, fd, fd_eff, idle, w_cut, redline, stop_start,
-            use_map, lhv, scale, p_aux, alt_eff, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x,
-            fuel_y, fuel_z,
-        )  # fmt: skip
-        if not p[15]:
-            return gear, v_mid, a, g, f, p
-    return 0, v_mid, a, g, f, p
+class ConventionalPlug(NamedTuple):
+    """The conventional vehicle's plug-in of :func:`hevsim.sim._loop.run_loop`: gearbox ratios
+    and efficiencies [-], the scalars of :class:`~hevsim.architectures.conventional.DrivelineData`
+    (final drive, idle, fuel-cut and redline speeds [rad/s], stop-start, fuel map, LHV [J/kg],
+    torque scale, auxiliary load [W], alternator efficiency), the shift speeds [rad/s] and the
+    engine's :class:`~hevsim.components.engine.EngineTables`."""
+
+    ratios: np.ndarray
+    effs: np.ndarray
+    fd_ratio: float
+    fd_efficiency: float
+    idle_radps: float
+    fuel_cut_radps: float
+    redline_radps: float
+    stop_start: bool
+    use_fuel_map: bool
+    lhv_jpkg: float
+    torque_scale: float
+    aux_power_w: float
+    alternator_efficiency: float
+    upshift_radps: float
+    downshift_radps: float
+    tab: Any
+
+
+@njit(cache=True, inline="always")
+def _operating_point(plug, w_wheel, t_wheel, gear):
+    """:func:`~hevsim.architectures.conventional.operating_point` in ``gear`` (1..G)."""
+    tab = plug.tab
+    return operating_point(
+        w_wheel, t_wheel, float(gear), plug.ratios, plug.effs, plug.fd_ratio, plug.fd_efficiency,
+        plug.idle_radps, plug.fuel_cut_radps, plug.redline_radps, plug.stop_start, plug.use_fuel_map,
+        plug.lhv_jpkg, plug.torque_scale, plug.aux_power_w, plug.alternator_efficiency, tab.tmax_x,
+        tab.tmax_y, tab.tct_x, tab.tct_y, tab.tmap_x, tab.tmap_y, tab.tmap_z, tab.fuel_x, tab.fuel_y,
+        tab.fuel_z,
+    )  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def _fill(plug, work, w_wheel, p):
+    """The details (:data:`DETAILS`) and audit powers (:data:`LOSSES`) of the operating point
+    ``p`` into ``work``; its fuel rate [kg/s]."""
+    det, loss = work
+    gi, w_fd, t_fd, w_in, t_in, w_e, t_e, on, slip, trac, cut, rate, t_fd_eng, _, _, _, t_max, t_alt = p
+    d = point_details(gi, w_fd, t_fd, w_in, t_e, w_e, on, slip, trac, cut, rate, t_fd_eng, t_max)
+    for j in range(len(d)):
+        det[j] = d[j]
+    q = point_losses(
+        w_wheel, w_fd, t_fd, w_in, t_in, w_e, t_e, on, rate, t_fd_eng, t_alt, plug.fd_ratio,
+        plug.fd_efficiency, plug.lhv_jpkg, plug.aux_power_w,
+    )  # fmt: skip
+    for j in range(len(q)):
+        loss[j] = q[j]
+    return rate
 
 
 @njit(cache=True)
-def _run_variant(
-    i, t, v_des, grade, soc0, s, ratios, effs, stop_start, use_map, lhv, tab, cols, audit, summary
-):  # fmt: skip
-    """One run of variant ``i`` of :class:`RunScalars` ``s``; fills ``cols`` (rows x
-    :data:`COLUMNS`, or one row: no time series), ``audit`` (:data:`AUDIT` [J]) and
-    ``summary`` (:data:`hevsim.sim.kernel.SUMMARY`). Returns (end speed [m/s], positive
-    wheel energy [J], last gear, index of a step with no feasible control or -1)."""
-    m, mf, cd, area = s.mass_kg[i], s.mass_factor[i], s.drag_coefficient[i], s.frontal_area_m2[i]
-    rho, wind, crr, r = s.air_density_kgpm3[i], s.headwind_mps[i], s.rolling_resistance[i], s.radius_m[i]
-    crrv = s.rolling_resistance_speed_s_per_m[i]
-    fd, fd_eff, scale, idle = s.fd_ratio[i], s.fd_efficiency[i], s.torque_scale[i], s.idle_radps[i]
-    redline, w_cut, w_up, w_down = (
-        s.redline_radps[i],
-        s.fuel_cut_radps[i],
-        s.upshift_radps[i],
-        s.downshift_radps[i],
+def conventional_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
+    """The plug-in's ``choose`` (:mod:`hevsim.sim._loop`): the shift schedule from the last
+    gear ``state[0]``, then the kick-down order's first gear the engine can drive (none: not
+    found); the chosen point's details and audit powers filled."""
+    sched = shift_gear(
+        int(state[0]), w_wheel * plug.fd_ratio, plug.ratios, plug.upshift_radps, plug.downshift_radps
     )
-    p_aux, alt_eff = s.aux_power_w[i], s.alternator_efficiency[i]
-    tmax_x, tmax_y, tct_x, tct_y = tab.tmax_x, tab.tmax_y, tab.tct_x, tab.tct_y
-    tmap_x, tmap_y, tmap_z = tab.tmap_x, tab.tmap_y, tab.tmap_z
-    fuel_x, fuel_y, fuel_z = tab.fuel_x, tab.fuel_y, tab.fuel_z
-    record = cols.shape[0] > 1
-    n = t.shape[0] - 1
-    dt = t[1] - t[0]
-    m_eff = m * mf
+    for j in range(plug.ratios.shape[0]):
+        gear = kickdown_gear(j, sched)
+        p = _operating_point(plug, w_wheel, t_wheel, gear)
+        if not p[15]:
+            rate = _fill(plug, work, w_wheel, p)
+            return True, float(gear), 0.0, True, rate * dt, 0.0
+    return False, 0.0, 0.0, False, 0.0, 0.0
+
+
+@njit(cache=True, inline="always")
+def conventional_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
+    """The plug-in's ``point`` in gear ``c0``: (fuel [kg], SOC change 0)."""
+    rate = _fill(plug, work, w_wheel, _operating_point(plug, w_wheel, t_wheel, int(c0)))
+    return rate * dt, 0.0
+
+
+@njit(cache=True, inline="always")
+def conventional_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
+    """The plug-in's ``commit``: the gear taken is the schedule's next start; (engine on, power
+    mode, no battery power or current, wheel power [W])."""
+    det, loss = work
+    state[0] = det[0]
+    mode = float(power_mode_code(det[1], det[3], det[2], det[4], v_mid))
+    return det[1] > 0.0, mode, 0.0, 0.0, loss[loss.shape[0] - 1]
+
+
+register(ConventionalPlug, conventional_choose, conventional_point, conventional_commit)
+
+
+@njit(cache=True, inline="always")
+def _variant_inputs(s, i, ratios, effs, stop_start, use_map, lhv, tab):
+    """(plug-in, :class:`~hevsim.sim._loop.RunConstants`) of variant ``i`` of :class:`RunScalars`
+    ``s``."""
+    plug = ConventionalPlug(
+        ratios, effs, s.fd_ratio[i], s.fd_efficiency[i], s.idle_radps[i], s.fuel_cut_radps[i],
+        s.redline_radps[i], stop_start, use_map, lhv, s.torque_scale[i], s.aux_power_w[i],
+        s.alternator_efficiency[i], s.upshift_radps[i], s.downshift_radps[i], tab,
+    )  # fmt: skip
+    h = RunConstants(
+        0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, s.aux_power_w[i], s.mass_kg[i],
+        s.mass_factor[i], s.drag_coefficient[i], s.frontal_area_m2[i], s.air_density_kgpm3[i],
+        s.headwind_mps[i], s.rolling_resistance[i], s.rolling_resistance_speed_s_per_m[i], s.radius_m[i], lhv,
+    )  # fmt: skip
+    return plug, h
+
+
+@njit(cache=True)
+def _run_variant(i, t, v_des, grade, soc0, s, ratios, effs, stop_start, use_map, lhv, tab, slots, cols, audit,
+                 summary):  # fmt: skip
+    """One run of variant ``i`` of :class:`RunScalars` ``s`` (:func:`hevsim.sim._loop.run_loop`
+    with :class:`ConventionalPlug`); fills ``cols`` (:data:`COLUMNS` x ``n + 1``, or one column:
+    no time series), ``audit`` (:data:`AUDIT` [J]) and ``summary``. Returns (status, step,
+    end speed [m/s], positive wheel energy [J], last gear)."""
+    plug, h = _variant_inputs(s, i, ratios, effs, stop_start, use_map, lhv, tab)
+    state = np.ones(1)  # the gear
+    det, loss = np.zeros(len(DETAILS)), np.zeros(len(LOSSES))
     for j in range(audit.shape[0]):
         audit[j] = 0.0
-    v, fuel = v_des[0], 0.0
-    err_sq = err_max = dist = eon = starts = lim_s = traction = 0.0
-    was_on = False
-    gear = 1
-    for k in range(n):
-        v1 = v_des[k + 1]
-        c, v_mid, a, g, f, p = _try_speed(
-            v, v1, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, crrv, r, ratios, effs, fd, fd_eff,
-            idle, w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down, tmax_x,
-            tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
-        )  # fmt: skip
-        limited = 0.0
-        if c == 0:  # beyond the powertrain: lower the end speed until a gear can (forward._run)
-            limited = 1.0
-            lo, hi, best_v, best_c = 0.0, v1, -1.0, 0
-            for _ in range(BISECTION_STEPS):
-                mid = 0.5 * (lo + hi)
-                cm = _try_speed(
-                    v, mid, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, crrv, r, ratios, effs, fd,
-                    fd_eff, idle, w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up,
-                    w_down, tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
-                )[0]  # fmt: skip
-                if cm == 0:
-                    hi = mid
-                else:
-                    lo, best_v, best_c = mid, mid, cm
-            if best_c == 0:
-                best_v = 0.0
-            c, v_mid, a, g, f, p = _try_speed(
-                v, best_v, k, dt, grade, gear, m, mf, cd, area, rho, wind, crr, crrv, r, ratios, effs, fd,
-                fd_eff, idle, w_cut, redline, stop_start, use_map, lhv, scale, p_aux, alt_eff, w_up, w_down,
-                tmax_x, tmax_y, tct_x, tct_y, tmap_x, tmap_y, tmap_z, fuel_x, fuel_y, fuel_z,
-            )  # fmt: skip
-            v1 = v_mid * 2.0 - v  # (at best_v the schedule chooses best_c again: same inputs)
-            if c == 0:
-                return v, traction * dt, gear, k
-        w_wheel = v_mid / r
-        gi, w_fd, t_fd, w_in, t_in, w_e, t_e, on, slip, trac, cut, rate, t_fd_eng, _, _, _, t_max, t_alt = p
-        gear = gi + 1
-        det = point_details(gi, w_fd, t_fd, w_in, t_e, w_e, on, slip, trac, cut, rate, t_fd_eng, t_max)
-        q = point_losses(
-            w_wheel, w_fd, t_fd, w_in, t_in, w_e, t_e, on, rate, t_fd_eng, t_alt, fd, fd_eff, lhv, p_aux
-        )
-        # ---- energy audit [J] (all powers at the mid-step speed), as forward._run
-        audit[0] += q[0] * dt
-        audit[7] += q[1] * dt
-        audit[8] += q[2] * dt
-        audit[9] += q[3] * dt
-        audit[10] += q[4] * dt
-        audit[11] += q[5] * dt
-        audit[12] += q[6] * dt
-        audit[13] += q[7] * dt
-        audit[2] += q[8] * dt
-        p_wheel = q[9]
-        add_road_audit(audit, v, v1, v_mid, a, g, f, m, m_eff, crr, crrv, dt)
-        if on and not was_on:
-            starts += 1.0
-        was_on = on
-        fuel += rate * dt
-        if record:
-            row = cols[k]
-            row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7] = (
-                v_des[k], v, a, f, p_wheel, f - m_eff * a, fuel, soc0,
-            )  # fmt: skip
-            for j in range(12):
-                row[8 + j] = det[j]
-            row[20] = power_mode_code(det[1], det[3], det[2], det[4], v_mid)
-            row[21] = limited
-        eon += dt if on else 0.0
-        err_sq, err_max, dist, lim_s = track_step(
-            v_des[k] - v, v_mid, dt, limited, err_sq, err_max, dist, lim_s
-        )
-        traction += max(p_wheel, 0.0)
-        v = v1
-    write_summary(
-        summary, v_des[n] - v, err_sq, err_max, n, dist, fuel, soc0, eon, starts, lim_s, t[n] - t[0]
-    )
-    return v, traction * dt, gear, -1
+    status, k, v, traction = run_loop(plug, soc0, t, v_des, grade, h, None, state, (det, loss), det, loss,
+                                      np.zeros(0), slots, cols, audit, summary, None)  # fmt: skip
+    return status, k, v, traction, state[0]
 
 
 @njit(cache=True, parallel=True)
-def _run_batch(t, v_des, grade, soc0, s, ratios, effs, stop_start, use_map, lhv, tab, audit, summary, out):
+def _run_batch(
+    t, v_des, grade, soc0, s, ratios, effs, stop_start, use_map, lhv, tab, slots, audit, summary, out
+):
     """:func:`_run_variant` for every variant (parallel over variants; no time series).
     ``out[i]``: (positive wheel energy [J], failed step or -1)."""
     for i in prange(summary.shape[0]):
-        cols = np.zeros((1, 1))
-        res = _run_variant(
-            i,
-            t,
-            v_des,
-            grade,
-            soc0[i],
-            s,
-            ratios,
-            effs,
-            stop_start,
-            use_map,
-            lhv,
-            tab,
-            cols,
-            audit[i],
-            summary[i],
-        )
-        out[i, 0] = res[1]
-        out[i, 1] = res[3]
+        cols = np.zeros((len(COLUMNS), 1))
+        status, k, _, traction, _ = _run_variant(
+            i, t, v_des, grade, soc0[i], s, ratios, effs, stop_start, use_map, lhv, tab, slots, cols,
+            audit[i], summary[i],
+        )  # fmt: skip
+        out[i, 0] = traction
+        out[i, 1] = k if status == ERR_STUCK else -1
 
 
-def _check_layout() -> None:
-    if (K.S_DIST, K.S_FUEL, K.S_SOCF, K.S_RMS, K.S_MAXERR, K.S_EON, K.S_STARTS, K.S_BLIM, K.S_DUR) != tuple(
-        range(9)
-    ) or _LOSS_SLOT != (0, 7, 8, 9, 10, 11, 12, 13, 2, -1):
-        raise RuntimeError("compiled conventional run: summary or audit layout changed; update the kernel")
-
-
-def _grid(grid: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    return tuple(
-        np.ascontiguousarray(np.asarray(a, dtype=np.float64))
-        for a in (grid.time_s, grid.speed_mps, grid.grade)
-    )  # type: ignore[return-value]
+def _arrays(model: ConventionalVehicle) -> tuple[np.ndarray, np.ndarray]:
+    """The gearbox ratios and efficiencies [-] as writable C arrays (one numba type)."""
+    return tuple(np.require(a, np.float64, ("C", "W")) for a in (model.gear_ratios, model.gear_efficiencies))  # type: ignore[return-value]
 
 
 def simulate_compiled(
@@ -316,22 +288,20 @@ def simulate_compiled(
     None for a controller other than :class:`~hevsim.control.simple.ShiftSchedule`."""
     if type(controller) is not ShiftSchedule:
         return None
-    _check_layout()
-    t, v_des, grade = _grid(grid)
+    t, v_des, grade = grid_arrays(grid)
     controller.reset(soc_initial)
-    cols = np.zeros((t.size, len(COLUMNS)))
+    cols = np.zeros((len(COLUMNS), t.size))
     audit = np.zeros(len(AUDIT))
     summary = np.zeros(len(K.SUMMARY))
     d = model.driveline_data()
-    v_end, _, gear, failed = _run_variant(
-        0, t, v_des, grade, float(soc_initial), run_scalars(model, controller), model.gear_ratios,
-        model.gear_efficiencies, d.stop_start, d.use_fuel_map, d.lhv_jpkg, model.engine.kernel_tables(), cols,
-        audit, summary,
+    status, k, v_end, _, gear = _run_variant(
+        0, t, v_des, grade, float(soc_initial), run_scalars(model, controller), *_arrays(model), d.stop_start,
+        d.use_fuel_map, d.lhv_jpkg, writable(model.engine.kernel_tables()), SLOTS, cols, audit, summary,
     )  # fmt: skip
-    if failed >= 0:
-        raise DomainError(f"{model.name}: no feasible control at t = {t[failed]:g} s even when stopping.")
+    if status == ERR_STUCK:
+        raise DomainError(f"{model.name}: no feasible control at t = {t[k]:g} s even when stopping.")
     controller.gear = int(gear)
-    columns = {name: np.ascontiguousarray(cols[:, j]) for j, name in enumerate(COLUMNS)}
+    columns = {name: cols[j] for j, name in enumerate(COLUMNS)}
     return ForwardRecord(columns, dict(zip(AUDIT, audit.tolist(), strict=True)), summary, float(v_end))
 
 
@@ -349,22 +319,21 @@ def simulate_batch_compiled(
     None for a key outside :data:`VARIANT_KEYS` or another controller."""
     if type(controller) is not ShiftSchedule or any(k not in VARIANT_KEYS for k in variants):
         return None
-    _check_layout()
     n = int(np.size(soc_initial))
     scalars = run_scalars(model, controller, n)._asdict()
     for key, values in variants.items():
         name, factor = VARIANT_KEYS[key]
         if name:
             scalars[name] = np.ascontiguousarray(np.asarray(values, dtype=np.float64) * factor)
-    t, v_des, grade = _grid(grid)
+    t, v_des, grade = grid_arrays(grid)
     audit = np.zeros((n, len(AUDIT)))
     summary = np.zeros((n, len(K.SUMMARY)))
     out = np.zeros((n, 2))
     d = model.driveline_data()
     soc0 = np.ascontiguousarray(soc_initial, dtype=np.float64)
     _run_batch(
-        t, v_des, grade, soc0, RunScalars(**scalars), model.gear_ratios, model.gear_efficiencies,
-        d.stop_start, d.use_fuel_map, d.lhv_jpkg, model.engine.kernel_tables(), audit, summary, out,
+        t, v_des, grade, soc0, RunScalars(**scalars), *_arrays(model), d.stop_start, d.use_fuel_map,
+        d.lhv_jpkg, writable(model.engine.kernel_tables()), SLOTS, audit, summary, out,
     )  # fmt: skip
     failed = np.flatnonzero(out[:, 1] >= 0)
     if failed.size:

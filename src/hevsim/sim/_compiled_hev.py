@@ -1,23 +1,24 @@
-"""Compiled forward runs of the parallel (P2/P3) and power-split HEVs (issue 11).
+"""The parallel (P2/P3) and power-split HEVs' plug-in of the one compiled forward loop
+(:func:`hevsim.sim._loop.run_loop`, issue 24; issue 11 compiled them first).
 
-One numba loop reproduces the Python reference loop of :mod:`hevsim.sim.forward` (driver with
-the bisection on the end speed when the powertrain cannot follow, supervisory controller,
-power flow, energy audit) step for step, for the controllers ``electric_assist`` (parallel),
-``power_follower`` (power split), ``ecms`` and ``aecms`` (both). Nothing physical is written
-here: every operating point is the architecture's scalar kernel
+The loop reproduces the Python reference loop of :mod:`hevsim.sim.forward` step for step;
+this module gives it the supervisory controllers ``electric_assist`` (parallel),
+``power_follower`` (power split), ``ecms`` and ``aecms`` (both) over the architectures' point
+kernels (:class:`ParallelPlug`: :func:`parallel_choose`, :func:`parallel_point`,
+:func:`parallel_commit`; :class:`PowerSplitPlug`: ``power_split_*``). Nothing physical is
+written here: every operating point is the architecture's scalar kernel
 (:func:`hevsim.architectures.parallel.mechanical_point`,
 :func:`hevsim.architectures.power_split.mechanical_point`, their ``losses_point``,
 ``details_point`` and ``power_mode_point``), the shared bus balance
-(:func:`hevsim.components.bus.machine_request`, :func:`~hevsim.components.bus.bus_balance`),
-the pack's kernels and the road load of :mod:`hevsim.components.body`. The controllers'
-rules are those of :mod:`hevsim.control.parallel`, whose objects hand over their parameters
-and candidate grids (:func:`controller_code`).
+(:func:`hevsim.components.bus.machine_request`, :func:`~hevsim.components.bus.bus_balance`)
+and the pack's kernels. The controllers' rules are those of :mod:`hevsim.control.parallel`,
+whose objects hand over their parameters and candidate grids (:func:`controller_code`).
 
-The compiled loops allocate nothing and run without numba's reference counting (``_nrt=False``):
+The kernels allocate nothing and run without numba's reference counting (``_nrt=False``):
 passing the component tables (tuples of arrays) into the per-point kernels otherwise costs
 about 100 ns of reference-count traffic per candidate, more than the physics.
 
-Data cross the numba boundary as named tuples (:class:`HEVConstants`,
+Data cross the numba boundary as named tuples (:class:`~hevsim.sim._loop.RunConstants`,
 :class:`ControllerConstants`, the architectures' ``kernel_tables`` and the components'
 tables), unpacked by name.
 """
@@ -32,35 +33,33 @@ from numba import njit
 from hevsim.architectures import parallel as P
 from hevsim.architectures import power_split as PS
 from hevsim.architectures._common import NO_REFCOUNT
-from hevsim.battery.vehicle import vehicle_bus_begin, vehicle_bus_finish_power
-from hevsim.components.battery import pack_ocv_r, soc_rate
-from hevsim.components.body import road_load_force
-from hevsim.components.bus import battery_power_limits, bus_balance, machine_request
+from hevsim.components.battery import soc_rate
+from hevsim.components.bus import bus_balance, machine_request
 from hevsim.components.driveline import gear_input_torque
 from hevsim.components.flow import LIMIT_RTOL
 from hevsim.control.parallel import HOLD_EQUIVALENCE_FACTOR, PowerFollower, specific_fuel
 from hevsim.control.simple import shift_gear
 from hevsim.sim import kernel as K
-from hevsim.sim._compiled_common import add_road_audit, track_step, write_summary
-from hevsim.sim._records import BISECTION_STEPS, REGEN_CURRENT_RTOL, BatchRecord, ForwardRecord
+from hevsim.sim._loop import (
+    AUDIT_BASE,
+    BASE_COLUMNS,
+    ERR_STUCK,
+    RunConstants,
+    audit_slots,
+    constants,
+    grid_arrays,
+    pack_arrays,
+    register,
+    run_loop,
+    threaded_batch,
+    writable,
+)
+from hevsim.sim._records import REGEN_CURRENT_RTOL, BatchRecord, ForwardRecord
 
 ELECTRIC_ASSIST, ECMS, AECMS, POWER_FOLLOWER = 0, 1, 2, 3
 """Controller codes of the compiled loop (:func:`controller_code`)."""
-BASE_COLUMNS = (
-    "speed_desired_mps",
-    "speed_mps",
-    "accel_mps2",
-    "wheel_force_n",
-    "wheel_power_w",
-    "road_load_force_n",
-    "fuel_kg",
-    "soc",
-)
-"""First channels of a :class:`~hevsim.sim.forward.ForwardRecord`, in order."""
 TAIL_COLUMNS = ("power_mode", "traction_limited", "clutch_closed", "battery_ocv_v", "battery_voltage_v")
 """Last channels, after the architecture's details."""
-AUDIT_BASE = ("fuel", "genset_source", "battery_chemical", "aero", "rolling", "grade", "kinetic_vehicle")
-"""Audit terms the reference loop starts with (then the loss terms, then ``battery_loss``)."""
 PS_POWER_BAND, PS_POWER_BAND_MIN_W = PowerFollower.POWER_BAND, PowerFollower.POWER_BAND_MIN_W
 """The power follower's band around its target engine power [-], [W]."""
 AUX_RTOL = 1e-6
@@ -68,45 +67,13 @@ AUX_RTOL = 1e-6
 floor (the bus balance returns the auxiliary load to a few ulps)."""
 P_AUX = P.LOSS_TERMS.index("aux")
 """The parallel HEV's audit term of the bus's other load (its losses take it from the tables)."""
-ERR_NONE, ERR_STUCK = 0, 1
-"""Status codes of the compiled loop: fine; no feasible control even when stopping."""
 
 ARCHITECTURES = ("parallel", "power_split")
 """The architectures this compiled loop runs (:func:`hevsim.sim.forward.compiled_loop`)."""
 
 
-class HEVConstants(NamedTuple):
-    """Body, wheel, traction machine, pack and run constants of a compiled run (SI): the
-    machine's kind code, constant efficiency and torque scale; the pack's cells in series and
-    parallel, wiring resistance [ohm], temperature [K], current limits [A], coulombic
-    efficiency, capacity [A·s]; the SOC window; the other bus load [W]; the body's mass [kg],
-    rotating-mass factor, drag coefficient, frontal area [m²], air density [kg/m³], headwind
-    [m/s], rolling coefficient; the tire radius [m]; the fuel's LHV [J/kg]."""
-
-    motor_kind: int
-    motor_efficiency: float
-    motor_torque_scale: float
-    n_series: float
-    n_parallel: float
-    r_extra_ohm: float
-    temperature_k: float
-    i_discharge_max_a: float
-    i_charge_max_a: float
-    coulombic_efficiency: float
-    capacity_as: float
-    soc_min: float
-    soc_max: float
-    aux_power_w: float
-    mass_kg: float
-    mass_factor: float
-    drag_coefficient: float
-    frontal_area_m2: float
-    air_density_kgpm3: float
-    headwind_mps: float
-    rolling_resistance: float
-    rolling_resistance_speed_s_per_m: float
-    radius_m: float
-    lhv_jpkg: float
+HEVConstants = RunConstants
+"""The loop's run constants (:class:`hevsim.sim._loop.RunConstants`; former name)."""
 
 
 class ControllerConstants(NamedTuple):
@@ -171,37 +138,6 @@ def controller_code(ctl: Any) -> ControllerConstants | None:
         cd_soc=float(ctl.cd_soc),
         cd_ev_power_w=float(ctl.cd_ev_power),
         cd_s=float(ctl.cd_s),
-    )
-
-
-def constants(model: Any, soc_min: float, soc_max: float) -> HEVConstants:
-    """The :class:`HEVConstants` of a parallel or power-split model."""
-    m, b, body = model.motor, model.battery, model.body
-    return HEVConstants(
-        motor_kind=int(m.kind_code),
-        motor_efficiency=float(m.efficiency),
-        motor_torque_scale=float(m.torque_scale),
-        n_series=float(b.n_series),
-        n_parallel=float(b.n_parallel),
-        r_extra_ohm=float(b.r_extra_ohm),
-        temperature_k=float(b.temperature_k),
-        i_discharge_max_a=float(b.max_discharge_current_a),
-        i_charge_max_a=float(b.max_charge_current_a),
-        coulombic_efficiency=float(b.coulombic_efficiency),
-        capacity_as=3600.0 * b.capacity_ah,
-        soc_min=float(soc_min),
-        soc_max=float(soc_max),
-        aux_power_w=float(getattr(model, "aux_power_w", 0.0)),
-        mass_kg=float(body.mass_kg),
-        mass_factor=float(body.mass_factor),
-        drag_coefficient=float(body.drag_coefficient),
-        frontal_area_m2=float(body.frontal_area_m2),
-        air_density_kgpm3=float(body.air_density_kgpm3),
-        headwind_mps=float(body.headwind_mps),
-        rolling_resistance=float(body.rolling_resistance),
-        rolling_resistance_speed_s_per_m=float(body.rolling_resistance_speed_s_per_m),
-        radius_m=float(model.tire.radius_m),
-        lhv_jpkg=float(model.engine.fuel_lhv_jpkg),
     )
 
 
@@ -562,290 +498,182 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
     return True, cand0[i], cand1[i], False, 0.0, 0.0
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def _battery(soc, h, ptab):
-    """(OCV [V], discharge and charge resistance [ohm], largest charge power [W]) at ``soc``
-    (the forward loop's battery state: no charging when full)."""
-    ocv, r_dis = pack_ocv_r(soc, h.temperature_k, 1.0, h.n_series, h.n_parallel, h.r_extra_ohm, ptab)
-    _, r_chg = pack_ocv_r(soc, h.temperature_k, -1.0, h.n_series, h.n_parallel, h.r_extra_ohm, ptab)
-    p_chg = battery_power_limits(ocv, r_dis, ocv, r_chg, h.i_discharge_max_a, h.i_charge_max_a)[1]
-    if soc >= h.soc_max:  # full: no charging (regeneration goes to the friction brakes)
-        p_chg = 0.0
-    return ocv, r_dis, r_chg, p_chg
+# ------------------------------------------------------------------------- the plug-in
+class ParallelPlug(NamedTuple):
+    """The parallel HEV's plug-in of :func:`hevsim.sim._loop.run_loop`: its tables
+    (``dpar``; ``dps`` None), the controller (:class:`ControllerConstants`), the candidates'
+    first and second controls and the electric assist's throttle grid, the engine, motor and
+    generator (unused) tables."""
+
+    dpar: Any
+    dps: None
+    cc: ControllerConstants
+    cand0: np.ndarray
+    cand1: np.ndarray
+    thr_grid: np.ndarray
+    etab: Any
+    mtab: Any
+    gtab: Any
 
 
-@njit(cache=True, inline="always")
-def _step_constants(h, i_dis, i_chg, aux_w):
-    """``h`` with the battery's current limits [A] and the bus's other load [W] of one step
-    (a pack's BMS limits and cooling load, :func:`battery_begin`)."""
-    return HEVConstants(
-        h.motor_kind, h.motor_efficiency, h.motor_torque_scale, h.n_series, h.n_parallel, h.r_extra_ohm,
-        h.temperature_k, i_dis, i_chg, h.coulombic_efficiency, h.capacity_as, h.soc_min, h.soc_max, aux_w,
-        h.mass_kg, h.mass_factor, h.drag_coefficient, h.frontal_area_m2, h.air_density_kgpm3, h.headwind_mps,
-        h.rolling_resistance, h.rolling_resistance_speed_s_per_m, h.radius_m, h.lhv_jpkg,
-    )  # fmt: skip
+class PowerSplitPlug(NamedTuple):
+    """The power split's plug-in (as :class:`ParallelPlug`: ``dps`` its tables, ``dpar``
+    None; ``gtab`` MG1's tables). Two types, so numba compiles one loop per architecture and
+    prunes the other's branches (its tables None) before typing."""
 
-
-@njit(cache=True, inline="always", error_model="numpy")
-def battery_begin(soc, h, ptab, pk):
-    """The battery model's start of a step in every compiled forward loop: (the bus's battery
-    state ``(OCV [V], discharge and charge resistance [ohm], largest charge power [W])``,
-    the run constants for the step). ``pk`` None: the pack tables ``ptab`` at the vehicle's
-    ``soc`` [-] (:func:`_battery`) and ``h`` as it is. ``pk`` a pack's
-    :class:`~hevsim.battery.pack_run.PackArrays` (``[battery] model = "pack"``): the pack's
-    compiled step begins (:func:`~hevsim.battery.pack_run.pack_begin`: BMS limits, Thevenin
-    pairs, cooling decision) and :func:`~hevsim.battery.pack_run.pack_bus_state` gives the
-    state, the current limits and the cooling load on the bus (in ``h``), as the Python loop's
-    :meth:`hevsim.battery.bms.PackRun.vehicle_step`. ``pk`` a ``[battery] model = "cell"``
-    battery's :data:`~hevsim.battery.vehicle.CellBusTables`: the pack's step pairs of its
-    representative cell (:func:`~hevsim.battery.vehicle.cell_bus_state`), the limits and load of
-    ``h``, as :meth:`hevsim.battery.cell_run.CellRun.vehicle_step`. Both through
-    :func:`~hevsim.battery.vehicle.vehicle_bus_begin`."""
-    if pk is None:
-        return _battery(soc, h, ptab), h
-    ocv, r_dis, r_chg, p_chg, i_dis, i_chg, aux_w = vehicle_bus_begin(
-        pk, soc, h.soc_max, h.i_discharge_max_a, h.i_charge_max_a, h.aux_power_w, LIMIT_RTOL,
-        REGEN_CURRENT_RTOL,
-    )  # fmt: skip
-    return (ocv, r_dis, r_chg, p_chg), _step_constants(h, i_dis, i_chg, aux_w)
+    dpar: None
+    dps: Any
+    cc: ControllerConstants
+    cand0: np.ndarray
+    cand1: np.ndarray
+    thr_grid: np.ndarray
+    etab: Any
+    mtab: Any
+    gtab: Any
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def battery_end(soc, d_soc, p_bat, pk):
-    """The battery model's end of a step: the SOC [-] after it. ``pk`` None: ``soc + d_soc``;
-    a pack: its step at the bus's terminal power ``p_bat`` [W]
-    (:func:`~hevsim.battery.pack_run.pack_finish_power`: cells, module thermal model, cooling
-    loop, ageing stress, records), its mean cell SOC; a cell battery: its cell's step
-    (:func:`~hevsim.battery.vehicle.cell_finish_power`), its SOC."""
-    if pk is None:
-        return soc + d_soc
-    return vehicle_bus_finish_power(pk, p_bat)
+def _step_data(plug, hk):
+    """The ``md`` and ``cands`` arguments of :func:`_choose` and :func:`_point` at a step."""
+    return (hk, plug.etab, plug.mtab, plug.gtab), (plug.cand0, plug.cand1, plug.thr_grid)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _demand(v0, v1, k, dt, gr, h):
-    """(mid-step speed [m/s], acceleration [m/s²], grade [-], wheel force [N]) of a step."""
-    v_mid = 0.5 * (v0 + v1)
-    a = (v1 - v0) / dt
-    g = 0.5 * (gr[k] + gr[k + 1])
-    f = 0.0
-    if v_mid > 0.0:
-        f = road_load_force(
-            v_mid,
-            a,
-            g,
-            h.mass_kg,
-            h.mass_factor,
-            h.drag_coefficient,
-            h.frontal_area_m2,
-            h.air_density_kgpm3,
-            h.headwind_mps,
-            h.rolling_resistance,
-            h.rolling_resistance_speed_s_per_m,
-        )
-    return v_mid, a, g, f
+def _aecms_update(cc, state, v_mid, soc, dt, e_soc):
+    """The A-ECMS update of the step taken: integrate its SOC error (as
+    :meth:`hevsim.control.parallel.AdaptiveECMS.update`)."""
+    if cc.code == AECMS and not soc > cc.cd_soc:
+        state[2] += (state[3] - cc.kin * v_mid**2 / e_soc - soc) * dt
 
 
-# ------------------------------------------------------------------------- the run
-@njit(cache=True, nogil=True, error_model="numpy", **NO_REFCOUNT)
-def run_hev(
-    dpar,
-    dps,
-    cc,
-    soc0,
-    t,
-    v_des,
-    gr,
-    cand0,
-    cand1,
-    thr_grid,
-    h,
-    etab,
-    mtab,
-    gtab,
-    ptab,
-    cols,
-    audit,
-    summary,
-    state,
-    buf,
-    pk,
-):
-    """One forward run (the compiled :func:`hevsim.sim.forward._run`) of the parallel HEV
-    (tables ``dpar``, ``dps`` None) or the power split (``dps``, ``dpar`` None): numba
-    compiles one architecture's code per type signature (its branches on the other's None
-    are pruned before typing). Fills ``cols``
-    (channels x ``n + 1``: :data:`BASE_COLUMNS`, the details, :data:`TAIL_COLUMNS`),
-    ``audit`` (:data:`AUDIT_BASE`, the loss terms but ``fuel`` and ``wheel``, battery loss;
-    [J]) and ``summary`` (:data:`hevsim.sim.kernel.SUMMARY`). Returns (status, step index,
-    final speed [m/s]). ``pk``: None, or the pack of a ``[battery] model = "pack"`` vehicle
-    (:func:`battery_begin`, :func:`battery_end`)."""
-    n = t.shape[0] - 1
-    dt = t[1] - t[0]
-    cands = (cand0, cand1, thr_grid)
+# The plug-ins' functions (hevsim.sim._loop): one set per architecture, each passing the other
+# architecture's tables as a literal None, so that numba prunes their branches in the shared
+# kernels (_choose, _point) before typing; inlined into the loop (no call with every table).
+@njit(cache=True, inline="always", error_model="numpy")
+def parallel_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
+    """The parallel HEV's ``choose``: :func:`_choose` (``work``: (its ``buf``, the extra
+    channels))."""
+    md, cands = _step_data(plug, hk)
+    return _choose(plug.dpar, None, plug.cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md,
+                   work[0])  # fmt: skip
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def parallel_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
+    """The parallel HEV's ``point``: :func:`_point` with its details and audit terms; (fuel [kg],
+    SOC change [-])."""
+    md, _ = _step_data(plug, hk)
+    buf = work[0]
+    r = _point(plug.dpar, None, c0, c1, NO_ENGINE, w_wheel, t_wheel, v_mid > 0.0, soc, dt, bat, md, True,
+               buf[6], buf[7])  # fmt: skip
+    return r[1], r[2]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def parallel_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
+    """The parallel HEV's ``commit``: the bus's other load with a pack (the cooling too), the
+    A-ECMS update, the clutch (``ext[0]``: closed iff the engine is on); (engine on, power mode,
+    battery power [W], current [A], wheel power [W])."""
+    buf, ext = work
     det, loss = buf[6], buf[7]
-    nd = det.shape[0]
-    nl = loss.shape[0]
-    m_eff = h.mass_kg * h.mass_factor
-    r = h.radius_m
-    q_as = h.capacity_as
-    state[0] = 1.0
-    state[1] = cc.s0
-    state[2] = 0.0
-    state[3] = min(soc0, cc.cd_soc)
-    v, soc, fuel = v_des[0], soc0, 0.0
-    err_sq = err_max = dist = eon = starts = lim_s = 0.0
-    was_on = False
-    for k in range(n):
-        bat, hk = battery_begin(soc, h, ptab, pk)
-        md = (hk, etab, mtab, gtab)
-        ocv = bat[0]
-        e_soc = q_as * ocv
-        v1 = v_des[k + 1]
-        v_mid, a, g, f = _demand(v, v1, k, dt, gr, h)
-        found, c0, c1, filled, fuel_kg, d_soc = _choose(
-            dpar, dps, cc, state, cands, v_mid / r, f * r, v_mid, soc, dt, e_soc, bat, md, buf
-        )
-        limited = 0.0
-        if not found:  # beyond the powertrain: lower the end speed until a control exists
-            limited = 1.0
-            lo, hi, have = 0.0, v1, False
-            bv = ba = bg = bf = bc0 = bc1 = 0.0
-            for _ in range(BISECTION_STEPS):
-                mid = 0.5 * (lo + hi)
-                tv, ta, tg, tf = _demand(v, mid, k, dt, gr, h)
-                ok, x0, x1, _, _, _ = _choose(
-                    dpar, dps, cc, state, cands, tv / r, tf * r, tv, soc, dt, e_soc, bat, md, buf
-                )
-                if not ok:
-                    hi = mid
-                else:
-                    lo, have = mid, True
-                    bv, ba, bg, bf, bc0, bc1 = tv, ta, tg, tf, x0, x1
-            if not have:
-                bv, ba, bg, bf = _demand(v, 0.0, k, dt, gr, h)
-                ok, bc0, bc1, _, _, _ = _choose(
-                    dpar, dps, cc, state, cands, bv / r, bf * r, bv, soc, dt, e_soc, bat, md, buf
-                )
-                if not ok and bf > 0.0 and pk is not None:  # coast to rest (forward._run, with a pack)
-                    bf = 0.0
-                    ok, bc0, bc1, _, _, _ = _choose(
-                        dpar, dps, cc, state, cands, bv / r, bf * r, bv, soc, dt, e_soc, bat, md, buf
-                    )
-                if not ok:
-                    return ERR_STUCK, k, v
-            v_mid, a, g, f, c0, c1 = bv, ba, bg, bf, bc0, bc1
-            v1 = v_mid * 2.0 - v
-            filled = False
-        if not filled:  # the chosen control's details and audit terms
-            eng = NO_ENGINE
-            if dps is not None:
-                eng = PS.engine_point(c0, c1, dps, etab)
-            _, fuel_kg, d_soc, _ = _point(
-                dpar, dps, c0, c1, eng, v_mid / r, f * r, v_mid > 0.0, soc, dt, bat, md, True, det, loss
-            )
-        if pk is not None and dpar is not None:  # the bus's other load of the step (the cooling too)
-            loss[P_AUX] = hk.aux_power_w
-        if cc.code == AECMS and not soc > cc.cd_soc:  # update: integrate the SOC error of the step taken
-            state[2] += (state[3] - cc.kin * v_mid**2 / e_soc - soc) * dt
-        # ---- energy audit [J]
-        audit[0] += loss[0] * dt
-        for j in range(1, nl - 1):
-            audit[len(AUDIT_BASE) + j - 1] += loss[j] * dt
-        e_chem = -d_soc * q_as * ocv
-        p_bat = det[nd - 2]
-        audit[2] += e_chem
-        audit[len(AUDIT_BASE) + nl - 2] += e_chem - p_bat * dt
-        crr, crr_v = h.rolling_resistance, h.rolling_resistance_speed_s_per_m
-        add_road_audit(audit, v, v1, v_mid, a, g, f, h.mass_kg, m_eff, crr, crr_v, dt)
-        # ---- mode and bookkeeping
-        i_on, mode = 0, 0.0
-        if dpar is not None:
-            i_on, mode = 1, P.power_mode_point(det[1], det[9], f, v_mid)
-        if dps is not None:
-            mode = PS.power_mode_point(det[0], det[14], f, v_mid)
-        on = det[i_on] > 0.0
-        if on and not was_on:
-            starts += 1.0
-        was_on = on
-        fuel += fuel_kg
-        eon += dt if on else 0.0
-        err_sq, err_max, dist, lim_s = track_step(
-            v_des[k] - v, v_mid, dt, limited, err_sq, err_max, dist, lim_s
-        )
-        row = (v_des[k], v, a, f, loss[nl - 1], f - m_eff * a, fuel, soc)
-        for j in range(len(row)):
-            cols[j, k] = row[j]
-        for j in range(nd):
-            cols[len(BASE_COLUMNS) + j, k] = det[j]
-        b = len(BASE_COLUMNS) + nd
-        cols[b, k] = mode
-        cols[b + 1, k] = limited
-        cols[b + 2, k] = det[i_on]
-        cols[b + 3, k] = ocv
-        i_bat = det[nd - 3]
-        cols[b + 4, k] = p_bat / i_bat if i_bat != 0.0 else ocv
-        v, soc = v1, battery_end(soc, d_soc, p_bat, pk)
-    write_summary(summary, v_des[n] - v, err_sq, err_max, n, dist, fuel, soc, eon, starts, lim_s, t[n] - t[0])
-    return ERR_NONE, n, v
+    nd, nl = det.shape[0], loss.shape[0]
+    if has_pack:  # the bus's other load of the step (the cooling too)
+        loss[P_AUX] = hk.aux_power_w
+    _aecms_update(plug.cc, state, v_mid, soc, dt, e_soc)
+    ext[0] = det[1]
+    return det[1] > 0.0, P.power_mode_point(det[1], det[9], f, v_mid), det[nd - 2], det[nd - 3], loss[nl - 1]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def power_split_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
+    """The power split's ``choose``: :func:`_choose`."""
+    md, cands = _step_data(plug, hk)
+    return _choose(None, plug.dps, plug.cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md,
+                   work[0])  # fmt: skip
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def power_split_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
+    """The power split's ``point``: its engine point, then :func:`_point` with its details and
+    audit terms; (fuel [kg], SOC change [-])."""
+    md, _ = _step_data(plug, hk)
+    buf = work[0]
+    eng = PS.engine_point(c0, c1, plug.dps, plug.etab)
+    r = _point(None, plug.dps, c0, c1, eng, w_wheel, t_wheel, v_mid > 0.0, soc, dt, bat, md, True, buf[6],
+               buf[7])  # fmt: skip
+    return r[1], r[2]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def power_split_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
+    """The power split's ``commit``: the A-ECMS update; (engine on, power mode, battery power
+    [W], current [A], wheel power [W]); ``ext[0]`` the engine flag (the record drops it)."""
+    buf, ext = work
+    det, loss = buf[6], buf[7]
+    nd, nl = det.shape[0], loss.shape[0]
+    _aecms_update(plug.cc, state, v_mid, soc, dt, e_soc)
+    ext[0] = det[0]
+    return (
+        det[0] > 0.0,
+        PS.power_mode_point(det[0], det[14], f, v_mid),
+        det[nd - 2],
+        det[nd - 3],
+        loss[nl - 1],
+    )
+
+
+register(ParallelPlug, parallel_choose, parallel_point, parallel_commit)
+register(PowerSplitPlug, power_split_choose, power_split_point, power_split_commit)
 
 
 # ------------------------------------------------------------------------- Python side
-def writable(tab: Any) -> Any:
-    """``tab`` (a named tuple of arrays and scalars) with its read-only arrays copied: a
-    read-only array is another numba type, so a machine whose map arrays are read-only would
-    compile :func:`run_hev` a second time (about 20 s) for the same architecture."""
-    if all(a.flags.writeable for a in tab if isinstance(a, np.ndarray)):
-        return tab
-    return type(tab)(*(a.copy() if isinstance(a, np.ndarray) and not a.flags.writeable else a for a in tab))
-
-
 def _run_one(
     model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_max: float, pack: Any = None
 ) -> tuple[Any, ...]:
     """One compiled run: (channel names, channels (names x n + 1), audit names, audit [J],
     summary, final speed [m/s]); the controller left as the Python loop leaves it. ``pack``:
     the :class:`~hevsim.battery.bms.PackRun` of a ``[battery] model = "pack"`` vehicle
-    (:func:`pack_arrays`)."""
+    (:func:`~hevsim.sim._loop.pack_arrays`)."""
     from hevsim.sim.checks import stuck_error
 
     cc = controller_code(ctl)
     assert cc is not None
     parallel = isinstance(model, P.ParallelHEV)
     mod = P if parallel else PS
-    dpar, dps = None, None  # the other architecture's: None (run_hev)
-    if parallel:
-        dpar = writable(P.kernel_tables(model))
-        gtab = writable(model.motor.kernel_tables())
-    else:
-        dps = writable(PS.kernel_tables(model))
-        gtab = writable(model.generator.kernel_tables())
     ctl.reset(float(soc0))
-    t, v_des, gr = (np.require(a, np.float64, ("C", "W")) for a in (grid.time_s, grid.speed_mps, grid.grade))
+    t, v_des, gr = grid_arrays(grid)
     names = (*BASE_COLUMNS, *mod.DETAILS, *TAIL_COLUMNS)
     cols = np.zeros((len(names), t.size))
     audit_names = (*AUDIT_BASE, *mod.LOSS_TERMS[1:-1], "battery_loss")
     audit = np.zeros(len(audit_names))
     summary = np.zeros(len(K.SUMMARY))
-    state = np.zeros(4)
+    state = np.array([1.0, cc.s0, 0.0, min(float(soc0), cc.cd_soc)])  # gear, s, SOC integral, SOC reference
     cand0, cand1 = (np.require(c, np.float64, ("C", "W")) for c in (ctl.controls[0], ctl.controls[-1]))
     thr = np.require(getattr(ctl, "thr_grid", np.zeros(0)), np.float64, ("C", "W"))
     h = constants(model, soc_min, soc_max)
     etab, mtab, ptab = (writable(c.kernel_tables()) for c in (model.engine, model.motor, model.battery))
+    if parallel:
+        plug: Any = ParallelPlug(writable(P.kernel_tables(model)), None, cc, cand0, cand1, thr, etab, mtab,
+                                 writable(model.motor.kernel_tables()))  # fmt: skip
+    else:
+        plug = PowerSplitPlug(None, writable(PS.kernel_tables(model)), cc, cand0, cand1, thr, etab, mtab,
+                              writable(model.generator.kernel_tables()))  # fmt: skip
     nc = cand0.size
     e_flags, e_floats = np.zeros((3, nc), np.bool_), np.zeros((3, nc))
     p_cand, order = np.zeros(nc), np.arange(nc)
     if not parallel:  # each candidate's engine operating point, engine power [W], specific-fuel order
-        engine_cache(cand0, cand1, dps, etab, e_flags, e_floats)
+        engine_cache(cand0, cand1, plug.dps, etab, e_flags, e_floats)
         p_cand = e_floats[1] * e_floats[0]
         fuel_kg = e_floats[2] * (t[1] - t[0])  # as _point gives it
         spec = specific_fuel(fuel_kg, p_cand)  # as the Python controller ranks them
         order = np.argsort(np.where(np.isnan(spec), -np.inf, spec), kind="stable")  # NaN first
-    buf = (np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc, np.bool_), p_cand, order,
-           np.zeros(len(mod.DETAILS)), np.zeros(len(mod.LOSS_TERMS)), e_flags, e_floats)  # fmt: skip
-    status, k, v_end = run_hev(dpar, dps, cc, float(soc0), t, v_des, gr, cand0, cand1, thr, h, etab, mtab,
-                               gtab, ptab, cols, audit, summary, state, buf,
-                               pack_arrays(pack, model, t.size - 1))  # fmt: skip
+    det, loss, ext = np.zeros(len(mod.DETAILS)), np.zeros(len(mod.LOSS_TERMS)), np.zeros(1)
+    buf = (np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc, np.bool_), p_cand, order, det, loss,
+           e_flags, e_floats)  # fmt: skip
+    slots = audit_slots(mod.LOSS_TERMS, audit_names)
+    status, k, v_end, _ = run_loop(plug, float(soc0), t, v_des, gr, h, ptab, state, (buf, ext), det, loss,
+                                   ext, slots, cols, audit, summary,
+                                   pack_arrays(pack, model, t.size - 1))  # fmt: skip
     if status == ERR_STUCK:
         soc_last = cols[names.index("soc"), k - 1] if k > 0 else soc0
         raise stuck_error(model, float(t[k]), float(soc_last), soc_min)
@@ -856,26 +684,6 @@ def _run_one(
     return names, cols, audit_names, audit, summary, float(v_end)
 
 
-def pack_arrays(pack: Any, model: Any, steps: int) -> Any:
-    """The ``pk`` argument of the compiled loops: None without a pack; for a
-    :class:`~hevsim.battery.bms.PackRun`, its pack's
-    :class:`~hevsim.battery.pack_run.PackArrays` with room for ``steps`` record rows and the
-    model's own auxiliary load [W] as the base the cooling adds to (as
-    :meth:`~hevsim.battery.bms.PackRun.vehicle_step`)."""
-    if pack is None:
-        return None
-    if hasattr(pack, "loop_arrays"):  # a "cell" battery (hevsim.battery.cell_run.CellRun)
-        return pack.loop_arrays(float(getattr(model, "aux_power_w", 0.0)), steps)
-    from hevsim.battery.pack_run import F_BASEAUX
-
-    if pack.base_aux_w is None:
-        pack.base_aux_w = float(getattr(model, "aux_power_w", 0.0))
-    pack.pack.reserve(steps)
-    s = pack.pack.arrays
-    s.f[F_BASEAUX] = pack.base_aux_w
-    return s
-
-
 def simulate(
     model: Any, grid: Any, ctl: Any, *, soc_initial: float, soc_min: float, soc_max: float, pack: Any = None
 ) -> ForwardRecord | None:
@@ -884,7 +692,8 @@ def simulate(
     :class:`~hevsim.sim.forward.ForwardRecord`); None for a controller without a compiled
     form. Leaves the controller as the Python loop does (shift-schedule gear, A-ECMS factor
     and integral). ``pack``: the :class:`~hevsim.battery.bms.PackRun` of a ``[battery] model =
-    "pack"`` vehicle, stepped inside the loop (:func:`battery_begin`, :func:`battery_end`)."""
+    "pack"`` vehicle, stepped inside the loop (:func:`~hevsim.sim._loop.battery_begin`,
+    :func:`~hevsim.sim._loop.battery_end`)."""
     if controller_code(ctl) is None:
         return None
     names, cols, audit_names, audit, summary, v_end = _run_one(
@@ -894,42 +703,6 @@ def simulate(
     if not isinstance(model, P.ParallelHEV):  # clutch_closed is the parallel HEV's; the power split has none
         del columns["clutch_closed"]
     return ForwardRecord(columns, dict(zip(audit_names, audit.tolist(), strict=True)), summary, v_end)
-
-
-MODEL_KEYS = ("body.mass_kg", "body.mass_factor", "body.drag_coefficient", "body.frontal_area_m2",
-              "body.rolling_resistance", "tire.radius_m", "engine.torque_scale")  # fmt: skip
-"""Configuration keys a compiled batch varies on the built model (others: the Python path)."""
-
-
-def _variant(model: Any, kind: str, values: dict[str, float]) -> tuple[Any, Any] | None:
-    """(model, controller) of one variant: the built ``model`` with the :data:`MODEL_KEYS` of
-    ``values`` replaced and the controller ``kind`` made for it with the ``controller.*``
-    values it reads; None when a key cannot be varied this way."""
-    import dataclasses
-
-    from hevsim.components.driveline import Tire
-    from hevsim.control import CONTROLLERS, make_controller
-
-    reads = CONTROLLERS[kind].parameters
-    params: dict[str, float] = {}
-    for key, val in values.items():
-        section, _, name = key.partition(".")
-        if section == "controller" and name in reads:
-            params[name] = val
-        elif section == "controller" and name != "kind" and not hasattr(model, name):
-            continue  # a parameter this controller does not read: the Python path ignores it too
-        elif key not in MODEL_KEYS and key != "simulation.soc_initial":
-            return None
-    changes: dict[str, Any] = {}
-    body = {k.split(".")[1]: v for k, v in values.items() if k.startswith("body.")}
-    if body:
-        changes["body"] = dataclasses.replace(model.body, **body)
-    if "tire.radius_m" in values:
-        changes["tire"] = Tire(radius_m=values["tire.radius_m"])
-    if "engine.torque_scale" in values:
-        changes["engine"] = dataclasses.replace(model.engine, torque_scale=values["engine.torque_scale"])
-    vm = dataclasses.replace(model, **changes) if changes else model
-    return vm, make_controller(vm, kind, **params)
 
 
 def simulate_batch(
@@ -953,46 +726,6 @@ def simulate_batch(
         return _run_one(vm, grid, ctl, soc0, soc_min, soc_max)[:5]
 
     return threaded_batch(model, variants, grid, controller, soc_initial, run)
-
-
-def threaded_batch(
-    model: Any, variants: dict[str, np.ndarray], grid: Any, controller: Any, soc_initial: np.ndarray, run: Any
-) -> BatchRecord | None:
-    """Every variant (:func:`_variant`) a compiled run on its own thread of a pool (the
-    compiled loops release the GIL): ``run(variant model, its controller, initial SOC)``
-    returns (channel names, channels (names x n + 1), audit names, audit [J], summary) of one
-    run. None when a variant's keys cannot be varied on the built model (the keys decide it:
-    the first variant tells; the threads build the others, overlapping one variant's Python
-    set-up with another's compiled run)."""
-    import os
-    from concurrent.futures import ThreadPoolExecutor
-
-    n = int(np.size(soc_initial))
-
-    def pair(i: int) -> tuple[Any, Any] | None:
-        return _variant(model, controller.name, {k: float(v[i]) for k, v in variants.items()})
-
-    first = pair(0) if n else None
-    if first is None:
-        return None
-    dt = float(grid.time_s[1] - grid.time_s[0])
-
-    def one(i: int) -> tuple[Any, ...]:
-        built = first if i == 0 else pair(i)
-        assert built is not None  # the keys of variant 0
-        vm, ctl = built
-        names, cols, audit_names, audit, summary = run(vm, ctl, float(soc_initial[i]))
-        wheel = cols[names.index("wheel_power_w")][:-1]
-        return (
-            dict(zip(audit_names, audit.tolist(), strict=True)),
-            summary,
-            float(np.sum(np.clip(wheel, 0.0, None)) * dt),
-        )
-
-    with ThreadPoolExecutor(max_workers=min(n, os.cpu_count() or 1) or 1) as pool:
-        out = list(pool.map(one, range(n)))
-    return BatchRecord([o[0] for o in out], np.array([o[1] for o in out]).reshape(n, len(K.SUMMARY)),
-                       np.array([o[2] for o in out]))  # fmt: skip
 
 
 simulate_compiled = simulate

@@ -76,7 +76,7 @@ from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DomainError, InputError
 from hevsim.fuels import config_fuel
 from hevsim.sim import kernel as K
-from hevsim.sim._compiled_common import AUDIT_ROAD, add_road_audit, track_step, write_summary
+from hevsim.sim._loop import AUDIT_ROAD, add_road_audit, track_step, write_summary
 from hevsim.sim._records import (  # re-exported: the records every forward loop fills
     BISECTION_STEPS,
     REGEN_CURRENT_RTOL,
@@ -357,25 +357,27 @@ simulate_bev = functools.partial(simulate_architecture, "bev")
 simulate_power_split = functools.partial(simulate_architecture, "power_split")
 """Simulate a power-split HEV forward (see :func:`simulate_architecture`)."""
 simulate_fcev = functools.partial(simulate_architecture, "fcev")
-"""Simulate a fuel-cell vehicle forward (see :func:`simulate_architecture`; the Python loop)."""
+"""Simulate a fuel-cell vehicle forward (see :func:`simulate_architecture`)."""
+
+
+COMPILED_PLUGINS = ("_compiled_hev", "_compiled_bev", "_compiled_fcev", "_compiled_conventional")
+"""Modules of :mod:`hevsim.sim` holding architectures' plug-ins of the one compiled loop
+(:func:`hevsim.sim._loop.run_loop`) and their hooks; each declares the architectures it runs in
+``ARCHITECTURES``."""
 
 
 def compiled_loop(architecture: str) -> Any:
-    """The module of ``architecture``'s compiled forward loop (its ``simulate_compiled`` and
-    ``simulate_batch_compiled``), None where it has none. One compiled loop per family of
-    architectures (each declares the ones it runs in ``ARCHITECTURES``) until the one compiled
-    loop of issue 24; the loops live here in sim/, so an architecture module never imports them."""
-    from hevsim.sim import _compiled_hev  # imported one by one: a run loads only its own loop
+    """The module of ``architecture``'s plug-in of the one compiled forward loop (its
+    ``simulate_compiled`` and ``simulate_batch_compiled``), None where it has none. The plug-ins
+    live here in sim/, so an architecture module never imports them; they are imported one by
+    one (a run loads only its own)."""
+    import importlib
 
-    if architecture in _compiled_hev.ARCHITECTURES:
-        return _compiled_hev
-    from hevsim.sim import _compiled_bev
-
-    if architecture in _compiled_bev.ARCHITECTURES:
-        return _compiled_bev
-    from hevsim.sim import _compiled_conventional
-
-    return _compiled_conventional if architecture in _compiled_conventional.ARCHITECTURES else None
+    for name in COMPILED_PLUGINS:
+        mod = importlib.import_module(f"hevsim.sim.{name}")
+        if architecture in mod.ARCHITECTURES:
+            return mod
+    return None
 
 
 def use_compiled(compiled: bool | None) -> bool:

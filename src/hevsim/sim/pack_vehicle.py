@@ -12,9 +12,9 @@ and the ambient temperature.
   kind ``"pack"``: the pack's compiled step (:mod:`hevsim.battery.pack_run`) inside the
   kernel's loop (:mod:`hevsim.battery.vehicle`, section 3), one compiled loop with no Python
   per step.
-* **Parallel HEV, power split, BEV**: the architecture's compiled forward loop
-  (:mod:`hevsim.sim._compiled_hev`, :mod:`hevsim.sim._compiled_bev`) with the same compiled
-  pack step inside (``battery_begin``/``battery_end`` of :mod:`hevsim.sim._compiled_hev`:
+* **Parallel HEV, power split, BEV, FCEV**: the one compiled forward loop
+  (:func:`hevsim.sim._loop.run_loop`, the architecture's plug-in) with the same compiled
+  pack step inside (``battery_begin``/``battery_end`` of :mod:`hevsim.sim._loop`:
   :func:`~hevsim.battery.pack_run.pack_begin`, :func:`~hevsim.battery.pack_run.pack_bus_state`,
   :func:`~hevsim.battery.pack_run.pack_finish_power`), no Python per step. Controllers without a
   compiled form (and ``HEVSIM_FORWARD=python``) run the Python loop of
