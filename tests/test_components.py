@@ -145,6 +145,31 @@ def test_electrical_power_is_the_closed_form_to_the_last_bit() -> None:
     assert np.isnan(electrical_power(np.nan, 1.0, 0.9)) and np.isnan(electrical_power(1.0, 1.0, np.nan))
 
 
+def test_gear_torques_are_the_closed_form_to_the_last_bit() -> None:
+    """The compiled per-point gear: T i eta motoring, T i / eta braking (one correctly rounded
+    reciprocal, as for the machines' power), T i at zero torque; arrays as before."""
+    from numba import njit
+
+    from hevsim.components.driveline import gear_input_torque, gear_output_torque
+
+    @njit(cache=False)
+    def many(t, eta):  # type: ignore[no-untyped-def]
+        out, inp = np.empty(t.shape[0]), np.empty(t.shape[0])
+        for i in range(t.shape[0]):
+            out[i] = gear_output_torque(t[i], 3.9, eta[i])
+            inp[i] = gear_input_torque(t[i], 3.9, eta[i])
+        return out, inp
+
+    rng = np.random.default_rng(11)
+    t, eta = rng.uniform(-400, 400, 200_000), rng.uniform(0.5, 1.0, 200_000)
+    t[:3] = 0.0
+    factor = np.where(t > 0, eta, np.where(t < 0, 1.0 / eta, 1.0))
+    out, inp = many(t, eta)
+    assert np.array_equal(out, t * 3.9 * factor) and np.array_equal(inp, t / (3.9 * factor))
+    arr = gear_output_torque(t[:50], 3.9, 0.9)  # arrays keep numpy's eta ** sign(T)
+    assert np.array_equal(arr, t[:50] * 3.9 * 0.9 ** np.sign(t[:50]))
+
+
 def test_grade_terms_on_level_road_and_slopes() -> None:
     """The compiled grade and rolling forces: sin/cos of atan(grade) (level road without libm
     calls: +-0 and exactly 1), scalar and array alike."""

@@ -46,7 +46,7 @@ def _segment(xp: FloatArray, x: float) -> int:
     return lo
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def interp1(xp: FloatArray, fp: FloatArray, x: float, linear: bool) -> float:
     """Linear interpolation of ``fp(xp)`` at scalar ``x``.
 
@@ -66,7 +66,7 @@ def interp1(xp: FloatArray, fp: FloatArray, x: float, linear: bool) -> float:
     return fp[i] + w * (fp[i + 1] - fp[i])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def interp2(xp: FloatArray, yp: FloatArray, fp: FloatArray, x: float, y: float, linear: bool) -> float:
     """Bilinear interpolation of ``fp[i, j] = f(xp[i], yp[j])`` at scalar ``(x, y)``."""
     nx = xp.shape[0]
