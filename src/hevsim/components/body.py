@@ -38,7 +38,7 @@ def cos_atan(grade):
     return np.cos(np.arctan(grade))
 
 
-@overload(sin_atan, jit_options={"cache": True})
+@overload(sin_atan)
 def _sin_atan(grade):
     if isinstance(grade, types.Number):
 
@@ -51,7 +51,7 @@ def _sin_atan(grade):
     return lambda grade: np.sin(np.arctan(grade))
 
 
-@overload(cos_atan, jit_options={"cache": True})
+@overload(cos_atan)
 def _cos_atan(grade):
     if isinstance(grade, types.Number):
 

@@ -21,7 +21,7 @@ def efficiency_factor(torque_nm, efficiency):
     return efficiency ** np.sign(torque_nm)
 
 
-@overload(efficiency_factor, jit_options={"cache": True})
+@overload(efficiency_factor)
 def _efficiency_factor(torque_nm, efficiency):
     if isinstance(torque_nm, types.Number):
 
