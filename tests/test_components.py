@@ -121,6 +121,71 @@ def test_electric_machine_power_direction() -> None:
     assert 0.6 < float(pm.efficiency_at(100.0, 300.0)) <= 1.0
 
 
+def test_electrical_power_is_the_closed_form_to_the_last_bit() -> None:
+    """P_el = P_mech / eta motoring (one correctly rounded reciprocal, as LLVM folds a constant
+    pow(x, -1); libm's pow(eta, -1) was off by an ulp for about 1 in 1000 efficiencies),
+    P_mech eta generating, 0 at rest, for the scalar kernel every compiled loop calls."""
+    from numba import njit
+
+    from hevsim.components.electric_machine import electrical_power
+
+    @njit(cache=False)
+    def many(t, w, eta):  # type: ignore[no-untyped-def]
+        out = np.empty(t.shape[0])
+        for i in range(t.shape[0]):
+            out[i] = electrical_power(t[i], w[i], eta[i])
+        return out
+
+    rng = np.random.default_rng(24)
+    n = 200_000
+    t, w, eta = rng.uniform(-300, 300, n), rng.uniform(0, 900, n), rng.uniform(0.05, 1, n)
+    p = t * w
+    assert np.array_equal(many(t, w, eta), np.where(p > 0, p * (1.0 / eta), p * eta))
+    assert electrical_power(0.0, 100.0, 0.9) == 0.0 and electrical_power(5.0, 0.0, 0.9) == 0.0
+    assert np.isnan(electrical_power(np.nan, 1.0, 0.9)) and np.isnan(electrical_power(1.0, 1.0, np.nan))
+
+
+def test_gear_torques_are_the_closed_form_to_the_last_bit() -> None:
+    """The compiled per-point gear: T i eta motoring, T i / eta braking (one correctly rounded
+    reciprocal, as for the machines' power), T i at zero torque; arrays as before."""
+    from numba import njit
+
+    from hevsim.components.driveline import gear_input_torque, gear_output_torque
+
+    @njit(cache=False)
+    def many(t, eta):  # type: ignore[no-untyped-def]
+        out, inp = np.empty(t.shape[0]), np.empty(t.shape[0])
+        for i in range(t.shape[0]):
+            out[i] = gear_output_torque(t[i], 3.9, eta[i])
+            inp[i] = gear_input_torque(t[i], 3.9, eta[i])
+        return out, inp
+
+    rng = np.random.default_rng(11)
+    t, eta = rng.uniform(-400, 400, 200_000), rng.uniform(0.5, 1.0, 200_000)
+    t[:3] = 0.0
+    factor = np.where(t > 0, eta, np.where(t < 0, 1.0 / eta, 1.0))
+    out, inp = many(t, eta)
+    assert np.array_equal(out, t * 3.9 * factor) and np.array_equal(inp, t / (3.9 * factor))
+    arr = gear_output_torque(t[:50], 3.9, 0.9)  # arrays keep numpy's eta ** sign(T)
+    assert np.array_equal(arr, t[:50] * 3.9 * 0.9 ** np.sign(t[:50]))
+
+
+def test_grade_terms_on_level_road_and_slopes() -> None:
+    """The compiled grade and rolling forces: sin/cos of atan(grade) (level road without libm
+    calls: +-0 and exactly 1), scalar and array alike."""
+    from hevsim.components.body import grade_force, rolling_force
+    from hevsim.units import STANDARD_GRAVITY
+
+    assert grade_force(1000.0, 0.0) == 0.0 and np.signbit(grade_force(1000.0, -0.0))
+    assert rolling_force(1000.0, 0.0, 0.01, 0.0, 5.0) == 0.01 * 1000.0 * STANDARD_GRAVITY
+    g = np.array([-0.1, -0.0, 0.0, 0.03, 0.2])
+    expect = 1000.0 * STANDARD_GRAVITY * np.sin(np.arctan(g))
+    assert np.array_equal(grade_force(1000.0, g), expect)
+    assert [grade_force(1000.0, float(x)) for x in g] == expect.tolist()
+    roll = [rolling_force(1000.0, float(x), 0.01, 0.001, 5.0) for x in g]
+    assert roll == (0.015 * 1000.0 * STANDARD_GRAVITY * np.cos(np.arctan(g))).tolist()
+
+
 def test_battery_levels_and_current() -> None:
     ideal = BatteryPack.constant("i", "ideal", 336.0, 8.5)
     assert float(ideal.current(3360.0, 0.7)) == pytest.approx(10.0)

@@ -27,6 +27,11 @@ _EXTRAPOLATIONS: tuple[str, ...] = ("clamp", "linear")
 FloatArray = npt.NDArray[np.float64]
 
 
+BORROWS: dict[str, Any] = {"_nrt": False}
+"""numba options of the interpolation kernels: no reference counting (they allocate nothing and
+only borrow the caller's tables; the forward loops call them tens of thousands of times a run)."""
+
+
 @njit(cache=True, inline="always")
 def _segment(xp: FloatArray, x: float) -> int:
     """Index i of the segment [xp[i], xp[i+1]] holding x (edge segments outside the range)."""
@@ -46,7 +51,7 @@ def _segment(xp: FloatArray, x: float) -> int:
     return lo
 
 
-@njit(cache=True)
+@njit(cache=True, **BORROWS)
 def interp1(xp: FloatArray, fp: FloatArray, x: float, linear: bool) -> float:
     """Linear interpolation of ``fp(xp)`` at scalar ``x``.
 
@@ -66,7 +71,7 @@ def interp1(xp: FloatArray, fp: FloatArray, x: float, linear: bool) -> float:
     return fp[i] + w * (fp[i + 1] - fp[i])
 
 
-@njit(cache=True)
+@njit(cache=True, **BORROWS)
 def interp2(xp: FloatArray, yp: FloatArray, fp: FloatArray, x: float, y: float, linear: bool) -> float:
     """Bilinear interpolation of ``fp[i, j] = f(xp[i], yp[j])`` at scalar ``(x, y)``."""
     nx = xp.shape[0]

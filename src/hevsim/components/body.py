@@ -10,7 +10,8 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
 from hevsim.units import STANDARD_GRAVITY
 
@@ -25,10 +26,48 @@ def aero_force(v_mps, headwind_mps, cd, area_m2, rho_kgpm3):
     return 0.5 * cd * rho_kgpm3 * area_m2 * rel * np.abs(rel)
 
 
+def sin_atan(grade):
+    """sin(atan(grade)) [-]; compiled code skips the two libm calls on level road (a scalar
+    grade of +-0 gives +-0 exactly, as the calls do)."""
+    return np.sin(np.arctan(grade))
+
+
+def cos_atan(grade):
+    """cos(atan(grade)) [-]; compiled code skips the two libm calls on level road (exactly 1
+    for a scalar grade of +-0, as the calls give)."""
+    return np.cos(np.arctan(grade))
+
+
+@overload(sin_atan)
+def _sin_atan(grade):
+    if isinstance(grade, types.Number):
+
+        def scalar(grade):
+            if grade == 0.0:
+                return grade * 1.0
+            return np.sin(np.arctan(grade))
+
+        return scalar
+    return lambda grade: np.sin(np.arctan(grade))
+
+
+@overload(cos_atan)
+def _cos_atan(grade):
+    if isinstance(grade, types.Number):
+
+        def scalar(grade):
+            if grade == 0.0:
+                return 1.0
+            return np.cos(np.arctan(grade))
+
+        return scalar
+    return lambda grade: np.cos(np.arctan(grade))
+
+
 @njit(cache=True)
 def grade_force(mass_kg, grade):
     """Gravity along the road, m g sin(alpha) with alpha = atan(grade) [N]."""
-    return mass_kg * STANDARD_GRAVITY * np.sin(np.arctan(grade))
+    return mass_kg * STANDARD_GRAVITY * sin_atan(grade)
 
 
 @njit(cache=True)
@@ -39,7 +78,7 @@ def rolling_force(mass_kg, grade, crr, crr_speed_s_per_m, v_mps):
     one (zero for the physical form of a vehicle file; the coast-down form's B term, see
     :func:`coastdown_parameters`), ``v_mps`` [m/s] the speed.
     """
-    return (crr + crr_speed_s_per_m * np.abs(v_mps)) * mass_kg * STANDARD_GRAVITY * np.cos(np.arctan(grade))
+    return (crr + crr_speed_s_per_m * np.abs(v_mps)) * mass_kg * STANDARD_GRAVITY * cos_atan(grade)
 
 
 @njit(cache=True)

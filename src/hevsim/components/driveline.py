@@ -12,7 +12,30 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
+
+
+def efficiency_factor(torque_nm, efficiency):
+    """``efficiency ** sign(torque_nm)`` [-]: the efficiency in the direction of power flow."""
+    return efficiency ** np.sign(torque_nm)
+
+
+@overload(efficiency_factor)
+def _efficiency_factor(torque_nm, efficiency):
+    if isinstance(torque_nm, types.Number):
+
+        def scalar(torque_nm, efficiency):
+            # compiled per-point code: no libm pow call (eta^-1 as one reciprocal, as LLVM folds
+            # a constant pow(x, -1); eta^1 and eta^0 exactly; a NaN torque gives NaN anyway)
+            if torque_nm > 0.0:
+                return efficiency * 1.0
+            if torque_nm < 0.0:
+                return 1.0 / efficiency
+            return 1.0
+
+        return scalar
+    return lambda torque_nm, efficiency: efficiency ** np.sign(torque_nm)
 
 
 @njit(cache=True)
@@ -21,13 +44,13 @@ def gear_output_torque(torque_in_nm, ratio, efficiency):
 
     ``efficiency ** sign(T)``: multiplied when motoring (T > 0), divided when braking.
     """
-    return torque_in_nm * ratio * efficiency ** np.sign(torque_in_nm)
+    return torque_in_nm * ratio * efficiency_factor(torque_in_nm, efficiency)
 
 
 @njit(cache=True)
 def gear_input_torque(torque_out_nm, ratio, efficiency):
     """Input-shaft torque [N·m] needed for an output torque [N·m] at positive speed."""
-    return torque_out_nm / (ratio * efficiency ** np.sign(torque_out_nm))
+    return torque_out_nm / (ratio * efficiency_factor(torque_out_nm, efficiency))
 
 
 @njit(cache=True)

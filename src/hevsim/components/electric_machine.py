@@ -27,7 +27,14 @@ MIN_EFFICIENCY = 0.05
 def electrical_power(torque_nm, omega_radps, efficiency):
     """Electrical power [W] (> 0 drawn from the bus) for shaft torque [N·m] and speed [rad/s]."""
     p_mech = torque_nm * omega_radps
-    return p_mech * efficiency ** (-np.sign(p_mech))
+    # eta^(-sign(p_mech)) without a libm pow call (about 20 ns, 15 % of a forward run): the
+    # same values, eta^-1 = 1 / eta as LLVM itself folds a constant pow(x, -1); eta^1 = eta
+    # and eta^0 = 1 exactly (a NaN power falls through unchanged, as NaN^-NaN x NaN did)
+    if p_mech > 0.0:
+        return p_mech * (1.0 / efficiency)
+    if p_mech < 0.0:
+        return p_mech * efficiency
+    return p_mech * 1.0
 
 
 class MachineTables(NamedTuple):
