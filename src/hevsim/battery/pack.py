@@ -139,6 +139,10 @@ class ModuleSection:
     cells: str = field(default="all", metadata={"choices": CELL_MODES})
     rom_file: str = ""
     thermal_config: str = ""
+    #: the module hot spots' screening slack [K]: each reported hot spot is within this of the
+    #: maximum of the ROM's reconstructed field over every node of the module's cells (0: that
+    #: maximum exactly, several times slower); added to the ROM's own hot-spot error estimate
+    hot_spot_slack_k: float = field(default=0.01, metadata={"bounds": (0.0, 1.0), "unit": "K"})
 
 
 @dataclass(frozen=True)
@@ -872,7 +876,8 @@ class Pack:
                            "hs_unit": e1, "energy": e1, "hs_ub": e2, "hs_prev": e2, "hs_blk": e2,
                            "hs_block": e1, "hs_gmax": e1, "hs_g32": np.zeros((0, 0), np.float32),
                            "hs_d32": np.zeros((0, 0), np.float32), "hs_cand": np.zeros((0, 0), np.int64),
-                           "hs_const": np.zeros(4)}  # fmt: skip
+                           "hs_const": np.zeros(4), "hs_basis": e2, "hs_gb": e2,
+                           "hs_gb32": np.zeros((0, 0), np.float32), "hs_gres": e1, "hs_cov": e2}  # fmt: skip
             self._rom_w, self._rom_u, self._rom_y = (np.zeros((n_mod, 0)) for _ in range(3))
             self._channel = (e1, e1, e1)
             return
@@ -885,6 +890,15 @@ class Pack:
         self._modal["hs_blk"] = np.zeros((n_mod, self._modal["hs_gmax"].shape[0]))
         self._modal["hs_d32"] = np.zeros((n_mod, rom.order), np.float32)
         self._modal["hs_cand"] = np.zeros((n_mod, self._modal["rom_cand"].shape[0]), np.int64)
+        # the slack screening's basis (R._module_hot_spots_within), shared by the modules
+        kmax = R.HOT_SPOT_BASIS_MAX
+        n_rows = self._modal["rom_cand"].shape[0]
+        self._modal["hs_basis"] = np.zeros((kmax, rom.order))
+        self._modal["hs_gb"] = np.zeros((kmax, n_rows))
+        self._modal["hs_gb32"] = np.zeros((kmax, n_rows), np.float32)
+        self._modal["hs_gres"] = np.zeros(n_rows)
+        self._modal["hs_cov"] = np.zeros((kmax, kmax))
+        f[R.F_HSEPS] = cfg.module.hot_spot_slack_k
         w0 = t0 * (rom.unit_state @ self._modal["q"])
         self._rom_w = np.ascontiguousarray(np.repeat(w0[None, :], n_mod, axis=0))
         self._rom_u = np.zeros((n_mod, rom.n_cells + rom.n_segments + 2))
@@ -912,7 +926,7 @@ class Pack:
                 self._inlet, self._plate_heat, *self._derating, md["rom_decay"], md["rom_in"], md["rom_out"],
                 md["rom_cand"], md["hs_norm"], md["hs_unit"], md["energy"], md["hs_ub"], md["hs_prev"],
                 md["hs_blk"], md["hs_block"], md["hs_gmax"], md["hs_g32"], md["hs_d32"], md["hs_cand"],
-                md["hs_const"],
+                md["hs_const"], md["hs_basis"], md["hs_gb"], md["hs_gb32"], md["hs_gres"], md["hs_cov"],
                 self._rom_w, self._rom_u, self._rom_y, *self._channel, self._acc, self._sv,
                 self._rec, self._hot, st.data if st is not None else np.zeros((8, 0)),
                 st.counts if st is not None else np.zeros(2),
