@@ -877,7 +877,8 @@ class Pack:
                            "hs_block": e1, "hs_gmax": e1, "hs_g32": np.zeros((0, 0), np.float32),
                            "hs_d32": np.zeros((0, 0), np.float32), "hs_cand": np.zeros((0, 0), np.int64),
                            "hs_const": np.zeros(4), "hs_basis": e2, "hs_gb": e2,
-                           "hs_gb32": np.zeros((0, 0), np.float32), "hs_gres": e1, "hs_cov": e2}  # fmt: skip
+                           "hs_gb32": np.zeros((0, 0), np.float32), "hs_gres": e1, "hs_cov": e2,
+                           "hs_up": e2}  # fmt: skip
             self._rom_w, self._rom_u, self._rom_y = (np.zeros((n_mod, 0)) for _ in range(3))
             self._channel = (e1, e1, e1)
             return
@@ -898,6 +899,7 @@ class Pack:
         self._modal["hs_gb32"] = np.zeros((kmax, n_rows), np.float32)
         self._modal["hs_gres"] = np.zeros(n_rows)
         self._modal["hs_cov"] = np.zeros((kmax, kmax))
+        self._modal["hs_up"] = np.zeros((n_mod, n_rows))
         f[R.F_HSEPS] = cfg.module.hot_spot_slack_k
         w0 = t0 * (rom.unit_state @ self._modal["q"])
         self._rom_w = np.ascontiguousarray(np.repeat(w0[None, :], n_mod, axis=0))
@@ -927,7 +929,7 @@ class Pack:
                 md["rom_cand"], md["hs_norm"], md["hs_unit"], md["energy"], md["hs_ub"], md["hs_prev"],
                 md["hs_blk"], md["hs_block"], md["hs_gmax"], md["hs_g32"], md["hs_d32"], md["hs_cand"],
                 md["hs_const"], md["hs_basis"], md["hs_gb"], md["hs_gb32"], md["hs_gres"], md["hs_cov"],
-                self._rom_w, self._rom_u, self._rom_y, *self._channel, self._acc, self._sv,
+                md["hs_up"], self._rom_w, self._rom_u, self._rom_y, *self._channel, self._acc, self._sv,
                 self._rec, self._hot, st.data if st is not None else np.zeros((8, 0)),
                 st.counts if st is not None else np.zeros(2),
             )  # fmt: skip

@@ -123,7 +123,7 @@ class PackArrays(NamedTuple):
     outputs ``rom_out`` (r, n_cells + n_seg + 1) (cell means, wall integrals, film row, times Q),
     candidate rows ``rom_cand`` (n_rows, r; each cell's distinct candidates) with the hot-spot
     screening's arrays (``hs_*``, :func:`_module_hot_spots`; ``hs_basis``, ``hs_gb``, ``hs_gb32``,
-    ``hs_gres``, ``hs_cov``: :func:`_module_hot_spots_within`), modal states ``rom_w`` (n_modules, r),
+    ``hs_gres``, ``hs_cov``, ``hs_up``: :func:`_module_hot_spots_within`), modal states ``rom_w`` (n_modules, r),
     input rows ``rom_u`` (n_modules, m_in), last outputs ``rom_y``, the channel's segment mean and
     exit factors and the wall areas [m^2]. Records: ``acc``, ``sv``, ``rec``, ``hot``, ``stress``
     (8, n_cells) and ``stress_n`` (steps, duration [s]).
@@ -179,6 +179,7 @@ class PackArrays(NamedTuple):
     hs_gb32: FloatArray
     hs_gres: FloatArray
     hs_cov: FloatArray
+    hs_up: FloatArray
     rom_w: FloatArray
     rom_u: FloatArray
     rom_y: FloatArray
@@ -674,7 +675,6 @@ def _module_hot_spots_within(s, w, hot):
     res = np.empty(r)
     c = np.zeros(kmax)
     acc = np.empty(n, np.float32)
-    up = np.empty(n)
     k = int(f[F_HSK])
     cov = s.hs_cov
     for p in range(k):
@@ -713,6 +713,7 @@ def _module_hot_spots_within(s, w, hot):
         acc[:] = 0.0
         for p in range(k):
             _axpy32(acc, s.hs_gb32, p, np.float32(c[p]), n)
+        up = s.hs_up[m]  # kept: the step's bounds U_j - T_ref, _EVALUATED where evaluated
         top = _bounds(acc, gn, s.hs_gres, big, rn * (1.0 + 1e-9), small, up)
         j_top = 0  # the row of the largest bound (the first of them)
         while j_top < n - 1 and up[j_top] < top:
