@@ -981,6 +981,26 @@ class Pack:
         assert self.rom is not None
         return np.asarray(self._rom_w @ self._modal["q"].T)
 
+    def hot_spot_error(self) -> dict[str, float]:
+        """The module hot spots' error against the full FEM [K] (issue 26 item 5):
+        ``estimate_k`` = the ROM's own hot-spot error estimate
+        (:attr:`~hevsim.thermal.rom.ThermalRom.hot_spot_error_k`, over every node of the cells)
+        + the screening slack ``slack_k`` (``[module] hot_spot_slack_k``: each hot spot is within
+        it of the reconstructed field's maximum); ``screening_gap_k`` = the largest gap the
+        screening certified so far (<= the slack; 0 with the slack 0: exact). NaN without a ROM
+        (the hot spot is then the hottest cell core)."""
+        from hevsim.battery.pack_run import F_HSEPS, F_HSGAP
+
+        if self.rom is None:
+            nan = float("nan")
+            return {"estimate_k": nan, "slack_k": nan, "screening_gap_k": nan}
+        slack = float(self._f[F_HSEPS])
+        return {
+            "estimate_k": self.rom.hot_spot_error_k + slack,
+            "slack_k": slack,
+            "screening_gap_k": max(float(self._f[F_HSGAP]), 0.0),
+        }
+
     def reserve(self, steps: int) -> None:
         """Room for ``steps`` more record rows (:attr:`records`)."""
         need = self.steps_done + int(steps)
@@ -1205,6 +1225,10 @@ class Pack:
             "cooling_energy_j": e["pump_work_j"] + e["chiller_electric_j"] + e["fan_electric_j"],
             "energy_balance_relative": e["residual_relative"],
         }
+        hs = self.hot_spot_error()
+        metrics["hot_spot_error_estimate_k"] = hs["estimate_k"]
+        metrics["hot_spot_slack_k"] = hs["slack_k"]
+        metrics["hot_spot_screening_gap_k"] = hs["screening_gap_k"]
         meta = {"name": cfg.name, "n_cells": self.n_cells, "thermal": cfg.module.thermal,
                 "dt_s": cfg.pack.dt_s, "rom_order": None if self.rom is None else self.rom.order,
                 "elapsed_s": time.perf_counter() - t_wall0}  # fmt: skip
@@ -1262,7 +1286,14 @@ def format_pack(res: PackResult) -> str:
             f"pack {res.metadata['name']}: {res.metadata['n_cells']} cells, thermal {res.metadata['thermal']}"
             + (f" (ROM order {res.metadata['rom_order']})" if res.metadata.get("rom_order") else ""),
             f"  peak cell {m['peak_cell_temp_k'] - 273.15:.2f} degC, module hot spot "
-            f"{m['peak_hot_spot_temp_k'] - 273.15:.2f} degC, final SOC spread {m['final_soc_spread']:.4f}",
+            f"{m['peak_hot_spot_temp_k'] - 273.15:.2f} degC"
+            + (
+                f" (error estimate {m['hot_spot_error_estimate_k']:.3f} K: ROM + screening slack "
+                f"{m['hot_spot_slack_k']:g} K)"
+                if np.isfinite(m.get("hot_spot_error_estimate_k", float("nan")))
+                else ""
+            )
+            + f", final SOC spread {m['final_soc_spread']:.4f}",
             f"  derated {m['derated_time_s']:g} s for temperature, cooling energy "
             f"{m['cooling_energy_j'] / 3.6e3:.2f} Wh",
             f"  BMS held the current below the request {m['bms_limited_s']:g} s"
