@@ -58,7 +58,9 @@ def _current(steps: int) -> np.ndarray:
     return 6.0 * 3.0 * cycle_cell_current("us06", duration_s=float(steps))[:steps]
 
 
-@pytest.mark.parametrize(("rebase_k", "slack_k"), [(R.HOT_SPOT_REBASE_K, 0.0), (0.3, 0.0), (R.HOT_SPOT_REBASE_K, 0.01)])
+@pytest.mark.parametrize(
+    ("rebase_k", "slack_k"), [(R.HOT_SPOT_REBASE_K, 0.0), (0.3, 0.0), (R.HOT_SPOT_REBASE_K, 0.01)]
+)
 def test_modal_rom_and_hot_spot_equal_the_dense_stepper(
     rom_pack: dict[str, Any], rebase_k: float, slack_k: float
 ) -> None:
@@ -258,8 +260,10 @@ def test_hot_spot_within_the_slack_of_all_rows(rom_pack: dict[str, Any], slack_k
     pack._f[R.F_HSEPS] = slack_k
     s = pack.arrays
     g, unit = s.rom_cand, s.hs_unit
-    gen = _random_states(np.random.default_rng(5), g, unit, n_mod, 400) if states == "random" else (
-        _validation_states(rom, pack, n_mod)
+    gen = (
+        _random_states(np.random.default_rng(5), g, unit, n_mod, 400)
+        if states == "random"
+        else (_validation_states(rom, pack, n_mod))
     )
     hot = np.empty(n_mod)
     worst, steps = 0.0, 0

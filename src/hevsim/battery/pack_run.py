@@ -123,10 +123,10 @@ class PackArrays(NamedTuple):
     outputs ``rom_out`` (r, n_cells + n_seg + 1) (cell means, wall integrals, film row, times Q),
     candidate rows ``rom_cand`` (n_rows, r; each cell's distinct candidates) with the hot-spot
     screening's arrays (``hs_*``, :func:`_module_hot_spots`; ``hs_basis``, ``hs_gb``, ``hs_gb32``,
-    ``hs_gres``, ``hs_cov``, ``hs_up``: :func:`_module_hot_spots_within`), modal states ``rom_w`` (n_modules, r),
-    input rows ``rom_u`` (n_modules, m_in), last outputs ``rom_y``, the channel's segment mean and
-    exit factors and the wall areas [m^2]. Records: ``acc``, ``sv``, ``rec``, ``hot``, ``stress``
-    (8, n_cells) and ``stress_n`` (steps, duration [s]).
+    ``hs_gres``, ``hs_cov``, ``hs_up``: :func:`_module_hot_spots_within`), modal states ``rom_w``
+    (n_modules, r), input rows ``rom_u`` (n_modules, m_in), last outputs ``rom_y``, the channel's
+    segment mean and exit factors and the wall areas [m^2]. Records: ``acc``, ``sv``, ``rec``,
+    ``hot``, ``stress`` (8, n_cells) and ``stress_n`` (steps, duration [s]).
     """
 
     f: FloatArray
