@@ -484,7 +484,9 @@ HOT_SPOT_BASIS_KEEP = 20
 #: per-step decay of the recent states' second moment that picks the directions kept [-]
 HOT_SPOT_BASIS_DECAY = 0.99
 #: share of the slack the residual's bound may take before the basis grows [-]
-HOT_SPOT_RESIDUAL_SHARE = 0.5
+HOT_SPOT_RESIDUAL_SHARE = 1.0
+#: rows a module may evaluate in double in a step (besides the first) before the basis grows [-]
+HOT_SPOT_ROWS_PER_ADD = 8
 
 
 @njit(cache=True, fastmath=True)
@@ -657,12 +659,15 @@ def _module_hot_spots_within(s, w, hot):
     ``max_j v_j - eps <= L <= max_j v_j``; the step's certified gap ``max(U_j) - L`` over the
     rows not evaluated (<= eps) raises ``f[F_HSGAP]``.
 
-    The basis: when ``max_j |G_j (I - B^T B)| |res|`` exceeds :data:`HOT_SPOT_RESIDUAL_SHARE`
-    x ``eps``, the residual's direction is appended (one product with every row, ``n r``); a full
-    basis (:data:`HOT_SPOT_BASIS_MAX` rows) is cut to the :data:`HOT_SPOT_BASIS_KEEP` leading
-    directions of the recent coefficients first. The deviations of a run lie near a subspace
-    of a few dozen directions, so the basis settles and grows rarely; how fast it settles
-    decides the cost, never the bound."""
+    The basis: the residual's direction is appended (one product with every row, ``n r``) before
+    the pass when ``max_j |G_j (I - B^T B)| |res|`` exceeds :data:`HOT_SPOT_RESIDUAL_SHARE` x
+    ``eps`` (the bounds would leave many rows), and after it when the module evaluated more than
+    :data:`HOT_SPOT_ROWS_PER_ADD` rows besides the first (the residual cost rows); a full basis
+    (:data:`HOT_SPOT_BASIS_MAX` rows) is first cut to the :data:`HOT_SPOT_BASIS_KEEP` leading
+    directions of the recent coefficients. The deviations of a run lie near a subspace of a few
+    dozen directions, so the basis settles and grows rarely; how fast it settles decides the
+    cost, never the bound (a 1-hour drive with 100 modules: a few hundred additions and a few
+    dozen cuts; a basis of at most 20 directions there is cut every step, 7x slower)."""
     g, gn, unit, en, hc = s.rom_cand, s.hs_norm, s.hs_unit, s.hs_energy, s.hs_const
     f = s.f
     eps = f[F_HSEPS]
@@ -713,6 +718,7 @@ def _module_hot_spots_within(s, w, hot):
         acc[:] = 0.0
         for p in range(k):
             _axpy32(acc, s.hs_gb32, p, np.float32(c[p]), n)
+        before = doubles
         up = s.hs_up[m]  # kept: the step's bounds U_j - T_ref, _EVALUATED where evaluated
         top = _bounds(acc, gn, s.hs_gres, big, rn * (1.0 + 1e-9), small, up)
         j_top = 0  # the row of the largest bound (the first of them)
@@ -734,6 +740,11 @@ def _module_hot_spots_within(s, w, hot):
         left = _bounds_max(up)
         f[F_HSGAP] = max(f[F_HSGAP], left + t_ref - best)
         hot[m] = best
+        if doubles - before > HOT_SPOT_ROWS_PER_ADD + 1 and rn > 0.0:  # the residual costs rows
+            if k >= kmax:
+                k = _basis_shrink(s, k, keep)
+                rn, brn = _project(s.hs_basis, k, d, c, res)
+            k = _basis_add(s, k, res)
     f[F_HSK] = k
     f[F_HSROWS64] += doubles
     f[F_HSINIT] = 1.0
