@@ -901,6 +901,7 @@ class Pack:
         self._modal["hs_cov"] = np.zeros((kmax, kmax))
         self._modal["hs_up"] = np.zeros((n_mod, n_rows))
         f[R.F_HSEPS] = cfg.module.hot_spot_slack_k
+        f[R.F_HSLASTCUT] = -R.HOT_SPOT_CUT_EVERY
         w0 = t0 * (rom.unit_state @ self._modal["q"])
         self._rom_w = np.ascontiguousarray(np.repeat(w0[None, :], n_mod, axis=0))
         self._rom_u = np.zeros((n_mod, rom.n_cells + rom.n_segments + 2))

@@ -51,12 +51,12 @@ F_NAMES = (
     "rom_b_amb_w_k", "rom_f_const_w", "activation_k", "hot_spot_started",
     "hot_spot_rows", "hot_spot_rebase_k", "hot_spot_rows_double", "hot_spot_skip", "hot_spot_rows_read",
     "hot_spot_slack_k", "hot_spot_basis_size", "hot_spot_basis_adds", "hot_spot_basis_rebuilds",
-    "hot_spot_row_residual_max", "hot_spot_gap_k",
+    "hot_spot_row_residual_max", "hot_spot_gap_k", "hot_spot_calls", "hot_spot_last_cut",
 )  # fmt: skip
 (F_DT, F_NG, F_NP, F_REP, F_NS, F_NPAR, F_WEIGHT, F_NMOD, F_SIMPM, F_IMAX, F_AMB, F_LINEAR, F_EZVALID,
  F_ROM, F_H, F_TIME, F_STEP, F_SOC, F_SOCMIN, F_SOCMAX, F_STRESS, F_VMIN, F_VMAX, F_BASEAUX, F_BAMB,
  F_FCONST, F_ACT, F_HSINIT, F_HSROWS, F_HSREBASE, F_HSROWS64, F_HSSKIP, F_HSREAD, F_HSEPS, F_HSK,
- F_HSADDS, F_HSREBUILDS, F_HSGRESMAX, F_HSGAP) = range(len(F_NAMES))  # fmt: skip
+ F_HSADDS, F_HSREBUILDS, F_HSGRESMAX, F_HSGAP, F_HSCALLS, F_HSLASTCUT) = range(len(F_NAMES))  # fmt: skip
 
 #: the step vector :attr:`PackArrays.sv` that :func:`pack_begin` fills
 SV_NAMES = (
@@ -487,6 +487,9 @@ HOT_SPOT_BASIS_DECAY = 0.99
 HOT_SPOT_RESIDUAL_SHARE = 1.0
 #: rows a module may evaluate in double in a step (besides the first) before the basis grows [-]
 HOT_SPOT_ROWS_PER_ADD = 8
+#: fewest steps between two cuts of a full basis [-]: a run whose deviations span more
+#: directions than the basis holds evaluates more rows in double instead of cutting every step
+HOT_SPOT_CUT_EVERY = 10
 
 
 @njit(cache=True, fastmath=True)
@@ -664,10 +667,11 @@ def _module_hot_spots_within(s, w, hot):
     ``eps`` (the bounds would leave many rows), and after it when the module evaluated more than
     :data:`HOT_SPOT_ROWS_PER_ADD` rows besides the first (the residual cost rows); a full basis
     (:data:`HOT_SPOT_BASIS_MAX` rows) is first cut to the :data:`HOT_SPOT_BASIS_KEEP` leading
-    directions of the recent coefficients. The deviations of a run lie near a subspace of a few
-    dozen directions, so the basis settles and grows rarely; how fast it settles decides the
-    cost, never the bound (a 1-hour drive with 100 modules: a few hundred additions and a few
-    dozen cuts; a basis of at most 20 directions there is cut every step, 7x slower)."""
+    directions of the recent coefficients, at most once in :data:`HOT_SPOT_CUT_EVERY` calls
+    (else the rows the residual leaves are evaluated in double). The deviations of a run lie
+    near a subspace of a few dozen directions, so the basis settles and grows rarely; how fast
+    it settles decides the cost, never the bound (a 1-hour drive with 100 modules: a few hundred
+    additions and a few dozen cuts)."""
     g, gn, unit, en, hc = s.rom_cand, s.hs_norm, s.hs_unit, s.hs_energy, s.hs_const
     f = s.f
     eps = f[F_HSEPS]
@@ -697,10 +701,11 @@ def _module_hot_spots_within(s, w, hot):
             w_norm2 += w[m, i] * w[m, i]
         rn, brn = _project(s.hs_basis, k, d, c, res)
         if f[F_HSGRESMAX] * rn > HOT_SPOT_RESIDUAL_SHARE * eps or k == 0:
-            if k >= kmax:
+            if k >= kmax and f[F_HSCALLS] - f[F_HSLASTCUT] >= HOT_SPOT_CUT_EVERY:
                 k = _basis_shrink(s, k, keep)
+                f[F_HSLASTCUT] = f[F_HSCALLS]
                 rn, brn = _project(s.hs_basis, k, d, c, res)
-            if k == 0 or f[F_HSGRESMAX] * rn > HOT_SPOT_RESIDUAL_SHARE * eps:
+            if k < kmax and (k == 0 or f[F_HSGRESMAX] * rn > HOT_SPOT_RESIDUAL_SHARE * eps):
                 k = _basis_add(s, k, res)
                 rn, brn = _project(s.hs_basis, k, d, c, res)
         c_norm2 = 0.0
@@ -741,13 +746,16 @@ def _module_hot_spots_within(s, w, hot):
         f[F_HSGAP] = max(f[F_HSGAP], left + t_ref - best)
         hot[m] = best
         if doubles - before > HOT_SPOT_ROWS_PER_ADD + 1 and rn > 0.0:  # the residual costs rows
-            if k >= kmax:
+            if k >= kmax and f[F_HSCALLS] - f[F_HSLASTCUT] >= HOT_SPOT_CUT_EVERY:
                 k = _basis_shrink(s, k, keep)
+                f[F_HSLASTCUT] = f[F_HSCALLS]
                 rn, brn = _project(s.hs_basis, k, d, c, res)
-            k = _basis_add(s, k, res)
+            if k < kmax:
+                k = _basis_add(s, k, res)
     f[F_HSK] = k
     f[F_HSROWS64] += doubles
     f[F_HSINIT] = 1.0
+    f[F_HSCALLS] += 1.0
 
 
 @njit(cache=True)
