@@ -1,5 +1,9 @@
 """Screening of the pack's all-nodes ROM hot spot (issue 26 item 5): how many rows each bound evaluates.
 
+Since the slack screening (``[module] hot_spot_slack_k``, :func:`hevsim.battery.pack_run.
+_module_hot_spots_within`) the first lines time it against the exact screening (slack 0) in the
+same run and check that every hot spot is within the slack below the exact one.
+
 Run from the repository root after building the module ROM of ``examples/pack.toml``::
 
     .venv/bin/hevsim rom build examples/module_thermal.toml   # results/module_thermal.rom.npz
@@ -70,6 +74,8 @@ def replay(cfg, current: np.ndarray) -> tuple[float, float, float, float, float]
     before the modules were screened together); both give the same hot spots, checked. Returns
     the best of 3 [us per module step], wall and process CPU time, and the rows read per
     module step together."""
+    from threadpoolctl import threadpool_limits
+
     from hevsim.battery import pack_run as R
     from hevsim.battery.pack import Pack
 
@@ -92,7 +98,7 @@ def replay(cfg, current: np.ndarray) -> tuple[float, float, float, float, float]
         return [s, alone]
 
     hot, hot1 = np.empty(n_mod), np.empty(n_mod)
-    times: dict[str, list[tuple[float, float]]] = {"together": [], "alone": []}
+    times: dict[str, list[tuple[float, float]]] = {"together": [], "alone": [], "slack": []}
     reads = 0.0
     for _ in range(3):
         s, alone = fresh()
@@ -106,6 +112,13 @@ def replay(cfg, current: np.ndarray) -> tuple[float, float, float, float, float]
             for m in range(n_mod):
                 R._module_hot_spots(alone[m], w[m : m + 1], hot1[m : m + 1])
         times["alone"].append((time.perf_counter() - t0, time.process_time() - c0))
+        sw = s._replace(f=s.f.copy())
+        sw.f[R.F_HSEPS] = cfg.module.hot_spot_slack_k or 0.01
+        with threadpool_limits(1, user_api="blas"):  # its basis updates call BLAS (as Pack.simulate)
+            t0, c0 = time.perf_counter(), time.process_time()
+            for w in states:
+                R._module_hot_spots_within(sw, w, hot)
+            times["slack"].append((time.perf_counter() - t0, time.process_time() - c0))
     s, alone = fresh()
     for w in states:
         R._module_hot_spots(s, w, hot)
@@ -113,6 +126,8 @@ def replay(cfg, current: np.ndarray) -> tuple[float, float, float, float, float]
             R._module_hot_spots(alone[m], w[m : m + 1], hot1[m : m + 1])
         assert np.array_equal(hot, hot1), (hot, hot1)
     best = {k: (min(t[0] for t in v) / per * 1e6, min(t[1] for t in v) / per * 1e6) for k, v in times.items()}
+    print(f"    slack screening  {best['slack'][0]:6.1f} / {best['slack'][1]:6.1f} us per module step "
+          "(R._module_hot_spots_within, its basis shared by the modules)")  # fmt: skip
     return best["together"][0], best["alone"][0], best["together"][1], best["alone"][1], reads
 
 
@@ -142,20 +157,26 @@ def main() -> int:
     current = 6.0 * cycle_cell_current("us06", duration_s=steps, dt_s=cfg.pack.dt_s)
     n_mod = cfg.pack.n_modules
     # the compiled kernel in double (hs_const[0] = 0, the screening before issue 26's single-
-    # precision pass) and as shipped (single precision, then double), alternated, same run
-    runs: dict[str, list[float]] = {"double": [], "single": []}
-    cpu: dict[str, list[float]] = {"double": [], "single": []}
+    # precision pass), the exact screening (slack 0: single, then double) and the slack screening
+    # ([module] hot_spot_slack_k, default 0.01 K: R._module_hot_spots_within), alternated, same run
+    modes = ("double", "single", "slack")
+    runs: dict[str, list[float]] = {k: [] for k in modes}
+    cpu: dict[str, list[float]] = {k: [] for k in modes}
     hots: dict[str, np.ndarray] = {}
     rows: dict[str, tuple[float, float]] = {}
+    slack_k = cfg.module.hot_spot_slack_k or 0.01
+    basis: dict[str, float] = {}
+
+    def fresh(mode: str) -> Pack:
+        p = Pack(cfg)
+        p._modal["hs_const"][0] = 0.0 if mode == "double" else p._modal["hs_const"][0]
+        p._f[R.F_HSEPS] = slack_k if mode == "slack" else 0.0
+        return p
+
     with OtherLoad() as load:
-        for mode in ("double", "single", "double", "single"):
-            p = Pack(cfg)
-            if mode == "double":
-                p._modal["hs_const"][0] = 0.0
-            p.simulate(current[:2])  # compile outside the timing
-            p = Pack(cfg)
-            if mode == "double":
-                p._modal["hs_const"][0] = 0.0
+        for mode in modes + modes:
+            fresh(mode).simulate(current[:2])  # compile outside the timing
+            p = fresh(mode)
             t0, c0 = time.perf_counter(), time.process_time()
             res = p.simulate(current)
             runs[mode].append(time.perf_counter() - t0)
@@ -164,6 +185,22 @@ def main() -> int:
             hots[mode] = ts[[c for c in ts.columns if "hot_spot" in c]].to_numpy()
             per = steps * n_mod
             rows[mode] = (p._f[R.F_HSROWS] / per, p._f[R.F_HSROWS64] / per)
+            if mode == "slack":
+                basis = {"size": p._f[R.F_HSK], "adds": p._f[R.F_HSADDS], "rebuilds": p._f[R.F_HSREBUILDS],
+                         "gap": p._f[R.F_HSGAP]}  # fmt: skip
+    diff = hots["single"] - hots["slack"]
+    print(
+        f"slack screening (hot_spot_slack_k = {slack_k:g} K): {rows['slack'][1]:.2f} rows in double per "
+        f"module step, basis {basis['size']:.0f} directions ({basis['adds']:.0f} added, "
+        f"{basis['rebuilds']:.0f} rebuilds), largest certified gap {basis['gap'] * 1e3:.2f} mK; "
+        "vs the exact hot spots: "
+        f"{diff.min() * 1e3:.3f} to {diff.max() * 1e3:.3f} mK below (must be 0 to {slack_k * 1e3:g})"
+    )
+    assert diff.min() >= -1e-9 and diff.max() <= slack_k + 1e-9, (diff.min(), diff.max())
+    c_e, c_w = (min(cpu[k]) / (steps * n_mod) * 1e6 for k in ("single", "slack"))
+    print(f"  exact (slack 0)    {min(runs['single']):.3f} s, CPU {c_e:5.1f} us per module step")
+    print(f"  slack {slack_k:g} K      {min(runs['slack']):.3f} s, CPU {c_w:5.1f} us per module step; "
+          f"CPU ratio {c_e / c_w:.2f}x (whole pack step: cells, ROM, loop, hot spot)")  # fmt: skip
     together_us, alone_us, cpu_together_us, cpu_alone_us, reads = replay(cfg, current)
     same = bool(np.array_equal(hots["double"], hots["single"]))
     t_d, t_s = min(runs["double"]), min(runs["single"])

@@ -152,6 +152,38 @@ def test_derating_limits_current(rom_case: dict[str, Any]) -> None:
     assert soc_ok.sum() > 100 and np.allclose(ts["current_a"][soc_ok], temp_limit[soc_ok])
 
 
+def test_hot_spot_within_its_slack_and_its_error_estimate(rom_case: dict[str, Any]) -> None:
+    """Issue 26 item 5: by default ([module] hot_spot_slack_k = 0.01 K) every module's hot spot
+    at every step is within the slack below the exact maximum of the reconstructed field
+    (``hot_spot_slack_k = 0``, the same run) and never above it; the summary carries the hot
+    spot's error estimate (the ROM's own + the slack) and the largest gap the screening
+    certified; a negative slack is refused naming the key."""
+    from hevsim.battery.pack import format_pack
+
+    current = 6.0 * 6.0 * cycle_cell_current("us06", duration_s=300.0)
+    rom = rom_case["rom"]
+    hot = {}
+    for slack in (0.0, None, 0.05):
+        extra = "" if slack is None else f"hot_spot_slack_k = {slack}\n"
+        text = _rom_pack_toml(rom_case["dir"]).read_text().replace("[pack]\n", extra + "[pack]\n")
+        res = Pack(load_pack_config(_write(rom_case["dir"], text))).simulate(current)
+        cols = [c for c in res.timeseries.columns if c.startswith("module") and c.endswith("hot_spot_temp_k")]
+        hot[slack] = res.timeseries[cols].to_numpy()
+        m = res.metrics
+        eps = 0.01 if slack is None else slack
+        assert m["hot_spot_slack_k"] == eps
+        assert m["hot_spot_error_estimate_k"] == pytest.approx(rom.hot_spot_error_k + eps, rel=1e-12)
+        assert 0.0 <= m["hot_spot_screening_gap_k"] <= eps
+        if slack == 0.0:
+            assert m["hot_spot_screening_gap_k"] == 0.0
+        assert "error estimate" in format_pack(res)
+    for slack in (None, 0.05):
+        diff = hot[0.0] - hot[slack]
+        assert diff.min() >= -1e-9 and diff.max() <= (0.01 if slack is None else 0.05) + 1e-9, diff
+    with pytest.raises(ConfigError, match=r"module.hot_spot_slack_k"):
+        pack_config_from_dict(_pack_dict(module={"hot_spot_slack_k": -0.01}), "p.toml")
+
+
 def test_bad_inputs_exit_2(rom_case: dict[str, Any], tmp_path: Path) -> None:
     # zero flow with the chiller on
     with pytest.raises(ConfigError, match=r"cooling.flow_l_min' = 0 with the chiller on"):

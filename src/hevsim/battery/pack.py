@@ -139,6 +139,10 @@ class ModuleSection:
     cells: str = field(default="all", metadata={"choices": CELL_MODES})
     rom_file: str = ""
     thermal_config: str = ""
+    #: the module hot spots' screening slack [K]: each reported hot spot is within this of the
+    #: maximum of the ROM's reconstructed field over every node of the module's cells (0: that
+    #: maximum exactly, several times slower); added to the ROM's own hot-spot error estimate
+    hot_spot_slack_k: float = field(default=0.01, metadata={"bounds": (0.0, 1.0), "unit": "K"})
 
 
 @dataclass(frozen=True)
@@ -872,7 +876,9 @@ class Pack:
                            "hs_unit": e1, "energy": e1, "hs_ub": e2, "hs_prev": e2, "hs_blk": e2,
                            "hs_block": e1, "hs_gmax": e1, "hs_g32": np.zeros((0, 0), np.float32),
                            "hs_d32": np.zeros((0, 0), np.float32), "hs_cand": np.zeros((0, 0), np.int64),
-                           "hs_const": np.zeros(4)}  # fmt: skip
+                           "hs_const": np.zeros(4), "hs_basis": e2, "hs_gb": e2,
+                           "hs_gb32": np.zeros((0, 0), np.float32), "hs_gres": e1, "hs_cov": e2,
+                           "hs_up": e2}  # fmt: skip
             self._rom_w, self._rom_u, self._rom_y = (np.zeros((n_mod, 0)) for _ in range(3))
             self._channel = (e1, e1, e1)
             return
@@ -885,6 +891,17 @@ class Pack:
         self._modal["hs_blk"] = np.zeros((n_mod, self._modal["hs_gmax"].shape[0]))
         self._modal["hs_d32"] = np.zeros((n_mod, rom.order), np.float32)
         self._modal["hs_cand"] = np.zeros((n_mod, self._modal["rom_cand"].shape[0]), np.int64)
+        # the slack screening's basis (R._module_hot_spots_within), shared by the modules
+        kmax = R.HOT_SPOT_BASIS_MAX
+        n_rows = self._modal["rom_cand"].shape[0]
+        self._modal["hs_basis"] = np.zeros((kmax, rom.order))
+        self._modal["hs_gb"] = np.zeros((kmax, n_rows))
+        self._modal["hs_gb32"] = np.zeros((kmax, n_rows), np.float32)
+        self._modal["hs_gres"] = np.zeros(n_rows)
+        self._modal["hs_cov"] = np.zeros((kmax, kmax))
+        self._modal["hs_up"] = np.zeros((n_mod, n_rows))
+        f[R.F_HSEPS] = cfg.module.hot_spot_slack_k
+        f[R.F_HSLASTCUT] = -R.HOT_SPOT_CUT_EVERY
         w0 = t0 * (rom.unit_state @ self._modal["q"])
         self._rom_w = np.ascontiguousarray(np.repeat(w0[None, :], n_mod, axis=0))
         self._rom_u = np.zeros((n_mod, rom.n_cells + rom.n_segments + 2))
@@ -912,8 +929,8 @@ class Pack:
                 self._inlet, self._plate_heat, *self._derating, md["rom_decay"], md["rom_in"], md["rom_out"],
                 md["rom_cand"], md["hs_norm"], md["hs_unit"], md["energy"], md["hs_ub"], md["hs_prev"],
                 md["hs_blk"], md["hs_block"], md["hs_gmax"], md["hs_g32"], md["hs_d32"], md["hs_cand"],
-                md["hs_const"],
-                self._rom_w, self._rom_u, self._rom_y, *self._channel, self._acc, self._sv,
+                md["hs_const"], md["hs_basis"], md["hs_gb"], md["hs_gb32"], md["hs_gres"], md["hs_cov"],
+                md["hs_up"], self._rom_w, self._rom_u, self._rom_y, *self._channel, self._acc, self._sv,
                 self._rec, self._hot, st.data if st is not None else np.zeros((8, 0)),
                 st.counts if st is not None else np.zeros(2),
             )  # fmt: skip
@@ -964,6 +981,26 @@ class Pack:
         pack steps them in modal coordinates)."""
         assert self.rom is not None
         return np.asarray(self._rom_w @ self._modal["q"].T)
+
+    def hot_spot_error(self) -> dict[str, float]:
+        """The module hot spots' error against the full FEM [K] (issue 26 item 5):
+        ``estimate_k`` = the ROM's own hot-spot error estimate
+        (:attr:`~hevsim.thermal.rom.ThermalRom.hot_spot_error_k`, over every node of the cells)
+        + the screening slack ``slack_k`` (``[module] hot_spot_slack_k``: each hot spot is within
+        it of the reconstructed field's maximum); ``screening_gap_k`` = the largest gap the
+        screening certified so far (<= the slack; 0 with the slack 0: exact). NaN without a ROM
+        (the hot spot is then the hottest cell core)."""
+        from hevsim.battery.pack_run import F_HSEPS, F_HSGAP
+
+        if self.rom is None:
+            nan = float("nan")
+            return {"estimate_k": nan, "slack_k": nan, "screening_gap_k": nan}
+        slack = float(self._f[F_HSEPS])
+        return {
+            "estimate_k": self.rom.hot_spot_error_k + slack,
+            "slack_k": slack,
+            "screening_gap_k": max(float(self._f[F_HSGAP]), 0.0),
+        }
 
     def reserve(self, steps: int) -> None:
         """Room for ``steps`` more record rows (:attr:`records`)."""
@@ -1189,6 +1226,10 @@ class Pack:
             "cooling_energy_j": e["pump_work_j"] + e["chiller_electric_j"] + e["fan_electric_j"],
             "energy_balance_relative": e["residual_relative"],
         }
+        hs = self.hot_spot_error()
+        metrics["hot_spot_error_estimate_k"] = hs["estimate_k"]
+        metrics["hot_spot_slack_k"] = hs["slack_k"]
+        metrics["hot_spot_screening_gap_k"] = hs["screening_gap_k"]
         meta = {"name": cfg.name, "n_cells": self.n_cells, "thermal": cfg.module.thermal,
                 "dt_s": cfg.pack.dt_s, "rom_order": None if self.rom is None else self.rom.order,
                 "elapsed_s": time.perf_counter() - t_wall0}  # fmt: skip
@@ -1246,7 +1287,14 @@ def format_pack(res: PackResult) -> str:
             f"pack {res.metadata['name']}: {res.metadata['n_cells']} cells, thermal {res.metadata['thermal']}"
             + (f" (ROM order {res.metadata['rom_order']})" if res.metadata.get("rom_order") else ""),
             f"  peak cell {m['peak_cell_temp_k'] - 273.15:.2f} degC, module hot spot "
-            f"{m['peak_hot_spot_temp_k'] - 273.15:.2f} degC, final SOC spread {m['final_soc_spread']:.4f}",
+            f"{m['peak_hot_spot_temp_k'] - 273.15:.2f} degC"
+            + (
+                f" (error estimate {m['hot_spot_error_estimate_k']:.3f} K: ROM + screening slack "
+                f"{m['hot_spot_slack_k']:g} K)"
+                if np.isfinite(m.get("hot_spot_error_estimate_k", float("nan")))
+                else ""
+            )
+            + f", final SOC spread {m['final_soc_spread']:.4f}",
             f"  derated {m['derated_time_s']:g} s for temperature, cooling energy "
             f"{m['cooling_energy_j'] / 3.6e3:.2f} Wh",
             f"  BMS held the current below the request {m['bms_limited_s']:g} s"

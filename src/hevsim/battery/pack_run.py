@@ -50,11 +50,13 @@ F_NAMES = (
     "h_plate", "time_s", "step", "soc", "soc_min", "soc_max", "stress", "v_min", "v_max", "base_aux_w",
     "rom_b_amb_w_k", "rom_f_const_w", "activation_k", "hot_spot_started",
     "hot_spot_rows", "hot_spot_rebase_k", "hot_spot_rows_double", "hot_spot_skip", "hot_spot_rows_read",
+    "hot_spot_slack_k", "hot_spot_basis_size", "hot_spot_basis_adds", "hot_spot_basis_rebuilds",
+    "hot_spot_row_residual_max", "hot_spot_gap_k", "hot_spot_calls", "hot_spot_last_cut",
 )  # fmt: skip
 (F_DT, F_NG, F_NP, F_REP, F_NS, F_NPAR, F_WEIGHT, F_NMOD, F_SIMPM, F_IMAX, F_AMB, F_LINEAR, F_EZVALID,
  F_ROM, F_H, F_TIME, F_STEP, F_SOC, F_SOCMIN, F_SOCMAX, F_STRESS, F_VMIN, F_VMAX, F_BASEAUX, F_BAMB,
- F_FCONST, F_ACT, F_HSINIT, F_HSROWS, F_HSREBASE, F_HSROWS64, F_HSSKIP, F_HSREAD) = range(
-    len(F_NAMES))  # fmt: skip
+ F_FCONST, F_ACT, F_HSINIT, F_HSROWS, F_HSREBASE, F_HSROWS64, F_HSSKIP, F_HSREAD, F_HSEPS, F_HSK,
+ F_HSADDS, F_HSREBUILDS, F_HSGRESMAX, F_HSGAP, F_HSCALLS, F_HSLASTCUT) = range(len(F_NAMES))  # fmt: skip
 
 #: the step vector :attr:`PackArrays.sv` that :func:`pack_begin` fills
 SV_NAMES = (
@@ -120,10 +122,11 @@ class PackArrays(NamedTuple):
     ``1 / (1/dt + lambda)`` ``rom_decay`` (r,), inputs ``rom_in`` (m_in, r) (``(Q^T B_r(h))^T``),
     outputs ``rom_out`` (r, n_cells + n_seg + 1) (cell means, wall integrals, film row, times Q),
     candidate rows ``rom_cand`` (n_rows, r; each cell's distinct candidates) with the hot-spot
-    screening's arrays (``hs_*``, :func:`_module_hot_spots`), modal states ``rom_w`` (n_modules, r),
-    input rows ``rom_u`` (n_modules, m_in), last outputs ``rom_y``, the channel's segment mean and
-    exit factors and the wall areas [m^2]. Records: ``acc``, ``sv``, ``rec``, ``hot``, ``stress``
-    (8, n_cells) and ``stress_n`` (steps, duration [s]).
+    screening's arrays (``hs_*``, :func:`_module_hot_spots`; ``hs_basis``, ``hs_gb``, ``hs_gb32``,
+    ``hs_gres``, ``hs_cov``, ``hs_up``: :func:`_module_hot_spots_within`), modal states ``rom_w``
+    (n_modules, r), input rows ``rom_u`` (n_modules, m_in), last outputs ``rom_y``, the channel's
+    segment mean and exit factors and the wall areas [m^2]. Records: ``acc``, ``sv``, ``rec``,
+    ``hot``, ``stress`` (8, n_cells) and ``stress_n`` (steps, duration [s]).
     """
 
     f: FloatArray
@@ -171,6 +174,12 @@ class PackArrays(NamedTuple):
     hs_d32: FloatArray
     hs_cand: FloatArray
     hs_const: FloatArray
+    hs_basis: FloatArray
+    hs_gb: FloatArray
+    hs_gb32: FloatArray
+    hs_gres: FloatArray
+    hs_cov: FloatArray
+    hs_up: FloatArray
     rom_w: FloatArray
     rom_u: FloatArray
     rom_y: FloatArray
@@ -468,6 +477,287 @@ def _module_hot_spots(s, w, hot):
     s.f[F_HSINIT] = 1.0
 
 
+#: the slack screening (:func:`_module_hot_spots_within`): most directions of its basis [-]
+HOT_SPOT_BASIS_MAX = 32
+#: directions a full basis is cut down to (the leading ones of the recent states) [-]
+HOT_SPOT_BASIS_KEEP = 20
+#: per-step decay of the recent states' second moment that picks the directions kept [-]
+HOT_SPOT_BASIS_DECAY = 0.99
+#: share of the slack the residual's bound may take before the basis grows [-]
+HOT_SPOT_RESIDUAL_SHARE = 1.0
+#: rows a module may evaluate in double in a step (besides the first) before the basis grows [-]
+HOT_SPOT_ROWS_PER_ADD = 8
+#: fewest steps between two cuts of a full basis [-]: a run whose deviations span more
+#: directions than the basis holds evaluates more rows in double instead of cutting every step
+HOT_SPOT_CUT_EVERY = 10
+
+
+@njit(cache=True, fastmath=True)
+def _axpy32(acc, gt, i, a, n):
+    """``acc[:n] += a * gt[i, :n]`` in float32 (vectorised; any order is within the bound of
+    :func:`_module_hot_spots_within`)."""
+    for j in range(n):
+        acc[j] += gt[i, j] * a
+
+
+#: marks a row evaluated in double in the bounds of :func:`_module_hot_spots_within` (finite:
+#: the vectorised helpers assume no infinities)
+_EVALUATED = -1e300
+
+
+@njit(cache=True, fastmath=True)
+def _bounds(acc, gn, gres, big, rn, small, up):
+    """``up_j = acc_j + |G_j| big + gres_j rn + small`` (vectorised); returns their largest."""
+    top = _EVALUATED
+    for j in range(acc.shape[0]):
+        u = np.float64(acc[j]) + gn[j] * big + gres[j] * rn + small
+        up[j] = u
+        top = max(top, u)
+    return top
+
+
+@njit(cache=True, fastmath=True)
+def _bounds_max(up):
+    """The largest of ``up`` (vectorised; :data:`_EVALUATED` marks the rows evaluated)."""
+    top = _EVALUATED
+    for j in range(up.shape[0]):
+        top = max(top, up[j])
+    return top
+
+
+@njit(cache=True, fastmath=True)
+def _project(basis, k, d, c, res):
+    """Coefficients ``c = B d`` (``B = basis[:k]``, orthonormal rows) and residual
+    ``res = d - B^T c``; returns ``(|res|, |B res|)`` (the second measures the residual's
+    rounding out of ``span B``)."""
+    r = d.shape[0]
+    for i in range(r):
+        res[i] = d[i]
+    for q in range(k):
+        acc = 0.0
+        for i in range(r):
+            acc += basis[q, i] * d[i]
+        c[q] = acc
+        for i in range(r):
+            res[i] -= acc * basis[q, i]
+    rn2 = 0.0
+    for i in range(r):
+        rn2 += res[i] * res[i]
+    br2 = 0.0
+    for q in range(k):
+        acc = 0.0
+        for i in range(r):
+            acc += basis[q, i] * res[i]
+        br2 += acc * acc
+    return math.sqrt(rn2), math.sqrt(br2)
+
+
+@njit(cache=True)
+def _orthonormal_row(basis, k, v):
+    """Orthogonalise ``v`` against ``basis[:k]`` twice (Gram-Schmidt) and normalise it; returns
+    its norm before the normalisation (0: nothing left)."""
+    r = v.shape[0]
+    for _ in range(2):
+        for q in range(k):
+            acc = 0.0
+            for i in range(r):
+                acc += basis[q, i] * v[i]
+            for i in range(r):
+                v[i] -= acc * basis[q, i]
+    nv = 0.0
+    for i in range(r):
+        nv += v[i] * v[i]
+    nv = math.sqrt(nv)
+    if nv > 0.0:
+        for i in range(r):
+            v[i] /= nv
+    return nv
+
+
+@njit(cache=True)
+def _basis_rows_changed(s, k0, k):
+    """After rows ``k0..k-1`` of ``hs_basis`` changed: their products with every row
+    (``hs_gb[q] = G B_q``, BLAS), the float32 copy, the rows' residual norms
+    ``hs_gres_j = |G_j (I - B^T B)|`` and their largest (``f[F_HSGRESMAX]``)."""
+    g, gb, gb32, gres, gn = s.rom_cand, s.hs_gb, s.hs_gb32, s.hs_gres, s.hs_norm
+    n = g.shape[0]
+    prod = np.ascontiguousarray(s.hs_basis[k0:k]) @ g.T  # (k - k0, n)
+    top = 0.0
+    for j in range(n):
+        gb2 = 0.0
+        for q in range(k):
+            if q >= k0:
+                gb[q, j] = prod[q - k0, j]
+                gb32[q, j] = np.float32(prod[q - k0, j])
+            gb2 += gb[q, j] * gb[q, j]
+        gn2 = gn[j] * gn[j]
+        # the subtraction's cancellation and the basis's departure from orthonormality (~1e-15)
+        gres[j] = math.sqrt(max(gn2 - gb2, 0.0) + 1e-12 * gn2)
+        top = max(top, gres[j])
+    s.f[F_HSGRESMAX] = top
+
+
+@njit(cache=True)
+def _basis_add(s, k, res):
+    """Append the direction of the residual ``res`` to the basis (its first ``k`` rows);
+    returns the new size."""
+    v = res.copy()
+    if _orthonormal_row(s.hs_basis, k, v) == 0.0:
+        return k
+    s.hs_basis[k, :] = v
+    for q in range(k + 1):
+        s.hs_cov[q, k] = 0.0
+        s.hs_cov[k, q] = 0.0
+    _basis_rows_changed(s, k, k + 1)
+    s.f[F_HSADDS] += 1.0
+    return k + 1
+
+
+@njit(cache=True)
+def _basis_shrink(s, k, keep):
+    """A full basis cut down to its ``keep`` leading directions of the recent states (the
+    eigenvectors of ``hs_cov``, the decayed sum of the coefficients' outer products),
+    orthonormalised again and their products with every row computed afresh; returns ``keep``."""
+    lam, vec = np.linalg.eigh(np.ascontiguousarray(s.hs_cov[:k, :k]))
+    old = s.hs_basis[:k].copy()
+    r = old.shape[1]
+    kept = 0
+    for p in range(keep):
+        col = k - 1 - p  # eigh: ascending
+        v = np.zeros(r)
+        for q in range(k):
+            a = vec[q, col]
+            for i in range(r):
+                v[i] += a * old[q, i]
+        if _orthonormal_row(s.hs_basis, kept, v) > 0.5:  # a unit vector (up to rounding)
+            s.hs_basis[kept, :] = v
+            kept += 1
+    s.hs_cov[:, :] = 0.0
+    for p in range(kept):
+        s.hs_cov[p, p] = max(lam[k - 1 - p], 0.0)
+    _basis_rows_changed(s, 0, kept)
+    s.f[F_HSREBUILDS] += 1.0
+    return kept
+
+
+@njit(cache=True)
+def _module_hot_spots_within(s, w, hot):
+    """Per-module hot spot [K] within the slack ``eps = f[F_HSEPS]`` (> 0) of the largest
+    candidate-node temperature ``max_j G_j w`` of :func:`_module_hot_spots` (issue 26 item 5:
+    the top of the field is flat, so the exact maximum costs hundreds of rows per step while
+    the same value within ``eps`` costs one).
+
+    With ``T_ref = e.w / e.u`` and the deviation ``d = w - T_ref u`` (:func:`_module_hot_spots`)
+    and an orthonormal basis ``B`` (k rows, ``hs_basis``, shared by the modules and grown from
+    their own deviations), ``d = B^T c + res`` with ``c = B d`` and
+
+        G_j w = T_ref + (G B^T)_j c + G_j res,   |G_j res| <= |G_j (I - B^T B)| |res| + |G_j| |B res|
+
+    (Cauchy-Schwarz on the residual). ``(G B^T)_j c`` is evaluated for every row in single
+    precision (``hs_gb32``, k multiply-adds per row instead of r), with the rounding bound
+    ``gamma_{k+2}^{(32)} |G_j| |c|``, plus the rounding of ``d`` and of the double product
+    (``hs_const``), so that ``U_j`` bounds the row's double value ``v_j = G_j . w``
+    (:func:`_dot`). The row of the largest ``U_j`` is evaluated in double (``L``), then every
+    other row with ``U_j > L + eps`` (raising ``L``); the hot spot is ``L``, the value of one row, so
+    ``max_j v_j - eps <= L <= max_j v_j``; the step's certified gap ``max(U_j) - L`` over the
+    rows not evaluated (<= eps) raises ``f[F_HSGAP]``.
+
+    The basis: the residual's direction is appended (one product with every row, ``n r``) before
+    the pass when ``max_j |G_j (I - B^T B)| |res|`` exceeds :data:`HOT_SPOT_RESIDUAL_SHARE` x
+    ``eps`` (the bounds would leave many rows), and after it when the module evaluated more than
+    :data:`HOT_SPOT_ROWS_PER_ADD` rows besides the first (the residual cost rows); a full basis
+    (:data:`HOT_SPOT_BASIS_MAX` rows) is first cut to the :data:`HOT_SPOT_BASIS_KEEP` leading
+    directions of the recent coefficients, at most once in :data:`HOT_SPOT_CUT_EVERY` calls
+    (else the rows the residual leaves are evaluated in double). The deviations of a run lie
+    near a subspace of a few dozen directions, so the basis settles and grows rarely; how fast
+    it settles decides the cost, never the bound (a 1-hour drive with 100 modules: a few hundred
+    additions and a few dozen cuts)."""
+    g, gn, unit, en, hc = s.rom_cand, s.hs_norm, s.hs_unit, s.hs_energy, s.hs_const
+    f = s.f
+    eps = f[F_HSEPS]
+    n_mod, r = w.shape
+    n = g.shape[0]
+    kmax = s.hs_basis.shape[0]
+    keep = min(HOT_SPOT_BASIS_KEEP, kmax - 1)
+    e_u = _dot(en, unit)
+    d = np.empty(r)
+    res = np.empty(r)
+    c = np.zeros(kmax)
+    acc = np.empty(n, np.float32)
+    k = int(f[F_HSK])
+    cov = s.hs_cov
+    for p in range(k):
+        for q in range(k):
+            cov[p, q] *= HOT_SPOT_BASIS_DECAY
+    doubles = 0
+    for m in range(n_mod):
+        t_ref = 0.0
+        for i in range(r):
+            t_ref += en[i] * w[m, i]
+        t_ref /= e_u
+        w_norm2 = 0.0
+        for i in range(r):
+            d[i] = w[m, i] - t_ref * unit[i]
+            w_norm2 += w[m, i] * w[m, i]
+        rn, brn = _project(s.hs_basis, k, d, c, res)
+        if f[F_HSGRESMAX] * rn > HOT_SPOT_RESIDUAL_SHARE * eps or k == 0:
+            if k >= kmax and f[F_HSCALLS] - f[F_HSLASTCUT] >= HOT_SPOT_CUT_EVERY:
+                k = _basis_shrink(s, k, keep)
+                f[F_HSLASTCUT] = f[F_HSCALLS]
+                rn, brn = _project(s.hs_basis, k, d, c, res)
+            if k < kmax and (k == 0 or f[F_HSGRESMAX] * rn > HOT_SPOT_RESIDUAL_SHARE * eps):
+                k = _basis_add(s, k, res)
+                rn, brn = _project(s.hs_basis, k, d, c, res)
+        c_norm2 = 0.0
+        for p in range(k):
+            c_norm2 += c[p] * c[p]
+            for q in range(k):
+                cov[p, q] += c[p] * c[q]
+        c_norm = math.sqrt(c_norm2)
+        # the rows' single-precision part, U_j - T_ref - gres_j |res| = acc_j + |G_j| big + small
+        u32 = 2.0**-24
+        g32 = (k + 2) * u32 / (1.0 - (k + 2) * u32)
+        big = g32 * c_norm + hc[1] * (math.sqrt(w_norm2) + abs(t_ref) * hc[3] + math.sqrt(k + 1.0) * c_norm)
+        big = 1.01 * (big + brn)
+        small = 1.01 * abs(t_ref) * 2.0 * hc[2] + 1e-9
+        acc[:] = 0.0
+        for p in range(k):
+            _axpy32(acc, s.hs_gb32, p, np.float32(c[p]), n)
+        before = doubles
+        up = s.hs_up[m]  # kept: the step's bounds U_j - T_ref, _EVALUATED where evaluated
+        top = _bounds(acc, gn, s.hs_gres, big, rn * (1.0 + 1e-9), small, up)
+        j_top = 0  # the row of the largest bound (the first of them)
+        while j_top < n - 1 and up[j_top] < top:
+            j_top += 1
+        best = _dot(g[j_top], w[m])
+        doubles += 1
+        cut = best - t_ref + eps
+        if top > cut:
+            for j in range(n):
+                if up[j] > cut and j != j_top:
+                    y = _dot(g[j], w[m])
+                    doubles += 1
+                    up[j] = _EVALUATED
+                    if y > best:
+                        best = y
+                        cut = best - t_ref + eps
+        up[j_top] = _EVALUATED
+        left = _bounds_max(up)
+        f[F_HSGAP] = max(f[F_HSGAP], left + t_ref - best)
+        hot[m] = best
+        if doubles - before > HOT_SPOT_ROWS_PER_ADD + 1 and rn > 0.0:  # the residual costs rows
+            if k >= kmax and f[F_HSCALLS] - f[F_HSLASTCUT] >= HOT_SPOT_CUT_EVERY:
+                k = _basis_shrink(s, k, keep)
+                f[F_HSLASTCUT] = f[F_HSCALLS]
+                rn, brn = _project(s.hs_basis, k, d, c, res)
+            if k < kmax:
+                k = _basis_add(s, k, res)
+    f[F_HSK] = k
+    f[F_HSROWS64] += doubles
+    f[F_HSINIT] = 1.0
+    f[F_HSCALLS] += 1.0
+
+
 @njit(cache=True)
 def rom_modal(s, port_w, hot):
     """The module ROMs' step in modal coordinates (module docstring) with the cells' port heat
@@ -518,6 +808,8 @@ def rom_modal(s, port_w, hot):
                 s.port_k[m * nc + c] = y[m, c]
     if f[F_HSSKIP] > 0.0:  # a trial run whose records are discarded: the hot spots drive nothing
         hot[:] = np.nan
+    elif f[F_HSEPS] > 0.0:
+        _module_hot_spots_within(s, w, hot)
     else:
         _module_hot_spots(s, w, hot)
     return to_amb

@@ -284,6 +284,12 @@ def _attach(res: Any, run: PackRun, cfg: Any) -> None:
         "pack_peak_hot_spot_temp_c": metric(
             max(run.rows["hot_spot_temp_k"]) - 273.15, "degC", "hottest point of any module (thermal model)"
         ),
+        "pack_hot_spot_error_estimate_k": metric(
+            run.pack.hot_spot_error()["estimate_k"],
+            "K",
+            "error estimate of the module hot spots vs the full FEM: ROM estimate + screening slack "
+            "([module] hot_spot_slack_k; NaN without module ROMs)",
+        ),
         "pack_derated_s": metric(derated.sum() * dt, "s", "time the BMS derated the pack for temperature"),
         "pack_first_derating_s": metric(first, "s", "first time the BMS derated the pack (NaN: never)"),
         "pack_bms_limited_s": metric(

@@ -794,6 +794,7 @@ class RomComparison:
     rom_wall_heat_w: np.ndarray
     fem_step_s: float
     rom_step_s: float
+    rom_z: np.ndarray | None = None  # (steps + 1, r) the ROM's reduced states
 
     @property
     def mean_error_k(self) -> float:
@@ -838,10 +839,12 @@ def compare_with_fem(
     dt = cfg.simulation.dt_s
     times = np.arange(steps + 1) * dt
     rows: dict[str, list[Any]] = {k: [] for k in ("fm", "fx", "rm", "rx", "fw", "rw")}
+    states: list[np.ndarray] = []
 
     def record(wall_fem_w: float, wall_rom_w: float) -> None:
         m, x = fem_obs()
         z = stepper.z[0]
+        states.append(z.copy())
         for key, value in zip(
             rows, (m, x, rom.cell_mean_k(z), rom.cell_max_k(z), wall_fem_w, wall_rom_w), strict=True
         ):
@@ -866,7 +869,7 @@ def compare_with_fem(
     arr = {k: np.array(v) for k, v in rows.items()}
     return RomComparison(
         times, arr["fm"], arr["fx"], arr["rm"], arr["rx"], arr["fw"], arr["rw"],
-        fem_s / max(steps, 1), rom_s / max(steps, 1),
+        fem_s / max(steps, 1), rom_s / max(steps, 1), np.array(states),
     )  # fmt: skip
 
 
