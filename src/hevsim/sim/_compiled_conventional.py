@@ -23,6 +23,7 @@ from hevsim.architectures.conventional import (
     DETAILS,
     LOSSES,
     ConventionalVehicle,
+    DrivelineData,
     operating_point,
     point_details,
     point_losses,
@@ -129,24 +130,14 @@ def run_scalars(veh: ConventionalVehicle, ctl: ShiftSchedule, n: int = 1) -> Run
 
 class ConventionalPlug(NamedTuple):
     """The conventional vehicle's plug-in of :func:`hevsim.sim._loop.run_loop`: gearbox ratios
-    and efficiencies [-], the scalars of :class:`~hevsim.architectures.conventional.DrivelineData`
+    and efficiencies [-], ``dd`` the scalars of :class:`~hevsim.architectures.conventional.DrivelineData`
     (final drive, idle, fuel-cut and redline speeds [rad/s], stop-start, fuel map, LHV [J/kg],
     torque scale, auxiliary load [W], alternator efficiency), the shift speeds [rad/s] and the
     engine's :class:`~hevsim.components.engine.EngineTables`."""
 
     ratios: np.ndarray
     effs: np.ndarray
-    fd_ratio: float
-    fd_efficiency: float
-    idle_radps: float
-    fuel_cut_radps: float
-    redline_radps: float
-    stop_start: bool
-    use_fuel_map: bool
-    lhv_jpkg: float
-    torque_scale: float
-    aux_power_w: float
-    alternator_efficiency: float
+    dd: DrivelineData
     upshift_radps: float
     downshift_radps: float
     tab: Any
@@ -155,11 +146,11 @@ class ConventionalPlug(NamedTuple):
 @njit(cache=True, inline="always")
 def _operating_point(plug, w_wheel, t_wheel, gear):
     """:func:`~hevsim.architectures.conventional.operating_point` in ``gear`` (1..G)."""
-    tab = plug.tab
+    tab, d = plug.tab, plug.dd
     return operating_point(
-        w_wheel, t_wheel, float(gear), plug.ratios, plug.effs, plug.fd_ratio, plug.fd_efficiency,
-        plug.idle_radps, plug.fuel_cut_radps, plug.redline_radps, plug.stop_start, plug.use_fuel_map,
-        plug.lhv_jpkg, plug.torque_scale, plug.aux_power_w, plug.alternator_efficiency, tab.tmax_x,
+        w_wheel, t_wheel, float(gear), plug.ratios, plug.effs, d.fd_ratio, d.fd_efficiency, d.idle_radps,
+        d.fuel_cut_radps, d.redline_radps, d.stop_start, d.use_fuel_map, d.lhv_jpkg, d.torque_scale,
+        d.aux_power_w, d.alternator_efficiency, tab.tmax_x,
         tab.tmax_y, tab.tct_x, tab.tct_y, tab.tmap_x, tab.tmap_y, tab.tmap_z, tab.fuel_x, tab.fuel_y,
         tab.fuel_z,
     )  # fmt: skip
@@ -175,8 +166,8 @@ def _fill(plug, work, w_wheel, p):
     for j in range(len(d)):
         det[j] = d[j]
     q = point_losses(
-        w_wheel, w_fd, t_fd, w_in, t_in, w_e, t_e, on, rate, t_fd_eng, t_alt, plug.fd_ratio,
-        plug.fd_efficiency, plug.lhv_jpkg, plug.aux_power_w,
+        w_wheel, w_fd, t_fd, w_in, t_in, w_e, t_e, on, rate, t_fd_eng, t_alt, plug.dd.fd_ratio,
+        plug.dd.fd_efficiency, plug.dd.lhv_jpkg, plug.dd.aux_power_w,
     )  # fmt: skip
     for j in range(len(q)):
         loss[j] = q[j]
@@ -189,7 +180,7 @@ def conventional_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_s
     gear ``state[0]``, then the kick-down order's first gear the engine can drive (none: not
     found); the chosen point's details and audit powers filled."""
     sched = shift_gear(
-        int(state[0]), w_wheel * plug.fd_ratio, plug.ratios, plug.upshift_radps, plug.downshift_radps
+        int(state[0]), w_wheel * plug.dd.fd_ratio, plug.ratios, plug.upshift_radps, plug.downshift_radps
     )
     for j in range(plug.ratios.shape[0]):
         gear = kickdown_gear(j, sched)
@@ -224,11 +215,11 @@ register(ConventionalPlug, conventional_choose, conventional_point, conventional
 def _variant_inputs(s, i, ratios, effs, stop_start, use_map, lhv, tab):
     """(plug-in, :class:`~hevsim.sim._loop.RunConstants`) of variant ``i`` of :class:`RunScalars`
     ``s``."""
-    plug = ConventionalPlug(
-        ratios, effs, s.fd_ratio[i], s.fd_efficiency[i], s.idle_radps[i], s.fuel_cut_radps[i],
-        s.redline_radps[i], stop_start, use_map, lhv, s.torque_scale[i], s.aux_power_w[i],
-        s.alternator_efficiency[i], s.upshift_radps[i], s.downshift_radps[i], tab,
+    dd = DrivelineData(
+        s.fd_ratio[i], s.fd_efficiency[i], s.idle_radps[i], s.fuel_cut_radps[i], s.redline_radps[i],
+        stop_start, use_map, lhv, s.torque_scale[i], s.aux_power_w[i], s.alternator_efficiency[i],
     )  # fmt: skip
+    plug = ConventionalPlug(ratios, effs, dd, s.upshift_radps[i], s.downshift_radps[i], tab)
     h = RunConstants(
         0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, s.aux_power_w[i], s.mass_kg[i],
         s.mass_factor[i], s.drag_coefficient[i], s.frontal_area_m2[i], s.air_density_kgpm3[i],
