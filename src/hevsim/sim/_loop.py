@@ -178,19 +178,25 @@ def _plugin(plug: Any, role: str) -> Any:
     return None if found is None else getattr(found, role)
 
 
+_PY_CALL = (
+    "{} exists only in compiled code: numba replaces it with the registered plug-in's function "
+    "(register); call the plug-in's own function from Python"
+)
+
+
 def plug_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
-    """The plug-in's ``choose`` (compiled code only)."""
-    raise NotImplementedError
+    """The plug-in's ``choose`` (compiled code only: the target of :func:`_ov_choose`)."""
+    raise NotImplementedError(_PY_CALL.format("plug_choose"))
 
 
 def plug_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
-    """The plug-in's ``point`` (compiled code only)."""
-    raise NotImplementedError
+    """The plug-in's ``point`` (compiled code only: the target of :func:`_ov_point`)."""
+    raise NotImplementedError(_PY_CALL.format("plug_point"))
 
 
 def plug_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
-    """The plug-in's ``commit`` (compiled code only)."""
-    raise NotImplementedError
+    """The plug-in's ``commit`` (compiled code only: the target of :func:`_ov_commit`)."""
+    raise NotImplementedError(_PY_CALL.format("plug_commit"))
 
 
 @overload(plug_choose, inline="always")
