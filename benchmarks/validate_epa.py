@@ -173,6 +173,9 @@ def tcl_part(plots: Path | None, limit: int | None, search_shift: bool = False) 
     print("[engine.fitted.cold_start_by_class]")
     for k, w in params.cold_start_by_class:
         print(f'"{k}" = {w:.6g}')
+    print("[engine.fitted.brake_work_by_class]")
+    for k, w in params.brake_work_by_class:
+        print(f'"{k}" = {w:.6g}')
     print(f"(indicated efficiency 1 / brake_work = {params.indicated_efficiency:.3f})")
     lin = np.array([T.linear_mpg(r, params) / r.predicted_mpg - 1 for r in runs])
     print(
@@ -190,7 +193,7 @@ def tcl_part(plots: Path | None, limit: int | None, search_shift: bool = False) 
             f"| {d['p90_abs_pct']:.1f} % | {d['mean_pct']:+.1f} % |"
         )
     bags = T.ftp_bags()
-    gal_j, w = T.gallon_energy_j(), params.weights()
+    gal_j = T.gallon_energy_j()
     cold, hot_err, fitted_cold = [], [], []
     for r in runs:
         if r.half == "train" and r.category == "FTP" and r.test_number in bags:
@@ -198,7 +201,7 @@ def tcl_part(plots: Path | None, limit: int | None, search_shift: bool = False) 
             cold.append(cold_gal * gal_j / r.vehicle.displacement_m3)
             fitted_cold.append(params.cold_start(r.shift_class))
             hot_err.append(
-                r.distance_m / T.M_PER_MILE / (float(r.features[:-1] @ w[:-1]) / gal_j) / hot_mpg - 1
+                r.distance_m / T.M_PER_MILE / (float(r.features[:-1] @ params.weights_for(r.shift_class)[:-1]) / gal_j) / hot_mpg - 1
             )
     print(
         f"\nthe FTP term against the bags ({len(cold)} training FTP tests with bag figures): measured "
@@ -211,10 +214,10 @@ def tcl_part(plots: Path | None, limit: int | None, search_shift: bool = False) 
     )
     held = [r for r in runs if r.half == "test"]
     print(
-        "\n| transmission class | shift rule (rpm) | FTP term (MJ/L) | held-out FTP: n, mean, median abs "
-        "| held-out HWY |"
+        "\n| transmission class | shift rule (rpm) | FTP term (MJ/L) | brake-work weight (relative) "
+        "| held-out FTP: n, mean, median abs | held-out HWY |"
     )
-    print("|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|")
     for name in [r.name for r in g.shift_rules] + ["other"]:
         cells = []
         for cat in ("FTP", "HWY"):
@@ -225,7 +228,8 @@ def tcl_part(plots: Path | None, limit: int | None, search_shift: bool = False) 
         rule = next(((r.upshift_rpm, r.downshift_rpm) for r in g.shift_rules if r.name == name), None)
         rule = rule or (g.upshift_rpm, g.downshift_rpm)
         print(
-            f"| {name} | {rule[0]:g} / {rule[1]:g} | {params.cold_start(name) / 1e9:.2f} | {cells[0]} "
+            f"| {name} | {rule[0]:g} / {rule[1]:g} | {params.cold_start(name) / 1e9:.2f} | "
+            f"{params.brake_work(name):.3f} ({params.brake_work(name) / params.weights()[0]:.3f}) | {cells[0]} "
             f"| {cells[1]} |"
         )
     print("\nheld-out error distribution (predicted / measured - 1), share of tests within:")

@@ -120,11 +120,13 @@ cold start's ``0.43 V_d`` [m^3]) whose weighted sum is the fuel energy [J]."""
 @dataclass(frozen=True)
 class EngineParams:
     """The generic engine's fitted weights, one per :data:`FEATURES` name (module docstring), and
-    the FTP term by transmission class (:attr:`Generic.shift_rules` name; ``cold_start`` for a
-    class not given)."""
+    by transmission class (:attr:`Generic.shift_rules` name) the FTP term (``cold_start`` for a
+    class not given) and the brake-work weight (``brake_work`` for a class not given: the
+    transmission's loss in proportion to the work it passes, :func:`fit`)."""
 
     weights_by_name: tuple[tuple[str, float], ...]
     cold_start_by_class: tuple[tuple[str, float], ...] = ()
+    brake_work_by_class: tuple[tuple[str, float], ...] = ()
 
     def weights(self) -> np.ndarray:
         """The weights in the order of :data:`FEATURES` (0 for a name not given)."""
@@ -135,9 +137,15 @@ class EngineParams:
         """The FTP term [J/m^3] of a car of transmission class ``shift_class``."""
         return float(dict(self.cold_start_by_class).get(shift_class, self.weights()[-1]))
 
+    def brake_work(self, shift_class: str) -> float:
+        """The brake-work weight [-] (1 / indicated efficiency / the class's transmission
+        efficiency relative to the generic one) of a car of transmission class ``shift_class``."""
+        return float(dict(self.brake_work_by_class).get(shift_class, self.weights()[0]))
+
     def weights_for(self, shift_class: str) -> np.ndarray:
-        """:meth:`weights` with the FTP term of ``shift_class``."""
+        """:meth:`weights` with the FTP term and the brake-work weight of ``shift_class``."""
         w = self.weights()
+        w[0] = self.brake_work(shift_class)
         w[-1] = self.cold_start(shift_class)
         return w
 
@@ -232,24 +240,31 @@ def generic(path: str | None = None) -> Generic:
     f = e.get("fitted", {})
     w = str(p)
     spread = {int(k): _num(t.get("spread", {}), k, f"{w} [transmission.spread]") for k in t.get("spread", {})}
-    unknown = sorted(set(f) - set(FEATURES) - {"cold_start_by_class"})
+    unknown = sorted(set(f) - set(FEATURES) - {"cold_start_by_class", "brake_work_by_class"})
     if unknown:
         raise ConfigError(
             f"{w} [engine.fitted]: key(s) {unknown} unknown; expected some of {', '.join(FEATURES)}."
         )
     by_class = f.get("cold_start_by_class", {})
-    if not isinstance(by_class, dict):
-        raise ConfigError(
-            f"{w} [engine.fitted]: key 'cold_start_by_class' = {by_class!r}; expected a table of "
-            "transmission class name = FTP term [J/m^3]."
-        )
+    bw_class = f.get("brake_work_by_class", {})
+    for key, table, what in (
+        ("cold_start_by_class", by_class, "FTP term [J/m^3]"),
+        ("brake_work_by_class", bw_class, "brake-work weight [-]"),
+    ):
+        if not isinstance(table, dict):
+            raise ConfigError(
+                f"{w} [engine.fitted]: key '{key}' = {table!r}; expected a table of "
+                f"transmission class name = {what}."
+            )
     fitted = EngineParams(
         tuple((k, _num(f, k, f"{w} [engine.fitted]")) for k in FEATURES if k in f),
         tuple((k, _num(by_class, k, f"{w} [engine.fitted.cold_start_by_class]")) for k in by_class),
+        tuple((k, _num(bw_class, k, f"{w} [engine.fitted.brake_work_by_class]")) for k in bw_class),
     )
-    if fitted.weights()[0] <= 0:
+    if fitted.weights()[0] <= 0 or any(x <= 0 for _, x in fitted.brake_work_by_class):
         raise ConfigError(
-            f"{w} [engine.fitted]: key 'brake_work' = 0; expected 1 / indicated efficiency > 1."
+            f"{w} [engine.fitted]: key 'brake_work' (or a brake_work_by_class entry) = 0; expected "
+            "1 / indicated efficiency > 1."
         )
     eng = ("idle_rpm", "redline_rpm", "knee_rpm", "full_torque_rpm", "idle_torque_fraction", "reference_rpm",
            "closed_throttle_mep_pa", "inertia_kgm2_per_l")  # fmt: skip
@@ -280,12 +295,13 @@ def generic(path: str | None = None) -> Generic:
             )
         )  # fmt: skip
     names = {r.name for r in rules} | {"other"}
-    stray = sorted(set(by_class) - names)
-    if stray:
-        raise ConfigError(
-            f"{w} [engine.fitted.cold_start_by_class]: key(s) {stray} name no transmission class; "
-            f"expected some of {sorted(names)} (the [[transmission.shift]] names, or other)."
-        )
+    for key, table in (("cold_start_by_class", by_class), ("brake_work_by_class", bw_class)):
+        stray = sorted(set(table) - names)
+        if stray:
+            raise ConfigError(
+                f"{w} [engine.fitted.{key}]: key(s) {stray} name no transmission class; "
+                f"expected some of {sorted(names)} (the [[transmission.shift]] names, or other)."
+            )
     return Generic(**kw, spread=spread, shift_rules=tuple(rules), fitted=fitted, source=w)
 
 
@@ -522,8 +538,9 @@ def point_terms(t_nm: np.ndarray, w_radps: np.ndarray, v: TestVehicle, g: Generi
 def fuel_power_w(
     t_nm: np.ndarray, w_radps: np.ndarray, v: TestVehicle, g: Generic, p: EngineParams
 ) -> np.ndarray:
-    """Fuel power [W] of the generic engine at torque [N m] and speed [rad/s] (module docstring)."""
-    return point_terms(t_nm, w_radps, v, g) @ p.weights()[: len(POINT_TERMS)]
+    """Fuel power [W] of the generic engine of ``v`` (the weights of its transmission class) at
+    torque [N m] and speed [rad/s] (module docstring)."""
+    return point_terms(t_nm, w_radps, v, g) @ p.weights_for(g.shift_rule(v)[0])[: len(POINT_TERMS)]
 
 
 def write_engine(folder: Path, v: TestVehicle, g: Generic, p: EngineParams, lhv_j_per_kg: float) -> None:
@@ -561,7 +578,13 @@ def write_engine(folder: Path, v: TestVehicle, g: Generic, p: EngineParams, lhv_
         "displacement and rated torque; weights fitted on the training half of the EPA Test Car List "
         "MY2022, hevsim/data/validation/epa_test_car_generic.toml), "
         'sized by displacement and rated power."\n'
-        f"fitted_weights = {{ {', '.join(f'{k} = {w!r}' for k, w in p.weights_by_name if w)} }}\n"
+        "fitted_weights = { "
+        + ", ".join(
+            f"{k} = {float(x)!r}"
+            for k, x in zip(FEATURES, p.weights_for(g.shift_rule(v)[0]), strict=True)
+            if x
+        )
+        + " }\n"
         f"[parameters]\ndisplacement_L = {v.displacement_m3 * 1e3!r}\n"
         f"max_power_kW = {v.rated_power_w / 1e3!r}\n"
         f"rotational_inertia_kg_m2 = {g.inertia_kgm2_per_l * v.displacement_m3 * 1e3!r}\n"
@@ -688,30 +711,40 @@ def run_all(
 def fit(runs: list[TestRun]) -> EngineParams:
     """Non-negative least squares of the relative fuel error over ``runs`` (the training half):
     weights ``x`` >= 0 minimising sum((features . x) / measured fuel energy - 1)^2, with one FTP
-    term per transmission class of the runs (``cold_start_by_class``; ``cold_start``, for a
-    class not fitted: their mean weighted by FTP runs)."""
+    term and one brake-work weight per transmission class of the runs (``cold_start_by_class``,
+    ``brake_work_by_class``: the brake-work weight is 1 / indicated efficiency over the class's
+    transmission efficiency relative to the generic one, so the transmission loss in proportion
+    to the work passed is the class's; ``cold_start`` and ``brake_work``, for a class not
+    fitted: their means weighted by the class's FTP runs and runs)."""
     from scipy.optimize import nnls
 
     gal_j = gallon_energy_j()
     classes = sorted({r.shift_class for r in runs})
-    n = len(POINT_TERMS)
-    a = np.zeros((len(runs), n + len(classes)))
+    n, k = len(POINT_TERMS), len(classes)
+    a = np.zeros((len(runs), n - 1 + 2 * k))
     for i, r in enumerate(runs):
-        a[i, :n] = r.features[:n]
-        a[i, n + classes.index(r.shift_class)] = r.features[n]
+        c = classes.index(r.shift_class)
+        a[i, : n - 1] = r.features[1:n]
+        a[i, n - 1 + c] = r.features[0]
+        a[i, n - 1 + k + c] = r.features[n]
         a[i] /= r.distance_m / M_PER_MILE / r.measured_mpg * gal_j
     scale = np.maximum(np.abs(a).max(axis=0), 1e-30)
     x, _ = nnls(a / scale, np.ones(len(runs)))
     x = x / scale
-    if x[0] <= 0:
+    brake, cold = x[n - 1 : n - 1 + k], x[n - 1 + k :]
+    if np.any(brake <= 0):
         raise ConfigError(
-            "the engine fit gave no brake-work weight (1 / indicated efficiency = 0); check the data."
+            "the engine fit gave no brake-work weight (1 / indicated efficiency = 0) for a transmission "
+            f"class ({', '.join(c for c, b in zip(classes, brake, strict=True) if b <= 0)}); check the data."
         )
+    every = np.array([sum(1 for r in runs if r.shift_class == c) for c in classes])
     ftp = np.array([sum(1 for r in runs if r.shift_class == c and r.features[n] > 0) for c in classes])
-    mean = float(ftp @ x[n:] / ftp.sum()) if ftp.sum() else 0.0
+    mean_cold = float(ftp @ cold / ftp.sum()) if ftp.sum() else 0.0
+    mean_brake = float(every @ brake / every.sum())
     return EngineParams(
-        EngineParams.from_weights(np.append(x[:n], mean)).weights_by_name,
-        tuple((c, float(w)) for c, w in zip(classes, x[n:], strict=True)),
+        EngineParams.from_weights(np.concatenate(([mean_brake], x[: n - 1], [mean_cold]))).weights_by_name,
+        tuple((c, float(w)) for c, w in zip(classes, cold, strict=True)),
+        tuple((c, float(w)) for c, w in zip(classes, brake, strict=True)),
     )
 
 
