@@ -201,7 +201,11 @@ def tcl_part(plots: Path | None, limit: int | None, search_shift: bool = False) 
             cold.append(cold_gal * gal_j / r.vehicle.displacement_m3)
             fitted_cold.append(params.cold_start(r.shift_class))
             hot_err.append(
-                r.distance_m / T.M_PER_MILE / (float(r.features[:-1] @ params.weights_for(r.shift_class)[:-1]) / gal_j) / hot_mpg - 1
+                r.distance_m
+                / T.M_PER_MILE
+                / (float(r.features[:-1] @ params.weights_for(r.shift_class)[:-1]) / gal_j)
+                / hot_mpg
+                - 1
             )
     print(
         f"\nthe FTP term against the bags ({len(cold)} training FTP tests with bag figures): measured "
@@ -229,7 +233,8 @@ def tcl_part(plots: Path | None, limit: int | None, search_shift: bool = False) 
         rule = rule or (g.upshift_rpm, g.downshift_rpm)
         print(
             f"| {name} | {rule[0]:g} / {rule[1]:g} | {params.cold_start(name) / 1e9:.2f} | "
-            f"{params.brake_work(name):.3f} ({params.brake_work(name) / params.weights()[0]:.3f}) | {cells[0]} "
+            f"{params.brake_work(name):.3f} ({params.brake_work(name) / params.weights()[0]:.3f}) "
+            f"| {cells[0]} "
             f"| {cells[1]} |"
         )
     print("\nheld-out error distribution (predicted / measured - 1), share of tests within:")

@@ -157,12 +157,13 @@ def test_split_is_deterministic_and_halves() -> None:
 def test_held_out_sample_and_the_fit_is_linear(tmp_path: Path) -> None:
     """Every 4th held-out vehicle (129 FTP, 129 HWY tests): the simulated fuel equals the fitted
     weights times the run's energy integrals (the linearity the fit relies on), and the errors are
-    the shipped models' (docs/validation.md). This sample gives FTP 5.9 % median / 13.2 % 90th
-    percentile, HWY 4.1 % / 8.5 % (the whole held-out half: 5.4 / 13.1 and 3.4 / 8.9); the bounds
-    are those figures rounded up. The models before the FTP term by transmission class (one FTP
-    term, the earlier shift rules) give 5.4 / 13.9 and 4.0 / 9.0 on the same sample and fail the
-    90th-percentile bounds (their median FTP is lower here, not on the whole half). The HWY median
-    is within the issue's 5 % goal; the FTP is not (docs/validation.md, "Honest failures")."""
+    the shipped models' (docs/validation.md). This sample gives FTP 5.2 % median / 13.5 % 90th
+    percentile, HWY 3.4 % / 8.3 % (the whole held-out half: 5.2 / 12.8 and 3.1 / 8.6); the bounds
+    are those figures rounded up. The models before the brake-work weight by transmission class
+    and the 9-10 gear automatics' class of their own give 5.9 / 13.2 and 4.1 / 8.5 on the same
+    sample and fail the FTP median and both HWY bounds (their FTP 90th percentile is lower here,
+    not on the whole half: 13.1 %). The HWY median is within the issue's 5 % goal; the FTP is not
+    (docs/validation.md, "Honest failures")."""
     vehicles, _ = T.read_test_cars()
     held = [v for v in vehicles if T.split(v.vehicle_id) == "test"][::4]
     g = T.generic()
@@ -170,7 +171,7 @@ def test_held_out_sample_and_the_fit_is_linear(tmp_path: Path) -> None:
     assert len(runs) == 258
     for r in runs:
         assert T.linear_mpg(r, g.fitted) == pytest.approx(r.predicted_mpg, rel=2e-3)
-    for cat, median_max, p90_max in (("HWY", 0.042, 0.086), ("FTP", 0.059, 0.133)):
+    for cat, median_max, p90_max in (("HWY", 0.034, 0.084), ("FTP", 0.053, 0.135)):
         e = np.abs([r.error for r in runs if r.category == cat])
         assert np.median(e) <= median_max, (cat, np.median(e))
         assert np.percentile(e, 90) <= p90_max, (cat, np.percentile(e, 90))
@@ -183,7 +184,9 @@ def test_shift_rules_by_transmission_class(tmp_path: Path) -> None:
     vehicles, _ = T.read_test_cars()
     g = T.generic()
     camry = next(x for x in vehicles if x.vehicle_id == "18-AV2A")
-    assert g.shift_rule(camry)[0] == "automatic, 8 to 10 gears"
+    assert g.shift_rule(camry)[0] == "automatic, 8 gears"
+    ten = next(x for x in vehicles if x.transmission_code in ("A", "SA") and x.gears == 10)
+    assert g.shift_rule(ten)[0] == "automatic, 9 or 10 gears"
     assert g.shift_rule(next(v for v in vehicles if v.transmission_code == "M"))[0] == "manual"
     assert (
         g.shift_rule(next(v for v in vehicles if v.transmission_code == "CVT"))[0] == "continuously variable"
@@ -206,7 +209,7 @@ def test_search_shift_rules_fits_on_the_training_half(tmp_path: Path, monkeypatc
     vehicles, _ = T.read_test_cars()
     g = T.generic()
     sample = []
-    for name in ("automatic, 8 to 10 gears", "manual"):
+    for name in ("automatic, 8 gears", "manual"):
         of = [v for v in vehicles if g.shift_rule(v)[0] == name]
         sample += [v for v in of if T.split(v.vehicle_id) == "train"][:4] + [
             v for v in of if T.split(v.vehicle_id) == "test"
@@ -301,6 +304,59 @@ def test_fit_gives_each_transmission_class_its_ftp_term() -> None:
     assert all(T.linear_mpg(r, got) == pytest.approx(r.measured_mpg, rel=1e-6) for r in runs)
 
 
+def test_fit_gives_each_transmission_class_its_brake_work_weight(tmp_path: Path) -> None:
+    """Runs of two transmission classes whose measured fuel carries different brake-work weights
+    (2.2 and 2.6: the same engine behind gearboxes 2.6 / 2.2 - 1 = 18 % apart in efficiency, the
+    same map otherwise): the fit recovers both, the fallback ``brake_work`` is their mean weighted
+    by runs (20 and 60: 2.5), each run's prediction uses its own, and the engine map written for
+    a car of a class is the map of that class's weights."""
+    rng = np.random.default_rng(3)
+    rest = np.array([3e4, 0, 9e3, 0, 0.1, 0, 0, 2500.0])
+    runs = []
+    for i in range(80):
+        cls, bw = ("a", 2.2) if i < 20 else ("b", 2.6)
+        f = np.abs(rng.normal(size=len(T.FEATURES))) * np.array(
+            [2e7, 300, 300, 300, 300, 50, 50, 2e7, 1000, 1e-3]
+        )
+        if i % 2:
+            f[-1] = 0.0
+        dist = 12000.0
+        fuel_j = bw * f[0] + float(f[1:-1] @ rest) + 4e9 * f[-1]
+        mpg = dist / 1609.344 / (fuel_j / T.gallon_energy_j())
+        runs.append(T.TestRun(None, "FTP" if f[-1] else "HWY", str(i), mpg, mpg, f, dist, "train", cls))  # type: ignore[arg-type]
+    got = T.fit(runs)
+    assert got.brake_work("a") == pytest.approx(2.2, rel=1e-6)
+    assert got.brake_work("b") == pytest.approx(2.6, rel=1e-6)
+    assert got.brake_work("other") == pytest.approx((20 * 2.2 + 60 * 2.6) / 80, rel=1e-6)
+    assert got.weights()[1:-1] == pytest.approx(rest, rel=1e-6, abs=1e-6)
+    assert got.weights_for("a")[0] == pytest.approx(2.2, rel=1e-6)
+    assert all(T.linear_mpg(r, got) == pytest.approx(r.measured_mpg, rel=1e-6) for r in runs)
+    # classes of fewer than BRAKE_WORK_MIN_RUNS runs share one weight: "a" split in two of 10 runs
+    from dataclasses import replace
+
+    split = [replace(r, shift_class="c") if i < 10 else r for i, r in enumerate(runs)]
+    shared = T.fit(split)
+    assert T.BRAKE_WORK_MIN_RUNS > 10
+    assert shared.brake_work("a") == shared.brake_work("c") == pytest.approx(2.2, rel=1e-6)
+    assert shared.brake_work("b") == pytest.approx(2.6, rel=1e-6)
+    # the map of a car: its class's brake-work weight (a Camry: "automatic, 8 gears")
+    g = T.generic()
+    vehicles, _ = T.read_test_cars()
+    camry = next(x for x in vehicles if x.vehicle_id == "18-AV2A")
+    name = g.shift_rule(camry)[0]
+    p = T.EngineParams(got.weights_by_name, got.cold_start_by_class, ((name, 2.2), ("b", 2.6)))
+    t, w = np.array([50.0, 150.0]), np.array([150.0, 250.0])
+    assert T.fuel_power_w(t, w, camry, g, p) == pytest.approx(
+        T.point_terms(t, w, camry, g) @ p.weights_for(name)[: len(T.POINT_TERMS)], rel=1e-12
+    )
+    other = T.EngineParams(got.weights_by_name, got.cold_start_by_class, (("b", 2.6),))
+    extra = (2.2 - got.brake_work("other")) * w * t  # the brake-work term alone differs
+    assert T.fuel_power_w(t, w, camry, g, p) - T.fuel_power_w(t, w, camry, g, other) == pytest.approx(
+        extra, rel=1e-9
+    )
+    assert g.fitted.brake_work(name) != g.fitted.brake_work("manual")  # the shipped file has them
+
+
 def test_bad_generic_file_names_the_key(tmp_path: Path) -> None:
     src = Path(T.__file__).parents[1] / T.GENERIC_FILE
     bad = tmp_path / "g.toml"
@@ -315,6 +371,14 @@ def test_bad_generic_file_names_the_key(tmp_path: Path) -> None:
         T.generic(str(bad))
     bad.write_text(src.read_text().replace('"manual" = ', '"manuel" = '))
     with pytest.raises(ConfigError, match=r"cold_start_by_class.*manuel"):
+        T.generic(str(bad))
+    text = src.read_text()
+    at = text.index("[engine.fitted.brake_work_by_class]")
+    bad.write_text(text[:at] + text[at:].replace('"manual" = ', '"manuel" = ', 1))
+    with pytest.raises(ConfigError, match=r"brake_work_by_class.*manuel"):
+        T.generic(str(bad))
+    bad.write_text(text[:at] + text[at:].replace('"manual" = ', '"manual" = 0.0 #', 1))
+    with pytest.raises(ConfigError, match="brake_work_by_class entry"):
         T.generic(str(bad))
 
 

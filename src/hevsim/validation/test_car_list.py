@@ -708,36 +708,45 @@ def run_all(
     return runs
 
 
+BRAKE_WORK_MIN_RUNS = 20
+"""A transmission class with fewer training runs than this gets no brake-work weight of its own in
+:func:`fit`: its runs share one (a handful of runs cannot separate a gearbox loss from the map)."""
+
+
 def fit(runs: list[TestRun]) -> EngineParams:
     """Non-negative least squares of the relative fuel error over ``runs`` (the training half):
     weights ``x`` >= 0 minimising sum((features . x) / measured fuel energy - 1)^2, with one FTP
     term and one brake-work weight per transmission class of the runs (``cold_start_by_class``,
     ``brake_work_by_class``: the brake-work weight is 1 / indicated efficiency over the class's
     transmission efficiency relative to the generic one, so the transmission loss in proportion
-    to the work passed is the class's; ``cold_start`` and ``brake_work``, for a class not
-    fitted: their means weighted by the class's FTP runs and runs)."""
+    to the work passed is the class's; classes of fewer than :data:`BRAKE_WORK_MIN_RUNS` runs
+    share one). ``cold_start`` and ``brake_work``, for a class not fitted: their means weighted
+    by the class's FTP runs and runs."""
     from scipy.optimize import nnls
 
     gal_j = gallon_energy_j()
     classes = sorted({r.shift_class for r in runs})
-    n, k = len(POINT_TERMS), len(classes)
-    a = np.zeros((len(runs), n - 1 + 2 * k))
+    runs_of = {c: sum(1 for r in runs if r.shift_class == c) for c in classes}
+    own = [c for c in classes if runs_of[c] >= BRAKE_WORK_MIN_RUNS]
+    column = {c: own.index(c) if c in own else len(own) for c in classes}
+    n, k, kb = len(POINT_TERMS), len(classes), len(own) + (len(own) < len(classes))
+    a = np.zeros((len(runs), n - 1 + kb + k))
     for i, r in enumerate(runs):
-        c = classes.index(r.shift_class)
         a[i, : n - 1] = r.features[1:n]
-        a[i, n - 1 + c] = r.features[0]
-        a[i, n - 1 + k + c] = r.features[n]
+        a[i, n - 1 + column[r.shift_class]] = r.features[0]
+        a[i, n - 1 + kb + classes.index(r.shift_class)] = r.features[n]
         a[i] /= r.distance_m / M_PER_MILE / r.measured_mpg * gal_j
     scale = np.maximum(np.abs(a).max(axis=0), 1e-30)
     x, _ = nnls(a / scale, np.ones(len(runs)))
     x = x / scale
-    brake, cold = x[n - 1 : n - 1 + k], x[n - 1 + k :]
+    brake = np.array([x[n - 1 + column[c]] for c in classes])
+    cold = x[n - 1 + kb :]
     if np.any(brake <= 0):
         raise ConfigError(
             "the engine fit gave no brake-work weight (1 / indicated efficiency = 0) for a transmission "
             f"class ({', '.join(c for c, b in zip(classes, brake, strict=True) if b <= 0)}); check the data."
         )
-    every = np.array([sum(1 for r in runs if r.shift_class == c) for c in classes])
+    every = np.array([runs_of[c] for c in classes])
     ftp = np.array([sum(1 for r in runs if r.shift_class == c and r.features[n] > 0) for c in classes])
     mean_cold = float(ftp @ cold / ftp.sum()) if ftp.sum() else 0.0
     mean_brake = float(every @ brake / every.sum())
