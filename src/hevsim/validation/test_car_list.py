@@ -19,8 +19,10 @@ speed-dependent friction and a load-dependent pumping term)::
 
     P_fuel = [w T + w V_d / (4 pi) (fmep0 + fmep1 s + fmep2 s^2 + pmep (1 - T / T_max(w)))] / eta_i
 
-with ``s`` = rpm / reference rpm (and a few more terms: :data:`POINT_TERMS`). Its weights and
-the FTP term (``cold_start`` x V_d, added to the cold UDDS that weighs 0.43 in the composite; the
+with ``s`` = rpm / reference rpm (and a few more terms: :data:`POINT_TERMS`). Its weights, the
+brake-work weight ``1 / eta_i`` by transmission class (the class's gearbox loss in proportion to
+the work it passes: a gearbox efficiency by class relative to the generic one) and the FTP term
+by class (``cold_start`` x V_d, added to the cold UDDS that weighs 0.43 in the composite; the
 bag figures, :func:`ftp_bags`, show that a fifth of it is the cold start, the rest a city
 penalty the model lacks) are fitted, all together, by non-negative least squares on the
 relative fuel error of a *training half* of the test vehicles (:func:`split`: by a hash of
