@@ -23,7 +23,7 @@ with ``s`` = rpm / reference rpm (and a few more terms: :data:`POINT_TERMS`). It
 brake-work weight ``1 / eta_i`` by transmission class (the class's gearbox loss in proportion to
 the work it passes: a gearbox efficiency by class relative to the generic one) and the FTP term
 by class (``cold_start`` x V_d, added to the cold UDDS that weighs 0.43 in the composite; the
-bag figures, :func:`ftp_bags`, show that a fifth of it is the cold start, the rest a city
+bag figures, :func:`ftp_bags`, show that a quarter of it is the cold start, the rest a city
 penalty the model lacks) are fitted, all together, by non-negative least squares on the
 relative fuel error of a *training half* of the test vehicles (:func:`split`: by a hash of
 the Test Vehicle ID). The fit is linear: the operating points of a test do not depend on the
