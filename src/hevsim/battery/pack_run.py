@@ -52,13 +52,13 @@ F_NAMES = (
     "hot_spot_rows", "hot_spot_rebase_k", "hot_spot_rows_double", "hot_spot_skip", "hot_spot_rows_read",
     "hot_spot_slack_k", "hot_spot_basis_size", "hot_spot_basis_adds", "hot_spot_basis_rebuilds",
     "hot_spot_row_residual_max", "hot_spot_gap_k", "hot_spot_calls", "hot_spot_last_cut",
-    "hot_spot_kept", "hot_spot_screens",
+    "hot_spot_kept", "hot_spot_screens", "hot_spot_basis_orth",
 )  # fmt: skip
 (F_DT, F_NG, F_NP, F_REP, F_NS, F_NPAR, F_WEIGHT, F_NMOD, F_SIMPM, F_IMAX, F_AMB, F_LINEAR, F_EZVALID,
  F_ROM, F_H, F_TIME, F_STEP, F_SOC, F_SOCMIN, F_SOCMAX, F_STRESS, F_VMIN, F_VMAX, F_BASEAUX, F_BAMB,
  F_FCONST, F_ACT, F_HSINIT, F_HSROWS, F_HSREBASE, F_HSROWS64, F_HSSKIP, F_HSREAD, F_HSEPS, F_HSK,
  F_HSADDS, F_HSREBUILDS, F_HSGRESMAX, F_HSGAP, F_HSCALLS, F_HSLASTCUT, F_HSREUSE,
- F_HSSCREENS) = range(len(F_NAMES))  # fmt: skip
+ F_HSSCREENS, F_HSORTH) = range(len(F_NAMES))  # fmt: skip
 
 #: the step vector :attr:`PackArrays.sv` that :func:`pack_begin` fills
 SV_NAMES = (
@@ -558,6 +558,47 @@ def _project(basis, k, d, c, res):
     return math.sqrt(rn2), math.sqrt(br2)
 
 
+@njit(cache=True, fastmath=True)
+def _coefficients(basis, k, d, c, orth):
+    """Coefficients ``c = B d`` (``B = basis[:k]``) and upper bounds ``(|res|, |B res|)`` of the
+    residual ``res = d - B^T c`` (for the coefficients as rounded) without forming it (one
+    product instead of :func:`_project`'s three): with ``c = B d + dc``,
+    ``|dc| <= sqrt(k) gamma_r |B_q| |d|`` (any summation order) and ``E = B B^T - I``
+    (``|E| <= orth``, :func:`_basis_rows_changed`),
+    ``|res|^2 = |d|^2 - |c|^2 + 2 c.dc + c^T E c`` and ``B res = -dc - E c``; the norms' own
+    rounding (``gamma_r``, ``gamma_k``) included."""
+    r = d.shape[0]
+    u64 = 2.0**-53
+    g_r = r * u64 / (1.0 - r * u64)
+    g_k = (k + 1) * u64 / (1.0 - (k + 1) * u64)
+    d2 = 0.0
+    for i in range(r):
+        d2 += d[i] * d[i]
+    c2 = 0.0
+    for q in range(k):
+        acc = 0.0
+        for i in range(r):
+            acc += basis[q, i] * d[i]
+        c[q] = acc
+        c2 += acc * acc
+    d_up = math.sqrt(d2 * (1.0 + g_r))
+    c_up = math.sqrt(c2 * (1.0 + g_k))
+    dc = math.sqrt(k) * g_r * math.sqrt(1.0 + orth) * d_up * (1.0 + 1e-12)
+    rho = d2 * (1.0 + g_r) - c2 * (1.0 - g_k) + 2.0 * c_up * dc + orth * c_up * c_up
+    rho += 4.0 * u64 * (d2 + c2)
+    return math.sqrt(max(rho, 0.0)) * (1.0 + 1e-12), dc + orth * c_up
+
+
+@njit(cache=True, fastmath=True)
+def _deviation(wm, unit, t_ref, d):
+    """``d = wm - t_ref unit``; returns ``|wm|^2`` (vectorised; only sized by the bounds)."""
+    w2 = 0.0
+    for i in range(wm.shape[0]):
+        d[i] = wm[i] - t_ref * unit[i]
+        w2 += wm[i] * wm[i]
+    return w2
+
+
 @njit(cache=True)
 def _orthonormal_row(basis, k, v):
     """Orthogonalise ``v`` against ``basis[:k]`` twice (Gram-Schmidt) and normalise it; returns
@@ -603,6 +644,18 @@ def _basis_rows_changed(s, k0, k):
         gres[j] = math.sqrt(max(gn2 - gb2, 0.0) + 1e-12 * gn2)
         top = max(top, gres[j])
     s.f[F_HSGRESMAX] = top
+    # |B B^T - I| (Frobenius, an upper bound of the spectral norm) with its evaluation's rounding
+    basis = s.hs_basis
+    r = basis.shape[1]
+    e2 = 0.0
+    for p in range(k):
+        for q in range(k):
+            acc = 0.0
+            for i in range(r):
+                acc += basis[p, i] * basis[q, i]
+            e2 += (acc - (1.0 if p == q else 0.0)) ** 2
+    u64 = 2.0**-53
+    s.f[F_HSORTH] = 1.01 * (math.sqrt(e2) + k * (r + 2) * u64 / (1.0 - (r + 2) * u64)) + 1e-15
 
 
 @njit(cache=True)
@@ -814,17 +867,11 @@ def _module_hot_spots_within(s, w, hot):
             cov[p, q] *= HOT_SPOT_BASIS_DECAY
     doubles = 0
     for m in range(n_mod):
-        t_ref = 0.0
-        for i in range(r):
-            t_ref += en[i] * w[m, i]
-        t_ref /= e_u
-        w_norm2 = 0.0
-        for i in range(r):
-            d[i] = w[m, i] - t_ref * unit[i]
-            w_norm2 += w[m, i] * w[m, i]
-        w_norm = math.sqrt(w_norm2)
-        rn, brn = _project(s.hs_basis, k, d, c, res)
+        t_ref = _dot(en, w[m]) / e_u
+        w_norm = math.sqrt(_deviation(w[m], unit, t_ref, d))
+        rn, brn = _coefficients(s.hs_basis, k, d, c, f[F_HSORTH])
         if f[F_HSGRESMAX] * rn > HOT_SPOT_RESIDUAL_SHARE * eps or k == 0:
+            rn, brn = _project(s.hs_basis, k, d, c, res)  # the residual itself
             if k >= kmax and f[F_HSCALLS] - f[F_HSLASTCUT] >= HOT_SPOT_CUT_EVERY:
                 k = _basis_shrink(s, k, keep)
                 f[F_HSLASTCUT] = f[F_HSCALLS]
@@ -922,11 +969,12 @@ def _module_hot_spots_within(s, w, hot):
             kp[KP_STATE] = 2.0 if 2 * nh <= n else 1.0
             kp[KP_BOUND] = np.nan
         if doubles - before > HOT_SPOT_ROWS_PER_ADD + 1 and rn > 0.0:  # the residual costs rows
+            rn, brn = _project(s.hs_basis, k, d, c, res)
             if k >= kmax and f[F_HSCALLS] - f[F_HSLASTCUT] >= HOT_SPOT_CUT_EVERY:
                 k = _basis_shrink(s, k, keep)
                 f[F_HSLASTCUT] = f[F_HSCALLS]
                 rn, brn = _project(s.hs_basis, k, d, c, res)
-            if k < kmax:
+            if k < kmax and rn > 0.0:
                 k = _basis_add(s, k, res)
     f[F_HSK] = k
     f[F_HSROWS64] += doubles
