@@ -523,15 +523,6 @@ def _bounds(acc, gn, gres, big, rn, small, up):
 
 
 @njit(cache=True, fastmath=True)
-def _bounds_max(up):
-    """The largest of ``up`` (vectorised; :data:`_EVALUATED` marks the rows evaluated)."""
-    top = _EVALUATED
-    for j in range(up.shape[0]):
-        top = max(top, up[j])
-    return top
-
-
-@njit(cache=True, fastmath=True)
 def _project(basis, k, d, c, res):
     """Coefficients ``c = B d`` (``B = basis[:k]``, orthonormal rows) and residual
     ``res = d - B^T c``; returns ``(|res|, |B res|)`` (the second measures the residual's
@@ -746,6 +737,15 @@ def _drift(wm, ws, unit, d_t, w_norm, ws_norm, u_norm):
     return math.sqrt(acc) * (1.0 + 1e-12) + 4.0 * 2.0**-53 * (w_norm + ws_norm + abs(d_t) * u_norm)
 
 
+@njit(cache=True, fastmath=True)
+def _count_above(up, theta):
+    """How many of ``up`` exceed ``theta`` (vectorised)."""
+    count = 0
+    for j in range(up.shape[0]):
+        count += 1 if up[j] > theta else 0
+    return count
+
+
 @njit(cache=True)
 def _pick_hot_rows(s, m, up, lo, eps, k, n_eval):
     """After a full screen of module ``m`` (bounds ``up``, relative to ``T_ref``; ``lo`` = the
@@ -765,21 +765,10 @@ def _pick_hot_rows(s, m, up, lo, eps, k, n_eval):
     mus = np.empty(nh_opt)
     for h in range(nh_opt):
         mus[h] = per * HOT_SPOT_HOLDS[h] - eps
-    hist = np.zeros(nh_opt + 1)
-    for j in range(n):
-        u = up[j]
-        if u <= _EVALUATED:
-            continue
-        gap = lo - u
-        b = 0
-        while b < nh_opt and gap >= mus[b]:
-            b += 1
-        hist[b] += 1.0
     best_cost = np.inf
     mu = mus[0]
-    within = float(n_eval)
     for h in range(nh_opt):
-        within += hist[h]  # rows with gap < mus[h]
+        within = n_eval + _count_above(up, lo - mus[h])
         cost = within * (k + 8.0) + n * (k + 16.0) / HOT_SPOT_HOLDS[h]
         if cost < best_cost:
             best_cost, mu = cost, mus[h]
@@ -866,6 +855,7 @@ def _module_hot_spots_within(s, w, hot):
         for q in range(k):
             cov[p, q] *= HOT_SPOT_BASIS_DECAY
     doubles = 0
+    singles = 0
     for m in range(n_mod):
         t_ref = _dot(en, w[m]) / e_u
         w_norm = math.sqrt(_deviation(w[m], unit, t_ref, d))
@@ -909,25 +899,29 @@ def _module_hot_spots_within(s, w, hot):
             hl = s.hs_hot[m]
             nh = int(kp[KP_NHOT])
             top, j_top = _hot_rows_bounds(hl, nh, s.hs_gbt32, c32, k, gn, s.hs_gres, big, rnx, small, up)
+            singles += nh
             best = _dot(g[j_top], w[m])
             doubles += 1
             cut = best - t_ref + eps
+            left = top  # bounds every row not evaluated (j_top's own bound included)
             if top > cut:
+                left = _EVALUATED
                 for i in range(nh):
                     j = hl[i]
-                    if up[j] > cut and j != j_top:
+                    if j == j_top:
+                        continue
+                    if up[j] > cut:
                         y = _dot(g[j], w[m])
                         doubles += 1
                         up[j] = _EVALUATED
                         if y > best:
                             best = y
                             cut = best - t_ref + eps
+                    else:
+                        left = max(left, up[j])
             up[j_top] = _EVALUATED
             if cold <= best + eps:
                 kept = True
-                left = _EVALUATED
-                for i in range(nh):
-                    left = max(left, up[hl[i]])
                 f[F_HSGAP] = max(f[F_HSGAP], left + t_ref - best, cold - best)
                 kp[KP_BOUND] = cold
                 hot[m] = best
@@ -941,23 +935,29 @@ def _module_hot_spots_within(s, w, hot):
             for p in range(k):
                 _axpy32(acc, s.hs_gb32, p, c32[p], n)
             top = _bounds(acc, gn, s.hs_gres, big, rnx, small, up)
+            singles += n
             j_top = 0  # the row of the largest bound (the first of them)
             while j_top < n - 1 and up[j_top] < top:
                 j_top += 1
             best = _dot(g[j_top], w[m])
             doubles += 1
             cut = best - t_ref + eps
+            left = top  # bounds every row not evaluated (j_top's own bound included)
             if top > cut:
+                left = _EVALUATED
                 for j in range(n):
-                    if up[j] > cut and j != j_top:
+                    if j == j_top:
+                        continue
+                    if up[j] > cut:
                         y = _dot(g[j], w[m])
                         doubles += 1
                         up[j] = _EVALUATED
                         if y > best:
                             best = y
                             cut = best - t_ref + eps
+                    else:
+                        left = max(left, up[j])
             up[j_top] = _EVALUATED
-            left = _bounds_max(up)
             f[F_HSGAP] = max(f[F_HSGAP], left + t_ref - best)
             hot[m] = best
             f[F_HSSCREENS] += 1.0
@@ -978,6 +978,7 @@ def _module_hot_spots_within(s, w, hot):
                 k = _basis_add(s, k, res)
     f[F_HSK] = k
     f[F_HSROWS64] += doubles
+    f[F_HSROWS] += singles
     f[F_HSINIT] = 1.0
     f[F_HSCALLS] += 1.0
 
