@@ -754,7 +754,7 @@ def _pick_hot_rows(s, m, up, lo, eps, k, n_eval):
     largest bound and largest ``|G_j|`` (``hs_keep[m]``), with the ``mu`` of the least expected
     cost per step among :data:`HOT_SPOT_HOLDS` (the hot rows each step + a full screen per hold,
     the hold ``(mu + eps) / (max_j |G_j| rate)`` at the module's recent drift ``rate`` per step).
-    Returns the hot rows' count."""
+    Returns the hot rows' count, or -1 when keeping none pays (screen every row next step)."""
     gn, kp, hl = s.hs_norm, s.hs_keep[m], s.hs_hot[m]
     n = up.shape[0]
     nh_opt = len(HOT_SPOT_HOLDS)
@@ -765,13 +765,18 @@ def _pick_hot_rows(s, m, up, lo, eps, k, n_eval):
     mus = np.empty(nh_opt)
     for h in range(nh_opt):
         mus[h] = per * HOT_SPOT_HOLDS[h] - eps
-    best_cost = np.inf
-    mu = mus[0]
+    best_cost = n * (k + 16.0)  # a full screen every step (nothing kept)
+    mu = np.nan
     for h in range(nh_opt):
         within = n_eval + _count_above(up, lo - mus[h])
+        if within * (k + 8.0) >= best_cost:  # the longer holds keep more rows: none is cheaper
+            break
         cost = within * (k + 8.0) + n * (k + 16.0) / HOT_SPOT_HOLDS[h]
-        if cost < best_cost:
+        if cost < best_cost and 2 * within <= n:
             best_cost, mu = cost, mus[h]
+    if np.isnan(mu):
+        kp[KP_NHOT] = 0.0
+        return -1
     theta = lo - mu
     nh = 0
     cold = -np.inf
@@ -966,7 +971,7 @@ def _module_hot_spots_within(s, w, hot):
             for i in range(r):
                 kp[KP_W + i] = w[m, i]
             kp[KP_TREF], kp[KP_WNORM], kp[KP_SINCE] = t_ref, w_norm, 0.0
-            kp[KP_STATE] = 2.0 if 2 * nh <= n else 1.0
+            kp[KP_STATE] = 2.0 if nh >= 0 else 1.0
             kp[KP_BOUND] = np.nan
         if doubles - before > HOT_SPOT_ROWS_PER_ADD + 1 and rn > 0.0:  # the residual costs rows
             rn, brn = _project(s.hs_basis, k, d, c, res)
