@@ -710,12 +710,27 @@ HOT_SPOT_HOLDS = (1, 2, 4, 8, 16, 32, 64, 128, 256)
 @njit(cache=True, fastmath=True)
 def _hot_rows_bounds(hl, nh, gbt32, c32, k, gn, gres, big, rn, small, up):
     """``up_j = (G B^T)_j c (float32) + |G_j| big + gres_j rn + small`` for the rows
-    ``hl[:nh]`` (rows of ``gbt32`` gathered; any summation order is within the bound of
-    :func:`_module_hot_spots_within`); returns (the largest, its first row)."""
+    ``hl[:nh]`` (rows of ``gbt32`` gathered, two at a time; any summation order is within the
+    bound of :func:`_module_hot_spots_within`); returns (the largest, its first row)."""
     top = _EVALUATED
     j_top = hl[0]
-    for i in range(nh):
-        j = hl[i]
+    for i in range(0, nh - 1, 2):
+        ja, jb = hl[i], hl[i + 1]
+        acc_a = np.float32(0.0)
+        acc_b = np.float32(0.0)
+        for p in range(k):
+            acc_a += gbt32[ja, p] * c32[p]
+            acc_b += gbt32[jb, p] * c32[p]
+        u_a = np.float64(acc_a) + gn[ja] * big + gres[ja] * rn + small
+        u_b = np.float64(acc_b) + gn[jb] * big + gres[jb] * rn + small
+        up[ja] = u_a
+        up[jb] = u_b
+        if u_a > top:
+            top, j_top = u_a, ja
+        if u_b > top:
+            top, j_top = u_b, jb
+    if nh % 2 == 1:
+        j = hl[nh - 1]
         acc = np.float32(0.0)
         for p in range(k):
             acc += gbt32[j, p] * c32[p]
