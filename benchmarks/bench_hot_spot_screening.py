@@ -187,12 +187,13 @@ def main() -> int:
             rows[mode] = (p._f[R.F_HSROWS] / per, p._f[R.F_HSROWS64] / per)
             if mode == "slack":
                 basis = {"size": p._f[R.F_HSK], "adds": p._f[R.F_HSADDS], "rebuilds": p._f[R.F_HSREBUILDS],
-                         "gap": p._f[R.F_HSGAP]}  # fmt: skip
+                         "gap": p._f[R.F_HSGAP], "kept": p._f[R.F_HSREUSE] / per}  # fmt: skip
     diff = hots["single"] - hots["slack"]
     print(
         f"slack screening (hot_spot_slack_k = {slack_k:g} K): {rows['slack'][1]:.2f} rows in double per "
         f"module step, basis {basis['size']:.0f} directions ({basis['adds']:.0f} added, "
-        f"{basis['rebuilds']:.0f} rebuilds), largest certified gap {basis['gap'] * 1e3:.2f} mK; "
+        f"{basis['rebuilds']:.0f} rebuilds), {basis['kept']:.3f} of the module steps keep a full screen, "
+        f"largest certified gap {basis['gap'] * 1e3:.2f} mK; "
         "vs the exact hot spots: "
         f"{diff.min() * 1e3:.3f} to {diff.max() * 1e3:.3f} mK below (must be 0 to {slack_k * 1e3:g})"
     )

@@ -270,10 +270,7 @@ def test_hot_spot_within_the_slack_of_all_rows(rom_pack: dict[str, Any], slack_k
     for w in gen:
         R._module_hot_spots_within(s, w, hot)
         # every row's bound holds: G_j . w <= T_ref + U_j (the rows evaluated are marked)
-        t_ref = (w @ s.hs_energy) / (s.hs_energy @ unit)
-        rows = np.einsum("jr,mr->mj", g, w)
-        kept = s.hs_up > R._EVALUATED
-        excess = np.where(kept, rows - (t_ref[:, None] + s.hs_up), -np.inf).max()
+        excess = _bound_excess(s, w)
         assert excess <= 1e-10, excess
         brute = _all_rows_max(g, w)
         assert np.all(hot <= brute), (hot - brute).max()
@@ -286,6 +283,54 @@ def test_hot_spot_within_the_slack_of_all_rows(rom_pack: dict[str, Any], slack_k
     assert s.f[R.F_HSROWS64] < 0.2 * steps * n_mod * g.shape[0], s.f[R.F_HSROWS64]
     if slack_k <= 1e-4:  # the basis filled and was cut down
         assert s.f[R.F_HSREBUILDS] > 0
+    # most module steps keep a full screen (the drift bound of the rows left out holds)
+    assert s.f[R.F_HSREUSE] + s.f[R.F_HSSCREENS] == steps * n_mod
+    assert s.f[R.F_HSREUSE] > (0.5 if states == "random" else 0.1) * steps * n_mod, s.f[R.F_HSREUSE]
+
+
+def _bound_excess(s: Any, w: np.ndarray) -> float:
+    """The largest ``G_j . w - bound_j`` over the rows the step of
+    :func:`R._module_hot_spots_within` did not evaluate in double: the step's ``T_ref + U_j``
+    (``hs_up``) after a full screen; with a kept screen the hot rows' (``hs_hot``) and, for the
+    other rows, the drift bound ``hs_keep[m, KP_BOUND]``."""
+    g = s.rom_cand
+    t_ref = (w @ s.hs_energy) / (s.hs_energy @ s.hs_unit)
+    rows = np.einsum("jr,mr->mj", g, w)
+    bound = t_ref[:, None] + s.hs_up
+    open_ = s.hs_up > R._EVALUATED
+    for m in range(w.shape[0]):
+        kept_bound = s.hs_keep[m, R.KP_BOUND]
+        if not np.isnan(kept_bound):
+            hot_rows = s.hs_hot[m, : int(s.hs_keep[m, R.KP_NHOT])]
+            left_out = np.ones(g.shape[0], bool)
+            left_out[hot_rows] = False
+            bound[m, left_out] = kept_bound
+            open_[m, left_out] = True
+    return float(np.where(open_, rows - bound, -np.inf).max())
+
+
+def test_hot_spot_kept_screen_covers_any_state(rom_pack: dict[str, Any]) -> None:
+    """The kept screen of :func:`R._module_hot_spots_within` bounds the rows left out by their
+    drift from the anchor state itself (not a sum of steps), so it holds for states in any
+    order: the validation-load trajectory replayed forwards, then shuffled, then backwards
+    (brute force over every row each step, and each left-out row below its bound)."""
+    cfg, rom = rom_pack["cfg"], rom_pack["rom"]
+    n_mod = cfg.pack.n_modules
+    pack = Pack(cfg, rom=rom)
+    s = pack.arrays
+    eps = s.f[R.F_HSEPS]
+    states = list(_validation_states(rom, pack, n_mod))[:600]
+    order = list(range(len(states)))
+    rng = np.random.default_rng(3)
+    shuffled = [int(i) for i in rng.permutation(len(states))]
+    hot = np.empty(n_mod)
+    for i in order + shuffled + order[::-1]:
+        w = states[i]
+        R._module_hot_spots_within(s, w, hot)
+        assert _bound_excess(s, w) <= 1e-10
+        brute = _all_rows_max(s.rom_cand, w)
+        assert np.all(hot <= brute) and np.all(hot >= brute - eps), (brute - hot).max()
+    assert s.f[R.F_HSREUSE] > 0.05 * 3 * len(states) * n_mod, s.f[R.F_HSREUSE]
 
 
 def test_cooling_loop_reaches_its_closed_form_steady_state() -> None:

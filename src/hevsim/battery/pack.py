@@ -878,7 +878,8 @@ class Pack:
                            "hs_d32": np.zeros((0, 0), np.float32), "hs_cand": np.zeros((0, 0), np.int64),
                            "hs_const": np.zeros(4), "hs_basis": e2, "hs_gb": e2,
                            "hs_gb32": np.zeros((0, 0), np.float32), "hs_gres": e1, "hs_cov": e2,
-                           "hs_up": e2}  # fmt: skip
+                           "hs_up": e2, "hs_gbt32": np.zeros((0, 0), np.float32), "hs_keep": e2,
+                           "hs_hot": np.zeros((0, 0), np.int64)}  # fmt: skip
             self._rom_w, self._rom_u, self._rom_y = (np.zeros((n_mod, 0)) for _ in range(3))
             self._channel = (e1, e1, e1)
             return
@@ -900,6 +901,9 @@ class Pack:
         self._modal["hs_gres"] = np.zeros(n_rows)
         self._modal["hs_cov"] = np.zeros((kmax, kmax))
         self._modal["hs_up"] = np.zeros((n_mod, n_rows))
+        self._modal["hs_gbt32"] = np.zeros((n_rows, kmax), np.float32)
+        self._modal["hs_keep"] = np.zeros((n_mod, rom.order + len(R.KP_NAMES)))
+        self._modal["hs_hot"] = np.zeros((n_mod, n_rows), np.int64)
         f[R.F_HSEPS] = cfg.module.hot_spot_slack_k
         f[R.F_HSLASTCUT] = -R.HOT_SPOT_CUT_EVERY
         w0 = t0 * (rom.unit_state @ self._modal["q"])
@@ -930,9 +934,9 @@ class Pack:
                 md["rom_cand"], md["hs_norm"], md["hs_unit"], md["energy"], md["hs_ub"], md["hs_prev"],
                 md["hs_blk"], md["hs_block"], md["hs_gmax"], md["hs_g32"], md["hs_d32"], md["hs_cand"],
                 md["hs_const"], md["hs_basis"], md["hs_gb"], md["hs_gb32"], md["hs_gres"], md["hs_cov"],
-                md["hs_up"], self._rom_w, self._rom_u, self._rom_y, *self._channel, self._acc, self._sv,
-                self._rec, self._hot, st.data if st is not None else np.zeros((8, 0)),
-                st.counts if st is not None else np.zeros(2),
+                md["hs_up"], md["hs_gbt32"], md["hs_keep"], md["hs_hot"], self._rom_w, self._rom_u,
+                self._rom_y, *self._channel, self._acc, self._sv, self._rec, self._hot,
+                st.data if st is not None else np.zeros((8, 0)), st.counts if st is not None else np.zeros(2),
             )  # fmt: skip
         return self._arrays
 

@@ -52,11 +52,13 @@ F_NAMES = (
     "hot_spot_rows", "hot_spot_rebase_k", "hot_spot_rows_double", "hot_spot_skip", "hot_spot_rows_read",
     "hot_spot_slack_k", "hot_spot_basis_size", "hot_spot_basis_adds", "hot_spot_basis_rebuilds",
     "hot_spot_row_residual_max", "hot_spot_gap_k", "hot_spot_calls", "hot_spot_last_cut",
+    "hot_spot_kept", "hot_spot_screens", "hot_spot_basis_orth",
 )  # fmt: skip
 (F_DT, F_NG, F_NP, F_REP, F_NS, F_NPAR, F_WEIGHT, F_NMOD, F_SIMPM, F_IMAX, F_AMB, F_LINEAR, F_EZVALID,
  F_ROM, F_H, F_TIME, F_STEP, F_SOC, F_SOCMIN, F_SOCMAX, F_STRESS, F_VMIN, F_VMAX, F_BASEAUX, F_BAMB,
  F_FCONST, F_ACT, F_HSINIT, F_HSROWS, F_HSREBASE, F_HSROWS64, F_HSSKIP, F_HSREAD, F_HSEPS, F_HSK,
- F_HSADDS, F_HSREBUILDS, F_HSGRESMAX, F_HSGAP, F_HSCALLS, F_HSLASTCUT) = range(len(F_NAMES))  # fmt: skip
+ F_HSADDS, F_HSREBUILDS, F_HSGRESMAX, F_HSGAP, F_HSCALLS, F_HSLASTCUT, F_HSREUSE,
+ F_HSSCREENS, F_HSORTH) = range(len(F_NAMES))  # fmt: skip
 
 #: the step vector :attr:`PackArrays.sv` that :func:`pack_begin` fills
 SV_NAMES = (
@@ -123,7 +125,8 @@ class PackArrays(NamedTuple):
     outputs ``rom_out`` (r, n_cells + n_seg + 1) (cell means, wall integrals, film row, times Q),
     candidate rows ``rom_cand`` (n_rows, r; each cell's distinct candidates) with the hot-spot
     screening's arrays (``hs_*``, :func:`_module_hot_spots`; ``hs_basis``, ``hs_gb``, ``hs_gb32``,
-    ``hs_gres``, ``hs_cov``, ``hs_up``: :func:`_module_hot_spots_within`), modal states ``rom_w``
+    ``hs_gres``, ``hs_cov``, ``hs_up``, ``hs_gbt32``, ``hs_keep``, ``hs_hot``:
+    :func:`_module_hot_spots_within`), modal states ``rom_w``
     (n_modules, r), input rows ``rom_u`` (n_modules, m_in), last outputs ``rom_y``, the channel's
     segment mean and exit factors and the wall areas [m^2]. Records: ``acc``, ``sv``, ``rec``,
     ``hot``, ``stress`` (8, n_cells) and ``stress_n`` (steps, duration [s]).
@@ -180,6 +183,9 @@ class PackArrays(NamedTuple):
     hs_gres: FloatArray
     hs_cov: FloatArray
     hs_up: FloatArray
+    hs_gbt32: FloatArray
+    hs_keep: FloatArray
+    hs_hot: FloatArray
     rom_w: FloatArray
     rom_u: FloatArray
     rom_y: FloatArray
@@ -517,15 +523,6 @@ def _bounds(acc, gn, gres, big, rn, small, up):
 
 
 @njit(cache=True, fastmath=True)
-def _bounds_max(up):
-    """The largest of ``up`` (vectorised; :data:`_EVALUATED` marks the rows evaluated)."""
-    top = _EVALUATED
-    for j in range(up.shape[0]):
-        top = max(top, up[j])
-    return top
-
-
-@njit(cache=True, fastmath=True)
 def _project(basis, k, d, c, res):
     """Coefficients ``c = B d`` (``B = basis[:k]``, orthonormal rows) and residual
     ``res = d - B^T c``; returns ``(|res|, |B res|)`` (the second measures the residual's
@@ -550,6 +547,47 @@ def _project(basis, k, d, c, res):
             acc += basis[q, i] * res[i]
         br2 += acc * acc
     return math.sqrt(rn2), math.sqrt(br2)
+
+
+@njit(cache=True, fastmath=True)
+def _coefficients(basis, k, d, c, orth):
+    """Coefficients ``c = B d`` (``B = basis[:k]``) and upper bounds ``(|res|, |B res|)`` of the
+    residual ``res = d - B^T c`` (for the coefficients as rounded) without forming it (one
+    product instead of :func:`_project`'s three): with ``c = B d + dc``,
+    ``|dc| <= sqrt(k) gamma_r |B_q| |d|`` (any summation order) and ``E = B B^T - I``
+    (``|E| <= orth``, :func:`_basis_rows_changed`),
+    ``|res|^2 = |d|^2 - |c|^2 + 2 c.dc + c^T E c`` and ``B res = -dc - E c``; the norms' own
+    rounding (``gamma_r``, ``gamma_k``) included."""
+    r = d.shape[0]
+    u64 = 2.0**-53
+    g_r = r * u64 / (1.0 - r * u64)
+    g_k = (k + 1) * u64 / (1.0 - (k + 1) * u64)
+    d2 = 0.0
+    for i in range(r):
+        d2 += d[i] * d[i]
+    c2 = 0.0
+    for q in range(k):
+        acc = 0.0
+        for i in range(r):
+            acc += basis[q, i] * d[i]
+        c[q] = acc
+        c2 += acc * acc
+    d_up = math.sqrt(d2 * (1.0 + g_r))
+    c_up = math.sqrt(c2 * (1.0 + g_k))
+    dc = math.sqrt(k) * g_r * math.sqrt(1.0 + orth) * d_up * (1.0 + 1e-12)
+    rho = d2 * (1.0 + g_r) - c2 * (1.0 - g_k) + 2.0 * c_up * dc + orth * c_up * c_up
+    rho += 4.0 * u64 * (d2 + c2)
+    return math.sqrt(max(rho, 0.0)) * (1.0 + 1e-12), dc + orth * c_up
+
+
+@njit(cache=True, fastmath=True)
+def _deviation(wm, unit, t_ref, d):
+    """``d = wm - t_ref unit``; returns ``|wm|^2`` (vectorised; only sized by the bounds)."""
+    w2 = 0.0
+    for i in range(wm.shape[0]):
+        d[i] = wm[i] - t_ref * unit[i]
+        w2 += wm[i] * wm[i]
+    return w2
 
 
 @njit(cache=True)
@@ -577,9 +615,10 @@ def _orthonormal_row(basis, k, v):
 @njit(cache=True)
 def _basis_rows_changed(s, k0, k):
     """After rows ``k0..k-1`` of ``hs_basis`` changed: their products with every row
-    (``hs_gb[q] = G B_q``, BLAS), the float32 copy, the rows' residual norms
+    (``hs_gb[q] = G B_q``, BLAS), the float32 copies (``hs_gb32`` and its transpose
+    ``hs_gbt32``), the rows' residual norms
     ``hs_gres_j = |G_j (I - B^T B)|`` and their largest (``f[F_HSGRESMAX]``)."""
-    g, gb, gb32, gres, gn = s.rom_cand, s.hs_gb, s.hs_gb32, s.hs_gres, s.hs_norm
+    g, gb, gb32, gres, gn, gbt32 = s.rom_cand, s.hs_gb, s.hs_gb32, s.hs_gres, s.hs_norm, s.hs_gbt32
     n = g.shape[0]
     prod = np.ascontiguousarray(s.hs_basis[k0:k]) @ g.T  # (k - k0, n)
     top = 0.0
@@ -589,12 +628,25 @@ def _basis_rows_changed(s, k0, k):
             if q >= k0:
                 gb[q, j] = prod[q - k0, j]
                 gb32[q, j] = np.float32(prod[q - k0, j])
+                gbt32[j, q] = gb32[q, j]
             gb2 += gb[q, j] * gb[q, j]
         gn2 = gn[j] * gn[j]
         # the subtraction's cancellation and the basis's departure from orthonormality (~1e-15)
         gres[j] = math.sqrt(max(gn2 - gb2, 0.0) + 1e-12 * gn2)
         top = max(top, gres[j])
     s.f[F_HSGRESMAX] = top
+    # |B B^T - I| (Frobenius, an upper bound of the spectral norm) with its evaluation's rounding
+    basis = s.hs_basis
+    r = basis.shape[1]
+    e2 = 0.0
+    for p in range(k):
+        for q in range(k):
+            acc = 0.0
+            for i in range(r):
+                acc += basis[p, i] * basis[q, i]
+            e2 += (acc - (1.0 if p == q else 0.0)) ** 2
+    u64 = 2.0**-53
+    s.f[F_HSORTH] = 1.01 * (math.sqrt(e2) + k * (r + 2) * u64 / (1.0 - (r + 2) * u64)) + 1e-15
 
 
 @njit(cache=True)
@@ -640,6 +692,122 @@ def _basis_shrink(s, k, keep):
     return kept
 
 
+#: the first columns of :attr:`PackArrays.hs_keep`, a module's kept screen
+#: (:func:`_module_hot_spots_within`), before its anchor state ``w_s`` (r columns from ``KP_W``):
+#: state (0 none, 1 anchored, 2 kept), ``T_ref`` and ``|w|`` of the anchor [K], the largest bound
+#: of the rows left out (relative to ``T_ref``) and their largest ``|G_j|``, the hot rows' count,
+#: the steps since the anchor, the drift per step (EMA) and the step's bound of the rows left out
+#: [K] (NaN after a full screen)
+KP_NAMES = ("state", "t_ref", "w_norm", "cold", "cold_gmax", "n_hot", "since", "rate", "bound")
+(KP_STATE, KP_TREF, KP_WNORM, KP_COLD, KP_GMAX, KP_NHOT, KP_SINCE, KP_RATE, KP_BOUND) = range(len(KP_NAMES))
+KP_W = len(KP_NAMES)
+#: most steps a module keeps one full screen's bounds [-] (then it screens every row again)
+HOT_SPOT_HOLD_MAX = 256
+#: the holds (steps) among which a full screen picks its hot rows' threshold [-]
+HOT_SPOT_HOLDS = (1, 2, 4, 8, 16, 32, 64, 128, 256)
+
+
+@njit(cache=True, fastmath=True)
+def _hot_rows_bounds(hl, nh, gbt32, c32, k, gn, gres, big, rn, small, up):
+    """``up_j = (G B^T)_j c (float32) + |G_j| big + gres_j rn + small`` for the rows
+    ``hl[:nh]`` (rows of ``gbt32`` gathered, two at a time; any summation order is within the
+    bound of :func:`_module_hot_spots_within`); returns (the largest, its first row)."""
+    top = _EVALUATED
+    j_top = hl[0]
+    for i in range(0, nh - 1, 2):
+        ja, jb = hl[i], hl[i + 1]
+        acc_a = np.float32(0.0)
+        acc_b = np.float32(0.0)
+        for p in range(k):
+            acc_a += gbt32[ja, p] * c32[p]
+            acc_b += gbt32[jb, p] * c32[p]
+        u_a = np.float64(acc_a) + gn[ja] * big + gres[ja] * rn + small
+        u_b = np.float64(acc_b) + gn[jb] * big + gres[jb] * rn + small
+        up[ja] = u_a
+        up[jb] = u_b
+        if u_a > top:
+            top, j_top = u_a, ja
+        if u_b > top:
+            top, j_top = u_b, jb
+    if nh % 2 == 1:
+        j = hl[nh - 1]
+        acc = np.float32(0.0)
+        for p in range(k):
+            acc += gbt32[j, p] * c32[p]
+        u = np.float64(acc) + gn[j] * big + gres[j] * rn + small
+        up[j] = u
+        if u > top:
+            top, j_top = u, j
+    return top, j_top
+
+
+@njit(cache=True)
+def _drift(wm, ws, unit, d_t, w_norm, ws_norm, u_norm):
+    """An upper bound of ``|(w - w_s) - dT u|`` (the deviation's change since the anchor ``w_s``,
+    ``dT`` = ``d_t`` the change of ``T_ref``), with the rounding of its evaluation."""
+    acc = 0.0
+    for i in range(wm.shape[0]):
+        x = (wm[i] - ws[i]) - d_t * unit[i]
+        acc += x * x
+    return math.sqrt(acc) * (1.0 + 1e-12) + 4.0 * 2.0**-53 * (w_norm + ws_norm + abs(d_t) * u_norm)
+
+
+@njit(cache=True, fastmath=True)
+def _count_above(up, theta):
+    """How many of ``up`` exceed ``theta`` (vectorised)."""
+    count = 0
+    for j in range(up.shape[0]):
+        count += 1 if up[j] > theta else 0
+    return count
+
+
+@njit(cache=True)
+def _pick_hot_rows(s, m, up, lo, eps, k, n_eval):
+    """After a full screen of module ``m`` (bounds ``up``, relative to ``T_ref``; ``lo`` = the
+    hot spot found - ``T_ref``): keep the rows whose bound is within ``mu`` of ``lo`` (and the
+    rows evaluated) as the hot rows (``hs_hot[m]``), the others bounded together by their
+    largest bound and largest ``|G_j|`` (``hs_keep[m]``), with the ``mu`` of the least expected
+    cost per step among :data:`HOT_SPOT_HOLDS` (the hot rows each step + a full screen per hold,
+    the hold ``(mu + eps) / (max_j |G_j| rate)`` at the module's recent drift ``rate`` per step).
+    Returns the hot rows' count, or -1 when keeping none pays (screen every row next step)."""
+    gn, kp, hl = s.hs_norm, s.hs_keep[m], s.hs_hot[m]
+    n = up.shape[0]
+    nh_opt = len(HOT_SPOT_HOLDS)
+    g_all = 0.0
+    for b in range(s.hs_gmax.shape[0]):
+        g_all = max(g_all, s.hs_gmax[b])
+    per = g_all * kp[KP_RATE]
+    mus = np.empty(nh_opt)
+    for h in range(nh_opt):
+        mus[h] = per * HOT_SPOT_HOLDS[h] - eps
+    best_cost = n * (k + 16.0)  # a full screen every step (nothing kept)
+    mu = np.nan
+    for h in range(nh_opt):
+        within = n_eval + _count_above(up, lo - mus[h])
+        if within * (k + 8.0) >= best_cost:  # the longer holds keep more rows: none is cheaper
+            break
+        cost = within * (k + 8.0) + n * (k + 16.0) / HOT_SPOT_HOLDS[h]
+        if cost < best_cost and 2 * within <= n:
+            best_cost, mu = cost, mus[h]
+    if np.isnan(mu):
+        kp[KP_NHOT] = 0.0
+        return -1
+    theta = lo - mu
+    nh = 0
+    cold = -np.inf
+    g_cold = 0.0
+    for j in range(n):
+        u = up[j]
+        if u <= _EVALUATED or u > theta:
+            hl[nh] = j
+            nh += 1
+        else:
+            cold = max(cold, u)
+            g_cold = max(g_cold, gn[j])
+    kp[KP_COLD], kp[KP_GMAX], kp[KP_NHOT] = cold, g_cold, nh
+    return nh
+
+
 @njit(cache=True)
 def _module_hot_spots_within(s, w, hot):
     """Per-module hot spot [K] within the slack ``eps = f[F_HSEPS]`` (> 0) of the largest
@@ -653,14 +821,29 @@ def _module_hot_spots_within(s, w, hot):
 
         G_j w = T_ref + (G B^T)_j c + G_j res,   |G_j res| <= |G_j (I - B^T B)| |res| + |G_j| |B res|
 
-    (Cauchy-Schwarz on the residual). ``(G B^T)_j c`` is evaluated for every row in single
-    precision (``hs_gb32``, k multiply-adds per row instead of r), with the rounding bound
+    (Cauchy-Schwarz on the residual). ``(G B^T)_j c`` is evaluated in single precision
+    (``hs_gb32``, k multiply-adds per row instead of r), with the rounding bound
     ``gamma_{k+2}^{(32)} |G_j| |c|``, plus the rounding of ``d`` and of the double product
     (``hs_const``), so that ``U_j`` bounds the row's double value ``v_j = G_j . w``
     (:func:`_dot`). The row of the largest ``U_j`` is evaluated in double (``L``), then every
     other row with ``U_j > L + eps`` (raising ``L``); the hot spot is ``L``, the value of one row, so
     ``max_j v_j - eps <= L <= max_j v_j``; the step's certified gap ``max(U_j) - L`` over the
     rows not evaluated (<= eps) raises ``f[F_HSGAP]``.
+
+    **A screen kept over steps.** A full screen bounds every row (the pass above, ``n k``
+    multiply-adds); most rows are far below the top (the cells' cores are hottest), and a row
+    moves by ``G_j (w_t - w_s) = dT (G_j u) + G_j (d_t - d_s)`` from the anchor state ``w_s``
+    of the screen, so ``v_j(t) <= U_j(s) + dT + |dT| eta + |G_j| |d_t - d_s|`` plus the
+    rounding of the two double products (``hs_const``; ``|G_j u - 1| <= eta``). The screen
+    keeps the rows whose bound is within ``mu`` of the hot spot found (and the rows evaluated)
+    as the module's hot rows (``hs_hot``) and the others' largest bound and ``|G_j|``
+    (``hs_keep``, :func:`_pick_hot_rows`, which picks ``mu`` for the least expected cost); the
+    next steps bound only the hot rows as above and the others together by that drift bound,
+    which must be within ``L + eps`` (else, or after :data:`HOT_SPOT_HOLD_MAX` steps, every row
+    is screened again). The drift is the norm of the change since the anchor (not a sum of
+    steps), so a state set from outside (a trial run skipping hot spots, a restored state) is
+    covered too. ``f[F_HSREUSE]`` counts the module steps that kept the screen,
+    ``f[F_HSSCREENS]`` the full screens.
 
     The basis: the residual's direction is appended (one product with every row, ``n r``) before
     the pass when ``max_j |G_j (I - B^T B)| |res|`` exceeds :data:`HOT_SPOT_RESIDUAL_SHARE` x
@@ -671,7 +854,8 @@ def _module_hot_spots_within(s, w, hot):
     (else the rows the residual leaves are evaluated in double). The deviations of a run lie
     near a subspace of a few dozen directions, so the basis settles and grows rarely; how fast
     it settles decides the cost, never the bound (a 1-hour drive with 100 modules: a few hundred
-    additions and a few dozen cuts)."""
+    additions and a few dozen cuts). A change of the basis leaves the kept screens valid (they
+    bound values, whatever basis bounded them)."""
     g, gn, unit, en, hc = s.rom_cand, s.hs_norm, s.hs_unit, s.hs_energy, s.hs_const
     f = s.f
     eps = f[F_HSEPS]
@@ -683,6 +867,7 @@ def _module_hot_spots_within(s, w, hot):
     d = np.empty(r)
     res = np.empty(r)
     c = np.zeros(kmax)
+    c32 = np.zeros(kmax, np.float32)
     acc = np.empty(n, np.float32)
     k = int(f[F_HSK])
     cov = s.hs_cov
@@ -690,17 +875,13 @@ def _module_hot_spots_within(s, w, hot):
         for q in range(k):
             cov[p, q] *= HOT_SPOT_BASIS_DECAY
     doubles = 0
+    singles = 0
     for m in range(n_mod):
-        t_ref = 0.0
-        for i in range(r):
-            t_ref += en[i] * w[m, i]
-        t_ref /= e_u
-        w_norm2 = 0.0
-        for i in range(r):
-            d[i] = w[m, i] - t_ref * unit[i]
-            w_norm2 += w[m, i] * w[m, i]
-        rn, brn = _project(s.hs_basis, k, d, c, res)
+        t_ref = _dot(en, w[m]) / e_u
+        w_norm = math.sqrt(_deviation(w[m], unit, t_ref, d))
+        rn, brn = _coefficients(s.hs_basis, k, d, c, f[F_HSORTH])
         if f[F_HSGRESMAX] * rn > HOT_SPOT_RESIDUAL_SHARE * eps or k == 0:
+            rn, brn = _project(s.hs_basis, k, d, c, res)  # the residual itself
             if k >= kmax and f[F_HSCALLS] - f[F_HSLASTCUT] >= HOT_SPOT_CUT_EVERY:
                 k = _basis_shrink(s, k, keep)
                 f[F_HSLASTCUT] = f[F_HSCALLS]
@@ -711,49 +892,113 @@ def _module_hot_spots_within(s, w, hot):
         c_norm2 = 0.0
         for p in range(k):
             c_norm2 += c[p] * c[p]
+            c32[p] = np.float32(c[p])
             for q in range(k):
                 cov[p, q] += c[p] * c[q]
         c_norm = math.sqrt(c_norm2)
         # the rows' single-precision part, U_j - T_ref - gres_j |res| = acc_j + |G_j| big + small
         u32 = 2.0**-24
         g32 = (k + 2) * u32 / (1.0 - (k + 2) * u32)
-        big = g32 * c_norm + hc[1] * (math.sqrt(w_norm2) + abs(t_ref) * hc[3] + math.sqrt(k + 1.0) * c_norm)
+        big = g32 * c_norm + hc[1] * (w_norm + abs(t_ref) * hc[3] + math.sqrt(k + 1.0) * c_norm)
         big = 1.01 * (big + brn)
         small = 1.01 * abs(t_ref) * 2.0 * hc[2] + 1e-9
-        acc[:] = 0.0
-        for p in range(k):
-            _axpy32(acc, s.hs_gb32, p, np.float32(c[p]), n)
+        rnx = rn * (1.0 + 1e-9)
         before = doubles
         up = s.hs_up[m]  # kept: the step's bounds U_j - T_ref, _EVALUATED where evaluated
-        top = _bounds(acc, gn, s.hs_gres, big, rn * (1.0 + 1e-9), small, up)
-        j_top = 0  # the row of the largest bound (the first of them)
-        while j_top < n - 1 and up[j_top] < top:
-            j_top += 1
-        best = _dot(g[j_top], w[m])
-        doubles += 1
-        cut = best - t_ref + eps
-        if top > cut:
-            for j in range(n):
-                if up[j] > cut and j != j_top:
-                    y = _dot(g[j], w[m])
-                    doubles += 1
-                    up[j] = _EVALUATED
-                    if y > best:
-                        best = y
-                        cut = best - t_ref + eps
-        up[j_top] = _EVALUATED
-        left = _bounds_max(up)
-        f[F_HSGAP] = max(f[F_HSGAP], left + t_ref - best)
-        hot[m] = best
+        kp = s.hs_keep[m]
+        kp[KP_SINCE] += 1.0
+        drift = 0.0
+        if kp[KP_STATE] > 0.0:  # anchored: the drift since the last full screen
+            drift = _drift(w[m], kp[KP_W:], unit, t_ref - kp[KP_TREF], w_norm, kp[KP_WNORM], hc[3])
+        kept = False
+        if kp[KP_STATE] > 1.0 and kp[KP_SINCE] <= HOT_SPOT_HOLD_MAX:
+            # the kept screen: the hot rows bounded afresh, the others by their drift bound
+            d_t = t_ref - kp[KP_TREF]
+            cold = (t_ref + kp[KP_COLD] + abs(d_t) * hc[2]
+                    + kp[KP_GMAX] * (drift + hc[1] * (w_norm + kp[KP_WNORM])) + 1e-9)  # fmt: skip
+            hl = s.hs_hot[m]
+            nh = int(kp[KP_NHOT])
+            top, j_top = _hot_rows_bounds(hl, nh, s.hs_gbt32, c32, k, gn, s.hs_gres, big, rnx, small, up)
+            singles += nh
+            best = _dot(g[j_top], w[m])
+            doubles += 1
+            cut = best - t_ref + eps
+            left = top  # bounds every row not evaluated (j_top's own bound included)
+            if top > cut:
+                left = _EVALUATED
+                for i in range(nh):
+                    j = hl[i]
+                    if j == j_top:
+                        continue
+                    if up[j] > cut:
+                        y = _dot(g[j], w[m])
+                        doubles += 1
+                        up[j] = _EVALUATED
+                        if y > best:
+                            best = y
+                            cut = best - t_ref + eps
+                    else:
+                        left = max(left, up[j])
+            up[j_top] = _EVALUATED
+            if cold <= best + eps:
+                kept = True
+                f[F_HSGAP] = max(f[F_HSGAP], left + t_ref - best, cold - best)
+                kp[KP_BOUND] = cold
+                hot[m] = best
+                f[F_HSREUSE] += 1.0
+        if not kept:  # every row screened
+            if kp[KP_STATE] > 0.0 and kp[KP_SINCE] > 0.0:  # the drift rate per step
+                rate = drift / kp[KP_SINCE]
+                kp[KP_RATE] = rate if kp[KP_RATE] == 0.0 else 0.5 * (kp[KP_RATE] + rate)
+            screen_from = doubles
+            acc[:] = 0.0
+            for p in range(k):
+                _axpy32(acc, s.hs_gb32, p, c32[p], n)
+            top = _bounds(acc, gn, s.hs_gres, big, rnx, small, up)
+            singles += n
+            j_top = 0  # the row of the largest bound (the first of them)
+            while j_top < n - 1 and up[j_top] < top:
+                j_top += 1
+            best = _dot(g[j_top], w[m])
+            doubles += 1
+            cut = best - t_ref + eps
+            left = top  # bounds every row not evaluated (j_top's own bound included)
+            if top > cut:
+                left = _EVALUATED
+                for j in range(n):
+                    if j == j_top:
+                        continue
+                    if up[j] > cut:
+                        y = _dot(g[j], w[m])
+                        doubles += 1
+                        up[j] = _EVALUATED
+                        if y > best:
+                            best = y
+                            cut = best - t_ref + eps
+                    else:
+                        left = max(left, up[j])
+            up[j_top] = _EVALUATED
+            f[F_HSGAP] = max(f[F_HSGAP], left + t_ref - best)
+            hot[m] = best
+            f[F_HSSCREENS] += 1.0
+            # the anchor of the next steps
+            nh = _pick_hot_rows(s, m, up, best - t_ref, eps, k, doubles - screen_from)
+            for i in range(r):
+                kp[KP_W + i] = w[m, i]
+            kp[KP_TREF], kp[KP_WNORM], kp[KP_SINCE] = t_ref, w_norm, 0.0
+            kp[KP_STATE] = 2.0 if nh >= 0 else 1.0
+            kp[KP_BOUND] = np.nan
         if doubles - before > HOT_SPOT_ROWS_PER_ADD + 1 and rn > 0.0:  # the residual costs rows
+            rn, brn = _project(s.hs_basis, k, d, c, res)
             if k >= kmax and f[F_HSCALLS] - f[F_HSLASTCUT] >= HOT_SPOT_CUT_EVERY:
                 k = _basis_shrink(s, k, keep)
                 f[F_HSLASTCUT] = f[F_HSCALLS]
                 rn, brn = _project(s.hs_basis, k, d, c, res)
-            if k < kmax:
+            if k < kmax and rn > 0.0:
                 k = _basis_add(s, k, res)
     f[F_HSK] = k
     f[F_HSROWS64] += doubles
+    f[F_HSROWS] += singles
     f[F_HSINIT] = 1.0
     f[F_HSCALLS] += 1.0
 
