@@ -290,39 +290,116 @@ def _argmin(cost, feasible, n):
     return best
 
 
-SCAN_ALL, SCAN_EV, SCAN_NEAR = 0, 1, 2
-"""Modes of :func:`_scan`, passed as ``np.int64(mode)``: numba compiles a function once per
-literal constant argument, a run-time integer once for all."""
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
+def _scan(dpar, dps, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf):
+    """:func:`_point_body` (no details) of every candidate of ``cands`` at one step (the power
+    split's engine points from ``buf[8:10]``, :func:`engine_cache`): feasibility, fuel [kg],
+    engine power [W] and SOC change [-] into ``buf[3]``, ``buf[1]``, ``buf[2]``, ``buf[0]``."""
+    cand0, cand1, _ = cands
+    d_soc, fuel, p_eng, feas, _, _, det, loss, e_flags, e_floats = buf
+    for i in range(cand0.shape[0]):
+        eng = _engine(e_flags, e_floats, i)
+        r = _point_body(
+            dpar, dps, cand0[i], cand1[i], eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
+        )
+        feas[i], fuel[i], d_soc[i], p_eng[i] = r
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _load_terms(cc, h, v_mid, soc, p_dem):
+    """(charge depleting, low load, charging power [W]) of the rule-based controllers at the
+    SOC ``soc`` [-], mid-step speed [m/s] and wheel power demand ``p_dem`` [W]
+    (:mod:`hevsim.control.parallel`: ``_GridController.depleting``, ``charge_fraction``,
+    ``charging_power``)."""
+    depl = soc > cc.cd_soc  # a plug-in hybrid's charge depleting (_GridController.depleting)
+    if depl:
+        low_load = p_dem < cc.cd_ev_power_w
+        frac = 0.0
+    else:
+        low_load = v_mid < cc.ev_speed_mps and p_dem < cc.ev_power_w
+        frac = min(max((cc.soc_high - soc) / (cc.soc_high - cc.soc_low), 0.0), 1.0)  # charge_fraction
+    p_charge = frac * cc.charge_power_w + (h.aux_power_w if soc < cc.soc_low else 0.0)  # charging_power
+    return depl, low_load, p_charge
+
+
+PF_EV, PF_NEAR, PF_ALL, PF_FILL = 0, 1, 2, 3
+"""Phases of :func:`_pf_choose`: the EV candidates in order; the engine-on candidates near
+the target power in the order of their specific fuel; every candidate; the details of the
+one chosen among all."""
 
 
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _scan(dpar, dps, mode, target, band, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf):
-    """:func:`_point_body` (no details) of the candidates ``cands`` at one step, the power
-    split's engine points from ``buf[8:10]`` (:func:`engine_cache`). ``SCAN_ALL``: every
-    candidate's feasibility, fuel [kg], engine power [W] and SOC change [-] into
-    ``buf[3]``, ``buf[1]``, ``buf[2]``, ``buf[0]``; returns -1. ``SCAN_EV``: the first
-    feasible candidate with the engine off (second control 0); ``SCAN_NEAR``: in the order
-    ``buf[5]``, the first feasible one with the engine on whose engine power ``buf[4]`` [W]
-    lies within ``band`` of ``target`` [W]; their index, -1 for none."""
+def _pf_choose(dpar, dps, cc, cands, w_wheel, t_wheel, v_mid, soc, dt, bat, md, buf):
+    """The power follower's choice at one step (:class:`hevsim.control.parallel.PowerFollower`),
+    as :func:`_choose` returns it, with the chosen control's details, audit terms, fuel and SOC
+    change filled (``filled`` True) whenever a control is found. ``dpar`` None, ``dps`` the
+    power split's tables (as :func:`_point`).
+
+    When the car may drive electrically, the first feasible EV candidate; else (or when none
+    is feasible) the least fuel per unit of engine work of the feasible candidates whose
+    engine power (known per run: ``buf[4]``) is near the target: candidates in the order of
+    their specific fuel (``buf[5]``, ties by index; per run, as it depends on the engine
+    alone), the first near and feasible one is it (the argmin over all, as the Python
+    controller takes it); only when none is, every candidate, the feasible one nearest the
+    target. One call per step evaluates every candidate it needs with one inlined
+    :func:`_point_body` (a call per scan and one more for the details would pass every table
+    each time: more than the points cost)."""
     cand0, cand1, _ = cands
-    d_soc, fuel, p_eng, feas, p_cand, order, det, loss, e_flags, e_floats = buf
+    h = md[0]
+    cost, fuel, p_eng, feas, p_cand, order, det, loss, e_flags, e_floats = buf
+    regen_ok = v_mid > 0.0
     n = cand0.shape[0]
-    for k in range(n):
-        i = order[k] if mode == SCAN_NEAR else k
-        if mode == SCAN_EV and cand1[i] != 0.0:
-            continue
-        if mode == SCAN_NEAR and (cand1[i] == 0.0 or abs(p_cand[i] - target) > band):
-            continue
+    p_dem = t_wheel * w_wheel
+    depl, low_load, p_charge = _load_terms(cc, h, v_mid, soc, p_dem)
+    ev = (
+        p_dem <= 0.0
+        or (depl and low_load)
+        or (not depl and soc > cc.soc_low and low_load)
+        or (not depl and soc > cc.soc_high and p_dem < cc.engine_min_power_w)
+    )  # PowerFollower.electric
+    target = max(p_dem, 0.0) + p_charge
+    if soc < cc.soc_high and not depl:  # PowerFollower.target_power
+        target = max(target, cc.engine_min_power_w)
+    band = max(PS_POWER_BAND * target, PS_POWER_BAND_MIN_W)
+    phase = PF_EV if ev else PF_NEAR
+    k, pick = 0, -1
+    while True:
+        if phase == PF_EV:
+            if k >= n:
+                phase, k = PF_NEAR, 0
+                continue
+            i, k = k, k + 1
+            if cand1[i] != 0.0:
+                continue
+        elif phase == PF_NEAR:
+            if k >= n:
+                phase, k = PF_ALL, 0
+                continue
+            i, k = order[k], k + 1
+            if cand1[i] == 0.0 or abs(p_cand[i] - target) > band:
+                continue
+        elif phase == PF_ALL:
+            if k >= n:
+                for j in range(n):
+                    cost[j] = abs(p_eng[j] - target)
+                pick = _argmin(cost, feas, n)
+                if pick < 0:
+                    return False, 0.0, 0.0, False, 0.0, 0.0
+                phase = PF_FILL
+                continue
+            i, k = k, k + 1
+        else:
+            i = pick
         eng = _engine(e_flags, e_floats, i)
-        c0, c1 = cand0[i], cand1[i]
+        # details for every candidate that is taken if feasible (it is, nearly always, the first)
+        want = phase != PF_ALL
         r = _point_body(
-            dpar, dps, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
+            dpar, dps, cand0[i], cand1[i], eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want, det, loss
         )
-        if mode == SCAN_ALL:
-            feas[i], fuel[i], d_soc[i], p_eng[i] = r
-        elif r[0]:
-            return i
-    return -1
+        if phase == PF_ALL:
+            feas[i], fuel[i], cost[i], p_eng[i] = r
+        elif r[0] or phase == PF_FILL:
+            return True, cand0[i], cand1[i], True, r[1], r[2]
 
 
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
@@ -382,7 +459,8 @@ def _assist_throttle(w_wheel, g, t_req, thr_grid, monotone, dpar, etab):
 
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md, buf):
-    """The controller's choice at one step (:mod:`hevsim.control.parallel`): (found, c0, c1,
+    """The controller's choice at one step (:mod:`hevsim.control.parallel`: electric assist,
+    ECMS, A-ECMS; the power follower's is :func:`_pf_choose`): (found, c0, c1,
     filled, fuel [kg], SOC change [-]); ``filled``: the choice's details, audit terms
     (``buf[6]``, ``buf[7]``), fuel and SOC change are those of :func:`_point` with ``want``
     (else not computed). ``dpar``, ``dps``: as :func:`_point`. ``state``: [gear of the
@@ -391,19 +469,12 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
     candidate, the electric assist's throttle grid); ``buf``: work arrays."""
     cand0, cand1, thr_grid = cands
     h, etab, _, _ = md
-    cost, fuel, p_eng, feas = buf[:4]
+    cost, fuel, _, feas = buf[:4]
     det, loss = buf[6], buf[7]
     regen_ok = v_mid > 0.0
     n = cand0.shape[0]
     p_dem = t_wheel * w_wheel
-    depl = soc > cc.cd_soc  # a plug-in hybrid's charge depleting (_GridController.depleting)
-    if depl:
-        low_load = p_dem < cc.cd_ev_power_w
-        frac = 0.0
-    else:
-        low_load = v_mid < cc.ev_speed_mps and p_dem < cc.ev_power_w
-        frac = min(max((cc.soc_high - soc) / (cc.soc_high - cc.soc_low), 0.0), 1.0)  # charge_fraction
-    p_charge = frac * cc.charge_power_w + (h.aux_power_w if soc < cc.soc_low else 0.0)  # charging_power
+    depl, low_load, p_charge = _load_terms(cc, h, v_mid, soc, p_dem)
     s = 0.0
     if cc.code == ELECTRIC_ASSIST:
         if dpar is not None:
@@ -441,58 +512,10 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
         state[1] = s
     elif cc.code == ECMS:
         s = cc.cd_s if depl else cc.s0
-    elif (
-        p_dem <= 0.0
-        or (depl and low_load)
-        or (not depl and soc > cc.soc_low and low_load)
-        or (not depl and soc > cc.soc_high and p_dem < cc.engine_min_power_w)
-    ):  # power follower (PowerFollower.electric): the first feasible EV candidate
-        i = _scan(
-            dpar, dps, np.int64(SCAN_EV), 0.0, 0.0, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
-        )
-        if i >= 0:
-            return True, cand0[i], cand1[i], False, 0.0, 0.0
-    if cc.code == POWER_FOLLOWER:
-        # The least fuel per unit of engine work of the feasible candidates whose engine power
-        # (known per run: p_cand) is near the target: candidates in the order of their specific
-        # fuel (``order``, ties by index; per run, as it depends on the engine alone), the first
-        # near and feasible one is it (the argmin over all, as the Python controller takes it).
-        # The rest only when none is feasible.
-        target = max(p_dem, 0.0) + p_charge
-        if soc < cc.soc_high and not depl:  # PowerFollower.target_power
-            target = max(target, cc.engine_min_power_w)
-        band = max(PS_POWER_BAND * target, PS_POWER_BAND_MIN_W)
-        i = _scan(
-            dpar,
-            dps,
-            np.int64(SCAN_NEAR),
-            target,
-            band,
-            cands,
-            w_wheel,
-            t_wheel,
-            regen_ok,
-            soc,
-            dt,
-            bat,
-            md,
-            buf,
-        )
-        if i >= 0:
-            return True, cand0[i], cand1[i], False, 0.0, 0.0
-        _scan(
-            dpar, dps, np.int64(SCAN_ALL), 0.0, 0.0, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
-        )
-        for i in range(n):
-            cost[i] = abs(p_eng[i] - target)
-        i = _argmin(cost, feas, n)
-    else:
-        _scan(
-            dpar, dps, np.int64(SCAN_ALL), 0.0, 0.0, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
-        )
-        for i in range(n):  # every candidate: ECMS score from its fuel and SOC change (in cost)
-            cost[i] = fuel[i] / dt * h.lhv_jpkg + s * (-cost[i] / dt * e_soc)
-        i = _argmin(cost, feas, n)
+    _scan(dpar, dps, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf)
+    for i in range(n):  # every candidate: ECMS score from its fuel and SOC change (in cost)
+        cost[i] = fuel[i] / dt * h.lhv_jpkg + s * (-cost[i] / dt * e_soc)
+    i = _argmin(cost, feas, n)
     if i < 0:
         return False, 0.0, 0.0, False, 0.0, 0.0
     return True, cand0[i], cand1[i], False, 0.0, 0.0
@@ -586,8 +609,11 @@ def parallel_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def power_split_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
-    """The power split's ``choose``: :func:`_choose`."""
+    """The power split's ``choose``: :func:`_pf_choose` for the power follower, else
+    :func:`_choose`."""
     md, cands = _step_data(plug, hk)
+    if plug.cc.code == POWER_FOLLOWER:
+        return _pf_choose(None, plug.dps, plug.cc, cands, w_wheel, t_wheel, v_mid, soc, dt, bat, md, work[0])
     return _choose(None, plug.dps, plug.cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md,
                    work[0])  # fmt: skip
 
