@@ -653,13 +653,50 @@ register(PowerSplitPlug, power_split_choose, power_split_point, power_split_comm
 
 
 # ------------------------------------------------------------------------- Python side
+def engine_points(
+    model: Any, dps: Any, etab: Any, cand0: np.ndarray, cand1: np.ndarray, dt: float, memo: dict | None = None
+) -> tuple[np.ndarray, ...]:
+    """The power split's per-run candidate data: (engine flags (3, n), engine floats (3, n),
+    as :func:`engine_cache` fills them; engine power [W]; the order of their specific fuel over
+    a step ``dt`` [s], NaN first, ties by index). They depend on the engine (``model.engine``,
+    its tables ``etab``), the power split's tables ``dps``, the candidates and the step only:
+    ``memo`` (a dict a batch's runs share; None: none) keeps them by these, so variants of
+    the body, the tire or the controller's SOC band compute them once, a variant of the
+    engine again. The arrays are read only by the loop."""
+    key = None
+    if memo is not None:  # an immutable engine: its identity (kept alive in the value) is its tables
+        key = (id(model.engine), dps, cand0.tobytes(), cand1.tobytes(), float(dt))
+        hit = memo.get(key)
+        if hit is not None:
+            return hit[1]
+    nc = cand0.size
+    e_flags, e_floats = np.zeros((3, nc), np.bool_), np.zeros((3, nc))
+    engine_cache(cand0, cand1, dps, etab, e_flags, e_floats)
+    p_cand = e_floats[1] * e_floats[0]
+    fuel_kg = e_floats[2] * dt  # as _point gives it
+    spec = specific_fuel(fuel_kg, p_cand)  # as the Python controller ranks them
+    order = np.argsort(np.where(np.isnan(spec), -np.inf, spec), kind="stable")  # NaN first
+    out = (e_flags, e_floats, p_cand, order)
+    if memo is not None:
+        memo[key] = (model.engine, out)
+    return out
+
+
 def _run_one(
-    model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_max: float, pack: Any = None
+    model: Any,
+    grid: Any,
+    ctl: Any,
+    soc0: float,
+    soc_min: float,
+    soc_max: float,
+    pack: Any = None,
+    memo: dict | None = None,
 ) -> tuple[Any, ...]:
     """One compiled run: (channel names, channels (names x n + 1), audit names, audit [J],
     summary, final speed [m/s]); the controller left as the Python loop leaves it. ``pack``:
     the :class:`~hevsim.battery.bms.PackRun` of a ``[battery] model = "pack"`` vehicle
-    (:func:`~hevsim.sim._loop.pack_arrays`)."""
+    (:func:`~hevsim.sim._loop.pack_arrays`); ``memo``: the per-run data a batch's runs share
+    (:func:`engine_points`)."""
     from hevsim.sim.checks import stuck_error
 
     cc = controller_code(ctl)
@@ -685,14 +722,12 @@ def _run_one(
         plug = PowerSplitPlug(None, writable(PS.kernel_tables(model)), cc, cand0, cand1, thr, etab, mtab,
                               writable(model.generator.kernel_tables()))  # fmt: skip
     nc = cand0.size
-    e_flags, e_floats = np.zeros((3, nc), np.bool_), np.zeros((3, nc))
-    p_cand, order = np.zeros(nc), np.arange(nc)
-    if not parallel:  # each candidate's engine operating point, engine power [W], specific-fuel order
-        engine_cache(cand0, cand1, plug.dps, etab, e_flags, e_floats)
-        p_cand = e_floats[1] * e_floats[0]
-        fuel_kg = e_floats[2] * (t[1] - t[0])  # as _point gives it
-        spec = specific_fuel(fuel_kg, p_cand)  # as the Python controller ranks them
-        order = np.argsort(np.where(np.isnan(spec), -np.inf, spec), kind="stable")  # NaN first
+    if parallel:
+        e_flags, e_floats = np.zeros((3, nc), np.bool_), np.zeros((3, nc))
+        p_cand, order = np.zeros(nc), np.arange(nc)
+    else:  # each candidate's engine operating point, engine power [W], specific-fuel order
+        dt = t[1] - t[0]
+        e_flags, e_floats, p_cand, order = engine_points(model, plug.dps, etab, cand0, cand1, dt, memo)
     det, loss, ext = np.zeros(len(mod.DETAILS)), np.zeros(len(mod.LOSS_TERMS)), np.zeros(1)
     buf = (np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc, np.bool_), p_cand, order, det, loss,
            e_flags, e_floats)  # fmt: skip
@@ -748,8 +783,10 @@ def simulate_batch(
     if controller_code(controller) is None:
         return None
 
+    memo: dict = {}  # per-run data shared by variants (engine_points)
+
     def run(vm: Any, ctl: Any, soc0: float) -> tuple[Any, ...]:
-        return _run_one(vm, grid, ctl, soc0, soc_min, soc_max)[:5]
+        return _run_one(vm, grid, ctl, soc0, soc_min, soc_max, memo=memo)[:5]
 
     return threaded_batch(model, variants, grid, controller, soc_initial, run)
 
