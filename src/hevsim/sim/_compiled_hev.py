@@ -259,7 +259,7 @@ def _engine(eng_flags, eng_floats, i):
             eng_floats[2, i])  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def engine_cache(cand0, cand1, dps, etab, eng_flags, eng_floats):
     """Store every candidate's :func:`~hevsim.architectures.power_split.engine_point` in
     ``eng_flags`` (3, n) and ``eng_floats`` (3, n) (it does not depend on the step: computed
