@@ -499,8 +499,8 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
             if soc < cc.soc_low and h.aux_power_w > 0.0:  # ElectricAssist.holds: charge-hold
                 s = HOLD_EQUIVALENCE_FACTOR
             else:
-                ok, fuel_kg, d_soc, _ = _point(dpar, dps, c0, c1, NO_ENGINE, w_wheel, t_wheel, regen_ok, soc,
-                                               dt, bat, md, True, det, loss)  # fmt: skip
+                ok, fuel_kg, d_soc, _ = _point_body(dpar, dps, c0, c1, NO_ENGINE, w_wheel, t_wheel, regen_ok,
+                                                    soc, dt, bat, md, True, det, loss)  # fmt: skip
                 if ok:
                     return True, c0, c1, True, fuel_kg, d_soc
     elif cc.code == AECMS:
