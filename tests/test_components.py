@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hevsim.components.battery import BatteryPack
+from hevsim.components.battery import BatteryPack, pack_ocv_r, pack_ocv_r_both
 from hevsim.components.body import VehicleBody
 from hevsim.components.driveline import Gear, Tire
 from hevsim.components.electric_machine import ElectricMachine
@@ -202,3 +202,25 @@ def test_battery_levels_and_current() -> None:
     r_chg = float(table.resistance(0.5, -1.0))
     assert r_dis > 0 and r_chg > 0
     assert float(table.ocv(0.9)) > float(table.ocv(0.1))
+
+
+def test_one_ocv_lookup_gives_both_resistances_bit_for_bit() -> None:
+    """pack_ocv_r_both (the forward loops' battery state: one OCV lookup) equals pack_ocv_r for
+    a discharge and a charge current to the last bit, inside and outside the table axes."""
+    pack = BatteryPack.from_directory(
+        resolve_component("nimh_spiral_6ah_insight_prius_nimh6", "battery", Path("."), "b"),
+        n_series=168, n_parallel=2, r_extra_ohm=0.05,
+    )  # fmt: skip
+    tab = pack.kernel_tables()
+    assert tab.temperature_k.size > 1 and tab.soc.size > 2  # a 2-D table: both axes searched
+    rng = np.random.default_rng(7)
+    t_ax = tab.temperature_k
+    socs = np.concatenate([rng.uniform(-0.2, 1.2, 300), tab.soc])
+    temps = np.concatenate([rng.uniform(t_ax[0] - 20.0, t_ax[-1] + 20.0, 300), np.resize(t_ax, tab.soc.size)])
+    for soc, temp in zip(socs, temps, strict=True):
+        args = (float(soc), float(temp))
+        ocv, r_dis, r_chg = pack_ocv_r_both(*args, 168.0, 2.0, 0.05, tab)
+        ocv_d, r_d = pack_ocv_r(*args, 1.0, 168.0, 2.0, 0.05, tab)
+        ocv_c, r_c = pack_ocv_r(*args, -1.0, 168.0, 2.0, 0.05, tab)
+        assert (ocv, r_dis, r_chg) == (ocv_d, r_d, r_c) and ocv_c == ocv_d
+

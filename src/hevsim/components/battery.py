@@ -67,6 +67,18 @@ def pack_ocv_r(soc, temp_k, current_sign, n_s, n_p, r_extra, tab):
 
 
 @njit(cache=True, inline="always")
+def pack_ocv_r_both(soc, temp_k, n_s, n_p, r_extra, tab):
+    """(OCV [V], discharge resistance [ohm], charge resistance [ohm]) of the pack at ``soc``
+    [-] and ``temp_k`` [K]: :func:`pack_ocv_r` for both current signs, bit for bit, with one
+    OCV lookup (a forward step needs both resistances)."""
+    soc_ax, temp_ax = tab.soc, tab.temperature_k
+    ocv_v = n_s * interp2(soc_ax, temp_ax, tab.ocv, soc, temp_k, False)
+    r_dis = pack_resistance(interp2(soc_ax, temp_ax, tab.r_discharge, soc, temp_k, False), n_s, n_p, r_extra)
+    r_chg = pack_resistance(interp2(soc_ax, temp_ax, tab.r_charge, soc, temp_k, False), n_s, n_p, r_extra)
+    return ocv_v, r_dis, r_chg
+
+
+@njit(cache=True, inline="always")
 def charge_current(current_a, coulombic_efficiency):
     """Current [A] that changes the stored charge: the terminal current (discharge > 0),
     times the coulombic efficiency while charging (eq 13)."""

@@ -259,7 +259,7 @@ def _engine(eng_flags, eng_floats, i):
             eng_floats[2, i])  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def engine_cache(cand0, cand1, dps, etab, eng_flags, eng_floats):
     """Store every candidate's :func:`~hevsim.architectures.power_split.engine_point` in
     ``eng_flags`` (3, n) and ``eng_floats`` (3, n) (it does not depend on the step: computed
@@ -290,39 +290,116 @@ def _argmin(cost, feasible, n):
     return best
 
 
-SCAN_ALL, SCAN_EV, SCAN_NEAR = 0, 1, 2
-"""Modes of :func:`_scan`, passed as ``np.int64(mode)``: numba compiles a function once per
-literal constant argument, a run-time integer once for all."""
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
+def _scan(dpar, dps, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf):
+    """:func:`_point_body` (no details) of every candidate of ``cands`` at one step (the power
+    split's engine points from ``buf[8:10]``, :func:`engine_cache`): feasibility, fuel [kg],
+    engine power [W] and SOC change [-] into ``buf[3]``, ``buf[1]``, ``buf[2]``, ``buf[0]``."""
+    cand0, cand1, _ = cands
+    d_soc, fuel, p_eng, feas, _, _, det, loss, e_flags, e_floats = buf
+    for i in range(cand0.shape[0]):
+        eng = _engine(e_flags, e_floats, i)
+        r = _point_body(
+            dpar, dps, cand0[i], cand1[i], eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
+        )
+        feas[i], fuel[i], d_soc[i], p_eng[i] = r
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _load_terms(cc, h, v_mid, soc, p_dem):
+    """(charge depleting, low load, charging power [W]) of the rule-based controllers at the
+    SOC ``soc`` [-], mid-step speed [m/s] and wheel power demand ``p_dem`` [W]
+    (:mod:`hevsim.control.parallel`: ``_GridController.depleting``, ``charge_fraction``,
+    ``charging_power``)."""
+    depl = soc > cc.cd_soc  # a plug-in hybrid's charge depleting (_GridController.depleting)
+    if depl:
+        low_load = p_dem < cc.cd_ev_power_w
+        frac = 0.0
+    else:
+        low_load = v_mid < cc.ev_speed_mps and p_dem < cc.ev_power_w
+        frac = min(max((cc.soc_high - soc) / (cc.soc_high - cc.soc_low), 0.0), 1.0)  # charge_fraction
+    p_charge = frac * cc.charge_power_w + (h.aux_power_w if soc < cc.soc_low else 0.0)  # charging_power
+    return depl, low_load, p_charge
+
+
+PF_EV, PF_NEAR, PF_ALL, PF_FILL = 0, 1, 2, 3
+"""Phases of :func:`_pf_choose`: the EV candidates in order; the engine-on candidates near
+the target power in the order of their specific fuel; every candidate; the details of the
+one chosen among all."""
 
 
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _scan(dpar, dps, mode, target, band, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf):
-    """:func:`_point_body` (no details) of the candidates ``cands`` at one step, the power
-    split's engine points from ``buf[8:10]`` (:func:`engine_cache`). ``SCAN_ALL``: every
-    candidate's feasibility, fuel [kg], engine power [W] and SOC change [-] into
-    ``buf[3]``, ``buf[1]``, ``buf[2]``, ``buf[0]``; returns -1. ``SCAN_EV``: the first
-    feasible candidate with the engine off (second control 0); ``SCAN_NEAR``: in the order
-    ``buf[5]``, the first feasible one with the engine on whose engine power ``buf[4]`` [W]
-    lies within ``band`` of ``target`` [W]; their index, -1 for none."""
+def _pf_choose(dpar, dps, cc, cands, w_wheel, t_wheel, v_mid, soc, dt, bat, md, buf):
+    """The power follower's choice at one step (:class:`hevsim.control.parallel.PowerFollower`),
+    as :func:`_choose` returns it, with the chosen control's details, audit terms, fuel and SOC
+    change filled (``filled`` True) whenever a control is found. ``dpar`` None, ``dps`` the
+    power split's tables (as :func:`_point`).
+
+    When the car may drive electrically, the first feasible EV candidate; else (or when none
+    is feasible) the least fuel per unit of engine work of the feasible candidates whose
+    engine power (known per run: ``buf[4]``) is near the target: candidates in the order of
+    their specific fuel (``buf[5]``, ties by index; per run, as it depends on the engine
+    alone), the first near and feasible one is it (the argmin over all, as the Python
+    controller takes it); only when none is, every candidate, the feasible one nearest the
+    target. One call per step evaluates every candidate it needs with one inlined
+    :func:`_point_body` (a call per scan and one more for the details would pass every table
+    each time: more than the points cost)."""
     cand0, cand1, _ = cands
-    d_soc, fuel, p_eng, feas, p_cand, order, det, loss, e_flags, e_floats = buf
+    h = md[0]
+    cost, fuel, p_eng, feas, p_cand, order, det, loss, e_flags, e_floats = buf
+    regen_ok = v_mid > 0.0
     n = cand0.shape[0]
-    for k in range(n):
-        i = order[k] if mode == SCAN_NEAR else k
-        if mode == SCAN_EV and cand1[i] != 0.0:
-            continue
-        if mode == SCAN_NEAR and (cand1[i] == 0.0 or abs(p_cand[i] - target) > band):
-            continue
+    p_dem = t_wheel * w_wheel
+    depl, low_load, p_charge = _load_terms(cc, h, v_mid, soc, p_dem)
+    ev = (
+        p_dem <= 0.0
+        or (depl and low_load)
+        or (not depl and soc > cc.soc_low and low_load)
+        or (not depl and soc > cc.soc_high and p_dem < cc.engine_min_power_w)
+    )  # PowerFollower.electric
+    target = max(p_dem, 0.0) + p_charge
+    if soc < cc.soc_high and not depl:  # PowerFollower.target_power
+        target = max(target, cc.engine_min_power_w)
+    band = max(PS_POWER_BAND * target, PS_POWER_BAND_MIN_W)
+    phase = PF_EV if ev else PF_NEAR
+    k, pick = 0, -1
+    while True:
+        if phase == PF_EV:
+            if k >= n:
+                phase, k = PF_NEAR, 0
+                continue
+            i, k = k, k + 1
+            if cand1[i] != 0.0:
+                continue
+        elif phase == PF_NEAR:
+            if k >= n:
+                phase, k = PF_ALL, 0
+                continue
+            i, k = order[k], k + 1
+            if cand1[i] == 0.0 or abs(p_cand[i] - target) > band:
+                continue
+        elif phase == PF_ALL:
+            if k >= n:
+                for j in range(n):
+                    cost[j] = abs(p_eng[j] - target)
+                pick = _argmin(cost, feas, n)
+                if pick < 0:
+                    return False, 0.0, 0.0, False, 0.0, 0.0
+                phase = PF_FILL
+                continue
+            i, k = k, k + 1
+        else:
+            i = pick
         eng = _engine(e_flags, e_floats, i)
-        c0, c1 = cand0[i], cand1[i]
+        # details for every candidate that is taken if feasible (it is, nearly always, the first)
+        want = phase != PF_ALL
         r = _point_body(
-            dpar, dps, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, False, det, loss
+            dpar, dps, cand0[i], cand1[i], eng, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, want, det, loss
         )
-        if mode == SCAN_ALL:
-            feas[i], fuel[i], d_soc[i], p_eng[i] = r
-        elif r[0]:
-            return i
-    return -1
+        if phase == PF_ALL:
+            feas[i], fuel[i], cost[i], p_eng[i] = r
+        elif r[0] or phase == PF_FILL:
+            return True, cand0[i], cand1[i], True, r[1], r[2]
 
 
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
@@ -382,7 +459,8 @@ def _assist_throttle(w_wheel, g, t_req, thr_grid, monotone, dpar, etab):
 
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md, buf):
-    """The controller's choice at one step (:mod:`hevsim.control.parallel`): (found, c0, c1,
+    """The controller's choice at one step (:mod:`hevsim.control.parallel`: electric assist,
+    ECMS, A-ECMS; the power follower's is :func:`_pf_choose`): (found, c0, c1,
     filled, fuel [kg], SOC change [-]); ``filled``: the choice's details, audit terms
     (``buf[6]``, ``buf[7]``), fuel and SOC change are those of :func:`_point` with ``want``
     (else not computed). ``dpar``, ``dps``: as :func:`_point`. ``state``: [gear of the
@@ -391,19 +469,12 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
     candidate, the electric assist's throttle grid); ``buf``: work arrays."""
     cand0, cand1, thr_grid = cands
     h, etab, _, _ = md
-    cost, fuel, p_eng, feas = buf[:4]
+    cost, fuel, _, feas = buf[:4]
     det, loss = buf[6], buf[7]
     regen_ok = v_mid > 0.0
     n = cand0.shape[0]
     p_dem = t_wheel * w_wheel
-    depl = soc > cc.cd_soc  # a plug-in hybrid's charge depleting (_GridController.depleting)
-    if depl:
-        low_load = p_dem < cc.cd_ev_power_w
-        frac = 0.0
-    else:
-        low_load = v_mid < cc.ev_speed_mps and p_dem < cc.ev_power_w
-        frac = min(max((cc.soc_high - soc) / (cc.soc_high - cc.soc_low), 0.0), 1.0)  # charge_fraction
-    p_charge = frac * cc.charge_power_w + (h.aux_power_w if soc < cc.soc_low else 0.0)  # charging_power
+    depl, low_load, p_charge = _load_terms(cc, h, v_mid, soc, p_dem)
     s = 0.0
     if cc.code == ELECTRIC_ASSIST:
         if dpar is not None:
@@ -428,8 +499,8 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
             if soc < cc.soc_low and h.aux_power_w > 0.0:  # ElectricAssist.holds: charge-hold
                 s = HOLD_EQUIVALENCE_FACTOR
             else:
-                ok, fuel_kg, d_soc, _ = _point(dpar, dps, c0, c1, NO_ENGINE, w_wheel, t_wheel, regen_ok, soc,
-                                               dt, bat, md, True, det, loss)  # fmt: skip
+                ok, fuel_kg, d_soc, _ = _point_body(dpar, dps, c0, c1, NO_ENGINE, w_wheel, t_wheel, regen_ok,
+                                                    soc, dt, bat, md, True, det, loss)  # fmt: skip
                 if ok:
                     return True, c0, c1, True, fuel_kg, d_soc
     elif cc.code == AECMS:
@@ -441,58 +512,10 @@ def _choose(dpar, dps, cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc
         state[1] = s
     elif cc.code == ECMS:
         s = cc.cd_s if depl else cc.s0
-    elif (
-        p_dem <= 0.0
-        or (depl and low_load)
-        or (not depl and soc > cc.soc_low and low_load)
-        or (not depl and soc > cc.soc_high and p_dem < cc.engine_min_power_w)
-    ):  # power follower (PowerFollower.electric): the first feasible EV candidate
-        i = _scan(
-            dpar, dps, np.int64(SCAN_EV), 0.0, 0.0, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
-        )
-        if i >= 0:
-            return True, cand0[i], cand1[i], False, 0.0, 0.0
-    if cc.code == POWER_FOLLOWER:
-        # The least fuel per unit of engine work of the feasible candidates whose engine power
-        # (known per run: p_cand) is near the target: candidates in the order of their specific
-        # fuel (``order``, ties by index; per run, as it depends on the engine alone), the first
-        # near and feasible one is it (the argmin over all, as the Python controller takes it).
-        # The rest only when none is feasible.
-        target = max(p_dem, 0.0) + p_charge
-        if soc < cc.soc_high and not depl:  # PowerFollower.target_power
-            target = max(target, cc.engine_min_power_w)
-        band = max(PS_POWER_BAND * target, PS_POWER_BAND_MIN_W)
-        i = _scan(
-            dpar,
-            dps,
-            np.int64(SCAN_NEAR),
-            target,
-            band,
-            cands,
-            w_wheel,
-            t_wheel,
-            regen_ok,
-            soc,
-            dt,
-            bat,
-            md,
-            buf,
-        )
-        if i >= 0:
-            return True, cand0[i], cand1[i], False, 0.0, 0.0
-        _scan(
-            dpar, dps, np.int64(SCAN_ALL), 0.0, 0.0, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
-        )
-        for i in range(n):
-            cost[i] = abs(p_eng[i] - target)
-        i = _argmin(cost, feas, n)
-    else:
-        _scan(
-            dpar, dps, np.int64(SCAN_ALL), 0.0, 0.0, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf
-        )
-        for i in range(n):  # every candidate: ECMS score from its fuel and SOC change (in cost)
-            cost[i] = fuel[i] / dt * h.lhv_jpkg + s * (-cost[i] / dt * e_soc)
-        i = _argmin(cost, feas, n)
+    _scan(dpar, dps, cands, w_wheel, t_wheel, regen_ok, soc, dt, bat, md, buf)
+    for i in range(n):  # every candidate: ECMS score from its fuel and SOC change (in cost)
+        cost[i] = fuel[i] / dt * h.lhv_jpkg + s * (-cost[i] / dt * e_soc)
+    i = _argmin(cost, feas, n)
     if i < 0:
         return False, 0.0, 0.0, False, 0.0, 0.0
     return True, cand0[i], cand1[i], False, 0.0, 0.0
@@ -586,8 +609,11 @@ def parallel_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def power_split_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
-    """The power split's ``choose``: :func:`_choose`."""
+    """The power split's ``choose``: :func:`_pf_choose` for the power follower, else
+    :func:`_choose`."""
     md, cands = _step_data(plug, hk)
+    if plug.cc.code == POWER_FOLLOWER:
+        return _pf_choose(None, plug.dps, plug.cc, cands, w_wheel, t_wheel, v_mid, soc, dt, bat, md, work[0])
     return _choose(None, plug.dps, plug.cc, state, cands, w_wheel, t_wheel, v_mid, soc, dt, e_soc, bat, md,
                    work[0])  # fmt: skip
 
@@ -627,13 +653,50 @@ register(PowerSplitPlug, power_split_choose, power_split_point, power_split_comm
 
 
 # ------------------------------------------------------------------------- Python side
+def engine_points(
+    model: Any, dps: Any, etab: Any, cand0: np.ndarray, cand1: np.ndarray, dt: float, memo: dict | None = None
+) -> tuple[np.ndarray, ...]:
+    """The power split's per-run candidate data: (engine flags (3, n), engine floats (3, n),
+    as :func:`engine_cache` fills them; engine power [W]; the order of their specific fuel over
+    a step ``dt`` [s], NaN first, ties by index). They depend on the engine (``model.engine``,
+    its tables ``etab``), the power split's tables ``dps``, the candidates and the step only:
+    ``memo`` (a dict a batch's runs share; None: none) keeps them by these, so variants of
+    the body, the tire or the controller's SOC band compute them once, a variant of the
+    engine again. The arrays are read only by the loop."""
+    key = None
+    if memo is not None:  # an immutable engine: its identity (kept alive in the value) is its tables
+        key = (id(model.engine), dps, cand0.tobytes(), cand1.tobytes(), float(dt))
+        hit = memo.get(key)
+        if hit is not None:
+            return hit[1]
+    nc = cand0.size
+    e_flags, e_floats = np.zeros((3, nc), np.bool_), np.zeros((3, nc))
+    engine_cache(cand0, cand1, dps, etab, e_flags, e_floats)
+    p_cand = e_floats[1] * e_floats[0]
+    fuel_kg = e_floats[2] * dt  # as _point gives it
+    spec = specific_fuel(fuel_kg, p_cand)  # as the Python controller ranks them
+    order = np.argsort(np.where(np.isnan(spec), -np.inf, spec), kind="stable")  # NaN first
+    out = (e_flags, e_floats, p_cand, order)
+    if memo is not None:
+        memo[key] = (model.engine, out)
+    return out
+
+
 def _run_one(
-    model: Any, grid: Any, ctl: Any, soc0: float, soc_min: float, soc_max: float, pack: Any = None
+    model: Any,
+    grid: Any,
+    ctl: Any,
+    soc0: float,
+    soc_min: float,
+    soc_max: float,
+    pack: Any = None,
+    memo: dict | None = None,
 ) -> tuple[Any, ...]:
     """One compiled run: (channel names, channels (names x n + 1), audit names, audit [J],
     summary, final speed [m/s]); the controller left as the Python loop leaves it. ``pack``:
     the :class:`~hevsim.battery.bms.PackRun` of a ``[battery] model = "pack"`` vehicle
-    (:func:`~hevsim.sim._loop.pack_arrays`)."""
+    (:func:`~hevsim.sim._loop.pack_arrays`); ``memo``: the per-run data a batch's runs share
+    (:func:`engine_points`)."""
     from hevsim.sim.checks import stuck_error
 
     cc = controller_code(ctl)
@@ -659,14 +722,12 @@ def _run_one(
         plug = PowerSplitPlug(None, writable(PS.kernel_tables(model)), cc, cand0, cand1, thr, etab, mtab,
                               writable(model.generator.kernel_tables()))  # fmt: skip
     nc = cand0.size
-    e_flags, e_floats = np.zeros((3, nc), np.bool_), np.zeros((3, nc))
-    p_cand, order = np.zeros(nc), np.arange(nc)
-    if not parallel:  # each candidate's engine operating point, engine power [W], specific-fuel order
-        engine_cache(cand0, cand1, plug.dps, etab, e_flags, e_floats)
-        p_cand = e_floats[1] * e_floats[0]
-        fuel_kg = e_floats[2] * (t[1] - t[0])  # as _point gives it
-        spec = specific_fuel(fuel_kg, p_cand)  # as the Python controller ranks them
-        order = np.argsort(np.where(np.isnan(spec), -np.inf, spec), kind="stable")  # NaN first
+    if parallel:
+        e_flags, e_floats = np.zeros((3, nc), np.bool_), np.zeros((3, nc))
+        p_cand, order = np.zeros(nc), np.arange(nc)
+    else:  # each candidate's engine operating point, engine power [W], specific-fuel order
+        dt = t[1] - t[0]
+        e_flags, e_floats, p_cand, order = engine_points(model, plug.dps, etab, cand0, cand1, dt, memo)
     det, loss, ext = np.zeros(len(mod.DETAILS)), np.zeros(len(mod.LOSS_TERMS)), np.zeros(1)
     buf = (np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc, np.bool_), p_cand, order, det, loss,
            e_flags, e_floats)  # fmt: skip
@@ -722,8 +783,10 @@ def simulate_batch(
     if controller_code(controller) is None:
         return None
 
+    memo: dict = {}  # per-run data shared by variants (engine_points)
+
     def run(vm: Any, ctl: Any, soc0: float) -> tuple[Any, ...]:
-        return _run_one(vm, grid, ctl, soc0, soc_min, soc_max)[:5]
+        return _run_one(vm, grid, ctl, soc0, soc_min, soc_max, memo=memo)[:5]
 
     return threaded_batch(model, variants, grid, controller, soc_initial, run)
 

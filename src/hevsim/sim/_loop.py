@@ -54,7 +54,7 @@ from numba.extending import overload
 
 from hevsim.architectures._common import NO_REFCOUNT
 from hevsim.battery.vehicle import vehicle_bus_begin, vehicle_bus_finish_power
-from hevsim.components.battery import pack_ocv_r
+from hevsim.components.battery import pack_ocv_r_both
 from hevsim.components.body import grade_force, road_load_force, rolling_force
 from hevsim.components.bus import battery_power_limits
 from hevsim.components.flow import LIMIT_RTOL
@@ -316,8 +316,7 @@ def demand(v0, v1, k, dt, gr, h):
 def _battery(soc, h, ptab):
     """(OCV [V], discharge and charge resistance [ohm], largest charge power [W]) at ``soc``
     (the forward loop's battery state: no charging when full)."""
-    ocv, r_dis = pack_ocv_r(soc, h.temperature_k, 1.0, h.n_series, h.n_parallel, h.r_extra_ohm, ptab)
-    _, r_chg = pack_ocv_r(soc, h.temperature_k, -1.0, h.n_series, h.n_parallel, h.r_extra_ohm, ptab)
+    ocv, r_dis, r_chg = pack_ocv_r_both(soc, h.temperature_k, h.n_series, h.n_parallel, h.r_extra_ohm, ptab)
     p_chg = battery_power_limits(ocv, r_dis, ocv, r_chg, h.i_discharge_max_a, h.i_charge_max_a)[1]
     if soc >= h.soc_max:  # full: no charging (regeneration goes to the friction brakes)
         p_chg = 0.0
