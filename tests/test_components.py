@@ -223,4 +223,3 @@ def test_one_ocv_lookup_gives_both_resistances_bit_for_bit() -> None:
         ocv_d, r_d = pack_ocv_r(*args, 1.0, 168.0, 2.0, 0.05, tab)
         ocv_c, r_c = pack_ocv_r(*args, -1.0, 168.0, 2.0, 0.05, tab)
         assert (ocv, r_dis, r_chg) == (ocv_d, r_d, r_c) and ocv_c == ocv_d
-
