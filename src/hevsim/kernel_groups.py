@@ -145,7 +145,7 @@ class KernelGroup:
         return cache_is_cold(self.probes())
 
     def label(self) -> str:
-        """``"series HEV forward loop (run_series)"``."""
+        """``"series HEV forward loop (run_loop)"``."""
         return f"{self.description} ({', '.join(e.partition(':')[2] for e in self.entries)})"
 
 
@@ -163,9 +163,10 @@ GROUPS: tuple[KernelGroup, ...] = (
     KernelGroup(
         "series",
         "series HEV forward loop",
-        ("hevsim.sim.kernel:run_series",),
+        ("hevsim.sim._loop:run_loop",),
         ("series",),
         20.0,
+        first_arg="SeriesPlug",  # run_loop(plug, ...): the series brings its own battery in the plug-in
     ),
     KernelGroup(
         "parallel",
@@ -232,7 +233,7 @@ GROUPS: tuple[KernelGroup, ...] = (
     KernelGroup(
         "batch",
         "batch-of-variants",
-        ("hevsim.sim.kernel:run_series_batch", "hevsim.sim._compiled_conventional:_run_batch"),
+        ("hevsim.sim._compiled_series:_batch", "hevsim.sim._compiled_conventional:_run_batch"),
         ("batch",),
         55.0,
     ),
