@@ -31,7 +31,7 @@ from numba import njit, prange
 
 from hevsim.architectures import series_kernel as S
 from hevsim.battery.vehicle import battery_ecm_advance, battery_pack_advance, battery_pack_begin
-from hevsim.sim._loop import RunConstants, register, run_loop
+from hevsim.sim._loop import RunConstants, register, run_loop, writable
 
 W_GS, GS_STATE, MODE, REASON, FUEL, ENGINE, P_WHEEL = range(7)
 """Indices of the plug-in's ``state``: genset shaft speed [rad/s], genset state
@@ -56,8 +56,7 @@ class SeriesPlug(NamedTuple):
     out: Any
 
 
-# reference counting on: the ecm and pack steps allocate (a callee of run_loop inherits it off)
-@njit(cache=True, _nrt=True)
+@njit(cache=True, inline="always")  # in run_loop: no call passing the plug-in's ~30 arrays every step
 def series_drive(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, has_pack, audit):
     """The plug-in's ``drive`` (the loop's driver hook, :mod:`hevsim.sim._loop`): step ``k``
     from the speed ``v`` [m/s] and SOC ``soc`` [-]: :func:`~hevsim.architectures.series_kernel.driver_step`
@@ -210,6 +209,18 @@ _NONE_I = np.zeros(0, np.int64)
 _NO_COLS = np.zeros((0, 1))
 
 
+def _tables(*tabs: Any) -> tuple[Any, ...]:
+    """The component table tuples with read-only arrays copied (:func:`hevsim.sim._loop.writable`:
+    one numba type, one compiled run, whether a machine's map arrays are read-only or not)."""
+    return tuple(writable(tab) for tab in tabs)
+
+
+def _grid(*arrays: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The cycle's arrays as writable C-contiguous float64 (a :class:`~hevsim.cycles.DriveCycle`'s
+    are read-only: another numba type than the other plug-ins' grids)."""
+    return tuple(np.require(a, np.float64, ("C", "W")) for a in arrays)
+
+
 def run_compiled(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, energy, summary) -> None:  # type: ignore[no-untyped-def]
     """Integrate the series HEV over the (uniformly sampled) cycle ``t_s, v_des, grade``: one
     run of :func:`hevsim.sim._loop.run_loop` with :class:`SeriesPlug`.
@@ -226,7 +237,8 @@ def run_compiled(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, e
     state = np.zeros(STATE_SIZE)
     energy[:] = 0.0
     rows = out if record else out[:1]
-    plug = SeriesPlug(p, eng, mot, gen, bat, sched, rows)
+    plug = SeriesPlug(p, *_tables(eng, mot, gen, bat), sched, rows)
+    t_s, v_des, grade = _grid(t_s, v_des, grade)
     _, _, v, _ = run_loop(plug, float(p[S.SOC0]), t_s, v_des, grade, _constants(p), None, state, _NONE_F,
                           _NONE_F, _NONE_F, _NONE_F, _NONE_I, _NO_COLS, energy, summary, None)  # fmt: skip
     if record:
@@ -262,4 +274,5 @@ def run_batch(pmat, eng, mot, gen, bat, sched, t_s, v_des, grade, energy, summar
     """Run every row of ``pmat`` (one parameter vector per variant) in parallel, each one run
     of the one compiled loop. Fills ``energy[i]`` and ``summary[i]`` per variant (zeros on
     entry); no time series are recorded."""
-    _batch(pmat, eng, mot, gen, bat, sched, t_s, v_des, grade, _constants(pmat[0]), energy, summary)
+    _batch(pmat, *_tables(eng, mot, gen, bat), sched, *_grid(t_s, v_des, grade), _constants(pmat[0]), energy,
+           summary)  # fmt: skip

@@ -516,7 +516,7 @@ def run_loop(plug, soc0, t, v_des, gr, h, ptab, state, work, det, loss, ext, slo
             audit[2] += e_chem
             audit[i_batloss] += e_chem - p_bat * dt
         # ---- bookkeeping
-        engine = float(on)  # 1 fired; between 0 and 1: turning unfired (counts a start only)
+        engine = on * 1.0  # 1 fired; between 0 and 1: turning unfired (counts a start only)
         if engine > 0.0 and not was_on:
             starts += 1.0
         was_on = engine > 0.0
