@@ -17,7 +17,7 @@ import pytest
 from hevsim.config import load_config
 from hevsim.sim import kernel as K
 from hevsim.sim._compiled_series import SeriesPlug, series_drive
-from hevsim.sim._loop import PLUGINS, run_loop
+from hevsim.sim._loop import PLUGINS, _no_choose, _no_point, run_loop
 from hevsim.sim.simulator import simulate, simulate_batch
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -28,7 +28,7 @@ def test_the_series_loop_of_its_own_is_gone() -> None:
     assert not hasattr(K, "run_series") and not hasattr(K, "run_series_batch")
     plugin = PLUGINS[SeriesPlug]
     assert plugin.drive is series_drive  # the driver hook: proportional driver, explicit Euler, genset shaft
-    assert plugin.choose is None and plugin.point is None  # the loop's own driver is not used
+    assert plugin.choose is _no_choose and plugin.point is _no_point  # the loop's own driver is not used
 
 
 def test_the_series_compiles_the_one_loop_once() -> None:

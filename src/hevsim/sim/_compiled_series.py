@@ -2,7 +2,7 @@
 issue 24 item 2): the thesis's vehicle (chapter 2) with its refinement levels.
 
 The series HEV keeps the thesis's forward model, which differs from the loop's own driver
-(:func:`hevsim.sim._loop.loop_drive`: the wheel force that reaches the cycle's next speed, a
+(in :func:`hevsim.sim._loop.run_loop`: the wheel force that reaches the cycle's next speed, a
 bisection where the powertrain cannot): its driver is the tutorial's proportional speed loop,
 the car's speed follows from the forces at the step's start (explicit Euler), the genset has a
 shaft with inertia and a speed loop (or sits at a DP optimum's point, quasi-statically) and
@@ -221,7 +221,10 @@ def _grid(*arrays: np.ndarray) -> tuple[np.ndarray, ...]:
     return tuple(np.require(a, np.float64, ("C", "W")) for a in arrays)
 
 
-def run_compiled(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, energy, summary) -> None:  # type: ignore[no-untyped-def]
+def run_compiled(
+    p: Any, eng: Any, mot: Any, gen: Any, bat: Any, sched: Any, t_s: Any, v_des: Any, grade: Any,
+    record: bool, out: Any, energy: Any, summary: Any,
+) -> None:  # fmt: skip
     """Integrate the series HEV over the (uniformly sampled) cycle ``t_s, v_des, grade``: one
     run of :func:`hevsim.sim._loop.run_loop` with :class:`SeriesPlug`.
 
@@ -237,7 +240,8 @@ def run_compiled(p, eng, mot, gen, bat, sched, t_s, v_des, grade, record, out, e
     state = np.zeros(STATE_SIZE)
     energy[:] = 0.0
     rows = out if record else out[:1]
-    plug = SeriesPlug(p, *_tables(eng, mot, gen, bat), sched, rows)
+    eng, mot, gen, bat = _tables(eng, mot, gen, bat)
+    plug = SeriesPlug(p, eng, mot, gen, bat, sched, rows)
     t_s, v_des, grade = _grid(t_s, v_des, grade)
     _, _, v, _ = run_loop(plug, float(p[S.SOC0]), t_s, v_des, grade, _constants(p), None, state, _NONE_F,
                           _NONE_F, _NONE_F, _NONE_F, _NONE_I, _NO_COLS, energy, summary, None)  # fmt: skip
@@ -270,9 +274,13 @@ def _batch(pmat, eng, mot, gen, bat, sched_arr, t_s, v_des, grade, h, energy, su
         _variant(pmat[i], eng, mot, gen, bat, sched_arr, t_s, v_des, grade, h, energy[i], summary[i], dummy)
 
 
-def run_batch(pmat, eng, mot, gen, bat, sched, t_s, v_des, grade, energy, summary) -> None:  # type: ignore[no-untyped-def]
+def run_batch(
+    pmat: Any, eng: Any, mot: Any, gen: Any, bat: Any, sched: Any, t_s: Any, v_des: Any, grade: Any,
+    energy: Any, summary: Any,
+) -> None:  # fmt: skip
     """Run every row of ``pmat`` (one parameter vector per variant) in parallel, each one run
     of the one compiled loop. Fills ``energy[i]`` and ``summary[i]`` per variant (zeros on
     entry); no time series are recorded."""
-    _batch(pmat, *_tables(eng, mot, gen, bat), sched, *_grid(t_s, v_des, grade), _constants(pmat[0]), energy,
-           summary)  # fmt: skip
+    eng, mot, gen, bat = _tables(eng, mot, gen, bat)
+    t_s, v_des, grade = _grid(t_s, v_des, grade)
+    _batch(pmat, eng, mot, gen, bat, sched, t_s, v_des, grade, _constants(pmat[0]), energy, summary)
