@@ -11,8 +11,9 @@ What is timed (``time.perf_counter``, loading always excluded):
 (a') ``simulate("examples/series_hev.toml", "udds")`` from the path, as a user calls it, with
     the parsed-file cache (:func:`hevsim.io.cached_by_content`) warm and cleared before each
     call (every file parsed again: the time before the cache);
-(b) the compiled kernel ``hevsim.sim.kernel.run_series`` alone, called exactly as
-    ``simulate`` calls it (recording the time series);
+(b) the compiled run alone (the series plug-in of the one loop,
+    ``hevsim.sim._compiled_series.run_compiled``; ``run_series`` in a tree before it), called
+    exactly as ``simulate`` calls it (recording the time series);
 (c) FASTSim 3's bundled 2016 Toyota Prius on its bundled UDDS: a fresh ``SimDrive`` per
     repetition, timing ``run()`` (``walk()`` in older 3.x); ``run_once()`` is shown too;
 (d) ``simulate_batch`` with N mass variants and N driver-gain variants.
@@ -110,13 +111,29 @@ def machine_info() -> None:
 
 
 # --------------------------------------------------------------------------- hevsim single run
+def _series_kernel() -> tuple[Any, Any, Any]:
+    """(the series run ``simulate`` calls with ``kernel_inputs``' arguments, the dispatcher
+    whose cache tells whether it is compiled, the batch's): the series plug-in of the one loop
+    (issue 24 item 2), or, in a baseline tree before it, its own loop ``run_series``."""
+    try:
+        from hevsim.sim._compiled_series import _batch, run_compiled
+        from hevsim.sim._loop import run_loop
+
+        return run_compiled, run_loop, _batch
+    except ImportError:
+        from hevsim.sim import kernel as K
+
+        return K.run_series, K.run_series, K.run_series_batch
+
+
 def bench_hevsim(repeats: int) -> dict[str, Any]:
     t0 = time.perf_counter()
     from hevsim.config import load_config
     from hevsim.cycles import load_cycle
-    from hevsim.sim import kernel as K
     from hevsim.sim.model import build_series_hev
     from hevsim.sim.simulator import kernel_inputs, simulate
+
+    run_kernel, probe, _ = _series_kernel()
 
     t_import = time.perf_counter() - t0
 
@@ -129,7 +146,7 @@ def bench_hevsim(repeats: int) -> dict[str, Any]:
     res = simulate(hev, cyc)
     first = time.perf_counter() - t0
     first_kernel = float(res.metadata["kernel_time_s"])
-    cache = _cache_state(K.run_series)
+    cache = _cache_state(probe)
     for _ in range(3):
         simulate(hev, cyc)
 
@@ -165,14 +182,14 @@ def bench_hevsim(repeats: int) -> dict[str, Any]:
     _hev, _cyc, _dt, args = kernel_inputs(hev, cyc)
     out, energy, summary = args[-3], args[-2], args[-1]
     for _ in range(3):
-        K.run_series(*args)
+        run_kernel(*args)
     kernel_alone = []
     for _ in range(repeats):
         out.fill(0.0)
         energy.fill(0.0)
         summary.fill(0.0)
         t0 = time.perf_counter()
-        K.run_series(*args)
+        run_kernel(*args)
         kernel_alone.append(time.perf_counter() - t0)
 
     return {
@@ -290,8 +307,9 @@ def bench_fastsim(repeats: int) -> dict[str, Any] | None:
 
 # --------------------------------------------------------------------------- batch
 def bench_batch(hev: Any, cyc: Any, variants: int, repeats: int) -> list[dict[str, Any]]:
-    from hevsim.sim import kernel as K
     from hevsim.sim.simulator import simulate_batch
+
+    batch_probe = _series_kernel()[2]
 
     cases = [
         ("mass_kg", np.linspace(1000.0, 2000.0, variants), "1000..2000 kg"),
@@ -306,7 +324,7 @@ def bench_batch(hev: Any, cyc: Any, variants: int, repeats: int) -> list[dict[st
         row: dict[str, Any] = {"name": name, "span": span, "n": variants}
         if not first_done:
             row["first_s"] = warm
-            row["cache"] = _cache_state(K.run_series_batch)
+            row["cache"] = _cache_state(batch_probe)
             first_done = True
         wall, kern = [], []
         for _ in range(repeats):
@@ -378,11 +396,11 @@ def main(argv: list[str] | None = None) -> int:
 
     line("(a) hevsim simulate() end to end", h["e2e"], ratio=True)
     line("      prepare (resample cycle, params, tables)", h["e2e_prepare"])
-    line("      kernel run_series (inside simulate)", h["e2e_kernel"])
+    line("      compiled run (inside simulate)", h["e2e_kernel"])
     line("      assemble result (pandas, events, metrics)", h["e2e_assemble"])
     line("(a') simulate(path, 'udds'), parsed files cached", h["path_warm"], ratio=True)
     line("     the same, cache cleared before each call", h["path_cold"], ratio=True)
-    line("(b) hevsim kernel run_series alone", h["kernel"], ratio=True)
+    line("(b) hevsim compiled run alone", h["kernel"], ratio=True)
     if f is not None:
         soc = f" ({f['soc_bal_iters']} SOC-balance passes)" if f["soc_bal_iters"] else ""
         line(f"(c) FASTSim {f['version']} Prius UDDS run() = walk()", f["run"])

@@ -218,9 +218,9 @@ def test_dp_kernels_are_warm_after_a_solve() -> None:
 
 def test_real_kernels_have_a_cache_state() -> None:
     from hevsim.progress import module_dispatchers
-    from hevsim.sim import kernel
+    from hevsim.sim import _compiled_series
 
-    found = module_dispatchers(kernel, ["run_series"])
+    found = module_dispatchers(_compiled_series, ["series_drive"])
     assert len(found) == 1
     assert isinstance(cache_is_cold(found), bool)
     assert issubclass(ConfigError, HevsimError)

@@ -78,6 +78,17 @@ def test_no_import_cycles_but_the_known_ones() -> None:
     assert not gone, f"cycle(s) fixed: remove them from KNOWN_CYCLES: {gone}"
 
 
+def test_the_layers_contract_ignores_no_import() -> None:
+    """The import-linter contracts of pyproject.toml hold for every module: no ``ignore_imports``
+    (the series architecture's imports of sim/model.py and sim/kernel.py were the last, until
+    its model and point kernels moved below sim/, issue 24 item 2)."""
+    import tomllib
+
+    cfg = tomllib.loads((SRC.parents[1] / "pyproject.toml").read_text(encoding="utf-8"))
+    contracts = cfg["tool"]["importlinter"]["contracts"]
+    assert contracts and all(not c.get("ignore_imports") for c in contracts)
+
+
 def test_battery_and_thermal_import_no_vehicle_layer() -> None:
     """``battery/`` and ``thermal/`` import nothing from sim/, optimal/, control/, architectures/
     (function-level imports included: grimp reads every import statement)."""

@@ -151,9 +151,9 @@ def _with_model(cfg: object, model: str) -> object:
     ("example", "kernels"),
     [
         ("parallel_hev.toml", ["run_loop"]),
-        ("series_hev.toml", ["run_series"]),
+        ("series_hev.toml", ["run_loop"]),
         ("bev.toml", ["run_loop"]),
-        ("series_hev_pack.toml", ["run_series", "pack_begin"]),
+        ("series_hev_pack.toml", ["run_loop", "pack_begin"]),
     ],
 )
 def test_notice_names_the_run_kernels_only_when_cold(

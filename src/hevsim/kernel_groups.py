@@ -145,7 +145,7 @@ class KernelGroup:
         return cache_is_cold(self.probes())
 
     def label(self) -> str:
-        """``"series HEV forward loop (run_series)"``."""
+        """``"series HEV forward loop (run_loop)"``."""
         return f"{self.description} ({', '.join(e.partition(':')[2] for e in self.entries)})"
 
 
@@ -158,14 +158,16 @@ class KernelGroup:
 # 0.1-1.9 cores; the same run of the tree before it in brackets): parallel 20.9 s (19.3 s),
 # power split 18.7 s (16.1 s), bev 39.5 s (8.1 s: the loop inlines the BEV's whole power flow at
 # its four calls of the controller), fcev 22.1 s (new), conventional 16.5 s (6.2 s), batch
-# 52.2 s (44.9 s).
+# 52.2 s (44.9 s). The series HEV in the one loop (its plug-in, 2026-12-06, other processes 0.6-1.0
+# cores): series 15.3 s (11.0 s with its own loop run_series), batch 52.6 s (51.9 s).
 GROUPS: tuple[KernelGroup, ...] = (
     KernelGroup(
         "series",
         "series HEV forward loop",
-        ("hevsim.sim.kernel:run_series",),
+        ("hevsim.sim._loop:run_loop",),
         ("series",),
         20.0,
+        first_arg="SeriesPlug",  # run_loop(plug, ...): the series brings its own battery in the plug-in
     ),
     KernelGroup(
         "parallel",
@@ -232,7 +234,7 @@ GROUPS: tuple[KernelGroup, ...] = (
     KernelGroup(
         "batch",
         "batch-of-variants",
-        ("hevsim.sim.kernel:run_series_batch", "hevsim.sim._compiled_conventional:_run_batch"),
+        ("hevsim.sim._compiled_series:_batch", "hevsim.sim._compiled_conventional:_run_batch"),
         ("batch",),
         55.0,
     ),

@@ -104,8 +104,9 @@ def register(arch: Architecture) -> None:
 
 
 register(Architecture(
-    name="series", module="hevsim.architectures.series", builder="hevsim.sim.model:build_series_hev",
-    controls=("genset_state", "engine_throttle"), forward="hevsim.sim.simulator:simulate",
+    name="series", module="hevsim.architectures.series",
+    builder="hevsim.architectures.series:build_series_hev", controls=("genset_state", "engine_throttle"),
+    forward="hevsim.sim.simulator:simulate",
     dp_formulation="hevsim.optimal._series_dp:SeriesFormulation",
 ))  # fmt: skip
 register(Architecture(

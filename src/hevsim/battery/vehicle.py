@@ -261,7 +261,12 @@ def battery_ecm(p, bat, soc, current_sign):
     return aux[A_NS] * e, pack_resistance(z, aux[A_NS], aux[A_NP], aux[A_REXT])
 
 
-@njit(cache=True)
+ECM_STEP: dict[str, Any] = {"cache": True, "_nrt": True}
+"""Options of :func:`battery_ecm_advance`: it allocates, so reference counting on, explicitly,
+that the forward loops compiled without it (:mod:`hevsim.sim._loop`) can call it."""
+
+
+@njit(**ECM_STEP)
 def battery_ecm_advance(p, bat, i_pack, dt):
     """Step the pack's (identical) cells by ``dt`` [s] at pack current ``i_pack`` [A].
 

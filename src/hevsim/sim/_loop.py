@@ -24,7 +24,22 @@ candidate grids) registered with :func:`register` together with three compiled f
         -> (engine_on, power_mode, battery_power_w, battery_current_a, wheel_power_w)
 
 (``filled``: ``choose`` has already filled the chosen control's details and audit powers, so
-``point`` is not called.) numba compiles :func:`run_loop` once per plug-in type (the
+``point`` is not called.) ``commit``'s engine state ``on``: true (1) the engine fired, false (0)
+off, a value between (0.5: a series genset turning unfired, cranking or a current source on)
+counts an engine start but no engine-on time.
+
+The **driver** is a fourth, optional role: ``drive(plug, state, work, k, v, soc, t, v_des, gr,
+dt, h, bat, hk, e_soc, has_pack, audit) -> (ok, v1, v_mid, a, grade, f, limited, fuel_kg,
+d_soc)`` advances step ``k`` from the speed ``v``: the end and mid-step speeds [m/s], the
+acceleration [m/s²], the grade [-], the wheel force [N], 1.0 where the car fell behind its
+powertrain's limit, fuel [kg] and SOC change [-], and adds the road side of the energy audit
+(``ok`` False: stuck). By default it is the loop's own (the demand-side driver of eq 32, the
+plug-in's ``choose``, the bisection, ``point``, then the road side of the audit,
+:func:`add_road_audit`: a branch of :func:`run_loop` on the constant :func:`plug_drives`, so
+the other plug-ins' code is what it was); a plug-in with a driver
+and vehicle dynamics of its own registers its ``drive`` (the series HEV's proportional driver
+with explicit-Euler dynamics and genset shaft, :mod:`hevsim.sim._compiled_series`) and needs no
+``choose`` or ``point``. numba compiles :func:`run_loop` once per plug-in type (the
 dispatch :func:`plug_choose`, :func:`plug_point`, :func:`plug_commit` is resolved while
 typing, an ``@overload`` looking the type up in :data:`PLUGINS`), so each architecture gets
 its own machine code, cached on disk like any kernel: numba dispatchers passed as arguments
@@ -48,7 +63,7 @@ import warnings
 from typing import Any, NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, types
 from numba.core.errors import NumbaIRAssumptionWarning
 from numba.extending import overload
 
@@ -156,20 +171,27 @@ def constants(model: Any, soc_min: float, soc_max: float, lhv_jpkg: float | None
 
 # ------------------------------------------------------------------------- plug-ins
 class Plugin(NamedTuple):
-    """An architecture's compiled functions (module docstring)."""
+    """An architecture's compiled functions (module docstring); ``drive`` None: the loop's
+    own driver."""
 
     choose: Any
     point: Any
     commit: Any
+    drive: Any = None
 
 
 PLUGINS: dict[type, Plugin] = {}
 """Plug-in data type (a named tuple class) -> its :class:`Plugin`."""
 
 
-def register(data_type: type, choose: Any, point: Any, commit: Any) -> None:
-    """Make ``data_type`` (a named tuple class) a plug-in of :func:`run_loop`."""
-    PLUGINS[data_type] = Plugin(choose, point, commit)
+def register(data_type: type, choose: Any, point: Any, commit: Any, drive: Any = None) -> None:
+    """Make ``data_type`` (a named tuple class) a plug-in of :func:`run_loop`; ``drive``: its
+    own driver and vehicle dynamics (module docstring; None: the loop's own, which calls
+    ``choose`` and ``point``; with a ``drive``, ``choose`` and ``point`` may be None)."""
+    if drive is not None:
+        choose = choose or _no_choose
+        point = point or _no_point
+    PLUGINS[data_type] = Plugin(choose, point, commit, drive)
 
 
 def _plugin(plug: Any, role: str) -> Any:
@@ -197,6 +219,11 @@ def plug_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat,
 def plug_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
     """The plug-in's ``commit`` (compiled code only: the target of :func:`_ov_commit`)."""
     raise NotImplementedError(_PY_CALL.format("plug_commit"))
+
+
+def plug_drive(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, has_pack, audit):
+    """The plug-in's ``drive`` (compiled code only: the target of :func:`_ov_drive`)."""
+    raise NotImplementedError(_PY_CALL.format("plug_drive"))
 
 
 @overload(plug_choose, inline="always")
@@ -233,6 +260,66 @@ def _ov_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
         return fn(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack)
 
     return impl
+
+
+def plug_drives(plug):
+    """Whether the plug-in brings its own ``drive`` (compiled code only: the target of
+    :func:`_ov_drives`, a constant of the plug-in's type)."""
+    raise NotImplementedError(_PY_CALL.format("plug_drives"))
+
+
+@overload(plug_drives, inline="always")
+def _ov_drives(plug):
+    found = PLUGINS.get(getattr(plug, "instance_class", None))  # type: ignore[arg-type]
+    if found is None:
+        return None
+    own = found.drive is not None
+    return lambda plug: own
+
+
+@njit(cache=True, inline="always")
+def _no_drive(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, has_pack, audit):
+    """The ``drive`` of a plug-in without one: never run (:func:`run_loop` takes its own driver
+    for it), typed only (results: :func:`plug_drive`'s)."""
+    return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+
+
+@njit(cache=True, inline="always")
+def _no_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
+    """The ``choose`` of a plug-in with its own ``drive``: never run, typed only."""
+    return False, 0.0, 0.0, False, 0.0, 0.0
+
+
+@njit(cache=True, inline="always")
+def _no_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, hk):
+    """The ``point`` of a plug-in with its own ``drive``: never run, typed only."""
+    return 0.0, 0.0
+
+
+@overload(plug_drive, inline="always")
+def _ov_drive(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, has_pack, audit):
+    found = PLUGINS.get(getattr(plug, "instance_class", None))  # type: ignore[arg-type]
+    if found is None:
+        return None
+    fn = _no_drive if found.drive is None else found.drive
+
+    def impl(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, has_pack, audit):
+        return fn(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, has_pack, audit)
+
+    return impl
+
+
+def engine_state(on):
+    """(engine turning: counts a start, engine fired: counts engine time) of ``commit``'s ``on``
+    (compiled code only: the target of :func:`_ov_engine_state`)."""
+    raise NotImplementedError(_PY_CALL.format("engine_state"))
+
+
+@overload(engine_state, inline="always")
+def _ov_engine_state(on):
+    if isinstance(on, types.Boolean):  # on: fired (the code of every plug-in but the series)
+        return lambda on: (on, on)
+    return lambda on: (on > 0.0, on >= 1.0)  # 1 fired; 0 < on < 1 turning unfired (a series genset)
 
 
 # numba inlines a plug-in's choice (with the point kernels inlined in it) at each of the loop's
@@ -404,48 +491,58 @@ def run_loop(plug, soc0, t, v_des, gr, h, ptab, state, work, det, loss, ext, slo
     v, soc, fuel = v_des[0], soc0, 0.0
     err_sq = err_max = dist = eon = starts = lim_s = traction = 0.0
     was_on = False
+    own_drive = plug_drives(plug)
     for k in range(n):
         bat, hk = battery_begin(soc, h, ptab, pk)
         ocv = bat[0]
         e_soc = q_as * ocv if has_battery else 1.0
-        v1 = v_des[k + 1]
-        v_mid, a, g, f = demand(v, v1, k, dt, gr, h)
-        found, c0, c1, filled, fuel_kg, d_soc = plug_choose(
-            plug, state, work, v_mid, v_mid / r, f * r, soc, dt, e_soc, bat, hk
-        )
-        limited = 0.0
-        if not found:  # beyond the powertrain: lower the end speed until a control exists
-            limited = 1.0
-            lo, hi, have = 0.0, v1, False
-            bv = ba = bg = bf = bc0 = bc1 = 0.0
-            for _ in range(BISECTION_STEPS):
-                mid = 0.5 * (lo + hi)
-                tv, ta, tg, tf = demand(v, mid, k, dt, gr, h)
-                ok, x0, x1, _, _, _ = plug_choose(
-                    plug, state, work, tv, tv / r, tf * r, soc, dt, e_soc, bat, hk
-                )
-                if not ok:
-                    hi = mid
-                else:
-                    lo, have = mid, True
-                    bv, ba, bg, bf, bc0, bc1 = tv, ta, tg, tf, x0, x1
-            if not have:
-                bv, ba, bg, bf = demand(v, 0.0, k, dt, gr, h)
-                ok, bc0, bc1, _, _, _ = plug_choose(
-                    plug, state, work, bv, bv / r, bf * r, soc, dt, e_soc, bat, hk
-                )
-                if not ok and bf > 0.0 and has_pack:  # coast to rest (forward._run, with a pack)
-                    bf = 0.0
+        if own_drive:  # the plug-in's driver and vehicle dynamics, with its road audit
+            ok, v1, v_mid, a, g, f, limited, fuel_kg, d_soc = plug_drive(
+                plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, has_pack, audit
+            )
+            if not ok:
+                return ERR_STUCK, k, v, traction * dt
+        else:  # the loop's driver: the cycle's next speed (eq 32), the plug-in's choice, a bisection
+            v1 = v_des[k + 1]
+            v_mid, a, g, f = demand(v, v1, k, dt, gr, h)
+            found, c0, c1, filled, fuel_kg, d_soc = plug_choose(
+                plug, state, work, v_mid, v_mid / r, f * r, soc, dt, e_soc, bat, hk
+            )
+            limited = 0.0
+            if not found:  # beyond the powertrain: lower the end speed until a control exists
+                limited = 1.0
+                lo, hi, have = 0.0, v1, False
+                bv = ba = bg = bf = bc0 = bc1 = 0.0
+                for _ in range(BISECTION_STEPS):
+                    mid = 0.5 * (lo + hi)
+                    tv, ta, tg, tf = demand(v, mid, k, dt, gr, h)
+                    ok, x0, x1, _, _, _ = plug_choose(
+                        plug, state, work, tv, tv / r, tf * r, soc, dt, e_soc, bat, hk
+                    )
+                    if not ok:
+                        hi = mid
+                    else:
+                        lo, have = mid, True
+                        bv, ba, bg, bf, bc0, bc1 = tv, ta, tg, tf, x0, x1
+                if not have:
+                    bv, ba, bg, bf = demand(v, 0.0, k, dt, gr, h)
                     ok, bc0, bc1, _, _, _ = plug_choose(
                         plug, state, work, bv, bv / r, bf * r, soc, dt, e_soc, bat, hk
                     )
-                if not ok:
-                    return ERR_STUCK, k, v, traction * dt
-            v_mid, a, g, f, c0, c1 = bv, ba, bg, bf, bc0, bc1
-            v1 = v_mid * 2.0 - v
-            filled = False
-        if not filled:  # the chosen control's details and audit powers
-            fuel_kg, d_soc = plug_point(plug, state, work, c0, c1, v_mid, v_mid / r, f * r, soc, dt, bat, hk)
+                    if not ok and bf > 0.0 and has_pack:  # coast to rest (forward._run, with a pack)
+                        bf = 0.0
+                        ok, bc0, bc1, _, _, _ = plug_choose(
+                            plug, state, work, bv, bv / r, bf * r, soc, dt, e_soc, bat, hk
+                        )
+                    if not ok:
+                        return ERR_STUCK, k, v, traction * dt
+                v_mid, a, g, f, c0, c1 = bv, ba, bg, bf, bc0, bc1
+                v1 = v_mid * 2.0 - v
+                filled = False
+            if not filled:  # the chosen control's details and audit powers
+                fuel_kg, d_soc = plug_point(
+                    plug, state, work, c0, c1, v_mid, v_mid / r, f * r, soc, dt, bat, hk
+                )
         on, mode, p_bat, i_bat, p_wheel = plug_commit(
             plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack
         )
@@ -457,16 +554,18 @@ def run_loop(plug, soc0, t, v_des, gr, h, ptab, state, work, det, loss, ext, slo
             e_chem = -d_soc * q_as * ocv
             audit[2] += e_chem
             audit[i_batloss] += e_chem - p_bat * dt
-        add_road_audit(
-            audit, v, v1, v_mid, a, g, f, h.mass_kg, m_eff, h.rolling_resistance,
-            h.rolling_resistance_speed_s_per_m, dt,
-        )  # fmt: skip
+        if not own_drive:
+            add_road_audit(
+                audit, v, v1, v_mid, a, g, f, h.mass_kg, m_eff, h.rolling_resistance,
+                h.rolling_resistance_speed_s_per_m, dt,
+            )  # fmt: skip
         # ---- bookkeeping
-        if on and not was_on:
+        running, fired = engine_state(on)
+        if running and not was_on:
             starts += 1.0
-        was_on = on
+        was_on = running
         fuel += fuel_kg
-        eon += dt if on else 0.0
+        eon += dt if fired else 0.0
         err_sq, err_max, dist, lim_s = track_step(
             v_des[k] - v, v_mid, dt, limited, err_sq, err_max, dist, lim_s
         )

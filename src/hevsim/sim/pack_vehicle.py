@@ -8,9 +8,10 @@ voltage-limited cells lower them, so the supervisory controller sees the availab
 the cooling loop's electrical load; after the step the pack advances with the actual current
 and the ambient temperature.
 
-* **Series HEV**: the compiled kernel (:func:`hevsim.sim.kernel.run_series`) with the battery
-  kind ``"pack"``: the pack's compiled step (:mod:`hevsim.battery.pack_run`) inside the
-  kernel's loop (:mod:`hevsim.battery.vehicle`, section 3), one compiled loop with no Python
+* **Series HEV**: the one compiled loop with the series plug-in
+  (:func:`hevsim.sim._compiled_series.run_compiled`) and the battery kind ``"pack"``: the
+  pack's compiled step (:mod:`hevsim.battery.pack_run`) inside the plug-in's step
+  (:mod:`hevsim.battery.vehicle`, section 3), one compiled loop with no Python
   per step.
 * **Parallel HEV, power split, BEV, FCEV**: the one compiled forward loop
   (:func:`hevsim.sim._loop.run_loop`, the architecture's plug-in) with the same compiled
@@ -216,6 +217,7 @@ def _simulate_series(model: Any, cyc: DriveCycle, dt: float, soc0: float, run: P
 
     from hevsim.battery.vehicle import pack_kernel_tables
     from hevsim.sim import kernel as K
+    from hevsim.sim._compiled_series import run_compiled
     from hevsim.sim.checks import check_domain, check_metrics
     from hevsim.sim.simulator import _assemble, kernel_inputs
 
@@ -226,7 +228,7 @@ def _simulate_series(model: Any, cyc: DriveCycle, dt: float, soc0: float, run: P
     run.pack.reserve(len(cyc.time_s))
     args = (*args[:4], pack_kernel_tables(run, p, dt), *args[5:])
     t1 = time.perf_counter()
-    K.run_series(*args)  # the pack's compiled step inside the kernel's loop
+    run_compiled(*args)  # the pack's compiled step inside the series plug-in of the one loop
     t2 = time.perf_counter()
     out, energy, summary = args[-3], args[-2], args[-1]
     label = f"{hev.name} on {cyc.name}"

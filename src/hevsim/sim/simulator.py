@@ -16,6 +16,7 @@ import pandas as pd
 
 import hevsim
 from hevsim.architectures import architecture
+from hevsim.architectures.series import SeriesHEV
 from hevsim.battery.cell import soc_outside
 from hevsim.components.engine import Engine
 from hevsim.config import (
@@ -29,6 +30,7 @@ from hevsim.errors import ConfigError, DomainError, TrackingError
 from hevsim.fuels import config_fuel
 from hevsim.io import atomic_directory, write_json
 from hevsim.sim import kernel as K
+from hevsim.sim._compiled_series import run_batch, run_compiled
 from hevsim.sim.checks import (
     TRACKING_BOUND,
     TrackingBound,
@@ -38,7 +40,6 @@ from hevsim.sim.checks import (
     tracking_violation,
 )
 from hevsim.sim.metrics import compute_metrics, energy_audit, soc_correction_ocv
-from hevsim.sim.model import SeriesHEV
 from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM, c_to_k
 
 CSV_AUTO_MAX_ROWS = 50_000
@@ -522,7 +523,7 @@ def simulate(
     assert not isinstance(model, str | Path)  # a path was loaded above
     hev, cyc, dt, args = kernel_inputs(model, cycle, dt_s, soc_initial, schedule)
     t_kernel = time.perf_counter()
-    K.run_series(*args)
+    run_compiled(*args)
     t_done = time.perf_counter()
     p, out, energy, summary = args[0], args[-3], args[-2], args[-1]
     label = f"{hev.name} on {cyc.name}"
@@ -719,9 +720,7 @@ def simulate_batch(
     summary = np.zeros((n, len(K.SUMMARY)))
     t0 = time.perf_counter()
     sched = _plugins(hev, grid, None, pmat)
-    K.run_series_batch(
-        pmat, eng, mot, gen, bat, sched, grid.time_s, grid.speed_mps, grid.grade, energy, summary
-    )
+    run_batch(pmat, eng, mot, gen, bat, sched, grid.time_s, grid.speed_mps, grid.grade, energy, summary)
     elapsed = time.perf_counter() - t0
     density, heating, co2, _ = _energy_keys(hev)
     rows = []
