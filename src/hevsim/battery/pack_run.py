@@ -808,6 +808,43 @@ def _pick_hot_rows(s, m, up, lo, eps, k, n_eval):
     return nh
 
 
+@njit(cache=True, inline="always")
+def _evaluate_above(g, wm, up, rows, count, j_top, top, t_ref, eps):
+    """The exact part of one module's screen.
+
+    Evaluates row ``j_top`` (the one of the largest bound ``top``), then every row
+    (``rows[:count]``, or rows ``0 .. count-1`` when ``rows`` is None) whose bound ``up[j]``
+    [K, relative to ``t_ref``] exceeds the best value so far minus ``t_ref`` plus the slack
+    ``eps`` [K], and marks the evaluated rows :data:`_EVALUATED` in ``up``. Returns (the best
+    row value [K], the largest bound of the rows not evaluated [K, relative to ``t_ref``;
+    ``top`` when no other row was needed], the number of rows evaluated).
+    """
+    best = _dot(g[j_top], wm)
+    evaluated = 1
+    cut = best - t_ref + eps
+    left = top  # bounds every row not evaluated (j_top's own bound included)
+    if top > cut:
+        left = _EVALUATED
+        for i in range(count):
+            if rows is None:
+                j = i
+            else:
+                j = rows[i]
+            if j == j_top:
+                continue
+            if up[j] > cut:
+                y = _dot(g[j], wm)
+                evaluated += 1
+                up[j] = _EVALUATED
+                if y > best:
+                    best = y
+                    cut = best - t_ref + eps
+            else:
+                left = max(left, up[j])
+    up[j_top] = _EVALUATED
+    return best, left, evaluated
+
+
 @njit(cache=True)
 def _module_hot_spots_within(s, w, hot):
     """Per-module hot spot [K] within the slack ``eps = f[F_HSEPS]`` (> 0) of the largest
@@ -920,26 +957,8 @@ def _module_hot_spots_within(s, w, hot):
             nh = int(kp[KP_NHOT])
             top, j_top = _hot_rows_bounds(hl, nh, s.hs_gbt32, c32, k, gn, s.hs_gres, big, rnx, small, up)
             singles += nh
-            best = _dot(g[j_top], w[m])
-            doubles += 1
-            cut = best - t_ref + eps
-            left = top  # bounds every row not evaluated (j_top's own bound included)
-            if top > cut:
-                left = _EVALUATED
-                for i in range(nh):
-                    j = hl[i]
-                    if j == j_top:
-                        continue
-                    if up[j] > cut:
-                        y = _dot(g[j], w[m])
-                        doubles += 1
-                        up[j] = _EVALUATED
-                        if y > best:
-                            best = y
-                            cut = best - t_ref + eps
-                    else:
-                        left = max(left, up[j])
-            up[j_top] = _EVALUATED
+            best, left, evaluated = _evaluate_above(g, w[m], up, hl, nh, j_top, top, t_ref, eps)
+            doubles += evaluated
             if cold <= best + eps:
                 kept = True
                 f[F_HSGAP] = max(f[F_HSGAP], left + t_ref - best, cold - best)
@@ -959,25 +978,8 @@ def _module_hot_spots_within(s, w, hot):
             j_top = 0  # the row of the largest bound (the first of them)
             while j_top < n - 1 and up[j_top] < top:
                 j_top += 1
-            best = _dot(g[j_top], w[m])
-            doubles += 1
-            cut = best - t_ref + eps
-            left = top  # bounds every row not evaluated (j_top's own bound included)
-            if top > cut:
-                left = _EVALUATED
-                for j in range(n):
-                    if j == j_top:
-                        continue
-                    if up[j] > cut:
-                        y = _dot(g[j], w[m])
-                        doubles += 1
-                        up[j] = _EVALUATED
-                        if y > best:
-                            best = y
-                            cut = best - t_ref + eps
-                    else:
-                        left = max(left, up[j])
-            up[j_top] = _EVALUATED
+            best, left, evaluated = _evaluate_above(g, w[m], up, None, n, j_top, top, t_ref, eps)
+            doubles += evaluated
             f[F_HSGAP] = max(f[F_HSGAP], left + t_ref - best)
             hot[m] = best
             f[F_HSSCREENS] += 1.0
