@@ -9,6 +9,7 @@ docs/validation.md).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -277,24 +278,32 @@ def test_fit_recovers_known_weights() -> None:
     assert got == pytest.approx(true.weights(), rel=1e-6, abs=1e-6)
 
 
-def test_fit_gives_each_transmission_class_its_ftp_term() -> None:
-    """Runs of two transmission classes whose measured fuel carries different FTP terms (3e9 and
-    5e9 J/m^3, the same map otherwise): the fit recovers both, the fallback ``cold_start`` is their
-    mean weighted by FTP runs (10 and 30: 4.5e9), and the prediction of each run uses its own."""
-    rng = np.random.default_rng(2)
-    point = np.array([2.4, 3e4, 0, 9e3, 0, 0.1, 0, 0, 2500.0])
+def _two_class_runs(seed: int, fuel_j: Callable[[str, np.ndarray], float]) -> list[Any]:
+    """80 synthetic training runs over 12 km: the first 20 of transmission class "a", the rest
+    "b"; random positive features (the generator seeded ``seed``), every other run a HWY run
+    (no FTP feature); each one's measured mpg from ``fuel_j(class, features)`` [J]."""
+    rng = np.random.default_rng(seed)
     runs = []
     for i in range(80):
-        cls, term = ("a", 3e9) if i < 20 else ("b", 5e9)
+        cls = "a" if i < 20 else "b"
         f = np.abs(rng.normal(size=len(T.FEATURES))) * np.array(
             [2e7, 300, 300, 300, 300, 50, 50, 2e7, 1000, 1e-3]
         )
         if i % 2:
             f[-1] = 0.0  # a HWY run
         dist = 12000.0
-        fuel_j = float(f[:-1] @ point) + term * f[-1]
-        mpg = dist / 1609.344 / (fuel_j / T.gallon_energy_j())
+        mpg = dist / 1609.344 / (fuel_j(cls, f) / T.gallon_energy_j())
         runs.append(T.TestRun(None, "FTP" if f[-1] else "HWY", str(i), mpg, mpg, f, dist, "train", cls))  # type: ignore[arg-type]
+    return runs
+
+
+def test_fit_gives_each_transmission_class_its_ftp_term() -> None:
+    """Runs of two transmission classes whose measured fuel carries different FTP terms (3e9 and
+    5e9 J/m^3, the same map otherwise): the fit recovers both, the fallback ``cold_start`` is their
+    mean weighted by FTP runs (10 and 30: 4.5e9), and the prediction of each run uses its own."""
+    point = np.array([2.4, 3e4, 0, 9e3, 0, 0.1, 0, 0, 2500.0])
+    term = {"a": 3e9, "b": 5e9}
+    runs = _two_class_runs(2, lambda cls, f: float(f[:-1] @ point) + term[cls] * f[-1])
     got = T.fit(runs)
     assert got.weights()[:-1] == pytest.approx(point, rel=1e-6, abs=1e-6)
     assert got.cold_start("a") == pytest.approx(3e9, rel=1e-6)
@@ -310,20 +319,9 @@ def test_fit_gives_each_transmission_class_its_brake_work_weight(tmp_path: Path)
     same map otherwise): the fit recovers both, the fallback ``brake_work`` is their mean weighted
     by runs (20 and 60: 2.5), each run's prediction uses its own, and the engine map written for
     a car of a class is the map of that class's weights."""
-    rng = np.random.default_rng(3)
     rest = np.array([3e4, 0, 9e3, 0, 0.1, 0, 0, 2500.0])
-    runs = []
-    for i in range(80):
-        cls, bw = ("a", 2.2) if i < 20 else ("b", 2.6)
-        f = np.abs(rng.normal(size=len(T.FEATURES))) * np.array(
-            [2e7, 300, 300, 300, 300, 50, 50, 2e7, 1000, 1e-3]
-        )
-        if i % 2:
-            f[-1] = 0.0
-        dist = 12000.0
-        fuel_j = bw * f[0] + float(f[1:-1] @ rest) + 4e9 * f[-1]
-        mpg = dist / 1609.344 / (fuel_j / T.gallon_energy_j())
-        runs.append(T.TestRun(None, "FTP" if f[-1] else "HWY", str(i), mpg, mpg, f, dist, "train", cls))  # type: ignore[arg-type]
+    bw = {"a": 2.2, "b": 2.6}
+    runs = _two_class_runs(3, lambda cls, f: bw[cls] * f[0] + float(f[1:-1] @ rest) + 4e9 * f[-1])
     got = T.fit(runs)
     assert got.brake_work("a") == pytest.approx(2.2, rel=1e-6)
     assert got.brake_work("b") == pytest.approx(2.6, rel=1e-6)
