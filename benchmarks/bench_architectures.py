@@ -92,6 +92,7 @@ def main() -> int:
             ratio = f"{med / fastsim_s:9.1f}" if fastsim_s else f"{'-':>9}"
             print(f"{label + '/py':<16}{cfg.controller.kind:<17}{1:>11}{med:>10.3f}{ratio}")
         _hev_rows(REPO, cyc, a.repeats, fastsim_s)
+        _entry_rows(REPO, cyc, max(a.repeats, 5), fastsim_s)
     print(load.text())
     return 0
 
@@ -133,6 +134,48 @@ def _hev_rows(repo: Path, cyc: object, repeats: int, fastsim_s: float | None) ->
             ratio = f"{med / fastsim_s:9.2f}" if fastsim_s else f"{'-':>9}"
             name = kind if compiled else f"{kind} (py)"
             print(f"{label:<16}{name:<17}{n:>11}{med:>10.3f}{statistics.median(cpu):>9.3f}{ratio}")
+
+
+ENTRY_ROWS = {
+    "series": "examples/series_hev.toml",
+    "parallel (P3)": "examples/parallel_hev.toml",
+    "conventional": "examples/conventional_sedan.toml",
+    "bev": "examples/bev.toml",
+    "power split": "examples/prius_like_power_split.toml",
+    "fcev": "examples/fcev.toml",
+}
+"""Vehicles timed through the one entry point ``hevsim.simulate`` (issue 24's speed goals)."""
+
+
+def _entry_rows(repo: Path, cyc: object, repeats: int, fastsim_s: float | None) -> None:
+    """Print, for each of :data:`ENTRY_ROWS` with its configured (rule-based) controller, the
+    median wall time of ``hevsim.simulate`` on UDDS from a built model and loaded cycle, and
+    from the file's path with the cycle's name (the parsed-file cache warm: the second call on),
+    with their ratios to FASTSim's ``run_once()`` (issue 24: <= 0.1 and <= 0.2)."""
+    import hevsim
+    from hevsim import config as C
+    from hevsim.architectures import architecture
+
+    def median_s(call: object) -> float:
+        call()  # type: ignore[operator]  # warm-up (compiled code, caches)
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            call()  # type: ignore[operator]
+            times.append(time.perf_counter() - t0)
+        return statistics.median(times)
+
+    print("hevsim.simulate, rule-based controller, UDDS (median ms; ratio to FASTSim run_once())")
+    print(f"{'vehicle':<16}{'built model':>12}{'ratio':>8}{'from path':>11}{'ratio':>8}")
+    for label, rel in ENTRY_ROWS.items():
+        path = repo / rel
+        cfg = C.load_vehicle_config(path)
+        model = architecture(cfg.architecture).build(cfg)
+        built = median_s(lambda m=model: hevsim.simulate(m, cyc))
+        from_path = median_s(lambda p=str(path): hevsim.simulate(p, "udds"))
+        r1 = f"{built / fastsim_s:8.3f}" if fastsim_s else f"{'-':>8}"
+        r2 = f"{from_path / fastsim_s:8.3f}" if fastsim_s else f"{'-':>8}"
+        print(f"{label:<16}{built * 1e3:>12.2f}{r1}{from_path * 1e3:>11.2f}{r2}")
 
 
 if __name__ == "__main__":
