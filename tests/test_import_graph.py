@@ -144,6 +144,7 @@ def test_report_sits_with_cosim_and_studies_above_sim_and_optimal() -> None:
 def test_results_find_the_report_plotters_without_importing_report_first() -> None:
     """``import hevsim`` imports neither the report layer nor pandas/matplotlib; the first
     look-up of a plotter imports hevsim.report, whose registered functions draw the plots."""
+    import json
     import subprocess
     import sys
 
@@ -155,7 +156,7 @@ def test_results_find_the_report_plotters_without_importing_report_first() -> No
         "print(json.dumps([before, p.__module__ + '.' + p.__name__, q.__module__ + '.' + q.__name__]))\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    before, sim_plotter, dp_plotter = __import__("json").loads(out.stdout)
+    before, sim_plotter, dp_plotter = json.loads(out.stdout)
     assert before == []
     assert sim_plotter == "hevsim.report.plot_simulation"
     assert dp_plotter == "hevsim.report.dp_plots.plot_optimum"
