@@ -82,7 +82,7 @@ def _plots_in_process(repeats: int, tmp: Path) -> tuple[float, float]:
     result = simulate(cfg, load_cycle("udds"))
     result = pickle.loads(pickle.dumps(result))
 
-    fast_figure, fast_grid = P._figure, P._grid
+    fast_figure, fast_grid = P.figure, P.grid  # (hevsim.figures' helpers, as report.plots calls them)
 
     def old_figure(nrows: int = 1, ncols: int = 1, margins_in: object = None, **kw: object) -> object:
         kw.pop("wspace", None)
@@ -100,13 +100,13 @@ def _plots_in_process(repeats: int, tmp: Path) -> tuple[float, float]:
         return time.perf_counter() - t0
 
     def old() -> float:
-        P._figure, P._grid = old_figure, old_grid  # type: ignore[assignment]
+        P.figure, P.grid = old_figure, old_grid  # type: ignore[assignment]
         try:
             t0 = time.perf_counter()
             P.plot_all(result, tmp / "old")
             return time.perf_counter() - t0
         finally:
-            P._figure, P._grid = fast_figure, fast_grid
+            P.figure, P.grid = fast_figure, fast_grid
 
     new()
     old()

@@ -14,6 +14,7 @@ from __future__ import annotations
 import ast
 import re
 from pathlib import Path
+from typing import Any
 
 import grimp
 import pytest
@@ -100,6 +101,72 @@ def test_battery_and_thermal_import_no_vehicle_layer() -> None:
                 if t.startswith(("hevsim.sim", "hevsim.optimal", "hevsim.control", "hevsim.architectures")):
                     bad.append(f"{m} -> {t}")
     assert bad == []
+
+
+def _layers_contract() -> dict[str, Any]:
+    """The import-linter layers contract of pyproject.toml (its ``layers``: top first)."""
+    import tomllib
+
+    cfg = tomllib.loads((SRC.parents[1] / "pyproject.toml").read_text(encoding="utf-8"))
+    (contract,) = [c for c in cfg["tool"]["importlinter"]["contracts"] if c["type"] == "layers"]
+    return dict(contract)
+
+
+def _layer_of(module: str, layers: list[str]) -> int:
+    """Index (0 = top) of the layer holding ``module`` (siblings are split on ``|`` or ``:``)."""
+    (i,) = [i for i, layer in enumerate(layers) if module in re.split(r"\s*[|:]\s*", layer.strip())]
+    return i
+
+
+BELOW_REPORT = ("sim", "optimal", "control", "architectures", "components", "battery", "thermal")
+
+
+def test_report_sits_with_cosim_and_studies_above_sim_and_optimal() -> None:
+    """DESIGN.md's picture and issue 24 item 6: ``cosim · studies · report`` over ``sim ·
+    optimal``, under cli; and no module of a lower package reaches ``hevsim.report`` by any
+    chain of imports (function-level ones included): a result saves its plots through the
+    plotters of :mod:`hevsim.figures`, which report registers."""
+    contract = _layers_contract()
+    layers = contract["layers"]
+    at = {m: _layer_of(f"hevsim.{m}", layers) for m in ("cli", "cosim", "studies", "report", *BELOW_REPORT)}
+    assert at["cli"] < at["report"] == at["cosim"] == at["studies"]
+    assert all(at["report"] < at[m] for m in BELOW_REPORT), at
+    assert "sim, optimal < cosim, studies, report <" in contract["name"]  # its name says so too
+    g = grimp.build_graph("hevsim")
+    reach = [
+        m
+        for m in BELOW_REPORT
+        if g.chain_exists(importer=f"hevsim.{m}", imported="hevsim.report", as_packages=True)
+    ]
+    assert reach == [], f"these packages import hevsim.report (directly or through others): {reach}"
+
+
+def test_results_find_the_report_plotters_without_importing_report_first() -> None:
+    """``import hevsim`` imports neither the report layer nor pandas/matplotlib; the first
+    look-up of a plotter imports hevsim.report, whose registered functions draw the plots."""
+    import json
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, json, hevsim\n"
+        "from hevsim.figures import plotter\n"
+        "before = [m for m in ('hevsim.report', 'pandas', 'matplotlib') if m in sys.modules]\n"
+        "p, q = plotter('simulation'), plotter('optimum')\n"
+        "print(json.dumps([before, p.__module__ + '.' + p.__name__, q.__module__ + '.' + q.__name__]))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    before, sim_plotter, dp_plotter = json.loads(out.stdout)
+    assert before == []
+    assert sim_plotter == "hevsim.report.plot_simulation"
+    assert dp_plotter == "hevsim.report.dp_plots.plot_optimum"
+
+
+def test_an_unknown_plotter_is_named() -> None:
+    from hevsim.figures import plotter
+
+    with pytest.raises(LookupError, match=r"'no-such-kind'.*known: \[.*'optimum'.*'simulation'"):
+        plotter("no-such-kind")
 
 
 REGISTRY = SRC / "architectures" / "__init__.py"

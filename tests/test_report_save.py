@@ -11,6 +11,7 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
+from hevsim import figures
 from hevsim.report import plots
 from hevsim.report.save import save_png
 from hevsim.thermal import pictures
@@ -19,6 +20,7 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 SAVES: dict[str, Callable[[Any, Path], Path]] = {
     "save_png": lambda fig, path: save_png(fig, path, 72),
+    "figures.save": figures.save,
     "report.plots._save": plots._save,
     "thermal.pictures._save": pictures._save,
 }

@@ -150,9 +150,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _plot_hot_lap(mods: pd.DataFrame, path: Path) -> None:
-    from hevsim.report.plots import _figure, _grid, _save
+    from hevsim.figures import figure, grid, save
 
-    fig, axes = _figure(1, 2, figsize=(12.0, 4.5), sharey=True)
+    fig, axes = figure(1, 2, figsize=(12.0, 4.5), sharey=True)
     for ax, (amb, grp) in zip(np.atleast_1d(axes), mods.groupby("ambient_c"), strict=False):
         cols = [c for c in grp if c.startswith("module")]
         temps = grp[cols].to_numpy() - 273.15
@@ -161,10 +161,10 @@ def _plot_hot_lap(mods: pd.DataFrame, path: Path) -> None:
         ax.axhline(45.0, color="k", ls=":", lw=0.8, label="derating starts (45 degC)")
         ax.set_title(f"hot lap at {amb:g} degC ambient")
         ax.set_xlabel("time [s]")
-        _grid(ax)
+        grid(ax)
     np.atleast_1d(axes)[0].set_ylabel("cell temperature [degC]")
     np.atleast_1d(axes)[0].legend()
-    _save(fig, path)
+    save(fig, path)
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ gallons and BTU happen only at the edges (input files and reports).
 from pathlib import Path as _Path
 
 from hevsim._numba_cache import configure_before_numba as _configure_numba_cache
+from hevsim.figures import provide_plotters as _provide_plotters
 
 __version__ = "0.1.0"
 
@@ -28,3 +29,9 @@ def __getattr__(name: str) -> object:
 
 
 _configure_numba_cache(_Path(__file__).resolve().parent, __version__)
+
+# The report layer draws the figures and report.md of a saved result (``result.save(out,
+# plots=True)`` in sim/ and optimal/): it registers its plotters with hevsim.figures when
+# imported, which the first look-up does by this name. The results thus never import report/
+# (it sits above them in the layers contract), and ``import hevsim`` stays light.
+_provide_plotters("hevsim.report")

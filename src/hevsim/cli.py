@@ -660,8 +660,8 @@ def _cmd_age(args: argparse.Namespace) -> int:
     from hevsim.battery.ageing import SOH_DEFINITION, age_cell
     from hevsim.battery.config import load_config as load_cell_config
     from hevsim.battery.config import profile_current
+    from hevsim.figures import figure, grid, save
     from hevsim.io import atomic_directory
-    from hevsim.report.plots import _figure, _grid, _save
     from hevsim.schema import check_value
 
     check_value(args.repetitions, int, "", "", {}, {}, {"bounds": (1, 10**7)}, where="--repetitions")
@@ -684,7 +684,7 @@ def _cmd_age(args: argparse.Namespace) -> int:
     with atomic_directory(out) as tmp:
         table.to_csv(tmp / "ageing.csv", index=False, float_format="%.6g")
         (tmp / "soh_definition.txt").write_text(SOH_DEFINITION + "\n", encoding="utf-8")
-        fig, (ax1, ax2) = _figure(2, 1, figsize=(9.0, 6.0), sharex=True)
+        fig, (ax1, ax2) = figure(2, 1, figsize=(9.0, 6.0), sharex=True)
         ax1.plot(table["time_days"], 100 * table["capacity_fraction"], label="capacity")
         ax1.plot(table["time_days"], 100 * table["resistance_fraction"], label="resistance")
         ax1.set_ylabel("% of new")
@@ -693,9 +693,9 @@ def _cmd_age(args: argparse.Namespace) -> int:
         ax2.set_ylabel("SOH [-] (1 new, 0 end of life)")
         ax2.set_xlabel("time [days]")
         for ax in (ax1, ax2):
-            _grid(ax)
+            grid(ax)
         ax1.set_title(f"Ageing of {cfg.cell.parameters}: {args.repetitions} repetitions of the profile")
-        _save(fig, tmp / "ageing.png")
+        save(fig, tmp / "ageing.png")
     last = table.iloc[-1]
     print(
         f"after {last['time_days']:.0f} days, {last['throughput_ah']:.0f} A·h: capacity "

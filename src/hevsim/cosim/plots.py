@@ -35,17 +35,17 @@ SERIES = (
 
 
 def _series_figure(res: Any, component: str, cols: tuple[tuple[str, str], ...], path: Path) -> Path:
-    from hevsim.report.plots import _figure, _grid, _save
+    from hevsim.figures import figure, grid, save
 
-    fig, axes = _figure(len(cols), 1, figsize=(9.0, 2.6 * len(cols)), sharex=True, squeeze=False)
+    fig, axes = figure(len(cols), 1, figsize=(9.0, 2.6 * len(cols)), sharex=True, squeeze=False)
     for ax, (var, label) in zip(axes[:, 0], cols, strict=True):
         y = np.asarray(res[f"{component}.{var}"], float)
         ax.plot(res.time_s, y - (KELVIN_OFFSET if var.endswith("_k") else 0.0))
         ax.set_ylabel(label)
-        _grid(ax)
+        grid(ax)
     axes[0, 0].set_title(f"{component}")
     axes[-1, 0].set_xlabel("time [s]")
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def plot_cosim(res: Any, desc: Any, out_dir: str | Path) -> list[Path]:

@@ -39,6 +39,7 @@ from hevsim.components.engine import Engine
 from hevsim.config import SOC_INITIAL_FROM_SIMULATION, is_plugin, load_vehicle_config
 from hevsim.cycles import DriveCycle, load_cycle
 from hevsim.errors import ConfigError, DPInfeasibleError, DPSetupError
+from hevsim.figures import plotter
 from hevsim.io import atomic_directory, write_json
 from hevsim.optimal._feedback import dp_feedback
 from hevsim.optimal._hev_common import DETAIL_COLUMNS, HEVFormulation, hev_metrics
@@ -287,7 +288,8 @@ class OptimizationResult:
     def save(self, out_dir: str | Path, plots: bool = False) -> Path:
         """Write the results folder atomically: timeseries.parquet / .csv, metrics.json,
         costate.csv, metadata.json, config.json and, when kept, cost_to_go.npz (time x SOC);
-        with ``plots`` also the figures of :func:`hevsim.report.dp_plots.plot_optimum`.
+        with ``plots`` also the figures of :func:`hevsim.report.dp_plots.plot_optimum` (the
+        ``"optimum"`` plotter of :mod:`hevsim.figures`, which :mod:`hevsim.report` registers).
 
         Files are written to a temporary sibling folder that is renamed into place, so an
         interrupted run leaves no partial folder. An existing folder is replaced.
@@ -306,10 +308,8 @@ class OptimizationResult:
                     soc=self.soc_grid,
                     time_s=self.timeseries["time_s"].to_numpy(),
                 )
-            if plots:
-                from hevsim.report.dp_plots import plot_optimum
-
-                plot_optimum(self, tmp)
+            if plots:  # the report layer's plotter (hevsim.report.dp_plots.plot_optimum)
+                plotter("optimum")(self, tmp)
         return Path(out_dir)
 
 

@@ -13,13 +13,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from hevsim.figures import figure, grid, save
 from hevsim.report.plots import (
     W_PER_KW,
     _bsfc_levels,
     _col,
-    _figure,
-    _grid,
-    _save,
     _time,
     bsfc_grid,
     fuel_rate_kgps,
@@ -35,7 +33,7 @@ def plot_soc_trajectory(
     soc_target: Sequence[float] | None = None,
 ) -> Path:
     """Optimal SOC vs time (fig 3.1) with the allowed window and the final target."""
-    fig, ax = _figure(figsize=(10.0, 4.5))
+    fig, ax = figure(figsize=(10.0, 4.5))
     t = _time(ts)
     soc = _col(ts, "soc") * 100.0
     if soc_window is not None:
@@ -61,13 +59,13 @@ def plot_soc_trajectory(
     ax.set_xlabel("time [s]")
     ax.set_ylabel("SOC [%]")
     ax.legend(loc="best", fontsize="small")
-    _grid(ax)
-    return _save(fig, path)
+    grid(ax)
+    return save(fig, path)
 
 
 def plot_power_split(ts: pd.DataFrame, path: str | Path) -> Path:
     """Power required at the wheels vs supplied by the engine and the battery (fig 3.2) [kW]."""
-    fig, (ax, ax2) = _figure(2, 1, figsize=(11.0, 6.5), sharex=True, height_ratios=[3, 1])
+    fig, (ax, ax2) = figure(2, 1, figsize=(11.0, 6.5), sharex=True, height_ratios=[3, 1])
     t = _time(ts)
     req = _col(ts, "power_required_w") / W_PER_KW
     ax.fill_between(t, 0.0, req, step="post", color="0.75", label="required at wheels")
@@ -97,37 +95,37 @@ def plot_power_split(ts: pd.DataFrame, path: str | Path) -> Path:
     ax.set_ylabel("power [kW]")
     ax.set_title("Power required vs supplied and recovered along the optimum")
     ax.legend(loc="upper right", fontsize="small", ncols=2)
-    _grid(ax)
+    grid(ax)
     if "speed_mps" in ts.columns:
         ax2.plot(t, _col(ts, "speed_mps") * 3.6, color="k", lw=1.0)
         ax2.set_ylabel("speed [km/h]")
-    _grid(ax2)
+    grid(ax2)
     ax2.set_xlabel("time [s]")
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def plot_gear(ts: pd.DataFrame, path: str | Path) -> Path:
     """Optimal gear vs time, with the share of time in each gear."""
-    fig, (ax, ax2) = _figure(1, 2, figsize=(12.0, 4.0), width_ratios=[4, 1])
+    fig, (ax, ax2) = figure(1, 2, figsize=(12.0, 4.0), width_ratios=[4, 1])
     t = _time(ts)
     gear = _col(ts, "gear")
     ax.step(t, gear, where="post", color="tab:purple", lw=1.0)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("gear")
     ax.set_title("Optimal gear")
-    _grid(ax)
+    grid(ax)
     moving = _col(ts, "speed_mps") > 0 if "speed_mps" in ts.columns else np.ones(t.size, bool)
     gears = np.unique(gear[moving & (gear > 0)]).astype(int)
     share = [100.0 * float(np.mean(gear[moving] == g)) for g in gears]
     ax2.barh([str(g) for g in gears], share, color="tab:purple")
     ax2.set_xlabel("% of moving time")
-    _grid(ax2)
-    return _save(fig, path)
+    grid(ax2)
+    return save(fig, path)
 
 
 def plot_operating_points_by_gear(ts: pd.DataFrame, engine: Any, path: str | Path) -> Path:
     """Engine operating points on the BSFC map [g/kWh], coloured by the optimal gear."""
-    fig, ax = _figure(figsize=(9.5, 6.5))
+    fig, ax = figure(figsize=(9.5, 6.5))
     w, trq, bsfc = bsfc_grid(engine)
     rpm = w / RADPS_PER_RPM
     if np.isfinite(bsfc).any():
@@ -151,8 +149,8 @@ def plot_operating_points_by_gear(ts: pd.DataFrame, engine: Any, path: str | Pat
     ax.set_ylabel("engine torque [N·m]")
     ax.set_title(f"Optimal engine operating points by gear on the BSFC map (g/kWh)\n{engine.name}")
     ax.legend(loc="lower right", fontsize="small")
-    _grid(ax)
-    return _save(fig, path)
+    grid(ax)
+    return save(fig, path)
 
 
 def plot_cost_to_go(
@@ -168,7 +166,7 @@ def plot_cost_to_go(
     ``cost_to_go`` [kg] has shape (len(time_s), len(soc_grid)); infeasible nodes (inf) are
     left blank.
     """
-    fig, ax = _figure(figsize=(11.0, 5.5))
+    fig, ax = figure(figsize=(11.0, 5.5))
     scale = 1000.0 if unit == "g" else 1.0
     c = np.where(np.isfinite(cost_to_go), cost_to_go * scale, np.nan)
     mesh = ax.pcolormesh(time_s, soc_grid * 100.0, c.T, shading="auto", cmap="magma_r")
@@ -186,7 +184,7 @@ def plot_cost_to_go(
     ax.set_xlabel("time [s]")
     ax.set_ylabel("SOC [%]")
     ax.set_title("Cost-to-go (blank: the target cannot be reached from there)")
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def plot_optimum(result: Any, out_dir: str | Path) -> list[Path]:

@@ -21,18 +21,17 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
+from hevsim.figures import DPI as DPI  # re-exported: the resolution lives with the helpers
+from hevsim.figures import figure, grid, save
 from hevsim.units import J_PER_WH, MPS_PER_MPH, RADPS_PER_RPM
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
-    from matplotlib.figure import Figure
 
     from hevsim.tables import Table1D, Table2D
 
 FloatArray = npt.NDArray[np.float64]
 
-DPI = 120
-"""Resolution of every PNG [dots per inch]."""
 J_PER_KWH = 1000.0 * J_PER_WH
 """Joules in one kilowatt-hour [J]."""
 W_PER_KW = 1000.0
@@ -108,44 +107,9 @@ class EngineLike(Protocol):
 
 # --------------------------------------------------------------------------- helpers
 
-
-def _figure(
-    nrows: int = 1,
-    ncols: int = 1,
-    margins_in: tuple[float, float, float, float] | None = None,
-    **kwargs: Any,
-) -> tuple[Figure, Any]:
-    """A new Agg-backed figure and its axes (no pyplot).
-
-    With ``margins_in`` = (left, bottom, right, top) [in] the axes get fixed margins and
-    ``wspace``/``hspace`` from ``kwargs`` (default 0.25): no layout engine runs at save time.
-    Without it the figure uses matplotlib's constrained layout, which fits any labels but
-    measures every text twice (about half the drawing time of a simple figure).
-    Titles sit at a fixed height above the axes (no tick labels on top), which spares
-    matplotlib a bounding-box pass per axes.
-    """
-    import matplotlib as mpl
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    figsize = kwargs.pop("figsize", (10.0, 6.0))
-    wspace = kwargs.pop("wspace", 0.25)
-    hspace = kwargs.pop("hspace", 0.25)
-    with mpl.rc_context({"axes.titley": 1.0}):
-        if margins_in is None:
-            fig = Figure(figsize=figsize, dpi=DPI, layout="constrained")
-        else:
-            w, h = figsize
-            left, bottom, right, top = margins_in
-            fig = Figure(figsize=figsize, dpi=DPI)
-            fig.subplots_adjust(
-                left=left / w, bottom=bottom / h, right=1.0 - right / w, top=1.0 - top / h,
-                wspace=wspace, hspace=hspace,
-            )  # fmt: skip
-        FigureCanvasAgg(fig)
-        axes = fig.subplots(nrows, ncols, **kwargs)
-    return fig, axes
-
+# The figure helpers live in the ground layer (hevsim.figures: any layer draws with them);
+# their former private names stay here for callers of hevsim.report.plots.
+_figure, _grid, _save = figure, grid, save
 
 MAX_LINE_POINTS = 4000
 """Longest line drawn as is [points]; longer lines keep the min and max of each of
@@ -184,13 +148,6 @@ def thin_line(
     keep = np.unique(np.concatenate([first_min, first_max]))
     keep = keep[keep < n]
     return x[keep], y[keep]
-
-
-def _save(fig: Figure, path: str | Path) -> Path:
-    """Write ``fig`` to ``path`` as PNG atomically and release it (:func:`hevsim.io.save_png`)."""
-    from hevsim.io import save_png
-
-    return save_png(fig, path, DPI)
 
 
 def _col(ts: pd.DataFrame, name: str) -> FloatArray:
@@ -251,12 +208,6 @@ def _speed_mph(ts: pd.DataFrame, which: str) -> FloatArray | None:
     return None
 
 
-def _grid(ax: Axes) -> None:
-    """Major grid lines only: minor ticks cost matplotlib a tick object each, about a fifth
-    of the drawing time of a time-series figure."""
-    ax.grid(True, which="major", alpha=0.4)
-
-
 def power_mode_names(ts: pd.DataFrame) -> dict[int, str]:
     """Power-mode code -> name, from ``power_mode_name`` when present, else the defaults."""
     names = dict(enumerate(POWER_MODE_NAMES))
@@ -287,7 +238,7 @@ def plot_speed_tracking(ts: pd.DataFrame, path: str | Path) -> Path:
     t = _time(ts)
     v = _speed_mph(ts, "speed")
     v_des = _speed_mph(ts, "speed_desired")
-    fig, (ax, ax_err) = _figure(
+    fig, (ax, ax_err) = figure(
         2, 1, sharex=True, figsize=(10.0, 6.0), gridspec_kw={"height_ratios": [3, 1]},
         margins_in=_MARGINS_IN, hspace=0.3,
     )  # fmt: skip
@@ -298,7 +249,7 @@ def plot_speed_tracking(ts: pd.DataFrame, path: str | Path) -> Path:
     ax.set_ylabel("speed [mph]")
     ax.set_title("Drive-cycle speed tracking")
     ax.legend(loc="upper right")
-    _grid(ax)
+    grid(ax)
     if v is not None and v_des is not None:
         err = v - v_des
         rms = float(np.sqrt(np.mean(err**2))) if err.size else 0.0
@@ -311,14 +262,14 @@ def plot_speed_tracking(ts: pd.DataFrame, path: str | Path) -> Path:
         )
     ax_err.set_ylabel("error [mph]")
     ax_err.set_xlabel("time [s]")
-    _grid(ax_err)
-    return _save(fig, path)
+    grid(ax_err)
+    return save(fig, path)
 
 
 def plot_soc(ts: pd.DataFrame, path: str | Path) -> Path:
     """Battery state of charge [%] over time [s], genset starting/running spans shaded."""
     t = _time(ts)
-    fig, ax = _figure(figsize=(10.0, 4.8), margins_in=_MARGINS_IN)
+    fig, ax = figure(figsize=(10.0, 4.8), margins_in=_MARGINS_IN)
     if "genset_state" in ts.columns:
         state = _col(ts, "genset_state")
         for code, color, label in ((2, "tab:orange", "genset running"), (1, "gold", "starting")):
@@ -345,14 +296,14 @@ def plot_soc(ts: pd.DataFrame, path: str | Path) -> Path:
     ax.set_xlabel("time [s]")
     ax.set_ylabel("SOC [%]")
     ax.legend(loc="best")
-    _grid(ax)
-    return _save(fig, path)
+    grid(ax)
+    return save(fig, path)
 
 
 def plot_currents(ts: pd.DataFrame, path: str | Path) -> Path:
     """Battery, motor and generator currents [A] over time [s]."""
     t = _time(ts)
-    fig, ax = _figure(figsize=(10.0, 4.8), margins_in=_MARGINS_IN)
+    fig, ax = figure(figsize=(10.0, 4.8), margins_in=_MARGINS_IN)
     series = (
         ("generator_current_a", "generator", "tab:orange", 1.0),
         ("motor_current_a", "motor", "tab:green", 1.0),
@@ -366,14 +317,14 @@ def plot_currents(ts: pd.DataFrame, path: str | Path) -> Path:
     ax.set_xlabel("time [s]")
     ax.set_ylabel("current [A]")
     ax.legend(loc="best")
-    _grid(ax)
-    return _save(fig, path)
+    grid(ax)
+    return save(fig, path)
 
 
 def plot_engine(ts: pd.DataFrame, path: str | Path) -> Path:
     """Engine speed [rpm], torque [N·m] and throttle [%] over time [s] (three panels)."""
     t = _time(ts)
-    fig, (ax_w, ax_t, ax_th) = _figure(
+    fig, (ax_w, ax_t, ax_th) = figure(
         3, 1, sharex=True, figsize=(10.0, 7.0), gridspec_kw={"height_ratios": [2, 2, 1]},
         margins_in=_MARGINS_IN, hspace=0.12,
     )  # fmt: skip
@@ -386,7 +337,7 @@ def plot_engine(ts: pd.DataFrame, path: str | Path) -> Path:
     ax_w.plot(*thin_line(t, rpm), color="tab:blue", lw=1.2, label="engine speed")
     ax_w.set_ylabel("speed [rpm]")
     ax_w.set_title("Engine speed, torque and throttle")
-    _grid(ax_w)
+    grid(ax_w)
     fuel = fuel_rate_kgps(ts)
     spans = _runs(fuel > 0.0, t) if fuel is not None else []
     if spans:
@@ -405,14 +356,14 @@ def plot_engine(ts: pd.DataFrame, path: str | Path) -> Path:
         ax_t.plot(*thin_line(t, _col(ts, "engine_torque_nm")), color="tab:red", lw=1.2)
     ax_t.axhline(0.0, color="0.3", lw=0.8)
     ax_t.set_ylabel("torque [N·m]")
-    _grid(ax_t)
+    grid(ax_t)
     if "engine_throttle" in ts.columns:
         ax_th.plot(*thin_line(t, 100.0 * _col(ts, "engine_throttle")), color="tab:green", lw=1.0)
     ax_th.set_ylabel("throttle [%]")
     ax_th.set_ylim(-5.0, 105.0)
     ax_th.set_xlabel("time [s]")
-    _grid(ax_th)
-    return _save(fig, path)
+    grid(ax_th)
+    return save(fig, path)
 
 
 def bsfc_grid(
@@ -514,7 +465,7 @@ def plot_engine_operating_points(
     """
     if engine is None:
         return None
-    fig, ax = _figure(figsize=(9.0, 6.5), margins_in=(0.85, 0.6, 0.2, 0.75))
+    fig, ax = figure(figsize=(9.0, 6.5), margins_in=(0.85, 0.6, 0.2, 0.75))
     w, trq, bsfc = bsfc_grid(engine)
     rpm = w / RADPS_PER_RPM
     has_map = bool(np.isfinite(bsfc).any())
@@ -572,8 +523,8 @@ def plot_engine_operating_points(
     ax.set_xlabel("engine speed [rpm]")
     ax.set_ylabel("engine torque [N·m]")
     ax.legend(loc="lower right", fontsize="small", framealpha=0.9)
-    _grid(ax)
-    return _save(fig, path)
+    grid(ax)
+    return save(fig, path)
 
 
 def plot_power_modes(ts: pd.DataFrame, path: str | Path) -> Path:
@@ -584,7 +535,7 @@ def plot_power_modes(ts: pd.DataFrame, path: str | Path) -> Path:
     all_codes = sorted(set(names) | {int(c) for c in np.unique(codes)})
     dt = step_durations(t)
     total = float(dt.sum()) or 1.0
-    fig, (ax, ax_bar) = _figure(
+    fig, (ax, ax_bar) = figure(
         1, 2, sharey=True, figsize=(11.0, 4.5), gridspec_kw={"width_ratios": [3, 1]},
         margins_in=(1.15, 0.6, 0.25, 0.45), wspace=0.05,
     )  # fmt: skip
@@ -607,7 +558,7 @@ def plot_power_modes(ts: pd.DataFrame, path: str | Path) -> Path:
     ax_bar.set_xlabel("share of time [%]")
     ax_bar.set_title("Time in mode")
     ax_bar.grid(True, axis="x", alpha=0.4)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def plot_energy_audit(energy_audit: Mapping[str, float], path: str | Path) -> Path:
@@ -619,7 +570,7 @@ def plot_energy_audit(energy_audit: Mapping[str, float], path: str | Path) -> Pa
     rows += [(k, v, "tab:orange") for k, v in sinks]
     if residual is not None:
         rows.append((RESIDUAL_KEY, residual, "tab:red"))
-    fig, ax = _figure(figsize=(9.0, 0.9 + 0.42 * max(len(rows), 3)), margins_in=(1.45, 0.55, 0.25, 0.4))
+    fig, ax = figure(figsize=(9.0, 0.9 + 0.42 * max(len(rows), 3)), margins_in=(1.45, 0.55, 0.25, 0.4))
     y = np.arange(len(rows))[::-1]
     kwh = np.array([v / J_PER_KWH for _, v, _ in rows])
     bars = ax.barh(y, kwh, color=[c for *_, c in rows], height=0.7)
@@ -649,7 +600,7 @@ def plot_energy_audit(energy_audit: Mapping[str, float], path: str | Path) -> Pa
         fontsize="small",
     )
     ax.grid(True, axis="x", alpha=0.4)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def plot_all(result: Any, out_dir: str | Path) -> list[Path]:

@@ -174,10 +174,10 @@ def _eol_fractions(cfg: Any) -> tuple[float, float]:
 
 def plot_life(res: LifeResult, path: str | Path) -> None:
     """SOH (weakest and mean cell), peak cell temperature and fuel economy against distance."""
-    from hevsim.report.plots import _figure, _grid, _save
+    from hevsim.figures import figure, grid, save
 
     t = res.table
-    fig, axes = _figure(3, 1, figsize=(9.0, 8.0), sharex=True)
+    fig, axes = figure(3, 1, figsize=(9.0, 8.0), sharex=True)
     x = t["distance_km"]
     axes[0].plot(x, t["soh_min"], "o-", label="weakest cell")
     axes[0].plot(x, t["soh_mean"], "s--", label="mean of the cells")
@@ -190,9 +190,9 @@ def plot_life(res: LifeResult, path: str | Path) -> None:
     axes[2].set_ylabel("fuel economy [MPGGE]")
     axes[2].set_xlabel("distance driven [km]")
     for ax in axes:
-        _grid(ax)
+        grid(ax)
     axes[0].set_title(f"{res.metadata['config']} on {res.metadata['cycle']}: life of the pack")
-    _save(fig, path)
+    save(fig, path)
 
 
 __all__ = ["LIFE_COLUMNS", "LifeResult", "plot_life", "run_life"]

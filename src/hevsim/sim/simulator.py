@@ -27,6 +27,7 @@ from hevsim.config import (
 )
 from hevsim.cycles import DriveCycle
 from hevsim.errors import ConfigError, DomainError, TrackingError
+from hevsim.figures import plotter
 from hevsim.fuels import config_fuel
 from hevsim.io import atomic_directory, write_json
 from hevsim.sim import kernel as K
@@ -107,8 +108,9 @@ class SimulationResult:
 
     def save(self, out_dir: str | Path, plots: bool = True, csv: bool | None = None) -> Path:
         """Write the results folder atomically: time series (Parquet, and CSV for short runs
-        or on request), metrics.json, energy_audit.json, events.csv, config.json, PNG plots
-        and report.md.
+        or on request), metrics.json, energy_audit.json, events.csv, config.json and, with
+        ``plots``, the PNG plots and report.md (the ``"simulation"`` plotter of
+        :mod:`hevsim.figures`, which :mod:`hevsim.report` registers).
 
         ``csv`` None writes ``timeseries.csv`` only when the run has at most
         :data:`CSV_AUTO_MAX_ROWS` rows (CSV costs about 60 µs a row, Parquet a twentieth of
@@ -129,12 +131,8 @@ class SimulationResult:
             )
             write_json(tmp / "config.json", self.model.config.to_dict())
             write_json(tmp / "metadata.json", self.metadata)
-            if plots:
-                from hevsim.report.markdown import write_report
-                from hevsim.report.plots import plot_all
-
-                files = plot_all(self, tmp)
-                write_report(self, tmp, files)
+            if plots:  # the report layer's plotter: every plot that applies and report.md
+                plotter("simulation")(self, tmp)
         return Path(out_dir)
 
 
