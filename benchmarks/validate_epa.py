@@ -237,6 +237,22 @@ def tcl_part(plots: Path | None, limit: int | None, search_shift: bool = False) 
             f"| {cells[0]} "
             f"| {cells[1]} |"
         )
+    four = {v.vehicle_id for v in vehicles if v.four_bag}
+    cells = []
+    for half in ("train", "test"):
+        for cat in ("FTP", "HWY"):
+            sel = [r for r in runs if r.half == half and r.category == cat and r.vehicle.four_bag]
+            e = np.array([r.error for r in sel])
+            if e.size:
+                what = "training" if half == "train" else "held-out"
+                cells.append(
+                    f"{what} {cat} {e.size}: mean {100 * e.mean():+.1f} %, "
+                    f"median abs {100 * np.median(np.abs(e)):.1f} %"
+                )
+    print(
+        f"\nvehicles with a four-bag FTP (stop-start: {g.four_bag_stop_start}): {len(four)} test vehicles, "
+        f"{sum(1 for v in vehicles if v.four_bag)} configurations; " + "; ".join(cells)
+    )
     print("\nheld-out error distribution (predicted / measured - 1), share of tests within:")
     for cat in ("FTP", "HWY"):
         e = np.abs([r.error for r in held if r.category == cat])

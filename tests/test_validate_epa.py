@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -156,27 +157,70 @@ def test_split_is_deterministic_and_halves() -> None:
 
 
 def test_held_out_sample_and_the_fit_is_linear(tmp_path: Path) -> None:
-    """Every 4th held-out vehicle (129 FTP, 129 HWY tests): the simulated fuel equals the fitted
-    weights times the run's energy integrals (the linearity the fit relies on), and the errors are
-    the shipped models' (docs/validation.md). This sample gives FTP 5.2 % median / 13.5 % 90th
-    percentile, HWY 3.4 % / 8.3 % (the whole held-out half: 5.2 / 12.8 and 3.1 / 8.6); the bounds
-    are those figures rounded up. The models before the brake-work weight by transmission class
-    and the 9-10 gear automatics' class of their own give 5.9 / 13.2 and 4.1 / 8.5 on the same
-    sample and fail the FTP median and both HWY bounds (their FTP 90th percentile is lower here,
-    not on the whole half: 13.1 %). The HWY median is within the issue's 5 % goal; the FTP is not
-    (docs/validation.md, "Honest failures")."""
+    """Every 4th held-out vehicle (129 FTP, 129 HWY tests, 8 of the 122 configurations tested with
+    a four-bag FTP): the simulated fuel equals the fitted weights times the run's energy integrals
+    (the linearity the fit relies on), and the errors are the shipped models' (docs/validation.md).
+    This sample gives FTP 4.5 % median / 12.7 % 90th percentile, HWY 3.5 % / 8.4 % (the whole
+    held-out half: 4.5 / 11.5 and 3.1 / 8.6); the bounds are those figures rounded up. The models
+    before the four-bag vehicles' stop-start give FTP 5.2 / 13.5 % on the same sample and fail
+    both FTP bounds; their HWY is 3.4 / 8.3 % here (3.1 / 8.6 on the whole half, as now), so the
+    HWY bounds cannot tell the two apart. Both medians are within the issue's 5 % goal."""
     vehicles, _ = T.read_test_cars()
     held = [v for v in vehicles if T.split(v.vehicle_id) == "test"][::4]
     g = T.generic()
     runs = T.run_all(held, tmp_path, g)
-    assert len(runs) == 258
+    assert len(runs) == 258 and sum(v.four_bag for v in held) == 8
     for r in runs:
         assert T.linear_mpg(r, g.fitted) == pytest.approx(r.predicted_mpg, rel=2e-3)
-    for cat, median_max, p90_max in (("HWY", 0.034, 0.084), ("FTP", 0.053, 0.135)):
+    for cat, median_max, p90_max in (("HWY", 0.035, 0.085), ("FTP", 0.046, 0.127)):
         e = np.abs([r.error for r in runs if r.category == cat])
         assert np.median(e) <= median_max, (cat, np.median(e))
         assert np.percentile(e, 90) <= p90_max, (cat, np.percentile(e, 90))
-    assert np.median(np.abs([r.error for r in runs if r.category == "HWY"])) <= 0.05  # the goal
+        assert np.median(e) <= 0.05  # the goal
+
+
+def test_four_bag_vehicles_stop_their_engine(tmp_path: Path) -> None:
+    """A Test Vehicle ID with a figure in ``FE Bag 4`` on any row (the four-bag FTP of vehicles with
+    a rechargeable energy storage system) is marked ``four_bag``, whatever the figure; its
+    configuration has stop-start, so on the UDDS its engine burns nothing while the car stands
+    (with the generic file's switch off, or for a car without the fourth bag, it idles)."""
+    bags = {"FE Bag 1": "20", "FE Bag 2": "20", "FE Bag 3": "20"}
+    hwy = {"Test Category": "HWY", "Test Procedure Description": "HWFE", "FE Bag 1": "", "FE Bag 2": "",
+           "FE Bag 3": "", "FE Bag 4": ""}  # fmt: skip
+    rows = [
+        {"Test Vehicle ID": "A", "Test Number": "A1", "RND_ADJ_FE": "20.0", **bags, "FE Bag 4": "21.5"},
+        {"Test Vehicle ID": "A", "Test Number": "A2", "RND_ADJ_FE": "30.0", **hwy},
+        {"Test Vehicle ID": "B", "Test Number": "B1", "RND_ADJ_FE": "20.0", **bags, "FE Bag 4": "0"},
+        {"Test Vehicle ID": "B", "Test Number": "B2", "RND_ADJ_FE": "30.0", **hwy},
+        {"Test Vehicle ID": "C", "Test Number": "C1", "RND_ADJ_FE": "20.0", **bags, "FE Bag 4": ""},
+    ]
+    vehicles, _ = T.read_test_cars(_list_rows(tmp_path / "list.csv", rows))
+    assert {v.vehicle_id: v.four_bag for v in vehicles} == {"A": True, "B": False, "C": False}
+    g = T.generic()
+    assert g.four_bag_stop_start
+    a, b = vehicles[0], vehicles[1]
+    assert T.vehicle_config(a, tmp_path / "e", g).controller.stop_start == "on"
+    assert T.vehicle_config(b, tmp_path / "e", g).controller.stop_start == "off"
+    off = replace(g, four_bag_stop_start=False)
+    assert T.vehicle_config(a, tmp_path / "e", off).controller.stop_start == "off"
+    # the real list: the 48 V BMW M440i Coupe is marked, the Camry is not
+    real, _ = T.read_test_cars()
+    assert all(v.four_bag for v in real if v.model == "M440i Coupe")
+    assert not any(v.four_bag for v in real if v.vehicle_id == "18-AV2A")
+    assert sum(v.four_bag for v in real) == 83
+    # simulated: no fuel at a standstill with stop-start, idle fuel without
+    from hevsim.architectures import build_vehicle
+    from hevsim.fuels import get_fuel
+    from hevsim.sim.simulator import simulate
+
+    T.write_engine(tmp_path / "e", a, g, g.fitted, get_fuel("gasoline").lower_heating_value_j_per_kg)
+    for gg, idle in ((g, False), (off, True)):
+        ts = simulate(
+            build_vehicle(T.vehicle_config(a, tmp_path / "e", gg)), "udds", tracking=None
+        ).timeseries
+        stopped = ts["speed_mps"].to_numpy() < 0.01
+        assert stopped.sum() > 200
+        assert bool(np.all(ts["fuel_rate_gps"].to_numpy()[stopped] > 0)) is idle
 
 
 def test_shift_rules_by_transmission_class(tmp_path: Path) -> None:
@@ -330,8 +374,6 @@ def test_fit_gives_each_transmission_class_its_brake_work_weight(tmp_path: Path)
     assert got.weights_for("a")[0] == pytest.approx(2.2, rel=1e-6)
     assert all(T.linear_mpg(r, got) == pytest.approx(r.measured_mpg, rel=1e-6) for r in runs)
     # classes of fewer than BRAKE_WORK_MIN_RUNS runs share one weight: "a" split in two of 10 runs
-    from dataclasses import replace
-
     split = [replace(r, shift_class="c") if i < 10 else r for i, r in enumerate(runs)]
     shared = T.fit(split)
     assert T.BRAKE_WORK_MIN_RUNS > 10
@@ -377,6 +419,9 @@ def test_bad_generic_file_names_the_key(tmp_path: Path) -> None:
         T.generic(str(bad))
     bad.write_text(text[:at] + text[at:].replace('"manual" = ', '"manual" = 0.0 #', 1))
     with pytest.raises(ConfigError, match="brake_work_by_class entry"):
+        T.generic(str(bad))
+    bad.write_text(text.replace("four_bag_stop_start = true", 'four_bag_stop_start = "yes"'))
+    with pytest.raises(ConfigError, match="four_bag_stop_start' = 'yes'"):
         T.generic(str(bad))
 
 

@@ -9,7 +9,10 @@ number of gears (a CVT: a many-step box) whose top gear gives the listed *N/V ra
 per mph in top gear) with the listed *axle ratio* as final drive, the listed drive axle, and a
 generic gasoline engine (:func:`write_engine`) sized by the listed *displacement* and *rated
 power*, shifted by the rule of its transmission class (:attr:`Generic.shift_rules`, fitted on
-the training half by :func:`search_shift_rules`). The measured figure is ``RND_ADJ_FE`` [mpg]:
+the training half by :func:`search_shift_rules`); a vehicle the list tested with a four-bag FTP
+(:attr:`TestVehicle.four_bag`: the procedure of vehicles with a rechargeable energy storage
+system, in this list's conventional cars the 48 V mild hybrids) stops its engine when there is
+no traction demand (:attr:`Generic.four_bag_stop_start`). The measured figure is ``RND_ADJ_FE`` [mpg]:
 the test's fuel economy as certified, before the label's 5-cycle adjustment (the FTP's is the
 3-bag composite: its ``FE Bag 1..3`` columns combine to it with the FTP weights 0.43 cold /
 0.57 hot).
@@ -95,6 +98,14 @@ groups of repeats within 8 %), while a second cluster, 51 groups 15 to 55 % apar
 in different driver-selectable modes (sport / track / stop-start off) that the list's fields do
 not tell apart (5 groups lie between, 8.4 to 14.3 %). Such a configuration is left out whole, in
 both halves."""
+FOUR_BAG_COLUMN = "FE Bag 4"
+"""A Test Vehicle ID with a figure above 0 in this column on any row was tested with a four-bag FTP
+(bag 4 repeats the stabilised phase to bound the change of a rechargeable battery's charge, SAE
+J1711): a vehicle with a rechargeable energy storage system. In the list every hybrid and plug-in
+so tested, and of the cars left after the other rules only known mild hybrids (48 V belt or
+integrated starter-generators: BMW's 3.0 L sixes, Mercedes-Benz EQ Boost, Audi, Volvo B5 / B6, Land
+Rover MHEV, RAM and Wagoneer eTorque) and the 2022 Tundra. Only the presence of the bag is read,
+never its figure."""
 BAG_TOLERANCE = 0.05
 """An FTP test whose ``RND_ADJ_FE`` differs from the composite of its own ``FE Bag 1..3`` figures by
 more than this share is a data error (they agree within 0.3 % in the median) and is left out."""
@@ -206,6 +217,9 @@ class Generic:
     :attr:`downshift_rpm` for a vehicle no rule matches."""
     fitted: EngineParams
     source: str = ""
+    four_bag_stop_start: bool = False
+    """Whether a vehicle tested with a four-bag FTP (:attr:`TestVehicle.four_bag`) is simulated
+    with stop-start (the engine off when there is no traction demand; ``[controller] stop_start``)."""
 
     def shift_rule(self, v: TestVehicle) -> tuple[str, float, float]:
         """(class name, upshift, downshift [rpm]) of test vehicle ``v``."""
@@ -275,6 +289,13 @@ def generic(path: str | None = None) -> Generic:
     kw.update({k: _num(t, k, f"{w} [transmission]") for k in trans})
     kw.update({k: int(_num(e, k, f"{w} [engine]")) for k in ("speed_points", "torque_points")})
     kw["cvt_steps"] = int(_num(t, "cvt_steps", f"{w} [transmission]"))
+    electrified = data.get("electrified", {})
+    stop_start = electrified.get("four_bag_stop_start", False) if isinstance(electrified, dict) else None
+    if not isinstance(stop_start, bool):
+        raise ConfigError(
+            f"{w} [electrified]: key 'four_bag_stop_start' = {stop_start!r}; expected true or false."
+        )
+    kw["four_bag_stop_start"] = stop_start
     rules = []
     shift = t.get("shift", [])
     if not isinstance(shift, list) or not all(isinstance(r, dict) for r in shift):
@@ -331,6 +352,9 @@ class TestVehicle:
     c_n_per_mps2: float
     tests: list[tuple[str, str, float]] = field(default_factory=list)
     """(category "FTP"/"HWY", test number, measured RND_ADJ_FE [mpg])."""
+    four_bag: bool = False
+    """The list tested this vehicle with a four-bag FTP (:data:`FOUR_BAG_COLUMN`): it has a
+    rechargeable energy storage system (a mild hybrid among the cars kept)."""
 
     @property
     def key(self) -> str:
@@ -353,6 +377,14 @@ def _float(row: dict[str, str], col: str, where: str) -> float:
     return v
 
 
+def _positive(text: str | None) -> bool:
+    """Whether a list cell holds a number above 0."""
+    try:
+        return float(text or "") > 0
+    except ValueError:
+        return False
+
+
 def split(vehicle_id: str) -> str:
     """``"train"`` or ``"test"``: the half of a Test Vehicle ID (the first byte of its SHA-256 even/odd)."""
     return "train" if hashlib.sha256(vehicle_id.encode()).digest()[0] % 2 == 0 else "test"
@@ -369,7 +401,8 @@ def read_test_cars(path: str | Path | None = None) -> tuple[list[TestVehicle], d
     tests, and the count of tests left out per reason. A test counts once (the list repeats some
     rows: same test number, another averaging group); a test whose figure disagrees with its own
     bags (:data:`BAG_TOLERANCE`) and a configuration tested in several modes
-    (:data:`REPEAT_SPREAD_MAX`) are left out."""
+    (:data:`REPEAT_SPREAD_MAX`) are left out. A vehicle with a four-bag FTP on any row is marked
+    :attr:`TestVehicle.four_bag`."""
     p = Path(path) if path else Path(str(resources.files("hevsim") / TEST_CAR_LIST))
     try:
         with p.open(newline="", encoding="utf-8-sig") as f:
@@ -382,6 +415,7 @@ def read_test_cars(path: str | Path | None = None) -> tuple[list[TestVehicle], d
         skipped[reason] = skipped.get(reason, 0) + 1
 
     cd_ids = {r["Test Vehicle ID"] for r in rows if r.get("Test Category") == "CD"}
+    four_bag_ids = {r["Test Vehicle ID"] for r in rows if _positive(r.get(FOUR_BAG_COLUMN, ""))}
     vehicles: dict[str, TestVehicle] = {}
     counted: set[str] = set()
     for n, r in enumerate(rows, start=2):
@@ -434,6 +468,7 @@ def read_test_cars(path: str | Path | None = None) -> tuple[list[TestVehicle], d
         if bags is not None and abs(mpg / bags - 1) > BAG_TOLERANCE:
             skip(f"FTP figure off its own bags' composite by more than {100 * BAG_TOLERANCE:g} %")
             continue
+        v.four_bag = v.vehicle_id in four_bag_ids
         v = vehicles.setdefault(v.key, v)
         v.tests.append((cat, number, mpg))
     out = []
@@ -618,7 +653,10 @@ def vehicle_config(v: TestVehicle, engine_dir: Path, g: Generic) -> Any:
             "redline_rpm": g.redline_rpm,
         },
         "simulation": {"cycle": "udds", "dt_s": 1.0},
-        "controller": {"kind": "shift_schedule", "upshift_rpm": up, "downshift_rpm": down},
+        "controller": {
+            "kind": "shift_schedule", "upshift_rpm": up, "downshift_rpm": down,
+            "stop_start": "on" if v.four_bag and g.four_bag_stop_start else "off",
+        },
     }  # fmt: skip
     return config_from_dict(data, f"test vehicle {v.vehicle_id}", engine_dir.parent)
 
