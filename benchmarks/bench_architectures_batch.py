@@ -130,6 +130,7 @@ def spread(labels: list[str], processes: int, n: int) -> None:
         ratio = max(r) / min(r)
         flag = f"  > {SPREAD_FLAG:g}: depends on the process" if ratio > SPREAD_FLAG else ""
         print(f"{label:<16}{min(r):>10.0f}{float(np.median(r)):>10.0f}{max(r):>10.0f}{ratio:>14.2f}{flag}")
+        print(f"{'':<16}each process, in order: {' '.join(f'{x:.0f}' for x in r)}")
 
 
 def main() -> int:
