@@ -85,7 +85,10 @@ def fastsim_part(plots: Path | None) -> dict[str, Any]:
         for r in phev:
             figs = [("CS mpg", "mpg", [r.epa or math.nan, r.hevsim, r.fastsim], "cs_mpg",
                      r.error("hevsim"), r.error("fastsim"))]  # fmt: skip
-            for key, name, unit in (("cd_kwh_per_mi", "CD kWh/mi", "kWh/mi"), ("cd_range_mi", "CD range mi", "mi")):
+            for key, name, unit in (
+                ("cd_kwh_per_mi", "CD kWh/mi", "kWh/mi"),
+                ("cd_range_mi", "CD range mi", "mi"),
+            ):
                 figs.append((name, unit, r.extra[key], key, r.extra_error(key, "hevsim"),
                              r.extra_error(key, "fastsim")))  # fmt: skip
             for name, unit, (ep, h, fs_), key, eh, ef in figs:
