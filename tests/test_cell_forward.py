@@ -201,6 +201,7 @@ PACKS = {  # row -> (pack vehicle, its pack file), as tests/test_pack_architectu
     "bev": ("bev_pack.toml", "bev_battery.toml"),
     "parallel_p3": ("parallel_hev_pack.toml", "vehicle_pack.toml"),  # the thesis cell (an RC pair)
     "parallel_p2": ("high_performance_parallel_hev_pack.toml", "hot_lap_pack.toml"),
+    "series": ("series_hev_pack.toml", "vehicle_pack.toml"),
     "fcev": ("fcev_pack.toml", "prius_like_battery.toml"),
     "power_split": ("prius_like_power_split_pack.toml", "prius_like_battery.toml"),
 }
@@ -228,6 +229,7 @@ def test_pack_with_one_cell_per_module_equals_the_cell_battery(row: str, tmp_pat
     caps the regeneration current (60 A, which the car takes to within 0.1 %), and a ``cell``
     battery has no BMS, only the ``[battery]`` current limits."""
     from hevsim.battery.pack import load_pack_config
+    from hevsim.battery.params import load_cell_parameters
     from hevsim.sim.pack_vehicle import simulate_pack_vehicle
 
     try:
@@ -257,9 +259,20 @@ def test_pack_with_one_cell_per_module_equals_the_cell_battery(row: str, tmp_pat
     pairs = (("soc", "soc", 1.0), ("pack_voltage_v", "cell_voltage_avg_v", n_s),
              ("pack_current_a", "cell_current_a", n_p), ("hottest_cell_temp_k", "cell_temp_k", 1.0),
              ("battery_power_w", "battery_power_w", 1.0), ("fuel_kg", "fuel_kg", 1.0))  # fmt: skip
+    # Inside the cells' charge/discharge dead band the two models solve the step's current from
+    # the bus's power with different pairs (the cell battery with the pair of the direction its
+    # cells keep, the pack with the power's direction's), so there the current is compared to
+    # the band: on the series HEV's UDDS one step of 600 (-5.9 W, 2.7 mA a cell) differs by
+    # 1e-4 A; SOC, voltage and temperature stay within 1e-6 on every step.
+    band = load_cell_parameters(pc.cells.parameters).resistance.switch_band_a
+    in_band = np.abs(b["cell_current_a"].to_numpy()) <= band
     for x, y, scale in pairs:
         u, v = a[x].to_numpy(), b[y].to_numpy() * scale
-        np.testing.assert_allclose(u, v, rtol=1e-6, atol=1e-6 * max(np.abs(v).max(), 1e-12), err_msg=x)
+        tol = 1e-6 * max(np.abs(v).max(), 1e-12)
+        if x == "pack_current_a":
+            np.testing.assert_allclose(u[in_band], v[in_band], rtol=0, atol=band * n_p, err_msg=x)
+            u, v = u[~in_band], v[~in_band]
+        np.testing.assert_allclose(u, v, rtol=1e-6, atol=tol, err_msg=x)
     # the drive exercises the cells: heat, discharge and charge (the FCEV's fuel cell carries
     # most of its drive: its battery discharges up to 13 A)
     assert np.ptp(b["cell_temp_k"]) > 0.01 and np.abs(i).max() > 20.0 and i.max() > 5.0 and i.min() < -5.0
