@@ -25,9 +25,6 @@ KNOWN_CYCLES = {
     # the series HEV's own path, the other architectures' loop and the pack's Python loop hand a
     # run to each other (one entry point and one compiled loop, issue 24 items 1-2)
     frozenset({"hevsim.sim.forward", "hevsim.sim.pack_vehicle", "hevsim.sim.simulator"}),
-    # within a physics package (function-level imports between sibling modules)
-    frozenset({"hevsim.battery.life", "hevsim.battery.pack", "hevsim.battery.pack_run"}),
-    frozenset({"hevsim.thermal.cht", "hevsim.thermal.flow", "hevsim.thermal.rans"}),
 }
 
 
