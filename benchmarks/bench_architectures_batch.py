@@ -22,6 +22,15 @@ time, i.e. the batch's throughput over FASTSim's sequential throughput; ``x per 
 same per CPU second of each (load-independent, but without the batch's parallelism).
 Issue 24's goal is >= 40 for every architecture; the series HEV (its kernel batch, variants
 of ``mass_kg``) is a row too.
+
+``--processes N`` (N >= 2) adds the spread over fresh processes: each architecture's batch is
+timed in N new interpreters in turn (warm numba cache; each pinned to one core, so the
+figure is per CPU second of a single thread: other load changes it little), and the table
+shows the slowest, median and fastest process and slowest / fastest. A compiled loop whose
+speed depends on where its machine code lands in memory shows as a ratio well above 1 (the
+BEV was 1.5-1.7 from one process to the next before its battery lookup was inlined; see
+docs/simulate.md); the script flags a ratio above ``SPREAD_FLAG``. ``--only LABEL`` limits
+either table to one vehicle.
 """
 
 from __future__ import annotations
@@ -39,6 +48,7 @@ from _machine import OtherLoad
 
 REPO = Path(__file__).resolve().parents[1]
 GOAL_FASTSIM = 40.0  # issue 24: batch throughput >= 40x FASTSim's sequential run_once()
+SPREAD_FLAG = 1.25  # --processes: slowest / fastest process above this is flagged
 VEHICLES = {
     "series": "examples/series_hev.toml",
     "conventional": "examples/conventional_sedan.toml",
@@ -89,11 +99,51 @@ def fastsim_timer() -> Any:
     return timed
 
 
+def _child(label: str, n: int) -> int:
+    """One fresh process of ``--processes``: pinned to one core, a warm-up batch, then print
+    the variant-cycles per CPU second of the best of three batches of ``n`` variants."""
+    from hevsim import config as C
+
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+    cfg = C.load_vehicle_config(REPO / VEHICLES[label])
+    _rate(cfg, 4, None)
+    print(max(_rate(cfg, n, None)[1] for _ in range(3)))
+    return 0
+
+
+def spread(labels: list[str], processes: int, n: int) -> None:
+    """Print each vehicle's batch rate per CPU second over ``processes`` fresh processes,
+    run in turn (module docstring)."""
+    import subprocess
+
+    rates: dict[str, list[float]] = {label: [] for label in labels}
+    for _ in range(processes):
+        for label in labels:  # interleaved: a change in the machine's load hits every vehicle
+            cmd = [sys.executable, __file__, "--child", label, "--variants", str(n)]
+            out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
+            rates[label].append(float(out.split()[-1]))
+    print(f"\nspread over {processes} fresh processes (one core each, {n} variants, best of 3 batches; "
+          "variant-cycles per CPU s)")  # fmt: skip
+    print("{:<16}{:>10}{:>10}{:>10}{:>14}".format("vehicle", "slowest", "median", "fastest", "fast/slow"))
+    for label, r in rates.items():
+        ratio = max(r) / min(r)
+        flag = f"  > {SPREAD_FLAG:g}: depends on the process" if ratio > SPREAD_FLAG else ""
+        print(f"{label:<16}{min(r):>10.0f}{float(np.median(r)):>10.0f}{max(r):>10.0f}{ratio:>14.2f}{flag}")
+        print(f"{'':<16}each process, in order: {' '.join(f'{x:.0f}' for x in r)}")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--variants", type=int, default=1000)
     ap.add_argument("--baseline", type=int, default=20, help="variants of the Python-loop baseline")
+    ap.add_argument("--processes", type=int, default=0, help="spread over this many fresh processes (>= 2)")
+    ap.add_argument("--only", choices=list(VEHICLES), help="one vehicle")
+    ap.add_argument("--child", choices=list(VEHICLES), help=argparse.SUPPRESS)
     a = ap.parse_args()
+    if a.child:
+        return _child(a.child, a.variants)
+    labels = [a.only] if a.only else list(VEHICLES)
     from hevsim import config as C
     from hevsim.sim.forward import compiled_loop
 
@@ -106,8 +156,8 @@ def main() -> int:
     fs_times = []
     with OtherLoad() as load:
         fs = fastsim_timer()
-        for label, path in VEHICLES.items():
-            cfg = C.load_vehicle_config(REPO / path)
+        for label in labels:
+            cfg = C.load_vehicle_config(REPO / VEHICLES[label])
             series = cfg.architecture == "series"
             compiled = series or hasattr(compiled_loop(cfg.architecture), "simulate_batch_compiled")
             _rate(cfg, 4, None)  # warm-up (compilation)
@@ -132,6 +182,8 @@ def main() -> int:
             f"(worst {worst:.1f}x)"
         )
     print(load.text())
+    if a.processes >= 2:
+        spread(labels, a.processes, min(a.variants, 300))
     print(f"load average now: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0
 

@@ -27,6 +27,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -50,10 +51,10 @@ def fastsim_part(plots: Path | None) -> dict[str, Any]:
     print("|---|---|---|---|---|---|---|---|---|---|---|")
 
     def f(x: float, unit: str) -> str:
-        return "-" if not math.isfinite(x) else (f"{x:.3f}" if unit == "kWh/mi" else f"{x:.1f}")
+        return "—" if not math.isfinite(x) else (f"{x:.3f}" if unit == "kWh/mi" else f"{x:.1f}")
 
     def e(x: float) -> str:
-        return "-" if not math.isfinite(x) else f"{100 * x:+.1f} %"
+        return "—" if not math.isfinite(x) else f"{100 * x:+.1f} %"
 
     for r in rows:
         if r.skipped:
@@ -71,6 +72,31 @@ def fastsim_part(plots: Path | None) -> dict[str, Any]:
     print("\nLeft out:")
     for why, rs in reasons.items():
         print(f"- {len(rs)} row(s) ({', '.join(rs)}): {why}")
+    phev = [r for r in rows if not r.skipped and r.extra]
+    if phev:
+        print(
+            "\nPlug-in hybrids, every figure (CS: charge-sustaining combined mpg; CD: charge-depleting "
+            "electricity from the wall, adjusted combined; range: adjusted CD range, 0.7 x the 55/45 "
+            "combined unadjusted range; FASTSim's own label equations in brackets):\n"
+        )
+        print("| row | vehicle | figure | EPA | hevsim | err | FASTSim | err | FASTSim own label |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        own_key = {"cs_mpg": "cs_mpg", "cd_kwh_per_mi": "cd_kwh_per_mi", "cd_range_mi": "cd_range_mi"}
+        for r in phev:
+            figs = [("CS mpg", "mpg", [r.epa or math.nan, r.hevsim, r.fastsim], "cs_mpg",
+                     r.error("hevsim"), r.error("fastsim"))]  # fmt: skip
+            for key, name, unit in (
+                ("cd_kwh_per_mi", "CD kWh/mi", "kWh/mi"),
+                ("cd_range_mi", "CD range mi", "mi"),
+            ):
+                figs.append((name, unit, r.extra[key], key, r.extra_error(key, "hevsim"),
+                             r.extra_error(key, "fastsim")))  # fmt: skip
+            for name, unit, (ep, h, fs_), key, eh, ef in figs:
+                own = r.fastsim_own.get(own_key[key], math.nan)
+                print(
+                    f"| {r.row} | {r.name} | {name} | {f(ep, unit)} | {f(h, unit)} | {e(eh)} | "
+                    f"{f(fs_, unit)} | {e(ef)} | {f(own, unit)} |"
+                )
     s = F.summary(rows)
     print("\n| class | n | hevsim median abs | hevsim 90th pct | FASTSim median abs | FASTSim 90th pct |")
     print("|---|---|---|---|---|---|")
@@ -79,6 +105,18 @@ def fastsim_part(plots: Path | None) -> dict[str, Any]:
             f"| {cls} | {d['n']:.0f} | {d['hevsim_median_pct']:.1f} % | {d['hevsim_p90_pct']:.1f} % | "
             f"{d['fastsim_median_pct']:.1f} % | {d['fastsim_p90_pct']:.1f} % |"
         )
+    a = s["all"]
+    classes = [c for c in s if c != "all" and not c.startswith("PHEV ")]
+    worst = max(classes, key=lambda c: s[c]["hevsim_median_pct"])
+    print(
+        f"\ngoals (main figure, all {a['n']:.0f} vehicles): median {a['hevsim_median_pct']:.1f} % (<= 5 %: "
+        f"{'yes' if a['hevsim_median_pct'] <= 5 else 'NO'}); 90th percentile {a['hevsim_p90_pct']:.1f} % "
+        f"(<= 10 %: {'yes' if a['hevsim_p90_pct'] <= 10 else 'NO'}); worst class median {worst} "
+        f"{s[worst]['hevsim_median_pct']:.1f} % (<= 8 %: "
+        f"{'yes' if s[worst]['hevsim_median_pct'] <= 8 else 'NO'}); FASTSim's median "
+        f"{a['fastsim_median_pct']:.1f} % (hevsim at least as close: "
+        f"{'yes' if a['hevsim_median_pct'] <= a['fastsim_median_pct'] else 'NO'})"
+    )
     print(
         f"\ntime: {wall:.1f} s wall for {sum(1 for r in rows if not r.skipped)} vehicles: hevsim import + "
         "label "
@@ -98,10 +136,18 @@ def _plot_fastsim(rows: list[Any], out: Path) -> None:
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.6))
     for ax, unit, title in (
-        (axes[0], "mpg", "engine vehicles: combined mpg"),
-        (axes[1], "kWh/mi", "BEVs: combined kWh/mi"),
+        (axes[0], "mpg", "engine vehicles: combined mpg (PHEV: CS; FCEV: MPGe)"),
+        (axes[1], "kWh/mi", "BEVs, PHEVs' CD: combined kWh/mi"),
     ):
-        sel = [r for r in rows if not r.skipped and r.unit == unit]
+        if unit == "mpg":
+            sel = [r for r in rows if not r.skipped and r.unit != "kWh/mi"]
+        else:  # the BEVs, and the PHEVs' charge-depleting figure
+            sel = [r for r in rows if not r.skipped and r.unit == unit]
+            sel += [
+                SimpleNamespace(epa=x[0], hevsim=x[1], fastsim=x[2], powertrain="PHEV")
+                for r in rows
+                if not r.skipped and (x := r.extra.get("cd_kwh_per_mi")) is not None
+            ]
         if not sel:
             continue
         epa = np.array([r.epa for r in sel])
@@ -109,8 +155,10 @@ def _plot_fastsim(rows: list[Any], out: Path) -> None:
             y = np.array([getattr(r, which) for r in sel])
             ax.scatter(epa, y, marker=mk, color=col, label="hevsim" if which == "hevsim" else "FASTSim 3")
         for r in sel:
-            if r.powertrain == "HEV":
-                ax.annotate("HEV", (r.epa, r.hevsim), fontsize=7, xytext=(3, 3), textcoords="offset points")
+            if r.powertrain in ("HEV", "PHEV", "FCEV"):
+                ax.annotate(
+                    r.powertrain, (r.epa, r.hevsim), fontsize=7, xytext=(3, 3), textcoords="offset points"
+                )
         lo, hi = float(epa.min()) * 0.8, float(epa.max()) * 1.2
         xs = np.array([lo, hi])
         ax.plot(xs, xs, "k-", lw=0.8)

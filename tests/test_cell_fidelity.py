@@ -248,7 +248,7 @@ def test_vehicle_pack_with_the_options_matches_the_module_model():
     """The vehicle's ECM battery kind with the options: exact without the charge-transfer term;
     with it the pack solve is linearised at the last step's current (bounded error)."""
     from hevsim.battery import Module
-    from hevsim.battery.vehicle import battery_ecm, battery_ecm_advance, ecm_kernel_tables
+    from hevsim.battery.vehicle import battery_ecm, cell_bus_tables, cell_finish_current
     from hevsim.components.battery import current_for_power
 
     p = _linear_cell(rc=((0.01, 20.0), (0.012, 200.0)), rc_mode="persistent", ocv_mode="step_consistent")
@@ -259,14 +259,14 @@ def test_vehicle_pack_with_the_options_matches_the_module_model():
         (ChargeTransferSection(3.0, 2.6), 0.03, 1e-3),
     ):
         q = p.replace(charge_transfer=ct)
-        bat = ecm_kernel_tables(q, 2, 6, 0.8, 298.15, 1.0)
+        bat = cell_bus_tables(q, 2, 6, 0.8, 298.15, 1.0, power.size)
         v = np.empty(power.size)
         i = np.empty(power.size)
         for k in range(power.size):
             ocv, r = battery_ecm(np.zeros(3), bat, 0.8, 1.0 if power[k] > 0 else -1.0)
             i[k] = current_for_power(power[k], ocv, r)
             v[k] = ocv - r * i[k]
-            battery_ecm_advance(np.zeros(3), bat, i[k], 1.0)
+            cell_finish_current(bat, i[k])
         res = Module(q, 2, 6, soc_initial=0.8, temp_k=298.15).simulate(i, 1.0, 298.15)
         va = res.timeseries["voltage_avg_v"].to_numpy()
         assert np.max(np.abs(va - v)) < v_tol

@@ -11,61 +11,40 @@ from numba import njit
 from hevsim.battery import Module, load_cell_parameters
 from hevsim.battery.vehicle import (
     battery_ecm,
-    battery_ecm_advance,
-    ecm_kernel_tables,
-    pack_tables,
-    pad_tables_kind,
+    cell_bus_tables,
+    cell_finish_current,
     quasi_static_pack,
     vehicle_parameter_values,
 )
-from hevsim.components.battery import current_for_power, pack_ocv_r
+from hevsim.components.battery import current_for_power
 
 
 @njit(cache=False)
-def _dispatch(kind, p, bat, soc, sign):
-    """What the kernel's battery_state dispatcher becomes with the ECM kind (code 1)."""
-    if kind == 1:
-        return battery_ecm(p, bat, soc, sign)
-    return pack_ocv_r(soc, 298.15, sign, 2.0, 6.0, 0.0, pack_tables(bat))
-
-
-@njit(cache=False)
-def _loop(kind, p, bat, power_w, dt, v_out, i_out):
-    """The kernel's battery part: limits, current for power, then the state advance."""
-    soc = 0.9
+def _loop(bat, power_w, v_out, i_out):
+    """A vehicle bus's battery part: the step's pair of the power's direction, the current for
+    the power, then the cells' step at that current."""
     for k in range(power_w.shape[0]):
         sgn = 1.0 if power_w[k] > 0.0 else -1.0
-        ocv, r = _dispatch(kind, p, bat, soc, sgn)
+        ocv, r = battery_ecm(bat.sv, bat, 0.9, sgn)
         i = current_for_power(power_w[k], ocv, r)
         v_out[k] = ocv - r * i
         i_out[k] = i
-        if kind == 1:
-            battery_ecm_advance(p, bat, i, dt)
+        cell_finish_current(bat, i)
 
 
 def test_ecm_kind_reproduces_the_module_model() -> None:
     rng = np.random.default_rng(2)
     power = np.repeat(rng.normal(100.0, 300.0, 60), 5)
     dt = 1.0
-    bat = ecm_kernel_tables("thesis_table_4_1", 2, 6, 0.9, 298.15, dt)
+    bat = cell_bus_tables("thesis_table_4_1", 2, 6, 0.9, 298.15, dt, power.size)
     v = np.empty(power.size)
     i = np.empty(power.size)
-    _loop(1, np.zeros(3), bat, power, dt, v, i)
+    _loop(bat, power, v, i)
     np.testing.assert_allclose(v * i, power, rtol=1e-10)  # the power is delivered exactly
     m = Module("thesis_table_4_1", 2, 6, soc_initial=0.9, temp_k=298.15)
     r = m.simulate(i, dt, 298.15)
     np.testing.assert_allclose(r.timeseries["voltage_avg_v"], v, rtol=1e-9)
-    assert bat[11][6] == pytest.approx(r.cells[-1, 0, 2], rel=1e-12)  # cell temperature
-
-
-def test_tables_kind_padded_to_the_same_types_compiles_in_one_dispatcher() -> None:
-    pack = quasi_static_pack("saft_li_ion_6ah", 2, 6)
-    bat = pad_tables_kind(pack.kernel_tables())
-    v = np.empty(10)
-    i = np.empty(10)
-    _loop(0, np.zeros(3), bat, np.full(10, 200.0), 1.0, v, i)
-    ocv = 2 * pack.ocv_cell(0.9, 298.15)
-    assert v[0] == pytest.approx(float(ocv) - float(pack.resistance(0.9, 1.0, 298.15)) * i[0], rel=1e-12)
+    assert bat.aux[6] == pytest.approx(r.cells[-1, 0, 2], rel=1e-12)  # cell temperature
 
 
 def test_quasi_static_pack_values() -> None:

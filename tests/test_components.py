@@ -223,3 +223,29 @@ def test_one_ocv_lookup_gives_both_resistances_bit_for_bit() -> None:
         ocv_d, r_d = pack_ocv_r(*args, 1.0, 168.0, 2.0, 0.05, tab)
         ocv_c, r_c = pack_ocv_r(*args, -1.0, 168.0, 2.0, 0.05, tab)
         assert (ocv, r_dis, r_chg) == (ocv_d, r_d, r_c) and ocv_c == ocv_d
+
+
+def test_three_tables_on_one_bracket_equal_interp2_bit_for_bit() -> None:
+    """interp2_three (the forward loops' battery lookup: OCV and both resistances inlined,
+    one bracketing) equals interp2 table by table to the last bit, inside, outside (clamped)
+    and on one-point axes; on bilinear data both reproduce the closed form a + bx + cy + dxy."""
+    from hevsim.tables import interp2, interp2_three
+
+    rng = np.random.default_rng(7)
+    x = np.cumsum(rng.uniform(0.05, 0.3, 7))
+    y = np.array([253.15, 278.15, 298.15, 318.15])
+    gx, gy = np.meshgrid(x, y, indexing="ij")
+    bilinear = 0.5 - 0.2 * gx + 1e-3 * gy + 0.03 * gx * gy
+    tabs = [rng.normal(size=(7, 4)), bilinear, rng.uniform(0.01, 0.02, (7, 4))]
+    pts = [(rng.uniform(x[0] - 0.2, x[-1] + 0.2), rng.uniform(240.0, 330.0)) for _ in range(300)]
+    pts += [(x[0], y[0]), (x[-1], y[-1]), (x[3], y[2])]
+    for xp, yp, fs in ((x, y, tabs), (x[:1], y, [t[:1] for t in tabs]), (x, y[:1], [t[:, :1] for t in tabs])):
+        for linear in (False, True):
+            for px, py in pts:
+                got = interp2_three(xp, yp, fs[0], fs[1], fs[2], px, py, linear)
+                want = tuple(interp2(xp, yp, f, px, py, linear) for f in fs)
+                assert got == want, (px, py, linear, got, want)
+    for px, py in pts:  # the closed form, inside the axes
+        if x[0] <= px <= x[-1] and y[0] <= py <= y[-1]:
+            exact = 0.5 - 0.2 * px + 1e-3 * py + 0.03 * px * py
+            assert interp2_three(x, y, *tabs, px, py, False)[1] == pytest.approx(exact, rel=1e-13, abs=1e-13)

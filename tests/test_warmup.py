@@ -136,6 +136,10 @@ def test_a_pack_or_cell_battery_probes_its_own_version_of_the_loop() -> None:
     assert kinds["table"] == ("parallel", "none", "parallel HEV forward loop")
     assert kinds["pack"][:2] == ("parallel", "PackArrays") and "pack" in kinds["pack"][2]
     assert kinds["cell"][:2] == ("parallel", "CellBusTables") and "cell" in kinds["cell"][2]
+    # the series HEV too: its plug-in runs the loop with the loop's battery step (issue 24 item 2)
+    series = load_vehicle_config(EXAMPLES / "series_hev.toml")
+    lasts = {model: run_groups(_with_model(series, model))[0].last_arg for model in ("table", "pack", "cell")}
+    assert lasts == {"table": "none", "pack": "PackArrays", "cell": "CellBusTables"}
 
 
 def _with_model(cfg: object, model: str) -> object:

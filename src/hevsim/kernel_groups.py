@@ -167,7 +167,8 @@ GROUPS: tuple[KernelGroup, ...] = (
         ("hevsim.sim._loop:run_loop",),
         ("series",),
         20.0,
-        first_arg="SeriesPlug",  # run_loop(plug, ...): the series brings its own battery in the plug-in
+        first_arg="SeriesPlug",  # run_loop(plug, ..., pk): the loop's battery step, as every architecture's
+        battery_arg=True,
     ),
     KernelGroup(
         "parallel",

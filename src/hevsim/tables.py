@@ -92,6 +92,41 @@ def interp2(xp: FloatArray, yp: FloatArray, fp: FloatArray, x: float, y: float, 
     return f0 + wx * (f1 - f0)
 
 
+@njit(cache=True, inline="always")
+def interp2_three(
+    xp: FloatArray,
+    yp: FloatArray,
+    fa: FloatArray,
+    fb: FloatArray,
+    fc: FloatArray,
+    x: float,
+    y: float,
+    linear: bool,
+) -> tuple[float, float, float]:
+    """:func:`interp2` of three tables on the same axes at one ``(x, y)``, bit for bit, with
+    one bracketing of the point: inlined into the caller, without the three calls (each
+    passing both axes and its table on the stack)."""
+    nx = xp.shape[0]
+    ny = yp.shape[0]
+    if nx == 1 or ny == 1:
+        return (interp2(xp, yp, fa, x, y, linear), interp2(xp, yp, fb, x, y, linear),
+                interp2(xp, yp, fc, x, y, linear))  # fmt: skip
+    if not linear:
+        x = min(max(x, xp[0]), xp[nx - 1])
+        y = min(max(y, yp[0]), yp[ny - 1])
+    i = _segment(xp, x)
+    j = _segment(yp, y)
+    wx = (x - xp[i]) / (xp[i + 1] - xp[i])
+    wy = (y - yp[j]) / (yp[j + 1] - yp[j])
+    a0 = fa[i, j] + wy * (fa[i, j + 1] - fa[i, j])
+    a1 = fa[i + 1, j] + wy * (fa[i + 1, j + 1] - fa[i + 1, j])
+    b0 = fb[i, j] + wy * (fb[i, j + 1] - fb[i, j])
+    b1 = fb[i + 1, j] + wy * (fb[i + 1, j + 1] - fb[i + 1, j])
+    c0 = fc[i, j] + wy * (fc[i, j + 1] - fc[i, j])
+    c1 = fc[i + 1, j] + wy * (fc[i + 1, j + 1] - fc[i + 1, j])
+    return a0 + wx * (a1 - a0), b0 + wx * (b1 - b0), c0 + wx * (c1 - c0)
+
+
 @njit(cache=True)
 def _interp1_many(xp: FloatArray, fp: FloatArray, x: FloatArray, linear: bool) -> FloatArray:
     out = np.empty(x.shape[0])

@@ -193,7 +193,7 @@ class SeriesHEV:
                     self.cell, self.battery.n_series, self.battery.n_parallel, self.battery.temperature_k
                 )
             )
-        missing = set(SK.PARAMS) - set(values) - {"driver_kind", "supervisor_kind", "battery_kind"}
+        missing = set(SK.PARAMS) - set(values) - {"driver_kind", "supervisor_kind"}
         unknown = set(values) - set(SK.PARAMS)
         if missing or unknown:  # a kernel parameter added or renamed on one side only
             raise KeyError(f"kernel parameters missing: {sorted(missing)}; unknown: {sorted(unknown)}")
@@ -201,25 +201,10 @@ class SeriesHEV:
             p[SK.P[name]] = value
         return p
 
-    def kernel_tables(
-        self, dt_s: float = 1.0, soc_initial: float | None = None
-    ) -> tuple[tuple[FloatArray, ...], ...]:
-        """(engine, motor, generator, battery) table tuples for the kernel.
-
-        A ``"cell"`` battery's tuple holds the cells' state: build it fresh for every run
-        (``dt_s`` [s] and ``soc_initial`` [-] set that state).
-        """
-        from hevsim.battery.vehicle import ecm_kernel_tables, pad_tables_kind
-
-        if self.cell is not None:
-            soc0 = self.config.simulation.soc_initial if soc_initial is None else soc_initial
-            b = self.battery
-            bat = ecm_kernel_tables(
-                self.cell, b.n_series, b.n_parallel, soc0, b.temperature_k, dt_s, self.cell_port_temp_k,
-                r_extra_ohm=b.r_extra_ohm,
-            )  # fmt: skip
-        else:
-            bat = pad_tables_kind(self.battery.kernel_tables())
+    def kernel_tables(self) -> tuple[tuple[FloatArray, ...], ...]:
+        """(engine, motor, generator, battery) table tuples for the kernel: the battery's is its
+        :class:`~hevsim.components.battery.PackTables` (a ``"cell"`` or ``"pack"`` battery's
+        own step is the one loop's, :meth:`battery_run`)."""
         if self.engine is not None:
             eng = self.engine.kernel_tables()
         else:
@@ -229,8 +214,24 @@ class SeriesHEV:
             eng,
             self.traction_motor.kernel_tables(),
             self.generator.kernel_tables(),
-            bat,
+            self.battery.kernel_tables(),
         )
+
+    def battery_run(self, dt_s: float, steps: int, soc_initial: float | None = None) -> Any:
+        """The battery the one loop steps in a run of ``steps`` steps of ``dt_s`` [s] from
+        ``soc_initial`` [-] (default the configuration's): None for a table battery; a fresh
+        :class:`~hevsim.battery.cell_run.CellRun` for a ``"cell"`` battery (its cells at
+        ``[battery] temperature_c``, their heat port at :attr:`cell_port_temp_k`), the same
+        cell battery every other architecture runs. (A ``"pack"`` battery's
+        :class:`~hevsim.battery.bms.PackRun` is made by :mod:`hevsim.sim.pack_vehicle`.)"""
+        if self.cell is None:
+            return None
+        from hevsim.battery.cell_run import CellRun
+
+        soc0 = self.config.simulation.soc_initial if soc_initial is None else soc_initial
+        b = self.battery
+        return CellRun(self.cell, b.n_series, b.n_parallel, soc0, b.temperature_k, dt_s, steps,
+                       port_temp_k=self.cell_port_temp_k, r_extra_ohm=b.r_extra_ohm)  # fmt: skip
 
 
 def build_series_hev(cfg: SeriesHEVConfig) -> SeriesHEV:

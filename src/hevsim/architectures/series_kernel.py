@@ -23,12 +23,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from hevsim.battery.vehicle import (
-    battery_ecm,
-    battery_pack,
-    pack_tables,
-)
-from hevsim.components.battery import charge_current, pack_ocv_r
+from hevsim.components.battery import charge_current
 from hevsim.components.body import aero_force, grade_force, road_load_force, rolling_force
 from hevsim.components.bus import (
     REGEN_ITERATIONS,
@@ -108,7 +103,6 @@ PAUX = P["aux_power_w"]
 PICEBAND = P["pure_ice_band_w"]
 DRVKIND = P["driver_kind"]
 SUPKIND = P["supervisor_kind"]
-BATKIND = P["battery_kind"]
 
 # Genset kinds and states, power modes (thesis Table 2.1) and reasons for changes.
 GENSET_NONE, GENSET_CURRENT_SOURCE, GENSET_ENGINE = 0, 1, 2
@@ -174,19 +168,19 @@ SUMMARY = (
 S_DIST, S_FUEL, S_SOCF, S_RMS, S_MAXERR, S_EON, S_STARTS, S_BLIM, S_DUR = range(len(SUMMARY))
 
 
-# --- pluggable controllers and battery models ----------------------------------------------
+# --- pluggable controllers ----------------------------------------------------------------
 # Each role is a numba-jitted function with a fixed signature. The kernel loop calls a role
-# only through its dispatcher below (``drive``, ``supervise``, ``battery_state``), which picks
-# the implementation by an integer code held in the parameter vector. A new controller or
-# battery model is a new function plus one line in its dispatcher and its name in the
-# matching ``*_KINDS`` tuple; the loop is untouched. (Passing the functions as first-class
-# arguments would also work, but numba cannot cache such kernels on disk: every new process
-# would pay a 2 s compile.)
+# only through its dispatcher below (``drive``, ``supervise``), which picks the implementation
+# by an integer code held in the parameter vector. A new controller is a new function plus one
+# line in its dispatcher and its name in the matching ``*_KINDS`` tuple; the loop is untouched.
+# (Passing the functions as first-class arguments would also work, but numba cannot cache such
+# kernels on disk: every new process would pay a 2 s compile.) The battery model is not a role
+# here: the one loop steps it (tables, cells or a pack, hevsim.sim._loop.battery_begin /
+# battery_end) and hands the plug-in its state and limits of the step.
 #
 #   driver(p, v, v_target, v_target_prev, dt, f_res0, f_drive_max, m_eff) -> u in [-1, 1]
 #   supervisor(p, sched, k, soc, w_gs, gs_state) -> (gs_state, throttle, w_target, reason)
 #       (reason -1 when the genset state did not change)
-#   battery(p, bat, soc, current_sign) -> (ocv [V], series resistance [ohm])
 
 
 @njit(cache=True)
@@ -274,26 +268,10 @@ def supervisor_replay(p, sched, k, soc, w_gs, gs_state):
     return gs_state, thr, sched[k, 0], reason
 
 
-@njit(cache=True, inline="always")
-def battery_tables(p, bat, soc, current_sign):
-    """OCV(SOC, T) and R(SOC, T, sign) of the pack (ideal and Rint packs are 1-point tables)."""
-    return pack_ocv_r(soc, p[BTEMP], current_sign, p[BNS], p[BNP], p[BREXT], pack_tables(bat))
-
-
 DRIVER_KINDS = ("proportional",)
 SUPERVISOR_KINDS = ("thermostat", "schedule", "replay")
 SUPERVISOR_REPLAY = 2
 """Code of the quasi-static replay supervisor (its genset has no shaft dynamics)."""
-BATTERY_KINDS = ("tables", "ecm", "pack")
-EXACT_LIMIT_KINDS = (2,)
-"""Battery kinds (codes of :data:`BATTERY_KINDS`) whose current limits hold exactly on every
-step (issue 24 item 4): the pack's BMS. The battery's limits are then checked again at the
-mid-step speed the powers are taken at (:func:`traction_limit_step`, with the motor's torque
-limits), a generating genset is
-clipped to what the battery can take (:func:`genset_limit`) and the auxiliaries are shed at the
-discharge limit (:func:`bus_step`). The ``tables`` and ``ecm`` kinds keep the thesis's
-start-of-step limit (the 8 refinement levels and ``examples/series_hev.toml`` bit for bit:
-that example's 100 A limit is exceeded by up to 6.8 % on 12 UDDS steps, docs/pack.md)."""
 
 
 @njit(cache=True)
@@ -310,22 +288,6 @@ def supervise(kind, p, sched, k, soc, w_gs, gs_state):
     if kind == SUPERVISOR_REPLAY:
         return supervisor_replay(p, sched, k, soc, w_gs, gs_state)
     return supervisor_thermostat(p, sched, k, soc, w_gs, gs_state)
-
-
-@njit(cache=True)
-def battery_state(kind, p, bat, soc, current_sign):
-    """Battery-model dispatcher (codes: :data:`BATTERY_KINDS`).
-
-    ``bat`` is a :class:`hevsim.battery.vehicle.EcmTables` for the ``tables`` (padded) and
-    ``ecm`` kinds, so one compiled dispatcher serves both; the ``pack`` kind's
-    :data:`hevsim.battery.vehicle.PackKernelTables` holds the same entries plus the pack's
-    arrays (its role and steps are numba overloads that do nothing for the other tuple).
-    """
-    if kind == 1:
-        return battery_ecm(p, bat, soc, current_sign)
-    if kind == 2:
-        return battery_pack(p, bat, soc, current_sign)
-    return battery_tables(p, bat, soc, current_sign)
 
 
 # --- the steps of one integration interval ------------------------------------------------
@@ -365,21 +327,22 @@ def driver_step(p, mot, drv_kind, v, v_target, v_target_prev, grade_k, dt, m_eff
 
 
 @njit(**STEP_JIT)
-def bus_limits(p, soc, ocv, r_b, ocv_c, r_c, dt, cap_as):
+def bus_limits(p, soc, ocv, r_b, ocv_c, r_c, dt, cap_as, i_dis_max, i_chg_max):
     """The battery's largest discharge and charge powers at its terminals this step [W].
 
-    The discharge current is bounded by the pack's limit and by the current that takes the SOC
-    to ``soc_min`` within the step (eq 13), so no bus load (traction, genset cranking,
-    auxiliaries) draws the pack below its floor; no charging at or above ``soc_max``.
-    Returns (discharge power [W], charge power [W], the SOC floor binds).
+    The discharge current is bounded by the step's limit ``i_dis_max`` [A] (the battery model's,
+    :func:`hevsim.sim._loop.battery_begin`) and by the current that takes the SOC to
+    ``soc_min`` within the step (eq 13), so no bus load (traction, genset cranking,
+    auxiliaries) draws the pack below its floor; charging is bounded by ``i_chg_max`` [A], none
+    at or above ``soc_max``. Returns (discharge power [W], charge power [W], the SOC floor binds).
     """
-    i_dis = p[BIDIS]
+    i_dis = i_dis_max
     i_floor = (soc - p[SOCMIN]) * cap_as / dt
     # the floor binds below the current limit and the maximum-power current OCV / 2R
     at_floor = i_floor < i_dis and i_floor < ocv / (2.0 * r_b + 1e-300)
     if at_floor:
         i_dis = max(i_floor, 0.0)
-    p_dis_max, p_chg_max = battery_power_limits(ocv, r_b, ocv_c, r_c, i_dis, p[BICHG])
+    p_dis_max, p_chg_max = battery_power_limits(ocv, r_b, ocv_c, r_c, i_dis, i_chg_max)
     if soc >= p[SOCMAX]:
         p_chg_max = 0.0
     return p_dis_max, p_chg_max, at_floor
@@ -555,11 +518,12 @@ def genset_account(p, fuel_rate, t_eng, t_gen, thr, w_gs, w1, w_pow, p_gen_el, q
 
 
 @njit(**STEP_JIT)
-def traction_step(p, mot, u, v, w_m0, m_max, m_min, p_gen_el, source_on, ocv, p_dis_max, p_chg_max):
+def traction_step(p, mot, u, v, w_m0, m_max, m_min, p_gen_el, source_on, ocv, p_dis_max, p_chg_max, p_aux):
     """Motor torque for the driver request ``u`` within the battery's limits (the bus balance
     of :mod:`hevsim.components.bus`), and the forces it puts on the wheels.
 
-    ``p_dis_max``, ``p_chg_max``: the battery's power limits of :func:`bus_limits` [W].
+    ``p_dis_max``, ``p_chg_max``: the battery's power limits of :func:`bus_limits` [W];
+    ``p_aux``: the bus's auxiliary load of the step [W].
     Returns (motor torque [N·m], motor force at the wheels [N], friction brake force [N],
     limited, the rest of the bus load [W] (> 0 drawn), the driver's brake force request [N]).
     """
@@ -573,7 +537,7 @@ def traction_step(p, mot, u, v, w_m0, m_max, m_min, p_gen_el, source_on, ocv, p_
         t_regen_req = -f_brake_req * r / ratio * p[GEFF]  # motor torque for the full request
         t_m = regen_torque(t_regen_req, m_min, v > p[REGENV])
     # the bus balance (components.bus): battery power limits bound the motor's torque
-    p_other = p_gen_el + p[PAUX]
+    p_other = p_gen_el + p_aux
     if source_on:
         p_other -= ocv * p[GSCUR]
     p_m_el0 = machine_power(t_m, w_m0, p[MKIND], p[MEFF], p[MSCALE], mot)
@@ -763,26 +727,27 @@ def floor_traction_step(p, mot, t_m, v, v1, p_other, p_dis_max, grade_k, m_eff, 
 
 
 @njit(**STEP_JIT)
-def bus_step(p, mot, t_m, v_mid, p_gen_el, source_on, ocv, r_b, ocv_c, r_c, p_dis_max, p_chg_max, at_floor,
-             exact, soc, dt, cap_as, energy, record, out, k):  # fmt: skip
+def bus_step(p, mot, t_m, v_mid, p_gen_el, source_on, ocv, r_b, ocv_c, r_c, p_dis_max, p_chg_max, p_aux,
+             at_floor, exact, soc, dt, cap_as, energy, record, out, k):  # fmt: skip
     """Close the DC bus at the mid-step speed ``v_mid`` [m/s]: motor electrical power, battery
     current (eqs 21-22) and SOC (eq 13); adds the battery, source, motor and auxiliary terms to
     ``energy`` [J]. Where the SOC floor binds (``at_floor``, :func:`bus_limits`) the
     auxiliaries get only what the battery can still give within ``p_dis_max`` [W] (shed).
-    ``exact`` (a pack's BMS, :data:`EXACT_LIMIT_KINDS`): the same wherever the discharge limit
+    ``exact`` (a pack's BMS, :func:`hevsim.battery.vehicle.vehicle_bus_has_bms`): the same wherever the
+    discharge limit
     ``p_dis_max`` still binds with the motor and the genset at their limits, and a
     current-source genset gives no more than the battery can take within ``p_chg_max`` [W].
 
     Returns (motor mechanical and electrical power [W], current-source power [W], SOC at the
-    end of the step [-], battery current [A], battery-limited: beyond the deliverable power or
-    auxiliaries shed).
+    end of the step [-] (the charge counted with ``cap_as`` [A·s]: a table battery's; a cell or
+    pack battery's own step gives its SOC), battery current [A], battery terminal power [W],
+    battery-limited: beyond the deliverable power or auxiliaries shed).
     """
     w_m = v_mid / p[RTIRE] * p[RATIO]
     eta_m = machine_efficiency(t_m, w_m, p[MKIND], p[MEFF], p[MSCALE], mot)
     p_m_mech = t_m * w_m
     p_m_el = electrical_power(t_m, w_m, eta_m)
     p_src = ocv * p[GSCUR] if source_on else 0.0
-    p_aux = p[PAUX]
     p_bat = p_m_el + p_gen_el + p_aux - p_src
     shed = 0.0
     if (at_floor or exact) and p_bat > p_dis_max and p_aux > 0.0:  # at the limit: auxiliaries shed
@@ -819,7 +784,7 @@ def bus_step(p, mot, t_m, v_mid, p_gen_el, source_on, ocv, r_b, ocv_c, r_c, p_di
         out[k, CH_BATTERY_OCV_V] = ocv_b
         out[k, CH_BATTERY_RESISTANCE_OHM] = r_bat
         out[k, CH_BATTERY_POWER_W] = p_bat
-    return p_m_mech, p_m_el, p_src, soc1, i_bat, over_power or shed > 0.0
+    return p_m_mech, p_m_el, p_src, soc1, i_bat, p_bat, over_power or shed > 0.0
 
 
 @njit(**STEP_JIT)

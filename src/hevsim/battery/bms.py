@@ -6,7 +6,7 @@ Each vehicle step ``dt`` (the pack's ``pack.dt_s``):
 
    * its Thevenin equivalent for each current direction, ``V_avg = E - Z I`` with ``V_avg``
      the step-average terminal voltage (:func:`hevsim.battery.pack.pack_thevenin`; exact over
-     the step, as the single-cell ECM kind of :mod:`hevsim.battery.vehicle`, while every cell
+     the step, as the single-cell ``"cell"`` battery of :mod:`hevsim.battery.vehicle`, while every cell
      carries the pack's direction), which the vehicle's bus balance uses as its OCV and
      resistance. *Limit*: at small pack currents the cells of a parallel group with
      capacity/resistance spread circulate current (a cell whose OCV is above its neighbours'

@@ -3,7 +3,8 @@
 One representative electro-thermal cell (:mod:`hevsim.battery.kernel`, thesis eqs 33-41: OCV
 and series-resistance tables, RC pairs, lumped thermal with a skin resistance to a heat port at
 the ambient) scaled to the pack's ``n_series`` x ``n_parallel`` identical cells, exactly as the
-series HEV's ECM battery kind (:mod:`hevsim.battery.vehicle`, section 2). Each vehicle step:
+``"cell"`` battery of :mod:`hevsim.battery.vehicle` (section 2), for every architecture. Each
+vehicle step:
 
 1. :meth:`CellRun.vehicle_step` (compiled: :func:`hevsim.battery.vehicle.cell_bus_state`): the
    pack's step Thevenin pairs ``V_avg = E - Z I`` of each direction (exact over the step for the

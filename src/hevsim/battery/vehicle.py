@@ -1,34 +1,29 @@
-"""Integration point with the forward vehicle simulator (:mod:`hevsim.sim.kernel`).
+"""Integration point with the forward vehicle simulator: the battery models the one compiled
+forward loop of every architecture steps (:func:`hevsim.sim._loop.battery_begin` /
+:func:`~hevsim.sim._loop.battery_end`).
 
 Three ways to put a pack into the vehicle (the first two: n_s x n_p identical cells):
 
 1. :func:`quasi_static_pack` — a :class:`hevsim.components.battery.BatteryPack` (kind
    ``"table"``) whose OCV and charge/discharge resistances are the cell's OCV and its DC
-   resistance ``R_s + Σ R_RC`` over (SOC, T). Usable today, through the existing ``"tables"``
-   battery kind, with no kernel change (no RC dynamics, constant temperature).
-2. The dynamic ECM kind: :func:`ecm_kernel_tables` builds the battery table tuple,
-   :func:`battery_ecm` is the kernel's battery role ``(p, bat, soc, current_sign) -> (ocv,
-   R)`` and :func:`battery_ecm_advance` steps the cells' RC, charge and thermal states once the
-   step's pack current is known. Over one step of length ``dt`` the pack's step-average
+   resistance ``R_s + Σ R_RC`` over (SOC, T): the loop's table battery (no RC dynamics,
+   constant temperature).
+2. The ``"cell"`` battery: one representative electro-thermal cell scaled to the pack, a
+   :data:`CellBusTables` (:func:`cell_bus_tables`; :class:`hevsim.battery.cell_run.CellRun`
+   holds one run's). Each step :func:`cell_bus_state` gives the pack's step pairs of both
+   directions (:func:`battery_ecm`): over one step of length ``dt`` the pack's step-average
    terminal voltage is exactly ``E - Z I`` (:func:`hevsim.battery.kernel.branch_affine`), so
-   the kernel's existing ``OCV - R I`` power solution stays exact. The kernel needs a new
-   battery kind and one call after the battery current is solved (see ``docs/battery.md``).
-
+   the vehicle's ``OCV - R I`` power solution stays exact; :func:`cell_finish_power` then steps
+   the cells' RC, charge and thermal states at the bus's terminal power
+   (:func:`cell_finish_current` at a known pack current).
 3. The pack kind (``[battery] model = "pack"``, :mod:`hevsim.sim.pack_vehicle`): a whole
    :class:`~hevsim.battery.pack.Pack` (cells with spread, module thermal ROM, cooling loop,
-   BMS) run by a :class:`hevsim.battery.bms.PackRun`. The kernel's battery tuple is a
-   :data:`PackKernelTables` holding the pack's arrays (:func:`pack_kernel_tables`), and the
-   compiled kernel calls :func:`battery_pack_begin` at the start of each step's bus balance
-   (the pack's compiled :func:`~hevsim.battery.pack_run.pack_begin`: the step's Thevenin pairs,
-   the BMS current limits and the cooling load into the kernel's parameter vector ``p``),
-   :func:`battery_pack` as its battery role, and :func:`battery_pack_advance` once the current
-   is solved (:func:`~hevsim.battery.pack_run.pack_finish` steps the cells, the module ROMs and
-   the cooling loop and returns the SOC): one compiled loop, no Python per step.
+   BMS) run by a :class:`hevsim.battery.bms.PackRun` on its compiled arrays
+   (:class:`~hevsim.battery.pack_run.PackArrays`, :mod:`hevsim.battery.pack_run`).
 
-The kernel's battery tables are an :class:`EcmTables` named tuple (read by name in compiled
-code); :func:`pad_tables_kind` extends a ``"tables"`` kind's
-:class:`~hevsim.components.battery.PackTables` to the same types so one compiled dispatcher
-serves both kinds.
+Section 5 is the one step protocol the loops call for the last two
+(:func:`vehicle_bus_begin`, :func:`vehicle_bus_finish_power`, :func:`vehicle_bus_has_bms`);
+the cell's tables are an :class:`EcmTables` named tuple (read by name in compiled code).
 """
 
 from __future__ import annotations
@@ -44,7 +39,7 @@ from numba.extending import overload
 from hevsim.battery import kernel as K
 from hevsim.battery.pack_run import pair_current_for_power
 from hevsim.battery.params import CellParameters, load_cell_parameters
-from hevsim.components.battery import BatteryPack, PackTables, pack_resistance
+from hevsim.components.battery import BatteryPack, pack_resistance
 from hevsim.components.bus import battery_power_limits
 from hevsim.tables import FloatArray, Table2D
 
@@ -54,14 +49,13 @@ A_NS, A_NP, A_DT, A_TPORT, A_REXT, A_HEAT, A_TCELL = range(len(AUX))
 
 
 class EcmTables(NamedTuple):
-    """The battery tables of the forward kernel, by name (both battery kinds).
+    """The tables and state of a ``"cell"`` battery's representative cell, by name.
 
     The first five entries are the cell's tables over (``soc`` [-], ``temperature_k`` [K]):
     discharge OCV [V], discharge and charge series resistance [ohm]; then the charge OCV [V],
     the capacity-vs-temperature factor [-], the RC pairs of each direction, the cell
     parameter vector (:data:`hevsim.battery.kernel.PARAMS`), the mutable cell state and the
-    ``aux`` vector (:data:`AUX`). :func:`pack_tables` reads the first five as the ``"tables"``
-    kind's :class:`PackTables`. (Flat on purpose: numba's parallel loops reject nested tuples.)
+    ``aux`` vector (:data:`AUX`). (Flat on purpose: numba's parallel loops reject nested tuples.)
     """
 
     soc: FloatArray
@@ -80,18 +74,6 @@ class EcmTables(NamedTuple):
 
 ECM_TUPLE = EcmTables._fields
 """Names of the ECM tuple's entries."""
-
-
-@njit(cache=True, inline="always")
-def pack_tables(bat):
-    """The ``"tables"`` kind's :class:`PackTables` held in an :class:`EcmTables`."""
-    return PackTables(
-        soc=bat.soc,
-        temperature_k=bat.temperature_k,
-        ocv=bat.ocv_discharge_v,
-        r_discharge=bat.rs_discharge_ohm,
-        r_charge=bat.rs_charge_ohm,
-    )
 
 
 CellArguments = tuple[
@@ -188,7 +170,7 @@ def ecm_kernel_tables(
     port_temp_k: float | None = None,
     r_extra_ohm: float = 0.0,
 ) -> tuple[FloatArray, ...]:
-    """The battery tables of the dynamic ECM kind (:class:`EcmTables`).
+    """The cell tables and state of a ``"cell"`` battery (:class:`EcmTables`).
 
     Holds mutable cell state (entry 10): build a fresh tuple for every simulation run.
     """
@@ -215,26 +197,6 @@ def ecm_kernel_tables(
     )
 
 
-def pad_tables_kind(bat: PackTables) -> EcmTables:
-    """Extend a ``"tables"`` kind's :class:`PackTables` to the ECM tuple's types (dummy
-    entries beyond the pack's tables)."""
-    one2 = np.ones((1, 2))
-    return EcmTables(
-        soc=bat.soc,
-        temperature_k=bat.temperature_k,
-        ocv_discharge_v=bat.ocv,
-        rs_discharge_ohm=bat.r_discharge,
-        rs_charge_ohm=bat.r_charge,
-        ocv_charge_v=bat.ocv,
-        capacity_factor=np.ones(1),
-        rc_discharge=one2,
-        rc_charge=one2.copy(),
-        params=np.zeros(len(K.PARAMS)),
-        state=np.zeros(K.N_FIXED_STATES),
-        aux=np.zeros(len(AUX)),
-    )
-
-
 def vehicle_parameter_values(
     params: CellParameters | str | Path, n_series: int, n_parallel: int, temp_k: float = 298.15
 ) -> dict[str, float]:
@@ -252,123 +214,16 @@ def vehicle_parameter_values(
 
 @njit(cache=True)
 def battery_ecm(p, bat, soc, current_sign):
-    """Battery role of the ECM kind: pack ``(E [V], Z [ohm])`` for the step, for a direction.
-
-    The kernel's ``soc`` and ``p`` are not needed (the cells carry their own charge state).
-    """
+    """The pack's step pair ``(E [V], Z [ohm])`` of a direction (``current_sign`` > 0:
+    discharge) of the cells in ``bat`` (:class:`EcmTables`): exact for the step-average
+    terminal voltage ``E - Z I`` over the step ``aux[A_DT]``. ``p`` and ``soc`` are not needed
+    (the cells carry their own charge state)."""
     aux = bat.aux
     e, z = K.branch_affine(*cell_arguments(bat), aux[A_DT], current_sign)
     return aux[A_NS] * e, pack_resistance(z, aux[A_NS], aux[A_NP], aux[A_REXT])
 
 
-ECM_STEP: dict[str, Any] = {"cache": True, "_nrt": True}
-"""Options of :func:`battery_ecm_advance`: it allocates, so reference counting on, explicitly,
-that the forward loops compiled without it (:mod:`hevsim.sim._loop`) can call it."""
-
-
-@njit(**ECM_STEP)
-def battery_ecm_advance(p, bat, i_pack, dt):
-    """Step the pack's (identical) cells by ``dt`` [s] at pack current ``i_pack`` [A].
-
-    Returns (pack heat [W], cell core temperature [K]); also stored in the aux vector.
-    """
-    aux = bat.aux
-    rec = np.empty(len(K.RECORD))
-    K.cell_step(*cell_arguments(bat), i_pack / aux[A_NP], dt, aux[A_TPORT], rec)
-    aux[A_HEAT] = rec[K.RHEAT] * aux[A_NS] * aux[A_NP]
-    aux[A_TCELL] = rec[K.RTEMP]
-    return aux[A_HEAT], aux[A_TCELL]
-
-
-# -- 3. the pack kind: the pack's compiled step inside the kernel ----------------------------------
-PackKernelTables: Any = namedtuple("PackKernelTables", [*ECM_TUPLE, "pack"])  # type: ignore[misc]
-"""The pack kind's battery tuple: the :class:`EcmTables` entries of the pack's cell (so that the
-kernel's other battery kinds compile for it) and ``pack``, the
-:class:`~hevsim.battery.pack_run.PackArrays` of the run's :class:`~hevsim.battery.pack.Pack`."""
-
-
-def pack_kernel_tables(run: Any, p: FloatArray, dt_s: float) -> Any:
-    """The battery tuple of the pack kind for one kernel run of ``run``
-    (:class:`hevsim.battery.bms.PackRun`): its pack's arrays, with the kernel's auxiliary load
-    ``p[PAUX]`` as the base the cooling adds to each step."""
-    from hevsim.battery.pack_run import F_BASEAUX
-    from hevsim.components.kernel_params import PAUX
-
-    pack = run.pack
-    m = pack.cfg.module
-    bat = ecm_kernel_tables(pack.params, pack.cfg.pack.n_modules * m.n_series, m.n_parallel,
-                            float(pack.prm[0, K.SOCINI]), float(pack.x[0, K.STEMP]), dt_s)  # fmt: skip
-    pack._f[F_BASEAUX] = p[PAUX]
-    return PackKernelTables(*bat, pack.arrays)  # type: ignore[call-arg]
-
-
-def _is_pack_tuple(bat: Any) -> bool:
-    return isinstance(bat, types.BaseNamedTuple) and getattr(bat, "instance_class", None) is PackKernelTables
-
-
-def battery_pack_begin(p: FloatArray, bat: Any) -> None:
-    """Pack kind: the BMS's step (:func:`hevsim.battery.pack_run.pack_begin`) sets the kernel's
-    current limits ``p[BIDIS]``, ``p[BICHG]`` and its bus load ``p[PAUX]`` (the base + the
-    cooling); nothing for the other kinds. (Compiled: a numba overload.)"""
-    raise NotImplementedError("compiled only (numba overload)")
-
-
-def battery_pack(p: FloatArray, bat: Any, soc: float, current_sign: float) -> tuple[float, float]:
-    """Battery role of the pack kind: the step's ``(E [V], Z [ohm])`` for a direction."""
-    raise NotImplementedError("compiled only (numba overload)")
-
-
-def battery_pack_advance(p: FloatArray, bat: Any, i_pack: float, dt: float) -> float:
-    """Pack kind: step the pack at the solved current ``i_pack`` [A]
-    (:func:`hevsim.battery.pack_run.pack_finish`); returns its SOC [-]."""
-    raise NotImplementedError("compiled only (numba overload)")
-
-
-@overload(battery_pack_begin)
-def _battery_pack_begin(p, bat):
-    if not _is_pack_tuple(bat):
-        return lambda p, bat: None
-    from hevsim.battery.pack_run import F_BASEAUX, SV_COOLW, SV_LIMC, SV_LIMD, pack_begin
-    from hevsim.components.kernel_params import BICHG, BIDIS, PAUX
-
-    def impl(p, bat):
-        s = bat.pack
-        pack_begin(s)
-        p[BIDIS] = s.sv[SV_LIMD]
-        p[BICHG] = s.sv[SV_LIMC]
-        p[PAUX] = s.f[F_BASEAUX] + s.sv[SV_COOLW]
-
-    return impl
-
-
-@overload(battery_pack)
-def _battery_pack(p, bat, soc, current_sign):
-    if not _is_pack_tuple(bat):
-        return lambda p, bat, soc, current_sign: (0.0, 1.0)
-    from hevsim.battery.pack_run import SV_ECHG, SV_EDIS, SV_ZCHG, SV_ZDIS
-
-    def impl(p, bat, soc, current_sign):
-        sv = bat.pack.sv
-        if current_sign >= 0.0:
-            return sv[SV_EDIS], sv[SV_ZDIS]
-        return sv[SV_ECHG], sv[SV_ZCHG]
-
-    return impl
-
-
-@overload(battery_pack_advance)
-def _battery_pack_advance(p, bat, i_pack, dt):
-    if not _is_pack_tuple(bat):
-        return lambda p, bat, i_pack, dt: 0.0
-    from hevsim.battery.pack_run import pack_finish
-
-    def impl(p, bat, i_pack, dt):
-        return pack_finish(bat.pack, i_pack, i_pack)
-
-    return impl
-
-
-# -- 4. the cell kind in the forward loops of the other architectures -------------------------------
+# -- 4. the cell kind in the forward loop of every architecture -------------------------------------
 CELL_SV = ("e_dis_v", "z_dis_ohm", "e_chg_v", "z_chg_ohm")
 """The step vector of a :data:`CellBusTables` (the pack's step pairs of both directions)."""
 CSV_EDIS, CSV_ZDIS, CSV_ECHG, CSV_ZCHG = range(len(CELL_SV))
@@ -381,12 +236,12 @@ CELL_F = ("step", "soc")
 CF_STEP, CF_SOC = range(len(CELL_F))
 
 CellBusTables: Any = namedtuple("CellBusTables", [*ECM_TUPLE, "sv", "rec", "f"])  # type: ignore[misc]
-"""The ``"cell"`` battery of a forward loop (:mod:`hevsim.sim.forward` and its compiled loops):
-the :class:`EcmTables` of the series HEV's ECM kind (one representative cell, its state, the
-pack's ``n_series`` x ``n_parallel`` and heat-port temperature in ``aux``), the step vector
-``sv`` (:data:`CELL_SV`), the records ``rec`` (steps x :data:`CELL_RECORD`) and ``f``
-(:data:`CELL_F`). A step is :func:`cell_bus_state` (the pairs, as the ECM kind's
-:func:`battery_ecm`) then :func:`cell_finish_power` (the cell step of :func:`battery_ecm_advance`)."""
+"""The ``"cell"`` battery of a forward loop (:mod:`hevsim.sim.forward` and its compiled loop):
+the :class:`EcmTables` of one representative cell (its tables and state, the pack's
+``n_series`` x ``n_parallel`` and heat-port temperature in ``aux``), the step vector ``sv``
+(:data:`CELL_SV`), the records ``rec`` (steps x :data:`CELL_RECORD`) and ``f``
+(:data:`CELL_F`). A step is :func:`cell_bus_state` (the pairs, :func:`battery_ecm`) then
+:func:`cell_finish_power`."""
 
 CELL_STEP: dict[str, Any] = {"cache": True, "_nrt": True}
 """Options of the cell kind's entry points: reference counting on, so that the forward loops
@@ -431,27 +286,11 @@ def cell_bus_state(s, soc, soc_max, i_dis_max_a, i_chg_max_a):
 
 
 @njit(**CELL_STEP)
-def cell_finish_power(s, power_w):
-    """End the step of the cell kind at the bus's terminal power ``power_w`` [W] (> 0
-    discharging): the pack current from the pair of the direction the cells take
-    (:func:`hevsim.battery.pack_run.pair_current_for_power`), the cells' step at its share
-    (:func:`hevsim.battery.kernel.cell_step`, as :func:`battery_ecm_advance`), one record row;
-    returns the cells' SOC [-] at the end of the step.
-
-    The cells' direction (their OCV table and RC set) follows the current with a dead band
-    (:func:`hevsim.battery.kernel.step_direction`): a cell current within ``switch_band_a``
-    keeps the last direction. The current is solved with the power's direction's pair; when
-    that current leaves the cells in the other direction and the other pair's current does
-    too, that one is taken, so the pack's step-average power is the bus's exactly."""
-    sv, aux, f = s.sv, s.aux, s.f
-    pos = 1.0 if power_w > 0.0 else -1.0
-    j, o = (CSV_EDIS, CSV_ECHG) if pos > 0.0 else (CSV_ECHG, CSV_EDIS)
-    i_pack = pair_current_for_power(sv[j], sv[j + 1], power_w)
-    band, last = s.params[K.IBAND], s.state[K.SDIR]
-    if K.step_direction(i_pack / aux[A_NP], last, band) != pos:  # inside the dead band, kept the other way
-        i_other = pair_current_for_power(sv[o], sv[o + 1], power_w)
-        if K.step_direction(i_other / aux[A_NP], last, band) == -pos:
-            i_pack = i_other
+def cell_finish_current(s, i_pack):
+    """End the step of the cell kind at the pack current ``i_pack`` [A] (> 0 discharging): the
+    cells' step at their share (:func:`hevsim.battery.kernel.cell_step`), one record row;
+    returns the cells' SOC [-] at the end of the step."""
+    aux, f = s.aux, s.f
     k = int(f[CF_STEP])
     row = s.rec[min(k, s.rec.shape[0] - 1)]
     i_cell = i_pack / aux[A_NP]
@@ -464,21 +303,47 @@ def cell_finish_power(s, power_w):
     return f[CF_SOC]
 
 
+@njit(**CELL_STEP)
+def cell_finish_power(s, power_w):
+    """End the step of the cell kind at the bus's terminal power ``power_w`` [W] (> 0
+    discharging): the pack current from the pair of the direction the cells take
+    (:func:`hevsim.battery.pack_run.pair_current_for_power`), then :func:`cell_finish_current`;
+    returns the cells' SOC [-] at the end of the step.
+
+    The cells' direction (their OCV table and RC set) follows the current with a dead band
+    (:func:`hevsim.battery.kernel.step_direction`): a cell current within ``switch_band_a``
+    keeps the last direction. The current is solved with the power's direction's pair; when
+    that current leaves the cells in the other direction and the other pair's current does
+    too, that one is taken, so the pack's step-average power is the bus's exactly."""
+    sv, aux = s.sv, s.aux
+    pos = 1.0 if power_w > 0.0 else -1.0
+    j, o = (CSV_EDIS, CSV_ECHG) if pos > 0.0 else (CSV_ECHG, CSV_EDIS)
+    i_pack = pair_current_for_power(sv[j], sv[j + 1], power_w)
+    band, last = s.params[K.IBAND], s.state[K.SDIR]
+    if K.step_direction(i_pack / aux[A_NP], last, band) != pos:  # inside the dead band, kept the other way
+        i_other = pair_current_for_power(sv[o], sv[o + 1], power_w)
+        if K.step_direction(i_other / aux[A_NP], last, band) == -pos:
+            i_pack = i_other
+    return cell_finish_current(s, i_pack)
+
+
 # -- 5. one battery step protocol for the forward loops: the pack and the cell kind -----------------
 def vehicle_bus_begin(
     s: Any, soc: float, soc_max: float, i_dis_max_a: float, i_chg_max_a: float, aux_w: float,
     discharge_rtol: float, charge_rtol: float,
-) -> tuple[float, float, float, float, float, float, float]:  # fmt: skip
+) -> tuple[float, float, float, float, float, float, float, float]:  # fmt: skip
     """Begin a step of the battery ``s`` of a compiled forward loop: (OCV [V], discharge and
     charge resistance [ohm], largest charge power [W], the step's discharge and charge current
-    limits [A], the bus's other load [W]).
+    limits [A], the bus's other load [W], the charge pair's OCV [V]).
 
     ``s`` a pack's :class:`~hevsim.battery.pack_run.PackArrays`: the pack's step begins
     (:func:`~hevsim.battery.pack_run.pack_begin`: BMS limits, Thevenin pairs, cooling) and
     :func:`~hevsim.battery.pack_run.pack_bus_state` gives the rest (its limits divided by ``1 +
     rtol``, its base load plus the cooling). ``s`` a :data:`CellBusTables`:
     :func:`cell_bus_state` with the vehicle's limits ``i_dis_max_a``, ``i_chg_max_a`` and load
-    ``aux_w``, unchanged. (Compiled only: a numba overload.)"""
+    ``aux_w``, unchanged. The OCV is the discharge pair's ``E``; the last value is the charge
+    pair's (a bus that solves a charging current with its own pair, as the series HEV's does).
+    (Compiled only: a numba overload.)"""
     raise NotImplementedError("compiled only (numba overload)")
 
 
@@ -499,16 +364,32 @@ def _vehicle_bus_begin(s, soc, soc_max, i_dis_max_a, i_chg_max_a, aux_w, dischar
 
         def cell_impl(s, soc, soc_max, i_dis_max_a, i_chg_max_a, aux_w, discharge_rtol, charge_rtol):
             ocv, r_dis, r_chg, p_chg = cell_bus_state(s, soc, soc_max, i_dis_max_a, i_chg_max_a)
-            return ocv, r_dis, r_chg, p_chg, i_dis_max_a, i_chg_max_a, aux_w
+            return ocv, r_dis, r_chg, p_chg, i_dis_max_a, i_chg_max_a, aux_w, s.sv[CSV_ECHG]
 
         return cell_impl
-    from hevsim.battery.pack_run import pack_begin, pack_bus_state
+    from hevsim.battery.pack_run import SV_ECHG, pack_begin, pack_bus_state
 
     def pack_impl(s, soc, soc_max, i_dis_max_a, i_chg_max_a, aux_w, discharge_rtol, charge_rtol):
         pack_begin(s)
-        return pack_bus_state(s, soc, soc_max, discharge_rtol, charge_rtol)
+        state = pack_bus_state(s, soc, soc_max, discharge_rtol, charge_rtol)
+        return (*state, s.sv[SV_ECHG])
 
     return pack_impl
+
+
+def vehicle_bus_has_bms(s: Any) -> bool:
+    """Whether the battery ``s`` of a compiled forward loop (None: a table battery, a
+    :data:`CellBusTables` or a pack's :class:`~hevsim.battery.pack_run.PackArrays`) has a BMS
+    whose current limits must hold on every step (issue 24 item 4): a pack's. A table or cell
+    battery's limits are the ``[battery]`` section's, held at the step's start as the thesis
+    does. (Compiled only: a numba overload, a constant of the type.)"""
+    raise NotImplementedError("compiled only (numba overload)")
+
+
+@overload(vehicle_bus_has_bms, inline="always")
+def _vehicle_bus_has_bms(s):
+    bms = not (s is None or isinstance(s, types.NoneType) or _is_cell_bus(s))
+    return lambda s: bms
 
 
 @overload(vehicle_bus_finish_power)

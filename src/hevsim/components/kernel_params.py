@@ -1,8 +1,10 @@
 """The layout of the vehicle kernel's scalar parameter vector ``p`` (one float per name).
 
-The series forward kernel (:mod:`hevsim.sim.kernel`) reads it, and the pack's battery role
-(:mod:`hevsim.battery.vehicle`) writes its slots of the step's BMS limits and bus load, so the
-layout lives here, below both (issue 24: constants shared across layers live in the lower one).
+The series HEV's point kernels (:mod:`hevsim.architectures.series_kernel`) read it; the layout
+lives in the physics layer, below the architectures and the simulator that fill it (issue 24:
+constants shared across layers live in the lower one). The battery model's step limits and bus
+load are not in it: the one loop hands them to the plug-in each step
+(:func:`hevsim.sim._loop.battery_begin`).
 """
 
 PARAMS = (
@@ -18,12 +20,6 @@ PARAMS = (
     "genset_kind", "soc_low", "soc_high", "soc_boost", "genset_speed_radps",
     "genset_start_speed_radps", "throttle_run", "throttle_boost", "genset_gain_per_radps",
     "genset_current_a", "regen_min_speed_mps", "aux_power_w", "pure_ice_band_w",
-    "driver_kind", "supervisor_kind", "battery_kind",
+    "driver_kind", "supervisor_kind",
 )  # fmt: skip
 P = {name: i for i, name in enumerate(PARAMS)}
-BIDIS = P["bat_max_dis_a"]
-"""Slot of the pack's discharge-current limit [A] (the BMS's, step by step)."""
-BICHG = P["bat_max_chg_a"]
-"""Slot of the pack's charge-current limit [A] (the BMS's, step by step)."""
-PAUX = P["aux_power_w"]
-"""Slot of the bus's auxiliary load [W] (the pack's cooling adds to it)."""

@@ -76,7 +76,7 @@ def _point(w_wheel, t_wheel, regen_ok, soc, dt, bat, h, wd, mtab):
         w_wheel, t_wheel, regen_ok, wd.fd_ratio, wd.fd_efficiency, wd.regen_fraction, wd.regen_min_speed_mps,
         h.radius_m, wd.w_max_radps,
     )  # fmt: skip
-    ocv, r_dis, r_chg, p_chg = bat
+    ocv, r_dis, r_chg, p_chg, _ = bat
     oth, inf, t, p_el, p_bat, cur, d_soc = _electric(
         t_req, w_m, h.aux_power_w, ok, soc, dt, ocv, r_dis, r_chg, p_chg, h, mtab
     )

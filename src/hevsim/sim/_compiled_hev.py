@@ -198,7 +198,7 @@ def _point_body(dpar, dps, c0, c1, eng, w_wheel, t_wheel, regen_ok, soc, dt, bat
     architecture's details (``det``) and audit terms (``loss``, [W]); without, a control
     infeasible by its engine or machine speeds (or MG1's torque) is not taken to the bus
     (SOC change 0: callers read only its infeasibility)."""
-    ocv, r_dis, r_chg, p_chg = bat
+    ocv, r_dis, r_chg, p_chg, _ = bat
     h, etab, mtab, gtab = md
     if dpar is not None:
         gi, on, es, ms, bad, w_fd, w_e, t_e, t_e_fd, t_fd, fuel, w_em, t_req = P.mechanical_point(

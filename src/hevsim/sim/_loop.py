@@ -28,23 +28,29 @@ candidate grids) registered with :func:`register` together with three compiled f
 off, a value between (0.5: a series genset turning unfired, cranking or a current source on)
 counts an engine start but no engine-on time.
 
+``bat`` is the battery model's state of the step (:func:`battery_begin`: OCV [V], discharge and
+charge resistance [ohm], largest charge power [W], charge OCV [V]), ``hk`` the run constants
+with the step's current limits [A] and bus load [W]; ``commit``'s battery power [W] ends the
+battery model's step (:func:`battery_end`).
+
 The **driver** is a fourth, optional role: ``drive(plug, state, work, k, v, soc, t, v_des, gr,
-dt, h, bat, hk, e_soc, has_pack, audit) -> (ok, v1, v_mid, a, grade, f, limited, fuel_kg,
-d_soc)`` advances step ``k`` from the speed ``v``: the end and mid-step speeds [m/s], the
-acceleration [m/s²], the grade [-], the wheel force [N], 1.0 where the car fell behind its
-powertrain's limit, fuel [kg] and SOC change [-], and adds the road side of the energy audit
-(``ok`` False: stuck). By default it is the loop's own (the demand-side driver of eq 32, the
-plug-in's ``choose``, the bisection, ``point``, then the road side of the audit,
-:func:`add_road_audit`: a branch of :func:`run_loop` on the constant :func:`plug_drives`, so
-the other plug-ins' code is what it was); a plug-in with a driver
-and vehicle dynamics of its own registers its ``drive`` (the series HEV's proportional driver
-with explicit-Euler dynamics and genset shaft, :mod:`hevsim.sim._compiled_series`) and needs no
-``choose`` or ``point``. numba compiles :func:`run_loop` once per plug-in type (the
-dispatch :func:`plug_choose`, :func:`plug_point`, :func:`plug_commit` is resolved while
-typing, an ``@overload`` looking the type up in :data:`PLUGINS`), so each architecture gets
-its own machine code, cached on disk like any kernel: numba dispatchers passed as arguments
-would do the same but are not cacheable (their type holds the object, another in every
-process), so each process would compile the loop again.
+dt, h, bat, hk, e_soc, bms, audit) -> (ok, v1, v_mid, a, grade, f, limited, fuel_kg, d_soc)``
+advances step ``k`` from the speed ``v``: the end and mid-step speeds [m/s], the acceleration
+[m/s²], the grade [-], the wheel force [N], 1.0 where the car fell behind its powertrain's
+limit, fuel [kg] and SOC change [-], and adds the road side and the battery side of the energy
+audit (``ok`` False: stuck; ``bms``: the battery's limits are a BMS's, to hold on every step,
+:func:`~hevsim.battery.vehicle.vehicle_bus_has_bms`). By default it is the loop's own (the
+demand-side driver of eq 32, the plug-in's ``choose``, the bisection, ``point``, then the road
+side of the audit, :func:`add_road_audit`, and the battery side: a branch of :func:`run_loop` on
+the constant :func:`plug_drives`, so the other plug-ins' code is what it was); a plug-in with a
+driver and vehicle dynamics of its own registers its ``drive`` (the series HEV's proportional
+driver with explicit-Euler dynamics and genset shaft, :mod:`hevsim.sim._compiled_series`) and
+needs no ``choose`` or ``point``. numba compiles :func:`run_loop` once per plug-in type (the
+dispatch :func:`plug_choose`, :func:`plug_point`, :func:`plug_commit` is resolved while typing,
+an ``@overload`` looking the type up in :data:`PLUGINS`), so each architecture gets its own
+machine code, cached on disk like any kernel: numba dispatchers passed as arguments would do the
+same but are not cacheable (their type holds the object, another in every process), so each
+process would compile the loop again.
 
 The pieces every forward loop shares, the Python reference loop too, live here as well: the
 road side of the energy audit (:func:`add_road_audit`), the trace-following bookkeeping
@@ -68,7 +74,7 @@ from numba.core.errors import NumbaIRAssumptionWarning
 from numba.extending import overload
 
 from hevsim.architectures._common import NO_REFCOUNT
-from hevsim.battery.vehicle import vehicle_bus_begin, vehicle_bus_finish_power
+from hevsim.battery.vehicle import vehicle_bus_begin, vehicle_bus_finish_power, vehicle_bus_has_bms
 from hevsim.components.battery import pack_ocv_r_both
 from hevsim.components.body import grade_force, road_load_force, rolling_force
 from hevsim.components.bus import battery_power_limits
@@ -172,26 +178,34 @@ def constants(model: Any, soc_min: float, soc_max: float, lhv_jpkg: float | None
 # ------------------------------------------------------------------------- plug-ins
 class Plugin(NamedTuple):
     """An architecture's compiled functions (module docstring); ``drive`` None: the loop's
-    own driver."""
+    own driver. ``limit_rtol``: (discharge, charge) relative excess over a battery current
+    limit its feasibility test accepts; a pack's BMS limits are handed to it divided by ``1 +
+    rtol`` (:func:`battery_begin`) so that no accepted step exceeds them."""
 
     choose: Any
     point: Any
     commit: Any
     drive: Any = None
+    limit_rtol: tuple[float, float] = (LIMIT_RTOL, REGEN_CURRENT_RTOL)
 
 
 PLUGINS: dict[type, Plugin] = {}
 """Plug-in data type (a named tuple class) -> its :class:`Plugin`."""
 
 
-def register(data_type: type, choose: Any, point: Any, commit: Any, drive: Any = None) -> None:
+def register(
+    data_type: type, choose: Any, point: Any, commit: Any, drive: Any = None,
+    limit_rtol: tuple[float, float] = (LIMIT_RTOL, REGEN_CURRENT_RTOL),
+) -> None:  # fmt: skip
     """Make ``data_type`` (a named tuple class) a plug-in of :func:`run_loop`; ``drive``: its
     own driver and vehicle dynamics (module docstring; None: the loop's own, which calls
-    ``choose`` and ``point``; with a ``drive``, ``choose`` and ``point`` may be None)."""
+    ``choose`` and ``point``; with a ``drive``, ``choose`` and ``point`` may be None);
+    ``limit_rtol``: :attr:`Plugin.limit_rtol` ((0, 0): the plug-in holds a BMS's limits
+    exactly itself)."""
     if drive is not None:
         choose = choose or _no_choose
         point = point or _no_point
-    PLUGINS[data_type] = Plugin(choose, point, commit, drive)
+    PLUGINS[data_type] = Plugin(choose, point, commit, drive, (float(limit_rtol[0]), float(limit_rtol[1])))
 
 
 def _plugin(plug: Any, role: str) -> Any:
@@ -221,7 +235,7 @@ def plug_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
     raise NotImplementedError(_PY_CALL.format("plug_commit"))
 
 
-def plug_drive(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, has_pack, audit):
+def plug_drive(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, bms, audit):
     """The plug-in's ``drive`` (compiled code only: the target of :func:`_ov_drive`)."""
     raise NotImplementedError(_PY_CALL.format("plug_drive"))
 
@@ -277,8 +291,23 @@ def _ov_drives(plug):
     return lambda plug: own
 
 
+def plug_limit_rtol(plug):
+    """The plug-in's :attr:`Plugin.limit_rtol` (compiled code only: the target of
+    :func:`_ov_limit_rtol`, constants of the plug-in's type)."""
+    raise NotImplementedError(_PY_CALL.format("plug_limit_rtol"))
+
+
+@overload(plug_limit_rtol, inline="always")
+def _ov_limit_rtol(plug):
+    found = PLUGINS.get(getattr(plug, "instance_class", None))  # type: ignore[arg-type]
+    if found is None:
+        return None
+    rtol_dis, rtol_chg = found.limit_rtol
+    return lambda plug: (rtol_dis, rtol_chg)
+
+
 @njit(cache=True, inline="always")
-def _no_drive(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, has_pack, audit):
+def _no_drive(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, bms, audit):
     """The ``drive`` of a plug-in without one: never run (:func:`run_loop` takes its own driver
     for it), typed only (results: :func:`plug_drive`'s)."""
     return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
@@ -297,14 +326,14 @@ def _no_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, 
 
 
 @overload(plug_drive, inline="always")
-def _ov_drive(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, has_pack, audit):
+def _ov_drive(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, bms, audit):
     found = PLUGINS.get(getattr(plug, "instance_class", None))  # type: ignore[arg-type]
     if found is None:
         return None
     fn = _no_drive if found.drive is None else found.drive
 
-    def impl(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, has_pack, audit):
-        return fn(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, has_pack, audit)
+    def impl(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, bms, audit):
+        return fn(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, bms, audit)
 
     return impl
 
@@ -401,13 +430,13 @@ def demand(v0, v1, k, dt, gr, h):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _battery(soc, h, ptab):
-    """(OCV [V], discharge and charge resistance [ohm], largest charge power [W]) at ``soc``
-    (the forward loop's battery state: no charging when full)."""
+    """(OCV [V], discharge and charge resistance [ohm], largest charge power [W], charge OCV
+    [V]: the same) at ``soc`` (the forward loop's battery state: no charging when full)."""
     ocv, r_dis, r_chg = pack_ocv_r_both(soc, h.temperature_k, h.n_series, h.n_parallel, h.r_extra_ohm, ptab)
     p_chg = battery_power_limits(ocv, r_dis, ocv, r_chg, h.i_discharge_max_a, h.i_charge_max_a)[1]
     if soc >= h.soc_max:  # full: no charging (regeneration goes to the friction brakes)
         p_chg = 0.0
-    return ocv, r_dis, r_chg, p_chg
+    return ocv, r_dis, r_chg, p_chg, ocv
 
 
 @njit(cache=True, inline="always")
@@ -423,9 +452,11 @@ def _step_constants(h, i_dis, i_chg, aux_w):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def battery_begin(soc, h, ptab, pk):
+def battery_begin(soc, h, ptab, pk, rtol_dis, rtol_chg):
     """The battery model's start of a step: (the bus's battery state ``(OCV [V], discharge
-    and charge resistance [ohm], largest charge power [W])``, the run constants for the step).
+    and charge resistance [ohm], largest charge power [W], charge OCV [V])``, the run
+    constants for the step; a pack's BMS limits there divided by ``1 + rtol_dis``, ``1 +
+    rtol_chg``: :attr:`Plugin.limit_rtol`).
     ``ptab`` None: no battery (zeros, ``h`` as it is). ``pk`` None: the pack tables ``ptab``
     at the vehicle's ``soc`` [-] (:func:`_battery`) and ``h`` as it is. ``pk`` a pack's
     :class:`~hevsim.battery.pack_run.PackArrays` (``[battery] model = "pack"``): the pack's
@@ -438,14 +469,13 @@ def battery_begin(soc, h, ptab, pk):
     ``h``, as :meth:`hevsim.battery.cell_run.CellRun.vehicle_step`. Both through
     :func:`~hevsim.battery.vehicle.vehicle_bus_begin`."""
     if ptab is None:
-        return (0.0, 0.0, 0.0, 0.0), h
+        return (0.0, 0.0, 0.0, 0.0, 0.0), h
     if pk is None:
         return _battery(soc, h, ptab), h
-    ocv, r_dis, r_chg, p_chg, i_dis, i_chg, aux_w = vehicle_bus_begin(
-        pk, soc, h.soc_max, h.i_discharge_max_a, h.i_charge_max_a, h.aux_power_w, LIMIT_RTOL,
-        REGEN_CURRENT_RTOL,
-    )  # fmt: skip
-    return (ocv, r_dis, r_chg, p_chg), _step_constants(h, i_dis, i_chg, aux_w)
+    ocv, r_dis, r_chg, p_chg, i_dis, i_chg, aux_w, ocv_chg = vehicle_bus_begin(
+        pk, soc, h.soc_max, h.i_discharge_max_a, h.i_charge_max_a, h.aux_power_w, rtol_dis, rtol_chg
+    )
+    return (ocv, r_dis, r_chg, p_chg, ocv_chg), _step_constants(h, i_dis, i_chg, aux_w)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -492,13 +522,15 @@ def run_loop(plug, soc0, t, v_des, gr, h, ptab, state, work, det, loss, ext, slo
     err_sq = err_max = dist = eon = starts = lim_s = traction = 0.0
     was_on = False
     own_drive = plug_drives(plug)
+    rtol_dis, rtol_chg = plug_limit_rtol(plug)
+    bms = vehicle_bus_has_bms(pk)
     for k in range(n):
-        bat, hk = battery_begin(soc, h, ptab, pk)
+        bat, hk = battery_begin(soc, h, ptab, pk, rtol_dis, rtol_chg)
         ocv = bat[0]
         e_soc = q_as * ocv if has_battery else 1.0
         if own_drive:  # the plug-in's driver and vehicle dynamics, with its road audit
             ok, v1, v_mid, a, g, f, limited, fuel_kg, d_soc = plug_drive(
-                plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, has_pack, audit
+                plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, bms, audit
             )
             if not ok:
                 return ERR_STUCK, k, v, traction * dt
@@ -550,7 +582,7 @@ def run_loop(plug, soc0, t, v_des, gr, h, ptab, state, work, det, loss, ext, slo
         for j in range(nl):
             if slots[j] >= 0:
                 audit[slots[j]] += loss[j] * dt
-        if has_battery:
+        if has_battery and not own_drive:  # (a plug-in with its own driver keeps its battery's audit)
             e_chem = -d_soc * q_as * ocv
             audit[2] += e_chem
             audit[i_batloss] += e_chem - p_bat * dt

@@ -3,7 +3,7 @@ architecture (parallel P2/P3, power split, BEV, fuel-cell vehicle; issue 24 item
 
 The pack is ``n_series`` x ``n_parallel`` identical electro-thermal cells of
 :mod:`hevsim.battery` (``[battery] data``: a shipped cell or a cell TOML), one representative
-cell scaled to the pack as the series HEV's ECM kind does (:mod:`hevsim.battery.vehicle`),
+cell scaled to the pack (:mod:`hevsim.battery.vehicle`, section 2),
 with its RC and lumped thermal dynamics; its heat port is at the ambient (``[battery]
 temperature_c``, or ``ambient_temp_c`` of a run). The vehicle's forward loop
 (:func:`hevsim.sim.forward.simulate_architecture`, compiled or Python; a run at another ambient:
@@ -15,7 +15,8 @@ terminal power. The vehicle's SOC is the cell's (eq 37).
 The result is the vehicle's :class:`~hevsim.sim.simulator.SimulationResult` with the cell
 channels (:data:`hevsim.battery.cell_run.CHANNELS` and ``battery_heat_w``), metrics (peak and
 final cell temperature, the cells' energy-balance residual) and ``result.extra["cell_energy"]``.
-The series HEV runs its cells in its own compiled kernel (the ECM battery kind).
+The series HEV's kernel supervisors step the same :class:`~hevsim.battery.cell_run.CellRun` in
+the one loop (:func:`hevsim.sim.simulator.simulate`, then :func:`attach_cells`).
 """
 
 from __future__ import annotations

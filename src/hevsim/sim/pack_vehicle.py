@@ -8,13 +8,10 @@ voltage-limited cells lower them, so the supervisory controller sees the availab
 the cooling loop's electrical load; after the step the pack advances with the actual current
 and the ambient temperature.
 
-* **Series HEV**: the one compiled loop with the series plug-in
-  (:func:`hevsim.sim._compiled_series.run_compiled`) and the battery kind ``"pack"``: the
-  pack's compiled step (:mod:`hevsim.battery.pack_run`) inside the plug-in's step
-  (:mod:`hevsim.battery.vehicle`, section 3), one compiled loop with no Python
-  per step.
-* **Parallel HEV, power split, BEV, FCEV**: the one compiled forward loop
-  (:func:`hevsim.sim._loop.run_loop`, the architecture's plug-in) with the same compiled
+* **Every architecture** (the series HEV's kernel supervisors through its plug-in,
+  :func:`hevsim.sim._compiled_series.run_compiled`; parallel HEV, power split, BEV, FCEV): the
+  one compiled forward loop (:func:`hevsim.sim._loop.run_loop`, the architecture's plug-in)
+  with the same compiled
   pack step inside (``battery_begin``/``battery_end`` of :mod:`hevsim.sim._loop`:
   :func:`~hevsim.battery.pack_run.pack_begin`, :func:`~hevsim.battery.pack_run.pack_bus_state`,
   :func:`~hevsim.battery.pack_run.pack_finish_power`), no Python per step. Controllers without a
@@ -215,8 +212,6 @@ def _series_kernel_supervisor(controller: Any, cfg: Any) -> bool:
 def _simulate_series(model: Any, cyc: DriveCycle, dt: float, soc0: float, run: PackRun, schedule: Any) -> Any:
     import time
 
-    from hevsim.battery.vehicle import pack_kernel_tables
-    from hevsim.sim import kernel as K
     from hevsim.sim._compiled_series import run_compiled
     from hevsim.sim.checks import check_domain, check_metrics
     from hevsim.sim.simulator import _assemble, kernel_inputs
@@ -224,11 +219,9 @@ def _simulate_series(model: Any, cyc: DriveCycle, dt: float, soc0: float, run: P
     t0 = time.perf_counter()
     hev, cyc, dt, args = kernel_inputs(model, cyc, dt, soc0, schedule)
     p = args[0]
-    p[K.BATKIND] = K.BATTERY_KINDS.index("pack")
-    run.pack.reserve(len(cyc.time_s))
-    args = (*args[:4], pack_kernel_tables(run, p, dt), *args[5:])
+    args = (*args[:4], (args[4][0], run), *args[5:])  # the loop steps the pack (its battery hooks)
     t1 = time.perf_counter()
-    run_compiled(*args)  # the pack's compiled step inside the series plug-in of the one loop
+    run_compiled(*args)  # the series plug-in of the one loop, the pack's compiled step in the loop
     t2 = time.perf_counter()
     out, energy, summary = args[-3], args[-2], args[-1]
     label = f"{hev.name} on {cyc.name}"

@@ -141,10 +141,11 @@ SimulationResult.events = _Deferred("events")  # type: ignore[assignment]
 
 
 # The series HEV's compiled kernels (single run, batch run); which architecture runs where is
-# the registry's (hevsim.architectures.ARCHITECTURES), not a table here. The driver,
-# supervisory controller and battery model are chosen inside a kernel by the codes of
-# hevsim.sim.kernel.DRIVER_KINDS / SUPERVISOR_KINDS / BATTERY_KINDS (the battery kind follows
-# the model: "ecm" for a pack of dynamic cells, "tables" otherwise).
+# the registry's (hevsim.architectures.ARCHITECTURES), not a table here. The driver and
+# supervisory controller are chosen inside a kernel by the codes of
+# hevsim.sim.kernel.DRIVER_KINDS / SUPERVISOR_KINDS; the battery model is the one loop's, as
+# for every architecture (tables, a cell's CellRun or a pack's PackRun stepped by
+# hevsim.sim._loop.battery_begin / battery_end).
 
 
 @dataclass(frozen=True, eq=False)
@@ -280,7 +281,6 @@ def _plugins(hev: SeriesHEV, grid: DriveCycle, schedule: GensetSchedule | None, 
     _check_series_run(hev, kind, float(np.min(p[..., K.SOC0])), float(np.max(p[..., K.SOC0])))
     p[..., K.DRVKIND] = K.DRIVER_KINDS.index(cfg.driver.kind)
     p[..., K.SUPKIND] = K.SUPERVISOR_KINDS.index(kind)
-    p[..., K.BATKIND] = K.BATTERY_KINDS.index("ecm" if hev.cell is not None else "tables")
     return schedule.on_grid(grid.time_s) if schedule is not None else np.zeros((1, 3))
 
 
@@ -382,8 +382,9 @@ def _simulate_cell_options(
 ) -> SimulationResult:
     """:func:`simulate` of a ``[battery] model = "cell"`` vehicle at another ambient: the
     cells' heat port at ``ambient_c`` [degC]; with ``soak`` the cells start at it too (the
-    configuration's ``battery.temperature_c``). The series HEV runs its kernel's ECM battery
-    kind with that port; the other architectures :func:`hevsim.sim.forward.simulate_cell_architecture`.
+    configuration's ``battery.temperature_c``). The series HEV's kernel supervisors run the
+    cells (:meth:`~hevsim.architectures.series.SeriesHEV.battery_run`) with that port; the other
+    architectures :func:`hevsim.sim.forward.simulate_cell_architecture`.
     ConfigError for the pack's cooling and age options (a cell battery has neither)."""
     cfg: Any = getattr(model, "config", model)
     bad = [k for k in ("cooling_off", "age_state") if k in given]
@@ -527,6 +528,11 @@ def simulate(
     label = f"{hev.name} on {cyc.name}"
     check_domain(label, args[6], out, energy, summary, p)
     result = _assemble(hev, cyc, dt, p, out, energy, summary, t_done - t_kernel, t_done - t_start)
+    cells = args[4][1]
+    if cells is not None:  # a "cell" battery: its channels, metrics and energy terms, as every architecture's
+        from hevsim.sim.cell_vehicle import attach_cells
+
+        attach_cells(result, cells, hev.config)
     if tracking is not None:
         error = out[:, K.C["speed_desired_mps"]] - out[:, K.C["speed_mps"]]
         if tracking_violation(out[:, K.C["time_s"]], error, tracking) is not None:  # (the message's test)
@@ -546,17 +552,22 @@ def kernel_inputs(
 ) -> tuple[SeriesHEV, DriveCycle, float, tuple[Any, ...]]:
     """Everything one kernel call needs: ``(model, cycle, dt, args)``; ``kernel(*args)`` runs.
 
-    ``args`` ends with the output buffers ``(out, energy, summary)``. Used by
-    :func:`simulate` and by benchmarks that time the compiled kernel alone.
+    ``args`` ends with the output buffers ``(out, energy, summary)``; ``args[4]`` is the
+    battery, ``(pack tables, the battery run the loop steps or None)``
+    (:func:`hevsim.sim._compiled_series.run_compiled`; a ``"cell"`` battery's
+    :class:`~hevsim.battery.cell_run.CellRun` is fresh: build the arguments again for another
+    run). Used by :func:`simulate` and by benchmarks that time the compiled kernel alone.
     """
     hev, cyc, grid, dt = _prepare(model, cycle, dt_s)
     p = hev.param_vector(soc_initial)
-    eng, mot, gen, bat = hev.kernel_tables(dt, soc_initial)
+    eng, mot, gen, ptab = hev.kernel_tables()
+    battery = (ptab, hev.battery_run(dt, grid.time_s.size - 1, soc_initial))
     sched = _plugins(hev, grid, schedule, p)
     out = np.zeros((grid.time_s.size, len(K.CHANNELS)))
     energy = np.zeros(len(K.ENERGY_TERMS))
     summary = np.zeros(len(K.SUMMARY))
-    args = (p, eng, mot, gen, bat, sched, grid.time_s, grid.speed_mps, grid.grade, True, out, energy, summary)
+    cyc_arrays = (grid.time_s, grid.speed_mps, grid.grade)
+    args = (p, eng, mot, gen, battery, sched, *cyc_arrays, True, out, energy, summary)
     return hev, cyc, dt, args
 
 

@@ -9,13 +9,23 @@ the same label equations (the derived 5-cycle set of the vehicle's model year, h
 ``val_comb_mpgge`` (engine vehicles) or ``val_comb_kwh_per_mile`` (BEVs, from the wall: both
 models' battery energy over the file's charger efficiency ``chg_eff``).
 
+Plug-in hybrids (the PHEV rows): the row's main figure is the charge-sustaining (CS) combined mpg
+against ``val_comb_mpgge`` (the label's CS figure); two more figures are compared in
+:attr:`Row.extra`: the charge-depleting (CD) electricity from the wall against
+``val_comb_kwh_per_mile`` (both models' CD battery kWh/mi per cycle through the BEV equations and
+``chg_eff``) and the CD range against ``val_cd_range_mi`` (0.7 x the 55/45 combination of the
+unadjusted CD ranges: hevsim's SAE J1711 actual range, FASTSim's ``total_cd_miles``). Fuel-cell
+vehicles (``fc_eff_type = H2FC``, typed ``HEV`` by FASTSim): combined MPGe against
+``val_comb_mpgge``; both models count hydrogen in gallons of 33.7 kWh (the EPA's MPGe counts 1 kg
+= 1 gallon equivalent, 33.3 kWh at 120 MJ/kg: 1 % apart, not corrected).
+
 Units: FASTSim and the import count fuel in gallons of gasoline equivalent (33.7 kWh); the EPA
 label of a diesel car counts gallons of diesel, so a diesel's unadjusted mpgge is multiplied by
 33.7 kWh / (diesel LHV x density x gallon, hevsim's fuel table) before the label equations.
 
-Vehicles left out, with the reason in the table: PHEVs and fuel-cell vehicles (the import does
-not handle them yet), rows without EPA figures (trucks, non-US cars), and the rows of
-``hevsim/data/validation/fastsim_db_not_epa.toml`` whose ``val*`` figures are not an EPA label.
+Vehicles left out, with the reason in the table: rows without EPA figures (trucks, non-US cars),
+and the rows of ``hevsim/data/validation/fastsim_db_not_epa.toml`` whose ``val*`` figures are
+not an EPA label.
 """
 
 from __future__ import annotations
@@ -44,6 +54,8 @@ FASTSIM_KWH_PER_GGE = 33.7
 """FASTSim's gallon of gasoline equivalent [kWh] (``kwh_per_gge``), the gallon of the import's fuel."""
 DEFAULT_MODEL_YEAR = 2016
 """Model year of a row that gives none (in ``veh_year`` or its name) [-]."""
+EV_RANGE_FACTOR = 0.7
+"""The label's adjustment of an electric range (adjusted = 0.7 x unadjusted) [-]."""
 FASTSIM_TEMPLATE = "2016_TOYOTA_Prius_Two.yaml"
 """fastsim-2 YAML whose layout carries a database row into FASTSim 3 (``Vehicle.from_f2_file``)."""
 
@@ -66,11 +78,26 @@ class Row:
     hevsim_s: float = 0.0
     fastsim_s: float = 0.0
     notes: list[str] = field(default_factory=list)
+    extra_unadjusted: dict[str, tuple[tuple[float, float], tuple[float, float]]] = field(default_factory=dict)
+    """A PHEV's unadjusted CD figures by model: ((city, highway) battery kWh/mi, (city, highway)
+    range [mi])."""
+    fastsim_own: dict[str, float] = field(default_factory=dict)
+    """A PHEV's adjusted figures by FASTSim's own label equations (``adj_cs_comb_mpgge``,
+    ``adj_comb_kwh_per_mi``, ``net_phev_cd_miles``), for reference."""
+    extra: dict[str, list[float]] = field(default_factory=dict)
+    """A PHEV's further figures: name -> [EPA, hevsim, FASTSim] ("cd_kwh_per_mi" from the wall,
+    "cd_range_mi" adjusted)."""
 
     def error(self, which: str) -> float:
         """``which`` ("hevsim"/"fastsim") / EPA - 1 [-] (NaN when either is missing)."""
         x = getattr(self, which)
         return x / self.epa - 1.0 if self.epa and math.isfinite(x) else math.nan
+
+    def extra_error(self, name: str, which: str) -> float:
+        """The error of the further figure ``name`` of :attr:`extra` [-] (NaN when missing)."""
+        epa, h, f = self.extra.get(name, [math.nan] * 3)
+        x = h if which == "hevsim" else f
+        return x / epa - 1.0 if epa > 0 and math.isfinite(x) else math.nan
 
 
 def database_path() -> Path:
@@ -106,16 +133,18 @@ def rows(path: Path | None = None) -> list[tuple[Row, dict[str, Any]]]:
         v = read_vehicle(p, row=i)
         fcev = str(v.get("fc_eff_type", "")).strip() == "H2FC"
         kind = "FCEV" if fcev else pt
-        unit = "kWh/mi" if pt == "BEV" else "mpg"
+        unit = {"BEV": "kWh/mi", "FCEV": "MPGe", "PHEV": "CS mpg"}.get(kind, "mpg")
         epa = v.get("val_comb_kwh_per_mile") if pt == "BEV" else v.get("val_comb_mpgge")
         epa = float(epa) if isinstance(epa, float) and epa > 0 else None
         r = Row(i, name.strip(), kind, model_year(v), unit, epa)
+        if kind == "PHEV":
+            for key, col in (("cd_kwh_per_mi", "val_comb_kwh_per_mile"), ("cd_range_mi", "val_cd_range_mi")):
+                x = v.get(col)
+                r.extra[key] = [float(x) if isinstance(x, float) and x > 0 else math.nan, math.nan, math.nan]
         if epa is None:
             r.skipped = "no EPA figure in val_comb_*"
         elif name.strip() in bad:
             r.skipped = f"not an EPA label: {bad[name.strip()]}"
-        elif kind in ("PHEV", "FCEV"):
-            r.skipped = f"{kind}: not handled by hevsim import-vehicle yet (being added)"
         out.append((r, v))
     return out
 
@@ -162,6 +191,14 @@ def hevsim_unadjusted(row: Row, path: Path, work: Path) -> tuple[float, float]:
     f = lab.figures
     if row.powertrain == "BEV":
         return f["unadjusted_kwh_per_100mi"]["city"] / 100, f["unadjusted_kwh_per_100mi"]["highway"] / 100
+    if row.powertrain == "PHEV":  # CD battery (DC) kWh/mi over the actual range, and that range
+        eff = f["charger_efficiency"]
+        cd = f["charge_depleting_kwh_per_100mi"]["unadjusted"]
+        rng = f["charge_depleting_range_mi"]["actual_unadjusted"]
+        row.extra_unadjusted["hevsim"] = (
+            (cd["city"] * eff / 100, cd["highway"] * eff / 100),
+            (rng["city"], rng["highway"]),
+        )
     k = 1.0 / _diesel_factor(read_vehicle(path, row=row.row))
     return f["unadjusted_mpg"]["city"] * k, f["unadjusted_mpg"]["highway"] * k
 
@@ -221,8 +258,35 @@ def fastsim_unadjusted(row: Row, v: dict[str, Any], work: Path) -> tuple[float, 
         out = json.loads(fs.get_label_fe(veh).to_json())
     if row.powertrain == "BEV":
         return float(out["lab_udds_kwh_per_mi"]), float(out["lab_hwy_kwh_per_mi"])
+    if row.powertrain == "PHEV":  # get_label_fe's lab_* are UF-weighted: its CS and CD figures instead
+        u, h = out["phev_calcs"]["udds"], out["phev_calcs"]["hwy"]
+        row.extra_unadjusted["fastsim"] = (
+            (float(u["cd_ess_kwh_per_mi"]), float(h["cd_ess_kwh_per_mi"])),
+            (float(u["total_cd_miles"]), float(h["total_cd_miles"])),
+        )
+        row.fastsim_own = {
+            "cs_mpg": float(out["adj_cs_comb_mpgge"]),
+            "cd_kwh_per_mi": float(out["adj_comb_kwh_per_mi"]),
+            "cd_range_mi": float(out["net_phev_cd_miles"]),
+        }
+        return float(u["cs_mpg"]), float(h["cs_mpg"])
     k = 1.0 / _diesel_factor(v)
     return float(out["lab_udds_mpgge"]) * k, float(out["lab_hwy_mpgge"]) * k
+
+
+def _plugin_extra(r: Row, which: str, charger_efficiency: float) -> None:
+    """A PHEV's adjusted CD kWh/mi (from the wall) and CD range of model ``which`` into
+    :attr:`Row.extra`, by the same equations for both models: the BEV label equations on the
+    unadjusted CD battery kWh/mi, and 0.7 x the 55/45 combination of the unadjusted ranges."""
+    if which not in r.extra_unadjusted:
+        return
+    from hevsim.sim.label import constants
+
+    w = constants().city_weight
+    (kc, kh), (rc, rh) = r.extra_unadjusted[which]
+    i = 1 if which == "hevsim" else 2
+    r.extra["cd_kwh_per_mi"][i] = combined_label(kc, kh, r.model_year, True, charger_efficiency)
+    r.extra["cd_range_mi"][i] = EV_RANGE_FACTOR * (w * rc + (1 - w) * rh)
 
 
 def validate(only: list[int] | None = None, with_fastsim: bool = True, path: Path | None = None) -> list[Row]:
@@ -239,11 +303,12 @@ def validate(only: list[int] | None = None, with_fastsim: bool = True, path: Pat
             if r.skipped:
                 continue
             bev = r.powertrain == "BEV"
-            chg = float(v.get("chg_eff") or 1.0) if bev else 1.0
+            chg = float(v.get("chg_eff") or 1.0) if r.powertrain in ("BEV", "PHEV") else 1.0
             t0 = time.perf_counter()
             try:
                 r.hevsim_unadjusted = hevsim_unadjusted(r, p, work)
                 r.hevsim = combined_label(*r.hevsim_unadjusted, r.model_year, bev, chg)
+                _plugin_extra(r, "hevsim", chg)
             except ConfigError as exc:
                 r.notes.append(f"hevsim: {str(exc).splitlines()[0][:120]}")
             r.hevsim_s = time.perf_counter() - t0
@@ -252,6 +317,7 @@ def validate(only: list[int] | None = None, with_fastsim: bool = True, path: Pat
                 try:
                     r.fastsim_unadjusted = fastsim_unadjusted(r, v, work)
                     r.fastsim = combined_label(*r.fastsim_unadjusted, r.model_year, bev, chg)
+                    _plugin_extra(r, "fastsim", chg)
                 except ImportError:
                     with_fastsim = False
                 except Exception as exc:  # FASTSim refuses some vehicles: say so in the table
@@ -262,14 +328,17 @@ def validate(only: list[int] | None = None, with_fastsim: bool = True, path: Pat
 
 def summary(rows_: list[Row]) -> dict[str, dict[str, float]]:
     """Per powertrain class and "all": count, median and 90th percentile of |error| [%], hevsim
-    and FASTSim."""
+    and FASTSim, on each row's main figure; then "PHEV <figure>" for each further PHEV figure
+    (:attr:`Row.extra`)."""
     done = [r for r in rows_ if not r.skipped]
     out: dict[str, dict[str, float]] = {}
-    for cls in [*sorted({r.powertrain for r in done}), "all"]:
-        sel = [r for r in done if cls in ("all", r.powertrain)]
+    extras = sorted({k for r in done for k in r.extra})
+    for cls in [*sorted({r.powertrain for r in done}), "all", *(f"PHEV {k}" for k in extras)]:
+        key = cls.split()[1] if cls.startswith("PHEV ") else ""
+        sel = [r for r in done if cls in ("all", r.powertrain) or (key and key in r.extra)]
         d: dict[str, float] = {"n": float(len(sel))}
         for which in ("hevsim", "fastsim"):
-            e = np.abs([r.error(which) for r in sel])
+            e = np.abs([r.extra_error(key, which) if key else r.error(which) for r in sel])
             e = e[np.isfinite(e)]
             d[f"{which}_n"] = float(e.size)
             d[f"{which}_median_pct"] = 100 * float(np.median(e)) if e.size else math.nan
