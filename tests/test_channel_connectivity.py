@@ -18,7 +18,7 @@ import pytest
 pytest.importorskip("skfem")
 
 from hevsim.errors import ConfigError
-from hevsim.thermal import flow as flow_mod
+from hevsim.thermal import channel as channel_mod
 from hevsim.thermal.coolant import Coolant
 from hevsim.thermal.flow import (
     Channel,
@@ -96,7 +96,7 @@ def test_cli_flow_exits_2_naming_the_file_and_the_geometry_keys(
     boxes have a gap (patched in) goes through the command line's config load."""
     from hevsim.cli import main
 
-    monkeypatch.setattr(flow_mod, "plate_channel", lambda g: GAP)
+    monkeypatch.setattr(channel_mod, "plate_channel", lambda g: GAP)  # config_channel reads it there
     out = tmp_path / "res"
     assert main(["flow", str(MODULE_TOML), "--out", str(out)]) == 2
     err = capsys.readouterr().err

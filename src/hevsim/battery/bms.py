@@ -18,7 +18,7 @@ Each vehicle step ``dt`` (the pack's ``pack.dt_s``):
      leaves such a cell no consistent direction (discharge would need ``V < E_dis``, charge
      ``V > E_chg``; the dead band only holds ``|i| <= switch_band_a``), so the split's
      fixed-point iteration (:func:`hevsim.battery.kernel.share_current`, the same in
-     :func:`hevsim.battery.pack._share_affine`) ends after ``n_parallel + 2`` passes with
+     :func:`hevsim.battery.pack_kernels._share_affine`) ends after ``n_parallel + 2`` passes with
      directions still changing and the group's cells do not share one voltage exactly (61 mV
      apart in a measured group at 0.1 A, its cells circulating +-0.9 A). A fix needs a
      zero-current state for a cell inside its OCV gap (a cell-model change, not made here).

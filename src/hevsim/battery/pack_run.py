@@ -39,7 +39,7 @@ from numba import njit
 
 from hevsim.battery.cooling import LP_INF, LP_PFLOW, LP_RHOCP, LP_ZEROC, LS_TEMP, loop_begin, loop_end
 from hevsim.battery.kernel import SOCINI, SQ, SQABS, STEMP, cell_capacity
-from hevsim.battery.pack import NO_REFCOUNT, pack_pairs, pack_pass, pack_pass_linear
+from hevsim.battery.pack_kernels import NO_REFCOUNT, pack_pairs, pack_pass, pack_pass_linear
 from hevsim.components.bus import battery_power_limits
 from hevsim.tables import FloatArray
 

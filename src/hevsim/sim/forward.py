@@ -215,7 +215,7 @@ def simulate_architecture(
     from hevsim.architectures import architecture
     from hevsim.config import load_vehicle_config
     from hevsim.control import make_controller
-    from hevsim.sim.simulator import SimulationResult
+    from hevsim.sim.results import SimulationResult
 
     t_start = time.perf_counter()
     arch = architecture(name)
@@ -246,10 +246,16 @@ def simulate_architecture(
         )
     if b is not None and b.model == "cell" and pack_run is None:  # hevsim.sim.cell_vehicle
         return simulate_cell_architecture(name, model, cyc, dt, soc0, ctl, compiled)
-    if b is not None and b.model == "pack" and pack_run is None:  # hevsim.sim.pack_vehicle
-        from hevsim.sim.pack_vehicle import simulate_pack_vehicle
+    if b is not None and b.model == "pack" and pack_run is None:  # a fresh run of its pack
+        from threadpoolctl import threadpool_limits
 
-        return simulate_pack_vehicle(model, cyc, dt, soc0, controller=ctl)
+        from hevsim.sim.pack_setup import _attach, make_pack_run
+
+        run = make_pack_run(cfg, dt, soc0)
+        with threadpool_limits(1, user_api="blas"):  # as hevsim.sim.pack_vehicle.simulate_pack_vehicle
+            res = simulate_architecture(name, model, cyc, dt, soc0, ctl, pack_run=run)
+        _attach(res, run, cfg)
+        return res
     t_k0 = time.perf_counter()
     window = (b.soc_min, b.soc_max) if b is not None else (0.0, 1.0)
     hook = getattr(compiled_loop(name), "simulate_compiled", None) if use_compiled(compiled) else None
@@ -471,7 +477,7 @@ def simulate_batch_architecture(
     from hevsim.architectures import architecture
     from hevsim.config import load_vehicle_config
     from hevsim.control import make_controller
-    from hevsim.sim.simulator import BatchResult
+    from hevsim.sim.results import BatchResult
 
     cfg = load_vehicle_config(model) if isinstance(model, str | Path) else getattr(model, "config", model)
     arrays = {k: np.atleast_1d(np.asarray(v)) for k, v in variants.items()}

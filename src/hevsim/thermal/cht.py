@@ -66,8 +66,8 @@ from typing import Any
 import numpy as np
 
 from hevsim.errors import ConfigError
+from hevsim.thermal.channel import THERMAL_WALL_MODES, Channel, FlowResult, config_channel, port_facets
 from hevsim.thermal.coolant import Coolant, segments_along_path
-from hevsim.thermal.flow import Channel, FlowResult, port_facets
 
 #: Cells of the mesh wanted across the thermal boundary layer [-]: 0.5 = one node spacing of
 #: the P2 temperature (two per cell); fewer gives the coarse-mesh warning
@@ -267,8 +267,6 @@ class CoolantThermal:
         twice the conduction sublayer, else resolved. ``resolved`` on such a mesh is refused
         (:func:`~hevsim.thermal.rans.check_thermal_wall_mesh`); ``wall_function`` on a laminar
         flow too (the law of the wall is a turbulent one)."""
-        from hevsim.thermal.flow import THERMAL_WALL_MODES
-
         mode = self.thermal_wall
         if mode not in THERMAL_WALL_MODES:
             raise ConfigError(
@@ -554,19 +552,17 @@ def channel_axis_m(cfg: Any) -> np.ndarray:
     return np.asarray(g.channel_path_m())
 
 
-def run_cht(cfg: Any, flow: FlowResult | None = None) -> ChtResult:
+def run_cht(cfg: Any, flow: FlowResult) -> ChtResult:
     """Coolant heat transfer of a :class:`~hevsim.thermal.flow.FlowConfig` (``[flow]``) with the
     whole wall at ``flow.wall_temp_c`` and the inlet at ``coolant.inlet_temp_c``; compares the
     local film and Nusselt number with the 1-D channel model's correlation
     (:class:`~hevsim.thermal.coolant.ChannelModel`), which also gives its outlet temperature.
-    ``flow``: a solved flow of the same config (else it is solved here)."""
+    ``flow``: the solved flow of the same config (:func:`hevsim.thermal.flow.run_flow` with
+    ``thermal=True`` solves both)."""
     from hevsim.thermal.coolant import ChannelModel
-    from hevsim.thermal.flow import config_channel, solve_flow
     from hevsim.units import KELVIN_OFFSET
 
     channel = config_channel(cfg)
-    if flow is None:
-        flow = solve_flow(channel, cfg.coolant, cfg.flow_m3_s, section=cfg.flow, where=cfg.name)
     axis = channel_axis_m(cfg)
     n = int(cfg.segments)
     model = CoolantThermal(flow, channel, cfg.coolant, axis, n, cfg.name, thermal_wall=cfg.flow.thermal_wall)

@@ -31,7 +31,6 @@ London, *Laminar Flow Forced Convection in Ducts*, Academic Press (1978), Table 
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import math
 import time
 from dataclasses import dataclass, field
@@ -41,25 +40,35 @@ from typing import Any
 import numpy as np
 
 from hevsim.errors import ConfigError, SimulationError
+from hevsim.thermal.channel import (  # the shared base, re-exported where users import it
+    CHANNEL_KINDS,
+    FLOW_MODELS,
+    INLET_PROFILES,
+    L_MIN_TO_M3_S,
+    THERMAL_WALL_MODES,
+    Channel,
+    FlowResult,
+    FlowSection,
+    channel_mesh,
+    check_channel_mesh,
+    config_channel,
+    hydraulic_metrics,
+)
+from hevsim.thermal.channel import (
+    duct_channel as duct_channel,
+)
+from hevsim.thermal.channel import (
+    plate_channel as plate_channel,
+)
+from hevsim.thermal.channel import (
+    port_facets as port_facets,
+)
 from hevsim.thermal.coolant import RE_LAMINAR_MAX, Coolant
 from hevsim.thermal.geometry import ModuleGeometry
 
-#: Litres per minute -> m^3/s.
-L_MIN_TO_M3_S = 1e-3 / 60.0
 #: Terms of the rectangular-duct series (odd indices 1, 3, ..., 2 N - 1); the terms fall as
 #: i^-3 (velocity) and i^-5 (flow rate), so 200 terms give ~1e-8 relative accuracy.
 SERIES_TERMS = 200
-#: Inlet profiles :class:`FlowSection` accepts.
-INLET_PROFILES = ("developed", "uniform")
-#: Channels :class:`FlowSection` accepts: the plate's serpentine or a straight duct.
-CHANNEL_KINDS = ("plate", "duct")
-#: Flow models :class:`FlowSection` accepts (``auto``: laminar up to RE_LAMINAR_MAX, else RANS).
-FLOW_MODELS = ("auto", "laminar", "rans")
-#: Coolant wall treatments on a turbulent flow (``flow.thermal_wall``): ``auto`` (the thermal
-#: wall function when the FEM wall cells are thicker than twice the conduction sublayer, else
-#: resolved), ``resolved`` (the interpolated eddy diffusivity down to the wall; refused on such
-#: cells) or ``wall_function`` (:mod:`hevsim.thermal.wall_function`).
-THERMAL_WALL_MODES = ("auto", "resolved", "wall_function")
 #: Continuation in Reynolds number: the first level's Re is at most this [-] ...
 CONTINUATION_START_RE = 50.0
 #: ... and each level multiplies Re by this factor [-] up to the case's Re.
@@ -115,70 +124,6 @@ def duct_fanning_re(width_m: float, height_m: float) -> float:
 
 
 # --------------------------------------------------------------------------- configuration
-@dataclass(frozen=True)
-class FlowSection:
-    """``[flow]``: operating point, channel, mesh and solver of the laminar flow solve.
-
-    ``flow_l_min`` [L/min] (absent = take ``[coolant] flow_l_min``; zero is refused),
-    ``outlet_pressure_pa`` [Pa] (static gauge pressure at the outlet),
-    ``inlet_profile`` (``developed`` or ``uniform``),
-    ``channel`` (``plate``: the geometry's serpentine; ``duct``: a straight duct of the
-    channel's cross-section and length ``duct_length_m`` [m]), mesh resolution
-    (``cells_across_width``, ``cells_across_height``, ``cell_length_m`` [m] along the
-    channel), Newton ``tolerance`` (relative velocity update) and ``max_iterations``;
-    ``wall_temp_c`` [°C]: the uniform wall temperature of the coolant heat-transfer run
-    (``hevsim flow --thermal``, :func:`hevsim.thermal.cht.run_cht`); ``grad_div`` [-]:
-    grad-div stabilisation ``gamma int div u div v`` with ``gamma = grad_div (mu + rho U D_h)``
-    (0 = none), which improves the local mass conservation the coolant heat balance needs.
-    ``streamline_diffusion`` [-]: streamline-upwind stabilisation of the momentum equation,
-    ``int tau rho ((u . grad) u) . ((u . grad) v)`` with the SUPG ``tau = s h'/(2 |u|) (coth Pe_h -
-    1/Pe_h)`` scaled by this factor ``s`` (0 = none; 1 = the standard tau;
-    :data:`STREAMLINE_ORDER` sets ``h'``), Newton-linearised with tau frozen; it lets the
-    serpentine converge up to the laminar limit on coarse meshes (docs/flow.md). It adds
-    numerical diffusion along the streamlines only (no pressure or viscous part of the
-    residual): it vanishes for developed flow and is of order ``h`` where the flow develops.
-    ``wall_cell_m`` [m]: first cell height at the channel walls of this (FEM) mesh, growing by
-    ``growth`` [-] away from them up to the sizes above (0 = uniform cells, the default).
-
-    ``model``: ``auto`` (default), ``laminar`` or ``rans`` (module docstring). RANS keys
-    (:mod:`hevsim.thermal.rans`): ``turbulence_intensity`` [-] (0.05) and
-    ``turbulence_length_m`` [m] (0 = 0.07 D_h) of the inflow, ``prandtl_turbulent`` [-]
-    (0.85) for the coolant's eddy diffusivity nu_t / Pr_t, the OpenFOAM grid
-    (``rans_cells_across_width``, ``rans_cells_across_height``, ``rans_cell_length_m`` [m],
-    first cell height ``rans_wall_cell_m`` [m] at the walls, ``growth``), at most
-    ``rans_iterations`` SIMPLE iterations down to initial residuals ``rans_tolerance`` [-], on
-    ``rans_processes`` MPI processes. ``thermal_wall``: the coolant heat transfer's wall
-    treatment on a turbulent flow, :data:`THERMAL_WALL_MODES` (default ``auto``).
-    """
-
-    flow_l_min: float = 0.0
-    outlet_pressure_pa: float = 0.0
-    inlet_profile: str = "developed"
-    channel: str = "plate"
-    duct_length_m: float = 0.05
-    cells_across_width: int = 4
-    cells_across_height: int = 2
-    cell_length_m: float = 0.002
-    picard_iterations: int = 3
-    max_iterations: int = 30
-    tolerance: float = 1e-9
-    wall_temp_c: float = 25.0
-    grad_div: float = 0.0
-    streamline_diffusion: float = 0.0
-    wall_cell_m: float = 0.0
-    growth: float = 1.3
-    model: str = "auto"
-    turbulence_intensity: float = 0.05
-    turbulence_length_m: float = 0.0
-    prandtl_turbulent: float = 0.85
-    rans_cells_across_width: int = 8
-    rans_cells_across_height: int = 4
-    rans_cell_length_m: float = 0.002
-    rans_wall_cell_m: float = 3e-4
-    rans_iterations: int = 500
-    rans_tolerance: float = 1e-4
-    rans_processes: int = 1
-    thermal_wall: str = "auto"
 
 
 _FLOW_BOUNDS: dict[str, tuple[float, float]] = {
@@ -296,133 +241,7 @@ def load_flow_config(path: str | Path) -> FlowConfig:
     return flow_config_from_dict(read_toml(p), str(p), p.parent)
 
 
-# --------------------------------------------------------------------------- channel and mesh
-@dataclass(frozen=True)
-class Channel:
-    """Axis-aligned boxes (x0, x1, y0, y1, z0, z1) [m] whose union is the channel volume, and
-    the inlet/outlet planes x = const with the y range and flow direction (+1/-1 along x)."""
-
-    boxes: tuple[tuple[float, float, float, float, float, float], ...]
-    inlet: tuple[float, float, float, int]  # x, y0, y1, direction
-    outlet: tuple[float, float, float, int]
-
-    @property
-    def width_m(self) -> float:
-        return self.inlet[2] - self.inlet[1]
-
-    @property
-    def height_m(self) -> float:
-        return self.boxes[0][5] - self.boxes[0][4]
-
-
-def plate_channel(g: ModuleGeometry) -> Channel:
-    """The serpentine channel of the plate: the boxes :func:`~hevsim.thermal.geometry.build_module_mesh`
-    cuts out of the plate (:meth:`ModuleGeometry.channel_boxes_m`)."""
-    path = g.channel_path_m()
-    w = g.channel_width_m
-    boxes = g.channel_boxes_m()
-    first, last = path[0], path[-1]
-    out_dir = 1 if last[0] > path[-2][0] else -1
-    return Channel(
-        tuple(boxes),
-        (0.0, first[1] - w / 2, first[1] + w / 2, 1),
-        (float(last[0]), last[1] - w / 2, last[1] + w / 2, out_dir),
-    )
-
-
-def duct_channel(length_m: float, width_m: float, height_m: float) -> Channel:
-    """A straight duct x in [0, L], y in [0, width], z in [0, height] [m]."""
-    return Channel(
-        ((0.0, length_m, 0.0, width_m, 0.0, height_m),), (0.0, 0.0, width_m, 1), (length_m, 0.0, width_m, 1)
-    )
-
-
-def _axis_nodes(breaks: list[float], spacing: float) -> np.ndarray:
-    pts = sorted(set(np.round(breaks, 12)))
-    out = [pts[0]]
-    for a, b in itertools.pairwise(pts):
-        n = max(1, math.ceil((b - a) / spacing - 1e-9))
-        out.extend(np.linspace(a, b, n + 1)[1:])
-    return np.array(out)
-
-
-def channel_mesh(
-    ch: Channel,
-    cells_across_width: int,
-    cells_across_height: int,
-    cell_length_m: float,
-    wall_cell_m: float = 0.0,
-    growth: float = 1.3,
-) -> Any:
-    """Structured tetrahedral mesh (scikit-fem ``MeshTet``) of the channel's box union;
-    ``wall_cell_m`` > 0 [m]: cells graded geometrically (``growth`` [-]) from that height at the
-    walls (:func:`hevsim.thermal.rans.channel_grid`)."""
-    from skfem import MeshTet
-
-    w, h = ch.width_m, ch.height_m
-    if wall_cell_m > 0.0:
-        from hevsim.thermal.rans import channel_grid
-
-        xs, ys, zs = channel_grid(
-            ch, cells_across_width, cells_across_height, cell_length_m, wall_cell_m, growth
-        ).nodes
-    else:
-        xs = _axis_nodes([v for b in ch.boxes for v in b[:2]], cell_length_m)
-        ys = _axis_nodes([v for b in ch.boxes for v in b[2:4]], min(w / cells_across_width, cell_length_m))
-        zs = _axis_nodes([v for b in ch.boxes for v in b[4:]], h / cells_across_height)
-    m = MeshTet.init_tensor(xs, ys, zs)
-    c = m.p[:, m.t].mean(axis=1)
-    inside = np.zeros(c.shape[1], dtype=bool)
-    for x0, x1, y0, y1, z0, z1 in ch.boxes:
-        inside |= (c[0] > x0) & (c[0] < x1) & (c[1] > y0) & (c[1] < y1) & (c[2] > z0) & (c[2] < z1)
-    return m.restrict(np.nonzero(inside)[0])
-
-
-def port_facets(mesh: Any, channel: Channel) -> tuple[np.ndarray, np.ndarray]:
-    """Boundary facets of ``mesh`` on the channel's inlet and on its outlet plane."""
-    tol = 1e-9 * max(max(b[1] for b in channel.boxes), channel.width_m, channel.height_m)
-    mid = mesh.p[:, mesh.facets].mean(axis=1)
-    bnd = mesh.boundary_facets()
-
-    def plane(spec: tuple[float, float, float, int]) -> np.ndarray:
-        x, y0, y1, _ = spec
-        on = (np.abs(mid[0, bnd] - x) < tol) & (mid[1, bnd] > y0 - tol) & (mid[1, bnd] < y1 + tol)
-        return bnd[on]
-
-    return plane(channel.inlet), plane(channel.outlet)
-
-
-def check_channel_mesh(mesh: Any, channel: Channel, where: str) -> None:
-    """Refuse (ConfigError, exit 2) a channel mesh without an inlet or outlet face or whose
-    volume does not connect them (:func:`hevsim.thermal.geometry.check_channel_connected`)."""
-    from hevsim.thermal.geometry import check_channel_connected
-
-    f_in, f_out = port_facets(mesh, channel)
-    f2t = mesh.f2t
-    check_channel_connected(mesh.t, f2t[0, f_in], f2t[0, f_out], where)
-
-
 # --------------------------------------------------------------------------- solver
-@dataclass
-class FlowResult:
-    """Flow solution and its figures (SI units; names carry the unit)."""
-
-    metrics: dict[str, float]
-    mesh: Any
-    velocity: np.ndarray  # P2 velocity dofs
-    pressure: np.ndarray  # P1 pressure dofs (= vertex values)
-    basis_u: Any
-    basis_p: Any
-    history: list[float]
-    metadata: dict[str, Any] = field(default_factory=dict)
-    cht: Any = None  # hevsim.thermal.cht.ChtResult of a thermal run (run_flow(thermal=True))
-    #: turbulent (eddy) diffusivity nu_t / Pr_t at the mesh vertices [m^2/s] (RANS only)
-    eddy_diffusivity_m2_s: np.ndarray | None = None
-    rans: Any = None  # hevsim.thermal.rans.RansResult of a RANS solve
-
-    def vertex_velocity_mps(self) -> np.ndarray:
-        """Velocity at the mesh vertices, (N, 3) [m/s]."""
-        return np.asarray(self.velocity[self.basis_u.nodal_dofs].T)
 
 
 def solve_flow(
@@ -664,31 +483,6 @@ def solve_flow(
     return FlowResult(metrics, mesh, vel, prs, basis_u, basis_p, history)
 
 
-def hydraulic_metrics(
-    flow_m3_s: float, q_in: float, q_out: float, reynolds: float, u_mean: float, dh: float, p_in: float,
-    p_out: float,
-) -> dict[str, float]:  # fmt: skip
-    """The figures every flow solution reports (laminar and RANS): configured, inlet and outlet
-    flow [m^3/s] and the mass imbalance [-], Reynolds number [-], mean velocity [m/s],
-    hydraulic diameter [m], inlet and outlet pressure [Pa], pressure drop [Pa] and pump power
-    (pressure drop x flow) [W]."""
-    dp = p_in - p_out
-    return {
-        "flow_m3_s": flow_m3_s,
-        "flow_l_min": flow_m3_s / L_MIN_TO_M3_S,
-        "inlet_flow_m3_s": q_in,
-        "outlet_flow_m3_s": q_out,
-        "mass_imbalance_rel": abs(q_in - q_out) / flow_m3_s,
-        "reynolds": reynolds,
-        "mean_velocity_mps": u_mean,
-        "hydraulic_diameter_m": dh,
-        "inlet_pressure_pa": p_in,
-        "outlet_pressure_pa": p_out,
-        "pressure_drop_pa": dp,
-        "pump_power_w": dp * flow_m3_s,
-    }
-
-
 def _volume_m3(mesh: Any) -> float:
     """Sum of the tetrahedra's volumes [m^3]."""
     e = mesh.p[:, mesh.t[1:]] - mesh.p[:, mesh.t[0]][:, None, :]
@@ -710,14 +504,6 @@ def _face_mean(mesh: Any, basis_p: Any, p: np.ndarray, facets: np.ndarray) -> fl
         return wf["p"]
 
     return float(value.assemble(fb, p=fb.interpolate(p)) / one.assemble(fb))
-
-
-def config_channel(cfg: FlowConfig) -> Channel:
-    """The channel a :class:`FlowConfig` names (``plate`` or ``duct``)."""
-    g = cfg.geometry
-    if cfg.flow.channel == "duct":
-        return duct_channel(cfg.flow.duct_length_m, g.channel_width_m, g.channel_height_m)
-    return plate_channel(g)
 
 
 def run_flow(

@@ -71,13 +71,28 @@ import tempfile
 import time
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from hevsim.errors import ConfigError, SimulationError
+from hevsim.thermal.channel import (  # the graded grid lives with the channel (re-exported here)
+    ChannelGrid,
+    FlowResult,
+    FlowSection,
+    channel_grid,
+    channel_mesh,
+    check_channel_mesh,
+    hydraulic_metrics,
+)
+from hevsim.thermal.channel import (
+    graded_axis as graded_axis,
+)
+from hevsim.thermal.channel import (
+    wall_planes as wall_planes,
+)
 from hevsim.thermal.coolant import Coolant
 
 #: Environment variable naming an OpenFOAM installation folder (the one holding ``etc/bashrc``).
@@ -228,129 +243,6 @@ def find_openfoam(
         f"(looked at: {looked}). To solve it, {INSTALL_HINT}; or solve a laminar case "
         '(flow.model = "laminar" with a lower flow.flow_l_min).'
     )
-
-
-# --------------------------------------------------------------------------- graded grid
-def graded_axis(
-    breaks: Sequence[float], walls: Sequence[bool], max_cell_m: float, wall_cell_m: float, growth: float
-) -> np.ndarray:
-    """Grid nodes [m] along one axis through every value of ``breaks`` (sorted): cells no
-    larger than ``max_cell_m`` [m], and from each break flagged in ``walls`` a geometric
-    progression starting at ``wall_cell_m`` [m] growing by ``growth`` [-] (``wall_cell_m`` = 0:
-    uniform cells)."""
-    out = [float(breaks[0])]
-    for i in range(len(breaks) - 1):
-        a, b = float(breaks[i]), float(breaks[i + 1])
-        length = b - a
-        ends = [walls[i], walls[i + 1]] if wall_cell_m > 0 else [False, False]
-        sides: list[list[float]] = [[], []]
-        for s in (0, 1):
-            if not ends[s]:
-                continue
-            size = wall_cell_m
-            while size < max_cell_m and sum(sides[s]) + size <= length / (2 if ends[1 - s] else 1):
-                sides[s].append(size)
-                size *= growth
-        middle = length - sum(sides[0]) - sum(sides[1])
-        n_mid = max(0, math.ceil(middle / max_cell_m - 1e-9))
-        if n_mid == 0 and not (sides[0] or sides[1]):
-            n_mid = 1
-        sizes = (
-            np.array(sides[0] + [middle / n_mid] * n_mid + sides[1][::-1])
-            if n_mid
-            else np.array(sides[0] + sides[1][::-1])
-        )
-        sizes *= length / sizes.sum()
-        out.extend((a + np.cumsum(sizes))[:-1])
-        out.append(b)
-    return np.array(out)
-
-
-@dataclass
-class ChannelGrid:
-    """A tensor grid of hexahedra restricted to a channel's boxes.
-
-    ``nodes``: the three axes' grid nodes [m]; ``inside``: (nx, ny, nz) cell mask;
-    ``cell_id``: (nx, ny, nz) OpenFOAM cell index (-1 outside)."""
-
-    nodes: tuple[np.ndarray, np.ndarray, np.ndarray]
-    inside: np.ndarray
-    cell_id: np.ndarray = field(init=False)
-
-    def __post_init__(self) -> None:
-        self.cell_id = np.full(self.inside.shape, -1, dtype=np.int64)
-        self.cell_id[self.inside] = np.arange(int(self.inside.sum()))
-
-    @property
-    def n_cells(self) -> int:
-        return int(self.inside.sum())
-
-    def centres(self) -> np.ndarray:
-        """Cell centres (n_cells, 3) [m] in cell-index order."""
-        mids = [(n[1:] + n[:-1]) / 2 for n in self.nodes]
-        i, j, k = np.nonzero(self.inside)
-        return np.column_stack([mids[0][i], mids[1][j], mids[2][k]])
-
-
-def _box_mask(channel: Any, nodes: Sequence[np.ndarray]) -> np.ndarray:
-    mids = [(n[1:] + n[:-1]) / 2 for n in nodes]
-    cx, cy, cz = np.meshgrid(*mids, indexing="ij")
-    inside = np.zeros(cx.shape, dtype=bool)
-    for x0, x1, y0, y1, z0, z1 in channel.boxes:
-        inside |= (cx > x0) & (cx < x1) & (cy > y0) & (cy < y1) & (cz > z0) & (cz < z1)
-    return inside
-
-
-def _on_port(channel: Any, x: float, y: np.ndarray) -> np.ndarray:
-    """True where the points (x, y) lie on the inlet or outlet plane's span."""
-    hit = np.zeros(np.shape(y), dtype=bool)
-    for px, y0, y1, _ in (channel.inlet, channel.outlet):
-        tol = 1e-9 * max(abs(y1 - y0), 1e-3)
-        hit |= (abs(x - px) < tol) & (y > y0 - tol) & (y < y1 + tol)
-    return hit
-
-
-def wall_planes(channel: Any) -> list[list[bool]]:
-    """For each axis, whether each break (box face coordinate) carries channel wall somewhere
-    (inlet and outlet planes do not count)."""
-    breaks = [sorted({round(v, 12) for b in channel.boxes for v in b[2 * a : 2 * a + 2]}) for a in range(3)]
-    nodes = [np.array(b) for b in breaks]
-    mask = np.pad(_box_mask(channel, nodes), 1)  # padded with outside
-    mids = [(n[1:] + n[:-1]) / 2 for n in nodes]
-    flags: list[list[bool]] = []
-    for a in range(3):
-        m = np.moveaxis(mask, a, 0)
-        boundary = m[1:] != m[:-1]  # (n_breaks, ., .) faces on each plane
-        f = []
-        for p in range(len(breaks[a])):
-            faces = boundary[p][1:-1, 1:-1]
-            if a == 0 and faces.any():  # discount the inlet/outlet spans on x planes
-                jj = np.nonzero(faces)[0]
-                faces_wall = ~_on_port(channel, breaks[0][p], mids[1][jj])
-                f.append(bool(faces_wall.any()))
-            else:
-                f.append(bool(faces.any()))
-        flags.append(f)
-    return flags
-
-
-def channel_grid(
-    channel: Any,
-    cells_across_width: int,
-    cells_across_height: int,
-    cell_length_m: float,
-    wall_cell_m: float = 0.0,
-    growth: float = 1.2,
-) -> ChannelGrid:
-    """The graded tensor grid of ``channel`` (see the module docstring): cells at most
-    width / ``cells_across_width``, height / ``cells_across_height`` and ``cell_length_m`` [m]
-    long, first cell ``wall_cell_m`` [m] at every wall plane (0 = uniform), ``growth`` [-]."""
-    w, h = channel.width_m, channel.height_m
-    walls = wall_planes(channel)
-    breaks = [sorted({round(v, 12) for b in channel.boxes for v in b[2 * a : 2 * a + 2]}) for a in range(3)]
-    sizes = (cell_length_m, min(w / cells_across_width, cell_length_m), h / cells_across_height)
-    nodes = tuple(graded_axis(breaks[a], walls[a], sizes[a], wall_cell_m, growth) for a in range(3))
-    return ChannelGrid((nodes[0], nodes[1], nodes[2]), _box_mask(channel, nodes))
 
 
 # --------------------------------------------------------------------------- case writer
@@ -931,7 +823,6 @@ def solve_rans(
         ConfigError: bad flow rate or mesh settings.
         SimulationError: OpenFOAM failed.
     """
-    from hevsim.thermal.flow import FlowSection, channel_mesh, check_channel_mesh
 
     sec = section or FlowSection()
     coolant.check(f"{where}: coolant")
@@ -1007,7 +898,6 @@ def read_rans_case(
     channel, coolant, flow rate [m^3/s] and ``section`` must be the solve's (the grid is rebuilt
     from them and must match the case's cell count). ``started``: ``time.perf_counter()`` at
     the start of the solve (the metrics' ``solve_time_s``; default: now)."""
-    from hevsim.thermal.flow import FlowSection, hydraulic_metrics
 
     sec = section or FlowSection()
     t0 = time.perf_counter() if started is None else started
@@ -1096,8 +986,6 @@ def on_fem_mesh(
     figures, completed with the FEM mesh's. One OpenFOAM solve can so be read onto several FEM
     meshes (a mesh study, or a coarse mesh with the thermal wall function)."""
     from skfem import Basis, ElementTetP1, ElementTetP2, ElementVector
-
-    from hevsim.thermal.flow import FlowResult, channel_mesh
 
     sec = section
     w, h = channel.width_m, channel.height_m
