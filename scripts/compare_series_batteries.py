@@ -18,39 +18,30 @@ from pathlib import Path
 import numpy as np
 
 
-def cell_car(tmp: Path, ex: Path, example: str, n_s: int, n_p: int, cell="thesis_table_4_1", temp_c=25.0):
-    text = (ex / example).read_text()
-    start = text.index("[battery]")
-    end = text.index("\n[", start + 1) + 1
-    section = (
-        f'[battery]\nmodel = "cell"\ndata = "{cell}"\nn_series = {n_s}\nn_parallel = {n_p}\n'
-        f"temperature_c = {temp_c}\nmax_discharge_current_a = 200.0\nmax_charge_current_a = 200.0\n"
-        "soc_min = 0.3\nsoc_max = 0.9\n\n"
-    )
-    for p in ex.iterdir():
-        if not (tmp / p.name).exists():
-            (tmp / p.name).symlink_to(p)
-    out = tmp / f"cell_{n_s}_{n_p}_{temp_c:g}_{example}"
-    out.write_text(text[:start] + section + text[end:])
-    return out
+def cell_car(example: str, n_s: int, n_p: int, temp_c: float = 25.0) -> Path:
+    """This checkout's ``examples/example`` with a ``cell`` battery of thesis cells
+    (``tests/test_cell_forward.cell_car``, in a folder of its own): the same file for both trees."""
+    import tempfile
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from tests.test_cell_forward import cell_car as make
+
+    return make(Path(tempfile.mkdtemp()), example, n_s, n_p, temp_c=temp_c)
 
 
 def save(out):
-    import tempfile
-
     import hevsim
     from hevsim.sim.simulator import simulate
 
     root = Path(hevsim.__file__).resolve().parents[2]
     ex = root / "examples"
     print("hevsim from", hevsim.__file__)
-    tmp = Path(tempfile.mkdtemp())
     cases = {
         "tables_udds": (ex / "series_hev.toml", "udds"),
-        "cell_udds": (cell_car(tmp, ex, "series_hev.toml", 100, 6), "udds"),
-        "cell_udds_np1": (cell_car(tmp, ex, "series_hev.toml", 100, 1), "udds"),
-        "cell_us06": (cell_car(tmp, ex, "series_hev.toml", 100, 6), "us06"),
-        "cell_hot_us06": (cell_car(tmp, ex, "series_hev.toml", 100, 3, temp_c=40.0), "us06"),
+        "cell_udds": (cell_car("series_hev.toml", 100, 6), "udds"),
+        "cell_udds_np1": (cell_car("series_hev.toml", 100, 1), "udds"),
+        "cell_us06": (cell_car("series_hev.toml", 100, 6), "us06"),
+        "cell_hot_us06": (cell_car("series_hev.toml", 100, 3, temp_c=40.0), "us06"),
         "pack_udds": (ex / "series_hev_pack.toml", "udds"),
         "pack_us06": (ex / "series_hev_pack.toml", "us06"),
     }
