@@ -83,10 +83,22 @@ def interp2(xp: FloatArray, yp: FloatArray, fp: FloatArray, x: float, y: float, 
         return interp1(yp, fp[0, :], y, linear)
     if ny == 1:
         return interp1(xp, fp[:, 0], x, linear)
+    i, j, wx, wy = _bracket2(xp, yp, x, y)
+    return _blend2(fp, i, j, wx, wy)
+
+
+@njit(cache=True, inline="always")
+def _bracket2(xp: FloatArray, yp: FloatArray, x: float, y: float) -> tuple[int, int, float, float]:
+    """The cell ``(i, j)`` of the grid ``xp`` x ``yp`` holding ``(x, y)`` and the point's weights
+    in it (:func:`interp2`, :func:`interp2_three`)."""
     i = _segment(xp, x)
     j = _segment(yp, y)
-    wx = (x - xp[i]) / (xp[i + 1] - xp[i])
-    wy = (y - yp[j]) / (yp[j + 1] - yp[j])
+    return i, j, (x - xp[i]) / (xp[i + 1] - xp[i]), (y - yp[j]) / (yp[j + 1] - yp[j])
+
+
+@njit(cache=True, inline="always")
+def _blend2(fp: FloatArray, i: int, j: int, wx: float, wy: float) -> float:
+    """The bilinear value of ``fp`` in the cell ``(i, j)`` at the weights ``wx``, ``wy``."""
     f0 = fp[i, j] + wy * (fp[i, j + 1] - fp[i, j])
     f1 = fp[i + 1, j] + wy * (fp[i + 1, j + 1] - fp[i + 1, j])
     return f0 + wx * (f1 - f0)
@@ -114,17 +126,8 @@ def interp2_three(
     if not linear:
         x = min(max(x, xp[0]), xp[nx - 1])
         y = min(max(y, yp[0]), yp[ny - 1])
-    i = _segment(xp, x)
-    j = _segment(yp, y)
-    wx = (x - xp[i]) / (xp[i + 1] - xp[i])
-    wy = (y - yp[j]) / (yp[j + 1] - yp[j])
-    a0 = fa[i, j] + wy * (fa[i, j + 1] - fa[i, j])
-    a1 = fa[i + 1, j] + wy * (fa[i + 1, j + 1] - fa[i + 1, j])
-    b0 = fb[i, j] + wy * (fb[i, j + 1] - fb[i, j])
-    b1 = fb[i + 1, j] + wy * (fb[i + 1, j + 1] - fb[i + 1, j])
-    c0 = fc[i, j] + wy * (fc[i, j + 1] - fc[i, j])
-    c1 = fc[i + 1, j] + wy * (fc[i + 1, j + 1] - fc[i + 1, j])
-    return a0 + wx * (a1 - a0), b0 + wx * (b1 - b0), c0 + wx * (c1 - c0)
+    i, j, wx, wy = _bracket2(xp, yp, x, y)
+    return _blend2(fa, i, j, wx, wy), _blend2(fb, i, j, wx, wy), _blend2(fc, i, j, wx, wy)
 
 
 @njit(cache=True)
