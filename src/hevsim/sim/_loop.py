@@ -208,9 +208,14 @@ def register(
     PLUGINS[data_type] = Plugin(choose, point, commit, drive, (float(limit_rtol[0]), float(limit_rtol[1])))
 
 
+def _registered(plug: Any) -> Plugin | None:
+    """The :class:`Plugin` of the numba type ``plug`` (None: not a plug-in)."""
+    return PLUGINS.get(getattr(plug, "instance_class", None))  # type: ignore[arg-type]
+
+
 def _plugin(plug: Any, role: str) -> Any:
     """The registered function ``role`` of the numba type ``plug`` (None: not a plug-in)."""
-    found = PLUGINS.get(getattr(plug, "instance_class", None))  # type: ignore[arg-type]
+    found = _registered(plug)
     return None if found is None else getattr(found, role)
 
 
@@ -284,7 +289,7 @@ def plug_drives(plug):
 
 @overload(plug_drives, inline="always")
 def _ov_drives(plug):
-    found = PLUGINS.get(getattr(plug, "instance_class", None))  # type: ignore[arg-type]
+    found = _registered(plug)
     if found is None:
         return None
     own = found.drive is not None
@@ -299,7 +304,7 @@ def plug_limit_rtol(plug):
 
 @overload(plug_limit_rtol, inline="always")
 def _ov_limit_rtol(plug):
-    found = PLUGINS.get(getattr(plug, "instance_class", None))  # type: ignore[arg-type]
+    found = _registered(plug)
     if found is None:
         return None
     rtol_dis, rtol_chg = found.limit_rtol
@@ -327,7 +332,7 @@ def _no_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat, 
 
 @overload(plug_drive, inline="always")
 def _ov_drive(plug, state, work, k, v, soc, t, v_des, gr, dt, h, bat, hk, e_soc, bms, audit):
-    found = PLUGINS.get(getattr(plug, "instance_class", None))  # type: ignore[arg-type]
+    found = _registered(plug)
     if found is None:
         return None
     fn = _no_drive if found.drive is None else found.drive
@@ -582,11 +587,11 @@ def run_loop(plug, soc0, t, v_des, gr, h, ptab, state, work, det, loss, ext, slo
         for j in range(nl):
             if slots[j] >= 0:
                 audit[slots[j]] += loss[j] * dt
-        if has_battery and not own_drive:  # (a plug-in with its own driver keeps its battery's audit)
-            e_chem = -d_soc * q_as * ocv
-            audit[2] += e_chem
-            audit[i_batloss] += e_chem - p_bat * dt
-        if not own_drive:
+        if not own_drive:  # (a plug-in with its own driver keeps its battery's and road audit)
+            if has_battery:
+                e_chem = -d_soc * q_as * ocv
+                audit[2] += e_chem
+                audit[i_batloss] += e_chem - p_bat * dt
             add_road_audit(
                 audit, v, v1, v_mid, a, g, f, h.mass_kg, m_eff, h.rolling_resistance,
                 h.rolling_resistance_speed_s_per_m, dt,
