@@ -103,11 +103,45 @@ def test_fastsim_database_only_non_epa_rows_are_skipped() -> None:
     for r in with_figure:
         if r.skipped:
             assert r.name in bad and r.skipped == f"not an EPA label: {bad[r.name]}", (r.row, r.skipped)
-    assert sorted(r.row for r in with_figure if r.skipped) == [32, 33, 39]
+    assert sorted(r.row for r in with_figure if r.skipped) == [27, 28, 30, 32, 33, 39]
     labelled = {r.powertrain for r in with_figure if not r.skipped}
     assert labelled == {"Conv", "HEV", "PHEV", "BEV", "FCEV"}
     assert sorted(r.row for r in with_figure if r.powertrain in ("PHEV", "FCEV")) == [12, 13, 14, 16, 23, 24]
     assert all(r.skipped == "no EPA figure in val_comb_*" for r in rows if r.epa is None)
+
+
+def _vehdb_lines(file: str) -> dict[str, tuple[str, str]]:
+    """A fastsim-2 vehicle CSV of the shipped vehdb: parameter name -> (value, comment)."""
+    import csv
+    from importlib import resources
+
+    p = resources.files("hevsim") / "data" / "vehicles" / "fastsim" / "vehdb" / file
+    with open(str(p), newline="", encoding="utf-8") as fh:
+        return {r[1]: (r[2], (r[3] if len(r) > 3 else "").strip()) for r in csv.reader(fh) if len(r) > 2}
+
+
+def test_fastsim_database_carried_over_figures_are_another_rows() -> None:
+    """The rows left out as carrying another row's ``val*`` figures (``[carried_over]``) do, and
+    FASTSim's own file of each vehicle says so: its figures equal the named row's (the database),
+    and in its fastsim-2 file (an independent record: FASTSim's authors') the ``val_*`` lines carry
+    no comment while every value that differs from the named row's file carries one (a source,
+    "legacy"), or the file states that uncommented values are carried over from that row."""
+    keys = ("val_udds_mpgge", "val_hwy_mpgge", "val_comb_mpgge")
+    rows = {r.name: v for r, v in F.rows()}
+    carried = F.carried_over()
+    assert sorted(carried) == ["2010 Mazda 3 i-Stop", "2012 Ford Focus", "2017 Toyota Highlander 3.5 L"]
+    for name, (src, file) in carried.items():
+        assert [rows[name][k] for k in keys] == [rows[src][k] for k in keys], name
+        mine = _vehdb_lines(file)
+        theirs = _vehdb_lines(src.replace(" ", "_") + ".csv")
+        assert mine["Scenario name"][0] == name
+        assert all(mine[k][1] == "" for k in keys), name
+        said = f"carryover from {src}" in mine["Scenario name"][1]
+        differ = [k for k in mine if k != "Scenario name" and k in theirs and mine[k][0] != theirs[k][0]]
+        assert differ, name  # a different vehicle
+        assert said or all(mine[k][1] for k in differ), (name, [k for k in differ if not mine[k][1]])
+    # a row with genuine figures of its own is not flagged: the Fusion (the Highlander's source)
+    assert "2012 Ford Fusion" not in F.not_epa() and "2016 TOYOTA Corolla 4cyl 2WD" not in F.not_epa()
 
 
 def test_fastsim_database_skips_are_stated() -> None:

@@ -105,11 +105,38 @@ def database_path() -> Path:
     return Path(str(resources.files("hevsim") / DATABASE))
 
 
+def carried_over() -> dict[str, tuple[str, str]]:
+    """Scenario name -> (the scenario name of the row whose ``val*`` figures it carries, the
+    vehicle's fastsim-2 file in ``hevsim/data/vehicles/fastsim/vehdb/``): the ``[carried_over]``
+    table of :data:`NOT_EPA_FILE`."""
+    p = Path(str(resources.files("hevsim") / NOT_EPA_FILE))
+    data = tomllib.loads(p.read_text(encoding="utf-8")).get("carried_over", {})
+    out = {}
+    for k, v in data.items():
+        if (
+            not isinstance(v, dict)
+            or not isinstance(v.get("from"), str)
+            or not isinstance(v.get("file"), str)
+        ):
+            raise ConfigError(
+                f'{p}: [carried_over] {k!r} = {v!r}: expected {{ from = "scenario name", file = "X.csv" }}'
+            )
+        out[str(k)] = (v["from"], v["file"])
+    return out
+
+
 def not_epa() -> dict[str, str]:
-    """Scenario name -> why its ``val*`` figures are not an EPA label."""
+    """Scenario name -> why its ``val*`` figures are not an EPA label (the ``[not_epa]`` table of
+    :data:`NOT_EPA_FILE`, and its ``[carried_over]`` rows: another row's figures)."""
     p = Path(str(resources.files("hevsim") / NOT_EPA_FILE))
     data = tomllib.loads(p.read_text(encoding="utf-8"))
-    return {str(k): str(v) for k, v in data.get("not_epa", {}).items()}
+    out = {str(k): str(v) for k, v in data.get("not_epa", {}).items()}
+    for name, (src, file) in carried_over().items():
+        out[name] = (
+            f"its val_* figures are the {src} row's, carried over when its file was made from that row's "
+            f"(vehdb/{file}: every sourced value carries a comment, its val_* lines none)"
+        )
+    return out
 
 
 def model_year(v: dict[str, Any]) -> int:
