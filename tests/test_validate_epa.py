@@ -161,6 +161,19 @@ def test_combined_label_is_the_label_equations() -> None:
     assert F.model_year({"scenario_name": "2017 CHEVROLET Bolt", "veh_year": None}) == 2017
 
 
+def test_label_units_are_the_labels_own() -> None:
+    """FASTSim and the import count fuel in gallons of 33.7 kWh; the labels count a diesel car's
+    gallons of diesel and a fuel-cell car's kilograms of hydrogen (the EPA's MPGe of an FCEV is its
+    miles per kg): per unit of the label's fuel, 33.7 kWh / (hydrogen's LHV, 120 MJ/kg =
+    33.33 kWh) = 1.0110 FASTSim gallons for hydrogen, 33.7 / 38.0 kWh (diesel LHV x density x
+    gallon, hevsim's fuel table) for diesel, 1 for gasoline."""
+    rows = {r.row: v for r, v in F.rows()}
+    assert F._label_gallon_factor(rows[23]) == pytest.approx(33.7 * 3.6 / 120.0, rel=1e-12)  # Tucson FC
+    assert F._label_gallon_factor(rows[24]) == pytest.approx(1.0110, abs=5e-5)  # Mirai
+    assert F._label_gallon_factor(rows[37]) == pytest.approx(33.7 / 38.0, rel=0.01)  # Colorado diesel
+    assert F._label_gallon_factor(rows[1]) == 1.0 and F._label_gallon_factor(rows[17]) == 1.0
+
+
 def test_road_load_and_mass_are_the_lists_converted() -> None:
     vehicles, skipped = T.read_test_cars()
     v = next(x for x in vehicles if x.vehicle_id == "562TT5348")  # Aston Martin DB11 V8, first line

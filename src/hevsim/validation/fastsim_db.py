@@ -16,12 +16,14 @@ against ``val_comb_mpgge`` (the label's CS figure); two more figures are compare
 ``chg_eff``) and the CD range against ``val_cd_range_mi`` (0.7 x the 55/45 combination of the
 unadjusted CD ranges: hevsim's SAE J1711 actual range, FASTSim's ``total_cd_miles``). Fuel-cell
 vehicles (``fc_eff_type = H2FC``, typed ``HEV`` by FASTSim): combined MPGe against
-``val_comb_mpgge``; both models count hydrogen in gallons of 33.7 kWh (the EPA's MPGe counts 1 kg
-= 1 gallon equivalent, 33.3 kWh at 120 MJ/kg: 1 % apart, not corrected).
+``val_comb_mpgge``, which is the EPA's miles per kg of hydrogen: both models count hydrogen in
+FASTSim's gallons of 33.7 kWh, so their figures are converted to miles per kg (120 MJ/kg =
+33.33 kWh: x 0.989) before the label equations.
 
 Units: FASTSim and the import count fuel in gallons of gasoline equivalent (33.7 kWh); the EPA
 label of a diesel car counts gallons of diesel, so a diesel's unadjusted mpgge is multiplied by
-33.7 kWh / (diesel LHV x density x gallon, hevsim's fuel table) before the label equations.
+(diesel LHV x density x gallon, hevsim's fuel table) / 33.7 kWh before the label equations, and a
+fuel-cell car's by 33.33 kWh (a kg of hydrogen) / 33.7 kWh.
 
 Vehicles left out, with the reason in the table: rows without EPA figures (trucks, non-US cars),
 and the rows of ``hevsim/data/validation/fastsim_db_not_epa.toml`` whose ``val*`` figures are
@@ -176,13 +178,19 @@ def rows(path: Path | None = None) -> list[tuple[Row, dict[str, Any]]]:
     return out
 
 
-def _diesel_factor(v: dict[str, Any]) -> float:
-    """Gallons of gasoline equivalent per gallon of the vehicle's fuel as the EPA label counts it [-]."""
-    if str(v.get("fc_eff_type", "")).strip() not in ("Diesel", "HD_Diesel"):
+def _label_gallon_factor(v: dict[str, Any]) -> float:
+    """FASTSim's gallons (33.7 kWh, :data:`FASTSIM_KWH_PER_GGE`) per unit of the vehicle's fuel as
+    its EPA label counts it [-]: a gallon of diesel (its LHV x density x gallon), a kilogram of
+    hydrogen (the EPA labels a fuel-cell car's miles per kg as its MPGe: 120 MJ/kg = 33.33 kWh, so
+    0.989 of FASTSim's gallon), else 1 (gasoline, and the BEVs' kWh)."""
+    kind = str(v.get("fc_eff_type", "")).strip()
+    if kind not in ("Diesel", "HD_Diesel", "H2FC"):
         return 1.0
     from hevsim.fuels import get_fuel
     from hevsim.units import M3_PER_US_GALLON
 
+    if kind == "H2FC":
+        return FASTSIM_KWH_PER_GGE * 3.6e6 / get_fuel("hydrogen").lower_heating_value_j_per_kg
     d = get_fuel("diesel")
     return (
         FASTSIM_KWH_PER_GGE
@@ -226,7 +234,7 @@ def hevsim_unadjusted(row: Row, path: Path, work: Path) -> tuple[float, float]:
             (cd["city"] * eff / 100, cd["highway"] * eff / 100),
             (rng["city"], rng["highway"]),
         )
-    k = 1.0 / _diesel_factor(read_vehicle(path, row=row.row))
+    k = 1.0 / _label_gallon_factor(read_vehicle(path, row=row.row))
     return f["unadjusted_mpg"]["city"] * k, f["unadjusted_mpg"]["highway"] * k
 
 
@@ -297,7 +305,7 @@ def fastsim_unadjusted(row: Row, v: dict[str, Any], work: Path) -> tuple[float, 
             "cd_range_mi": float(out["net_phev_cd_miles"]),
         }
         return float(u["cs_mpg"]), float(h["cs_mpg"])
-    k = 1.0 / _diesel_factor(v)
+    k = 1.0 / _label_gallon_factor(v)
     return float(out["lab_udds_mpgge"]) * k, float(out["lab_hwy_mpgge"]) * k
 
 
