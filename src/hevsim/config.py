@@ -321,8 +321,10 @@ class ControllerSection:
     ``"aecms"`` (candidates: ``engine_speed_points``
     engine speeds x ``control_points`` throttles, and engine off). Fuel-cell vehicle:
     ``"load_follower"`` (the fuel cell follows the bus load, ``soc_low``..``soc_high``,
-    ``charge_power_w``), ``"ecms"``, ``"aecms"`` (candidates: ``control_points`` net powers from
-    0 = off to the rating, moved into the ramp window of each step).
+    ``charge_power_w``; kept running whatever the SOC and load above ``fuel_cell_on_speed_mps``
+    and, once started, until it has run ``fuel_cell_min_on_time_s``), ``"ecms"``, ``"aecms"``
+    (candidates: ``control_points`` net powers from 0 = off to the rating, moved into the ramp
+    window of each step).
     """
 
     kind: str = choice("thermostat", *CONTROLLER_KINDS)
@@ -349,6 +351,13 @@ class ControllerSection:
     # while the SOC is below soc_high (the surplus charges the battery): keeps it off the inefficient
     # low-load end of its operating range; 0 = the demand only
     engine_min_power_w: float = param(0.0, 0.0, 1e7, "W")
+    # load follower (FCEV): above this vehicle speed the fuel cell runs whatever the SOC and the
+    # load (at no net output if need be, drawing its idle hydrogen): FASTSim's `mph_fc_on`; the
+    # default (1000 m/s) is above any road speed: never
+    fuel_cell_on_speed_mps: float = param(1000.0, 0.0, 1000.0, "m/s")
+    # load follower (FCEV): a fuel cell that starts keeps running until it has run this long
+    # (FASTSim's `min_fc_time_on` rule: forced on while 0 < time on < this - dt); 0 = no minimum
+    fuel_cell_min_on_time_s: float = param(0.0, 0.0, 1e5, "s")
     upshift_rpm: float = param(2000.0, 1.0, 1e5, "rpm")
     downshift_rpm: float = param(1100.0, 1.0, 1e5, "rpm")
     equivalence_factor: float = param(2.5, 0.0, 100.0, "-")
@@ -375,7 +384,9 @@ class FuelCellSection:
     net system efficiency vs net power as a fraction of ``max_power_w`` [W]; ``min_power_w``
     [W]: idle (the system never runs below it); ramp limits ``ramp_up_w_per_s`` and
     ``ramp_down_w_per_s`` [W/s] on its net power; ``initial_power_w`` [W]: its power before the
-    first step (clipped to the idle and rated power)."""
+    first step (clipped to the idle and rated power); ``idle_fuel_power_w`` [W]: the least hydrogen
+    power (LHV basis) a running system draws, at low or no net output (FASTSim's ``idle_fc_kw``;
+    0: none)."""
 
     data: str = "fastsim_h2fc"
     max_power_w: float = param(114000.0, 1.0, 1e7, "W")
@@ -383,6 +394,7 @@ class FuelCellSection:
     ramp_up_w_per_s: float = param(20000.0, 1e-3, 1e9, "W/s")
     ramp_down_w_per_s: float = param(40000.0, 1e-3, 1e9, "W/s")
     initial_power_w: float = param(0.0, 0.0, 1e7, "W")
+    idle_fuel_power_w: float = param(0.0, 0.0, 1e7, "W")
 
 
 PLUGIN_MODES: tuple[str, ...] = ("off", "ev_first", "blended")
@@ -1167,7 +1179,8 @@ CONTROLLER_KEYS: dict[str, tuple[str, ...]] = {
     "power_follower": ("soc_low", "soc_high", "ev_speed_mps", "ev_power_w", "charge_power_w",
                        "engine_min_power_w", "control_points"),
     "direct": (),
-    "load_follower": ("soc_low", "soc_high", "charge_power_w"),
+    "load_follower": ("soc_low", "soc_high", "charge_power_w", "fuel_cell_on_speed_mps",
+                      "fuel_cell_min_on_time_s"),
 }  # fmt: skip
 """``[controller]`` keys each controller kind reads (the one table: :data:`hevsim.control.CONTROLLERS`
 takes its ``parameters`` from here, and :func:`inert_keys` refuses the others)."""

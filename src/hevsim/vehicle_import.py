@@ -858,6 +858,14 @@ def build_toml(v: dict[str, Any], source: str, stem: str) -> str:
             f"charge_power_w = {_fmt(FCEV_CHARGE_POWER_FRACTION * float(v['fc_max_kw']) * 1e3)}   "
             f"# {FCEV_CHARGE_POWER_FRACTION:g} x fc_max_kw (assumed)"
         )
+        a(
+            f"fuel_cell_on_speed_mps = {_fmt(min(float(v.get('mph_fc_on') or 0.0) * 0.44704, 1000.0))}   "
+            "# mph_fc_on: FASTSim keeps the fuel converter on above it whatever the SOC (braking too)"
+        )
+        a(
+            f"# min_fc_time_on ({float(v.get('min_fc_time_on') or 0.0):g} s) not carried, as for the HEV's "
+            "engine: fuel_cell_min_on_time_s = 0 (docs/import_vehicle.md)"
+        )
         if aux > 0:
             a(f"aux_power_w = {_fmt(aux)}   # aux_kw (on the bus)")
         a("")
@@ -894,7 +902,9 @@ def _fuel_cell_toml(a: Any, v: dict[str, Any], stem: str) -> None:
     a("[fuel_cell]   # FASTSim's fuel converter of type H2FC")
     a(f'data = "{stem}_fuel_cell"   # FASTSim\'s efficiency vs power fraction (fc_eff_map, meta.toml)')
     a(f"max_power_w = {_fmt(kw * 1e3)}   # fc_max_kw")
-    a("min_power_w = 0.0   # FASTSim's fuel cell may stop (its idle fuel, idle_fc_kw, is not modelled)")
+    a("min_power_w = 0.0   # FASTSim's fuel cell may stop")
+    idle = max(float(v.get("idle_fc_kw") or 0.0), 0.0)
+    a(f"idle_fuel_power_w = {_fmt(idle * 1e3)}   # idle_fc_kw: least H2 power of a running fuel cell")
     a(f"ramp_up_w_per_s = {_fmt(min(ramp, 1e9))}   # fc_max_kw / fc_sec_to_peak_pwr {secs:g} s")
     a(f"ramp_down_w_per_s = {_fmt(min(ramp, 1e9))}   # (assumed, as up)")
     a("initial_power_w = 0.0")

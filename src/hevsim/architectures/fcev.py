@@ -91,6 +91,7 @@ def build_fcev(cfg: FCEVConfig) -> FCEV:
         ramp_down_w_per_s=fc.ramp_down_w_per_s, lhv_j_per_kg=lhv, fuel_name=fuel.name,
         fuel_density_kgpm3=fuel.density_kg_per_m3,
         heating_value_btu_per_gal=fuel.heating_value_btu_per_us_gal, co2_kg_per_kg=fuel.co2_kg_per_kg,
+        idle_fuel_power_w=fc.idle_fuel_power_w,
     )  # fmt: skip
     return FCEV(
         **chassis(cfg),

@@ -7,7 +7,11 @@ balance of plant included) is a measured curve over the net power as a fraction 
 hydrogen); it runs between ``min_power_w`` (idle) and ``max_power_w`` and its net power changes
 by at most ``ramp_up_w_per_s`` / ``ramp_down_w_per_s`` [W/s]. Net power 0 is the system off
 (no hydrogen): it starts at or below idle plus one step's ramp-up and stops from at most idle plus
-one step's ramp-down (:meth:`FuelCellSystem.reachable`).
+one step's ramp-down (:meth:`FuelCellSystem.reachable`). A running system draws at least
+``idle_fuel_power_w`` [W] of hydrogen (LHV basis; its balance of plant at low or no net output,
+FASTSim's ``idle_fc_kw``): ``max(P / eta(P), idle_fuel_power_w)`` for ``P > 0`` (default 0: no
+floor). A system kept running with no net output (a controller's forced-on rule) runs at
+:data:`RUNNING_ZERO_W`, a net power too small to change any sum it enters, which is not off.
 
 As a fuel converter it carries the fuel fields an :class:`~hevsim.components.engine.Engine`
 carries (``fuel_name``, ``fuel_lhv_jpkg``, ``fuel_density_kgpm3``, ``heating_value_btu_per_gal``,
@@ -34,6 +38,9 @@ HYDROGEN_KG_PER_M3_GALLON = 264.1720524
 counts 1 kg of hydrogen as a gallon of gasoline equivalent)."""
 HYDROGEN_BTU_PER_GALLON = 113738.5978
 """Heating value of that "gallon" (1 kg at 120 MJ/kg) [BTU/gal] (hevsim/data/fuels.toml)."""
+RUNNING_ZERO_W = 1e-300
+"""Net power [W] of a system running with no net output (on, not off: it draws its idle hydrogen
+``idle_fuel_power_w``); added to any bus power of a vehicle it leaves the sum unchanged."""
 
 
 @njit(cache=True, inline="always")
@@ -80,18 +87,20 @@ def efficiency_point(net_power_w, max_power_w, power_fraction, efficiency_curve)
 
 
 @njit(cache=True, inline="always")
-def hydrogen_power_point(net_power_w, max_power_w, power_fraction, efficiency_curve):
-    """(net efficiency [-], hydrogen chemical power [W], LHV basis) at ``net_power_w`` [W]: ``P /
-    eta(P)``, 0 when off (scalar kernel of :meth:`FuelCellSystem.hydrogen_power_w`)."""
+def hydrogen_power_point(net_power_w, max_power_w, power_fraction, efficiency_curve, idle_fuel_power_w):
+    """(net efficiency [-], hydrogen chemical power [W], LHV basis) at ``net_power_w`` [W]:
+    ``max(P / eta(P), idle_fuel_power_w)`` while running, 0 when off (scalar kernel of
+    :meth:`FuelCellSystem.hydrogen_power_w`)."""
     eta = efficiency_point(net_power_w, max_power_w, power_fraction, efficiency_curve)
-    return eta, (net_power_w / eta if net_power_w > 0.0 else 0.0)
+    return eta, (max(net_power_w / eta, idle_fuel_power_w) if net_power_w > 0.0 else 0.0)
 
 
 @dataclass(frozen=True)
 class FuelCellSystem:
     """A fuel-cell system of rating ``max_power_w`` [W] with its efficiency curve
     (``power_fraction`` [-] -> ``efficiency`` [-]), idle power ``min_power_w`` [W], ramp limits
-    [W/s] and hydrogen heating value ``lhv_j_per_kg`` [J/kg]."""
+    [W/s], hydrogen heating value ``lhv_j_per_kg`` [J/kg] and the least hydrogen power a running
+    system draws, ``idle_fuel_power_w`` [W] (LHV basis)."""
 
     power_fraction: np.ndarray
     efficiency_curve: np.ndarray
@@ -105,6 +114,7 @@ class FuelCellSystem:
     fuel_density_kgpm3: float = HYDROGEN_KG_PER_M3_GALLON
     heating_value_btu_per_gal: float = HYDROGEN_BTU_PER_GALLON
     co2_kg_per_kg: float = 0.0
+    idle_fuel_power_w: float = 0.0
 
     @property
     def name(self) -> str:
@@ -122,9 +132,10 @@ class FuelCellSystem:
         return np.interp(frac, self.power_fraction, self.efficiency_curve)
 
     def hydrogen_power_w(self, net_power_w: Any) -> Any:
-        """Hydrogen chemical power [W] (LHV basis) at ``net_power_w`` [W]: ``P / eta(P)``."""
+        """Hydrogen chemical power [W] (LHV basis) at ``net_power_w`` [W]: ``max(P / eta(P),
+        idle_fuel_power_w)`` where running (``P > 0``), 0 where off."""
         p = np.asarray(net_power_w, dtype=np.float64)
-        return np.where(p > 0.0, p / self.efficiency(p), 0.0)
+        return np.where(p > 0.0, np.maximum(p / self.efficiency(p), self.idle_fuel_power_w), 0.0)
 
     def hydrogen_rate_kgps(self, net_power_w: Any) -> Any:
         """Hydrogen mass flow [kg/s] at ``net_power_w`` [W]."""

@@ -98,6 +98,16 @@ class Direct:
         return () if bool(np.ravel(feasible)[0]) else None
 
 
+@njit(cache=True, inline="always")
+def forced_on(v_mid_mps, on_time_s, dt_s, on_speed_mps, min_on_time_s):
+    """Whether FASTSim's rules keep a fuel converter running this step: the vehicle's mid-step
+    speed ``v_mid_mps`` [m/s] above ``on_speed_mps`` (``mph_fc_on``), or a converter that has run
+    ``on_time_s`` [s] (0: off) less than ``min_on_time_s - dt_s`` [s] (``min_fc_time_on``, as
+    fastsim-2's ``set_fc_forced_state`` tests it). The load follower's rule; its compiled plug-in
+    (:mod:`hevsim.sim._compiled_fcev`) calls it compiled."""
+    return v_mid_mps > on_speed_mps or (on_time_s > 0.0 and on_time_s < min_on_time_s - dt_s)
+
+
 class LoadFollower:
     """Fuel-cell vehicle: the fuel cell follows the bus load with a SOC correction, within its
     ramp limits.
@@ -110,19 +120,32 @@ class LoadFollower:
     ``fuel_cell.ramp_up_w_per_s`` / ``ramp_down_w_per_s``, never below idle ``min_power_w`` nor
     above ``max_power_w``); when the battery cannot take or give the difference, the feasible
     power of that window nearest to the target is taken (``WINDOW_POINTS`` candidates).
+
+    FASTSim's fuel-converter rules (:func:`forced_on`): above the vehicle speed
+    ``fuel_cell_on_speed_mps`` [m/s] (mid-step speed, as the electric assist's
+    ``engine_on_speed_mps``), and while a started fuel cell has run less than
+    ``fuel_cell_min_on_time_s`` [s] less one step, the fuel cell does not stop: every candidate is
+    at least :data:`~hevsim.components.fuel_cell.RUNNING_ZERO_W` (running with no net output, its
+    idle hydrogen ``fuel_cell.idle_fuel_power_w`` drawn).
     """
 
     name = "load_follower"
     WINDOW_POINTS = 41
     """Candidate powers across the ramp window when the clipped target is infeasible."""
 
-    def __init__(self, model: Any, soc_low: float, soc_high: float, charge_power_w: float) -> None:
+    def __init__(
+        self, model: Any, soc_low: float, soc_high: float, charge_power_w: float,
+        fuel_cell_on_speed_mps: float = 1000.0, fuel_cell_min_on_time_s: float = 0.0,
+    ) -> None:  # fmt: skip
         self.model = model
         self.soc_mid = 0.5 * (float(soc_low) + float(soc_high))
         self.half_band = 0.5 * (float(soc_high) - float(soc_low))
         self.charge_power = float(charge_power_w)
+        self.on_speed = float(fuel_cell_on_speed_mps)
+        self.min_on_time = float(fuel_cell_min_on_time_s)
         self.initial_w = float(model.config.fuel_cell.initial_power_w)
         self.previous_w = self.initial_w
+        self.on_time_s = 0.0
         self.ramp_down_overrides = 0
         self._shedding: dict[int, bool] = {}
 
@@ -130,14 +153,25 @@ class LoadFollower:
         """The fuel cell at its configured initial power (clipped to idle and rating)."""
         fc = self.model.fuel_cell
         self.previous_w = min(max(self.initial_w, fc.min_power_w), fc.max_power_w)
+        self.on_time_s = 0.0
         self.ramp_down_overrides = 0
         self._shedding = {}
 
     def update(self, step: Any, stage: Any) -> None:
-        """Remember the net power applied [W] (the ramp limits start from it)."""
+        """Remember the net power applied [W] (the ramp limits start from it) and how long the
+        fuel cell has run [s] (0 when off)."""
         self.previous_w = float(np.ravel(stage.details["fuel_cell_power_w"])[0])
+        self.on_time_s = self.on_time_s + step.dt_s if self.previous_w > 0.0 else 0.0
         self.ramp_down_overrides += int(self._shedding.get(id(step), False))
         self._shedding.clear()
+
+    def floor_w(self, step: Any) -> float:
+        """The lowest net power [W] of ``step``'s candidates: :data:`RUNNING_ZERO_W
+        <hevsim.components.fuel_cell.RUNNING_ZERO_W>` where :func:`forced_on`, else 0."""
+        from hevsim.components.fuel_cell import RUNNING_ZERO_W
+
+        forced = forced_on(step.v_mid_mps, self.on_time_s, step.dt_s, self.on_speed, self.min_on_time)
+        return RUNNING_ZERO_W if forced else 0.0
 
     def target_w(self, step: Any) -> float:
         """The load-following target [W] of ``step`` before the ramp limits."""
@@ -154,6 +188,8 @@ class LoadFollower:
         """The target within the ramp window, else the window's feasible power nearest to it."""
         self._shedding[id(step)] = False  # (ids of steps gone are reused)
         lo, hi = self.model.fuel_cell.ramp_window(self.previous_w, step.dt_s)
+        floor = self.floor_w(step)
+        lo, hi = max(lo, floor), max(hi, floor)
         target = min(max(self.target_w(step), lo), hi)
         _, feasible = step.evaluate(np.array([target]))
         if bool(np.ravel(feasible)[0]):
@@ -173,6 +209,7 @@ class LoadFollower:
         from hevsim.architectures.fcev import shed_controls
 
         (cands,) = shed_controls(self.model, self.previous_w, step.dt_s)
+        cands = np.maximum(cands, self.floor_w(step))
         _, feasible = step.evaluate(cands)
         ok = np.flatnonzero(np.ravel(feasible))
         if ok.size == 0:

@@ -24,12 +24,13 @@ from hevsim.architectures import bev as B
 from hevsim.architectures import fcev as F
 from hevsim.architectures._common import NO_REFCOUNT, max_machine_speed_radps
 from hevsim.components.fuel_cell import (
+    RUNNING_ZERO_W,
     hydrogen_power_point,
     ramp_window_point,
     reachable_point,
     reachable_window_point,
 )
-from hevsim.control.simple import LoadFollower
+from hevsim.control.simple import LoadFollower, forced_on
 from hevsim.sim import kernel as K
 from hevsim.sim._compiled_bev import WheelData
 from hevsim.sim._compiled_hev import _electric, _feasible
@@ -75,9 +76,9 @@ ARCHITECTURES = ("fcev",)
 class FCEVPlug(NamedTuple):
     """The FCEV's plug-in of :func:`hevsim.sim._loop.run_loop`: the wheel side
     (:class:`~hevsim.sim._compiled_bev.WheelData`), the machine's tables, the fuel cell (efficiency
-    curve over the net power fraction [-], rating and idle [W], ramp limits [W/s], LHV [J/kg]) and
-    the load follower (mid SOC and half band [-], charging power [W], the model's own auxiliary
-    load [W] its target adds)."""
+    curve over the net power fraction [-], rating and idle [W], ramp limits [W/s], LHV [J/kg], idle
+    hydrogen power [W]) and the load follower (mid SOC and half band [-], charging power [W], the
+    model's own auxiliary load [W] its target adds, forced-on speed [m/s] and minimum on-time [s])."""
 
     wd: WheelData
     mtab: Any
@@ -92,6 +93,9 @@ class FCEVPlug(NamedTuple):
     half_band: float
     charge_power_w: float
     base_aux_w: float
+    idle_fuel_power_w: float
+    on_speed_mps: float
+    min_on_time_s: float
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -130,12 +134,15 @@ def _linspace(lo, hi, n, i):
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def fcev_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat, hk):
     """The plug-in's ``choose`` (:mod:`hevsim.sim._loop`): :meth:`LoadFollower.choose
-    <hevsim.control.simple.LoadFollower.choose>` from the previous net power ``state[0]`` [W];
-    the second control is 1 where the fuel cell sheds power faster than its ramp-down limit."""
+    <hevsim.control.simple.LoadFollower.choose>` from the previous net power ``state[0]`` [W]
+    and time on ``state[3]`` [s]; the second control is 1 where the fuel cell sheds power faster
+    than its ramp-down limit."""
     regen_ok = v_mid > 0.0
     prev = state[0]
     p_min, p_max, ru, rd = plug.min_power_w, plug.max_power_w, plug.ramp_up_w_per_s, plug.ramp_down_w_per_s
     lo, hi = ramp_window_point(prev, dt, p_min, p_max, ru, rd)
+    floor = RUNNING_ZERO_W if forced_on(v_mid, state[3], dt, plug.on_speed_mps, plug.min_on_time_s) else 0.0
+    lo, hi = max(lo, floor), max(hi, floor)
     load = _fc_point(0.0, w_wheel, t_wheel, regen_ok, soc, dt, bat, hk, plug)[2] + plug.base_aux_w
     corr = 0.0
     if plug.half_band > 0:
@@ -155,7 +162,7 @@ def fcev_choose(plug, state, work, v_mid, w_wheel, t_wheel, soc, dt, e_soc, bat,
     low = reachable_window_point(prev, dt, p_min, p_max, ru, rd)[0]
     top = max(low, p_min)
     for i in range(F.SHED_POINTS, -1, -1):  # shed_controls: off, then idle..top; the highest feasible
-        p = 0.0 if i == 0 else _linspace(p_min, top, F.SHED_POINTS, i - 1)
+        p = max(0.0 if i == 0 else _linspace(p_min, top, F.SHED_POINTS, i - 1), floor)
         if _fc_point(p, w_wheel, t_wheel, regen_ok, soc, dt, bat, hk, plug)[0]:
             shed = not reachable_point(prev, dt, p, p_min, p_max, ru, rd)
             return True, p, 1.0 if shed else 0.0, False, 0.0, 0.0
@@ -172,7 +179,9 @@ def fcev_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat,
     _, t_m, p_el, p_bat, cur, d_soc, w_m, t_fd = _fc_point(c0, w_wheel, t_wheel, v_mid > 0.0, soc, dt, bat,
                                                           hk, plug)  # fmt: skip
     q = B.point_losses(w_wheel, w_m, t_fd, t_m, p_el, wd.fd_ratio, wd.fd_efficiency, hk.aux_power_w)
-    eta, h2_w = hydrogen_power_point(c0, plug.max_power_w, plug.power_fraction, plug.efficiency_curve)
+    eta, h2_w = hydrogen_power_point(
+        c0, plug.max_power_w, plug.power_fraction, plug.efficiency_curve, plug.idle_fuel_power_w
+    )
     rate = h2_w / plug.lhv_jpkg
     loss[0], loss[1] = h2_w, h2_w - c0
     for j in range(1, len(q)):
@@ -185,11 +194,13 @@ def fcev_point(plug, state, work, c0, c1, v_mid, w_wheel, t_wheel, soc, dt, bat,
 
 @njit(cache=True, inline="always", error_model="numpy")
 def fcev_commit(plug, state, work, v_mid, f, soc, dt, e_soc, hk, has_pack):
-    """The plug-in's ``commit``: the net power applied becomes the ramp limits' start, a shed
-    step is counted (:meth:`LoadFollower.update <hevsim.control.simple.LoadFollower.update>`);
-    (engine on: never, power mode, battery power [W], current [A], wheel power [W])."""
+    """The plug-in's ``commit``: the net power applied becomes the ramp limits' start, the time
+    on grows by the step (0 when off), a shed step is counted (:meth:`LoadFollower.update
+    <hevsim.control.simple.LoadFollower.update>`); (engine on: never, power mode, battery power
+    [W], current [A], wheel power [W])."""
     det, loss = work
     state[0] = det[0]
+    state[3] = state[3] + dt if det[0] > 0.0 else 0.0
     state[1] += state[2]
     return False, float(B.power_mode_code(det[4], f, v_mid)), det[7], det[6], loss[loss.shape[0] - 1]
 
@@ -210,13 +221,15 @@ def _run(
         np.require(fc.efficiency_curve, np.float64, ("C", "W")), float(fc.max_power_w), float(fc.min_power_w),
         float(fc.ramp_up_w_per_s), float(fc.ramp_down_w_per_s), float(fc.lhv_j_per_kg), float(ctl.soc_mid),
         float(ctl.half_band), float(ctl.charge_power), float(ctl.model.aux_power_w),
+        float(fc.idle_fuel_power_w), float(ctl.on_speed), float(ctl.min_on_time),
     )  # fmt: skip
     ctl.reset(float(soc0))
     t, v_des, gr = grid_arrays(grid)
     cols = np.zeros((len(COLUMNS), t.size))
     audit = np.zeros(len(AUDIT))
     summary = np.zeros(len(K.SUMMARY))
-    state = np.array([ctl.previous_w, 0.0, 0.0])  # previous net power [W], shed steps, shed flag
+    # previous net power [W], shed steps, shed flag, time on [s]
+    state = np.array([ctl.previous_w, 0.0, 0.0, ctl.on_time_s])
     det, loss = np.zeros(len(DETAILS)), np.zeros(len(F.LOSSES))
     status, k, v_end, _ = run_loop(
         plug, float(soc0), t, v_des, gr, constants(model, soc_min, soc_max, lhv_jpkg=float(fc.lhv_j_per_kg)),
@@ -226,7 +239,7 @@ def _run(
     if status == ERR_STUCK:
         soc_last = cols[COLUMNS.index("soc"), k - 1] if k > 0 else soc0
         raise stuck_error(model, float(t[k]), float(soc_last), soc_min)
-    ctl.previous_w, ctl.ramp_down_overrides = float(state[0]), int(state[1])
+    ctl.previous_w, ctl.ramp_down_overrides, ctl.on_time_s = float(state[0]), int(state[1]), float(state[3])
     return COLUMNS, cols, AUDIT, audit, summary, float(v_end)
 
 
