@@ -63,9 +63,10 @@ def test_fastsim_database_hybrids_within_the_class_goal() -> None:
 PLUGIN_FUEL_CELL_ROWS = (13, 14, 23, 24)
 """2016 Chevrolet Volt, 2016 Ford C-MAX Energi (PHEVs), 2016 Hyundai Tucson Fuel Cell and Toyota
 Mirai (FCEVs)."""
-TUCSON_BOUND = 0.09
-"""The Tucson Fuel Cell's combined MPGe within 9 % of its EPA label (+8.5 % with FASTSim's
-``mph_fc_on`` and ``idle_fc_kw`` carried by the import; +15.2 % before, docs/validation.md)."""
+TUCSON_BOUND = 0.08
+"""The Tucson Fuel Cell's combined MPGe within 8 % of its EPA label (+7.4 %: FASTSim's
+``mph_fc_on`` and ``idle_fc_kw`` carried by the import, +8.5 %, and the MPGe in the EPA's miles
+per kg; +15.2 % before both, docs/validation.md)."""
 
 
 def test_fastsim_database_plug_in_and_fuel_cell_rows_within_the_goal() -> None:
@@ -102,6 +103,21 @@ def test_fastsim_database_plug_in_and_fuel_cell_rows_within_the_goal() -> None:
         assert volt.extra["cd_kwh_per_mi"][2] == pytest.approx(volt.extra["cd_kwh_per_mi"][1], rel=0.10)
         assert volt.extra["cd_range_mi"][2] == pytest.approx(volt.extra["cd_range_mi"][1], rel=0.10)
         assert mirai.fastsim == pytest.approx(mirai.hevsim, rel=0.10)
+
+
+def test_fastsim_database_goals_hold_over_every_row() -> None:
+    """Issue 25 item 5a's goals on hevsim's figures of every labelled row (FASTSim's are the
+    benchmark's): median |error| <= 5 %, 90th percentile <= 10 %, no powertrain class median above
+    8 %. Measured: 4.4 / 7.4 %, worst class FCEV 6.9 % (docs/validation.md); before the FCEV import
+    carried ``mph_fc_on`` and ``idle_fc_kw`` the FCEV median was 9.6 % and this test failed."""
+    rows = [r for r in F.validate(with_fastsim=False) if not r.skipped]
+    assert len(rows) == 25
+    err = np.array([abs(r.error("hevsim")) for r in rows])
+    assert np.isfinite(err).all(), [r.name for r in rows if not math.isfinite(r.error("hevsim"))]
+    assert np.median(err) <= 0.05 and np.percentile(err, 90) <= 0.10, (np.median(err), np.percentile(err, 90))
+    for cls in {r.powertrain for r in rows}:
+        e = [abs(r.error("hevsim")) for r in rows if r.powertrain == cls]
+        assert np.median(e) <= 0.08, (cls, e)
 
 
 def test_fastsim_database_only_non_epa_rows_are_skipped() -> None:
