@@ -107,14 +107,19 @@ def database_path() -> Path:
     return Path(str(resources.files("hevsim") / DATABASE))
 
 
-def carried_over() -> dict[str, tuple[str, str]]:
+def _not_epa_tables() -> tuple[Path, dict[str, Any]]:
+    """The path and the parsed tables of :data:`NOT_EPA_FILE`."""
+    p = Path(str(resources.files("hevsim") / NOT_EPA_FILE))
+    return p, tomllib.loads(p.read_text(encoding="utf-8"))
+
+
+def carried_over(tables: tuple[Path, dict[str, Any]] | None = None) -> dict[str, tuple[str, str]]:
     """Scenario name -> (the scenario name of the row whose ``val*`` figures it carries, the
     vehicle's fastsim-2 file in ``hevsim/data/vehicles/fastsim/vehdb/``): the ``[carried_over]``
-    table of :data:`NOT_EPA_FILE`."""
-    p = Path(str(resources.files("hevsim") / NOT_EPA_FILE))
-    data = tomllib.loads(p.read_text(encoding="utf-8")).get("carried_over", {})
+    table of :data:`NOT_EPA_FILE` (``tables``: that file already read, :func:`_not_epa_tables`)."""
+    p, data = tables or _not_epa_tables()
     out = {}
-    for k, v in data.items():
+    for k, v in data.get("carried_over", {}).items():
         if (
             not isinstance(v, dict)
             or not isinstance(v.get("from"), str)
@@ -130,10 +135,9 @@ def carried_over() -> dict[str, tuple[str, str]]:
 def not_epa() -> dict[str, str]:
     """Scenario name -> why its ``val*`` figures are not an EPA label (the ``[not_epa]`` table of
     :data:`NOT_EPA_FILE`, and its ``[carried_over]`` rows: another row's figures)."""
-    p = Path(str(resources.files("hevsim") / NOT_EPA_FILE))
-    data = tomllib.loads(p.read_text(encoding="utf-8"))
-    out = {str(k): str(v) for k, v in data.get("not_epa", {}).items()}
-    for name, (src, file) in carried_over().items():
+    tables = _not_epa_tables()
+    out = {str(k): str(v) for k, v in tables[1].get("not_epa", {}).items()}
+    for name, (src, file) in carried_over(tables).items():
         out[name] = (
             f"its val_* figures are the {src} row's, carried over when its file was made from that row's "
             f"(vehdb/{file}: every sourced value carries a comment, its val_* lines none)"
@@ -216,10 +220,11 @@ def combined_label(city: float, highway: float, year: int, bev: bool, charger_ef
     return L.combined(L.adjusted_city(city, c), L.adjusted_highway(highway, c), k.city_weight)
 
 
-def hevsim_unadjusted(row: Row, path: Path, work: Path) -> tuple[float, float]:
-    """hevsim's unadjusted (city, highway): mpg in the label's gallons, or battery kWh/mi for a BEV."""
+def hevsim_unadjusted(row: Row, v: dict[str, Any], path: Path, work: Path) -> tuple[float, float]:
+    """hevsim's unadjusted (city, highway) of database row ``row`` (its keys ``v``, read from
+    ``path``): mpg in the label's gallons, or battery kWh/mi for a BEV."""
     from hevsim.sim.label import label
-    from hevsim.vehicle_import import import_vehicle, read_vehicle
+    from hevsim.vehicle_import import import_vehicle
 
     toml = import_vehicle(path, work / f"row{row.row}.toml", row=row.row, force=True)
     lab = label(toml, model_year=row.model_year)
@@ -234,7 +239,7 @@ def hevsim_unadjusted(row: Row, path: Path, work: Path) -> tuple[float, float]:
             (cd["city"] * eff / 100, cd["highway"] * eff / 100),
             (rng["city"], rng["highway"]),
         )
-    k = 1.0 / _label_gallon_factor(read_vehicle(path, row=row.row))
+    k = 1.0 / _label_gallon_factor(v)
     return f["unadjusted_mpg"]["city"] * k, f["unadjusted_mpg"]["highway"] * k
 
 
@@ -341,7 +346,7 @@ def validate(only: list[int] | None = None, with_fastsim: bool = True, path: Pat
             chg = float(v.get("chg_eff") or 1.0) if r.powertrain in ("BEV", "PHEV") else 1.0
             t0 = time.perf_counter()
             try:
-                r.hevsim_unadjusted = hevsim_unadjusted(r, p, work)
+                r.hevsim_unadjusted = hevsim_unadjusted(r, v, p, work)
                 r.hevsim = combined_label(*r.hevsim_unadjusted, r.model_year, bev, chg)
                 _plugin_extra(r, "hevsim", chg)
             except ConfigError as exc:
