@@ -6,8 +6,11 @@ compiled loops do not import the module that dispatches to them (issue 24)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+
+from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
 
 BISECTION_STEPS = 40
 """Bisection steps on the end speed when the powertrain cannot follow the trace [-]."""
@@ -63,3 +66,13 @@ class BatchRecord:
     audits: list[dict[str, float]]
     summary: np.ndarray
     traction_j: np.ndarray
+
+
+def add_display_units(out: dict[str, Any], name: str, col: np.ndarray) -> None:
+    """Add to a time series being built (``out``, column name -> values) the display-unit twin of
+    channel ``name`` (values ``col``), right after it: ``speed_desired_mph`` / ``speed_mph`` of the
+    speeds [m/s], ``engine_speed_rpm`` of ``engine_speed_radps``; nothing for other channels."""
+    if name in ("speed_desired_mps", "speed_mps"):
+        out[name.replace("_mps", "_mph")] = col / MPS_PER_MPH
+    elif name == "engine_speed_radps":
+        out["engine_speed_rpm"] = col / RADPS_PER_RPM

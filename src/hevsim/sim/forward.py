@@ -81,10 +81,10 @@ from hevsim.sim._records import (  # re-exported: the records every forward loop
     BISECTION_STEPS,
     REGEN_CURRENT_RTOL,
     ForwardRecord,
+    add_display_units,
 )
 from hevsim.sim.checks import stuck_error
 from hevsim.sim.metrics import compute_metrics, soc_correction_ocv
-from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
 
 SOURCES = ("fuel", "genset_source", "battery_chemical")
 """Energy sources of the audit; every other term is a sink."""
@@ -721,10 +721,7 @@ def _frame(t: np.ndarray, cols: dict[str, np.ndarray], modes: tuple[str, ...]) -
             out[name] = col > 0.0
         else:
             out[name] = col
-        if name in ("speed_desired_mps", "speed_mps"):
-            out[name.replace("_mps", "_mph")] = col / MPS_PER_MPH
-        elif name == "engine_speed_radps":
-            out["engine_speed_rpm"] = col / RADPS_PER_RPM
+        add_display_units(out, name, col)
     out["power_mode_name"] = pd.Categorical.from_codes(out["power_mode"], pd.Index(modes))
     return pd.DataFrame(out)
 

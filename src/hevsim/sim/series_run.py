@@ -24,9 +24,10 @@ from hevsim.cycles import DriveCycle
 from hevsim.errors import ConfigError
 from hevsim.fuels import config_fuel
 from hevsim.sim import kernel as K
+from hevsim.sim._records import add_display_units
 from hevsim.sim.metrics import compute_metrics, energy_audit, soc_correction_ocv
 from hevsim.sim.results import SimulationResult, _Later
-from hevsim.units import MPS_PER_MPH, RADPS_PER_RPM
+from hevsim.units import RADPS_PER_RPM
 
 # The series HEV's compiled kernels (single run, batch run); which architecture runs where is
 # the registry's (hevsim.architectures.ARCHITECTURES), not a table here. The driver and
@@ -298,10 +299,7 @@ def _timeseries(out: np.ndarray) -> pd.DataFrame:
             cols["fuel_rate_gps"] = col * 1e3
         else:
             cols[name] = col
-        if name in ("speed_desired_mps", "speed_mps"):
-            cols[name.replace("_mps", "_mph")] = col / MPS_PER_MPH
-        elif name == "engine_speed_radps":
-            cols["engine_speed_rpm"] = col / RADPS_PER_RPM
+        add_display_units(cols, name, col)
     cols["power_mode_name"] = pd.Categorical.from_codes(cols["power_mode"], pd.Index(K.POWER_MODES))
     cols["genset_state_name"] = pd.Categorical.from_codes(cols["genset_state"], pd.Index(K.GENSET_STATES))
     return pd.DataFrame(cols)
